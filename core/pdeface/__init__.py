@@ -1,0 +1,13 @@
+"""pdeface: FACS Action Units as PDE-surface descriptors.
+
+The core is numpy/scipy only and never imports bpy. Main entry points:
+
+- :func:`pdeface.fit.fit_face` — neutral mesh + landmarks → :class:`pdeface.model.FaceModel`
+- :func:`pdeface.fit.face_mesh` — PDE surface as a quad mesh
+- :func:`pdeface.report.accuracy_report` — how well the PDE face matches its scan
+- :func:`pdeface.model.save_model` / :func:`pdeface.model.load_model`
+"""
+from .errors import LandmarkError, LayoutError, MeshError, ModelFormatError, PdeFaceError
+
+__version__ = "0.1.0"
+__all__ = ["PdeFaceError", "MeshError", "LandmarkError", "LayoutError", "ModelFormatError", "__version__"]

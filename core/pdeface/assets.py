@@ -1,0 +1,48 @@
+"""The bundled data: the default face model and the ICT-FaceKit neutral scan.
+
+Assets are looked up in ``$PDEFACE_ASSETS``, then the repository's
+``assets/`` folder, then a copy inside the installed package. They derive
+from ICT-FaceKit (MIT); its notice travels with them.
+"""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from .errors import PdeFaceError
+from .mesh import Mesh
+
+DEFAULT = "default"
+DEFAULT_FACE = "default_face.npz"
+NEUTRAL_SCAN = "ict_neutral_face.npz"
+LICENSE = "ICT-FaceKit-LICENSE.txt"
+
+
+def assets_dir() -> Path:
+    """The folder holding the bundled assets."""
+    here = Path(__file__).resolve().parent
+    candidates = [os.environ.get("PDEFACE_ASSETS"), here.parent.parent / "assets", here / "assets"]
+    for c in candidates:
+        if c and (Path(c) / DEFAULT_FACE).exists():
+            return Path(c)
+    raise PdeFaceError("bundled assets not found: set PDEFACE_ASSETS or run scripts/build_assets.py")
+
+
+def asset_path(name: str) -> Path:
+    """Path of one bundled asset file."""
+    p = assets_dir() / name
+    if not p.exists():
+        raise PdeFaceError(f"bundled asset {name!r} is missing from {p.parent}")
+    return p
+
+
+def load_neutral_scan() -> tuple[Mesh, np.ndarray]:
+    """The ICT-FaceKit neutral face region (cm, ICT frame) and its 68 landmark indices."""
+    with np.load(asset_path(NEUTRAL_SCAN), allow_pickle=False) as z:
+        faces = z["faces"].astype(np.int64)
+        mesh = Mesh.from_faces(z["vertices"].astype(np.float64), faces)
+        mesh.uvs = z["uvs"].astype(np.float64)
+        mesh.face_uv_indices = z["face_uvs"].astype(np.int64).ravel()
+        return mesh, z["landmarks"].astype(np.int64)

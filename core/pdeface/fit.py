@@ -1,0 +1,138 @@
+"""Fit a PDE face model to a neutral mesh, and mesh the PDE surface.
+
+The pipeline: landmarks → face frame and unit → curve layout → curve points
+(material points on the mesh) → Fourier series + residual → :class:`FaceModel`.
+Meshing solves the PDE on a grid and maps it back to the mesh's own space.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .curves import CurveSampler, place_samples
+from .errors import MeshError
+from .fourier import fit_fourier
+from .frame import face_frame, feature_points
+from .layout import place_curves
+from .mesh import Mesh, connected_components
+from .model import FaceModel
+from .pde import output_grid, solve_surface
+
+#: Named output resolutions: (rows per curve interval, columns per point interval).
+RESOLUTIONS = {"default": (4, 4), "original": (10, 1), "fine": (8, 8)}
+
+
+def parse_resolution(value) -> tuple[int, int]:
+    """``"default"``/``"original"``/``"fine"``, ``"SU,SV"`` or a pair → (SU, SV)."""
+    if isinstance(value, str):
+        if value in RESOLUTIONS:
+            return RESOLUTIONS[value]
+        try:
+            su, sv = (int(p) for p in value.split(","))
+        except ValueError:
+            raise MeshError(f"resolution {value!r}: use {', '.join(RESOLUTIONS)} or 'ROWS,COLS' subdivisions") from None
+        value = (su, sv)
+    su, sv = value
+    if su < 1 or sv < 1 or su > 64 or sv > 64:
+        raise MeshError(f"resolution subdivisions must be in 1..64, got {su},{sv}")
+    return int(su), int(sv)
+
+
+def skin_triangles(T: np.ndarray, n_vertices: int, landmark_vertices: np.ndarray) -> np.ndarray:
+    """Triangles of the connected pieces that hold the landmarks.
+
+    Separate pieces (eyeballs, teeth, eyelashes) are left out of the skin.
+    """
+    lab = connected_components(n_vertices, T)
+    return T[np.isin(lab[T[:, 0]], np.unique(lab[landmark_vertices]))]
+
+
+def chord_knots(points: np.ndarray) -> np.ndarray:
+    """Curve parameters in [0, 1] by mean chord length between consecutive curves."""
+    gaps = np.linalg.norm(np.diff(points, axis=0), axis=2).mean(axis=1)
+    if np.any(gaps <= 0):
+        raise MeshError("two boundary curves coincide; the mesh or landmarks are degenerate")
+    u = np.concatenate([[0.0], np.cumsum(gaps)])
+    return u / u[-1]
+
+
+def fit_face(vertices, triangles, landmarks, unit=None, n_curves=31, n_points=37, n_modes=5,
+             a=1.0, assembly="smooth", source="") -> tuple[FaceModel, CurveSampler]:
+    """Fit a PDE face model to a neutral face mesh.
+
+    Parameters
+    ----------
+    vertices : (n, 3) array
+        Mesh vertices in the user's space and unit.
+    triangles : (t, 3) int array
+        Mesh triangles (see :meth:`pdeface.mesh.Mesh.triangles`).
+    landmarks : (68, 3) array
+        Multi-PIE landmark positions in the same space.
+    unit : str, optional
+        Mesh unit (mm, cm, m, in); guessed from the eye distance when None.
+    n_curves, n_points, n_modes : int
+        Curves, points per curve, Fourier modes.
+    a : float
+        PDE smoothing parameter.
+    assembly : {'smooth', 'patches'}
+        Default assembly stored in the model.
+
+    Returns
+    -------
+    model : FaceModel
+    sampler : CurveSampler
+        The curve points as material points of this mesh.
+    """
+    V = np.asarray(vertices, dtype=np.float64)
+    T = np.asarray(triangles, dtype=np.int64)
+    if V.ndim != 2 or V.shape[1] != 3 or not np.isfinite(V).all():
+        raise MeshError("vertices must be a finite (n, 3) array")
+    if len(T) == 0:
+        raise MeshError("mesh has no faces")
+    frame = face_frame(landmarks, unit)
+    Vf = frame.to_face(V)
+    Lf = frame.to_face(landmarks)
+    layout = place_curves(Lf, n_curves, n_points)
+    near = np.argmin(np.linalg.norm(Vf[None, :, :] - Lf[:, None, :], axis=2), axis=1) if len(V) < 20000 else \
+        _nearest(Vf, Lf)
+    sampler = place_samples(Vf, skin_triangles(T, len(V), near), layout)
+    points = sampler.sample(Vf)
+    coef, res = fit_fourier(points, n_modes)
+    model = FaceModel(layout, chord_knots(points), coef, res, frame, feature_points(Lf), a=a,
+                      assembly=assembly, source=source, status=sampler.status.copy())
+    return model, sampler
+
+
+def _nearest(P, Q):
+    from scipy.spatial import cKDTree
+    return cKDTree(P).query(Q)[1]
+
+
+def surface_grid(model: FaceModel, sub_u=4, sub_v=4, assembly=None, coefficients=None, residual=None, deriv=(0, 0)):
+    """PDE surface (or a derivative) on the output grid, in the face frame (mm)."""
+    return solve_surface(model.coefficients if coefficients is None else coefficients,
+                         model.residual if residual is None else residual,
+                         model.knots, model.a, model.remainder_w, sub_u, sub_v,
+                         assembly or model.assembly, deriv)
+
+
+def grid_faces(n_u: int, n_v: int) -> np.ndarray:
+    """Quads ``(m, 4)`` of an n_u × n_v vertex grid (row-major), facing outwards."""
+    r, c = np.meshgrid(np.arange(n_u - 1), np.arange(n_v - 1), indexing="ij")
+    i = (r * n_v + c).ravel()
+    return np.stack([i, i + n_v, i + n_v + 1, i + 1], axis=1)
+
+
+def face_mesh(model: FaceModel, resolution="default", assembly=None, coefficients=None, residual=None) -> Mesh:
+    """The PDE face as a quad mesh in the source mesh's space and unit.
+
+    Vertices are row-major over (u, v): row 0 is the top curve, column 0 the
+    subject's right edge. The order depends only on the layout and
+    resolution, so meshes of the same model line up as shape keys. UVs are
+    the parameters: ``U = v / π``, ``V = 1 - u``.
+    """
+    su, sv = parse_resolution(resolution)
+    X = surface_grid(model, su, sv, assembly, coefficients, residual)
+    n_u, n_v, _ = X.shape
+    grid = output_grid(model.knots, model.layout.n_points, su, sv)
+    uv = np.stack(np.meshgrid(1.0 - grid.u, grid.v / np.pi, indexing="ij")[::-1], axis=-1).reshape(-1, 2)
+    return Mesh.from_faces(model.frame.to_user(X.reshape(-1, 3)), grid_faces(n_u, n_v), uvs=uv)

@@ -1,0 +1,186 @@
+"""Landmarks, feature points, the normalised face frame and mesh units.
+
+The 68 Multi-PIE landmarks (as vertex indices or xyz) give the method's 19
+feature points and a face frame: nose tip at the origin, looking +z, up +y,
+millimetres. :class:`FaceFrame` maps between the user's space and that frame.
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import LandmarkError
+
+#: Millimetres per mesh unit.
+UNITS_MM = {"mm": 1.0, "cm": 10.0, "m": 1000.0, "in": 25.4}
+
+#: Typical adult distance between the eye centres (mm), used to guess the unit.
+EYE_DISTANCE_MM = 63.0
+
+#: The 19 feature points of the method, from the Multi-PIE 68 (0-based) landmarks.
+#: Each is the mean of the listed landmarks. "right"/"left" are the subject's.
+FEATURE_POINTS = {
+    "brow_outer_right": [17], "brow_inner_right": [21], "brow_inner_left": [22], "brow_outer_left": [26],
+    "eye_outer_right": [36], "eye_inner_right": [39], "eye_inner_left": [42], "eye_outer_left": [45],
+    "nose_bridge": [27], "nose_wing_right": [31], "nose_tip": [30], "nose_wing_left": [35],
+    "nose_bottom": [33], "mouth_corner_right": [48], "lip_upper": [51], "mouth_corner_left": [54],
+    "lip_center": [62, 66], "lip_lower": [57], "chin": [8],
+}
+FEATURE_NAMES = list(FEATURE_POINTS)
+
+
+def read_landmarks(path):
+    """Read a landmarks JSON file.
+
+    The file holds ``{"indices": [68 ints]}`` (vertex indices, 0-based) or
+    ``{"points": [[x, y, z], ... 68]}``.
+
+    Returns
+    -------
+    indices : (68,) int array or None
+    points : (68, 3) float array or None
+    """
+    try:
+        with open(path, "r", encoding="utf-8") as fh:
+            data = json.load(fh)
+    except OSError as exc:
+        raise LandmarkError(f"{path}: cannot open ({exc.strerror})") from None
+    except json.JSONDecodeError as exc:
+        raise LandmarkError(f"{path}: not valid JSON ({exc.msg}, line {exc.lineno})") from None
+    return parse_landmarks(data, str(path))
+
+
+def parse_landmarks(data, name="landmarks"):
+    """Validate landmark data given as a dict (see :func:`read_landmarks`)."""
+    if not isinstance(data, dict) or not ({"indices", "points"} & set(data)):
+        raise LandmarkError(f"{name}: expected an object with 'indices' or 'points'")
+    if "indices" in data:
+        idx = data["indices"]
+        if not isinstance(idx, list) or not all(isinstance(i, int) and not isinstance(i, bool) for i in idx):
+            raise LandmarkError(f"{name}: 'indices' must be a list of integers")
+        if len(idx) != 68:
+            raise LandmarkError(f"{name}: 'indices' needs 68 entries (Multi-PIE), got {len(idx)}")
+        return np.array(idx, dtype=np.int64), None
+    pts = data["points"]
+    try:
+        arr = np.array(pts, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise LandmarkError(f"{name}: 'points' must be a list of [x, y, z]") from None
+    if arr.shape != (68, 3):
+        raise LandmarkError(f"{name}: 'points' must be 68 [x, y, z] triples, got shape {arr.shape}")
+    if not np.isfinite(arr).all():
+        raise LandmarkError(f"{name}: 'points' contains NaN or inf")
+    return None, arr
+
+
+def landmark_points(vertices, indices=None, points=None):
+    """The 68 landmark positions, from vertex indices or given xyz."""
+    if indices is not None:
+        indices = np.asarray(indices)
+        if len(indices) != 68:
+            raise LandmarkError(f"need 68 landmark indices, got {len(indices)}")
+        if indices.min() < 0 or indices.max() >= len(vertices):
+            raise LandmarkError(f"landmark index out of range 0..{len(vertices) - 1}")
+        return np.asarray(vertices, dtype=np.float64)[indices]
+    if points is None:
+        raise LandmarkError("landmarks needed: give vertex indices or points")
+    points = np.asarray(points, dtype=np.float64)
+    if points.shape != (68, 3) or not np.isfinite(points).all():
+        raise LandmarkError(f"need 68 finite landmark points, got shape {points.shape}")
+    return points
+
+
+def feature_points(landmarks68: np.ndarray) -> np.ndarray:
+    """The 19 feature points (:data:`FEATURE_NAMES` order) from 68 landmarks."""
+    L = np.asarray(landmarks68, dtype=np.float64)
+    return np.array([L[ids].mean(axis=0) for ids in FEATURE_POINTS.values()])
+
+
+def eye_distance(landmarks68: np.ndarray) -> float:
+    """Distance between the eye centres (means of landmarks 36-41 and 42-47)."""
+    L = np.asarray(landmarks68)
+    return float(np.linalg.norm(L[42:48].mean(0) - L[36:42].mean(0)))
+
+
+def guess_unit(landmarks68: np.ndarray) -> str:
+    """Guess the mesh unit from the inter-ocular distance (nearest in log scale)."""
+    d = eye_distance(landmarks68)
+    if not d > 0:
+        raise LandmarkError("eye landmarks coincide: cannot guess the unit")
+    return min(UNITS_MM, key=lambda u: abs(np.log(d * UNITS_MM[u] / EYE_DISTANCE_MM)))
+
+
+@dataclass
+class FaceFrame:
+    """Rigid frame plus scale from the user's mesh space to the face frame.
+
+    ``face = scale * (user - origin) @ rotation.T``: nose tip at the origin,
+    +x towards the subject's left, +y up, +z forward, millimetres.
+    """
+
+    rotation: np.ndarray  # (3, 3), rows are the face axes in user space
+    origin: np.ndarray  # (3,) nose tip in user space
+    scale: float  # millimetres per user unit
+    unit: str
+
+    def to_face(self, P: np.ndarray) -> np.ndarray:
+        """User space → face frame (mm)."""
+        return self.scale * (np.asarray(P, dtype=np.float64) - self.origin) @ self.rotation.T
+
+    def to_user(self, P: np.ndarray) -> np.ndarray:
+        """Face frame (mm) → user space."""
+        return np.asarray(P, dtype=np.float64) @ self.rotation / self.scale + self.origin
+
+    def to_user_vectors(self, D: np.ndarray) -> np.ndarray:
+        """Displacements in the face frame (mm) → user space."""
+        return np.asarray(D, dtype=np.float64) @ self.rotation / self.scale
+
+    def matrix(self) -> np.ndarray:
+        """4×4 homogeneous matrix user → face."""
+        M = np.eye(4)
+        M[:3, :3] = self.scale * self.rotation
+        M[:3, 3] = -self.scale * self.rotation @ self.origin
+        return M
+
+
+def face_frame(landmarks68: np.ndarray, unit: str | None = None) -> FaceFrame:
+    """The normalised face frame of a face from its 68 landmarks.
+
+    Parameters
+    ----------
+    landmarks68 : (68, 3) array
+        Landmark positions in the mesh's own space.
+    unit : {'mm', 'cm', 'm', 'in'} or None
+        Mesh unit; guessed from the inter-ocular distance when None.
+
+    Raises
+    ------
+    LandmarkError
+        For an unknown unit or degenerate landmarks.
+    """
+    L = np.asarray(landmarks68, dtype=np.float64)
+    if L.shape != (68, 3) or not np.isfinite(L).all():
+        raise LandmarkError(f"need 68 finite landmarks, got shape {L.shape}")
+    if unit is None:
+        unit = guess_unit(L)
+    if unit not in UNITS_MM:
+        raise LandmarkError(f"unknown unit {unit!r}; use one of {', '.join(UNITS_MM)}")
+    x = L[42:48].mean(0) - L[36:42].mean(0)  # right eye → left eye
+    up = L[27] - L[8]  # chin → nose bridge
+    nx = np.linalg.norm(x)
+    if nx == 0 or np.linalg.norm(up) == 0:
+        raise LandmarkError("landmarks are degenerate (eyes or chin/nose bridge coincide)")
+    x /= nx
+    y = up - x * (up @ x)
+    ny = np.linalg.norm(y)
+    if ny < 1e-9 * np.linalg.norm(up):
+        raise LandmarkError("landmarks are degenerate: the eye line is parallel to the face's vertical")
+    y /= ny
+    z = np.cross(x, y)
+    frame = FaceFrame(np.stack([x, y, z]), L[30].copy(), UNITS_MM[unit], unit)
+    # A mirrored landmark order would put the nose tip behind the eyes.
+    if (frame.to_face(L[36:48]).mean(0)[2]) > 0:
+        raise LandmarkError("landmarks look mirrored or out of order: the eyes are in front of the nose tip")
+    return frame

@@ -1,0 +1,197 @@
+"""Ray casting and closest-point queries on triangle meshes (numpy + scipy).
+
+All functions take ``V (n, 3)`` and triangles ``T (t, 3)`` in the face frame.
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+
+def cylinder_coords(P: np.ndarray, axis_z: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Angle, height and radius of points around the vertical axis ``x=0, z=axis_z``.
+
+    The angle is 0 straight ahead (+z) and positive towards +x.
+    """
+    dx, dz = P[:, 0], P[:, 2] - axis_z
+    return np.arctan2(dx, dz), P[:, 1].copy(), np.hypot(dx, dz)
+
+
+def cast_cylinder_rays(V, T, axis_z, theta, height, batch=200_000):
+    """Outermost hit of horizontal rays cast from a vertical axis outwards.
+
+    Ray ``q`` starts on the axis at height ``height[q]`` and points along angle
+    ``theta[q]``. The hit farthest from the axis is the one a viewer outside
+    sees first.
+
+    Returns
+    -------
+    radius : (q,) float, NaN where the ray misses
+    tri : (q,) int, hit triangle or -1
+    bary : (q, 3) float, barycentric weights of the hit in ``tri``
+    facing : (q,) float, cosine between the triangle normal and the ray
+        (> 0: the hit surface faces outwards, as skin seen from outside does)
+    """
+    theta = np.asarray(theta, dtype=np.float64).ravel()
+    height = np.asarray(height, dtype=np.float64).ravel()
+    nq = len(theta)
+    radius = np.full(nq, np.nan)
+    tri = np.full(nq, -1, dtype=np.int64)
+    bary = np.zeros((nq, 3))
+    facing = np.zeros(nq)
+    if nq == 0 or len(T) == 0:
+        return radius, tri, bary, facing
+    th, y, r = cylinder_coords(V, axis_z)
+    tth, ty = th[T], y[T]
+    # Triangles wrapping round the back of the axis, or touching it, never face the rays we cast.
+    ok = (np.ptp(tth, axis=1) < np.pi / 2) & (r[T].min(axis=1) > 1e-9)
+    cand = np.nonzero(ok)[0]
+    lo = np.stack([tth[cand].min(1), ty[cand].min(1)], 1)
+    hi = np.stack([tth[cand].max(1), ty[cand].max(1)], 1)
+    # Uniform (theta, y) grid over the triangles' boxes, a few triangles per cell.
+    size = np.maximum(np.median(hi - lo, axis=0) * 2.0, 1e-9)
+    origin = lo.min(0)
+    c0 = np.floor((lo - origin) / size).astype(np.int64)
+    c1 = np.floor((hi - origin) / size).astype(np.int64)
+    ncell = c1.max(0) + 1
+    span = c1 - c0 + 1
+    reps = span[:, 0] * span[:, 1]
+    tid = np.repeat(np.arange(len(cand)), reps)
+    k = np.arange(len(tid)) - np.repeat(np.cumsum(reps) - reps, reps)
+    cx = c0[tid, 0] + k % span[tid, 0]
+    cy = c0[tid, 1] + k // span[tid, 0]
+    cell = cx * ncell[1] + cy
+    order = np.argsort(cell, kind="stable")
+    cell, tid = cell[order], cand[tid[order]]
+    qc = np.floor((np.stack([theta, height], 1) - origin) / size).astype(np.int64)
+    inside = (qc >= 0).all(1) & (qc < ncell).all(1)
+    qcell = np.where(inside, qc[:, 0] * ncell[1] + qc[:, 1], -1)
+    start = np.searchsorted(cell, qcell, "left")
+    stop = np.where(inside, np.searchsorted(cell, qcell, "right"), start)
+    counts = stop - start
+    qid_all = np.repeat(np.arange(nq), counts)
+    pos_all = np.arange(len(qid_all)) - np.repeat(np.cumsum(counts) - counts, counts) + np.repeat(start, counts)
+    for b in range(0, len(qid_all), batch):
+        qid, t_ = qid_all[b:b + batch], tid[pos_all[b:b + batch]]
+        d = np.stack([np.sin(theta[qid]), np.zeros(len(qid)), np.cos(theta[qid])], 1)
+        o = np.stack([np.zeros(len(qid)), height[qid], np.full(len(qid), axis_z)], 1)
+        a, bb, c = V[T[t_, 0]], V[T[t_, 1]], V[T[t_, 2]]
+        e1, e2 = bb - a, c - a
+        p = np.cross(d, e2)
+        det = np.einsum("ij,ij->i", e1, p)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            inv = 1.0 / det
+            s = o - a
+            u = np.einsum("ij,ij->i", s, p) * inv
+            qv = np.cross(s, e1)
+            v = np.einsum("ij,ij->i", d, qv) * inv
+            t = np.einsum("ij,ij->i", e2, qv) * inv
+        eps = 1e-9
+        hit = (np.abs(det) > 1e-15) & (u >= -eps) & (v >= -eps) & (u + v <= 1 + eps) & (t > 0)
+        qid, t_, u, v, t = qid[hit], t_[hit], u[hit], v[hit], t[hit]
+        # Keep the farthest hit per ray: sort by (ray, -t) and take each ray's first.
+        order = np.lexsort((-t, qid))
+        qid, t_, u, v, t = qid[order], t_[order], u[order], v[order], t[order]
+        first = np.ones(len(qid), bool)
+        first[1:] = qid[1:] != qid[:-1]
+        qid, t_, u, v, t = qid[first], t_[first], u[first], v[first], t[first]
+        better = np.isnan(radius[qid]) | (t > radius[qid])
+        qid, t_, u, v, t = qid[better], t_[better], u[better], v[better], t[better]
+        radius[qid], tri[qid] = t, t_
+        bary[qid] = np.stack([1 - u - v, u, v], 1)
+    hit = tri >= 0
+    if hit.any():
+        n = np.cross(V[T[tri[hit], 1]] - V[T[tri[hit], 0]], V[T[tri[hit], 2]] - V[T[tri[hit], 0]])
+        n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+        d = np.stack([np.sin(theta[hit]), np.zeros(hit.sum()), np.cos(theta[hit])], 1)
+        facing[hit] = np.einsum("ij,ij->i", n, d)
+    return radius, tri, bary, facing
+
+
+def closest_point_on_triangles(P, A, B, C):
+    """Closest point to each ``P[i]`` on triangle ``(A[i], B[i], C[i])``.
+
+    Returns the points and their barycentric weights (Ericson's region test).
+    """
+    ab, ac, ap = B - A, C - A, P - A
+    d1, d2 = np.einsum("ij,ij->i", ab, ap), np.einsum("ij,ij->i", ac, ap)
+    bp = P - B
+    d3, d4 = np.einsum("ij,ij->i", ab, bp), np.einsum("ij,ij->i", ac, bp)
+    cp = P - C
+    d5, d6 = np.einsum("ij,ij->i", ab, cp), np.einsum("ij,ij->i", ac, cp)
+    va = d3 * d6 - d5 * d4
+    vb = d5 * d2 - d1 * d6
+    vc = d1 * d4 - d3 * d2
+    w = np.zeros((len(P), 3))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        denom = va + vb + vc
+        v_in, w_in = vb / denom, vc / denom
+        w[:] = np.stack([1 - v_in - w_in, v_in, w_in], 1)
+        # Edge regions.
+        tab = d1 / (d1 - d3)
+        m = (vc <= 0) & (d1 >= 0) & (d3 <= 0)
+        w[m] = np.stack([1 - tab[m], tab[m], np.zeros(m.sum())], 1)
+        tac = d2 / (d2 - d6)
+        m = (vb <= 0) & (d2 >= 0) & (d6 <= 0)
+        w[m] = np.stack([1 - tac[m], np.zeros(m.sum()), tac[m]], 1)
+        tbc = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+        m = (va <= 0) & ((d4 - d3) >= 0) & ((d5 - d6) >= 0)
+        w[m] = np.stack([np.zeros(m.sum()), 1 - tbc[m], tbc[m]], 1)
+    # Vertex regions last: they override the edge tests at the corners.
+    w[(d1 <= 0) & (d2 <= 0)] = (1, 0, 0)
+    w[(d3 >= 0) & (d4 <= d3)] = (0, 1, 0)
+    w[(d6 >= 0) & (d5 <= d6)] = (0, 0, 1)
+    w = np.nan_to_num(w, nan=1 / 3)
+    Q = w[:, :1] * A + w[:, 1:2] * B + w[:, 2:] * C
+    return Q, w
+
+
+class ClosestPoint:
+    """Closest-point queries on a triangle mesh.
+
+    Candidates are the triangles around the ``k`` nearest vertices and
+    triangle centroids, which is exact for the fine, even meshes used here.
+    """
+
+    def __init__(self, V, T, k=8):
+        self.V, self.T = np.asarray(V, dtype=np.float64), np.asarray(T, dtype=np.int64)
+        self.k = k
+        self.centroids = self.V[self.T].mean(axis=1)
+        self.tree = cKDTree(self.centroids)
+        nv = len(self.V)
+        order = np.argsort(self.T.ravel(), kind="stable")
+        self._vt = order // 3  # triangles sorted by corner vertex
+        self._vstart = np.searchsorted(self.T.ravel()[order], np.arange(nv + 1))
+        self.vtree = cKDTree(self.V)
+
+    def query(self, P):
+        """Closest points on the mesh.
+
+        Returns
+        -------
+        distance : (p,) float
+        tri : (p,) int
+        bary : (p, 3) float
+        point : (p, 3) float
+        """
+        P = np.asarray(P, dtype=np.float64)
+        k = min(self.k, len(self.T))
+        _, ct = self.tree.query(P, k=k)
+        ct = ct.reshape(len(P), -1)
+        _, nv = self.vtree.query(P, k=1)
+        # Triangles around the nearest vertex (a few, padded with the first centroid hit).
+        deg = self._vstart[nv + 1] - self._vstart[nv]
+        maxdeg = int(deg.max()) if len(deg) else 0
+        ring = np.repeat(ct[:, :1], maxdeg, axis=1)
+        for j in range(maxdeg):
+            has = deg > j
+            ring[has, j] = self._vt[self._vstart[nv[has]] + j]
+        cand = np.concatenate([ct, ring], axis=1)
+        npt, nc = cand.shape
+        flat = cand.ravel()
+        Pr = np.repeat(P, nc, axis=0)
+        Q, w = closest_point_on_triangles(Pr, self.V[self.T[flat, 0]], self.V[self.T[flat, 1]], self.V[self.T[flat, 2]])
+        d = np.linalg.norm(Q - Pr, axis=1).reshape(npt, nc)
+        best = np.argmin(d, axis=1)
+        rows = np.arange(npt) * nc + best
+        return d[np.arange(npt), best], flat[rows], w[rows], Q[rows]

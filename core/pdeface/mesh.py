@@ -1,0 +1,158 @@
+"""Polygon meshes as plain arrays.
+
+A :class:`Mesh` holds vertices ``V (n, 3)`` and polygons of any size stored
+flat (``face_indices`` with ``face_counts``), so triangles, quads and n-gons
+mix freely. Optional per-corner UVs and normals follow the same layout.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .errors import MeshError
+
+
+@dataclass
+class Mesh:
+    """A polygon mesh.
+
+    Attributes
+    ----------
+    vertices : (n, 3) float64 array
+        Vertex positions.
+    face_counts : (m,) int array
+        Number of corners of each polygon (>= 3).
+    face_indices : (sum(face_counts),) int array
+        Vertex index of every polygon corner, polygon after polygon.
+    uvs : (t, 2) float array or None
+        Texture coordinates.
+    face_uv_indices : int array like ``face_indices`` or None
+        UV index of every polygon corner.
+    normals : (k, 3) float array or None
+        Normals read from a file.
+    face_normal_indices : int array like ``face_indices`` or None
+        Normal index of every polygon corner.
+    material_names : list of str
+        Material names in order of first use (OBJ ``usemtl``).
+    face_materials : (m,) int array or None
+        Index into ``material_names`` per polygon.
+    """
+
+    vertices: np.ndarray
+    face_counts: np.ndarray
+    face_indices: np.ndarray
+    uvs: np.ndarray | None = None
+    face_uv_indices: np.ndarray | None = None
+    normals: np.ndarray | None = None
+    face_normal_indices: np.ndarray | None = None
+    material_names: list = field(default_factory=list)
+    face_materials: np.ndarray | None = None
+    mtllib: str | None = None
+
+    @classmethod
+    def from_faces(cls, vertices, faces, uvs=None) -> "Mesh":
+        """Build a mesh from ``V (n, 3)`` and uniform polygons ``F (m, k)``.
+
+        When ``uvs (n, 2)`` is given, each corner uses its vertex's UV.
+        """
+        V = np.asarray(vertices, dtype=np.float64)
+        F = np.asarray(faces, dtype=np.int64)
+        if F.ndim != 2 or F.shape[1] < 3:
+            raise MeshError(f"faces must be an (m, k>=3) array, got shape {F.shape}")
+        counts = np.full(len(F), F.shape[1], dtype=np.int64)
+        idx = F.reshape(-1)
+        mesh = cls(V, counts, idx)
+        if uvs is not None:
+            mesh.uvs = np.asarray(uvs, dtype=np.float64)
+            mesh.face_uv_indices = idx.copy()
+        mesh.validate()
+        return mesh
+
+    @property
+    def face_starts(self) -> np.ndarray:
+        """Offset of each polygon's first corner in ``face_indices``."""
+        return np.concatenate([[0], np.cumsum(self.face_counts)[:-1]]).astype(np.int64)
+
+    def validate(self, name: str = "mesh") -> "Mesh":
+        """Check shapes, index ranges and finiteness; raise :class:`MeshError`."""
+        V = self.vertices
+        if V.ndim != 2 or V.shape[1] != 3:
+            raise MeshError(f"{name}: vertices must be (n, 3), got {V.shape}")
+        if len(V) == 0:
+            raise MeshError(f"{name}: has no vertices")
+        if len(self.face_counts) == 0:
+            raise MeshError(f"{name}: has no faces")
+        bad = ~np.isfinite(V).all(axis=1)
+        if bad.any():
+            raise MeshError(f"{name}: vertex {int(np.argmax(bad))} is not finite (NaN or inf)")
+        if (self.face_counts < 3).any():
+            raise MeshError(f"{name}: face {int(np.argmax(self.face_counts < 3))} has fewer than 3 corners")
+        if int(self.face_counts.sum()) != len(self.face_indices):
+            raise MeshError(f"{name}: face_counts do not add up to face_indices")
+        if self.face_indices.min() < 0 or self.face_indices.max() >= len(V):
+            raise MeshError(f"{name}: a face refers to a vertex outside 0..{len(V) - 1}")
+        return self
+
+    def triangles(self) -> tuple[np.ndarray, np.ndarray]:
+        """Fan-triangulate every polygon.
+
+        Returns
+        -------
+        T : (t, 3) int array
+            Triangle vertex indices.
+        polygon : (t,) int array
+            Index of the polygon each triangle came from.
+        """
+        counts, starts, idx = self.face_counts, self.face_starts, self.face_indices
+        ntri = counts - 2
+        polygon = np.repeat(np.arange(len(counts)), ntri)
+        k = np.arange(len(polygon)) - np.repeat(np.cumsum(ntri) - ntri, ntri)
+        s = starts[polygon]
+        T = np.stack([idx[s], idx[s + k + 1], idx[s + k + 2]], axis=1)
+        return T, polygon
+
+    def submesh(self, keep_faces: np.ndarray) -> tuple["Mesh", np.ndarray]:
+        """The polygons selected by the boolean mask ``keep_faces``, compacted.
+
+        Returns the new mesh and, for each of its vertices, the old index.
+        """
+        keep_faces = np.asarray(keep_faces, bool)
+        corner_keep = np.repeat(keep_faces, self.face_counts)
+        idx = self.face_indices[corner_keep]
+        old = np.unique(idx)
+        remap = np.full(len(self.vertices), -1, dtype=np.int64)
+        remap[old] = np.arange(len(old))
+        sub = Mesh(self.vertices[old], self.face_counts[keep_faces], remap[idx])
+        if self.uvs is not None and self.face_uv_indices is not None:
+            sub.uvs = self.uvs
+            sub.face_uv_indices = self.face_uv_indices[corner_keep]
+        return sub, old
+
+
+def triangle_normals(V: np.ndarray, T: np.ndarray) -> np.ndarray:
+    """Unit normals of triangles ``T (t, 3)``; degenerate triangles get zeros."""
+    n = np.cross(V[T[:, 1]] - V[T[:, 0]], V[T[:, 2]] - V[T[:, 0]])
+    length = np.linalg.norm(n, axis=1, keepdims=True)
+    return np.divide(n, length, out=np.zeros_like(n), where=length > 0)
+
+
+def vertex_normals(V: np.ndarray, T: np.ndarray) -> np.ndarray:
+    """Area-weighted unit vertex normals of a triangle mesh."""
+    n = np.cross(V[T[:, 1]] - V[T[:, 0]], V[T[:, 2]] - V[T[:, 0]])
+    out = np.zeros_like(V, dtype=np.float64)
+    for c in range(3):
+        np.add.at(out, T[:, c], n)
+    length = np.linalg.norm(out, axis=1, keepdims=True)
+    return np.divide(out, length, out=np.zeros_like(out), where=length > 0)
+
+
+def connected_components(n_vertices: int, T: np.ndarray) -> np.ndarray:
+    """Label of the edge-connected component of every vertex."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components as cc
+
+    i = np.concatenate([T[:, 0], T[:, 1], T[:, 2]])
+    j = np.concatenate([T[:, 1], T[:, 2], T[:, 0]])
+    graph = coo_matrix((np.ones(len(i)), (i, j)), shape=(n_vertices, n_vertices))
+    return cc(graph, directed=False)[1]

@@ -1,0 +1,317 @@
+"""Read and write meshes: Wavefront OBJ and PLY (ASCII and binary).
+
+Broken files raise :class:`~pdeface.errors.MeshError` naming the file and line.
+"""
+from __future__ import annotations
+
+import os
+import struct
+
+import numpy as np
+
+from .errors import MeshError
+from .mesh import Mesh
+
+
+def read_mesh(path) -> Mesh:
+    """Read an ``.obj`` or ``.ply`` file by its extension."""
+    ext = os.path.splitext(str(path))[1].lower()
+    if ext == ".obj":
+        return read_obj(path)
+    if ext == ".ply":
+        return read_ply(path)
+    raise MeshError(f"{path}: unsupported mesh format {ext!r} (use .obj or .ply)")
+
+
+def write_mesh(path, mesh: Mesh) -> None:
+    """Write an ``.obj`` or ``.ply`` file by its extension."""
+    ext = os.path.splitext(str(path))[1].lower()
+    if ext == ".obj":
+        write_obj(path, mesh)
+    elif ext == ".ply":
+        write_ply(path, mesh)
+    else:
+        raise MeshError(f"{path}: unsupported mesh format {ext!r} (use .obj or .ply)")
+
+
+def _floats(parts, n, path, lineno, what):
+    try:
+        vals = [float(p) for p in parts[:n]]
+    except ValueError:
+        raise MeshError(f"{path}:{lineno}: bad number in {what} line: {' '.join(parts)!r}") from None
+    if len(vals) < n:
+        raise MeshError(f"{path}:{lineno}: {what} line needs {n} numbers, got {len(vals)}")
+    if not all(np.isfinite(vals)):
+        raise MeshError(f"{path}:{lineno}: {what} is not finite (NaN or inf)")
+    return vals
+
+
+def _index(token, count, path, lineno, what):
+    try:
+        i = int(token)
+    except ValueError:
+        raise MeshError(f"{path}:{lineno}: bad {what} index {token!r}") from None
+    # OBJ indices are 1-based; negative ones count back from the last element read so far.
+    j = i - 1 if i > 0 else count + i
+    if i == 0 or not 0 <= j < count:
+        raise MeshError(f"{path}:{lineno}: {what} index {i} out of range (have {count})")
+    return j
+
+
+def read_obj(path) -> Mesh:
+    """Read a Wavefront OBJ file.
+
+    Supports ``v``, ``vt``, ``vn``, ``f`` with triangles, quads and n-gons in
+    ``v``, ``v/vt``, ``v//vn`` and ``v/vt/vn`` forms, negative (relative)
+    indices, comments, ``mtllib``/``usemtl``. Other statements are ignored.
+
+    Raises
+    ------
+    MeshError
+        With file and line, for bad numbers, indices out of range, NaN/inf,
+        missing file or a file without faces.
+    """
+    try:
+        fh = open(path, "r", encoding="utf-8", errors="replace")
+    except OSError as exc:
+        raise MeshError(f"{path}: cannot open ({exc.strerror})") from None
+    V, VT, VN = [], [], []
+    counts, fv, ft, fn, fmat = [], [], [], [], []
+    materials, current_mat, mtllib = [], -1, None
+    any_vt = any_vn = False
+    with fh:
+        for lineno, line in enumerate(fh, 1):
+            parts = line.split()
+            if not parts or parts[0].startswith("#"):
+                continue
+            tag = parts[0]
+            if tag == "v":
+                V.append(_floats(parts[1:], 3, path, lineno, "vertex"))
+            elif tag == "vt":
+                VT.append(_floats(parts[1:], 2, path, lineno, "texture coordinate"))
+            elif tag == "vn":
+                VN.append(_floats(parts[1:], 3, path, lineno, "normal"))
+            elif tag == "f":
+                corners = parts[1:]
+                if len(corners) < 3:
+                    raise MeshError(f"{path}:{lineno}: face needs at least 3 corners, got {len(corners)}")
+                for c in corners:
+                    sub = c.split("/")
+                    if len(sub) > 3:
+                        raise MeshError(f"{path}:{lineno}: bad face corner {c!r}")
+                    fv.append(_index(sub[0], len(V), path, lineno, "vertex"))
+                    if len(sub) > 1 and sub[1]:
+                        ft.append(_index(sub[1], len(VT), path, lineno, "texture coordinate"))
+                        any_vt = True
+                    else:
+                        ft.append(-1)
+                    if len(sub) > 2 and sub[2]:
+                        fn.append(_index(sub[2], len(VN), path, lineno, "normal"))
+                        any_vn = True
+                    else:
+                        fn.append(-1)
+                counts.append(len(corners))
+                fmat.append(current_mat)
+            elif tag == "usemtl" and len(parts) > 1:
+                name = " ".join(parts[1:])
+                if name not in materials:
+                    materials.append(name)
+                current_mat = materials.index(name)
+            elif tag == "mtllib" and len(parts) > 1:
+                mtllib = " ".join(parts[1:])
+    if not V:
+        raise MeshError(f"{path}: no vertices")
+    if not counts:
+        raise MeshError(f"{path}: no faces")
+    mesh = Mesh(np.array(V, dtype=np.float64), np.array(counts, dtype=np.int64), np.array(fv, dtype=np.int64))
+    ft, fn = np.array(ft, dtype=np.int64), np.array(fn, dtype=np.int64)
+    # Per-corner attributes are kept only when every corner has one.
+    if any_vt and (ft >= 0).all():
+        mesh.uvs, mesh.face_uv_indices = np.array(VT, dtype=np.float64), ft
+    if any_vn and (fn >= 0).all():
+        mesh.normals, mesh.face_normal_indices = np.array(VN, dtype=np.float64), fn
+    if materials:
+        mesh.material_names, mesh.face_materials = materials, np.array(fmat, dtype=np.int64)
+    mesh.mtllib = mtllib
+    return mesh
+
+
+def write_obj(path, mesh: Mesh, header: str | None = None) -> None:
+    """Write a mesh as OBJ, keeping UVs, normals and material groups."""
+    mesh.validate(str(path))
+    lines = []
+    if header:
+        lines += ["# " + h for h in header.splitlines()]
+    if mesh.mtllib:
+        lines.append(f"mtllib {mesh.mtllib}")
+    out = ["\n".join(lines) + "\n" if lines else ""]
+    out.append("".join("v %.6f %.6f %.6f\n" % tuple(v) for v in mesh.vertices))
+    has_uv = mesh.uvs is not None and mesh.face_uv_indices is not None
+    has_n = mesh.normals is not None and mesh.face_normal_indices is not None
+    if has_uv:
+        out.append("".join("vt %.6f %.6f\n" % tuple(t) for t in mesh.uvs))
+    if has_n:
+        out.append("".join("vn %.6f %.6f %.6f\n" % tuple(n) for n in mesh.normals))
+    fv = (mesh.face_indices + 1).astype(str)
+    if has_uv and has_n:
+        corners = np.char.add(np.char.add(np.char.add(np.char.add(fv, "/"), (mesh.face_uv_indices + 1).astype(str)), "/"),
+                              (mesh.face_normal_indices + 1).astype(str))
+    elif has_uv:
+        corners = np.char.add(np.char.add(fv, "/"), (mesh.face_uv_indices + 1).astype(str))
+    elif has_n:
+        corners = np.char.add(np.char.add(fv, "//"), (mesh.face_normal_indices + 1).astype(str))
+    else:
+        corners = fv
+    corners = corners.tolist()
+    starts = mesh.face_starts.tolist()
+    last_mat = None
+    faces = []
+    for f, (s, c) in enumerate(zip(starts, mesh.face_counts.tolist())):
+        if mesh.face_materials is not None:
+            m = int(mesh.face_materials[f])
+            if m != last_mat and m >= 0:
+                faces.append(f"usemtl {mesh.material_names[m]}\n")
+            last_mat = m
+        faces.append("f " + " ".join(corners[s:s + c]) + "\n")
+    out.append("".join(faces))
+    with open(path, "w", encoding="utf-8") as fh:
+        fh.write("".join(out))
+
+
+_PLY_TYPES = {"char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short": "i2", "int16": "i2",
+              "ushort": "u2", "uint16": "u2", "int": "i4", "int32": "i4", "uint": "u4", "uint32": "u4",
+              "float": "f4", "float32": "f4", "double": "f8", "float64": "f8"}
+
+
+def read_ply(path) -> Mesh:
+    """Read a PLY file (ascii, binary_little_endian or binary_big_endian).
+
+    Reads ``vertex`` x, y, z (and s/t or u/v texture coordinates) and the
+    ``face`` vertex index lists.
+    """
+    try:
+        data = open(path, "rb").read()
+    except OSError as exc:
+        raise MeshError(f"{path}: cannot open ({exc.strerror})") from None
+    end = data.find(b"end_header")
+    if not data.startswith(b"ply") or end < 0:
+        raise MeshError(f"{path}:1: not a PLY file (missing 'ply' magic or 'end_header')")
+    header = data[:end].decode("ascii", "replace").splitlines()
+    body = data[data.index(b"\n", end) + 1:]
+    fmt, elements = None, []
+    for lineno, line in enumerate(header, 1):
+        p = line.split()
+        if not p:
+            continue
+        if p[0] == "format":
+            fmt = p[1]
+        elif p[0] == "element":
+            elements.append([p[1], int(p[2]), []])
+        elif p[0] == "property":
+            if not elements:
+                raise MeshError(f"{path}:{lineno}: property before any element")
+            if p[1] == "list":
+                if p[2] not in _PLY_TYPES or p[3] not in _PLY_TYPES:
+                    raise MeshError(f"{path}:{lineno}: unknown PLY type in {line!r}")
+                elements[-1][2].append((p[4], "list", _PLY_TYPES[p[2]], _PLY_TYPES[p[3]]))
+            else:
+                if p[1] not in _PLY_TYPES:
+                    raise MeshError(f"{path}:{lineno}: unknown PLY type {p[1]!r}")
+                elements[-1][2].append((p[2], _PLY_TYPES[p[1]]))
+    if fmt not in ("ascii", "binary_little_endian", "binary_big_endian"):
+        raise MeshError(f"{path}: unknown PLY format {fmt!r}")
+    values = {}
+    if fmt == "ascii":
+        tokens = body.decode("ascii", "replace").split()
+        pos = 0
+        try:
+            for name, count, props in elements:
+                rows = []
+                for _ in range(count):
+                    row = []
+                    for prop in props:
+                        if prop[1] == "list":
+                            n = int(tokens[pos]); pos += 1
+                            row.append([float(t) for t in tokens[pos:pos + n]]); pos += n
+                        else:
+                            row.append(float(tokens[pos])); pos += 1
+                    rows.append(row)
+                values[name] = (props, rows)
+        except (ValueError, IndexError):
+            raise MeshError(f"{path}: truncated or malformed ASCII PLY body") from None
+    else:
+        order = "<" if fmt == "binary_little_endian" else ">"
+        off = 0
+        try:
+            for name, count, props in elements:
+                rows = []
+                if all(p[1] != "list" for p in props):
+                    dt = np.dtype([(p[0], order + p[1]) for p in props])
+                    arr = np.frombuffer(body, dtype=dt, count=count, offset=off)
+                    off += dt.itemsize * count
+                    rows = [[arr[p[0]][i] for p in props] for i in range(count)] if name != "vertex" else arr
+                else:
+                    for _ in range(count):
+                        row = []
+                        for prop in props:
+                            if prop[1] == "list":
+                                ct, it = np.dtype(order + prop[2]), np.dtype(order + prop[3])
+                                n = int(np.frombuffer(body, ct, 1, off)[0]); off += ct.itemsize
+                                row.append(np.frombuffer(body, it, n, off).tolist()); off += it.itemsize * n
+                            else:
+                                t = np.dtype(order + prop[1])
+                                row.append(np.frombuffer(body, t, 1, off)[0]); off += t.itemsize
+                        rows.append(row)
+                values[name] = (props, rows)
+        except (ValueError, struct.error):
+            raise MeshError(f"{path}: truncated binary PLY body") from None
+    if "vertex" not in values:
+        raise MeshError(f"{path}: no vertex element")
+    props, rows = values["vertex"]
+    names = [p[0] for p in props]
+    if not {"x", "y", "z"} <= set(names):
+        raise MeshError(f"{path}: vertex element lacks x, y, z")
+    if isinstance(rows, np.ndarray):
+        V = np.stack([rows["x"], rows["y"], rows["z"]], 1).astype(np.float64)
+        uv_names = next((n for n in (("s", "t"), ("u", "v"), ("texture_u", "texture_v")) if set(n) <= set(names)), None)
+        UV = np.stack([rows[uv_names[0]], rows[uv_names[1]]], 1).astype(np.float64) if uv_names else None
+    else:
+        arr = np.array(rows, dtype=np.float64).reshape(len(rows), len(names))
+        V = arr[:, [names.index(c) for c in "xyz"]]
+        uv_names = next((n for n in (("s", "t"), ("u", "v"), ("texture_u", "texture_v")) if set(n) <= set(names)), None)
+        UV = arr[:, [names.index(uv_names[0]), names.index(uv_names[1])]] if uv_names else None
+    if "face" not in values:
+        raise MeshError(f"{path}: no faces")
+    fprops, frows = values["face"]
+    li = next((i for i, p in enumerate(fprops) if p[1] == "list" and p[0] in ("vertex_indices", "vertex_index")), None)
+    if li is None:
+        raise MeshError(f"{path}: face element lacks vertex_indices")
+    polys = [r[li] for r in frows]
+    if not polys:
+        raise MeshError(f"{path}: no faces")
+    counts = np.array([len(p) for p in polys], dtype=np.int64)
+    idx = np.array([int(i) for p in polys for i in p], dtype=np.int64)
+    mesh = Mesh(V, counts, idx)
+    if UV is not None:
+        mesh.uvs, mesh.face_uv_indices = UV, idx.copy()
+    return mesh.validate(str(path))
+
+
+def write_ply(path, mesh: Mesh) -> None:
+    """Write a binary little-endian PLY with per-vertex UVs when they map one-to-one."""
+    mesh.validate(str(path))
+    V = mesh.vertices.astype("<f4")
+    uv = None
+    if mesh.uvs is not None and mesh.face_uv_indices is not None:
+        uv = np.zeros((len(V), 2), "<f4")
+        uv[mesh.face_indices] = mesh.uvs[mesh.face_uv_indices]
+    head = ["ply", "format binary_little_endian 1.0", f"element vertex {len(V)}",
+            "property float x", "property float y", "property float z"]
+    if uv is not None:
+        head += ["property float s", "property float t"]
+    head += [f"element face {len(mesh.face_counts)}", "property list uchar int vertex_indices", "end_header"]
+    with open(path, "wb") as fh:
+        fh.write(("\n".join(head) + "\n").encode("ascii"))
+        fh.write((np.hstack([V, uv]) if uv is not None else V).astype("<f4").tobytes())
+        for s, c in zip(mesh.face_starts, mesh.face_counts):
+            fh.write(struct.pack("<B", c) + mesh.face_indices[s:s + c].astype("<i4").tobytes())

@@ -1,0 +1,225 @@
+"""The PDE face model and its file format.
+
+File format (``.npz``, version 1): a NumPy ``savez_compressed`` archive read
+with ``allow_pickle=False``. Members:
+
+``meta`` (uint8)
+    UTF-8 JSON: ``format`` = ``"pdeface.face"``, ``version`` = 1, ``unit``,
+    ``n_modes``, ``a``, ``w``, ``assembly``, ``feature_names``, ``source``,
+    ``notice``.
+``layout`` (float32)
+    :meth:`pdeface.layout.CurveLayout.as_array`: axis z, points per curve,
+    centre density, the K curve heights and the K half angles (face frame).
+``knots`` (float32, K)
+    Curve parameters ``u_i`` in [0, 1].
+``coefficients`` (float32, K × (N+1) × 3)
+    Cosine Fourier coefficients of each curve, face frame, mm.
+``residual`` (int16, 3 × K × J)
+    Curve points minus their series, coordinate-major, in steps of
+    ``residual_step`` mm (meta; 0.01 unless a residual exceeds 160 mm), and
+    delta-coded along each curve (the first point absolute, then each point
+    minus the previous) so the smooth residual deflates well. Decode with a
+    cumulative sum along the last axis times the step; rounding ≤ step / 2.
+``frame`` (float64, 4 × 4)
+    User space → face frame (rotation and scale to mm, nose tip at origin).
+``features`` (float32, 19 × 3)
+    The method's feature points in the face frame.
+``status`` (uint8, K × J)
+    How each curve point was found: 0 ray hit, 1 miss, 2 back-facing,
+    3 cavity (1-3 were filled from their neighbours).
+
+Readers refuse other formats and newer versions with a clear error.
+"""
+from __future__ import annotations
+
+import io
+import json
+import os
+import zipfile
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .errors import ModelFormatError
+from .frame import FEATURE_NAMES, UNITS_MM, FaceFrame
+from .layout import CurveLayout
+
+FORMAT = "pdeface.face"
+VERSION = 1
+#: Quantisation step of stored residuals (mm).
+RESIDUAL_STEP_MM = 0.01
+ICT_NOTICE = ("Derived from ICT-FaceKit, Copyright (c) 2020 USC Institute for Creative Technologies, "
+              "MIT License (see assets/ICT-FaceKit-LICENSE.txt).")
+
+
+@dataclass
+class FaceModel:
+    """A neutral face as PDE boundary curves.
+
+    All geometry is in the face frame (mm); :attr:`frame` maps back to the
+    source mesh's space and unit.
+
+    Attributes
+    ----------
+    layout : CurveLayout
+    knots : (K,) array
+        Curve parameters ``u_i``.
+    coefficients : (K, N+1, 3) array
+    residual : (K, J, 3) array
+    frame : FaceFrame
+    features : (19, 3) array
+    a : float
+        PDE smoothing parameter.
+    w : float
+        Remainder wavenumber.
+    assembly : str
+        Default assembly for meshing.
+    source : str
+        Where the model came from (free text).
+    notice : str
+        Licence notice of the data it derives from, if any.
+    status : (K, J) int array or None
+        Curve point status (see :mod:`pdeface.curves`).
+    descriptors : list
+        AU descriptors carried with the model (see :mod:`pdeface.descriptor`).
+    """
+
+    layout: CurveLayout
+    knots: np.ndarray
+    coefficients: np.ndarray
+    residual: np.ndarray
+    frame: FaceFrame
+    features: np.ndarray
+    a: float = 1.0
+    w: float | None = None
+    assembly: str = "smooth"
+    source: str = ""
+    notice: str = ""
+    status: np.ndarray | None = None
+    descriptors: list = field(default_factory=list)
+
+    @property
+    def n_modes(self) -> int:
+        return self.coefficients.shape[1] - 1
+
+    @property
+    def remainder_w(self) -> float:
+        return self.a * (self.n_modes + 1) if self.w is None else self.w
+
+    def curve_points(self, coefficients=None, residual=None) -> np.ndarray:
+        """Curve points (K, J, 3) in the face frame (from the series and residual)."""
+        from .fourier import evaluate_fourier
+
+        c = self.coefficients if coefficients is None else coefficients
+        r = self.residual if residual is None else residual
+        return evaluate_fourier(c, self.layout.sample_params()) + r
+
+
+def _member(z, name, path):
+    if name not in z.files:
+        raise ModelFormatError(f"{path}: missing field {name!r}")
+    try:
+        return z[name]
+    except ValueError as exc:
+        raise ModelFormatError(f"{path}: field {name!r} is not a plain array ({exc})") from None
+
+
+def save_model(path, model: FaceModel) -> int:
+    """Write a face model; returns the file size in bytes."""
+    res = np.moveaxis(np.asarray(model.residual, np.float64), 2, 0)
+    step = max(RESIDUAL_STEP_MM, float(np.abs(res).max()) / 16000.0)
+    q = np.round(res / step).astype(np.int64)
+    q[..., 1:] = np.diff(q, axis=-1)
+    meta = {"format": FORMAT, "version": VERSION, "unit": model.frame.unit, "n_modes": model.n_modes,
+            "residual_step": step,
+            "a": model.a, "w": model.w, "assembly": model.assembly, "feature_names": FEATURE_NAMES,
+            "source": model.source, "notice": model.notice}
+    arrays = {
+        "meta": np.frombuffer(json.dumps(meta, separators=(",", ":")).encode(), dtype=np.uint8),
+        "layout": model.layout.as_array().astype(np.float32),
+        "knots": np.asarray(model.knots, np.float32),
+        "coefficients": np.asarray(model.coefficients, np.float32),
+        "residual": q.astype(np.int16),
+        "frame": model.frame.matrix(),
+        "features": np.asarray(model.features, np.float32),
+    }
+    if model.status is not None:
+        arrays["status"] = np.asarray(model.status, np.uint8)
+    if model.descriptors:
+        from .descriptor import pack_descriptors
+        arrays.update(pack_descriptors(model.descriptors))
+    buf = io.BytesIO()
+    np.savez_compressed(buf, **arrays)
+    data = buf.getvalue()
+    with open(path, "wb") as fh:
+        fh.write(data)
+    return len(data)
+
+
+def load_model(path) -> FaceModel:
+    """Read a face model written by :func:`save_model`.
+
+    Raises
+    ------
+    ModelFormatError
+        For a missing file, a non-model file, a newer version or a bad field.
+    """
+    if not os.path.exists(path):
+        raise ModelFormatError(f"{path}: no such file")
+    try:
+        z = np.load(path, allow_pickle=False)
+    except (OSError, ValueError, zipfile.BadZipFile) as exc:
+        raise ModelFormatError(f"{path}: not a pdeface model file ({exc})") from None
+    with z:
+        try:
+            meta = json.loads(bytes(_member(z, "meta", path)).decode())
+        except (UnicodeDecodeError, json.JSONDecodeError):
+            raise ModelFormatError(f"{path}: field 'meta' is not JSON") from None
+        if not isinstance(meta, dict) or meta.get("format") != FORMAT:
+            raise ModelFormatError(f"{path}: not a pdeface face model (format {meta.get('format') if isinstance(meta, dict) else None!r})")
+        if not isinstance(meta.get("version"), int) or meta["version"] > VERSION:
+            raise ModelFormatError(f"{path}: model version {meta.get('version')!r} is newer than this pdeface reads ({VERSION})")
+        if meta.get("unit") not in UNITS_MM:
+            raise ModelFormatError(f"{path}: field 'unit' must be one of {', '.join(UNITS_MM)}")
+        layout_arr = _member(z, "layout", path).astype(np.float64)
+        knots = _member(z, "knots", path).astype(np.float64)
+        coef = _member(z, "coefficients", path).astype(np.float64)
+        res = _member(z, "residual", path)
+        step = meta.get("residual_step")
+        if not isinstance(res, np.ndarray) or res.dtype != np.int16 or not isinstance(step, (int, float)) or not step > 0:
+            raise ModelFormatError(f"{path}: field 'residual' must be int16 with a positive meta 'residual_step'")
+        res = np.cumsum(res.astype(np.int64), axis=-1) * float(step)
+        M = _member(z, "frame", path).astype(np.float64)
+        feats = _member(z, "features", path).astype(np.float64)
+        K = len(knots)
+        if len(layout_arr) != 3 + 2 * K:
+            raise ModelFormatError(f"{path}: field 'layout' has {len(layout_arr)} values, expected {3 + 2 * K}")
+        layout = CurveLayout.from_array(layout_arr)
+        J = layout.n_points
+        if coef.ndim != 3 or coef.shape[0] != K or coef.shape[2] != 3:
+            raise ModelFormatError(f"{path}: field 'coefficients' has shape {coef.shape}, expected ({K}, N+1, 3)")
+        if res.shape != (3, K, J):
+            raise ModelFormatError(f"{path}: field 'residual' has shape {res.shape}, expected (3, {K}, {J})")
+        if M.shape != (4, 4) or feats.shape != (len(FEATURE_NAMES), 3):
+            raise ModelFormatError(f"{path}: field 'frame' or 'features' has the wrong shape")
+        for name, arr in (("knots", knots), ("coefficients", coef), ("residual", res), ("frame", M), ("layout", layout_arr)):
+            if not np.isfinite(arr).all():
+                raise ModelFormatError(f"{path}: field {name!r} contains NaN or inf")
+        scale = float(np.cbrt(np.linalg.det(M[:3, :3])))
+        if not scale > 0:
+            raise ModelFormatError(f"{path}: field 'frame' is not a proper rotation and scale")
+        R = M[:3, :3] / scale
+        origin = -np.linalg.solve(M[:3, :3], M[:3, 3])
+        frame = FaceFrame(R, origin, scale, meta["unit"])
+        model = FaceModel(layout, knots, coef, np.moveaxis(res, 0, 2), frame, feats,
+                          a=float(meta.get("a", 1.0)), w=meta.get("w"), assembly=meta.get("assembly", "smooth"),
+                          source=str(meta.get("source", "")), notice=str(meta.get("notice", "")))
+        if "status" in z.files:
+            st = _member(z, "status", path)
+            if st.shape != (K, J):
+                raise ModelFormatError(f"{path}: field 'status' has shape {st.shape}, expected ({K}, {J})")
+            model.status = st.astype(np.int64)
+        if "descriptor_meta" in z.files:
+            from .descriptor import unpack_descriptors
+            model.descriptors = unpack_descriptors(z, path)
+    return model

@@ -1,0 +1,295 @@
+r"""Bloor–Wilson spectral solution of the face PDE.
+
+The surface ``X(u, v)``, u ∈ [0, 1] from the top curve to the bottom one,
+v ∈ [0, π] across the face, solves
+
+.. math:: (\partial_u^2 + a^2 \partial_v^2)^2 X = 0 .
+
+With ``X = Σ_n A_n(u) cos(n v) + R(u, v)`` each mode's ``A_n`` solves the ODE
+``(d²/du² − k²)² A = 0`` with ``k = a n``: its solutions are spanned by
+``e^{ku}, u e^{ku}, e^{-ku}, u e^{-ku}`` (cubics when ``k = 0``). ``A_n`` takes
+the curves' coefficients at the curves' parameters ``u_i``; the remainder
+``R`` does the same with ``k = w`` for the residuals, so the surface passes
+exactly through every curve point.
+
+Two assemblies:
+
+``smooth`` (default)
+    One piecewise solution through all curves, C2 at every curve (so no
+    creases), not-a-knot at the ends.
+``patches``
+    The original method: patches of four consecutive curves (1–4, 4–7, …),
+    each one closed-form solution through its four positional curves, C0
+    where patches share a curve. Needs 3m + 1 curves.
+
+Everything here is linear in the curve data and precomputed per layout, so a
+solve is a few small matrix products.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+from scipy.interpolate import CubicSpline
+
+from .errors import LayoutError
+
+ASSEMBLIES = ("smooth", "patches")
+_TAYLOR_TERMS = 40
+
+
+def ode_basis(kappa: float, t: np.ndarray, deriv: int = 0) -> np.ndarray:
+    """Basis of ``(d²/dt² − κ²)² f = 0`` on t ∈ [0, 1], and its derivatives.
+
+    For ``κ < 1`` the canonical basis (``f^{(j)}(0) = δ_{mj}``) is summed as a
+    Taylor series, which tends smoothly to ``1, t, t²/2, t³/6`` as κ → 0. For
+    ``κ >= 1`` the bounded forms ``e^{-κt}, t e^{-κt}, e^{-κ(1-t)},
+    (t-1) e^{-κ(1-t)}`` never overflow, however large κ is. Both span the same
+    space, so interpolants built on either agree.
+
+    Parameters
+    ----------
+    kappa : float
+        Non-negative wavenumber scaled to the interval.
+    t : (p,) array
+    deriv : int
+        Order of the derivative in t (0-3).
+
+    Returns
+    -------
+    (p, 4) array
+    """
+    t = np.asarray(t, dtype=np.float64)
+    if kappa < 1.0:
+        return _taylor_table(float(kappa), deriv)(t)
+    out = np.empty((len(t), 4))
+    for m, (lam, c, p) in enumerate(((-kappa, 0.0, 0), (-kappa, 0.0, 1), (kappa, 1.0, 0), (kappa, 1.0, 1))):
+        s = t - c
+        poly = lam ** deriv * s ** p + (p * deriv * lam ** (deriv - 1) if deriv else 0.0)
+        out[:, m] = poly * np.exp(lam * s)
+    return out
+
+
+@lru_cache(maxsize=256)
+def _taylor_table(kappa: float, deriv: int):
+    n = _TAYLOR_TERMS + 4 + deriv
+    D = np.zeros((4, n))
+    D[:, :4] = np.eye(4)
+    k2, k4 = kappa * kappa, kappa ** 4
+    for j in range(4, n):
+        D[:, j] = 2 * k2 * D[:, j - 2] - k4 * D[:, j - 4]
+    fact = np.cumprod(np.concatenate([[1.0], np.arange(1, _TAYLOR_TERMS + 1)]))
+    coef = D[:, deriv:deriv + _TAYLOR_TERMS + 1] / fact  # (4, terms)
+
+    def evaluate(t):
+        powers = t[:, None] ** np.arange(_TAYLOR_TERMS + 1)[None, :]
+        return powers @ coef.T
+    return evaluate
+
+
+@dataclass(frozen=True)
+class Grid:
+    """Output sampling of the (u, v) domain.
+
+    ``u`` has ``sub_u`` steps per curve interval and ``v`` has ``sub_v`` steps
+    per sample interval, so every curve point is a grid vertex:
+    ``u[knot_rows[i]] == knots[i]`` and ``v[sample_cols[j]] == v_j``.
+    """
+
+    u: np.ndarray
+    v: np.ndarray
+    sub_u: int
+    sub_v: int
+
+    @property
+    def knot_rows(self) -> np.ndarray:
+        return np.arange(0, len(self.u), self.sub_u)
+
+    @property
+    def sample_cols(self) -> np.ndarray:
+        return np.arange(0, len(self.v), self.sub_v)
+
+
+def output_grid(knots: np.ndarray, n_points: int, sub_u: int, sub_v: int) -> Grid:
+    """Grid with ``sub_u`` rows per curve interval and ``sub_v`` columns per point interval."""
+    if sub_u < 1 or sub_v < 1:
+        raise LayoutError(f"resolution subdivisions must be >= 1, got ({sub_u}, {sub_v})")
+    knots = np.asarray(knots, dtype=np.float64)
+    s = np.arange(sub_u) / sub_u
+    u = np.concatenate([knots[:-1, None] + np.diff(knots)[:, None] * s[None, :]]).ravel()
+    u = np.append(u, knots[-1])
+    v = np.linspace(0.0, np.pi, (n_points - 1) * sub_v + 1)
+    return Grid(u, v, sub_u, sub_v)
+
+
+def _check(knots, assembly):
+    if assembly not in ASSEMBLIES:
+        raise LayoutError(f"unknown assembly {assembly!r}; use one of {', '.join(ASSEMBLIES)}")
+    if np.any(np.diff(knots) <= 0):
+        raise LayoutError("curve parameters must increase strictly")
+    if assembly == "patches" and (len(knots) - 1) % 3:
+        raise LayoutError(f"the patches assembly needs 3m+1 curves (4, 7, ..., 31), got {len(knots)}")
+
+
+@lru_cache(maxsize=512)
+def _smooth_coefficients(knots: tuple, k: float) -> np.ndarray:
+    """Per-interval basis coefficients (4(K-1), K) of the C2 interpolant."""
+    u = np.array(knots)
+    K = len(u)
+    h = np.diff(u)
+    n = 4 * (K - 1)
+    A = np.zeros((n, n))
+    B = np.zeros((n, K))
+    phi = [[ode_basis(k * h[i], np.array([0.0, 1.0]), d) / h[i] ** d for d in range(4)] for i in range(K - 1)]
+    r = 0
+    for i in range(K - 1):
+        A[r, 4 * i:4 * i + 4] = phi[i][0][0]; B[r, i] = 1; r += 1
+        A[r, 4 * i:4 * i + 4] = phi[i][0][1]; B[r, i + 1] = 1; r += 1
+    for i in range(1, K - 1):
+        for d in (1, 2):
+            A[r, 4 * (i - 1):4 * i] = phi[i - 1][d][1]
+            A[r, 4 * i:4 * i + 4] = -phi[i][d][0]
+            r += 1
+    if K >= 4:  # not-a-knot: third derivative continuous at the second and last-but-one curves
+        for i in (1, K - 2):
+            A[r, 4 * (i - 1):4 * i] = phi[i - 1][3][1]
+            A[r, 4 * i:4 * i + 4] = -phi[i][3][0]
+            r += 1
+    else:  # natural ends
+        A[r, 0:4] = phi[0][2][0]; r += 1
+        A[r, n - 4:n] = phi[-1][2][1]; r += 1
+    return np.linalg.solve(A, B)
+
+
+@lru_cache(maxsize=512)
+def _patch_coefficients(knots: tuple, k: float) -> list:
+    """Per-patch basis coefficients (4, 4) mapping its four curves' values."""
+    u = np.array(knots)
+    out = []
+    for p in range(0, len(u) - 1, 3):
+        uu = u[p:p + 4]
+        H = uu[-1] - uu[0]
+        t = (uu - uu[0]) / H
+        out.append(np.linalg.inv(ode_basis(k * H, t, 0)))
+    return out
+
+
+@lru_cache(maxsize=512)
+def mode_operator(knots: tuple, k: float, sub_u: int, assembly: str = "smooth", deriv: int = 0) -> np.ndarray:
+    """Matrix (n_u, K) taking the K curve values of one mode to its values on the output rows.
+
+    ``deriv=1`` gives d/du instead. At a curve shared by two pieces, the row
+    uses the piece below it (the value is the same either way).
+    """
+    u = np.array(knots)
+    _check(u, assembly)
+    K = len(u)
+    s = np.arange(sub_u) / sub_u
+    rows = []
+    if assembly == "smooth":
+        C = _smooth_coefficients(knots, k)
+        h = np.diff(u)
+        for i in range(K - 1):
+            t = np.append(s, 1.0) if i == K - 2 else s
+            rows.append(ode_basis(k * h[i], t, deriv) / h[i] ** deriv @ C[4 * i:4 * i + 4])
+    else:
+        for p, Cp in enumerate(_patch_coefficients(knots, k)):
+            a = 3 * p
+            H = u[a + 3] - u[a]
+            tk = (u[a:a + 4] - u[a]) / H
+            t = np.concatenate([tk[j] + (tk[j + 1] - tk[j]) * s for j in range(3)])
+            if a + 3 == K - 1:
+                t = np.append(t, 1.0)
+            M = np.zeros((len(t), K))
+            M[:, a:a + 4] = ode_basis(k * H, t, deriv) / H ** deriv @ Cp
+            rows.append(M)
+    return np.vstack(rows)
+
+
+@lru_cache(maxsize=512)
+def knot_slopes(knots: tuple, k: float, assembly: str = "smooth") -> tuple[np.ndarray, np.ndarray]:
+    """d/du at each curve from the piece above and from the piece below.
+
+    Returns two (K, K) matrices (rows for the first/last curve repeat the one
+    side that exists). Their difference shows creases at shared curves.
+    """
+    u = np.array(knots)
+    _check(u, assembly)
+    K = len(u)
+    above, below = np.zeros((K, K)), np.zeros((K, K))
+    if assembly == "smooth":
+        C = _smooth_coefficients(knots, k)
+        h = np.diff(u)
+        for i in range(K - 1):
+            d = ode_basis(k * h[i], np.array([0.0, 1.0]), 1) / h[i] @ C[4 * i:4 * i + 4]
+            below[i], above[i + 1] = d[0], d[1]
+    else:
+        for p, Cp in enumerate(_patch_coefficients(knots, k)):
+            a = 3 * p
+            H = u[a + 3] - u[a]
+            tk = (u[a:a + 4] - u[a]) / H
+            d = ode_basis(k * H, tk, 1) / H @ Cp
+            for j in range(4):
+                if j < 3:
+                    below[a + j, a:a + 4] = d[j]
+                if j > 0:
+                    above[a + j, a:a + 4] = d[j]
+    above[0], below[K - 1] = below[0], above[K - 1]
+    return above, below
+
+
+@lru_cache(maxsize=64)
+def residual_v_operator(n_points: int, sub_v: int, deriv: int = 0) -> np.ndarray:
+    """Matrix (n_v, J): cubic spline (not-a-knot) through the J samples in v."""
+    vs = np.linspace(0.0, np.pi, n_points)
+    v = np.linspace(0.0, np.pi, (n_points - 1) * sub_v + 1)
+    return CubicSpline(vs, np.eye(n_points), bc_type="not-a-knot")(v, deriv)
+
+
+def solve_surface(coefficients, residual, knots, a=1.0, w=None, sub_u=4, sub_v=4,
+                  assembly="smooth", deriv=(0, 0)):
+    """Evaluate the PDE surface (or a derivative) on the output grid.
+
+    Parameters
+    ----------
+    coefficients : (K, N+1, 3) array
+        Fourier coefficients ``a_n`` of the curves.
+    residual : (K, J, 3) array
+        Curve points minus their Fourier series.
+    knots : (K,) array
+        Curve parameters ``u_i``, increasing from 0 to 1.
+    a : float
+        Smoothing parameter of the PDE (> 0).
+    w : float, optional
+        Wavenumber of the remainder term; default ``a (N + 1)``.
+    sub_u, sub_v : int
+        Output rows per curve interval and columns per sample interval.
+    assembly : {'smooth', 'patches'}
+    deriv : (int, int)
+        Derivative order in u and in v (each 0 or 1).
+
+    Returns
+    -------
+    (n_u, n_v, 3) array
+    """
+    coefficients = np.asarray(coefficients, dtype=np.float64)
+    residual = np.asarray(residual, dtype=np.float64)
+    if not a > 0:
+        raise LayoutError(f"smoothing parameter a must be > 0, got {a}")
+    K, N1, _ = coefficients.shape
+    J = residual.shape[1]
+    kn = tuple(float(x) for x in knots)
+    if len(kn) != K or residual.shape[0] != K:
+        raise LayoutError(f"{K} curves of coefficients but {len(kn)} curve parameters and {residual.shape[0]} residual rows")
+    w = a * N1 if w is None else w
+    du, dv = deriv
+    v = np.linspace(0.0, np.pi, (J - 1) * sub_v + 1)
+    n = np.arange(N1)
+    # d^dv/dv^dv of cos(n v): cos for dv = 0, -n sin for dv = 1.
+    cos_nv = np.cos(np.outer(v, n)) if dv == 0 else -np.sin(np.outer(v, n)) * n
+    Au = np.stack([mode_operator(kn, a * m, sub_u, assembly, du) @ coefficients[:, m, :] for m in n], axis=1)
+    X = np.einsum("unc,vn->uvc", Au, cos_nv)
+    Ru = mode_operator(kn, w, sub_u, assembly, du)
+    X += np.einsum("uk,vj,kjc->uvc", Ru, residual_v_operator(J, sub_v, dv), residual, optimize=True)
+    return X

@@ -1,0 +1,204 @@
+"""How well a PDE face matches the scan it was fitted to.
+
+Measured on the scan's *visible* face vertices inside the curve band: a vertex
+is visible when the layout's ray through it meets the scan there first (not
+hidden in a nostril, a lid fold or the mouth corner). Hidden ones are reported
+separately. All figures are in millimetres and degrees.
+"""
+from __future__ import annotations
+
+import csv
+
+import numpy as np
+
+from .fit import grid_faces, surface_grid
+from .geometry import ClosestPoint, cast_cylinder_rays, cylinder_coords
+from .mesh import vertex_normals
+from .model import FaceModel
+from .pde import knot_slopes, residual_v_operator
+
+#: Resolution the report measures the surface at (rows, columns per interval).
+REPORT_RESOLUTION = (6, 6)
+#: A vertex more than this (mm) behind the first surface its ray meets is hidden.
+VISIBILITY_TOLERANCE_MM = 0.5
+#: Skin seen more obliquely than this (cosine between normal and ray, ~72°) is not counted as visible.
+FACING_MIN_COS = 0.3
+
+
+def band_vertices(model: FaceModel, V_face: np.ndarray, T: np.ndarray):
+    """Scan vertices inside the curve band, and which of them are visible.
+
+    Visible: the layout's ray through the vertex meets the scan there first,
+    the skin there faces the ray (within ~72°), and the vertex is not sunk in an opening (a grid cell with a filled
+    corner, more than 2 mm below that cell's ray hits), as nostril and
+    mouth-corner interiors seen straight through their openings are.
+
+    Returns
+    -------
+    inside : (n,) bool
+    visible : (n,) bool (subset of ``inside``)
+    """
+    lay = model.layout
+    th, y, r = cylinder_coords(V_face, lay.axis_z)
+    top, bottom = lay.heights[0], lay.heights[-1]
+    half = np.interp(y, lay.heights[::-1], lay.half_angles[::-1])
+    # The band's sides follow the outermost samples, warped like the points are.
+    inside = (y <= top) & (y >= bottom) & (np.abs(th) <= half)
+    visible = np.zeros(len(V_face), bool)
+    idx = np.nonzero(inside)[0]
+    rad, _, _, _ = cast_cylinder_rays(V_face, T, lay.axis_z, th[idx], y[idx])
+    visible[idx] = np.isfinite(rad) & (rad - r[idx] <= VISIBILITY_TOLERANCE_MM)
+    # Skin facing away from the viewer (inner lid margins, the lips' contact faces) is not visible.
+    n = vertex_normals(V_face, T)
+    visible &= n[:, 0] * np.sin(th) + n[:, 2] * np.cos(th) >= FACING_MIN_COS
+    if model.status is not None and (model.status != 0).any():
+        visible &= ~_in_opening(model, th, y, r)
+    return inside, visible
+
+
+def _in_opening(model, th, y, r, depth=2.0):
+    lay = model.layout
+    K, J = lay.n_curves, lay.n_points
+    P = model.curve_points()
+    pth, _, pr = cylinder_coords(P.reshape(-1, 3), lay.axis_z)
+    pth, pr = pth.reshape(K, J), pr.reshape(K, J)
+    # Cell of each vertex: curve row from its height, point column from its angle on that row.
+    i = np.clip(np.searchsorted(-lay.heights, -y) - 1, 0, K - 2)
+    rows = np.stack([i, i + 1])
+    out = np.zeros(len(th), bool)
+    hit = model.status == 0
+    j = np.empty((2, len(th)), np.int64)
+    for a in range(2):
+        pt = pth[rows[a]]
+        j[a] = np.clip((pt < th[:, None]).sum(axis=1) - 1, 0, J - 2)
+    corners = [(rows[a], j[a] + b) for a in range(2) for b in range(2)]
+    filled = np.zeros(len(th), bool)
+    rmin = np.full(len(th), np.inf)
+    for ci, cj in corners:
+        filled |= ~hit[ci, cj]
+        rmin = np.where(hit[ci, cj], np.minimum(rmin, pr[ci, cj]), rmin)
+    out = filled & (r < rmin - depth)
+    return out
+
+
+def seam_jump_deg(model: FaceModel, assembly=None, sub_v=4) -> float:
+    """Largest angle (deg) between the surface normals above and below a curve."""
+    assembly = assembly or model.assembly
+    kn = tuple(float(x) for x in model.knots)
+    J = model.layout.n_points
+    N1 = model.coefficients.shape[1]
+    Xv = surface_grid(model, 1, sub_v, assembly, deriv=(0, 1))  # rows are the curves
+    v = np.linspace(0, np.pi, (J - 1) * sub_v + 1)
+    cos_nv = np.cos(np.outer(v, np.arange(N1)))
+    Vop = residual_v_operator(J, sub_v)
+    sides = []
+    for side in (0, 1):
+        Xu = np.zeros_like(Xv)
+        for m in range(N1):
+            S = knot_slopes(kn, model.a * m, assembly)[side]
+            Xu += np.einsum("kc,v->kvc", S @ model.coefficients[:, m, :], cos_nv[:, m])
+        S = knot_slopes(kn, model.remainder_w, assembly)[side]
+        Xu += np.einsum("kl,vj,ljc->kvc", S, Vop, model.residual)
+        n = np.cross(Xu, Xv)
+        sides.append(n / np.maximum(np.linalg.norm(n, axis=2, keepdims=True), 1e-300))
+    cosang = np.clip(np.einsum("kvc,kvc->kv", sides[0], sides[1])[1:-1], -1, 1)
+    return float(np.degrees(np.arccos(cosang)).max()) if cosang.size else 0.0
+
+
+def _profiles(model, Vf, T, Vp, Tp, n=60):
+    """Three cut sections through scan and PDE surface (the method's validation)."""
+    lay = model.layout
+    eye_y = model.features[[4, 5, 6, 7], 1].mean()
+    mid_y = 0.5 * (eye_y + model.features[12, 1])
+    h_mid = np.interp(mid_y, lay.heights[::-1], lay.half_angles[::-1])
+    th_off = 0.5 * np.interp(eye_y, lay.heights[::-1], lay.half_angles[::-1])
+    s = np.linspace(0, 1, n)
+    cuts = {
+        "horizontal": (-0.85 * h_mid + 1.7 * h_mid * s, np.full(n, mid_y)),
+        "vertical": (np.full(n, th_off), lay.heights[1] + (lay.heights[-2] - lay.heights[1]) * s),
+        "diagonal": (-0.7 * h_mid + 1.4 * h_mid * s, lay.heights[2] + (lay.heights[-3] - lay.heights[2]) * s),
+    }
+    out = {}
+    for name, (th, y) in cuts.items():
+        r_scan = cast_cylinder_rays(Vf, T, lay.axis_z, th, y)[0]
+        r_pde = cast_cylinder_rays(Vp, Tp, lay.axis_z, th, y)[0]
+        out[name] = (th, y, r_scan, r_pde)
+    return out
+
+
+def accuracy_report(model: FaceModel, scan_vertices, scan_triangles, assembly=None,
+                    profiles_png=None, profiles_csv=None) -> dict:
+    """Compare the PDE surface of ``model`` with the scan it came from.
+
+    Parameters
+    ----------
+    model : FaceModel
+    scan_vertices : (n, 3) array
+        The scan in its own space (the model's frame maps it).
+    scan_triangles : (t, 3) int array
+        Skin triangles of the scan.
+    assembly : str, optional
+    profiles_png, profiles_csv : path, optional
+        Where to write the three cut profiles (scan black, PDE red).
+
+    Returns
+    -------
+    dict
+        ``mean_mm``, ``p95_mm``, ``max_mm`` (visible band vertices),
+        ``occluded_mean_mm``, ``occluded_max_mm``, ``n_visible``,
+        ``n_occluded``, ``normal_p95_deg``, ``seam_max_deg``, ``assembly``.
+    """
+    assembly = assembly or model.assembly
+    Vf = model.frame.to_face(scan_vertices)
+    T = np.asarray(scan_triangles, dtype=np.int64)
+    su, sv = REPORT_RESOLUTION
+    X = surface_grid(model, su, sv, assembly)
+    nu, nv, _ = X.shape
+    Vp = X.reshape(-1, 3)
+    Q = grid_faces(nu, nv)
+    Tp = np.concatenate([Q[:, [0, 1, 2]], Q[:, [0, 2, 3]]])
+    inside, visible = band_vertices(model, Vf, T)
+    occluded = inside & ~visible
+    cp = ClosestPoint(Vp, Tp)
+    d, tri, bary, _ = cp.query(Vf[visible])
+    d_occ = cp.query(Vf[occluded])[0] if occluded.any() else np.zeros(0)
+    # Normal deviation: scan vertex normals against the PDE's interpolated normals.
+    Xu = surface_grid(model, su, sv, assembly, deriv=(1, 0)).reshape(-1, 3)
+    Xv = surface_grid(model, su, sv, assembly, deriv=(0, 1)).reshape(-1, 3)
+    npde = np.cross(Xu, Xv)
+    npde /= np.maximum(np.linalg.norm(npde, axis=1, keepdims=True), 1e-300)
+    n_at = np.einsum("pk,pkc->pc", bary, npde[Tp[tri]])
+    n_at /= np.maximum(np.linalg.norm(n_at, axis=1, keepdims=True), 1e-300)
+    nscan = vertex_normals(Vf, T)[visible]
+    # The grid's orientation is fixed by the layout, so align it with the scan's once.
+    if np.median(np.einsum("pc,pc->p", n_at, nscan)) < 0:
+        n_at = -n_at
+    ang = np.degrees(np.arccos(np.clip(np.einsum("pc,pc->p", n_at, nscan), -1, 1)))
+    result = {
+        "assembly": assembly,
+        "mean_mm": float(d.mean()), "p95_mm": float(np.percentile(d, 95)), "max_mm": float(d.max()),
+        "n_visible": int(visible.sum()), "n_occluded": int(occluded.sum()),
+        "occluded_mean_mm": float(d_occ.mean()) if len(d_occ) else 0.0,
+        "occluded_max_mm": float(d_occ.max()) if len(d_occ) else 0.0,
+        "normal_p95_deg": float(np.percentile(ang, 95)),
+        "seam_max_deg": seam_jump_deg(model, assembly),
+    }
+    if profiles_png or profiles_csv:
+        prof = _profiles(model, Vf, T, Vp, Tp)
+        if profiles_csv:
+            with open(profiles_csv, "w", newline="") as fh:
+                wr = csv.writer(fh)
+                wr.writerow(["cut", "i", "angle_deg", "height_mm", "scan_radius_mm", "pde_radius_mm", "difference_mm"])
+                for name, (th, y, rs, rp) in prof.items():
+                    for i in range(len(th)):
+                        wr.writerow([name, i, f"{np.degrees(th[i]):.4f}", f"{y[i]:.4f}", f"{rs[i]:.4f}",
+                                     f"{rp[i]:.4f}", f"{rp[i] - rs[i]:.4f}"])
+        if profiles_png:
+            from .png import plot_panels
+            panels = []
+            for name, (th, y, rs, rp) in prof.items():
+                along = np.concatenate([[0], np.cumsum(np.hypot(np.diff(th) * np.nanmean(rs), np.diff(y)))])
+                panels.append([(along, rs, (0, 0, 0)), (along, rp, (220, 30, 30))])
+            plot_panels(profiles_png, panels)
+    return result
+
