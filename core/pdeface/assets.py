@@ -46,3 +46,17 @@ def load_neutral_scan() -> tuple[Mesh, np.ndarray]:
         mesh.uvs = z["uvs"].astype(np.float64)
         mesh.face_uv_indices = z["face_uvs"].astype(np.int64).ravel()
         return mesh, z["landmarks"].astype(np.int64)
+
+
+ICT_SHAPES = "ict_shapes.npz"
+
+
+def load_ict_shapes() -> dict:
+    """ICT-FaceKit expression shapes and identity meshes as offsets (cm) from the neutral face region.
+
+    Keys are ICT names (``mouthSmile_L``, ``jawOpen``, ``identity000`` ...);
+    values are (9409, 3) arrays to add to the neutral scan's vertices.
+    """
+    with np.load(asset_path(ICT_SHAPES), allow_pickle=False) as z:
+        step = float(z["step_cm"])
+        return {str(n): o.astype(np.float64) * step for n, o in zip(z["names"], z["offsets"])}

@@ -20,8 +20,8 @@ from .geometry import ClosestPoint, cast_cylinder_rays
 from .layout import CurveLayout
 
 #: Status codes of curve points.
-HIT, MISS, BACKFACING, CAVITY = 0, 1, 2, 3
-STATUS_NAMES = {HIT: "hit", MISS: "miss", BACKFACING: "back-facing", CAVITY: "cavity"}
+HIT, MISS, BACKFACING, CAVITY, GRAZING = 0, 1, 2, 3, 4
+STATUS_NAMES = {HIT: "hit", MISS: "miss", BACKFACING: "back-facing", CAVITY: "cavity", GRAZING: "grazing"}
 
 
 @dataclass
@@ -34,7 +34,7 @@ class CurveSampler:
         ``matrix @ V`` gives the curve points, curve after curve.
     status : (K, J) int array
         :data:`HIT`, or why the point was filled (:data:`MISS`,
-        :data:`BACKFACING`, :data:`CAVITY`).
+        :data:`BACKFACING`, :data:`CAVITY`, :data:`GRAZING`).
     shape : (K, J)
     """
 
@@ -123,7 +123,7 @@ def _fill_weights(valid: np.ndarray) -> sp.csr_matrix:
 
 
 def place_samples(V_face: np.ndarray, T: np.ndarray, layout: CurveLayout,
-                  cavity_depth: float = 12.0, cavity_window: int = 6,
+                  cavity_depth: float = 12.0, cavity_window: int = 6, min_facing: float = 0.25,
                   min_hit_fraction: float = 0.75) -> CurveSampler:
     """Cast the layout's rays on a mesh and build its curve sampler.
 
@@ -137,6 +137,10 @@ def place_samples(V_face: np.ndarray, T: np.ndarray, layout: CurveLayout,
     cavity_depth : float
         A hit this far (mm) below its neighbours' chord is taken to be inside
         an opening (eye socket, mouth) and filled instead.
+    min_facing : float
+        A hit on skin seen more obliquely than this (cosine between its normal
+        and the ray) is filled too: it is a nostril or lip wall seen edge-on,
+        where a small shift of the ray moves the point a long way.
     min_hit_fraction : float
         Fewer usable hits than this fraction raises :class:`LayoutError`.
     """
@@ -147,6 +151,7 @@ def place_samples(V_face: np.ndarray, T: np.ndarray, layout: CurveLayout,
     status = np.full(K * J, HIT)
     status[tri < 0] = MISS
     status[(tri >= 0) & (facing <= 0)] = BACKFACING
+    status[(tri >= 0) & (facing > 0) & (facing < min_facing)] = GRAZING
     status = status.reshape(K, J)
     cav = _cavities(radius.reshape(K, J), status == HIT, cavity_depth, cavity_window)
     status[cav] = CAVITY

@@ -17,8 +17,9 @@ from .geometry import cylinder_coords
 #: Relative curve density between the anchor heights, top to bottom: denser at
 #: brows, eyes, nose and lips, as the method's curves are.
 SEGMENT_DENSITY = {
-    "forehead-brow": 0.8, "brow-eye": 1.8, "eye-nose_tip": 1.3, "nose_tip-nose_bottom": 2.6,
-    "nose_bottom-lip_upper": 2.2, "lip_upper-mouth": 3.0, "mouth-lip_lower": 3.0, "lip_lower-chin": 1.4,
+    "forehead-brow": 0.7, "brow-eye_top": 1.55, "eye_top-eye_bottom": 2.95, "eye_bottom-nose_tip": 1.3,
+    "nose_tip-nose_bottom": 2.85, "nose_bottom-lip_upper": 1.5, "lip_upper-mouth": 4.0, "mouth-lip_lower": 2.45,
+    "lip_lower-chin": 0.85,
 }
 
 
@@ -45,7 +46,7 @@ class CurveLayout:
     half_angles: np.ndarray
     axis_z: float
     n_points: int
-    centre_density: float = 0.3
+    centre_density: float = 0.5
 
     @property
     def n_curves(self) -> int:
@@ -95,9 +96,13 @@ def place_curves(landmarks_face: np.ndarray, n_curves: int = 31, n_points: int =
     L = np.asarray(landmarks_face, dtype=np.float64)
     axis_z = -1.75 * eye_distance(L)
     brow, eye = L[17:27, 1].mean(), L[36:48, 1].mean()
+    lid_top, lid_bottom = L[[37, 38, 43, 44], 1].mean(), L[[40, 41, 46, 47], 1].mean()
+    # Lids barely apart (a blink, a squint) still get their band of curves.
+    gap = max(lid_top - lid_bottom, 0.25 * (brow - eye))
     chin, lip_lower = L[8, 1], L[57, 1]
     anchors = {
-        "forehead": brow + forehead * (brow - eye), "brow": brow, "eye": eye, "nose_tip": L[30, 1],
+        "forehead": brow + forehead * (brow - eye), "brow": brow, "eye_top": eye + 0.5 * gap,
+        "eye_bottom": eye - 0.5 * gap, "nose_tip": L[30, 1],
         "nose_bottom": L[33, 1], "lip_upper": L[51, 1], "mouth": L[[62, 66], 1].mean(),
         "lip_lower": lip_lower, "chin": chin + 0.08 * (lip_lower - chin),
     }

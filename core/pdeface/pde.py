@@ -247,6 +247,42 @@ def residual_v_operator(n_points: int, sub_v: int, deriv: int = 0) -> np.ndarray
     return CubicSpline(vs, np.eye(n_points), bc_type="not-a-knot")(v, deriv)
 
 
+@dataclass(frozen=True)
+class SurfaceOperator:
+    """The PDE solve for one layout and grid as precomputed matrices.
+
+    ``apply(coefficients, residual)`` is then three small matrix products.
+    """
+
+    modes: np.ndarray  # (N+1, n_u, K): curve values of mode n → rows
+    cos_nv: np.ndarray  # (n_v, N+1): cos(n v) or its v-derivative
+    remainder_u: np.ndarray  # (n_u, K)
+    remainder_v: np.ndarray  # (n_v, J)
+
+    def apply(self, coefficients: np.ndarray, residual: np.ndarray) -> np.ndarray:
+        K, J, _ = residual.shape
+        n1, n_u, _ = self.modes.shape
+        # Work in (v, u·xyz) layout so each part is one matrix product.
+        F = np.matmul(self.modes, np.transpose(coefficients, (1, 0, 2))).reshape(n1, n_u * 3)
+        Ru = (self.remainder_u @ residual.reshape(K, J * 3)).reshape(n_u, J, 3).transpose(1, 0, 2).reshape(J, n_u * 3)
+        X = self.cos_nv @ F + self.remainder_v @ Ru  # (n_v, n_u * 3)
+        return np.ascontiguousarray(X.reshape(-1, n_u, 3).transpose(1, 0, 2))
+
+
+@lru_cache(maxsize=64)
+def surface_operator(knots: tuple, n_points: int, n_modes: int, a: float, w: float, sub_u: int, sub_v: int,
+                     assembly: str = "smooth", deriv: tuple = (0, 0)) -> SurfaceOperator:
+    """Cached :class:`SurfaceOperator` (see :func:`solve_surface` for the arguments)."""
+    du, dv = deriv
+    v = np.linspace(0.0, np.pi, (n_points - 1) * sub_v + 1)
+    n = np.arange(n_modes + 1)
+    # d^dv/dv^dv of cos(n v): cos for dv = 0, -n sin for dv = 1.
+    cos_nv = np.cos(np.outer(v, n)) if dv == 0 else -np.sin(np.outer(v, n)) * n
+    modes = np.stack([mode_operator(knots, a * m, sub_u, assembly, du) for m in n])
+    return SurfaceOperator(modes, cos_nv, mode_operator(knots, w, sub_u, assembly, du),
+                           residual_v_operator(n_points, sub_v, dv))
+
+
 def solve_surface(coefficients, residual, knots, a=1.0, w=None, sub_u=4, sub_v=4,
                   assembly="smooth", deriv=(0, 0)):
     """Evaluate the PDE surface (or a derivative) on the output grid.
@@ -278,18 +314,10 @@ def solve_surface(coefficients, residual, knots, a=1.0, w=None, sub_u=4, sub_v=4
     if not a > 0:
         raise LayoutError(f"smoothing parameter a must be > 0, got {a}")
     K, N1, _ = coefficients.shape
-    J = residual.shape[1]
     kn = tuple(float(x) for x in knots)
     if len(kn) != K or residual.shape[0] != K:
         raise LayoutError(f"{K} curves of coefficients but {len(kn)} curve parameters and {residual.shape[0]} residual rows")
     w = a * N1 if w is None else w
-    du, dv = deriv
-    v = np.linspace(0.0, np.pi, (J - 1) * sub_v + 1)
-    n = np.arange(N1)
-    # d^dv/dv^dv of cos(n v): cos for dv = 0, -n sin for dv = 1.
-    cos_nv = np.cos(np.outer(v, n)) if dv == 0 else -np.sin(np.outer(v, n)) * n
-    Au = np.stack([mode_operator(kn, a * m, sub_u, assembly, du) @ coefficients[:, m, :] for m in n], axis=1)
-    X = np.einsum("unc,vn->uvc", Au, cos_nv)
-    Ru = mode_operator(kn, w, sub_u, assembly, du)
-    X += np.einsum("uk,vj,kjc->uvc", Ru, residual_v_operator(J, sub_v, dv), residual, optimize=True)
-    return X
+    op = surface_operator(kn, residual.shape[1], N1 - 1, float(a), float(w), int(sub_u), int(sub_v), assembly,
+                          tuple(deriv))
+    return op.apply(coefficients, residual)

@@ -25,35 +25,34 @@ VISIBILITY_TOLERANCE_MM = 0.5
 FACING_MIN_COS = 0.3
 
 
-def band_vertices(model: FaceModel, V_face: np.ndarray, T: np.ndarray):
-    """Scan vertices inside the curve band, and which of them are visible.
+def band_vertices(model: FaceModel, V_face: np.ndarray, T: np.ndarray) -> dict:
+    """Classify the scan's vertices inside the curve band.
 
-    Visible: the layout's ray through the vertex meets the scan there first,
-    the skin there faces the ray (within ~72°), and the vertex is not sunk in an opening (a grid cell with a filled
-    corner, more than 2 mm below that cell's ray hits), as nostril and
-    mouth-corner interiors seen straight through their openings are.
+    ``visible``: the layout's ray through the vertex meets the scan there
+    first, the skin faces the ray within ~72°, and the vertex is not sunk in
+    an opening (a grid cell with a filled corner, over 2 mm below that cell's
+    ray hits, as nostril and mouth-corner interiors seen straight through their
+    openings are). ``occluded``: hidden behind other skin or sunk in an
+    opening. ``oblique``: otherwise visible but seen at a grazing angle.
 
     Returns
     -------
-    inside : (n,) bool
-    visible : (n,) bool (subset of ``inside``)
+    dict of (n,) bool masks: ``inside``, ``visible``, ``occluded``, ``oblique``
     """
     lay = model.layout
     th, y, r = cylinder_coords(V_face, lay.axis_z)
-    top, bottom = lay.heights[0], lay.heights[-1]
     half = np.interp(y, lay.heights[::-1], lay.half_angles[::-1])
-    # The band's sides follow the outermost samples, warped like the points are.
-    inside = (y <= top) & (y >= bottom) & (np.abs(th) <= half)
-    visible = np.zeros(len(V_face), bool)
+    inside = (y <= lay.heights[0]) & (y >= lay.heights[-1]) & (np.abs(th) <= half)
+    first = np.zeros(len(V_face), bool)
     idx = np.nonzero(inside)[0]
     rad, _, _, _ = cast_cylinder_rays(V_face, T, lay.axis_z, th[idx], y[idx])
-    visible[idx] = np.isfinite(rad) & (rad - r[idx] <= VISIBILITY_TOLERANCE_MM)
-    # Skin facing away from the viewer (inner lid margins, the lips' contact faces) is not visible.
-    n = vertex_normals(V_face, T)
-    visible &= n[:, 0] * np.sin(th) + n[:, 2] * np.cos(th) >= FACING_MIN_COS
+    first[idx] = np.isfinite(rad) & (rad - r[idx] <= VISIBILITY_TOLERANCE_MM)
     if model.status is not None and (model.status != 0).any():
-        visible &= ~_in_opening(model, th, y, r)
-    return inside, visible
+        first &= ~_in_opening(model, th, y, r)
+    n = vertex_normals(V_face, T)
+    facing = n[:, 0] * np.sin(th) + n[:, 2] * np.cos(th) >= FACING_MIN_COS
+    return {"inside": inside, "visible": inside & first & facing,
+            "occluded": inside & ~first, "oblique": inside & first & ~facing}
 
 
 def _in_opening(model, th, y, r, depth=2.0):
@@ -67,6 +66,12 @@ def _in_opening(model, th, y, r, depth=2.0):
     rows = np.stack([i, i + 1])
     out = np.zeros(len(th), bool)
     hit = model.status == 0
+    # Openings reach a grid step past their filled points (nostrils are wider than one ray).
+    near_fill = ~hit
+    near_fill[1:] |= ~hit[:-1]
+    near_fill[:-1] |= ~hit[1:]
+    near_fill[:, 1:] |= near_fill[:, :-1].copy()
+    near_fill[:, :-1] |= near_fill[:, 1:].copy()
     j = np.empty((2, len(th)), np.int64)
     for a in range(2):
         pt = pth[rows[a]]
@@ -75,7 +80,7 @@ def _in_opening(model, th, y, r, depth=2.0):
     filled = np.zeros(len(th), bool)
     rmin = np.full(len(th), np.inf)
     for ci, cj in corners:
-        filled |= ~hit[ci, cj]
+        filled |= near_fill[ci, cj]
         rmin = np.where(hit[ci, cj], np.minimum(rmin, pr[ci, cj]), rmin)
     out = filled & (r < rmin - depth)
     return out
@@ -144,9 +149,11 @@ def accuracy_report(model: FaceModel, scan_vertices, scan_triangles, assembly=No
     Returns
     -------
     dict
-        ``mean_mm``, ``p95_mm``, ``max_mm`` (visible band vertices),
-        ``occluded_mean_mm``, ``occluded_max_mm``, ``n_visible``,
-        ``n_occluded``, ``normal_p95_deg``, ``seam_max_deg``, ``assembly``.
+        ``mean_mm``, ``p95_mm``, ``max_mm``, ``normal_p95_deg`` over the
+        visible band vertices (``n_visible``); ``n_occluded``,
+        ``occluded_mean_mm``, ``occluded_max_mm`` and the same for
+        ``oblique`` (see :func:`band_vertices`); ``seam_max_deg``;
+        ``assembly``.
     """
     assembly = assembly or model.assembly
     Vf = model.frame.to_face(scan_vertices)
@@ -157,11 +164,11 @@ def accuracy_report(model: FaceModel, scan_vertices, scan_triangles, assembly=No
     Vp = X.reshape(-1, 3)
     Q = grid_faces(nu, nv)
     Tp = np.concatenate([Q[:, [0, 1, 2]], Q[:, [0, 2, 3]]])
-    inside, visible = band_vertices(model, Vf, T)
-    occluded = inside & ~visible
+    cls = band_vertices(model, Vf, T)
+    visible = cls["visible"]
     cp = ClosestPoint(Vp, Tp)
     d, tri, bary, _ = cp.query(Vf[visible])
-    d_occ = cp.query(Vf[occluded])[0] if occluded.any() else np.zeros(0)
+    others = {k: cp.query(Vf[cls[k]])[0] if cls[k].any() else np.zeros(0) for k in ("occluded", "oblique")}
     # Normal deviation: scan vertex normals against the PDE's interpolated normals.
     Xu = surface_grid(model, su, sv, assembly, deriv=(1, 0)).reshape(-1, 3)
     Xv = surface_grid(model, su, sv, assembly, deriv=(0, 1)).reshape(-1, 3)
@@ -177,12 +184,14 @@ def accuracy_report(model: FaceModel, scan_vertices, scan_triangles, assembly=No
     result = {
         "assembly": assembly,
         "mean_mm": float(d.mean()), "p95_mm": float(np.percentile(d, 95)), "max_mm": float(d.max()),
-        "n_visible": int(visible.sum()), "n_occluded": int(occluded.sum()),
-        "occluded_mean_mm": float(d_occ.mean()) if len(d_occ) else 0.0,
-        "occluded_max_mm": float(d_occ.max()) if len(d_occ) else 0.0,
+        "n_visible": int(visible.sum()),
         "normal_p95_deg": float(np.percentile(ang, 95)),
         "seam_max_deg": seam_jump_deg(model, assembly),
     }
+    for k, dk in others.items():
+        result[f"n_{k}"] = int(len(dk))
+        result[f"{k}_mean_mm"] = float(dk.mean()) if len(dk) else 0.0
+        result[f"{k}_max_mm"] = float(dk.max()) if len(dk) else 0.0
     if profiles_png or profiles_csv:
         prof = _profiles(model, Vf, T, Vp, Tp)
         if profiles_csv:
