@@ -232,6 +232,8 @@ def read_ply(path) -> Mesh:
                     for prop in props:
                         if prop[1] == "list":
                             n = int(tokens[pos]); pos += 1
+                            if pos + n > len(tokens):
+                                raise IndexError
                             row.append([float(t) for t in tokens[pos:pos + n]]); pos += n
                         else:
                             row.append(float(tokens[pos])); pos += 1

@@ -1,0 +1,25 @@
+import numpy as np
+import pytest
+
+from pdeface.assets import load_neutral_scan
+from pdeface.fit import fit_face
+
+
+@pytest.fixture(scope="session")
+def scan():
+    """The bundled ICT-FaceKit neutral face region: (mesh, triangles, 68 landmark indices)."""
+    mesh, idx = load_neutral_scan()
+    T, _ = mesh.triangles()
+    return mesh, T, idx
+
+
+@pytest.fixture(scope="session")
+def fitted(scan):
+    """(model, sampler) fitted to the bundled scan with the default layout."""
+    mesh, T, idx = scan
+    return fit_face(mesh.vertices, T, mesh.vertices[idx], unit="cm")
+
+
+@pytest.fixture
+def rng():
+    return np.random.default_rng(1234)

@@ -1,0 +1,90 @@
+import json
+import shutil
+import subprocess
+
+import numpy as np
+import pytest
+
+from pdeface.cli import main
+from pdeface.mesh import Mesh
+from pdeface.meshio import read_obj, write_obj
+
+
+@pytest.fixture(scope="module")
+def scan_files(tmp_path_factory, scan):
+    mesh, _, idx = scan
+    d = tmp_path_factory.mktemp("scan")
+    write_obj(d / "neutral.obj", mesh)
+    (d / "lm_indices.json").write_text(json.dumps({"indices": idx.tolist()}))
+    (d / "lm_points.json").write_text(json.dumps({"points": mesh.vertices[idx].tolist()}))
+    return d
+
+
+def run(capsys, *args):
+    code = main([str(a) for a in args])
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+def test_fit_mesh_report(tmp_path, capsys, scan_files):
+    code, out, _ = run(capsys, "fit", scan_files / "neutral.obj", "--landmarks", scan_files / "lm_indices.json",
+                       "--unit", "cm", "-o", tmp_path / "face.npz")
+    assert code == 0 and json.loads(out)["model_bytes"] == (tmp_path / "face.npz").stat().st_size
+    code, _, err = run(capsys, "mesh", tmp_path / "face.npz", "-o", tmp_path / "face.obj", "--resolution", "2,2")
+    assert code == 0 and "vertices" in err
+    pde = read_obj(tmp_path / "face.obj")
+    assert pde.vertices.shape == (61 * 73, 3) and pde.uvs is not None
+    code, out, _ = run(capsys, "report", tmp_path / "face.npz", scan_files / "neutral.obj", "--json")
+    r = json.loads(out)
+    assert code == 0
+    for key in ("mean_mm", "p95_mm", "max_mm", "normal_p95_deg", "seam_max_deg", "model_bytes"):
+        assert isinstance(r[key], (int, float))
+    assert r["mean_mm"] < 0.15 and r["model_bytes"] <= 8192
+
+
+def test_points_landmarks_and_unit_guess(tmp_path, capsys, scan_files):
+    code, out, _ = run(capsys, "fit", scan_files / "neutral.obj", "--landmarks", scan_files / "lm_points.json",
+                       "-o", tmp_path / "f.npz")
+    assert code == 0 and json.loads(out)["unit"] == "cm"
+
+
+def test_default_face_and_patches(tmp_path, capsys):
+    code, _, _ = run(capsys, "mesh", "default", "--assembly", "patches", "--resolution", "original",
+                     "-o", tmp_path / "d.obj")
+    assert code == 0 and read_obj(tmp_path / "d.obj").vertices.shape == (301 * 37, 3)
+    code, out, _ = run(capsys, "report", "default", "default", "--json", "--assembly", "patches")
+    assert code == 0 and json.loads(out)["assembly"] == "patches"
+
+
+def test_demo(tmp_path, capsys):
+    code, out, err = run(capsys, "demo", "--out", tmp_path / "demo")
+    assert code == 0 and "[3/3]" in err
+    for f in ("face.npz", "face.obj", "report.json", "profiles.png", "profiles.csv"):
+        assert (tmp_path / "demo" / f).stat().st_size > 0
+    assert json.loads(out)["seam_max_deg"] < 0.01
+
+
+def test_bad_input_is_a_clear_error(tmp_path, capsys, scan_files):
+    broken = tmp_path / "broken.obj"
+    broken.write_text("v 0 0 0\nv 1 0 zz\nf 1 2 3\n")
+    code, _, err = run(capsys, "fit", broken, "--landmarks", scan_files / "lm_indices.json", "-o", tmp_path / "x.npz")
+    assert code == 2 and "broken.obj:2: bad number" in err
+    assert not (tmp_path / "x.npz").exists()
+    code, _, err = run(capsys, "fit", scan_files / "neutral.obj", "-o", tmp_path / "x.npz")
+    assert code == 2 and "--landmarks is required" in err
+    faceless = tmp_path / "plane.obj"
+    write_obj(faceless, Mesh.from_faces(np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]]) * 100.0, [[0, 1, 3, 2]]))
+    (tmp_path / "lm.json").write_text(json.dumps({"indices": [0, 1, 2, 3] * 17}))
+    code, _, err = run(capsys, "fit", faceless, "--landmarks", tmp_path / "lm.json", "-o", tmp_path / "x.npz")
+    assert code == 2 and "pdeface: error:" in err
+    code, _, err = run(capsys, "mesh", tmp_path / "nope.npz", "-o", tmp_path / "y.obj")
+    assert code == 2 and "no such file" in err
+
+
+def test_console_script_is_installed(tmp_path):
+    exe = shutil.which("pdeface")
+    assert exe, "pip install -e . should put the pdeface console script on PATH"
+    res = subprocess.run([exe, "mesh", "default", "-o", str(tmp_path / "c.obj"), "--resolution", "1,1"],
+                         capture_output=True, text=True)
+    assert res.returncode == 0, res.stderr
+    assert read_obj(tmp_path / "c.obj").vertices.shape == (31 * 37, 3)

@@ -1,0 +1,93 @@
+import numpy as np
+import pytest
+
+from pdeface.curves import CAVITY, HIT, MISS, place_samples
+from pdeface.errors import LayoutError
+from pdeface.frame import face_frame
+from pdeface.layout import CurveLayout, place_curves
+
+
+@pytest.fixture(scope="module")
+def face_space(scan):
+    mesh, T, idx = scan
+    frame = face_frame(mesh.vertices[idx], "cm")
+    return frame.to_face(mesh.vertices), T, frame.to_face(mesh.vertices[idx])
+
+
+def test_layout_from_landmarks(face_space):
+    _, _, Lf = face_space
+    lay = place_curves(Lf)
+    assert lay.n_curves == 31 and lay.n_points == 37
+    h = lay.heights
+    assert (np.diff(h) < 0).all()  # forehead to chin
+    assert h[0] > Lf[17:27, 1].max() and h[-1] < Lf[57, 1]
+    gaps = -np.diff(h)
+    # denser at eyes and lips than on the forehead
+    at = lambda y: gaps[np.argmin(np.abs(h[:-1] - y))]  # noqa: E731
+    assert at(Lf[36:48, 1].mean()) < 0.6 * gaps[0]
+    assert at(Lf[[62, 66], 1].mean()) < 0.6 * gaps[0]
+    assert (lay.half_angles > 0).all() and (lay.half_angles < np.pi / 2).all()
+    back = CurveLayout.from_array(lay.as_array())
+    np.testing.assert_allclose(back.angles(), lay.angles())
+
+
+def test_layout_count_is_configurable_and_checked(face_space):
+    _, _, Lf = face_space
+    assert place_curves(Lf, 19, 21).angles().shape == (19, 21)
+    with pytest.raises(LayoutError, match="at least 4 curves"):
+        place_curves(Lf, 3)
+    with pytest.raises(LayoutError, match="not in face order"):
+        place_curves(Lf * np.array([1, -1, 1]))  # upside down
+
+
+def test_samples_are_material_points_exact_on_same_topology(face_space, rng):
+    V, T, Lf = face_space
+    s = place_samples(V, T, place_curves(Lf))
+    P = s.sample(V)
+    hit = s.status == HIT
+    # hits lie on their rays: same height as their curve, on the mesh surface
+    lay = place_curves(Lf)
+    np.testing.assert_allclose(P[..., 1][hit], np.broadcast_to(lay.heights[:, None], hit.shape)[hit], atol=1e-9)
+    # any deformation of the same mesh is read exactly and linearly
+    D = rng.normal(size=V.shape)
+    np.testing.assert_allclose(s.sample(V + 0.3 * D), P + 0.3 * s.sample(D), atol=1e-9)
+    with pytest.raises(LayoutError, match="vertices"):
+        s.sample(V[:-1])
+
+
+def test_eye_openings_are_detected_and_filled(face_space):
+    V, T, Lf = face_space
+    lay = place_curves(Lf)
+    s = place_samples(V, T, lay)
+    assert (s.status == MISS).sum() >= 4  # the face region has holes at the eyes
+    P = s.sample(V)
+    bad = np.argwhere(s.status != HIT)
+    # filled points lie within their neighbours' range: no garbage spikes
+    for i, j in bad:
+        nb = P[max(i - 1, 0):i + 2, max(j - 1, 0):j + 2].reshape(-1, 3)
+        assert np.all(P[i, j] >= nb.min(0) - 1e-9) and np.all(P[i, j] <= nb.max(0) + 1e-9)
+    eye_rows = np.unique(bad[:, 0])
+    assert np.any(np.abs(lay.heights[eye_rows] - Lf[36:48, 1].mean()) < 6)
+
+
+def test_pocket_behind_an_opening_is_a_cavity(face_space):
+    V, T, Lf = face_space
+    lay = place_curves(Lf)
+    # close the eye openings from behind with a plate 25 mm deep: rays now hit it
+    eye = Lf[36:42].mean(0)
+    x, y = np.meshgrid(np.linspace(-20, 20, 9) + eye[0], np.linspace(-12, 12, 7) + eye[1])
+    plate = np.stack([x.ravel(), y.ravel(), np.full(x.size, eye[2] - 25)], 1)
+    n0 = len(V)
+    quads = [[n0 + r * 9 + c, n0 + r * 9 + c + 1, n0 + (r + 1) * 9 + c + 1, n0 + (r + 1) * 9 + c]
+             for r in range(6) for c in range(8)]
+    Tp = np.array([[q[0], q[1], q[2]] for q in quads] + [[q[0], q[2], q[3]] for q in quads])
+    s = place_samples(np.vstack([V, plate]), np.vstack([T, Tp]), lay)
+    assert (s.status == CAVITY).sum() >= 2
+    plain = place_samples(V, T, lay)
+    assert ((s.status != HIT) == (plain.status != HIT)).mean() > 0.99
+
+
+def test_missing_face_is_a_clear_error(face_space):
+    V, T, Lf = face_space
+    with pytest.raises(LayoutError, match="landed on the face"):
+        place_samples(V + np.array([0, 0, -500.0]), T, place_curves(Lf))

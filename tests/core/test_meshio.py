@@ -1,0 +1,118 @@
+import numpy as np
+import pytest
+
+from pdeface.errors import MeshError
+from pdeface.mesh import Mesh
+from pdeface.meshio import read_mesh, read_obj, read_ply, write_mesh, write_obj
+
+OBJ = """# a comment
+mtllib skin.mtl
+v 0 0 0
+v 1 0 0
+v 1 1 0
+v 0 1 0
+v 2 0.5 0
+vt 0 0
+vt 1 0
+vt 1 1
+vt 0 1
+vn 0 0 1
+usemtl Skin
+f 1/1/1 2/2/1 3/3/1 4/4/1
+usemtl Other
+f -4/-3/-1 5/2/1 -3/-2/-1
+"""
+
+
+def write(tmp_path, text, name="m.obj"):
+    p = tmp_path / name
+    p.write_text(text)
+    return p
+
+
+def test_obj_reads_quads_tris_negative_indices_and_materials(tmp_path):
+    m = read_obj(write(tmp_path, OBJ))
+    assert m.vertices.shape == (5, 3)
+    assert m.face_counts.tolist() == [4, 3]
+    # -4 of 5 vertices is vertex 2 (1-based) → index 1; -3 → index 2
+    assert m.face_indices.tolist() == [0, 1, 2, 3, 1, 4, 2]
+    assert m.face_uv_indices.tolist() == [0, 1, 2, 3, 1, 1, 2]
+    assert m.face_normal_indices.tolist() == [0] * 7
+    assert m.material_names == ["Skin", "Other"] and m.face_materials.tolist() == [0, 1]
+    assert m.mtllib == "skin.mtl"
+
+
+def test_obj_ngon_and_forms_without_uv(tmp_path):
+    text = "v 0 0 0\nv 1 0 0\nv 2 1 0\nv 1 2 0\nv 0 1 0\nvn 0 0 1\nf 1//1 2//1 3//1 4//1 5//1\nf 1 2 3\n"
+    m = read_obj(write(tmp_path, text))
+    assert m.face_counts.tolist() == [5, 3]
+    assert m.uvs is None
+    T, poly = m.triangles()
+    assert T.shape == (4, 3) and poly.tolist() == [0, 0, 0, 1]
+
+
+def test_obj_roundtrip_keeps_uvs_normals_materials(tmp_path):
+    m = read_obj(write(tmp_path, OBJ))
+    out = tmp_path / "out.obj"
+    write_obj(out, m)
+    m2 = read_obj(out)
+    np.testing.assert_allclose(m2.vertices, m.vertices)
+    np.testing.assert_allclose(m2.uvs[m2.face_uv_indices], m.uvs[m.face_uv_indices])
+    assert m2.face_indices.tolist() == m.face_indices.tolist()
+    assert m2.material_names == m.material_names and m2.mtllib == "skin.mtl"
+
+
+@pytest.mark.parametrize("text, message", [
+    ("v 0 0 x\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", "m.obj:1: bad number"),
+    ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n", "m.obj:4: vertex index 4 out of range"),
+    ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 -4\n", "m.obj:4: vertex index -4 out of range"),
+    ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 0\n", "out of range"),
+    ("v 0 0 0\nv 1 0 0\nv 0 1 0\n", "no faces"),
+    ("# empty\n", "no vertices"),
+    ("v 0 nan 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", "m.obj:1: vertex is not finite"),
+    ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2\n", "m.obj:4: face needs at least 3 corners"),
+    ("v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/2 2/1 3/1\n", "texture coordinate index 2 out of range"),
+    ("v 0 0\n", "m.obj:1: vertex line needs 3 numbers"),
+])
+def test_obj_errors_name_file_and_line(tmp_path, text, message):
+    with pytest.raises(MeshError, match=message.replace("(", r"\(")):
+        read_obj(write(tmp_path, text))
+
+
+def test_missing_file_and_unknown_format(tmp_path):
+    with pytest.raises(MeshError, match="cannot open"):
+        read_obj(tmp_path / "nope.obj")
+    with pytest.raises(MeshError, match="unsupported mesh format"):
+        read_mesh(tmp_path / "x.stl")
+
+
+@pytest.mark.parametrize("name", ["m.ply", "m.obj"])
+def test_write_read_roundtrip_any_format(tmp_path, name, rng):
+    V = rng.normal(size=(6, 3))
+    mesh = Mesh.from_faces(V, [[0, 1, 2, 3], [2, 3, 4, 5]], uvs=rng.random((6, 2)))
+    write_mesh(tmp_path / name, mesh)
+    back = read_mesh(tmp_path / name)
+    np.testing.assert_allclose(back.vertices, V, atol=1e-5)
+    assert back.face_indices.tolist() == mesh.face_indices.tolist()
+    np.testing.assert_allclose(back.uvs[back.face_uv_indices], mesh.uvs[mesh.face_uv_indices], atol=1e-5)
+
+
+def test_ascii_ply_and_bad_ply(tmp_path):
+    text = ("ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n"
+            "element face 1\nproperty list uchar int vertex_indices\nend_header\n"
+            "0 0 0\n1 0 0\n1 1 0\n0 1 0\n4 0 1 2 3\n")
+    m = read_ply(write(tmp_path, text, "a.ply"))
+    assert m.face_counts.tolist() == [4] and m.vertices[2].tolist() == [1, 1, 0]
+    with pytest.raises(MeshError, match="truncated or malformed"):
+        read_ply(write(tmp_path, text.replace("4 0 1 2 3\n", "4 0 1\n"), "b.ply"))
+    with pytest.raises(MeshError, match="not a PLY"):
+        read_ply(write(tmp_path, "hello", "c.ply"))
+    with pytest.raises(MeshError, match="out of range|outside"):
+        read_ply(write(tmp_path, text.replace("4 0 1 2 3", "4 0 1 2 9"), "d.ply"))
+
+
+def test_validate_rejects_nan_and_faceless():
+    with pytest.raises(MeshError, match="not finite"):
+        Mesh.from_faces([[0, 0, 0], [1, 0, np.nan], [0, 1, 0]], [[0, 1, 2]])
+    with pytest.raises(MeshError, match="no faces"):
+        Mesh(np.zeros((3, 3)), np.zeros(0, int), np.zeros(0, int)).validate()

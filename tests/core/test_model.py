@@ -1,0 +1,74 @@
+import io
+import json
+import zipfile
+
+import numpy as np
+import pytest
+
+from pdeface.errors import ModelFormatError
+from pdeface.model import load_model, save_model
+
+
+def test_roundtrip_and_size(tmp_path, fitted):
+    model, _ = fitted
+    size = save_model(tmp_path / "f.npz", model)
+    assert size == (tmp_path / "f.npz").stat().st_size
+    assert size <= 8192  # default layout fits in 8 KB
+    back = load_model(tmp_path / "f.npz")
+    np.testing.assert_allclose(back.coefficients, model.coefficients, rtol=1e-6, atol=1e-4)
+    assert np.abs(back.residual - model.residual).max() <= 0.005 + 1e-9  # 0.01 mm steps
+    np.testing.assert_allclose(back.knots, model.knots, atol=1e-6)
+    np.testing.assert_allclose(back.frame.matrix(), model.frame.matrix(), atol=1e-9)
+    assert back.frame.unit == "cm" and back.status.tolist() == model.status.tolist()
+    np.testing.assert_allclose(back.layout.angles(), model.layout.angles(), atol=1e-6)
+    # a plain npz: readable without pickle
+    with np.load(tmp_path / "f.npz", allow_pickle=False) as z:
+        assert json.loads(bytes(z["meta"]))["format"] == "pdeface.face"
+
+
+def rewrite(path, out, drop=(), **replace):
+    with np.load(path, allow_pickle=False) as z:
+        arrays = {k: z[k] for k in z.files if k not in drop}
+    arrays.update(replace)
+    np.savez_compressed(out, **arrays)
+    return out
+
+
+def meta_of(path, **changes):
+    with np.load(path, allow_pickle=False) as z:
+        meta = json.loads(bytes(z["meta"]))
+    meta.update(changes)
+    return np.frombuffer(json.dumps(meta).encode(), np.uint8)
+
+
+def test_malformed_files_name_the_problem(tmp_path, fitted):
+    model, _ = fitted
+    good = tmp_path / "good.npz"
+    save_model(good, model)
+    cases = [
+        (rewrite(good, tmp_path / "a.npz", drop=("coefficients",)), "missing field 'coefficients'"),
+        (rewrite(good, tmp_path / "b.npz", meta=meta_of(good, version=99)), "newer"),
+        (rewrite(good, tmp_path / "c.npz", meta=meta_of(good, format="other")), "not a pdeface face model"),
+        (rewrite(good, tmp_path / "d.npz", coefficients=np.full((31, 6, 3), np.nan, np.float32)), "NaN"),
+        (rewrite(good, tmp_path / "e.npz", residual=np.zeros((3, 30, 37), np.int16)), "'residual' has shape"),
+        (rewrite(good, tmp_path / "f.npz", meta=np.frombuffer(b"{not json", np.uint8)), "not JSON"),
+        (rewrite(good, tmp_path / "g.npz", meta=meta_of(good, unit="parsec")), "'unit'"),
+    ]
+    for path, message in cases:
+        with pytest.raises(ModelFormatError, match=message):
+            load_model(path)
+    junk = tmp_path / "junk.npz"
+    junk.write_bytes(b"not a zip")
+    with pytest.raises(ModelFormatError, match="not a pdeface model file"):
+        load_model(junk)
+    with pytest.raises(ModelFormatError, match="no such file"):
+        load_model(tmp_path / "missing.npz")
+    # pickled members are refused, not executed
+    buf = io.BytesIO()
+    with zipfile.ZipFile(good) as zin, zipfile.ZipFile(buf, "w") as zout:
+        for item in zin.infolist():
+            zout.writestr(item, zin.read(item.filename))
+        np.save(tmp_path / "obj.npy", np.array([{"x": 1}], dtype=object), allow_pickle=True)
+        zout.writestr("extra.npy", (tmp_path / "obj.npy").read_bytes())
+    (tmp_path / "pk.npz").write_bytes(buf.getvalue())
+    load_model(tmp_path / "pk.npz")  # unknown members are ignored, never unpickled

@@ -1,0 +1,103 @@
+import numpy as np
+import pytest
+
+from pdeface.errors import LayoutError
+from pdeface.fourier import fit_fourier
+from pdeface.pde import _taylor_table, knot_slopes, mode_operator, ode_basis, output_grid, solve_surface
+
+T01 = np.linspace(0, 1, 11)
+
+
+@pytest.mark.parametrize("kappa", [0.0, 1e-12, 0.4, 0.999, 1.0, 3.0, 40.0, 700.0, 1e5])
+def test_basis_solves_the_ode_and_never_overflows(kappa):
+    f = [ode_basis(kappa, T01, d) for d in range(4)]
+    assert all(np.isfinite(x).all() for x in f)
+    assert np.abs(f[0]).max() <= 1.6  # bounded for any kappa
+    # (D² - κ²)² f = f'''' - 2κ² f'' + κ⁴ f = 0, with f'''' by central differences of f'''
+    h = 1e-6
+    t = np.linspace(0.1, 0.9, 5)
+    d4 = (ode_basis(kappa, t + h, 3) - ode_basis(kappa, t - h, 3)) / (2 * h)
+    res = d4 - 2 * kappa ** 2 * ode_basis(kappa, t, 2) + kappa ** 4 * ode_basis(kappa, t, 0)
+    scale = max(1.0, np.abs(d4).max())
+    assert np.abs(res).max() / scale < 1e-6
+    # derivatives are consistent
+    d1 = (ode_basis(kappa, t + h, 0) - ode_basis(kappa, t - h, 0)) / (2 * h)
+    np.testing.assert_allclose(d1, ode_basis(kappa, t, 1), atol=1e-6 * max(1, np.abs(d1).max()))
+
+
+def test_both_basis_forms_span_the_same_space():
+    # interpolating the same 4 values with the Taylor form and the exponential form gives one function
+    kappa, tk = 1.7, np.array([0.0, 0.3, 0.7, 1.0])
+    y = np.array([1.0, -2.0, 0.5, 3.0])
+    taylor = _taylor_table(kappa, 0)
+    a = taylor(T01) @ np.linalg.solve(taylor(tk), y)
+    b = ode_basis(kappa, T01) @ np.linalg.solve(ode_basis(kappa, tk), y)
+    np.testing.assert_allclose(a, b, atol=1e-10)
+
+
+def test_zero_wavenumber_is_the_cubic_spline():
+    u = np.sort(np.r_[0, np.random.default_rng(0).random(9), 1])
+    y = u ** 3 - 2 * u + 1
+    M = mode_operator(tuple(u), 0.0, 5)
+    g = output_grid(u, 5, 5, 1)
+    np.testing.assert_allclose(M @ y, g.u ** 3 - 2 * g.u + 1, atol=1e-10)
+
+
+@pytest.mark.parametrize("assembly", ["smooth", "patches"])
+@pytest.mark.parametrize("k", [0.0, 2.0, 60.0, 5000.0])
+def test_interpolates_every_curve(assembly, k):
+    kn = tuple(np.linspace(0, 1, 13) ** 1.3)
+    M = mode_operator(kn, k, 4, assembly)
+    np.testing.assert_allclose(M[::4], np.eye(13), atol=1e-9)
+
+
+def test_smooth_has_no_creases_and_patches_do():
+    kn = tuple(np.linspace(0, 1, 10))
+    above, below = knot_slopes(kn, 3.0, "smooth")
+    np.testing.assert_allclose(above, below, atol=1e-9)
+    above, below = knot_slopes(kn, 3.0, "patches")
+    jump = np.abs(above - below).max(axis=1)
+    assert jump[[3, 6]].min() > 1e-3  # shared curves of the 4-curve patches
+    assert jump[[1, 2, 4, 5, 7, 8]].max() < 1e-9  # inside a patch the solution is analytic
+
+
+def exact_solution(u, v, a):
+    """A closed-form solution of (∂u² + a²∂v²)² X = 0 with modes 0, 1, 3."""
+    X = np.zeros((len(u), len(v), 3))
+    cu = np.cos(np.outer(np.ones_like(u), v))
+    X[..., 0] = (1 + 0.5 * u[:, None]) * np.exp(-a * u[:, None]) * cu
+    X[..., 1] = (2 - u[:, None] + u[:, None] ** 3)[:, :] * np.ones_like(v)
+    X[..., 2] = (0.3 + 2 * u[:, None]) * np.exp(3 * a * (u[:, None] - 1)) * np.cos(3 * v)
+    return X
+
+
+@pytest.mark.parametrize("assembly", ["smooth", "patches"])
+@pytest.mark.parametrize("a", [0.5, 1.0, 30.0])
+def test_reproduces_an_exact_pde_solution_between_curves(assembly, a):
+    knots = np.linspace(0, 1, 10) ** 1.2
+    J = 21
+    curves = exact_solution(knots, np.linspace(0, np.pi, J), a)
+    coef, res = fit_fourier(curves, 5)
+    X = solve_surface(coef, res, knots, a=a, sub_u=6, sub_v=2, assembly=assembly)
+    g = output_grid(knots, J, 6, 2)
+    np.testing.assert_allclose(X, exact_solution(g.u, g.v, a), atol=1e-8)
+
+
+def test_surface_passes_through_curve_points_with_remainder(rng):
+    knots = np.linspace(0, 1, 7)
+    P = rng.normal(size=(7, 15, 3))
+    coef, res = fit_fourier(P, 5)
+    for assembly in ("smooth", "patches"):
+        X = solve_surface(coef, res, knots, sub_u=3, sub_v=3, assembly=assembly)
+        np.testing.assert_allclose(X[::3, ::3], P, atol=1e-10)
+
+
+def test_bad_parameters():
+    with pytest.raises(LayoutError, match="3m\\+1"):
+        mode_operator(tuple(np.linspace(0, 1, 6)), 1.0, 2, "patches")
+    with pytest.raises(LayoutError, match="unknown assembly"):
+        mode_operator(tuple(np.linspace(0, 1, 7)), 1.0, 2, "spline")
+    with pytest.raises(LayoutError, match="increase"):
+        mode_operator((0.0, 0.5, 0.5, 1.0), 1.0, 2)
+    with pytest.raises(LayoutError, match="a must be > 0"):
+        solve_surface(np.zeros((4, 3, 3)), np.zeros((4, 5, 3)), np.linspace(0, 1, 4), a=0)
