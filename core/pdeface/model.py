@@ -40,14 +40,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .codec import decode_residual, encode_residual
 from .errors import ModelFormatError
 from .frame import FEATURE_NAMES, UNITS_MM, FaceFrame
 from .layout import CurveLayout
 
 FORMAT = "pdeface.face"
 VERSION = 1
-#: Quantisation step of stored residuals (mm).
-RESIDUAL_STEP_MM = 0.01
 ICT_NOTICE = ("Derived from ICT-FaceKit, Copyright (c) 2020 USC Institute for Creative Technologies, "
               "MIT License (see assets/ICT-FaceKit-LICENSE.txt).")
 
@@ -126,10 +125,7 @@ def _member(z, name, path):
 
 def save_model(path, model: FaceModel) -> int:
     """Write a face model; returns the file size in bytes."""
-    res = np.moveaxis(np.asarray(model.residual, np.float64), 2, 0)
-    step = max(RESIDUAL_STEP_MM, float(np.abs(res).max()) / 16000.0)
-    q = np.round(res / step).astype(np.int64)
-    q[..., 1:] = np.diff(q, axis=-1)
+    q, step = encode_residual(model.residual)
     meta = {"format": FORMAT, "version": VERSION, "unit": model.frame.unit, "n_modes": model.n_modes,
             "residual_step": step,
             "a": model.a, "w": model.w, "assembly": model.assembly, "feature_names": FEATURE_NAMES,
@@ -139,7 +135,7 @@ def save_model(path, model: FaceModel) -> int:
         "layout": model.layout.as_array().astype(np.float32),
         "knots": np.asarray(model.knots, np.float32),
         "coefficients": np.asarray(model.coefficients, np.float32),
-        "residual": q.astype(np.int16),
+        "residual": q,
         "frame": model.frame.matrix(),
         "features": np.asarray(model.features, np.float32),
     }
@@ -188,7 +184,7 @@ def load_model(path) -> FaceModel:
         step = meta.get("residual_step")
         if not isinstance(res, np.ndarray) or res.dtype != np.int16 or not isinstance(step, (int, float)) or not step > 0:
             raise ModelFormatError(f"{path}: field 'residual' must be int16 with a positive meta 'residual_step'")
-        res = np.cumsum(res.astype(np.int64), axis=-1) * float(step)
+        res = decode_residual(res, step)
         M = _member(z, "frame", path).astype(np.float64)
         feats = _member(z, "features", path).astype(np.float64)
         K = len(knots)
@@ -198,8 +194,8 @@ def load_model(path) -> FaceModel:
         J = layout.n_points
         if coef.ndim != 3 or coef.shape[0] != K or coef.shape[2] != 3:
             raise ModelFormatError(f"{path}: field 'coefficients' has shape {coef.shape}, expected ({K}, N+1, 3)")
-        if res.shape != (3, K, J):
-            raise ModelFormatError(f"{path}: field 'residual' has shape {res.shape}, expected (3, {K}, {J})")
+        if res.shape != (K, J, 3):
+            raise ModelFormatError(f"{path}: field 'residual' has shape {res.shape[::-1]}, expected (3, {K}, {J})")
         if M.shape != (4, 4) or feats.shape != (len(FEATURE_NAMES), 3):
             raise ModelFormatError(f"{path}: field 'frame' or 'features' has the wrong shape")
         for name, arr in (("knots", knots), ("coefficients", coef), ("residual", res), ("frame", M), ("layout", layout_arr)):
@@ -211,7 +207,7 @@ def load_model(path) -> FaceModel:
         R = M[:3, :3] / scale
         origin = -np.linalg.solve(M[:3, :3], M[:3, 3])
         frame = FaceFrame(R, origin, scale, meta["unit"])
-        model = FaceModel(layout, knots, coef, np.moveaxis(res, 0, 2), frame, feats,
+        model = FaceModel(layout, knots, coef, res, frame, feats,
                           a=float(meta.get("a", 1.0)), w=meta.get("w"), assembly=meta.get("assembly", "smooth"),
                           source=str(meta.get("source", "")), notice=str(meta.get("notice", "")))
         if "status" in z.files:
@@ -219,7 +215,7 @@ def load_model(path) -> FaceModel:
             if st.shape != (K, J):
                 raise ModelFormatError(f"{path}: field 'status' has shape {st.shape}, expected ({K}, {J})")
             model.status = st.astype(np.int64)
-        if "descriptor_meta" in z.files:
+        if "descriptors" in z.files:
             from .descriptor import unpack_descriptors
             model.descriptors = unpack_descriptors(z, path)
     return model

@@ -1,0 +1,84 @@
+"""The FACS Action Unit catalogue and intensity letters.
+
+The catalogue (``data/facs.json``) lists every AU with its number, name,
+region (``upper`` face, ``lower`` face, ``eyes_head``) and muscles.
+
+Intensity letters map to weights at the top of five equal bins:
+A (trace) 0.2, B (slight) 0.4, C (marked) 0.6, D (severe) 0.8, E (maximum) 1.0;
+a weight maps back to the letter of its bin (0 → no letter).
+"""
+from __future__ import annotations
+
+import json
+import math
+import re
+from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
+
+from .errors import PdeFaceError
+
+INTENSITY = {"A": 0.2, "B": 0.4, "C": 0.6, "D": 0.8, "E": 1.0}
+REGIONS = {"upper": "Upper face", "lower": "Lower face", "eyes_head": "Eyes & head"}
+SIDES = ("both", "left", "right")
+
+
+@dataclass(frozen=True)
+class ActionUnit:
+    au: int
+    name: str
+    region: str
+    muscles: tuple
+
+    @property
+    def label(self) -> str:
+        """``"AU12 Lip Corner Puller"``."""
+        return f"AU{self.au} {self.name}"
+
+
+@lru_cache(maxsize=1)
+def catalogue() -> dict:
+    """All FACS AUs: ``{number: ActionUnit}``."""
+    data = json.loads((Path(__file__).parent / "data" / "facs.json").read_text())
+    return {d["au"]: ActionUnit(d["au"], d["name"], d["region"], tuple(d["muscles"])) for d in data["action_units"]}
+
+
+def action_unit(au: int) -> ActionUnit:
+    """One AU of the catalogue; :class:`PdeFaceError` for an unknown number."""
+    try:
+        return catalogue()[int(au)]
+    except (KeyError, ValueError):
+        raise PdeFaceError(f"AU{au} is not a FACS Action Unit") from None
+
+
+def letter_to_weight(letter: str) -> float:
+    """FACS intensity letter A-E → weight."""
+    try:
+        return INTENSITY[letter.upper()]
+    except (KeyError, AttributeError):
+        raise PdeFaceError(f"intensity {letter!r} is not a FACS letter A-E") from None
+
+
+def weight_to_letter(weight: float) -> str:
+    """Weight in [0, 1] → FACS letter ('' for 0)."""
+    w = min(max(float(weight), 0.0), 1.0)
+    return "" if w <= 0 else "ABCDE"[min(4, max(0, math.ceil(round(w * 5, 9)) - 1))]
+
+
+_KEY = re.compile(r"^(?:AU)?(\d+)([LR]?)$", re.IGNORECASE)
+
+
+def parse_au_key(key) -> str:
+    """Normalise ``12``, ``"AU12"``, ``"au12l"`` → ``"12"``, ``"12L"``; checks the catalogue."""
+    m = _KEY.match(str(key).strip())
+    if not m:
+        raise PdeFaceError(f"{key!r} is not an AU key (use 12, AU12, 12L or 12R)")
+    action_unit(int(m.group(1)))
+    return f"{int(m.group(1))}{m.group(2).upper()}"
+
+
+def key_side(key: str) -> tuple[int, str]:
+    """``"12L"`` → (12, 'left')."""
+    k = parse_au_key(key)
+    side = {"L": "left", "R": "right"}.get(k[-1], "both")
+    return int(k.rstrip("LR")), side
