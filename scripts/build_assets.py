@@ -4,15 +4,15 @@ Usage: python scripts/build_assets.py ICT_DIR [--out assets]
 
 Writes, all derived from ICT-FaceKit (MIT, notice copied alongside):
   ict_neutral_face.npz   the neutral face region (vertices 0-9408, cm) with UVs and landmarks
-  default_face.npz       the PDE face model fitted to it (default layout)
   ict_shapes.npz         the 53 expression shapes and 20 identity meshes as offsets from
                          the neutral face region (int16, OFFSET_STEP cm steps)
+  default_face.npz       the PDE face model fitted to the neutral (default layout), carrying a
+                         descriptor for every AU ICT-FaceKit maps (pdeface.ict.AU_SHAPES)
   ICT-FaceKit-LICENSE.txt
 """
 from __future__ import annotations
 
 import argparse
-import json
 import shutil
 import sys
 from pathlib import Path
@@ -21,24 +21,14 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "core"))
 
+from pdeface.descriptor import descriptor_to_bytes, fit_descriptor  # noqa: E402
+from pdeface.facs import key_side  # noqa: E402
 from pdeface.fit import fit_face  # noqa: E402
-from pdeface.meshio import read_obj  # noqa: E402
-from pdeface.model import ICT_NOTICE, save_model  # noqa: E402
+from pdeface.ict import APPROXIMATIONS, AU_SHAPES, NOTICE_SHORT, IctFolder, au_offsets  # noqa: E402
+from pdeface.mesh import Mesh  # noqa: E402
+from pdeface.model import ICT_NOTICE, model_nbytes, save_model  # noqa: E402
 
-FACE_VERTICES = 9409  # ICT-FaceKit "Face" region: vertices 0-9408
-FACE_POLYGONS = 9230  # and polygons 0-9229
 OFFSET_STEP = 2e-4  # cm per int16 step of stored offsets (2 µm; range ±6.5 cm)
-
-
-def face_region(mesh):
-    """The ICT face region of a full-head mesh as (vertices, quads, uvs, quad uvs)."""
-    end = mesh.face_starts[FACE_POLYGONS]
-    faces = mesh.face_indices[:end].reshape(FACE_POLYGONS, 4)
-    fuv = mesh.face_uv_indices[:end].reshape(FACE_POLYGONS, 4)
-    used = np.unique(fuv)
-    remap = np.full(len(mesh.uvs), -1)
-    remap[used] = np.arange(len(used))
-    return mesh.vertices[:FACE_VERTICES], faces, mesh.uvs[used], remap[fuv]
 
 
 def main(argv=None):
@@ -46,35 +36,45 @@ def main(argv=None):
     ap.add_argument("ict_dir", type=Path)
     ap.add_argument("--out", type=Path, default=Path(__file__).resolve().parent.parent / "assets")
     args = ap.parse_args(argv)
-    src = args.ict_dir
-    args.out.mkdir(parents=True, exist_ok=True)
-    neutral = read_obj(src / "generic_neutral_mesh.obj")
-    landmarks = np.array(json.loads((src / "vertex_indices.json").read_text())["idx_to_landmark_verts"])
-    V, F, UV, FUV = face_region(neutral)
-    np.savez_compressed(args.out / "ict_neutral_face.npz", vertices=V.astype(np.float32), faces=F.astype(np.int32),
-                        uvs=UV.astype(np.float32), face_uvs=FUV.astype(np.int32), landmarks=landmarks.astype(np.int32),
-                        notice=np.array(ICT_NOTICE))
-    names = json.loads((src / "vertex_indices.json").read_text())["expressions"]
+    ict = IctFolder(args.ict_dir)
+    out = args.out
+    out.mkdir(parents=True, exist_ok=True)
+    V = ict.vertices
+    np.savez_compressed(out / "ict_neutral_face.npz", vertices=V.astype(np.float32), faces=ict.faces.astype(np.int32),
+                        uvs=ict.uvs.astype(np.float32), face_uvs=ict.face_uvs.astype(np.int32),
+                        landmarks=ict.landmarks.astype(np.int32), notice=np.array(ICT_NOTICE))
+    import json
+    names = json.loads((args.ict_dir / "vertex_indices.json").read_text())["expressions"]
     names += [f"identity{i:03d}" for i in range(20)]
-    offsets = np.empty((len(names), FACE_VERTICES, 3), np.int16)
+    offsets = np.empty((len(names), len(V), 3), np.int16)
     for k, name in enumerate(names):
-        d = read_obj(src / f"{name}.obj").vertices[:FACE_VERTICES] - V
-        q = np.round(d / OFFSET_STEP)
+        q = np.round(ict.shape(name) / OFFSET_STEP)
         if np.abs(q).max() > 32767:
             raise SystemExit(f"{name}: offset too large for int16 at {OFFSET_STEP} cm")
         offsets[k] = q
-        print(f"  {name}: max offset {np.abs(d).max():.3f} cm", file=sys.stderr)
-    np.savez_compressed(args.out / "ict_shapes.npz", names=np.array(names), offsets=offsets,
+    np.savez_compressed(out / "ict_shapes.npz", names=np.array(names), offsets=offsets,
                         step_cm=np.array(OFFSET_STEP), notice=np.array(ICT_NOTICE))
-    shutil.copyfile(src / "LICENSE", args.out / "ICT-FaceKit-LICENSE.txt")
-    # Fit on the float32 copy the package ships, so the model matches what users load.
+    shutil.copyfile(args.ict_dir / "LICENSE", out / "ICT-FaceKit-LICENSE.txt")
+    # Fit on exactly what the package ships (float32 vertices, int16 offsets).
     V32 = V.astype(np.float32).astype(np.float64)
-    T = np.concatenate([F[:, [0, 1, 2]], F[:, [0, 2, 3]]])
-    model, sampler = fit_face(V32, T, V32[landmarks], unit="cm", source="ICT-FaceKit generic neutral (face region)")
+    shapes = {n: offsets[k].astype(np.float64) * OFFSET_STEP for k, n in enumerate(names)}
+    T, _ = Mesh.from_faces(V32, ict.faces).triangles()
+    model, sampler = fit_face(V32, T, V32[ict.landmarks], unit="cm", source="ICT-FaceKit generic neutral (face region)")
     model.notice = ICT_NOTICE
-    size = save_model(args.out / "default_face.npz", model)
-    print(f"default_face.npz: {size} bytes; curve points {sampler.summary()}")
-    for p in sorted(args.out.iterdir()):
+    for key in AU_SHAPES:
+        au, side = key_side(key)
+        d = fit_descriptor(model, sampler, V32, V32 + au_offsets(key, shapes), au, side,
+                           source="ICT-FaceKit: " + " + ".join(f"{w:g} {n}" for n, w in AU_SHAPES[key].items()),
+                           notice=NOTICE_SHORT)
+        if key in APPROXIMATIONS:
+            d.extra["approximation"] = APPROXIMATIONS[key]
+        model.descriptors.append(d)
+        print(f"  AU{key:4s} curves {d.curves.min() if len(d.curves) else '-'}-{d.curves.max() if len(d.curves) else '-'}"
+              f" ({len(d.curves)}), {len(descriptor_to_bytes(d))} bytes")
+    size = save_model(out / "default_face.npz", model)
+    print(f"default_face.npz: {size} bytes ({model_nbytes(model)} face model + {len(model.descriptors)} descriptors); "
+          f"curve points {sampler.summary()}")
+    for p in sorted(out.iterdir()):
         print(f"{p.name}: {p.stat().st_size} bytes")
 
 

@@ -90,23 +90,19 @@ def cmd_mesh(args):
 
 
 def cmd_report(args):
+    from .model import model_nbytes
     from .report import accuracy_report
 
     model = load_face(args.face)
     mesh, _ = load_scan(args.mesh)
     result = accuracy_report(model, mesh.vertices, skin_of(mesh, model), args.assembly,
                              args.profiles_png, args.profiles_csv)
-    result["model_bytes"] = Path(args.face if args.face != "default" else _default_path()).stat().st_size
+    result["model_bytes"] = model_nbytes(model)
     if args.json:
         print(json.dumps(result))
     else:
         for k, v in result.items():
             print(f"{k:18s} {v:.4f}" if isinstance(v, float) else f"{k:18s} {v}")
-
-
-def _default_path():
-    from .assets import DEFAULT_FACE, asset_path
-    return asset_path(DEFAULT_FACE)
 
 
 def cmd_demo(args):
@@ -137,6 +133,137 @@ def cmd_demo(args):
             (out / "report.json").write_text(json.dumps(result, indent=2))
     print(json.dumps(result))
     _log(f"wrote {out}/face.npz, face.obj, report.json, profiles.png, profiles.csv")
+
+
+def parse_au_weights(items):
+    """``["12=1", "6=0.5", "AU4=C"]`` → {"12": 1.0, "6": 0.5, "4": 0.6}."""
+    from .expressions import normalise_weights
+
+    weights = {}
+    for item in items or []:
+        key, sep, value = item.partition("=")
+        if not sep:
+            raise PdeFaceError(f"--au {item!r}: use AU=WEIGHT, e.g. 12=0.8 or 12L=C")
+        try:
+            value = float(value)
+        except ValueError:
+            pass  # a FACS letter
+        weights[key] = value
+    return normalise_weights(weights)
+
+
+def cmd_descriptor(args):
+    from .descriptor import fit_descriptor, save_descriptor
+    from .fit import fit_face
+    from .frame import landmark_points, read_landmarks
+    from .meshio import read_mesh
+
+    neutral, lm = load_scan(args.neutral, args.landmarks)
+    if lm is None:
+        raise PdeFaceError(f"{args.neutral}: --landmarks is required")
+    au_mesh = read_mesh(args.au_mesh)
+    T, _ = neutral.triangles()
+    model, sampler = fit_face(neutral.vertices, T, lm, unit=args.unit)
+    same = len(au_mesh.vertices) == len(neutral.vertices) and np.array_equal(au_mesh.face_indices, neutral.face_indices)
+    if same:
+        d = fit_descriptor(model, sampler, neutral.vertices, au_mesh.vertices, args.au, args.side, source=str(args.au_mesh))
+        how = "same topology: curve points read exactly"
+    else:
+        if not args.au_landmarks:
+            raise PdeFaceError(f"{args.au_mesh}: its topology differs from the neutral's; give --au-landmarks to align it")
+        idx, pts = read_landmarks(args.au_landmarks)
+        Ta, _ = au_mesh.triangles()
+        d = fit_descriptor(model, sampler, neutral.vertices, au_mesh.vertices, args.au, args.side, au_triangles=Ta,
+                           au_landmarks=landmark_points(au_mesh.vertices, idx, pts), source=str(args.au_mesh))
+        how = "other topology: aligned on unmoved feature points, curve points projected"
+    size = save_descriptor(args.output, d)
+    _log(f"{d.label}: {len(d.curves)} curves affected ({how})")
+    print(json.dumps({"output": str(args.output), "au": d.key, "curves": d.curves.tolist(), "bytes": size}))
+
+
+def cmd_pose(args):
+    from .expressions import PRESETS, load_presets, resolve_preset
+    from .fit import face_mesh
+    from .meshio import write_mesh
+
+    model = load_face(args.face)
+    if args.descriptor:
+        from .descriptor import load_descriptor
+        extra = [load_descriptor(p) for p in args.descriptor]
+        keys = {d.key for d in extra}
+        model.descriptors = [d for d in model.descriptors if d.key not in keys] + extra
+    weights, mixer = parse_au_weights(args.au), args.mixer
+    if args.preset:
+        presets = dict(PRESETS)
+        for f in args.presets or []:
+            presets.update({p.name: p for p in load_presets(f)})
+        if args.preset not in presets:
+            raise PdeFaceError(f"unknown preset {args.preset!r}; have {', '.join(sorted(presets))}")
+        pw, missing = resolve_preset(presets[args.preset], {d.key for d in model.descriptors})
+        if missing:
+            _log(f"preset {args.preset}: this face has no descriptor for AU {', '.join(missing)} (skipped)")
+        weights = {**pw, **weights}
+        mixer = mixer or presets[args.preset].mixer
+    if not weights:
+        raise PdeFaceError("give AU weights (--au 12=1) or a --preset")
+    from .expressions import pose_curves
+    C, R = pose_curves(model, weights, mixer or "sum")
+    mesh = face_mesh(model, args.resolution, args.assembly, coefficients=C, residual=R)
+    write_mesh(args.output, mesh)
+    _log(f"wrote {args.output}: " + ", ".join(f"AU{k}={w:g}" for k, w in weights.items()) + f" ({mixer or 'sum'})")
+
+
+def cmd_retarget(args):
+    from .model import save_model
+    from .retarget import retarget
+
+    target = load_face(args.target)
+    source = load_face(args.descriptors)
+    out = retarget(source, target, scaling=args.scaling)
+    size = save_model(args.output, out)
+    print(json.dumps({"output": str(args.output), "descriptors": len(out.descriptors), "bytes": size}))
+
+
+def cmd_au_report(args):
+    from .aureport import MotionProbe
+    from .descriptor import descriptor_to_bytes
+    from .ict import au_offsets
+
+    model = load_face(args.face)
+    if not model.descriptors:
+        raise PdeFaceError(f"{args.face}: carries no AU descriptors")
+    if args.truth == "default":
+        from .assets import load_ict_shapes
+        mesh, _ = load_scan("default")
+        shapes = load_ict_shapes()
+        V, T = mesh.vertices, mesh.triangles()[0]
+    else:
+        from .ict import IctFolder
+        from .mesh import Mesh
+        ict = IctFolder(args.truth)
+        V, T = ict.vertices, Mesh.from_faces(ict.vertices, ict.faces).triangles()[0]
+        shapes = None
+    if args.neutral:
+        from .meshio import read_mesh
+        V = read_mesh(args.neutral).vertices[:len(V)]
+    probe = MotionProbe(model, V, T)
+    result = {}
+    for d in model.descriptors:
+        from .ict import AU_SHAPES
+        if d.key not in AU_SHAPES:
+            continue
+        sh = shapes if shapes is not None else ict.shapes(AU_SHAPES[d.key])
+        C, R = d.dense()
+        r = probe.measure(C, R, au_offsets(d.key, sh))
+        result[d.key] = {"captured": r["captured"], "p95_err_mm": r["p95_err_mm"], "n_vertices": r["n_vertices"],
+                         "bytes": len(descriptor_to_bytes(d))}
+    if args.json:
+        print(json.dumps(result))
+    else:
+        for k, r in result.items():
+            cap = "  n/a " if r["captured"] is None else f"{r['captured']:.3f}"
+            p95 = "  n/a " if r["p95_err_mm"] is None else f"{r['p95_err_mm']:.2f}"
+            print(f"AU{k:4s} captured {cap}  p95 {p95} mm  {r['bytes']} bytes")
 
 
 def build_parser():
@@ -171,6 +298,43 @@ def build_parser():
     p.add_argument("--profiles-csv")
     p.set_defaults(func=cmd_report)
 
+    p = sub.add_parser("descriptor", help="AU descriptor from a neutral mesh and an AU mesh")
+    p.add_argument("neutral", help="neutral mesh (.obj/.ply) or 'default'")
+    p.add_argument("au_mesh", help="the same face showing the AU")
+    p.add_argument("--landmarks", help="68 landmarks of the neutral (JSON)")
+    p.add_argument("--au-landmarks", help="68 landmarks of the AU mesh, when its topology differs")
+    p.add_argument("--au", type=int, required=True)
+    p.add_argument("--side", choices=["both", "left", "right"], default="both")
+    p.add_argument("--unit", choices=["mm", "cm", "m", "in"])
+    p.add_argument("-o", "--output", required=True, help=".json (readable) or .pdd (compact binary)")
+    p.set_defaults(func=cmd_descriptor)
+
+    p = sub.add_parser("pose", help="mesh a face with AU weights or an expression preset")
+    p.add_argument("face", help="face model with descriptors (.npz) or 'default'")
+    p.add_argument("--au", action="append", metavar="AU=W", help="AU weight, e.g. 12=1, 12L=0.5, 4=C (repeatable)")
+    p.add_argument("--preset", help="expression preset (happy, sad, ... or one from --presets)")
+    p.add_argument("--presets", action="append", help="user preset JSON file(s)")
+    p.add_argument("--descriptor", action="append", help="extra descriptor file(s) (.json/.pdd)")
+    p.add_argument("--mixer", choices=["sum", "average", "max"])
+    p.add_argument("--resolution", default="default")
+    p.add_argument("--assembly", choices=["smooth", "patches"])
+    p.add_argument("-o", "--output", required=True)
+    p.set_defaults(func=cmd_pose)
+
+    p = sub.add_parser("retarget", help="carry AU descriptors over to another face model")
+    p.add_argument("target", help="the target face model (.npz)")
+    p.add_argument("--descriptors", default="default", help="face model whose descriptors to use (default: bundled)")
+    p.add_argument("--scaling", choices=["face", "none"], default="face")
+    p.add_argument("-o", "--output", required=True)
+    p.set_defaults(func=cmd_retarget)
+
+    p = sub.add_parser("au-report", help="how much of each AU's true motion the descriptors capture")
+    p.add_argument("face", help="face model with descriptors (.npz) or 'default'")
+    p.add_argument("--truth", required=True, help="ICT-FaceKit folder, or 'default' for the bundled ICT shapes")
+    p.add_argument("--neutral", help="the neutral scan the face was fitted to (default: ICT's generic neutral)")
+    p.add_argument("--json", action="store_true")
+    p.set_defaults(func=cmd_au_report)
+
     p = sub.add_parser("demo", help="the main job on the bundled face")
     p.add_argument("--out", default="out")
     p.set_defaults(func=cmd_demo)
@@ -184,6 +348,8 @@ def main(argv=None):
     except PdeFaceError as exc:
         print(f"pdeface: error: {exc}", file=sys.stderr)
         return 2
+    except BrokenPipeError:  # output piped into head & co.
+        return 1
     except OSError as exc:
         print(f"pdeface: error: {exc.filename or ''}: {exc.strerror}", file=sys.stderr)
         return 2

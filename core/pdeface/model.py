@@ -24,6 +24,10 @@ with ``allow_pickle=False``. Members:
     User space → face frame (rotation and scale to mm, nose tip at origin).
 ``features`` (float32, 19 × 3)
     The method's feature points in the face frame.
+``descriptors`` (uint8) and ``descriptor_offsets`` (int64), optional
+    AU descriptors carried with the face: binary descriptors (see
+    :mod:`pdeface.descriptor`) back to back, descriptor i in bytes
+    ``offsets[i]:offsets[i+1]``.
 ``status`` (uint8, K × J)
     How each curve point was found: 0 ray hit, 1 miss, 2 back-facing,
     3 cavity (1-3 were filled from their neighbours).
@@ -123,8 +127,8 @@ def _member(z, name, path):
         raise ModelFormatError(f"{path}: field {name!r} is not a plain array ({exc})") from None
 
 
-def save_model(path, model: FaceModel) -> int:
-    """Write a face model; returns the file size in bytes."""
+def model_to_bytes(model: FaceModel, descriptors: bool = True) -> bytes:
+    """The model file's bytes (with or without the descriptors it carries)."""
     q, step = encode_residual(model.residual)
     meta = {"format": FORMAT, "version": VERSION, "unit": model.frame.unit, "n_modes": model.n_modes,
             "residual_step": step,
@@ -141,12 +145,22 @@ def save_model(path, model: FaceModel) -> int:
     }
     if model.status is not None:
         arrays["status"] = np.asarray(model.status, np.uint8)
-    if model.descriptors:
+    if descriptors and model.descriptors:
         from .descriptor import pack_descriptors
         arrays.update(pack_descriptors(model.descriptors))
     buf = io.BytesIO()
     np.savez_compressed(buf, **arrays)
-    data = buf.getvalue()
+    return buf.getvalue()
+
+
+def model_nbytes(model: FaceModel) -> int:
+    """Size of the face model itself (curves, layout, frame), without descriptors."""
+    return len(model_to_bytes(model, descriptors=False))
+
+
+def save_model(path, model: FaceModel) -> int:
+    """Write a face model (with its descriptors); returns the file size in bytes."""
+    data = model_to_bytes(model)
     with open(path, "wb") as fh:
         fh.write(data)
     return len(data)

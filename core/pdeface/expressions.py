@@ -1,0 +1,244 @@
+"""Expressions: AU weight sets, mixers, posing a face, and the linear shape basis.
+
+Mixers combine the descriptors of several AUs per coefficient (the FAS
+system's idea): ``sum`` (default, linear: Σ wᵢ Dᵢ), ``average`` (each
+coefficient's sum divided by how many weighted AUs act on that curve) and
+``max`` (each coefficient from the weighted AU with the largest magnitude).
+Weights are clamped to [0, 1]; FACS letters A-E are accepted (see
+:mod:`pdeface.facs`).
+
+Presets (``PRESETS``): the method's six basic expressions (its Table 5-3: main
+AUs at weight 1, supplementary AUs at ``SUPPLEMENTARY_WEIGHT``) and the four it
+demonstrated (all AUs at 1).
+
+Preset files (JSON)::
+
+    {"format": "pdeface.preset", "version": 1, "name": "smirk",
+     "weights": {"12L": 0.8, "6": "B"}, "mixer": "sum", "description": "..."}
+
+or ``{"format": "pdeface.presets", "version": 1, "presets": [ ...objects as above... ]}``.
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .errors import ModelFormatError, PdeFaceError
+from .facs import letter_to_weight, parse_au_key
+
+MIXERS = ("sum", "average", "max")
+SUPPLEMENTARY_WEIGHT = 0.3
+
+#: The method's Table 5-3: (main AUs, supplementary AUs).
+BASIC_EXPRESSIONS = {
+    "happy": ([12], [6, 16, 25, 26]),
+    "sad": ([1, 15], [4, 17, 7, 25, 26]),
+    "disgust": ([9], [10, 17, 25, 26]),
+    "surprise": ([1, 2], [5, 26, 27]),
+    "anger": ([23, 24], [2, 4, 9, 16, 17, 25, 26]),
+    "fear": ([1, 2, 4], [5, 7, 20, 25, 26]),
+}
+#: The combinations the method demonstrated.
+DEMONSTRATED = {"happy_6_12": [6, 12], "sad_1_4_15": [1, 4, 15], "fear_1_2_4": [1, 2, 4], "disgust_9_17": [9, 17]}
+
+
+@dataclass
+class Preset:
+    """A named AU weight set."""
+
+    name: str
+    weights: dict
+    mixer: str = "sum"
+    description: str = ""
+    builtin: bool = field(default=False, compare=False)
+
+
+def _builtin_presets() -> dict:
+    out = {}
+    for name, (main, supp) in BASIC_EXPRESSIONS.items():
+        w = {str(a): SUPPLEMENTARY_WEIGHT for a in supp}
+        w.update({str(a): 1.0 for a in main})
+        out[name] = Preset(name, w, "sum", f"{name}: main AUs {'+'.join(map(str, main))}, "
+                           f"supplementary {', '.join(map(str, supp))} (method Table 5-3)", True)
+    for name, aus in DEMONSTRATED.items():
+        out[name] = Preset(name, {str(a): 1.0 for a in aus}, "sum",
+                           f"AU {'+'.join(map(str, aus))} as demonstrated in the method", True)
+    return out
+
+
+PRESETS = _builtin_presets()
+
+
+def parse_weight(value, where="weight") -> float:
+    """A weight: number (clamped to [0, 1]) or FACS letter A-E."""
+    if isinstance(value, str):
+        return letter_to_weight(value)
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value):
+        raise PdeFaceError(f"{where}: {value!r} is not a weight (a number in [0, 1] or a letter A-E)")
+    return float(min(max(value, 0.0), 1.0))
+
+
+def normalise_weights(weights: dict) -> dict:
+    """``{"AU12": 0.8, 6: "C"}`` → ``{"12": 0.8, "6": 0.6}``."""
+    return {parse_au_key(k): parse_weight(v, f"AU{k}") for k, v in weights.items()}
+
+
+def mix(descriptors: dict, weights: dict, mixer: str = "sum") -> tuple[np.ndarray, np.ndarray]:
+    """Combine weighted descriptors into one change of coefficients and residual.
+
+    Parameters
+    ----------
+    descriptors : dict
+        AU key → :class:`~pdeface.descriptor.Descriptor` (one layout).
+    weights : dict
+        AU key → weight; keys must be in ``descriptors``.
+    mixer : {'sum', 'average', 'max'}
+
+    Returns
+    -------
+    dC : (K, N+1, 3) array
+    dR : (K, J, 3) array
+    """
+    if mixer not in MIXERS:
+        raise PdeFaceError(f"unknown mixer {mixer!r}; use one of {', '.join(MIXERS)}")
+    if not descriptors:
+        raise PdeFaceError("this face carries no AU descriptors")
+    layout = next(iter(descriptors.values())).layout
+    K, J, N = layout
+    dC, dR = np.zeros((K, N + 1, 3)), np.zeros((K, J, 3))
+    count = np.zeros(K)
+    for key, w in weights.items():
+        w = parse_weight(w, f"AU{key}")
+        if key not in descriptors:
+            raise PdeFaceError(f"AU{key} has no descriptor in this face (has: {', '.join(sorted(descriptors, key=_order))})")
+        d = descriptors[key]
+        if d.layout != layout:
+            raise PdeFaceError(f"AU{key}: descriptor layout {d.layout} differs from {layout}")
+        if w == 0:
+            continue
+        C, R = d.dense()
+        C, R = w * C, w * R
+        if mixer == "max":
+            np.copyto(dC, C, where=np.abs(C) > np.abs(dC))
+            np.copyto(dR, R, where=np.abs(R) > np.abs(dR))
+        else:
+            dC += C
+            dR += R
+        count[d.curves] += 1
+    if mixer == "average":
+        div = np.maximum(count, 1)[:, None, None]
+        dC, dR = dC / div, dR / div
+    return dC, dR
+
+
+def _order(key: str):
+    return (int(key.rstrip("LR")), key[-1] if key[-1] in "LR" else "")
+
+
+def resolve_preset(preset: Preset, available) -> tuple[dict, list]:
+    """Weights of a preset restricted to the available AU keys, and the missing keys."""
+    weights, missing = {}, []
+    for k, w in normalise_weights(preset.weights).items():
+        (weights.__setitem__(k, w) if k in available else missing.append(k))
+    return weights, missing
+
+
+def pose_curves(model, weights: dict, mixer: str = "sum"):
+    """Coefficients and residual of ``model`` posed with AU ``weights``."""
+    descriptors = {d.key: d for d in model.descriptors}
+    dC, dR = mix(descriptors, normalise_weights(weights), mixer)
+    return model.coefficients + dC, model.residual + dR
+
+
+class ShapeBasis:
+    """The posed face as a linear function of AU weights (``sum`` mixer).
+
+    ``vertices(W) = neutral + W @ deltas``: one matrix product per batch of
+    faces, in the source mesh's space, same vertex order as
+    :func:`pdeface.fit.face_mesh`. This is what Blender shape keys are.
+    """
+
+    def __init__(self, model, resolution="default", assembly=None, dtype=np.float32):
+        from .fit import face_mesh, parse_resolution, surface_grid
+
+        su, sv = parse_resolution(resolution)
+        self.keys = [d.key for d in model.descriptors]
+        self.neutral = face_mesh(model, (su, sv), assembly).vertices
+        rows = []
+        for d in model.descriptors:
+            C, R = d.dense()
+            D = surface_grid(model, su, sv, assembly, coefficients=C, residual=R).reshape(-1, 3)
+            rows.append(model.frame.to_user_vectors(D).ravel())
+        self.deltas = np.array(rows, dtype=dtype).reshape(len(rows), -1)
+        self.neutral_flat = self.neutral.ravel().astype(dtype)
+
+    def weights_matrix(self, weights: dict) -> np.ndarray:
+        """One row of weights in :attr:`keys` order."""
+        w = np.zeros(len(self.keys), dtype=self.deltas.dtype)
+        for k, v in normalise_weights(weights).items():
+            if k not in self.keys:
+                raise PdeFaceError(f"AU{k} has no descriptor in this face")
+            w[self.keys.index(k)] = v
+        return w
+
+    def vertices(self, W: np.ndarray) -> np.ndarray:
+        """Faces for weight rows ``W (B, n_keys)`` → (B, n_vertices, 3)."""
+        W = np.clip(np.atleast_2d(np.asarray(W, dtype=self.deltas.dtype)), 0, 1)
+        return (self.neutral_flat + W @ self.deltas).reshape(len(W), -1, 3)
+
+
+# ---------------------------------------------------------------- preset files
+
+def preset_to_json(p: Preset) -> dict:
+    return {"format": "pdeface.preset", "version": 1, "name": p.name, "weights": p.weights,
+            "mixer": p.mixer, "description": p.description}
+
+
+def preset_from_json(obj, where="preset") -> Preset:
+    """Validate one preset object; errors name the field."""
+    if not isinstance(obj, dict) or obj.get("format") != "pdeface.preset":
+        raise ModelFormatError(f"{where}: field 'format' must be 'pdeface.preset'")
+    if not isinstance(obj.get("version"), int) or obj["version"] > 1:
+        raise ModelFormatError(f"{where}: field 'version' must be 1")
+    name = obj.get("name")
+    if not isinstance(name, str) or not name.strip():
+        raise ModelFormatError(f"{where}: field 'name' must be a non-empty string")
+    weights = obj.get("weights")
+    if not isinstance(weights, dict) or not weights:
+        raise ModelFormatError(f"{where}: field 'weights' must be an object of AU → weight")
+    try:
+        weights = normalise_weights(weights)
+    except PdeFaceError as exc:
+        raise ModelFormatError(f"{where}: field 'weights': {exc}") from None
+    mixer = obj.get("mixer", "sum")
+    if mixer not in MIXERS:
+        raise ModelFormatError(f"{where}: field 'mixer' must be one of {', '.join(MIXERS)}")
+    return Preset(name, weights, mixer, str(obj.get("description", "")))
+
+
+def save_presets(path, presets) -> None:
+    """Write one preset, or several in a ``pdeface.presets`` file."""
+    presets = list(presets)
+    obj = preset_to_json(presets[0]) if len(presets) == 1 else \
+        {"format": "pdeface.presets", "version": 1, "presets": [preset_to_json(p) for p in presets]}
+    with open(path, "w", encoding="utf-8") as fh:
+        json.dump(obj, fh, indent=1)
+
+
+def load_presets(path) -> list:
+    """Read a preset file (one preset or a ``pdeface.presets`` list)."""
+    try:
+        with open(path, "r", encoding="utf-8") as fh:
+            obj = json.load(fh)
+    except OSError as exc:
+        raise ModelFormatError(f"{path}: cannot open ({exc.strerror})") from None
+    except json.JSONDecodeError as exc:
+        raise ModelFormatError(f"{path}: not valid JSON ({exc.msg}, line {exc.lineno})") from None
+    if isinstance(obj, dict) and obj.get("format") == "pdeface.presets":
+        items = obj.get("presets")
+        if not isinstance(items, list):
+            raise ModelFormatError(f"{path}: field 'presets' must be a list")
+        return [preset_from_json(p, f"{path}: presets[{i}]") for i, p in enumerate(items)]
+    return [preset_from_json(obj, str(path))]

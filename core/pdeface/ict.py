@@ -1,0 +1,104 @@
+"""ICT-FaceKit: its face region and its FACS mapping.
+
+ICT-FaceKit (MIT, (c) 2020 USC Institute for Creative Technologies) ships ARKit
+style expression shapes; its README maps FACS AUs to them. This module holds
+that table (with left/right variants where ICT has ``_L``/``_R`` shapes; ICT's
+``_L`` is the subject's left, +x) and reads an ICT-FaceKit folder.
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from .errors import PdeFaceError
+
+FACE_VERTICES = 9409  # ICT "Face" region: vertices 0-9408
+FACE_POLYGONS = 9230  # and polygons 0-9229
+NOTICE_SHORT = "ICT-FaceKit (c) 2020 USC Institute for Creative Technologies, MIT License"
+
+_PAIRS = {1: "browInnerUp", 2: "browOuterUp", 4: "browDown", 5: "eyeWide", 6: "cheekSquint", 7: "eyeSquint",
+          9: "noseSneer", 11: "mouthUpperUp", 12: "mouthSmile", 14: "mouthDimple", 15: "mouthFrown",
+          16: "mouthLowerDown", 20: "mouthStretch", 24: "mouthPress", 33: "cheekPuff", 45: "eyeBlink"}
+_SINGLE = {10: ["mouthShrugUpper"], 17: ["mouthShrugLower"], 18: ["mouthPucker"], 22: ["mouthFunnel"],
+           27: ["jawOpen"], 28: ["mouthRollLower", "mouthRollUpper"], 29: ["jawForward"],
+           61: ["eyeLookOut_L", "eyeLookIn_R"], 62: ["eyeLookOut_R", "eyeLookIn_L"],
+           63: ["eyeLookUp_L", "eyeLookUp_R"], 64: ["eyeLookDown_L", "eyeLookDown_R"]}
+
+
+def _au_shapes() -> dict:
+    table = {}
+    for au, base in _PAIRS.items():
+        table[str(au)] = {f"{base}_L": 1.0, f"{base}_R": 1.0}
+        table[f"{au}L"] = {f"{base}_L": 1.0}
+        table[f"{au}R"] = {f"{base}_R": 1.0}
+    for au, names in _SINGLE.items():
+        table[str(au)] = {n: 1.0 for n in names}
+    table["30L"] = {"jawLeft": 1.0}
+    table["30R"] = {"jawRight": 1.0}
+    # ICT has no lips-part or jaw-drop shape: the nearest mixes of its shapes.
+    table["25"] = {"jawOpen": 0.2, "mouthLowerDown_L": 0.5, "mouthLowerDown_R": 0.5}
+    table["26"] = {"jawOpen": 0.5}
+    return table
+
+
+#: AU key ("12", "12L", "30R") → {ICT shape: weight}.
+AU_SHAPES = _au_shapes()
+#: Keys whose ICT shapes only approximate the AU.
+APPROXIMATIONS = {"25": "0.2 jawOpen + 0.5 mouthLowerDown_L/R (ICT has no lips-part shape)",
+                  "26": "0.5 jawOpen (ICT has no jaw-drop shape; jawOpen is closer to AU27)"}
+
+
+def au_offsets(key: str, shapes: dict) -> np.ndarray:
+    """Offsets of AU ``key`` from ICT shape offsets ``{name: (n, 3)}``."""
+    if key not in AU_SHAPES:
+        raise PdeFaceError(f"AU{key} has no ICT-FaceKit shapes")
+    return sum(w * shapes[name] for name, w in AU_SHAPES[key].items())
+
+
+def face_region(mesh):
+    """The ICT face region of a full-head ICT mesh: (vertices, quads, uvs, quad uv indices)."""
+    if len(mesh.vertices) < FACE_VERTICES or len(mesh.face_counts) < FACE_POLYGONS:
+        raise PdeFaceError(f"not an ICT-FaceKit head: {len(mesh.vertices)} vertices")
+    end = mesh.face_starts[FACE_POLYGONS]
+    faces = mesh.face_indices[:end].reshape(FACE_POLYGONS, 4)
+    if mesh.face_uv_indices is None:
+        return mesh.vertices[:FACE_VERTICES], faces, None, None
+    fuv = mesh.face_uv_indices[:end].reshape(FACE_POLYGONS, 4)
+    used = np.unique(fuv)
+    remap = np.full(len(mesh.uvs), -1)
+    remap[used] = np.arange(len(used))
+    return mesh.vertices[:FACE_VERTICES], faces, mesh.uvs[used], remap[fuv]
+
+
+class IctFolder:
+    """An ICT-FaceKit folder: the neutral face region, landmarks, shapes as offsets (cm)."""
+
+    def __init__(self, path):
+        from .meshio import read_obj
+
+        self.path = Path(path)
+        if not (self.path / "generic_neutral_mesh.obj").exists():
+            raise PdeFaceError(f"{path}: not an ICT-FaceKit folder (no generic_neutral_mesh.obj)")
+        self._read_obj = read_obj
+        head = read_obj(self.path / "generic_neutral_mesh.obj")
+        self.vertices, self.faces, self.uvs, self.face_uvs = face_region(head)
+        try:
+            data = json.loads((self.path / "vertex_indices.json").read_text())
+            self.landmarks = np.array(data["idx_to_landmark_verts"], dtype=np.int64)
+        except (OSError, KeyError, ValueError) as exc:
+            raise PdeFaceError(f"{path}: vertex_indices.json is missing or malformed ({exc})") from None
+        self._cache = {}
+
+    def shape(self, name: str) -> np.ndarray:
+        """Offset (cm) of one ICT shape or identity mesh from the neutral face region."""
+        if name not in self._cache:
+            f = self.path / f"{name}.obj"
+            if not f.exists():
+                raise PdeFaceError(f"{self.path}: missing {f.name}")
+            self._cache[name] = self._read_obj(f).vertices[:FACE_VERTICES] - self.vertices
+        return self._cache[name]
+
+    def shapes(self, names) -> dict:
+        return {n: self.shape(n) for n in names}
