@@ -75,7 +75,8 @@ def parse_weight(value, where="weight") -> float:
     """A weight: number (clamped to [0, 1]) or FACS letter A-E."""
     if isinstance(value, str):
         return letter_to_weight(value)
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value):
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)) \
+            or not np.isfinite(value):
         raise PdeFaceError(f"{where}: {value!r} is not a weight (a number in [0, 1] or a letter A-E)")
     return float(min(max(value, 0.0), 1.0))
 
@@ -171,8 +172,14 @@ class ShapeBasis:
             C, R = d.dense()
             D = surface_grid(model, su, sv, assembly, coefficients=C, residual=R).reshape(-1, 3)
             rows.append(model.frame.to_user_vectors(D).ravel())
-        self.deltas = np.array(rows, dtype=dtype).reshape(len(rows), -1)
+        # Stored vertex-major (column-major deltas): sgemm with the short AU axis innermost is fastest.
+        self._deltas_t = np.ascontiguousarray(np.array(rows, dtype=dtype).reshape(len(rows), -1).T)
         self.neutral_flat = self.neutral.ravel().astype(dtype)
+
+    @property
+    def deltas(self) -> np.ndarray:
+        """(n_keys, n_vertices * 3) vertex offsets of each AU at weight 1."""
+        return self._deltas_t.T
 
     def weights_matrix(self, weights: dict) -> np.ndarray:
         """One row of weights in :attr:`keys` order."""
@@ -183,10 +190,18 @@ class ShapeBasis:
             w[self.keys.index(k)] = v
         return w
 
-    def vertices(self, W: np.ndarray) -> np.ndarray:
-        """Faces for weight rows ``W (B, n_keys)`` → (B, n_vertices, 3)."""
-        W = np.clip(np.atleast_2d(np.asarray(W, dtype=self.deltas.dtype)), 0, 1)
-        return (self.neutral_flat + W @ self.deltas).reshape(len(W), -1, 3)
+    def vertices(self, W: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        """Faces for weight rows ``W (B, n_keys)`` → (B, n_vertices, 3).
+
+        ``out`` (B, n_vertices * 3), when given, is filled and reused, which
+        keeps batch evaluation allocation-free.
+        """
+        W = np.clip(np.atleast_2d(np.asarray(W, dtype=self._deltas_t.dtype)), 0, 1)
+        if out is None:
+            out = np.empty((len(W), self._deltas_t.shape[0]), dtype=self._deltas_t.dtype)
+        np.matmul(W, self.deltas, out=out)
+        out += self.neutral_flat
+        return out.reshape(len(W), -1, 3)
 
 
 # ---------------------------------------------------------------- preset files

@@ -61,7 +61,7 @@ def face_region(mesh):
     """The ICT face region of a full-head ICT mesh: (vertices, quads, uvs, quad uv indices)."""
     if len(mesh.vertices) < FACE_VERTICES or len(mesh.face_counts) < FACE_POLYGONS:
         raise PdeFaceError(f"not an ICT-FaceKit head: {len(mesh.vertices)} vertices")
-    end = mesh.face_starts[FACE_POLYGONS]
+    end = int(mesh.face_counts[:FACE_POLYGONS].sum())
     faces = mesh.face_indices[:end].reshape(FACE_POLYGONS, 4)
     if mesh.face_uv_indices is None:
         return mesh.vertices[:FACE_VERTICES], faces, None, None
