@@ -167,13 +167,15 @@ class ShapeBasis:
         su, sv = parse_resolution(resolution)
         self.keys = [d.key for d in model.descriptors]
         self.neutral = face_mesh(model, (su, sv), assembly).vertices
-        rows = []
-        for d in model.descriptors:
-            C, R = d.dense()
-            D = surface_grid(model, su, sv, assembly, coefficients=C, residual=R).reshape(-1, 3)
-            rows.append(model.frame.to_user_vectors(D).ravel())
+        n = len(model.descriptors)
+        dense = [d.dense() for d in model.descriptors]
+        # All AUs in one solve: stacked along the last axis (the solve is linear).
+        C = np.concatenate([c for c, _ in dense], axis=2) if n else np.zeros(model.coefficients.shape[:2] + (0,))
+        R = np.concatenate([r for _, r in dense], axis=2) if n else np.zeros(model.residual.shape[:2] + (0,))
+        D = surface_grid(model, su, sv, assembly, coefficients=C, residual=R).reshape(-1, n, 3)
+        D = model.frame.to_user_vectors(D)  # (vertices, n, 3)
         # Stored vertex-major (column-major deltas): sgemm with the short AU axis innermost is fastest.
-        self._deltas_t = np.ascontiguousarray(np.array(rows, dtype=dtype).reshape(len(rows), -1).T)
+        self._deltas_t = np.ascontiguousarray(D.transpose(0, 2, 1).reshape(-1, n).astype(dtype))
         self.neutral_flat = self.neutral.ravel().astype(dtype)
 
     @property

@@ -8,12 +8,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from .curves import CurveSampler, place_samples
 from .errors import MeshError
 from .fourier import fit_fourier
 from .frame import face_frame, feature_points
 from .layout import place_curves
-from .mesh import Mesh, connected_components
+from .mesh import Mesh
 from .model import FaceModel
 from .pde import output_grid, solve_surface
 
@@ -42,6 +41,8 @@ def skin_triangles(T: np.ndarray, n_vertices: int, landmark_vertices: np.ndarray
 
     Separate pieces (eyeballs, teeth, eyelashes) are left out of the skin.
     """
+    from .mesh import connected_components
+
     lab = connected_components(n_vertices, T)
     return T[np.isin(lab[T[:, 0]], np.unique(lab[landmark_vertices]))]
 
@@ -56,7 +57,7 @@ def chord_knots(points: np.ndarray) -> np.ndarray:
 
 
 def fit_face(vertices, triangles, landmarks, unit=None, n_curves=31, n_points=37, n_modes=5,
-             a=1.0, assembly="smooth", source="") -> tuple[FaceModel, CurveSampler]:
+             a=1.0, assembly="smooth", source=""):
     """Fit a PDE face model to a neutral face mesh.
 
     Parameters
@@ -79,9 +80,10 @@ def fit_face(vertices, triangles, landmarks, unit=None, n_curves=31, n_points=37
     Returns
     -------
     model : FaceModel
-    sampler : CurveSampler
+    sampler : pdeface.curves.CurveSampler
         The curve points as material points of this mesh.
     """
+    from .curves import place_samples  # scipy is heavy: only fitting needs it
     V = np.asarray(vertices, dtype=np.float64)
     T = np.asarray(triangles, dtype=np.int64)
     if V.ndim != 2 or V.shape[1] != 3 or not np.isfinite(V).all():
@@ -104,6 +106,7 @@ def fit_face(vertices, triangles, landmarks, unit=None, n_curves=31, n_points=37
 
 def _nearest(P, Q):
     from scipy.spatial import cKDTree
+
     return cKDTree(P).query(Q)[1]
 
 

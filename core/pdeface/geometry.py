@@ -5,7 +5,6 @@ All functions take ``V (n, 3)`` and triangles ``T (t, 3)`` in the face frame.
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 
 def cylinder_coords(P: np.ndarray, axis_z: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -154,6 +153,8 @@ class ClosestPoint:
     """
 
     def __init__(self, V, T, k=8):
+        from scipy.spatial import cKDTree  # imported here: meshing a face must not pay for scipy
+
         self.V, self.T = np.asarray(V, dtype=np.float64), np.asarray(T, dtype=np.int64)
         self.k = k
         self.centroids = self.V[self.T].mean(axis=1)

@@ -166,18 +166,24 @@ def save_model(path, model: FaceModel) -> int:
     return len(data)
 
 
-def load_model(path) -> FaceModel:
-    """Read a face model written by :func:`save_model`.
+def model_from_bytes(data: bytes, where: str = "model") -> FaceModel:
+    """Read a face model from the bytes of a model file."""
+    return load_model(io.BytesIO(data), where)
+
+
+def load_model(path, where=None) -> FaceModel:
+    """Read a face model written by :func:`save_model` (a path or a binary file object).
 
     Raises
     ------
     ModelFormatError
         For a missing file, a non-model file, a newer version or a bad field.
     """
-    if not os.path.exists(path):
+    if isinstance(path, (str, os.PathLike)) and not os.path.exists(path):
         raise ModelFormatError(f"{path}: no such file")
+    path_arg, path = path, (where or path)
     try:
-        z = np.load(path, allow_pickle=False)
+        z = np.load(path_arg, allow_pickle=False)
     except (OSError, ValueError, zipfile.BadZipFile) as exc:
         raise ModelFormatError(f"{path}: not a pdeface model file ({exc})") from None
     with z:

@@ -31,8 +31,6 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
-from scipy.interpolate import CubicSpline
-
 from .errors import LayoutError
 
 ASSEMBLIES = ("smooth", "patches")
@@ -71,20 +69,32 @@ def ode_basis(kappa: float, t: np.ndarray, deriv: int = 0) -> np.ndarray:
     return out
 
 
-@lru_cache(maxsize=256)
-def _taylor_table(kappa: float, deriv: int):
-    n = _TAYLOR_TERMS + 4 + deriv
+@lru_cache(maxsize=1)
+def _unit_taylor_derivatives() -> np.ndarray:
+    """f^{(j)}(0) of the canonical basis for κ = 1 (rows m = 0..3)."""
+    n = _TAYLOR_TERMS + 8
     D = np.zeros((4, n))
     D[:, :4] = np.eye(4)
-    k2, k4 = kappa * kappa, kappa ** 4
     for j in range(4, n):
-        D[:, j] = 2 * k2 * D[:, j - 2] - k4 * D[:, j - 4]
+        D[:, j] = 2 * D[:, j - 2] - D[:, j - 4]
+    return D
+
+
+def _taylor_table(kappa: float, deriv: int):
+    """Evaluator of the canonical basis' ``deriv``-th derivative as a Taylor series.
+
+    g_m(t; κ) = κ^{-m} G_m(κ t), so its derivatives at 0 are κ^{j-m} times
+    those for κ = 1: one table serves every κ.
+    """
+    D1 = _unit_taylor_derivatives()
+    j = np.arange(deriv, deriv + _TAYLOR_TERMS + 1)
+    m = np.arange(4)[:, None]
+    scale = np.where(j[None, :] >= m, float(kappa) ** np.maximum(j[None, :] - m, 0), 0.0)
     fact = np.cumprod(np.concatenate([[1.0], np.arange(1, _TAYLOR_TERMS + 1)]))
-    coef = D[:, deriv:deriv + _TAYLOR_TERMS + 1] / fact  # (4, terms)
+    coef = D1[:, j] * scale / fact  # (4, terms)
 
     def evaluate(t):
-        powers = t[:, None] ** np.arange(_TAYLOR_TERMS + 1)[None, :]
-        return powers @ coef.T
+        return (t[:, None] ** np.arange(_TAYLOR_TERMS + 1)[None, :]) @ coef.T
     return evaluate
 
 
@@ -239,12 +249,43 @@ def knot_slopes(knots: tuple, k: float, assembly: str = "smooth") -> tuple[np.nd
     return above, below
 
 
+def cubic_spline_operator(x: np.ndarray, xe: np.ndarray, deriv: int = 0) -> np.ndarray:
+    """Matrix (len(xe), len(x)): the not-a-knot cubic spline through values at ``x``, at ``xe``.
+
+    Written out (second-derivative form) so that meshing a face needs numpy only.
+    """
+    x, xe = np.asarray(x, np.float64), np.asarray(xe, np.float64)
+    n = len(x)
+    if n < 4:
+        raise LayoutError(f"a not-a-knot spline needs at least 4 points, got {n}")
+    h = np.diff(x)
+    A, B = np.zeros((n, n)), np.zeros((n, n))
+    for i in range(1, n - 1):  # C2: moments m from the values y (B maps y to the right-hand side)
+        A[i, i - 1:i + 2] = h[i - 1], 2 * (h[i - 1] + h[i]), h[i]
+        B[i, i - 1:i + 2] = 6 / h[i - 1], -6 / h[i - 1] - 6 / h[i], 6 / h[i]
+    for row, i in ((0, 1), (n - 1, n - 2)):  # not-a-knot: third derivative continuous at x_1 and x_{n-2}
+        A[row, i - 1:i + 2] = 1 / h[i - 1], -1 / h[i - 1] - 1 / h[i], 1 / h[i]
+    Mm = np.linalg.solve(A, B)  # moments per unit value
+    k = np.clip(np.searchsorted(x, xe, side="right") - 1, 0, n - 2)
+    hk, a, b = h[k], x[k + 1] - xe, xe - x[k]
+    Y = np.eye(n)
+    if deriv == 0:
+        return (Mm[k] * (a ** 3 / (6 * hk))[:, None] + Mm[k + 1] * (b ** 3 / (6 * hk))[:, None]
+                + (Y[k] / hk[:, None] - Mm[k] * (hk / 6)[:, None]) * a[:, None]
+                + (Y[k + 1] / hk[:, None] - Mm[k + 1] * (hk / 6)[:, None]) * b[:, None])
+    if deriv == 1:
+        return (-Mm[k] * (a ** 2 / (2 * hk))[:, None] + Mm[k + 1] * (b ** 2 / (2 * hk))[:, None]
+                - (Y[k] / hk[:, None] - Mm[k] * (hk / 6)[:, None])
+                + (Y[k + 1] / hk[:, None] - Mm[k + 1] * (hk / 6)[:, None]))
+    raise ValueError(f"deriv must be 0 or 1, got {deriv}")
+
+
 @lru_cache(maxsize=64)
 def residual_v_operator(n_points: int, sub_v: int, deriv: int = 0) -> np.ndarray:
     """Matrix (n_v, J): cubic spline (not-a-knot) through the J samples in v."""
     vs = np.linspace(0.0, np.pi, n_points)
     v = np.linspace(0.0, np.pi, (n_points - 1) * sub_v + 1)
-    return CubicSpline(vs, np.eye(n_points), bc_type="not-a-knot")(v, deriv)
+    return cubic_spline_operator(vs, v, deriv)
 
 
 @dataclass(frozen=True)
@@ -260,13 +301,17 @@ class SurfaceOperator:
     remainder_v: np.ndarray  # (n_v, J)
 
     def apply(self, coefficients: np.ndarray, residual: np.ndarray) -> np.ndarray:
-        K, J, _ = residual.shape
+        """(K, N+1, c) coefficients and (K, J, c) residual → (n_u, n_v, c) surface.
+
+        ``c`` is 3 for one face; stacking several along it solves them all at once.
+        """
+        K, J, c = residual.shape
         n1, n_u, _ = self.modes.shape
-        # Work in (v, u·xyz) layout so each part is one matrix product.
-        F = np.matmul(self.modes, np.transpose(coefficients, (1, 0, 2))).reshape(n1, n_u * 3)
-        Ru = (self.remainder_u @ residual.reshape(K, J * 3)).reshape(n_u, J, 3).transpose(1, 0, 2).reshape(J, n_u * 3)
-        X = self.cos_nv @ F + self.remainder_v @ Ru  # (n_v, n_u * 3)
-        return np.ascontiguousarray(X.reshape(-1, n_u, 3).transpose(1, 0, 2))
+        # Work in (v, u·c) layout so each part is one matrix product.
+        F = np.matmul(self.modes, np.transpose(coefficients, (1, 0, 2))).reshape(n1, n_u * c)
+        Ru = (self.remainder_u @ residual.reshape(K, J * c)).reshape(n_u, J, c).transpose(1, 0, 2).reshape(J, n_u * c)
+        X = self.cos_nv @ F + self.remainder_v @ Ru  # (n_v, n_u * c)
+        return np.ascontiguousarray(X.reshape(-1, n_u, c).transpose(1, 0, 2))
 
 
 @lru_cache(maxsize=64)
@@ -290,9 +335,10 @@ def solve_surface(coefficients, residual, knots, a=1.0, w=None, sub_u=4, sub_v=4
     Parameters
     ----------
     coefficients : (K, N+1, 3) array
-        Fourier coefficients ``a_n`` of the curves.
+        Fourier coefficients ``a_n`` of the curves (or (K, N+1, 3m) for m
+        surfaces solved together).
     residual : (K, J, 3) array
-        Curve points minus their Fourier series.
+        Curve points minus their Fourier series (or (K, J, 3m)).
     knots : (K,) array
         Curve parameters ``u_i``, increasing from 0 to 1.
     a : float
@@ -313,7 +359,7 @@ def solve_surface(coefficients, residual, knots, a=1.0, w=None, sub_u=4, sub_v=4
     residual = np.asarray(residual, dtype=np.float64)
     if not a > 0:
         raise LayoutError(f"smoothing parameter a must be > 0, got {a}")
-    K, N1, _ = coefficients.shape
+    K, N1 = coefficients.shape[:2]
     kn = tuple(float(x) for x in knots)
     if len(kn) != K or residual.shape[0] != K:
         raise LayoutError(f"{K} curves of coefficients but {len(kn)} curve parameters and {residual.shape[0]} residual rows")

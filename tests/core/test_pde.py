@@ -101,3 +101,14 @@ def test_bad_parameters():
         mode_operator((0.0, 0.5, 0.5, 1.0), 1.0, 2)
     with pytest.raises(LayoutError, match="a must be > 0"):
         solve_surface(np.zeros((4, 3, 3)), np.zeros((4, 5, 3)), np.linspace(0, 1, 4), a=0)
+
+
+@pytest.mark.parametrize("deriv", [0, 1])
+def test_own_cubic_spline_matches_scipy(deriv):
+    from scipy.interpolate import CubicSpline
+
+    from pdeface.pde import cubic_spline_operator
+    x = np.sort(np.random.default_rng(3).random(11))
+    xe = np.linspace(x[0], x[-1], 40)
+    expect = CubicSpline(x, np.eye(11), bc_type="not-a-knot")(xe, deriv)
+    np.testing.assert_allclose(cubic_spline_operator(x, xe, deriv), expect, atol=1e-10)

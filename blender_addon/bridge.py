@@ -1,0 +1,111 @@
+"""Blender data ↔ numpy, and the face model stored in a PDE face object.
+
+A PDE face keeps its model file's bytes (base64) on the object, so a .blend
+is self-contained; decoded models are cached per object.
+"""
+import base64
+
+import bpy
+import numpy as np
+
+from . import compat
+
+_models = {}
+
+
+def vertices(mesh) -> np.ndarray:
+    """(n, 3) vertex coordinates of a Blender mesh (object space)."""
+    co = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
+    mesh.vertices.foreach_get("co", co)
+    return co.reshape(-1, 3).astype(np.float64)
+
+
+def world_vertices(obj) -> np.ndarray:
+    M = np.array(obj.matrix_world)
+    V = vertices(obj.data)
+    return V @ M[:3, :3].T + M[:3, 3]
+
+
+def triangles(mesh):
+    """Loop triangles: (t, 3) vertex indices and (t, 3) loop indices."""
+    mesh.calc_loop_triangles()
+    n = len(mesh.loop_triangles)
+    tv = np.empty(n * 3, dtype=np.int32)
+    tl = np.empty(n * 3, dtype=np.int32)
+    mesh.loop_triangles.foreach_get("vertices", tv)
+    mesh.loop_triangles.foreach_get("loops", tl)
+    return tv.reshape(-1, 3).astype(np.int64), tl.reshape(-1, 3).astype(np.int64)
+
+
+def loop_uvs(mesh, layer=None) -> np.ndarray:
+    layer = layer or mesh.uv_layers.active
+    uv = np.empty(len(mesh.loops) * 2, dtype=np.float32)
+    layer.data.foreach_get("uv", uv)
+    return uv.reshape(-1, 2).astype(np.float64)
+
+
+def set_loop_uvs(mesh, name, uv):
+    """Write per-loop UVs into layer ``name`` (created if missing) and make it active."""
+    layer = mesh.uv_layers.get(name) or mesh.uv_layers.new(name=name)
+    layer.data.foreach_set("uv", np.asarray(uv, np.float32).ravel())
+    mesh.uv_layers.active = layer
+    return layer
+
+
+def new_mesh(name, pde_mesh):
+    """A Blender mesh from a pdeface Mesh (quads, parametric UVs, smooth shading)."""
+    me = bpy.data.meshes.new(name)
+    V = pde_mesh.vertices.astype(np.float32)
+    counts = pde_mesh.face_counts
+    me.vertices.add(len(V))
+    me.vertices.foreach_set("co", V.ravel())
+    me.loops.add(len(pde_mesh.face_indices))
+    me.loops.foreach_set("vertex_index", pde_mesh.face_indices.astype(np.int32))
+    me.polygons.add(len(counts))
+    me.polygons.foreach_set("loop_start", pde_mesh.face_starts.astype(np.int32))
+    me.update(calc_edges=True)
+    me.polygons.foreach_set("use_smooth", np.ones(len(counts), dtype=bool))
+    if pde_mesh.uvs is not None:
+        set_loop_uvs(me, "UVMap", pde_mesh.uvs[pde_mesh.face_uv_indices])
+    return me
+
+
+def store_model(obj, model, data=None):
+    """Keep the model on the object; ``data``: its file's bytes when at hand (saves re-encoding)."""
+    from pdeface.model import model_to_bytes
+
+    obj.pdeface.model_data = base64.b64encode(data or model_to_bytes(model)).decode("ascii")
+    _models.pop(obj.as_pointer(), None)
+
+
+def face_model(obj):
+    """The FaceModel stored on a PDE face object (cached)."""
+    from pdeface.errors import PdeFaceError
+    from pdeface.model import model_from_bytes
+
+    data = obj.pdeface.model_data
+    if not data:
+        raise PdeFaceError(f"{obj.name} carries no PDE face model")
+    key = obj.as_pointer()
+    cached = _models.get(key)
+    if cached is None or cached[0] != hash(data):
+        cached = (hash(data), model_from_bytes(base64.b64decode(data), obj.name))
+        _models[key] = cached
+    return cached[1]
+
+
+def set_key_coords(key_block, V):
+    key_block.data.foreach_set("co", np.asarray(V, np.float32).ravel())
+
+
+def skin_material():
+    mat = bpy.data.materials.get("PDE Skin")
+    if mat is None:
+        mat = bpy.data.materials.new("PDE Skin")
+        compat.use_nodes(mat)
+        bsdf = mat.node_tree.nodes.get("Principled BSDF")
+        if bsdf is not None:
+            bsdf.inputs["Base Color"].default_value = (0.8, 0.6, 0.5, 1.0)
+            bsdf.inputs["Roughness"].default_value = 0.55
+        mat.diffuse_color = (0.8, 0.6, 0.5, 1.0)
+    return mat

@@ -1,0 +1,145 @@
+"""The PDE Face tab of the 3D View sidebar."""
+import bpy
+
+from .operators import active_face, managed, preset_items
+
+REGIONS = (("upper", "Upper face"), ("lower", "Lower face"), ("eyes_head", "Eyes & head"))
+
+
+class _Panel:
+    bl_space_type = "VIEW_3D"
+    bl_region_type = "UI"
+    bl_category = "PDE Face"
+
+
+class PDEFACE_PT_face(_Panel, bpy.types.Panel):
+    bl_label = "PDE Face"
+
+    def draw(self, context):
+        layout = self.layout
+        s = context.scene.pdeface
+        obj = active_face(context)
+        col = layout.column(align=True)
+        col.operator("pdeface.add_default_face", icon="USER")
+        box = layout.box()
+        box.label(text="Fit to selected mesh")
+        box.prop(s, "landmark_source")
+        if s.landmark_source == "GROUP":
+            box.prop(s, "landmark_group")
+        elif s.landmark_source == "FILE":
+            box.prop(s, "landmark_file")
+        box.prop(s, "unit")
+        box.operator("pdeface.fit_to_selected", icon="MOD_MESHDEFORM")
+        if obj is not None:
+            layout.label(text=f"Face: {obj.name}", icon="OBJECT_DATA")
+            layout.operator("pdeface.build_shape_keys", icon="SHAPEKEY_DATA")
+
+
+class PDEFACE_PT_action_units(_Panel, bpy.types.Panel):
+    bl_label = "Action Units"
+    bl_parent_id = "PDEFACE_PT_face"
+
+    @classmethod
+    def poll(cls, context):
+        return active_face(context) is not None
+
+    def draw(self, context):
+        layout = self.layout
+        s = context.scene.pdeface
+        obj = active_face(context)
+        layout.prop(s, "au_filter", icon="VIEWZOOM", text="")
+        keys = managed(obj, "AU")
+        if not keys:
+            layout.label(text="No AU shape keys yet: Build Shape Keys", icon="INFO")
+            return
+        needle = s.au_filter.strip().lower()
+        for region, title in REGIONS:
+            rows = [(e, kb) for e, kb in keys if e.region == region and needle in e.label.lower()]
+            if not rows:
+                continue
+            box = layout.box()
+            box.label(text=title)
+            col = box.column(align=True)
+            for e, kb in rows:
+                col.prop(kb, "value", text=e.label, slider=True)
+
+
+class PDEFACE_PT_expressions(_Panel, bpy.types.Panel):
+    bl_label = "Expressions"
+    bl_parent_id = "PDEFACE_PT_face"
+
+    @classmethod
+    def poll(cls, context):
+        return active_face(context) is not None
+
+    def draw(self, context):
+        layout = self.layout
+        s = context.scene.pdeface
+        row = layout.row()
+        row.prop(s, "mixer", expand=True)
+        layout.prop(s, "preset_mode")
+        layout.prop(s, "presets_file")
+        grid = layout.grid_flow(columns=2, align=True)
+        for name, label, _ in preset_items(None, context):
+            op = grid.operator("pdeface.apply_preset", text=label)
+            op.preset = name
+        layout.operator("pdeface.reset_pose", icon="LOOP_BACK")
+        exprs = managed(active_face(context), "EXPRESSION")
+        if exprs:
+            col = layout.column(align=True)
+            for e, kb in exprs:
+                col.prop(kb, "value", text=e.name, slider=True)
+
+
+class PDEFACE_PT_animation(_Panel, bpy.types.Panel):
+    bl_label = "Animation"
+    bl_parent_id = "PDEFACE_PT_face"
+
+    @classmethod
+    def poll(cls, context):
+        return active_face(context) is not None
+
+    def draw(self, context):
+        layout = self.layout
+        s = context.scene.pdeface
+        layout.operator("pdeface.keyframe_pose", icon="KEY_HLT")
+        box = layout.box()
+        box.prop(s, "sequence")
+        row = box.row(align=True)
+        row.prop(s, "sequence_hold")
+        row.prop(s, "sequence_blend")
+        box.prop(s, "sequence_mode")
+        box.prop(s, "sequence_channels")
+        box.operator("pdeface.animate_sequence", icon="ANIM")
+
+
+class PDEFACE_PT_texture(_Panel, bpy.types.Panel):
+    bl_label = "Texture"
+    bl_parent_id = "PDEFACE_PT_face"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    @classmethod
+    def poll(cls, context):
+        return active_face(context) is not None
+
+    def draw(self, context):
+        layout = self.layout
+        s = context.scene.pdeface
+        layout.prop(s, "texture_method")
+        if s.texture_method == "CLOSEST":
+            layout.prop(s, "texture_source")
+        layout.operator("pdeface.transfer_texture", icon="TEXTURE")
+
+
+_classes = (PDEFACE_PT_face, PDEFACE_PT_action_units, PDEFACE_PT_expressions, PDEFACE_PT_animation,
+            PDEFACE_PT_texture)
+
+
+def register():
+    for c in _classes:
+        bpy.utils.register_class(c)
+
+
+def unregister():
+    for c in reversed(_classes):
+        bpy.utils.unregister_class(c)

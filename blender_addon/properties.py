@@ -1,0 +1,86 @@
+"""Properties: what a PDE face object carries, and the scene's PDE Face settings."""
+import bpy
+from bpy.props import (BoolProperty, CollectionProperty, EnumProperty, FloatProperty, IntProperty,
+                       PointerProperty, StringProperty)
+
+MIXERS = [("sum", "Sum", "Linear: the AUs' changes add up (shape keys)"),
+          ("average", "Average", "Each coefficient averaged over the AUs acting on its curve"),
+          ("max", "Max", "Each coefficient from the AU moving it most")]
+
+
+class PDEFACE_PG_key(bpy.types.PropertyGroup):
+    """A shape key this add-on made and keeps up to date."""
+
+    # name: the shape key's name (PropertyGroup's own name)
+    kind: EnumProperty(items=[("AU", "AU", ""), ("EXPRESSION", "Expression", ""), ("MIX", "Mix", "")])
+    au_key: StringProperty(description="AU key, e.g. 12 or 12L")
+    region: StringProperty(description="upper, lower or eyes_head")
+    label: StringProperty()
+
+
+class PDEFACE_PG_face(bpy.types.PropertyGroup):
+    """Per object: set on PDE faces."""
+
+    is_face: BoolProperty(default=False)
+    model_data: StringProperty(description="The face model file (base64), so the .blend is self-contained")
+    resolution: StringProperty(default="default")
+    source: PointerProperty(type=bpy.types.Object, description="The scan this face was fitted to")
+    keys: CollectionProperty(type=PDEFACE_PG_key)
+
+
+def _poll_mesh(self, obj):
+    return obj.type == "MESH" and not obj.pdeface.is_face
+
+
+class PDEFACE_PG_settings(bpy.types.PropertyGroup):
+    """Per scene: the panel's settings."""
+
+    mixer: EnumProperty(name="Mixer", items=MIXERS, default="sum")
+    preset_mode: EnumProperty(
+        name="Apply as", default="AUS",
+        items=[("AUS", "AU weights", "Set the preset's AU keys (expression keys go to 0)"),
+               ("KEY", "Expression key", "Set the preset's own key (its AU keys go to 0, no double counting)")])
+    au_filter: StringProperty(name="Filter", description="Show AUs whose label contains this text",
+                              options={"TEXTEDIT_UPDATE"})
+    landmark_source: EnumProperty(
+        name="Landmarks", default="GROUP",
+        items=[("GROUP", "Vertex group", "68 vertices of a vertex group, ordered by weight ((i+1)/68)"),
+               ("SELECTED", "Selected vertices", "68 vertices selected in Multi-PIE order"),
+               ("FILE", "JSON file", "{\"indices\": [...]} or {\"points\": [...]}")])
+    landmark_group: StringProperty(name="Group", default="landmarks")
+    landmark_file: StringProperty(name="File", subtype="FILE_PATH")
+    unit: EnumProperty(name="Unit", default="AUTO",
+                       items=[("AUTO", "Guess", "From the eye distance"), ("mm", "mm", ""), ("cm", "cm", ""),
+                              ("m", "m", ""), ("in", "in", "")])
+    presets_file: StringProperty(name="User presets", subtype="FILE_PATH",
+                                 description="JSON file of user presets (pdeface.preset / pdeface.presets)")
+    sequence: StringProperty(name="Sequence", default="happy,sad,fear,disgust,surprise,anger")
+    sequence_hold: IntProperty(name="Hold", default=12, min=0)
+    sequence_blend: IntProperty(name="Blend", default=12, min=1)
+    sequence_mode: EnumProperty(name="Path", default="via_neutral",
+                                items=[("via_neutral", "Via neutral", "neutral → expression → neutral → next"),
+                                       ("direct", "Direct", "expression → expression")])
+    sequence_channels: EnumProperty(name="Animate", default="KEY",
+                                    items=[("KEY", "Expression keys", ""), ("AUS", "AU keys", "")])
+    texture_source: PointerProperty(type=bpy.types.Object, name="Scan", poll=_poll_mesh)
+    texture_method: EnumProperty(name="UVs", default="CLOSEST",
+                                 items=[("CLOSEST", "From scan", "Closest point on the scan, as the method does"),
+                                        ("ATLAS", "Fresh atlas", "Unwrap the PDE face with xatlas")])
+    weight: FloatProperty(name="Weight", default=1.0, min=0.0, max=1.0)
+
+
+_classes = (PDEFACE_PG_key, PDEFACE_PG_face, PDEFACE_PG_settings)
+
+
+def register():
+    for c in _classes:
+        bpy.utils.register_class(c)
+    bpy.types.Object.pdeface = PointerProperty(type=PDEFACE_PG_face)
+    bpy.types.Scene.pdeface = PointerProperty(type=PDEFACE_PG_settings)
+
+
+def unregister():
+    del bpy.types.Scene.pdeface
+    del bpy.types.Object.pdeface
+    for c in reversed(_classes):
+        bpy.utils.unregister_class(c)

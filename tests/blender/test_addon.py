@@ -1,0 +1,245 @@
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+MODULE = "bl_ext.pdeface_test.pdeface"
+
+
+def evaluated_vertices(bpy, obj):
+    dg = bpy.context.evaluated_depsgraph_get()
+    ev = obj.evaluated_get(dg)
+    me = ev.to_mesh()
+    co = np.empty(len(me.vertices) * 3, np.float32)
+    me.vertices.foreach_get("co", co)
+    ev.to_mesh_clear()
+    return co.reshape(-1, 3).astype(np.float64)
+
+
+def key_blocks(obj):
+    return obj.data.shape_keys.key_blocks
+
+
+def test_manifest_validates():
+    import importlib.util
+    from pathlib import Path
+    tool = next(Path(importlib.util.find_spec("bpy").origin).parent.glob("*/scripts/addons_core/bl_pkg/cli/blender_ext.py"))
+    res = subprocess.run([sys.executable, str(tool), "validate", str(ROOT / "blender_addon")], capture_output=True, text=True)
+    assert res.returncode == 0 and "Success" in res.stdout, res.stdout + res.stderr
+
+
+def test_default_face_and_its_shape_keys(bpy, face):
+    from pdeface.cli import load_face
+    model = load_face("default")
+    assert face.pdeface.is_face and len(face.data.vertices) == 121 * 145
+    assert all(p.use_smooth for p in face.data.polygons[:50])
+    assert face.data.materials[0].name.startswith("PDE Skin")
+    kb = key_blocks(face)
+    assert kb[0].name == "Basis" and len(kb) == 1 + len(model.descriptors) + 10
+    assert "AU12 Lip Corner Puller" in kb and "AU12L Lip Corner Puller" in kb and "Expr happy" in kb
+    assert "Expr disgust_9_17" in kb
+    for k in kb[1:]:
+        assert (k.slider_min, k.slider_max, k.value) == (0.0, 1.0, 0.0)
+    # the panel's AU list: labelled and grouped
+    entries = {e.name: e for e in face.pdeface.keys}
+    assert entries["AU12 Lip Corner Puller"].region == "lower" and entries["AU1 Inner Brow Raiser"].region == "upper"
+    assert entries["AU61 Eyes Turn Left"].region == "eyes_head"
+
+
+@pytest.mark.parametrize("key", ["12", "1", "30L", "45R"])
+def test_au_slider_reproduces_pdeface_pose(bpy, face, key):
+    from pdeface.cli import load_face
+    from pdeface.expressions import pose_curves
+    from pdeface.fit import face_mesh
+    model = load_face("default")
+    d = next(x for x in model.descriptors if x.key == key)
+    key_blocks(face)[f"AU{key} {d.name}"].value = 1.0
+    C, R = pose_curves(model, {key: 1.0})
+    expect = face_mesh(model, coefficients=C, residual=R).vertices
+    assert np.abs(evaluated_vertices(bpy, face) - expect).max() < 1e-5
+
+
+def test_presets_as_keys_or_weights_without_double_counting(bpy, face):
+    kb = key_blocks(face)
+    assert bpy.ops.pdeface.apply_preset(preset="happy", mode="AUS") == {"FINISHED"}
+    assert kb["AU12 Lip Corner Puller"].value == 1.0 and kb["AU6 Cheek Raiser"].value == pytest.approx(0.3)
+    as_weights = evaluated_vertices(bpy, face)
+    bpy.ops.pdeface.apply_preset(preset="happy", mode="KEY")
+    assert kb["Expr happy"].value == 1.0
+    assert kb["AU12 Lip Corner Puller"].value == 0.0  # the expression key already holds it
+    np.testing.assert_allclose(evaluated_vertices(bpy, face), as_weights, atol=1e-5)
+    bpy.ops.pdeface.apply_preset(preset="sad", mode="AUS")
+    assert kb["Expr happy"].value == 0.0 and kb["AU15 Lip Corner Depressor"].value == 1.0
+    assert bpy.ops.pdeface.reset_pose() == {"FINISHED"}
+    assert all(k.value == 0.0 for k in kb[1:])
+
+
+def test_nonlinear_mixer_goes_into_its_own_key(bpy, face):
+    from pdeface.cli import load_face
+    from pdeface.expressions import PRESETS, pose_curves, resolve_preset
+    from pdeface.fit import face_mesh
+    model = load_face("default")
+    bpy.context.scene.pdeface.mixer = "max"
+    bpy.ops.pdeface.apply_preset(preset="fear", mode="AUS")
+    kb = key_blocks(face)
+    assert kb["PDE Mix"].value == 1.0 and kb["AU1 Inner Brow Raiser"].value == 0.0
+    w, _ = resolve_preset(PRESETS["fear"], {d.key for d in model.descriptors})
+    C, R = pose_curves(model, w, "max")
+    np.testing.assert_allclose(evaluated_vertices(bpy, face), face_mesh(model, coefficients=C, residual=R).vertices, atol=1e-5)
+
+
+def test_rebuild_keeps_the_users_keys_and_keyframes(bpy, face):
+    kb = key_blocks(face)
+    mine = face.shape_key_add(name="Smirk", from_mix=False)
+    co = np.array([v.co[:] for v in mine.data]) + 0.1
+    mine.data.foreach_set("co", co.astype(np.float32).ravel())
+    for frame, value in ((1, 0.0), (10, 0.8)):
+        mine.value = value
+        mine.keyframe_insert("value", frame=frame)
+    ours = kb["AU12 Lip Corner Puller"]
+    for frame, value in ((1, 0.0), (20, 1.0)):
+        ours.value = value
+        ours.keyframe_insert("value", frame=frame)
+    # the user's own key under a name we would make
+    face.shape_key_remove(kb["Expr sad"])
+    entry = next(i for i, e in enumerate(face.pdeface.keys) if e.name == "Expr sad")
+    face.pdeface.keys.remove(entry)
+    theirs = face.shape_key_add(name="Expr sad", from_mix=False)
+    theirs_co = np.array([v.co[:] for v in theirs.data])
+    n_keys = len(kb)
+    assert bpy.ops.pdeface.build_shape_keys() == {"FINISHED"}
+    assert len(kb) == n_keys and "Smirk" in kb
+    np.testing.assert_allclose(np.array([v.co[:] for v in kb["Smirk"].data]), co, atol=1e-6)
+    np.testing.assert_allclose(np.array([v.co[:] for v in kb["Expr sad"].data]), theirs_co, atol=1e-6)
+    scene = bpy.context.scene
+    scene.frame_set(10)
+    assert kb["Smirk"].value == pytest.approx(0.8)
+    scene.frame_set(20)
+    assert kb["AU12 Lip Corner Puller"].value == pytest.approx(1.0)
+
+
+def test_keyframe_pose_and_animate_sequence(bpy, face):
+    kb = key_blocks(face)
+    scene = bpy.context.scene
+    scene.frame_set(5)
+    kb["AU12 Lip Corner Puller"].value = 0.7
+    assert bpy.ops.pdeface.keyframe_pose() == {"FINISHED"}
+    scene.frame_set(6)
+    assert kb["AU12 Lip Corner Puller"].value == pytest.approx(0.7)
+    assert bpy.ops.pdeface.animate_sequence(presets="happy,sad", start=10, hold=4, blend=6,
+                                            mode="via_neutral", channels="KEY") == {"FINISHED"}
+    expect = {10: (0, 0), 16: (1, 0), 20: (1, 0), 26: (0, 0), 30: (0, 0), 36: (0, 1), 40: (0, 1), 46: (0, 0)}
+    for frame, (happy, sad) in expect.items():
+        scene.frame_set(frame)
+        assert (kb["Expr happy"].value, kb["Expr sad"].value) == pytest.approx((happy, sad), abs=1e-6), frame
+    assert scene.frame_end >= 46
+    bpy.ops.pdeface.animate_sequence(presets="happy,sad", start=100, hold=0, blend=5, mode="direct", channels="AUS")
+    scene.frame_set(105)
+    assert kb["AU12 Lip Corner Puller"].value == pytest.approx(1.0)
+    scene.frame_set(110)
+    assert kb["AU15 Lip Corner Depressor"].value == pytest.approx(1.0) and kb["AU12 Lip Corner Puller"].value == 0
+
+
+@pytest.mark.parametrize("source", ["GROUP", "SELECTED", "FILE"])
+def test_fit_to_selected(bpy, scan_object, tmp_path, source):
+    import bmesh
+    obj, idx = scan_object
+    obj.location = (5.0, 0.0, 1.0)
+    s = bpy.context.scene.pdeface
+    s.landmark_source = source
+    if source == "GROUP":
+        g = obj.vertex_groups.new(name="landmarks")
+        for i, v in enumerate(idx):
+            g.add([int(v)], (i + 1) / 68, "REPLACE")
+    elif source == "SELECTED":
+        bm = bmesh.new()
+        bm.from_mesh(obj.data)
+        bm.verts.ensure_lookup_table()
+        for v in idx:
+            bm.verts[int(v)].select = True
+            bm.select_history.add(bm.verts[int(v)])
+        bm.to_mesh(obj.data)
+        bm.free()
+    else:
+        (tmp_path / "lm.json").write_text(json.dumps({"indices": idx.tolist()}))
+        s.landmark_file = str(tmp_path / "lm.json")
+    assert bpy.ops.pdeface.fit_to_selected() == {"FINISHED"}
+    pde = bpy.context.active_object
+    assert pde is not obj and pde.pdeface.is_face and pde.pdeface.source == obj
+    assert tuple(pde.location) == pytest.approx((5.0, 0.0, 1.0))
+    from pdeface.geometry import ClosestPoint
+    addon = __import__(MODULE, fromlist=["bridge"])
+    T, _ = addon.bridge.triangles(obj.data)
+    d = ClosestPoint(addon.bridge.vertices(obj.data), T).query(addon.bridge.vertices(pde.data))[0]
+    assert np.median(d) < 0.01  # cm: drops onto the scan
+    assert bpy.ops.pdeface.build_shape_keys() == {"FINISHED"}
+    assert "AU12 Lip Corner Puller" in key_blocks(pde)
+
+
+def test_transfer_texture(bpy, face, scan_object):
+    obj, _ = scan_object
+    image = bpy.data.images.new("skin", 8, 8)
+    mat = bpy.data.materials.new("scan")
+    if mat.node_tree is None:  # always has one from Blender 5.0
+        mat.use_nodes = True
+    tex = mat.node_tree.nodes.new("ShaderNodeTexImage")
+    tex.image = image
+    obj.data.materials.append(mat)
+    bpy.context.view_layer.objects.active = face
+    bpy.context.scene.pdeface.texture_source = obj
+    assert bpy.ops.pdeface.transfer_texture(method="CLOSEST") == {"FINISHED"}
+    uv = face.data.uv_layers["Scan UV"]
+    assert face.data.uv_layers.active == uv
+    got = np.array([d.uv[:] for d in uv.data])
+    assert 0 <= got.min() and got.max() <= 1 and got.std() > 0.05
+    assert any(n.type == "TEX_IMAGE" and n.image == image for n in face.data.materials[0].node_tree.nodes)
+    assert "UVMap" in face.data.uv_layers  # the parametric UVs are kept
+    assert bpy.ops.pdeface.transfer_texture(method="ATLAS") == {"FINISHED"}
+    atlas = np.array([d.uv[:] for d in face.data.uv_layers["Atlas UV"].data])
+    assert 0 <= atlas.min() and atlas.max() <= 1
+
+
+def test_bad_input_reports_an_error_and_loses_nothing(bpy, scan_object, tmp_path):
+    obj, idx = scan_object
+    s = bpy.context.scene.pdeface
+    n_objects = len(bpy.data.objects)
+    s.landmark_source = "GROUP"
+    with pytest.raises(RuntimeError, match="no vertex group"):
+        bpy.ops.pdeface.fit_to_selected()
+    g = obj.vertex_groups.new(name="landmarks")
+    g.add([int(v) for v in idx[:10]], 1.0, "REPLACE")
+    with pytest.raises(RuntimeError, match="has 10 vertices"):
+        bpy.ops.pdeface.fit_to_selected()
+    s.landmark_source = "FILE"
+    (tmp_path / "bad.json").write_text("{ nope")
+    s.landmark_file = str(tmp_path / "bad.json")
+    with pytest.raises(RuntimeError, match="not valid JSON"):
+        bpy.ops.pdeface.fit_to_selected()
+    s.landmark_source = "SELECTED"
+    with pytest.raises(RuntimeError, match="0 vertices selected"):
+        bpy.ops.pdeface.fit_to_selected()
+    # a mesh that is not a face
+    bpy.ops.mesh.primitive_plane_add(size=10)
+    plane = bpy.context.active_object
+    s.landmark_source = "FILE"
+    (tmp_path / "lm.json").write_text(json.dumps({"points": (np.random.default_rng(0).random((68, 3)) * 10).tolist()}))
+    s.landmark_file = str(tmp_path / "lm.json")
+    with pytest.raises(RuntimeError):
+        bpy.ops.pdeface.fit_to_selected()
+    assert len(bpy.data.objects) == n_objects + 1  # only the plane we added
+    # operators on a face need a face
+    with pytest.raises(RuntimeError, match="context is incorrect|PDE face"):
+        bpy.ops.pdeface.build_shape_keys()
+    bpy.ops.pdeface.add_default_face(shape_keys=False)
+    with pytest.raises(RuntimeError, match="no 'Expr happy' shape key"):
+        bpy.ops.pdeface.apply_preset(preset="happy", mode="KEY")
+    with pytest.raises(RuntimeError, match="choose the scan"):
+        bpy.ops.pdeface.transfer_texture(method="CLOSEST")
+    s.presets_file = str(tmp_path / "bad.json")
+    with pytest.raises(RuntimeError, match="not valid JSON"):
+        bpy.ops.pdeface.build_shape_keys()
+    assert bpy.context.active_object.data.shape_keys is None or len(key_blocks(bpy.context.active_object)) <= 1
