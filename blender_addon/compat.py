@@ -25,3 +25,28 @@ def use_nodes(material):
     """Give a material its node tree (always there from 5.0, where ``use_nodes`` is deprecated)."""
     if VERSION < (5, 0, 0) or material.node_tree is None:
         material.use_nodes = True
+
+
+def set_video_output(scene, path):
+    """FFmpeg MPEG-4/H.264 output (5.0 picks the media type first)."""
+    im = scene.render.image_settings
+    if hasattr(im, "media_type"):
+        im.media_type = "VIDEO"
+    im.file_format = "FFMPEG"
+    scene.render.ffmpeg.format = "MPEG4"
+    scene.render.ffmpeg.codec = "H264"
+    scene.render.filepath = str(path)
+
+
+def set_image_output(scene, path, file_format="PNG"):
+    im = scene.render.image_settings
+    if hasattr(im, "media_type"):
+        im.media_type = "IMAGE"
+    im.file_format = file_format
+    im.color_mode = "RGB"
+    scene.render.filepath = str(path)
+
+
+def strips(sequence_editor):
+    """The sequencer's strips ('sequences' before 4.4)."""
+    return sequence_editor.strips if hasattr(sequence_editor, "strips") else sequence_editor.sequences

@@ -5,6 +5,8 @@ errors, never tracebacks. Shape keys this add-on made are listed on the face
 (``obj.pdeface.keys``); the user's own keys, drivers and keyframes are never
 deleted or renamed.
 """
+import math
+
 import bpy
 import numpy as np
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, StringProperty
@@ -116,6 +118,8 @@ class PDEFACE_OT_add_default_face(bpy.types.Operator):
     resolution: StringProperty(name="Resolution", default="default",
                                description="default, original, fine, or ROWS,COLS subdivisions")
     shape_keys: BoolProperty(name="Build shape keys", default=True)
+    model_path: StringProperty(name="Face model", subtype="FILE_PATH",
+                               description="A face model file (.npz) to add instead of the bundled face")
 
     @classmethod
     def poll(cls, context):
@@ -130,9 +134,14 @@ class PDEFACE_OT_add_default_face(bpy.types.Operator):
             pd = _pd()
             pd.fit.parse_resolution(self.resolution)
             from pdeface.assets import DEFAULT_FACE, asset_path
-            data = asset_path(DEFAULT_FACE).read_bytes()
-            model = pd.model.model_from_bytes(data, "default face")
+            path = bpy.path.abspath(self.model_path) if self.model_path else asset_path(DEFAULT_FACE)
+            try:
+                data = open(path, "rb").read()
+            except OSError as exc:
+                raise pd.errors.ModelFormatError(f"{path}: cannot open ({exc.strerror})") from None
+            model = pd.model.model_from_bytes(data, str(path))
             obj = new_face_object(context, "PDE Face", model, self.resolution, data=data)
+            obj.rotation_euler = (math.pi / 2, 0.0, 0.0)  # the face frame's +y up becomes Blender's +Z up
         except PdeFaceError as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
@@ -454,6 +463,78 @@ class PDEFACE_OT_animate_sequence(_FaceOperator, bpy.types.Operator):
         return {"FINISHED"}
 
 
+def apply_timeline(obj, timeline):
+    """Keyframe the face's shape keys from a pdeface Timeline.
+
+    Returns (first frame, last frame, channels the face lacks).
+    """
+    ours = {e.name: e for e, _ in managed(obj)}
+    by_au = {e.au_key: name for name, e in ours.items() if e.kind == "AU"}
+    aus, presets = timeline.channels()
+    missing = [f"AU{a}" for a in aus if a not in by_au] + [p for p in presets if expression_key_name(p) not in ours]
+    names = [by_au[a] for a in aus if a in by_au] + [expression_key_name(p) for p in presets
+                                                        if expression_key_name(p) in ours]
+    blocks = obj.data.shape_keys.key_blocks
+    prefs = bpy.context.preferences.edit
+    saved = prefs.keyframe_new_interpolation_type
+    try:
+        for key in timeline.keys:
+            # New keys take the user-preference interpolation: the one way that works on 4.2-5.0.
+            prefs.keyframe_new_interpolation_type = key.interpolation.upper()
+            values = {by_au[a]: w for a, w in key.aus.items() if a in by_au}
+            values.update({expression_key_name(p): w for p, w in key.presets.items() if expression_key_name(p) in ours})
+            for name in names:
+                kb = blocks[name]
+                kb.value = values.get(name, 0.0)
+                kb.keyframe_insert("value", frame=key.frame)
+    finally:
+        prefs.keyframe_new_interpolation_type = saved
+    return timeline.keys[0].frame, timeline.frame_end, missing
+
+
+class PDEFACE_OT_import_au(_FaceOperator, bpy.types.Operator):
+    """Keyframe the face from AU data a tracker wrote (OpenFace, Py-Feat, Live Link Face CSV, FAS text) or a timeline"""
+
+    bl_idname = "pdeface.import_au"
+    bl_label = "Import AU Data"
+
+    filepath: StringProperty(name="File", subtype="FILE_PATH")
+    format: EnumProperty(name="Format", default="auto",
+                         items=[(f, f, "") for f in ("auto", "openface", "pyfeat", "livelink", "fas", "timeline")])
+    fps: FloatProperty(name="FPS", default=0.0, min=0.0, description="0: the scene's frame rate")
+    smooth: IntProperty(name="Smooth", default=1, min=1, description="Moving-average window (samples)")
+    reduce: FloatProperty(name="Reduce", default=0.0, min=0.0, max=0.5, description="Keyframe reduction tolerance")
+    hold: FloatProperty(name="Hold", default=0.5, min=0.01, description="Seconds per FAS AU set")
+
+    def invoke(self, context, event):
+        context.window_manager.fileselect_add(self)
+        return {"RUNNING_MODAL"}
+
+    def run(self, context):
+        from pdeface.audata import import_au
+        from pdeface.timeline import load_timeline
+        obj = active_face(context)
+        if not self.filepath:
+            raise _pd().errors.PdeFaceError("choose an AU data file")
+        path = bpy.path.abspath(self.filepath)
+        fps = self.fps or context.scene.render.fps / context.scene.render.fps_base
+        if self.format == "timeline" or (self.format == "auto" and path.lower().endswith(".json")):
+            timeline, note = load_timeline(path), ""
+        else:
+            r = import_au(path, self.format, fps, self.hold, self.smooth, self.reduce)
+            timeline = r.timeline
+            note = f"; {r.dropped} rows dropped" if r.dropped else ""
+            if r.unknown:
+                self.report({"WARNING"}, f"not FACS AUs / not mapped, ignored: {', '.join(map(str, r.unknown))}")
+        first, last, missing = apply_timeline(obj, timeline)
+        if context.scene.frame_end < last:
+            context.scene.frame_end = last
+        if missing:
+            self.report({"WARNING"}, f"this face has no shape key for {', '.join(missing)}")
+        self.report({"INFO"}, f"Keyframed {len(timeline.keys)} keys, frames {first}-{last}{note}")
+        return {"FINISHED"}
+
+
 class PDEFACE_OT_transfer_texture(_FaceOperator, bpy.types.Operator):
     """UVs for the PDE face: from the scan by closest point (the method's texturing) or a fresh xatlas atlas"""
 
@@ -510,7 +591,7 @@ class PDEFACE_OT_transfer_texture(_FaceOperator, bpy.types.Operator):
 
 _classes = (PDEFACE_OT_add_default_face, PDEFACE_OT_fit_to_selected, PDEFACE_OT_build_shape_keys,
             PDEFACE_OT_apply_preset, PDEFACE_OT_reset_pose, PDEFACE_OT_keyframe_pose, PDEFACE_OT_animate_sequence,
-            PDEFACE_OT_transfer_texture)
+            PDEFACE_OT_import_au, PDEFACE_OT_transfer_texture)
 
 
 def register():

@@ -111,6 +111,7 @@ class PDEFACE_PT_animation(_Panel, bpy.types.Panel):
         box.prop(s, "sequence_mode")
         box.prop(s, "sequence_channels")
         box.operator("pdeface.animate_sequence", icon="ANIM")
+        layout.operator("pdeface.import_au", icon="IMPORT")
 
 
 class PDEFACE_PT_texture(_Panel, bpy.types.Panel):

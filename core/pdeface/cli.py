@@ -105,6 +105,26 @@ def cmd_report(args):
             print(f"{k:18s} {v:.4f}" if isinstance(v, float) else f"{k:18s} {v}")
 
 
+def cmd_import_au(args):
+    from .audata import import_au
+    from .timeline import save_timeline
+
+    r = import_au(args.file, args.format, args.fps, args.hold, args.smooth, args.reduce, args.min_confidence)
+    save_timeline(args.output, r.timeline)
+    if r.unknown:
+        _log(f"ignored (not FACS AUs, or not mapped): {', '.join(map(str, r.unknown))}")
+    aus, _ = r.timeline.channels()
+    print(json.dumps({"output": str(args.output), "format": r.format, "rows": r.rows, "dropped": r.dropped,
+                      "keys": len(r.timeline.keys), "frames": [r.timeline.keys[0].frame, r.timeline.frame_end],
+                      "aus": aus, "unknown": [str(u) for u in r.unknown]}))
+
+
+def render_script():
+    """scripts/render_sequence.py of this checkout, if there is one."""
+    p = Path(__file__).resolve().parents[2] / "scripts" / "render_sequence.py"
+    return p if p.exists() else None
+
+
 def cmd_demo(args):
     from .fit import face_mesh
     from .meshio import write_mesh
@@ -113,12 +133,12 @@ def cmd_demo(args):
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    steps = ["fit", "mesh", "report"]
+    steps = ["fit", "mesh", "report"] + ([] if args.no_render else ["render"])
     mesh, lm = load_scan("default")
     T, _ = mesh.triangles()
     from .fit import fit_face
     from .model import ICT_NOTICE
-    for i, step in enumerate(steps, 1):
+    for i, step in enumerate(steps[:3], 1):
         _log(f"[{i}/{len(steps)}] {step}")
         if step == "fit":
             model, _ = fit_face(mesh.vertices, T, lm, unit="cm", source="ICT-FaceKit generic neutral (face region)")
@@ -131,8 +151,37 @@ def cmd_demo(args):
                                      profiles_csv=out / "profiles.csv")
             result["model_bytes"] = size
             (out / "report.json").write_text(json.dumps(result, indent=2))
-    print(json.dumps(result))
     _log(f"wrote {out}/face.npz, face.obj, report.json, profiles.png, profiles.csv")
+    if not args.no_render:
+        result["render"] = render_demo(out, args)
+    print(json.dumps(result))
+
+
+def render_demo(out, args):
+    """The rig, the method's sequence, frames, contact sheet and .blend, rendered with the bpy module.
+
+    Runs in a child process, so this package never imports bpy itself.
+    """
+    import importlib.util
+    import subprocess
+
+    script = render_script()
+    if importlib.util.find_spec("bpy") is None or script is None:
+        raise PdeFaceError("rendering needs the bpy module and a source checkout: "
+                           "python -m pip install -e '.[blender]' (or pdeface demo --no-render)")
+    from .sequence import METHOD_SEQUENCE
+    cmd = [sys.executable, str(script), "--sequence", ",".join(METHOD_SEQUENCE), "--out", str(out),
+           "--fps", str(args.fps), "--hold", "0.33", "--blend-time", "0.33", "--size", args.size,
+           "--samples", str(args.samples), "--contact-sheet", "--save-blend", str(out / "demo.blend")]
+    if args.video:
+        cmd.append("--video")
+    _log("[4/4] rig, animation, render (Blender, headless)")
+    res = subprocess.run(cmd, stdout=subprocess.PIPE, text=True)
+    if res.returncode != 0:
+        raise PdeFaceError(f"rendering failed (exit {res.returncode}); see the messages above")
+    summary = json.loads(res.stdout.strip().splitlines()[-1])
+    _log(f"wrote {len(summary.get('frames', []))} frames in {out}/frames, {out}/contact_sheet.png, {out}/demo.blend")
+    return {k: summary[k] for k in ("frame_start", "frame_end", "contact_sheet", "blend", "render_s") if k in summary}
 
 
 def parse_au_weights(items):
@@ -335,8 +384,24 @@ def build_parser():
     p.add_argument("--json", action="store_true")
     p.set_defaults(func=cmd_au_report)
 
+    p = sub.add_parser("import-au", help="AU data from a tracker (OpenFace, Py-Feat, Live Link Face, FAS) → timeline")
+    p.add_argument("file")
+    p.add_argument("--format", default="auto", choices=["auto", "openface", "pyfeat", "livelink", "fas"])
+    p.add_argument("--fps", type=float, default=30.0)
+    p.add_argument("--hold", type=float, default=0.5, help="seconds per FAS AU set")
+    p.add_argument("--smooth", type=int, default=1, help="moving-average window (samples)")
+    p.add_argument("--reduce", type=float, default=0.0, help="keyframe reduction tolerance (weight)")
+    p.add_argument("--min-confidence", type=float, default=0.75)
+    p.add_argument("-o", "--output", required=True)
+    p.set_defaults(func=cmd_import_au)
+
     p = sub.add_parser("demo", help="the main job on the bundled face")
     p.add_argument("--out", default="out")
+    p.add_argument("--no-render", action="store_true", help="fit, mesh and report only (no bpy needed)")
+    p.add_argument("--size", default="192x192")
+    p.add_argument("--samples", type=int, default=16)
+    p.add_argument("--fps", type=float, default=12)
+    p.add_argument("--video", action="store_true")
     p.set_defaults(func=cmd_demo)
     return ap
 

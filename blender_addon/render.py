@@ -1,0 +1,208 @@
+"""Rendering a PDE face: timeline keyframes, framing, frames, video, contact sheet.
+
+Used by scripts/render_sequence.py (``blender -b -P`` or plain ``python`` with
+bpy) and by the operators. Camera and lights depend only on the face at rest,
+and Cycles' seed is fixed, so frame ranges rendered apart join seamlessly.
+"""
+import math
+from pathlib import Path
+
+import bpy
+import numpy as np
+from mathutils import Matrix, Vector
+
+from . import bridge, compat
+from .operators import apply_timeline  # noqa: F401 - part of this module's API
+
+RIG = "PDE Render"  # prefix of the camera and lights this module makes
+
+
+def face_axes(obj):
+    """World-space centre, forward and up of a PDE face (from its model's frame)."""
+    model = bridge.face_model(obj)
+    M = obj.matrix_world
+    R = model.frame.rotation  # rows: face x, y, z axes in the object's space
+    fwd = (M.to_3x3() @ Vector(R[2])).normalized()
+    up = (M.to_3x3() @ Vector(R[1])).normalized()
+    # The rest mesh, not bound_box: that follows the pose of the current frame.
+    V = bridge.world_vertices(obj)
+    lo, hi = V.min(axis=0), V.max(axis=0)
+    return Vector((lo + hi) / 2), fwd, up, float(np.linalg.norm(hi - lo))
+
+
+def _look_at(location, target, up):
+    z = (location - target).normalized()  # cameras look down their -Z
+    x = up.cross(z).normalized()
+    y = z.cross(x)
+    m = Matrix((x, y, z)).transposed().to_4x4()
+    m.translation = location
+    return m
+
+
+def setup_render(scene, obj, engine="CYCLES", size=(256, 256), samples=16, seed=0, fps=24):
+    """Camera and lights framing the face, and render settings (deterministic)."""
+    centre, fwd, up, extent = face_axes(obj)
+    for o in [o for o in scene.objects if o.name.startswith(RIG)]:
+        bpy.data.objects.remove(o, do_unlink=True)
+    cam_data = bpy.data.cameras.new(f"{RIG} camera")
+    cam_data.lens = 85
+    cam = bpy.data.objects.new(f"{RIG} camera", cam_data)
+    scene.collection.objects.link(cam)
+    fov = 2 * math.atan(cam_data.sensor_width / (2 * cam_data.lens))
+    dist = 0.45 * extent / math.tan(fov / 2)
+    cam.matrix_world = _look_at(centre + fwd * dist, centre, up)
+    cam_data.clip_start, cam_data.clip_end = dist * 0.05, dist * 10
+    scene.camera = cam
+    side = up.cross(fwd).normalized()
+    for name, direction, power in (("key", fwd + 0.7 * up - 0.8 * side, 2.2), ("fill", fwd + 0.1 * up + 0.9 * side, 0.5)):
+        ld = bpy.data.lights.new(f"{RIG} {name}", "SUN")
+        ld.energy = power
+        lo = bpy.data.objects.new(f"{RIG} {name}", ld)
+        scene.collection.objects.link(lo)
+        lo.matrix_world = _look_at(centre + direction.normalized() * dist, centre, up)
+    if scene.world is None:
+        scene.world = bpy.data.worlds.new(f"{RIG} world")
+    scene.world.color = (0.05, 0.05, 0.06)
+    engines = compat.render_engines()
+    if engine not in engines:
+        raise ValueError(f"unknown engine {engine!r}; use one of {', '.join(engines)}")
+    scene.render.engine = engines[engine]
+    if engine == "CYCLES":
+        scene.cycles.device = "CPU"
+        scene.cycles.samples = samples
+        scene.cycles.seed = seed
+        scene.cycles.use_animated_seed = False
+        scene.cycles.use_denoising = False  # OIDN is not everywhere; noise-free at these sizes anyway
+    scene.render.resolution_x, scene.render.resolution_y = size
+    scene.render.resolution_percentage = 100
+    scene.render.fps = int(round(fps))
+    scene.render.film_transparent = False
+    scene.render.use_file_extension = True
+    return cam
+
+
+def render_frames(scene, out_dir, frame_start, frame_end, progress=None):
+    """Render frames to ``out_dir/frame_####.png``; returns their paths."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for i, f in enumerate(range(frame_start, frame_end + 1)):
+        scene.frame_set(f)
+        path = out / f"frame_{f:04d}.png"
+        compat.set_image_output(scene, path)
+        bpy.ops.render.render(write_still=True)
+        paths.append(path)
+        if progress:
+            progress(i + 1, frame_end - frame_start + 1)
+    return paths
+
+
+def make_video(frames, fps, path):
+    """Join PNG frames into an MP4 with Blender's FFmpeg output (no 3D re-render)."""
+    frames = [Path(p) for p in frames]
+    scene = bpy.data.scenes.new("PDE video")
+    try:
+        import bpy as _bpy  # noqa: F401
+        sed = scene.sequence_editor_create()
+        strip = compat.strips(sed).new_image("frames", str(frames[0]), 1, 1)
+        for p in frames[1:]:
+            strip.elements.append(p.name)
+        first = bpy.data.images.load(str(frames[0]), check_existing=True)
+        scene.render.resolution_x, scene.render.resolution_y = first.size
+        scene.render.resolution_percentage = 100
+        bpy.data.images.remove(first)
+        scene.frame_start, scene.frame_end = 1, len(frames)
+        scene.render.fps = int(round(fps))
+        compat.set_video_output(scene, path)
+        with bpy.context.temp_override(scene=scene):
+            bpy.ops.render.render(animation=True, scene=scene.name)
+    finally:
+        bpy.data.scenes.remove(scene)
+    out = Path(path)
+    candidates = sorted(out.parent.glob(out.name + "*")) or sorted(out.parent.glob(out.stem + "*"))
+    return candidates[0] if candidates else out
+
+
+def contact_sheet(obj, path, items=None, cell=160, columns=8, samples=16, resolution="2,2"):
+    """One PNG grid of the neutral and every AU and preset at weight 1, with labels.
+
+    All cells are posed copies of the face rendered together in one orthographic
+    view (Cycles), each labelled by a text object under it.
+    """
+    from pdeface.expressions import ShapeBasis, resolve_preset
+    from pdeface.fit import face_mesh
+
+    from .operators import all_presets
+
+    model = bridge.face_model(obj)
+    basis = ShapeBasis(model, resolution, dtype=np.float64)
+    cells = [("neutral", {})] + [(f"AU{d.key}", {d.key: 1.0}) for d in model.descriptors]
+    for name, preset in all_presets(bpy.context).items():
+        w, _ = resolve_preset(preset, set(basis.keys))
+        cells.append((name, w))
+    if items is not None:
+        cells = [c for c in cells if c[0] in items]
+    scene = bpy.data.scenes.new("PDE contact sheet")
+    try:
+        pde = face_mesh(model, resolution)
+        rows = math.ceil(len(cells) / columns)
+        # Faces in the face frame (mm), laid out on the x-y plane, looking +z.
+        pitch = 1.25 * np.ptp(model.frame.to_face(basis.neutral), axis=0)[:2].max()
+        text_mat = bpy.data.materials.new("PDE label")
+        text_mat.diffuse_color = (0.9, 0.9, 0.9, 1)
+        compat.use_nodes(text_mat)
+        bsdf = text_mat.node_tree.nodes.get("Principled BSDF")
+        if bsdf is not None:
+            bsdf.inputs["Base Color"].default_value = (0.9, 0.9, 0.9, 1)
+        for i, (label, weights) in enumerate(cells):
+            V = basis.vertices(basis.weights_matrix(weights))[0] if weights else basis.neutral
+            pde.vertices = model.frame.to_face(V)
+            me = bridge.new_mesh(f"sheet {label}", pde)
+            me.materials.append(bridge.skin_material())
+            o = bpy.data.objects.new(f"sheet {label}", me)
+            r, c = divmod(i, columns)
+            o.location = (c * pitch, -r * pitch, 0)
+            scene.collection.objects.link(o)
+            curve = bpy.data.curves.new(f"label {label}", "FONT")
+            curve.body = label.replace("_", " ")
+            curve.align_x = "CENTER"
+            curve.size = 0.09 * pitch
+            curve.materials.append(text_mat)
+            t = bpy.data.objects.new(f"label {label}", curve)
+            t.location = (c * pitch, -r * pitch - 0.5 * pitch, 30)
+            scene.collection.objects.link(t)
+        cam_data = bpy.data.cameras.new("sheet camera")
+        cam_data.type = "ORTHO"
+        width, height = columns * pitch, rows * pitch
+        cam_data.ortho_scale = max(width, height)
+        cam = bpy.data.objects.new("sheet camera", cam_data)
+        cam.location = ((columns - 1) * pitch / 2, -(rows - 1) * pitch / 2 - 0.05 * pitch, 500)
+        cam_data.clip_end = 2000
+        scene.collection.objects.link(cam)
+        scene.camera = cam
+        light = bpy.data.objects.new("sheet light", bpy.data.lights.new("sheet light", "SUN"))
+        light.data.energy = 3.0
+        light.rotation_euler = (math.radians(-25), math.radians(20), 0)
+        scene.collection.objects.link(light)
+        scene.world = bpy.data.worlds.new("sheet world")
+        scene.world.color = (0.05, 0.05, 0.06)
+        scene.render.engine = "CYCLES"
+        scene.cycles.device = "CPU"
+        scene.cycles.samples = samples
+        scene.cycles.use_denoising = False
+        scene.render.resolution_x, scene.render.resolution_y = columns * cell, rows * cell
+        scene.render.resolution_percentage = 100
+        cam_data.sensor_fit = "HORIZONTAL" if width >= height else "VERTICAL"
+        compat.set_image_output(scene, path)
+        with bpy.context.temp_override(scene=scene):
+            bpy.ops.render.render(write_still=True, scene=scene.name)
+    finally:
+        for o in list(scene.collection.objects):
+            data = o.data
+            bpy.data.objects.remove(o, do_unlink=True)
+            if isinstance(data, bpy.types.Mesh):
+                bpy.data.meshes.remove(data)
+            elif isinstance(data, bpy.types.Curve):
+                bpy.data.curves.remove(data)
+        bpy.data.scenes.remove(scene)
+    return Path(path), [c[0] for c in cells]

@@ -1,0 +1,357 @@
+"""Import AU data that trackers write, as timelines.
+
+Formats (``detect_format`` picks one from the file's first line):
+
+``openface``
+    OpenFace 2.x CSV: ``AUxx_r`` intensities 0-5 (divided by 5), ``AUxx_c``
+    presence (an AU marked absent gets 0; an AU with only ``_c``, like AU28,
+    gets its presence), rows with ``success`` 0 or ``confidence`` below the
+    threshold are dropped, ``timestamp`` (s) gives the frame. Header names may
+    carry leading spaces, as OpenFace writes them. One face (``face_id``).
+``pyfeat``
+    Py-Feat CSV: ``AU01`` … in 0-1; ``approx_time`` (s) or ``frame`` gives the
+    time; rows with ``FaceScore`` below the threshold are dropped.
+``livelink``
+    Live Link Face CSV (ARKit's 52 blendshape names): mapped to AUs with the
+    ICT-FaceKit table (:data:`ARKIT_TO_AU`); ``Timecode`` ``HH:MM:SS:FF[.ms]``.
+``fas``
+    The FAS system's plain-text AU sets, one ``{1,2,5,15,16,20,26}`` per line
+    (extended forms too, see :mod:`pdeface.stream.wire`), each held for
+    ``hold`` seconds.
+
+Channels a format carries but the FACS catalogue does not know are reported
+once, not fatal; a malformed row raises an error naming its line.
+"""
+from __future__ import annotations
+
+import csv
+import math
+import re
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .errors import ModelFormatError, PdeFaceError
+from .facs import parse_au_key
+from .timeline import Key, Timeline
+
+FORMATS = ("openface", "pyfeat", "livelink", "fas")
+
+#: ARKit blendshape → [(AU key, share)], from ICT-FaceKit's FACS table; AUs ICT builds from
+#: two shapes (AU28, AU61-64) take the mean of both.
+ARKIT_TO_AU = {
+    "browinnerup": [("1", 1.0)], "browouterupleft": [("2L", 1.0)], "browouterupright": [("2R", 1.0)],
+    "browdownleft": [("4L", 1.0)], "browdownright": [("4R", 1.0)], "eyewideleft": [("5L", 1.0)],
+    "eyewideright": [("5R", 1.0)], "cheeksquintleft": [("6L", 1.0)], "cheeksquintright": [("6R", 1.0)],
+    "eyesquintleft": [("7L", 1.0)], "eyesquintright": [("7R", 1.0)], "nosesneerleft": [("9L", 1.0)],
+    "nosesneerright": [("9R", 1.0)], "mouthshrugupper": [("10", 1.0)], "mouthupperupleft": [("11L", 1.0)],
+    "mouthupperupright": [("11R", 1.0)], "mouthsmileleft": [("12L", 1.0)], "mouthsmileright": [("12R", 1.0)],
+    "mouthdimpleleft": [("14L", 1.0)], "mouthdimpleright": [("14R", 1.0)], "mouthfrownleft": [("15L", 1.0)],
+    "mouthfrownright": [("15R", 1.0)], "mouthlowerdownleft": [("16L", 1.0)], "mouthlowerdownright": [("16R", 1.0)],
+    "mouthshruglower": [("17", 1.0)], "mouthpucker": [("18", 1.0)], "mouthstretchleft": [("20L", 1.0)],
+    "mouthstretchright": [("20R", 1.0)], "mouthfunnel": [("22", 1.0)], "mouthpressleft": [("24L", 1.0)],
+    "mouthpressright": [("24R", 1.0)], "jawopen": [("27", 1.0)], "mouthrolllower": [("28", 0.5)],
+    "mouthrollupper": [("28", 0.5)], "jawforward": [("29", 1.0)], "jawleft": [("30L", 1.0)],
+    "jawright": [("30R", 1.0)], "cheekpuff": [("33", 1.0)], "eyeblinkleft": [("45L", 1.0)],
+    "eyeblinkright": [("45R", 1.0)], "eyelookoutleft": [("61", 0.5)], "eyelookinright": [("61", 0.5)],
+    "eyelookoutright": [("62", 0.5)], "eyelookinleft": [("62", 0.5)], "eyelookupleft": [("63", 0.5)],
+    "eyelookupright": [("63", 0.5)], "eyelookdownleft": [("64", 0.5)], "eyelookdownright": [("64", 0.5)],
+}
+_LLF_META = {"timecode", "blendshapecount"}
+
+
+@dataclass
+class ImportResult:
+    timeline: Timeline
+    format: str
+    rows: int
+    dropped: int = 0
+    unknown: list = field(default_factory=list)
+
+
+def detect_format(path) -> str:
+    try:
+        with open(path, "r", encoding="utf-8-sig", errors="replace") as fh:
+            first = ""
+            for line in fh:
+                if line.strip() and not line.lstrip().startswith("#"):
+                    first = line
+                    break
+    except OSError as exc:
+        raise ModelFormatError(f"{path}: cannot open ({exc.strerror})") from None
+    head = [h.strip().lower() for h in first.split(",")]
+    if first.lstrip().startswith("{"):
+        return "fas"
+    if any(re.fullmatch(r"au\d+_[rc]", h) for h in head):
+        return "openface"
+    if "timecode" in head or "eyeblinkleft" in head:
+        return "livelink"
+    if any(re.fullmatch(r"au\d+", h) for h in head):
+        return "pyfeat"
+    raise ModelFormatError(f"{path}:1: unknown AU data format (expected an OpenFace, Py-Feat or Live Link Face "
+                           "CSV header, or FAS {{...}} lines)")
+
+
+def _number(text, path, lineno, column):
+    try:
+        v = float(text)
+    except ValueError:
+        raise ModelFormatError(f"{path}:{lineno}: column {column!r} is not a number: {text.strip()[:20]!r}") from None
+    if not math.isfinite(v):
+        raise ModelFormatError(f"{path}:{lineno}: column {column!r} is not finite")
+    return v
+
+
+def _rows(path):
+    try:
+        fh = open(path, "r", encoding="utf-8-sig", newline="")
+    except OSError as exc:
+        raise ModelFormatError(f"{path}: cannot open ({exc.strerror})") from None
+    with fh:
+        reader = csv.reader(fh)
+        header = None
+        for row in reader:
+            if not row or all(not c.strip() for c in row):
+                continue
+            if header is None:
+                header = [h.strip() for h in row]
+                continue
+            if len(row) != len(header):
+                raise ModelFormatError(f"{path}:{reader.line_num}: {len(row)} columns, the header has {len(header)}")
+            yield reader.line_num, header, row
+        if header is None:
+            raise ModelFormatError(f"{path}: empty file")
+
+
+def _au_of(name):
+    """'AU01_r' / 'AU01' → '1', or None when FACS has no such AU."""
+    m = re.fullmatch(r"AU(\d+)(?:_[rc])?", name, re.IGNORECASE)
+    try:
+        return parse_au_key(m.group(1)) if m else None
+    except PdeFaceError:
+        return None
+
+
+def _samples_openface(path, min_confidence, face_id):
+    times, poses, dropped, unknown = [], [], 0, set()
+    cols = None
+    for lineno, header, row in _rows(path):
+        if cols is None:
+            idx = {h: i for i, h in enumerate(header)}
+            if "timestamp" not in idx:
+                raise ModelFormatError(f"{path}:1: OpenFace CSV without a 'timestamp' column")
+            r_cols = [(h, _au_of(h)) for h in header if re.fullmatch(r"AU\d+_r", h)]
+            c_cols = {_au_of(h): h for h in header if re.fullmatch(r"AU\d+_c", h)}
+            unknown |= {h for h, a in r_cols if a is None} | {h for a, h in c_cols.items() if a is None}
+            cols = (idx, [(h, a) for h, a in r_cols if a], {a: h for a, h in c_cols.items() if a})
+        idx, r_cols, c_cols = cols
+        if "face_id" in idx and int(_number(row[idx["face_id"]], path, lineno, "face_id")) != face_id:
+            continue
+        if "success" in idx and _number(row[idx["success"]], path, lineno, "success") == 0:
+            dropped += 1
+            continue
+        if "confidence" in idx and _number(row[idx["confidence"]], path, lineno, "confidence") < min_confidence:
+            dropped += 1
+            continue
+        pose = {}
+        for h, a in r_cols:
+            w = _number(row[idx[h]], path, lineno, h) / 5.0
+            if a in c_cols and _number(row[idx[c_cols[a]]], path, lineno, c_cols[a]) == 0:
+                w = 0.0
+            pose[a] = min(max(w, 0.0), 1.0)
+        for a, h in c_cols.items():
+            if a not in pose:
+                pose[a] = 1.0 if _number(row[idx[h]], path, lineno, h) > 0 else 0.0
+        times.append(_number(row[idx["timestamp"]], path, lineno, "timestamp"))
+        poses.append(pose)
+    return times, poses, dropped, sorted(unknown)
+
+
+def _samples_pyfeat(path, fps, min_face_score):
+    times, poses, dropped, unknown = [], [], 0, set()
+    cols = None
+    for lineno, header, row in _rows(path):
+        if cols is None:
+            idx = {h: i for i, h in enumerate(header)}
+            au_cols = [(h, _au_of(h)) for h in header if re.fullmatch(r"AU\d+", h, re.IGNORECASE)]
+            unknown |= {h for h, a in au_cols if a is None}
+            tcol = "approx_time" if "approx_time" in idx else ("frame" if "frame" in idx else None)
+            cols = (idx, [(h, a) for h, a in au_cols if a], tcol)
+        idx, au_cols, tcol = cols
+        if "FaceScore" in idx:
+            score = row[idx["FaceScore"]].strip()
+            if not score or _number(score, path, lineno, "FaceScore") < min_face_score:
+                dropped += 1
+                continue
+        values = [row[idx[h]].strip() for h, _ in au_cols]
+        if any(not v for v in values):  # no face found in this frame
+            dropped += 1
+            continue
+        pose = {a: min(max(_number(v, path, lineno, h), 0.0), 1.0) for (h, a), v in zip(au_cols, values)}
+        if tcol == "approx_time":
+            t = _number(row[idx[tcol]], path, lineno, tcol)
+        elif tcol == "frame":
+            t = _number(row[idx[tcol]], path, lineno, tcol) / fps
+        else:
+            t = len(times) / fps
+        times.append(t)
+        poses.append(pose)
+    return times, poses, dropped, sorted(unknown)
+
+
+def _timecode(text, fps, path, lineno):
+    m = re.fullmatch(r"\s*(\d+):(\d+):(\d+)[:;](\d+)(?:\.(\d+))?\s*", text)
+    if not m:
+        raise ModelFormatError(f"{path}:{lineno}: Timecode {text.strip()[:24]!r} is not HH:MM:SS:FF[.sub]")
+    h, mi, s, f, sub = m.groups()
+    frames = int(f) + (float("0." + sub) if sub else 0.0)
+    return int(h) * 3600 + int(mi) * 60 + int(s) + frames / fps
+
+
+def _samples_livelink(path, fps):
+    times, poses, unknown = [], [], set()
+    cols = None
+    for lineno, header, row in _rows(path):
+        if cols is None:
+            idx = {h: i for i, h in enumerate(header)}
+            shape_cols = [h for h in header if h.lower() not in _LLF_META]
+            unknown |= {h for h in shape_cols if h.lower() not in ARKIT_TO_AU}
+            tc = next((h for h in header if h.lower() == "timecode"), None)
+            cols = (idx, [h for h in shape_cols if h.lower() in ARKIT_TO_AU], tc)
+        idx, shape_cols, tc = cols
+        pose = {}
+        for h in shape_cols:
+            w = min(max(_number(row[idx[h]], path, lineno, h), 0.0), 1.0)
+            for au, share in ARKIT_TO_AU[h.lower()]:
+                pose[au] = pose.get(au, 0.0) + share * w
+        times.append(_timecode(row[idx[tc]], fps, path, lineno) if tc else len(times) / fps)
+        poses.append(pose)
+    if times:
+        t0 = times[0]
+        times = [t - t0 for t in times]
+    return times, poses, 0, sorted(unknown)
+
+
+def _frame(seconds, fps):
+    """Frame of a time (frame 1 at 0 s), rounding halves up."""
+    return 1 + int(math.floor(seconds * fps + 0.5))
+
+
+def _keys_fas(path, fps, hold):
+    from .stream.wire import PacketError, parse_packet
+
+    if not hold > 0:
+        raise ModelFormatError(f"hold must be > 0 seconds, got {hold}")
+    keys, unknown = [Key(1, {}, {}, "linear")], set()
+    blend = min(0.25, hold / 2)  # the FAS player's 250 ms between expressions
+    t = 0.0
+    try:
+        lines = open(path, "r", encoding="utf-8", errors="replace").read().splitlines()
+    except OSError as exc:
+        raise ModelFormatError(f"{path}: cannot open ({exc.strerror})") from None
+    n = 0
+    for lineno, line in enumerate(lines, 1):
+        s = line.strip()
+        if not s or s.startswith("#"):
+            continue
+        try:
+            p = parse_packet(s)
+        except PacketError as exc:
+            raise ModelFormatError(f"{path}:{lineno}: {exc}") from None
+        unknown |= {f"AU{u}" for u in p.unknown}
+        f_in, f_out = _frame(t + blend, fps), _frame(t + hold, fps)
+        keys.append(Key(f_in, dict(p.weights), {}, "linear"))
+        if f_out > f_in:
+            keys.append(Key(f_out, dict(p.weights), {}, "linear"))
+        t += hold
+        n += 1
+    if n == 0:
+        raise ModelFormatError(f"{path}: no AU sets in the file")
+    keys.append(Key(keys[-1].frame + max(1, _frame(blend, fps) - 1), {}, {}, "linear"))
+    return keys, n, sorted(unknown)
+
+
+def smooth(values: np.ndarray, window: int) -> np.ndarray:
+    """Centred moving average over ``window`` samples along axis 0 (edges use what is there)."""
+    if window <= 1:
+        return values
+    kernel = np.ones(window)
+    pad = window // 2
+    num = np.apply_along_axis(lambda c: np.convolve(c, kernel, mode="full")[pad:pad + len(c)], 0, values)
+    den = np.convolve(np.ones(len(values)), kernel, mode="full")[pad:pad + len(values)]
+    return num / den[:, None]
+
+
+def reduce_keys(frames: np.ndarray, values: np.ndarray, tolerance: float) -> np.ndarray:
+    """Indices of keys to keep so linear interpolation stays within ``tolerance`` on every channel.
+
+    Ramer-Douglas-Peucker on the weight curves: first and last keys always stay.
+    """
+    n = len(frames)
+    if n <= 2 or tolerance <= 0:
+        return np.arange(n)
+    keep = np.zeros(n, bool)
+    keep[[0, n - 1]] = True
+    stack = [(0, n - 1)]
+    x = frames.astype(np.float64)
+    while stack:
+        a, b = stack.pop()
+        if b - a < 2:
+            continue
+        t = (x[a + 1:b] - x[a]) / (x[b] - x[a])
+        interp = values[a] + t[:, None] * (values[b] - values[a])
+        err = np.abs(values[a + 1:b] - interp).max(axis=1)
+        i = int(np.argmax(err))
+        if err[i] > tolerance:
+            m = a + 1 + i
+            keep[m] = True
+            stack += [(a, m), (m, b)]
+    return np.nonzero(keep)[0]
+
+
+def import_au(path, fmt="auto", fps=30.0, hold=0.5, smooth_window=1, reduce_tolerance=0.0,
+              min_confidence=0.75, face_id=0) -> ImportResult:
+    """Read an AU data file into a timeline.
+
+    Parameters
+    ----------
+    fmt : {'auto', 'openface', 'pyfeat', 'livelink', 'fas'}
+    fps : float
+        Frame rate of the timeline (and of Py-Feat/Live Link frame counters).
+    hold : float
+        Seconds each FAS AU set is held.
+    smooth_window : int
+        Moving-average window in samples (1: none).
+    reduce_tolerance : float
+        Drop keys while linear interpolation stays within this weight (0: keep all).
+    min_confidence : float
+        OpenFace confidence / Py-Feat FaceScore below which a row is dropped.
+    """
+    if not fps > 0:
+        raise ModelFormatError(f"fps must be > 0, got {fps}")
+    fmt = detect_format(path) if fmt == "auto" else fmt
+    if fmt not in FORMATS:
+        raise ModelFormatError(f"unknown format {fmt!r}; use one of {', '.join(FORMATS)}")
+    if fmt == "fas":
+        keys, n, unknown = _keys_fas(path, fps, hold)
+        return ImportResult(Timeline(float(fps), keys, 1), fmt, n, 0, unknown)
+    if fmt == "openface":
+        times, poses, dropped, unknown = _samples_openface(path, min_confidence, face_id)
+    elif fmt == "pyfeat":
+        times, poses, dropped, unknown = _samples_pyfeat(path, fps, min_confidence)
+    else:
+        times, poses, dropped, unknown = _samples_livelink(path, fps)
+    if not poses:
+        raise ModelFormatError(f"{path}: no usable rows ({dropped} dropped for tracking failure or low confidence)")
+    channels = sorted({a for p in poses for a in p}, key=lambda a: (int(a.rstrip("LR")), a))
+    frames = 1 + np.floor(np.asarray(times) * fps + 0.5).astype(np.int64)
+    values = np.array([[p.get(c, 0.0) for c in channels] for p in poses])
+    # One key per frame (trackers may sample faster than the timeline): the last sample wins.
+    order = np.argsort(frames, kind="stable")
+    frames, values = frames[order], values[order]
+    last = np.r_[frames[1:] != frames[:-1], True]
+    frames, values = frames[last], values[last]
+    values = np.clip(smooth(values, int(smooth_window)), 0.0, 1.0)
+    keep = reduce_keys(frames, values, reduce_tolerance)
+    keys = [Key(int(frames[i]), {c: float(v) for c, v in zip(channels, values[i])}, {}, "linear") for i in keep]
+    return ImportResult(Timeline(float(fps), keys, 1), fmt, len(poses) + dropped, dropped, unknown)

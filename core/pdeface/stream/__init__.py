@@ -1,0 +1,1 @@
+"""Live AU streams: the FAS remote player's wire formats, player and sender (no bpy)."""

@@ -1,0 +1,211 @@
+"""Wire formats of AU streams.
+
+The FAS system's own: one packet per expression, the AU set as plain text
+``{1,6,12,14}`` (no spaces), packets delimited by their braces (newlines and
+spaces between packets are ignored). Extended: intensities ``{12:0.8,6:0.5}``
+and FACS letters ``{12E,6C}``; side suffixes ``{12L:0.5}``. Control integers
+between packets: 1 packet received (ack), -1 pause, -2 end of transmission,
+-3 resume, -4 stop. FACSvatar-style JSON lines: ``{"au_r": {"AU12": 0.8}, "timestamp": 1.5}``.
+
+:class:`StreamParser` takes bytes as they arrive (partial packets, garbage,
+floods) and yields events; it never evaluates anything and bounds its buffer.
+"""
+from __future__ import annotations
+
+import json
+import math
+import re
+from dataclasses import dataclass, field
+
+from ..errors import PdeFaceError
+from ..facs import INTENSITY, parse_au_key
+
+ACK, PAUSE, END, RESUME, STOP = 1, -1, -2, -3, -4
+CONTROLS = {ACK: "ack", PAUSE: "pause", END: "end", RESUME: "resume", STOP: "stop"}
+#: Longest packet accepted (bytes); longer input is dropped up to the next packet.
+MAX_PACKET = 1024
+
+_ITEM = re.compile(r"^(\d{1,3})([LR]?)(?:([A-E])|:([0-9]*\.?[0-9]+(?:[eE][-+]?\d+)?))?$")
+
+
+class PacketError(PdeFaceError, ValueError):
+    """A malformed packet."""
+
+
+@dataclass
+class Packet:
+    """One expression: AU key → weight in [0, 1]; ``unknown``: AU numbers not in FACS."""
+
+    weights: dict
+    raw: str = ""
+    unknown: list = field(default_factory=list)
+    timestamp: float | None = None
+
+
+@dataclass
+class Control:
+    code: int
+
+    @property
+    def name(self) -> str:
+        return CONTROLS[self.code]
+
+
+@dataclass
+class Garbage:
+    """Input that was dropped, and why."""
+
+    reason: str
+    text: str = ""
+
+
+def parse_packet(text: str) -> Packet:
+    """Parse ``{1,2,5}``, ``{12:0.8,6:0.5}`` or ``{12E,6C}`` (braces included)."""
+    if len(text) > MAX_PACKET:
+        raise PacketError(f"packet longer than {MAX_PACKET} bytes")
+    if not (text.startswith("{") and text.endswith("}")):
+        raise PacketError(f"a packet is enclosed in braces: {text[:40]!r}")
+    body = text[1:-1].strip()
+    weights, unknown = {}, []
+    if not body:
+        return Packet({}, text)
+    for item in body.split(","):
+        item = item.strip()
+        m = _ITEM.match(item)
+        if not m:
+            raise PacketError(f"bad item {item[:20]!r} in {text[:60]!r}")
+        num, side, letter, value = m.groups()
+        if letter:
+            w = INTENSITY[letter]
+        elif value is not None:
+            w = float(value)
+            if not math.isfinite(w):
+                raise PacketError(f"weight of AU{num} is not finite")
+            w = min(max(w, 0.0), 1.0)
+        else:
+            w = 1.0
+        try:
+            key = parse_au_key(num + side)
+        except PdeFaceError:
+            unknown.append(int(num))
+            continue
+        weights[key] = w
+    return Packet(weights, text, unknown)
+
+
+def format_packet(weights: dict, plain: bool = False) -> str:
+    """``{1,6,12}`` (plain: AUs at weight > 0) or ``{12:0.8,6:0.5}``."""
+    if plain:
+        return "{" + ",".join(k for k, w in weights.items() if w > 0) + "}"
+    return "{" + ",".join(f"{k}:{w:.3g}" for k, w in weights.items()) + "}"
+
+
+def parse_json_line(line: str) -> Packet:
+    """A FACSvatar-style JSON line: ``{"au_r": {"AU12": 0.8, ...}, "timestamp": ...}``.
+
+    Intensities above 1 are taken as OpenFace's 0-5 scale.
+    """
+    try:
+        obj = json.loads(line)
+    except json.JSONDecodeError as exc:
+        raise PacketError(f"bad JSON line ({exc.msg})") from None
+    if not isinstance(obj, dict) or not isinstance(obj.get("au_r"), dict):
+        raise PacketError("JSON line needs an 'au_r' object")
+    weights, unknown = {}, []
+    values = obj["au_r"]
+    scale = 5.0 if any(isinstance(v, (int, float)) and v > 1.0 for v in values.values()) else 1.0
+    for k, v in values.items():
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            raise PacketError(f"au_r[{k!r}] is not a finite number")
+        try:
+            key = parse_au_key(k)
+        except PdeFaceError:
+            unknown.append(k)
+            continue
+        weights[key] = min(max(v / scale, 0.0), 1.0)
+    ts = obj.get("timestamp")
+    ts = float(ts) if isinstance(ts, (int, float)) and not isinstance(ts, bool) and math.isfinite(ts) else None
+    return Packet(weights, line[:200], unknown, ts)
+
+
+class StreamParser:
+    """Incremental parser of a byte stream of packets, controls and JSON lines."""
+
+    def __init__(self, max_packet: int = MAX_PACKET):
+        self.max_packet = max_packet
+        self._buf = ""
+        self._skipping = False
+
+    def feed(self, data: bytes) -> list:
+        """Events (:class:`Packet`, :class:`Control`, :class:`Garbage`) completed by ``data``."""
+        self._buf += data.decode("utf-8", "replace")
+        events = []
+        while self._buf:
+            s = self._buf.lstrip(" \t\r\n")
+            self._buf = s
+            if not s:
+                break
+            if self._skipping:  # dropping an oversized packet: resume at the next line or packet
+                cut = min([i for i in (s.find("\n"), s.find("{")) if i >= 0], default=-1)
+                if cut < 0:
+                    self._buf = ""
+                    break
+                self._buf, self._skipping = s[cut:], False
+                continue
+            if s[0] == "{":
+                if s.startswith('{"'):  # a JSON line ends at its newline
+                    end = s.find("\n")
+                    if end < 0:
+                        if len(s) > self.max_packet:
+                            events.append(Garbage("JSON line too long", s[:40]))
+                            self._buf, self._skipping = "", True
+                        break
+                    line, self._buf = s[:end], s[end + 1:]
+                    try:
+                        events.append(parse_json_line(line))
+                    except PacketError as exc:
+                        events.append(Garbage(str(exc), line[:40]))
+                    continue
+                end = s.find("}")
+                if end < 0:
+                    if len(s) > self.max_packet:
+                        events.append(Garbage(f"packet longer than {self.max_packet} bytes", s[:40]))
+                        self._buf, self._skipping = "", True
+                    break
+                nxt = s.find("{", 1)
+                if 0 < nxt < end:  # an unclosed packet followed by another
+                    events.append(Garbage("unclosed packet", s[:nxt][:40]))
+                    self._buf = s[nxt:]
+                    continue
+                text, self._buf = s[:end + 1], s[end + 1:]
+                try:
+                    events.append(parse_packet(text))
+                except PacketError as exc:
+                    events.append(Garbage(str(exc), text[:40]))
+                continue
+            m = re.match(r"-?\d+", s)
+            if m and (m.end() < len(s)):  # a control integer needs a delimiter after it
+                code = int(m.group())
+                events.append(Control(code) if code in CONTROLS else Garbage(f"unknown control {code}", m.group()))
+                self._buf = s[m.end():]
+                continue
+            if m:
+                break  # maybe more digits to come
+            # Garbage up to the next packet or whitespace.
+            cut = min([i for i in (s.find("{"), s.find(" "), s.find("\n")) if i > 0], default=len(s))
+            if cut > self.max_packet or (cut == len(s) and len(s) > self.max_packet):
+                events.append(Garbage("garbage", s[:40]))
+                self._buf = s[cut:]
+                continue
+            if cut == len(s):
+                if len(s) > 64:
+                    events.append(Garbage("garbage", s[:40]))
+                    self._buf = ""
+                break
+            events.append(Garbage("garbage", s[:cut][:40]))
+            self._buf = s[cut:]
+        return events
+
+    @property
+    def buffered(self) -> int:
+        return len(self._buf)

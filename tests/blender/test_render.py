@@ -1,0 +1,112 @@
+"""Headless animation and rendering through scripts/render_sequence.py, and AU data import in Blender."""
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+SCRIPT = ROOT / "scripts" / "render_sequence.py"
+TINY = ["--sequence", "happy", "--fps", "4", "--hold", "0.5", "--blend-time", "0.5", "--size", "64x64",
+        "--samples", "4", "--quiet"]
+
+
+def run_script(argv, tmp_path):
+    res = subprocess.run([sys.executable] + argv, capture_output=True, text=True, cwd=tmp_path, timeout=600)
+    assert res.returncode == 0, res.stdout[-2000:] + res.stderr[-2000:]
+    return json.loads(res.stdout.strip().splitlines()[-1])
+
+
+def pixels(bpy, path):
+    im = bpy.data.images.load(str(path))
+    w, h = im.size
+    a = np.array(im.pixels[:], dtype=np.float64).reshape(h, w, 4)[..., :3]
+    bpy.data.images.remove(im)
+    return a
+
+
+@pytest.fixture(scope="module")
+def chunks(tmp_path_factory):
+    """The same job rendered as two chunks, through both entry-point forms."""
+    tmp = tmp_path_factory.mktemp("render")
+    # plain python with the bpy module
+    a = run_script([str(SCRIPT), *TINY, "--out", str(tmp / "a"), "--frame-start", "1", "--frame-end", "4",
+                    "--video", "--save-blend", str(tmp / "a" / "scene.blend")], tmp)
+    # Blender's convention: the script's arguments follow "--" (as with blender -b -P script -- ...)
+    b = run_script([str(SCRIPT), "-b", "-P", str(SCRIPT), "--", *TINY, "--out", str(tmp / "b"),
+                    "--frame-start", "3", "--frame-end", "7"], tmp)
+    return tmp, a, b
+
+
+def test_frames_video_and_blend(chunks):
+    tmp, a, b = chunks
+    assert [Path(p).name for p in a["frames"]] == [f"frame_{i:04d}.png" for i in range(1, 5)]
+    assert [Path(p).name for p in b["frames"]] == [f"frame_{i:04d}.png" for i in range(3, 8)]
+    assert a["timeline"] == {"frame_start": 1, "frame_end": 7, "fps": 4.0}
+    assert Path(a["video"]).stat().st_size > 1000
+    assert (tmp / "a" / "scene.blend").read_bytes()[:4] in (b"BLEN", b"\x28\xb5\x2f\xfd")  # plain or zstd
+
+
+def test_frame_matches_the_reference_image(bpy, chunks):
+    tmp, a, _ = chunks
+    got = pixels(bpy, tmp / "a" / "frames" / "frame_0003.png")
+    ref = pixels(bpy, Path(__file__).parent / "data" / "reference_frame_0003.png")
+    diff = np.abs(got - ref)
+    assert diff.mean() < 0.02 and np.percentile(diff, 99) < 0.15
+    # and it is not a blank image: the face is lighter than the background
+    assert got[24:40, 24:40].mean() > got[:4, :4].mean() + 0.1
+
+
+def test_chunks_join_seamlessly(bpy, chunks):
+    tmp, _, _ = chunks
+    for f in (3, 4):
+        x = pixels(bpy, tmp / "a" / "frames" / f"frame_{f:04d}.png")
+        y = pixels(bpy, tmp / "b" / "frames" / f"frame_{f:04d}.png")
+        assert np.abs(x - y).max() < 1e-6  # same camera, same seed: identical frames
+    # the animation moves between frames
+    f1 = pixels(bpy, tmp / "a" / "frames" / "frame_0001.png")
+    f3 = pixels(bpy, tmp / "a" / "frames" / "frame_0003.png")
+    assert np.abs(f1 - f3).max() > 0.05
+
+
+def test_loading_a_blend_renders_the_same(bpy, chunks, tmp_path):
+    tmp, _, _ = chunks
+    out = run_script([str(SCRIPT), "--blend", str(tmp / "a" / "scene.blend"), "--size", "64x64", "--samples", "4",
+                      "--quiet", "--out", str(tmp_path / "c"), "--frame-start", "3", "--frame-end", "3"], tmp_path)
+    x = pixels(bpy, out["frames"][0])
+    y = pixels(bpy, tmp / "a" / "frames" / "frame_0003.png")
+    assert np.abs(x - y).mean() < 0.01
+
+
+def test_contact_sheet(bpy, face, tmp_path):
+    render = __import__("bl_ext.pdeface_test.pdeface.render", fromlist=["render"])
+    path, cells = render.contact_sheet(face, tmp_path / "sheet.png", items=["neutral", "AU12", "AU27", "happy"],
+                                       cell=48, columns=4, samples=2)
+    assert cells == ["neutral", "AU12", "AU27", "happy"]
+    img = pixels(bpy, path)
+    assert img.shape == (48, 192, 3)
+    cols = [img[:, i * 48:(i + 1) * 48] for i in range(4)]
+    assert all(c.mean() > img[:2].mean() for c in cols)  # a face in every cell
+    assert np.abs(cols[0] - cols[2]).mean() > 0.005  # jaw open differs from neutral
+
+
+def test_import_au_operator(bpy, face, tmp_path):
+    csv = tmp_path / "of.csv"
+    csv.write_text("frame, face_id, timestamp, confidence, success, AU12_r, AU01_r, AU12_c\n"
+                   "1, 0, 0.0, 0.98, 1, 0.0, 0.0, 0\n"
+                   "2, 0, 0.5, 0.98, 1, 5.0, 2.5, 1\n"
+                   "3, 0, 1.0, 0.98, 1, 0.0, 0.0, 0\n")
+    bpy.context.scene.render.fps = 10
+    assert bpy.ops.pdeface.import_au(filepath=str(csv)) == {"FINISHED"}
+    kb = face.data.shape_keys.key_blocks
+    bpy.context.scene.frame_set(6)
+    assert kb["AU12 Lip Corner Puller"].value == pytest.approx(1.0)
+    assert kb["AU1 Inner Brow Raiser"].value == pytest.approx(0.5)
+    bpy.context.scene.frame_set(11)
+    assert kb["AU12 Lip Corner Puller"].value == pytest.approx(0.0)
+    bad = tmp_path / "bad.csv"
+    bad.write_text("frame, timestamp, AU12_r\n1, 0.0, lots\n")
+    with pytest.raises(RuntimeError, match="bad.csv:2"):
+        bpy.ops.pdeface.import_au(filepath=str(bad))
