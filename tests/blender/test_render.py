@@ -110,3 +110,20 @@ def test_import_au_operator(bpy, face, tmp_path):
     bad.write_text("frame, timestamp, AU12_r\n1, 0.0, lots\n")
     with pytest.raises(RuntimeError, match="bad.csv:2"):
         bpy.ops.pdeface.import_au(filepath=str(bad))
+
+
+def test_the_main_job(bpy, tmp_path):
+    """`pdeface demo`, the README's first command, at a tiny size."""
+    res = subprocess.run([sys.executable, "-m", "pdeface.cli", "demo", "--out", str(tmp_path / "out"),
+                          "--size", "48x48", "--samples", "2", "--fps", "4"],
+                         capture_output=True, text=True, timeout=900)
+    assert res.returncode == 0, res.stderr[-3000:]
+    summary = json.loads(res.stdout.strip().splitlines()[-1])
+    out = tmp_path / "out"
+    for name in ("face.npz", "face.obj", "report.json", "profiles.png", "contact_sheet.png", "demo.blend"):
+        assert (out / name).stat().st_size > 0, name
+    frames = sorted((out / "frames").glob("frame_*.png"))
+    assert len(frames) == summary["render"]["frame_end"] - summary["render"]["frame_start"] + 1 > 20
+    assert "[4/4]" in res.stderr and "frames [" in res.stderr  # progress is shown
+    sheet = pixels(bpy, out / "contact_sheet.png")
+    assert sheet.shape[0] > 1000 and sheet.std() > 0.05  # 74 labelled cells

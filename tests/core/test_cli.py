@@ -57,7 +57,7 @@ def test_default_face_and_patches(tmp_path, capsys):
 
 
 def test_demo(tmp_path, capsys):
-    code, out, err = run(capsys, "demo", "--out", tmp_path / "demo")
+    code, out, err = run(capsys, "demo", "--out", tmp_path / "demo", "--no-render")
     assert code == 0 and "[3/3]" in err
     for f in ("face.npz", "face.obj", "report.json", "profiles.png", "profiles.csv"):
         assert (tmp_path / "demo" / f).stat().st_size > 0
