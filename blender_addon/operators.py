@@ -362,24 +362,31 @@ class PDEFACE_OT_apply_preset(_FaceOperator, bpy.types.Operator):
         if mixer == "sum":
             set_pose(obj, {by_key[k]: w for k, w in weights.items() if k in by_key})
         else:
-            # Average and max are not linear: the mixed pose goes into one key of its own.
-            C, R = pd.expressions.pose_curves(model, weights, mixer)
-            coords = pd.fit.face_mesh(model, obj.pdeface.resolution, coefficients=C, residual=R).vertices
-            blocks = obj.data.shape_keys.key_blocks
-            kb = blocks.get(MIX_KEY)
-            if kb is not None and MIX_KEY not in ours:
-                raise pd.errors.PdeFaceError(f"a shape key named {MIX_KEY!r} is yours; rename it to use the {mixer} mixer")
-            if kb is None:
-                kb = obj.shape_key_add(name=MIX_KEY, from_mix=False)
-                kb.value = 0.0
-                e = obj.pdeface.keys.add()
-                e.name, e.kind, e.label = MIX_KEY, "MIX", "mixed pose"
-            kb.slider_min, kb.slider_max = 0.0, 1.0
-            bridge.set_key_coords(kb, coords)
-            set_pose(obj, {MIX_KEY: 1.0})
+            write_mix_key(obj, model, weights, mixer)
         note = f" (no descriptor for AU {', '.join(missing)})" if missing else ""
         self.report({"INFO"}, f"{self.preset} as AU weights, {mixer} mixer{note}")
         return {"FINISHED"}
+
+
+def write_mix_key(obj, model, weights, mixer):
+    """Average and max are not linear: the mixed pose goes into one key of its own, at 1."""
+    pd = _pd()
+    C, R = pd.expressions.pose_curves(model, weights, mixer)
+    coords = pd.fit.face_mesh(model, obj.pdeface.resolution, coefficients=C, residual=R).vertices
+    if obj.data.shape_keys is None:
+        raise pd.errors.PdeFaceError("build shape keys first")
+    blocks = obj.data.shape_keys.key_blocks
+    kb = blocks.get(MIX_KEY)
+    if kb is not None and MIX_KEY not in {e.name for e in obj.pdeface.keys}:
+        raise pd.errors.PdeFaceError(f"a shape key named {MIX_KEY!r} is yours; rename it to use the {mixer} mixer")
+    if kb is None:
+        kb = obj.shape_key_add(name=MIX_KEY, from_mix=False)
+        kb.value = 0.0
+        e = obj.pdeface.keys.add()
+        e.name, e.kind, e.label = MIX_KEY, "MIX", "mixed pose"
+    kb.slider_min, kb.slider_max = 0.0, 1.0
+    bridge.set_key_coords(kb, coords)
+    set_pose(obj, {MIX_KEY: 1.0})
 
 
 class PDEFACE_OT_reset_pose(_FaceOperator, bpy.types.Operator):
@@ -589,9 +596,56 @@ class PDEFACE_OT_transfer_texture(_FaceOperator, bpy.types.Operator):
         return {"FINISHED"}
 
 
+class PDEFACE_OT_live_start(_FaceOperator, bpy.types.Operator):
+    """Start the live link: AU packets over TCP drive the face's AU keys"""
+
+    bl_idname = "pdeface.live_start"
+    bl_label = "Start Live Link"
+
+    def run(self, context):
+        from . import live
+        s = context.scene.pdeface
+        if s.live_role == "LISTEN" and s.live_host not in ("127.0.0.1", "localhost", "::1") and not s.live_allow_remote:
+            raise _pd().errors.PdeFaceError(f"listening on {s.live_host} opens the player to the network: "
+                                            "tick 'Allow remote' to do that")
+        obj = active_face(context)
+        if not managed(obj, "AU"):
+            raise _pd().errors.PdeFaceError("build shape keys first")
+        try:
+            host, port = live.start(obj, s.live_role, s.live_host, s.live_port, s.live_mode, s.live_rules,
+                                    s.live_record, s.live_hz, s.mixer)
+        except OSError as exc:
+            raise _pd().errors.PdeFaceError(f"cannot {s.live_role.lower()} on {s.live_host}:{s.live_port}: "
+                                            f"{exc.strerror or exc}") from None
+        self.report({"INFO"}, f"Live link {'listening on' if s.live_role == 'LISTEN' else 'connecting to'} {host}:{port}")
+        return {"FINISHED"}
+
+
+class PDEFACE_OT_live_stop(bpy.types.Operator):
+    """Stop the live link"""
+
+    bl_idname = "pdeface.live_stop"
+    bl_label = "Stop Live Link"
+
+    @classmethod
+    def poll(cls, context):
+        from . import live
+        if not live.running():
+            cls.poll_message_set("The live link is not running")
+            return False
+        return True
+
+    def execute(self, context):
+        from . import live
+        st = live.status()
+        live.stop()
+        self.report({"INFO"}, f"Live link stopped after {st.get('packets', 0)} packets")
+        return {"FINISHED"}
+
+
 _classes = (PDEFACE_OT_add_default_face, PDEFACE_OT_fit_to_selected, PDEFACE_OT_build_shape_keys,
             PDEFACE_OT_apply_preset, PDEFACE_OT_reset_pose, PDEFACE_OT_keyframe_pose, PDEFACE_OT_animate_sequence,
-            PDEFACE_OT_import_au, PDEFACE_OT_transfer_texture)
+            PDEFACE_OT_import_au, PDEFACE_OT_transfer_texture, PDEFACE_OT_live_start, PDEFACE_OT_live_stop)
 
 
 def register():
@@ -600,5 +654,7 @@ def register():
 
 
 def unregister():
+    from . import live
+    live.stop()  # sockets and timers must not outlive the add-on
     for c in reversed(_classes):
         bpy.utils.unregister_class(c)

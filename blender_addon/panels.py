@@ -114,6 +114,44 @@ class PDEFACE_PT_animation(_Panel, bpy.types.Panel):
         layout.operator("pdeface.import_au", icon="IMPORT")
 
 
+class PDEFACE_PT_live(_Panel, bpy.types.Panel):
+    bl_label = "Live Link"
+    bl_parent_id = "PDEFACE_PT_face"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    @classmethod
+    def poll(cls, context):
+        return active_face(context) is not None
+
+    def draw(self, context):
+        from . import live
+        layout = self.layout
+        s = context.scene.pdeface
+        st = live.status()
+        col = layout.column()
+        col.enabled = not st["running"]
+        col.prop(s, "live_role", expand=True)
+        row = col.row(align=True)
+        row.prop(s, "live_host")
+        row.prop(s, "live_port")
+        col.prop(s, "live_allow_remote")
+        col.prop(s, "live_mode")
+        col.prop(s, "live_rules")
+        col.prop(s, "live_record")
+        col.prop(s, "live_hz")
+        if st["running"]:
+            layout.operator("pdeface.live_stop", icon="PAUSE")
+            box = layout.box()
+            box.label(text=("Connected" if st["connected"] else "Waiting for a sender"),
+                      icon="LINKED" if st["connected"] else "UNLINKED")
+            box.label(text=f"Packets {st['packets']}, played {st['played']}, dropped {st['dropped']}, "
+                           f"garbage {st['garbage']}")
+            if st["latency_ms_p99"] is not None:
+                box.label(text=f"Latency p50 {st['latency_ms_p50']:.1f} ms, p99 {st['latency_ms_p99']:.1f} ms")
+        else:
+            layout.operator("pdeface.live_start", icon="PLAY")
+
+
 class PDEFACE_PT_texture(_Panel, bpy.types.Panel):
     bl_label = "Texture"
     bl_parent_id = "PDEFACE_PT_face"
@@ -133,7 +171,7 @@ class PDEFACE_PT_texture(_Panel, bpy.types.Panel):
 
 
 _classes = (PDEFACE_PT_face, PDEFACE_PT_action_units, PDEFACE_PT_expressions, PDEFACE_PT_animation,
-            PDEFACE_PT_texture)
+            PDEFACE_PT_live, PDEFACE_PT_texture)
 
 
 def register():

@@ -67,6 +67,18 @@ class PDEFACE_PG_settings(bpy.types.PropertyGroup):
                                  items=[("CLOSEST", "From scan", "Closest point on the scan, as the method does"),
                                         ("ATLAS", "Fresh atlas", "Unwrap the PDE face with xatlas")])
     weight: FloatProperty(name="Weight", default=1.0, min=0.0, max=1.0)
+    live_role: EnumProperty(name="Role", default="LISTEN",
+                            items=[("LISTEN", "Listen", "Wait for a sender"), ("CONNECT", "Connect", "Connect to a sender")])
+    live_host: StringProperty(name="Host", default="127.0.0.1")
+    live_port: IntProperty(name="Port", default=5000, min=0, max=65535)
+    live_allow_remote: BoolProperty(name="Allow remote", default=False,
+                                    description="Listen on an address other than this machine's loopback")
+    live_mode: EnumProperty(name="Playback", default="live",
+                            items=[("live", "Live", "Head for the newest packet"),
+                                   ("queue", "Queue", "Play every packet in turn (the FAS player)")])
+    live_rules: BoolProperty(name="AU blender rules", default=False, description="Apply the co-occurrence rules")
+    live_record: BoolProperty(name="Record keyframes", default=False)
+    live_hz: FloatProperty(name="Rate", default=60.0, min=1.0, max=60.0, description="Pose updates per second")
 
 
 _classes = (PDEFACE_PG_key, PDEFACE_PG_face, PDEFACE_PG_settings)

@@ -119,6 +119,61 @@ def cmd_import_au(args):
                       "aus": aus, "unknown": [str(u) for u in r.unknown]}))
 
 
+def _address(text, default_host="127.0.0.1"):
+    host, sep, port = text.rpartition(":")
+    try:
+        return (host or default_host) if sep else default_host, int(port if sep else text)
+    except ValueError:
+        raise PdeFaceError(f"{text!r}: use HOST:PORT or PORT") from None
+
+
+def cmd_stream_send(args):
+    from .stream.sender import read_packets, send
+
+    try:
+        result = send(read_packets(args.file), args.host, args.port, args.rate, args.listen)
+    except OSError as exc:
+        raise PdeFaceError(f"{args.host}:{args.port}: {exc.strerror or exc}") from None
+    print(json.dumps(result))
+
+
+def cmd_stream_play(args):
+    from .stream.player import Player
+    from .stream.rules import DEFAULT_RULES, AUBlender
+
+    blender = AUBlender.load(args.rules or DEFAULT_RULES) if args.rules is not None else None
+    player = Player(transition=args.transition, mode=args.mode, blender=blender)
+    try:
+        if args.connect:
+            player.connect(*_address(args.connect))
+            _log(f"connecting to {args.connect}")
+        else:
+            host, port = player.listen(*_address(args.listen))
+            _log(f"listening on {host}:{port}")
+    except OSError as exc:
+        raise PdeFaceError(f"cannot listen/connect: {exc.strerror or exc}") from None
+    t0 = time.monotonic()
+    last = None
+    tick = 1.0 / args.hz
+    try:
+        while True:
+            now = time.monotonic()
+            pose = player.pose(now)
+            if args.print and pose != last:
+                print(json.dumps({"t": round(now - t0, 4), "au": {k: round(w, 4) for k, w in pose.items()}}), flush=True)
+            last = pose
+            if player.stats.stopped or (args.duration and now - t0 > args.duration):
+                break
+            if player.stats.ended and not args.keep_running and player.idle:
+                break
+            player.wait(tick) if player.idle else time.sleep(tick)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        player.close()
+    _log(json.dumps(player.stats.as_dict()))
+
+
 def render_script():
     """scripts/render_sequence.py of this checkout, if there is one."""
     p = Path(__file__).resolve().parents[2] / "scripts" / "render_sequence.py"
@@ -394,6 +449,29 @@ def build_parser():
     p.add_argument("--min-confidence", type=float, default=0.75)
     p.add_argument("-o", "--output", required=True)
     p.set_defaults(func=cmd_import_au)
+
+    p = sub.add_parser("stream", help="live AU stream: the remote player and a sender")
+    ssub = p.add_subparsers(dest="stream_command", required=True)
+    q = ssub.add_parser("send", help="replay a file of AU packets to a player")
+    q.add_argument("file", help="one {1,2,5} / {12:0.8} / {12E} packet or JSON line per line")
+    q.add_argument("--host", default="127.0.0.1")
+    q.add_argument("--port", type=int, default=5000)
+    q.add_argument("--rate", type=float, default=4.0, help="packets per second (0: as fast as allowed)")
+    q.add_argument("--listen", action="store_true", help="wait for a player to connect instead")
+    q.set_defaults(func=cmd_stream_send)
+    q = ssub.add_parser("play", help="run the player headless")
+    g = q.add_mutually_exclusive_group()
+    g.add_argument("--listen", default="127.0.0.1:5000", help="HOST:PORT to listen on (default 127.0.0.1:5000)")
+    g.add_argument("--connect", help="HOST:PORT of a sender that listens")
+    q.add_argument("--print", action="store_true", help="print each pose as a JSON line")
+    q.add_argument("--mode", choices=["queue", "live"], default="queue")
+    q.add_argument("--transition", type=float, default=0.25, help="seconds from one pose to the next")
+    q.add_argument("--rules", nargs="?", const="", default=None,
+                   help="apply the AU blender's co-occurrence rules (a rules JSON, or the bundled ones)")
+    q.add_argument("--hz", type=float, default=60.0)
+    q.add_argument("--duration", type=float, default=0.0, help="stop after this many seconds (0: never)")
+    q.add_argument("--keep-running", action="store_true", help="do not exit when the sender ends")
+    q.set_defaults(func=cmd_stream_play)
 
     p = sub.add_parser("demo", help="the main job on the bundled face")
     p.add_argument("--out", default="out")

@@ -1,0 +1,306 @@
+"""The remote player: AU sets over TCP → poses over time.
+
+As in the FAS system: an AU reader on its own thread parses the socket into a
+bounded receiver buffer (100) and acks every packet; when the buffer is full it
+asks the sender to pause (``-1``) and stops reading (TCP then holds the sender
+back, so nothing is lost), and once the buffer has drained below the threshold
+(40 %) it asks the sender to resume (``-3``). The playback controller moves
+packets into the playout FIFO (30), through the AU blender when one is chosen,
+and interpolates from the current pose to each packet's pose over the player
+speed (250 ms) at a constant rate.
+
+Two playback modes: ``queue`` plays every packet in turn (the FAS player);
+``live`` heads for the newest packet at once (trackers streaming at frame rate),
+consuming every packet in order without waiting.
+
+Nothing here evaluates input, buffers are bounded, and the listening socket
+binds 127.0.0.1 unless told otherwise.
+"""
+from __future__ import annotations
+
+import collections
+import socket
+import threading
+import time
+from dataclasses import dataclass, field
+
+from .wire import ACK, END, PAUSE, RESUME, STOP, Control, Garbage, Packet, StreamParser
+
+MODES = ("queue", "live")
+
+
+def _au_order(key):
+    return int(key.rstrip("LR")), key
+
+
+@dataclass
+class Stats:
+    connected: bool = False
+    connections: int = 0
+    packets: int = 0
+    played: int = 0
+    dropped: int = 0
+    garbage: int = 0
+    unknown_aus: set = field(default_factory=set)
+    pauses_sent: int = 0
+    resumes_sent: int = 0
+    ended: bool = False
+    stopped: bool = False
+    latencies: collections.deque = field(default_factory=lambda: collections.deque(maxlen=100_000))
+    last_error: str = ""
+
+    def as_dict(self) -> dict:
+        lat = sorted(self.latencies)
+        p = (lambda q: lat[min(len(lat) - 1, int(q * len(lat)))] * 1e3) if lat else (lambda q: None)
+        return {"connected": self.connected, "connections": self.connections, "packets": self.packets,
+                "played": self.played, "dropped": self.dropped, "garbage": self.garbage,
+                "unknown_aus": sorted(self.unknown_aus, key=str), "pauses_sent": self.pauses_sent,
+                "resumes_sent": self.resumes_sent, "ended": self.ended, "latency_ms_p50": p(0.5),
+                "latency_ms_p99": p(0.99), "last_error": self.last_error}
+
+
+class Player:
+    """Receives AU packets and turns them into poses.
+
+    Parameters
+    ----------
+    receive_capacity, playout_capacity : int
+        Sizes of the receiver buffer and the playout FIFO.
+    resume_below : float
+        Fraction of the receiver buffer under which a paused sender may resume.
+    transition : float
+        Seconds to move from one pose to the next (player speed).
+    mode : {'queue', 'live'}
+    blender : AUBlender or None
+        Co-occurrence rules applied to each packet (off when None).
+    """
+
+    def __init__(self, receive_capacity=100, playout_capacity=30, resume_below=0.4, transition=0.25,
+                 mode="queue", blender=None, clock=time.monotonic, max_packet=1024):
+        if mode not in MODES:
+            raise ValueError(f"mode must be one of {MODES}")
+        self.receive_capacity, self.playout_capacity = receive_capacity, playout_capacity
+        self.resume_below, self.transition, self.mode = resume_below, transition, mode
+        self.blender, self.clock, self.max_packet = blender, clock, max_packet
+        self.stats = Stats()
+        self._buffer = collections.deque()  # (packet, receive time)
+        self._playout = collections.deque()
+        self._lock = threading.Lock()
+        self._arrived = threading.Condition(self._lock)
+        self._room = threading.Condition(self._lock)
+        self._paused_sender = False
+        self._conn = None
+        self._threads = []
+        self._closing = threading.Event()
+        self._pose = {}
+        self._from, self._to, self._t0 = {}, {}, None
+        self._server = None
+
+    # ------------------------------------------------------------ receiving
+
+    def receive(self, packet: Packet, when=None) -> bool:
+        """Put a packet in the receiver buffer (False: buffer full, packet dropped).
+
+        The socket reader never drops: it waits for room (see ``_read``).
+        """
+        with self._lock:
+            self.stats.packets += 1
+            self.stats.unknown_aus.update(packet.unknown)
+            if len(self._buffer) >= self.receive_capacity:
+                self.stats.dropped += 1
+                return False
+            self._buffer.append((packet, self.clock() if when is None else when))
+            full = len(self._buffer) >= self.receive_capacity
+            self._arrived.notify_all()
+        self._send(ACK)
+        if full and not self._paused_sender:
+            self._paused_sender = True
+            self.stats.pauses_sent += 1
+            self._send(PAUSE)
+        return True
+
+    def _send(self, code: int):
+        conn = self._conn
+        if conn is None:
+            return
+        try:
+            conn.sendall(f"{code}\n".encode())
+        except OSError:
+            pass  # a vanished peer: the reader notices and cleans up
+
+    def _wait_room(self, timeout) -> bool:
+        with self._lock:
+            if len(self._buffer) < self.receive_capacity:
+                return True
+            self._room.wait(timeout)
+            return len(self._buffer) < self.receive_capacity
+
+    def _handle(self, ev):
+        if isinstance(ev, Packet):
+            self.receive(ev)
+        elif isinstance(ev, Control):
+            if ev.code == END:
+                self.stats.ended = True
+            elif ev.code == STOP:
+                self.stats.stopped = True
+                with self._lock:
+                    self._buffer.clear()
+                    self._playout.clear()
+                    self._arrived.notify_all()
+        elif isinstance(ev, Garbage):
+            with self._lock:
+                self.stats.garbage += 1
+                self.stats.last_error = ev.reason
+
+    def _read(self, conn):
+        parser = StreamParser(self.max_packet)
+        self._conn = conn
+        self.stats.connected, self.stats.ended = True, False
+        self.stats.connections += 1
+        conn.settimeout(0.2)
+        # Packets parsed but not yet in the buffer. While the buffer is full nothing more is read,
+        # so TCP holds the sender back: no packet is lost, whatever the sender does with -1.
+        pending = collections.deque()
+        try:
+            while not self._closing.is_set():
+                if pending:
+                    if isinstance(pending[0], Packet) and not self._wait_room(0.2):
+                        continue
+                    self._handle(pending.popleft())
+                    continue
+                try:
+                    data = conn.recv(65536)
+                except socket.timeout:
+                    continue
+                except OSError as exc:
+                    self.stats.last_error = f"connection lost: {exc}"
+                    break
+                if not data:
+                    break
+                pending.extend(parser.feed(data))
+        finally:
+            self.stats.connected = False
+            self._conn = None
+            try:
+                conn.close()
+            except OSError:
+                pass
+
+    def listen(self, host="127.0.0.1", port=0) -> tuple:
+        """Accept senders on ``host:port`` (one at a time, reconnects welcome); returns the bound address."""
+        srv = socket.create_server((host, port), reuse_port=False)
+        srv.settimeout(0.2)
+        self._server = srv
+
+        def serve():
+            while not self._closing.is_set():
+                try:
+                    conn, _ = srv.accept()
+                except socket.timeout:
+                    continue
+                except OSError:
+                    break
+                conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+                self._read(conn)
+        self._start(serve)
+        return srv.getsockname()[:2]
+
+    def connect(self, host, port, retry=0.5):
+        """Connect to a sender that listens; reconnect while the player runs."""
+        def run():
+            while not self._closing.is_set():
+                try:
+                    conn = socket.create_connection((host, port), timeout=2)
+                    conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+                except OSError as exc:
+                    self.stats.last_error = f"connect {host}:{port}: {exc}"
+                    self._closing.wait(retry)
+                    continue
+                self._read(conn)
+                if self.stats.ended:
+                    break
+                self._closing.wait(retry)
+        self._start(run)
+
+    def _start(self, target):
+        t = threading.Thread(target=target, daemon=True, name="pdeface-au-reader")
+        t.start()
+        self._threads.append(t)
+
+    def close(self):
+        self._closing.set()
+        if self._server is not None:
+            self._server.close()
+        conn = self._conn
+        if conn is not None:
+            try:
+                conn.shutdown(socket.SHUT_RDWR)
+            except OSError:
+                pass
+        for t in self._threads:
+            t.join(timeout=2)
+
+    # ------------------------------------------------------------ playing
+
+    def _refill(self):
+        """Receiver buffer → playout FIFO (through the AU blender); resume a paused sender."""
+        resume = False
+        with self._lock:
+            while self._buffer and len(self._playout) < self.playout_capacity:
+                packet, t = self._buffer.popleft()
+                weights = self.blender.apply(packet.weights) if self.blender else dict(packet.weights)
+                self._playout.append((weights, t))
+            self._room.notify_all()
+            if self._paused_sender and len(self._buffer) < self.resume_below * self.receive_capacity:
+                self._paused_sender = False
+                resume = True
+        if resume:
+            self.stats.resumes_sent += 1
+            self._send(RESUME)
+
+    def _start_transition(self, target, now):
+        self._from, self._to, self._t0 = dict(self._pose), target, now
+
+    def pose(self, now=None) -> dict:
+        """The pose now: AU key → weight (advances playback)."""
+        now = self.clock() if now is None else now
+        self._refill()
+        if self.mode == "live":
+            newest = None
+            while self._playout:
+                newest, t = self._playout.popleft()
+                self.stats.played += 1
+                self.stats.latencies.append(now - t)
+            if newest is not None:
+                self._start_transition(newest, now)
+        elif self._t0 is None or now - self._t0 >= self.transition:
+            if self._t0 is not None:
+                self._pose = dict(self._to)
+                self._t0 = None
+            if self._playout:
+                target, t = self._playout.popleft()
+                self.stats.played += 1
+                self.stats.latencies.append(now - t)
+                self._start_transition(target, now)
+        if self._t0 is not None:
+            s = 1.0 if self.transition <= 0 else min(1.0, (now - self._t0) / self.transition)
+            keys = set(self._from) | set(self._to)
+            self._pose = {k: (1 - s) * self._from.get(k, 0.0) + s * self._to.get(k, 0.0) for k in keys}
+            self._pose = {k: self._pose[k] for k in sorted(self._pose, key=_au_order) if self._pose[k] > 1e-9}
+            if s >= 1.0 and self.mode == "live":
+                self._t0 = None
+        return dict(self._pose)
+
+    def wait(self, timeout: float) -> bool:
+        """Block until a packet arrives (or ``timeout``); True if one is waiting."""
+        with self._lock:
+            if self._buffer:
+                return True
+            self._arrived.wait(timeout)
+            return bool(self._buffer)
+
+    @property
+    def idle(self) -> bool:
+        """Nothing buffered, queued or in transition."""
+        with self._lock:
+            return not self._buffer and not self._playout and self._t0 is None
