@@ -12,6 +12,16 @@ class _Panel:
     bl_category = "PDE Face"
 
 
+class _FacePanel(_Panel):
+    """A sub-panel shown while a PDE face is active."""
+
+    bl_parent_id = "PDEFACE_PT_face"
+
+    @classmethod
+    def poll(cls, context):
+        return active_face(context) is not None
+
+
 class PDEFACE_PT_face(_Panel, bpy.types.Panel):
     bl_label = "PDE Face"
 
@@ -35,13 +45,8 @@ class PDEFACE_PT_face(_Panel, bpy.types.Panel):
             layout.operator("pdeface.build_shape_keys", icon="SHAPEKEY_DATA")
 
 
-class PDEFACE_PT_action_units(_Panel, bpy.types.Panel):
+class PDEFACE_PT_action_units(_FacePanel, bpy.types.Panel):
     bl_label = "Action Units"
-    bl_parent_id = "PDEFACE_PT_face"
-
-    @classmethod
-    def poll(cls, context):
-        return active_face(context) is not None
 
     def draw(self, context):
         layout = self.layout
@@ -64,13 +69,8 @@ class PDEFACE_PT_action_units(_Panel, bpy.types.Panel):
                 col.prop(kb, "value", text=e.label, slider=True)
 
 
-class PDEFACE_PT_expressions(_Panel, bpy.types.Panel):
+class PDEFACE_PT_expressions(_FacePanel, bpy.types.Panel):
     bl_label = "Expressions"
-    bl_parent_id = "PDEFACE_PT_face"
-
-    @classmethod
-    def poll(cls, context):
-        return active_face(context) is not None
 
     def draw(self, context):
         layout = self.layout
@@ -91,13 +91,8 @@ class PDEFACE_PT_expressions(_Panel, bpy.types.Panel):
                 col.prop(kb, "value", text=e.name, slider=True)
 
 
-class PDEFACE_PT_animation(_Panel, bpy.types.Panel):
+class PDEFACE_PT_animation(_FacePanel, bpy.types.Panel):
     bl_label = "Animation"
-    bl_parent_id = "PDEFACE_PT_face"
-
-    @classmethod
-    def poll(cls, context):
-        return active_face(context) is not None
 
     def draw(self, context):
         layout = self.layout
@@ -114,14 +109,9 @@ class PDEFACE_PT_animation(_Panel, bpy.types.Panel):
         layout.operator("pdeface.import_au", icon="IMPORT")
 
 
-class PDEFACE_PT_live(_Panel, bpy.types.Panel):
+class PDEFACE_PT_live(_FacePanel, bpy.types.Panel):
     bl_label = "Live Link"
-    bl_parent_id = "PDEFACE_PT_face"
     bl_options = {"DEFAULT_CLOSED"}
-
-    @classmethod
-    def poll(cls, context):
-        return active_face(context) is not None
 
     def draw(self, context):
         from . import live
@@ -152,14 +142,9 @@ class PDEFACE_PT_live(_Panel, bpy.types.Panel):
             layout.operator("pdeface.live_start", icon="PLAY")
 
 
-class PDEFACE_PT_texture(_Panel, bpy.types.Panel):
+class PDEFACE_PT_texture(_FacePanel, bpy.types.Panel):
     bl_label = "Texture"
-    bl_parent_id = "PDEFACE_PT_face"
     bl_options = {"DEFAULT_CLOSED"}
-
-    @classmethod
-    def poll(cls, context):
-        return active_face(context) is not None
 
     def draw(self, context):
         layout = self.layout

@@ -20,6 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
+from benchlib import median_time
+
 ROOT = Path(__file__).resolve().parent.parent
 
 
@@ -45,34 +47,20 @@ def main(argv=None):
         t_first = time.perf_counter() - t
         obj = bpy.context.active_object
         n_keys = len(obj.data.shape_keys.key_blocks)
-        times = []
-        for _ in range(5):
-            t = time.perf_counter()
-            bpy.ops.pdeface.add_default_face()
-            times.append(time.perf_counter() - t)
-        t_again = float(np.median(times))
-        times = []
-        for _ in range(5):
-            t = time.perf_counter()
-            bpy.ops.pdeface.build_shape_keys()
-            times.append(time.perf_counter() - t)
-        t_rebuild = float(np.median(times))
+        t_again = median_time(bpy.ops.pdeface.add_default_face)
+        t_rebuild = median_time(bpy.ops.pdeface.build_shape_keys)
         # Baseline: bare Blender doing the same writes from arrays already computed.
         V = np.array([v.co[:] for v in obj.data.vertices], np.float32)
         polys = [list(p.vertices) for p in obj.data.polygons]
-        times = []
-        for _ in range(5):
-            t = time.perf_counter()
+        def bare_blender():
             me = bpy.data.meshes.new("baseline")
             me.from_pydata(V.tolist(), [], polys)
             o = bpy.data.objects.new("baseline", me)
             bpy.context.collection.objects.link(o)
             o.shape_key_add(name="Basis", from_mix=False)
             for k in range(n_keys - 1):
-                kb = o.shape_key_add(name=f"k{k}", from_mix=False)
-                kb.data.foreach_set("co", V.ravel())
-            times.append(time.perf_counter() - t)
-        t_base = float(np.median(times))
+                o.shape_key_add(name=f"k{k}", from_mix=False).data.foreach_set("co", V.ravel())
+        t_base = median_time(bare_blender)
         print(f"import bpy {t_import:.2f} s; enable add-on {t_enable * 1e3:.0f} ms")
         print(f"full rig ({len(obj.data.vertices)} vertices, {n_keys - 1} shape keys): first {t_first:.3f} s "
               f"(target <= 0.5 s, ratio {t_first / 0.5:.2f}); again {t_again:.3f} s; rebuild in place {t_rebuild:.3f} s")

@@ -32,6 +32,9 @@ from pdeface.model import save_model  # noqa: E402
 from pdeface.pde import solve_surface  # noqa: E402
 from pdeface.report import accuracy_report, band_vertices  # noqa: E402
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from benchlib import median_time  # noqa: E402
+
 TARGETS = {"mean_mm": 0.15, "p95_mm": 0.6, "max_mm": 3.0, "normal_p95_deg": 8.0, "seam_max_deg": 0.01}
 KEYS = list(TARGETS)
 
@@ -78,15 +81,6 @@ def surface_error(model, X, Vf, T, vis):
     Q = grid_faces(nu, nv)
     Tp = np.concatenate([Q[:, [0, 1, 2]], Q[:, [0, 2, 3]]])
     return float(ClosestPoint(X.reshape(-1, 3), Tp).query(Vf[vis])[0].mean())
-
-
-def median_time(fn, repeat):
-    times = []
-    for _ in range(repeat):
-        t = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t)
-    return float(np.median(times))
 
 
 def main(argv=None):

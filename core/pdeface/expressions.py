@@ -246,13 +246,9 @@ def save_presets(path, presets) -> None:
 
 def load_presets(path) -> list:
     """Read a preset file (one preset or a ``pdeface.presets`` list)."""
-    try:
-        with open(path, "r", encoding="utf-8") as fh:
-            obj = json.load(fh)
-    except OSError as exc:
-        raise ModelFormatError(f"{path}: cannot open ({exc.strerror})") from None
-    except json.JSONDecodeError as exc:
-        raise ModelFormatError(f"{path}: not valid JSON ({exc.msg}, line {exc.lineno})") from None
+    from .files import load_json
+
+    obj = load_json(path)
     if isinstance(obj, dict) and obj.get("format") == "pdeface.presets":
         items = obj.get("presets")
         if not isinstance(items, list):

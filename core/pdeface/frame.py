@@ -6,7 +6,6 @@ millimetres. :class:`FaceFrame` maps between the user's space and that frame.
 """
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 
 import numpy as np
@@ -42,14 +41,9 @@ def read_landmarks(path):
     indices : (68,) int array or None
     points : (68, 3) float array or None
     """
-    try:
-        with open(path, "r", encoding="utf-8") as fh:
-            data = json.load(fh)
-    except OSError as exc:
-        raise LandmarkError(f"{path}: cannot open ({exc.strerror})") from None
-    except json.JSONDecodeError as exc:
-        raise LandmarkError(f"{path}: not valid JSON ({exc.msg}, line {exc.lineno})") from None
-    return parse_landmarks(data, str(path))
+    from .files import load_json
+
+    return parse_landmarks(load_json(path, LandmarkError), str(path))
 
 
 def parse_landmarks(data, name="landmarks"):

@@ -127,14 +127,9 @@ def timeline_to_json(t: Timeline) -> dict:
 
 
 def load_timeline(path) -> Timeline:
-    try:
-        with open(path, "r", encoding="utf-8") as fh:
-            obj = json.load(fh)
-    except OSError as exc:
-        raise ModelFormatError(f"{path}: cannot open ({exc.strerror})") from None
-    except json.JSONDecodeError as exc:
-        raise ModelFormatError(f"{path}: not valid JSON ({exc.msg}, line {exc.lineno})") from None
-    return timeline_from_json(obj, str(path))
+    from .files import load_json
+
+    return timeline_from_json(load_json(path), str(path))
 
 
 def save_timeline(path, t: Timeline) -> None:

@@ -11,10 +11,10 @@ unless chosen, as in the FAS player.
 """
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 from ..errors import ModelFormatError
+from ..files import load_json
 
 DEFAULT_RULES = Path(__file__).resolve().parent.parent / "data" / "au_rules.json"
 
@@ -30,12 +30,7 @@ class AUBlender:
 
     @classmethod
     def load(cls, path=DEFAULT_RULES) -> "AUBlender":
-        try:
-            obj = json.loads(Path(path).read_text())
-        except OSError as exc:
-            raise ModelFormatError(f"{path}: cannot open ({exc.strerror})") from None
-        except json.JSONDecodeError as exc:
-            raise ModelFormatError(f"{path}: not valid JSON ({exc.msg}, line {exc.lineno})") from None
+        obj = load_json(path)
         if not isinstance(obj, dict) or obj.get("format") != "pdeface.au_rules":
             raise ModelFormatError(f"{path}: field 'format' must be 'pdeface.au_rules'")
         ex = obj.get("exclusive", [])
