@@ -144,7 +144,8 @@ def accuracy_report(model: FaceModel, scan_vertices, scan_triangles, assembly=No
         Skin triangles of the scan.
     assembly : str, optional
     profiles_png, profiles_csv : path, optional
-        Where to write the three cut profiles (scan black, PDE red).
+        Where to write the three cut profiles (scan black, PDE red; below them
+        the difference ×10 in blue around a grey zero line, ±1 mm marks).
 
     Returns
     -------
@@ -207,7 +208,15 @@ def accuracy_report(model: FaceModel, scan_vertices, scan_triangles, assembly=No
             panels = []
             for name, (th, y, rs, rp) in prof.items():
                 along = np.concatenate([[0], np.cumsum(np.hypot(np.diff(th) * np.nanmean(rs), np.diff(y)))])
-                panels.append([(along, rs, (0, 0, 0)), (along, rp, (220, 30, 30))])
+                # Profiles (scan black, PDE red) above their difference magnified 10x (blue) around
+                # a zero line with ±1 mm marks (grey), so sub-millimetre errors are visible.
+                base = np.nanmin(np.r_[rs, rp]) - 25.0
+                diff = base + 10.0 * (rp - rs)
+                ends = along[[0, -1]]
+                panels.append([(along, rs, (0, 0, 0)), (along, rp, (220, 30, 30)),
+                               (ends, np.full(2, base), (150, 150, 150)),
+                               (ends, np.full(2, base + 10.0), (210, 210, 210)),
+                               (ends, np.full(2, base - 10.0), (210, 210, 210)), (along, diff, (30, 60, 220))])
             plot_panels(profiles_png, panels)
     return result
 
