@@ -102,7 +102,6 @@ def make_video(frames, fps, path):
     frames = [Path(p) for p in frames]
     scene = bpy.data.scenes.new("PDE video")
     try:
-        import bpy as _bpy  # noqa: F401
         sed = scene.sequence_editor_create()
         strip = compat.strips(sed).new_image("frames", str(frames[0]), 1, 1)
         for p in frames[1:]:

@@ -96,7 +96,6 @@ def main(argv=None):
     import bpy
 
     module = enable_addon(bpy)
-    addon = sys.modules[module]
     render = __import__(module + ".render", fromlist=["render"])
     from pdeface.errors import PdeFaceError
     try:
@@ -174,12 +173,8 @@ def main(argv=None):
             addon_utils.disable(module, default_set=True)
     summary.update({"frame_start": start, "frame_end": end, "engine": args.engine})
     print(json.dumps(summary))
-    del addon
     return 0
 
 
 if __name__ == "__main__":
-    code = main()
-    if "bpy" in sys.modules and sys.modules["bpy"].app.background and "--" in sys.argv:
-        sys.exit(code)  # inside blender -b: exit with our status
-    sys.exit(code)
+    sys.exit(main())  # inside blender -b -P too: Blender exits with this status
