@@ -567,6 +567,8 @@ class PDEFACE_OT_transfer_texture(_FaceOperator, bpy.types.Operator):
         src = s.texture_source or obj.pdeface.source
         if src is None or src.type != "MESH":
             raise pd.errors.PdeFaceError("choose the scan to take UVs from (Scan field)")
+        if src.pdeface.is_face:
+            raise pd.errors.PdeFaceError(f"{src.name} is a PDE face: choose the scan to take UVs from")
         if not src.data.uv_layers:
             raise pd.errors.PdeFaceError(f"{src.name} has no UV map")
         T, L = bridge.triangles(src.data)

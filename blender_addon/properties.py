@@ -28,10 +28,6 @@ class PDEFACE_PG_face(bpy.types.PropertyGroup):
     keys: CollectionProperty(type=PDEFACE_PG_key)
 
 
-def _poll_mesh(self, obj):
-    return obj.type == "MESH" and not obj.pdeface.is_face
-
-
 class PDEFACE_PG_settings(bpy.types.PropertyGroup):
     """Per scene: the panel's settings."""
 
@@ -62,7 +58,9 @@ class PDEFACE_PG_settings(bpy.types.PropertyGroup):
                                        ("direct", "Direct", "expression → expression")])
     sequence_channels: EnumProperty(name="Animate", default="KEY",
                                     items=[("KEY", "Expression keys", ""), ("AUS", "AU keys", "")])
-    texture_source: PointerProperty(type=bpy.types.Object, name="Scan", poll=_poll_mesh)
+    # No poll= filter here: a poll callback on this pointer crashes Blender 4.2 at exit (found by the
+    # 4.2 test run); pdeface.transfer_texture checks the choice instead.
+    texture_source: PointerProperty(type=bpy.types.Object, name="Scan")
     texture_method: EnumProperty(name="UVs", default="CLOSEST",
                                  items=[("CLOSEST", "From scan", "Closest point on the scan, as the method does"),
                                         ("ATLAS", "Fresh atlas", "Unwrap the PDE face with xatlas")])

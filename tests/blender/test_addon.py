@@ -239,6 +239,10 @@ def test_bad_input_reports_an_error_and_loses_nothing(bpy, scan_object, tmp_path
         bpy.ops.pdeface.apply_preset(preset="happy", mode="KEY")
     with pytest.raises(RuntimeError, match="choose the scan"):
         bpy.ops.pdeface.transfer_texture(method="CLOSEST")
+    s.texture_source = bpy.context.active_object  # a PDE face is no scan
+    with pytest.raises(RuntimeError, match="is a PDE face"):
+        bpy.ops.pdeface.transfer_texture(method="CLOSEST")
+    s.texture_source = None
     s.presets_file = str(tmp_path / "bad.json")
     with pytest.raises(RuntimeError, match="not valid JSON"):
         bpy.ops.pdeface.build_shape_keys()
