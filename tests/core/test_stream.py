@@ -266,3 +266,33 @@ def test_cli_send_and_play(tmp_path):
     assert poses[-1]["au"] == {"6": 0.5}
     stats = json.loads(err.strip().splitlines()[-1])
     assert stats["packets"] == 2 and stats["played"] == 2 and stats["ended"]
+
+
+def test_a_peer_that_never_reads_acks_cannot_stall_the_player():
+    """Flooding without reading the acks fills the player's send buffer: it must drop acks, not block."""
+    player = Player(mode="live", transition=0.0)
+    address = player.listen()
+    stop = threading.Event()
+
+    def play():
+        while not stop.is_set():
+            player.wait(0.002)
+            player.pose()
+    t = threading.Thread(target=play, daemon=True)
+    t.start()
+    try:
+        s = socket.socket()
+        s.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)  # small buffers: acks back up quickly
+        s.connect(address)
+        until(lambda: player._conn is not None)
+        player._conn.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, 4096)
+        s.settimeout(20)
+        n = 300_000  # ~1 MB of packets, ~600 KB of acks the sender never reads
+        s.sendall(b"{4}" * n)  # would hang forever if the player blocked on its acks
+        until(lambda: player.stats.packets == n, timeout=20)
+        assert player.stats.controls_dropped > 0 and player.stats.dropped == 0
+        s.close()
+    finally:
+        stop.set()
+        t.join()
+        player.close()

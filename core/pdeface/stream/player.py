@@ -19,6 +19,7 @@ binds 127.0.0.1 unless told otherwise.
 from __future__ import annotations
 
 import collections
+import select
 import socket
 import threading
 import time
@@ -43,6 +44,7 @@ class Stats:
     garbage: int = 0
     unknown_aus: set = field(default_factory=set)
     pauses_sent: int = 0
+    controls_dropped: int = 0
     resumes_sent: int = 0
     ended: bool = False
     stopped: bool = False
@@ -55,6 +57,7 @@ class Stats:
         return {"connected": self.connected, "connections": self.connections, "packets": self.packets,
                 "played": self.played, "dropped": self.dropped, "garbage": self.garbage,
                 "unknown_aus": sorted(self.unknown_aus, key=str), "pauses_sent": self.pauses_sent,
+                "controls_dropped": self.controls_dropped,
                 "resumes_sent": self.resumes_sent, "ended": self.ended, "latency_ms_p50": p(0.5),
                 "latency_ms_p99": p(0.99), "last_error": self.last_error}
 
@@ -120,12 +123,22 @@ class Player:
         return True
 
     def _send(self, code: int):
+        """Send a control integer without ever blocking.
+
+        A peer that does not read its acks must not stall the reader (that
+        deadlocks both ends): when the socket cannot take the bytes now, the
+        control is dropped and counted. Backpressure still protects the buffer.
+        """
         conn = self._conn
         if conn is None:
             return
         try:
-            conn.sendall(f"{code}\n".encode())
-        except OSError:
+            _, writable, _ = select.select([], [conn], [], 0)
+            if not writable:
+                self.stats.controls_dropped += 1
+                return
+            conn.send(f"{code}\n".encode())
+        except (OSError, ValueError):
             pass  # a vanished peer: the reader notices and cleans up
 
     def _wait_room(self, timeout) -> bool:
