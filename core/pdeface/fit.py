@@ -94,20 +94,15 @@ def fit_face(vertices, triangles, landmarks, unit=None, n_curves=31, n_points=37
     Vf = frame.to_face(V)
     Lf = frame.to_face(landmarks)
     layout = place_curves(Lf, n_curves, n_points)
-    near = np.argmin(np.linalg.norm(Vf[None, :, :] - Lf[:, None, :], axis=2), axis=1) if len(V) < 20000 else \
-        _nearest(Vf, Lf)
+    from scipy.spatial import cKDTree
+
+    near = cKDTree(Vf).query(Lf)[1]  # the vertices at the landmarks pick the skin's connected pieces
     sampler = place_samples(Vf, skin_triangles(T, len(V), near), layout)
     points = sampler.sample(Vf)
     coef, res = fit_fourier(points, n_modes)
     model = FaceModel(layout, chord_knots(points), coef, res, frame, feature_points(Lf), a=a,
                       assembly=assembly, source=source, status=sampler.status.copy())
     return model, sampler
-
-
-def _nearest(P, Q):
-    from scipy.spatial import cKDTree
-
-    return cKDTree(P).query(Q)[1]
 
 
 def surface_grid(model: FaceModel, sub_u=4, sub_v=4, assembly=None, coefficients=None, residual=None, deriv=(0, 0)):
