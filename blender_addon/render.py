@@ -145,8 +145,13 @@ def contact_sheet(obj, path, items=None, cell=160, columns=8, samples=16, resolu
     try:
         pde = face_mesh(model, resolution)
         rows = math.ceil(len(cells) / columns)
-        # Faces in the face frame (mm), laid out on the x-y plane, looking +z.
-        pitch = 1.25 * np.ptp(model.frame.to_face(basis.neutral), axis=0)[:2].max()
+        # Faces in the face frame (mm), looking +z, each centred on its cell by its bounding box,
+        # with a strip under the chin for its label.
+        neutral = model.frame.to_face(basis.neutral)
+        lo, hi = neutral.min(axis=0), neutral.max(axis=0)
+        centre = (lo + hi) / 2
+        width, height = hi[0] - lo[0], hi[1] - lo[1]
+        pitch_x, pitch_y = 1.08 * width, 1.25 * height
         text_mat = bpy.data.materials.new("PDE label")
         text_mat.diffuse_color = (0.9, 0.9, 0.9, 1)
         compat.use_nodes(text_mat)
@@ -155,27 +160,28 @@ def contact_sheet(obj, path, items=None, cell=160, columns=8, samples=16, resolu
             bsdf.inputs["Base Color"].default_value = (0.9, 0.9, 0.9, 1)
         for i, (label, weights) in enumerate(cells):
             V = basis.vertices(basis.weights_matrix(weights))[0] if weights else basis.neutral
-            pde.vertices = model.frame.to_face(V)
+            pde.vertices = model.frame.to_face(V) - centre
             me = bridge.new_mesh(f"sheet {label}", pde)
             me.materials.append(bridge.skin_material())
             o = bpy.data.objects.new(f"sheet {label}", me)
             r, c = divmod(i, columns)
-            o.location = (c * pitch, -r * pitch, 0)
+            cx, cy = c * pitch_x, -r * pitch_y + 0.08 * height  # faces sit high in their cell
+            o.location = (cx, cy, 0)
             scene.collection.objects.link(o)
             curve = bpy.data.curves.new(f"label {label}", "FONT")
             curve.body = label.replace("_", " ")
             curve.align_x = "CENTER"
-            curve.size = 0.09 * pitch
+            curve.size = 0.09 * width
             curve.materials.append(text_mat)
             t = bpy.data.objects.new(f"label {label}", curve)
-            t.location = (c * pitch, -r * pitch - 0.5 * pitch, 30)
+            t.location = (cx, cy - 0.5 * height - 0.1 * height, hi[2] - centre[2])
             scene.collection.objects.link(t)
         cam_data = bpy.data.cameras.new("sheet camera")
         cam_data.type = "ORTHO"
-        width, height = columns * pitch, rows * pitch
-        cam_data.ortho_scale = max(width, height)
+        sheet_w, sheet_h = columns * pitch_x, rows * pitch_y
+        cam_data.ortho_scale = max(sheet_w, sheet_h)
         cam = bpy.data.objects.new("sheet camera", cam_data)
-        cam.location = ((columns - 1) * pitch / 2, -(rows - 1) * pitch / 2 - 0.05 * pitch, 500)
+        cam.location = ((columns - 1) * pitch_x / 2, -(rows - 1) * pitch_y / 2, 500)
         cam_data.clip_end = 2000
         scene.collection.objects.link(cam)
         scene.camera = cam
@@ -189,9 +195,10 @@ def contact_sheet(obj, path, items=None, cell=160, columns=8, samples=16, resolu
         scene.cycles.device = "CPU"
         scene.cycles.samples = samples
         scene.cycles.use_denoising = False
-        scene.render.resolution_x, scene.render.resolution_y = columns * cell, rows * cell
+        scene.render.resolution_x = columns * cell
+        scene.render.resolution_y = int(round(rows * cell * pitch_y / pitch_x))
         scene.render.resolution_percentage = 100
-        cam_data.sensor_fit = "HORIZONTAL" if width >= height else "VERTICAL"
+        cam_data.sensor_fit = "HORIZONTAL" if sheet_w >= sheet_h else "VERTICAL"
         compat.set_image_output(scene, path)
         with bpy.context.temp_override(scene=scene):
             bpy.ops.render.render(write_still=True, scene=scene.name)
