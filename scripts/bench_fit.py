@@ -12,7 +12,6 @@ Prints, each measured in this run:
 from __future__ import annotations
 
 import argparse
-import io
 import json
 import sys
 from pathlib import Path
@@ -25,6 +24,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "core"))
 
 from pdeface.assets import load_ict_shapes, load_neutral_scan  # noqa: E402
 from pdeface.fit import fit_face, grid_faces, surface_grid  # noqa: E402
+from pdeface.pde import output_grid  # noqa: E402
 from pdeface.fourier import fit_fourier  # noqa: E402
 from pdeface.geometry import ClosestPoint  # noqa: E402
 from pdeface.model import save_model  # noqa: E402
@@ -49,8 +49,6 @@ def fd_surface(model, sub_u, sub_v):
     nu, nv, _ = X0.shape
     fixed = np.zeros(nu, bool)
     fixed[::sub_u] = True
-    u = np.linspace(0, 1, nu)  # per-row spacing follows the knots
-    from pdeface.pde import output_grid
     u = output_grid(model.knots, model.layout.n_points, sub_u, sub_v).u
     v = np.linspace(0, np.pi, nv)
 
@@ -132,13 +130,11 @@ def main(argv=None):
     fs = lambda: solve_surface(*fit_fourier(points, 5), model.knots, model.a, None, su, sv)  # noqa: E731
     fs()
     t_fs = median_time(fs, 50)
-    buf = io.BytesIO()
     path = Path("/tmp") / "pdeface_bench_face.npz"
     size = save_model(path, model)
     print(f"  fit + solve {t_fs * 1e3:.2f} ms (target <= 10 ms, ratio {t_fs * 1e3 / 10:.2f}); "
           f"model {size} bytes (target <= 8192, ratio {size / 8192:.2f})")
     out["fit_solve_ms"], out["model_bytes"] = t_fs * 1e3, size
-    del buf
     if args.json:
         Path(args.json).write_text(json.dumps(out, indent=2))
 

@@ -181,33 +181,30 @@ def render_script():
 
 
 def cmd_demo(args):
-    from .fit import face_mesh
+    from .fit import face_mesh, fit_face
     from .meshio import write_mesh
-    from .model import save_model
+    from .model import ICT_NOTICE, save_model
     from .report import accuracy_report
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    steps = ["fit", "mesh", "report"] + ([] if args.no_render else ["render"])
+    total = 3 if args.no_render else 4
     mesh, lm = load_scan("default")
     T, _ = mesh.triangles()
-    from .fit import fit_face
-    from .model import ICT_NOTICE
-    for i, step in enumerate(steps[:3], 1):
-        _log(f"[{i}/{len(steps)}] {step}")
-        if step == "fit":
-            model, _ = fit_face(mesh.vertices, T, lm, unit="cm", source="ICT-FaceKit generic neutral (face region)")
-            model.notice = ICT_NOTICE
-            size = save_model(out / "face.npz", model)
-        elif step == "mesh":
-            write_mesh(out / "face.obj", face_mesh(model))
-        else:
-            result = accuracy_report(model, mesh.vertices, T, profiles_png=out / "profiles.png",
-                                     profiles_csv=out / "profiles.csv")
-            result["model_bytes"] = size
-            (out / "report.json").write_text(json.dumps(result, indent=2))
+    _log(f"[1/{total}] fit")
+    model, _ = fit_face(mesh.vertices, T, lm, unit="cm", source="ICT-FaceKit generic neutral (face region)")
+    model.notice = ICT_NOTICE
+    size = save_model(out / "face.npz", model)
+    _log(f"[2/{total}] mesh")
+    write_mesh(out / "face.obj", face_mesh(model))
+    _log(f"[3/{total}] report")
+    result = accuracy_report(model, mesh.vertices, T, profiles_png=out / "profiles.png",
+                             profiles_csv=out / "profiles.csv")
+    result["model_bytes"] = size
+    (out / "report.json").write_text(json.dumps(result, indent=2))
     _log(f"wrote {out}/face.npz, face.obj, report.json, profiles.png, profiles.csv")
     if not args.no_render:
+        _log(f"[4/{total}] rig, animation, render (Blender, headless)")
         result["render"] = render_demo(out, args)
     print(json.dumps(result))
 
@@ -230,7 +227,6 @@ def render_demo(out, args):
            "--samples", str(args.samples), "--contact-sheet", "--save-blend", str(out / "demo.blend")]
     if args.video:
         cmd.append("--video")
-    _log("[4/4] rig, animation, render (Blender, headless)")
     res = subprocess.run(cmd, stdout=subprocess.PIPE, text=True)
     if res.returncode != 0:
         raise PdeFaceError(f"rendering failed (exit {res.returncode}); see the messages above")

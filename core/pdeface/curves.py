@@ -101,25 +101,13 @@ def _fill_weights(valid: np.ndarray) -> sp.csr_matrix:
     A = sp.csr_matrix((np.ones(sum(len(r) for r in rows)), (np.concatenate(rows), np.concatenate(cols))), shape=(n, n))
     L = sp.diags(np.asarray(A.sum(1)).ravel()) - A  # graph Laplacian of the curve grid
     v, h = valid.ravel(), ~valid.ravel()
-    W = sp.identity(n, format="lil")
-    if h.any():
-        Lhh = L[h][:, h].tocsc()
-        Lhv = L[h][:, v]
-        # L_hh x_h = -L_hv x_v  →  x_h = -L_hh^{-1} L_hv x_v
-        sol = -splu(Lhh).solve(Lhv.toarray())
-        W = sp.lil_matrix((n, n))
-        vi, hi = np.nonzero(v)[0], np.nonzero(h)[0]
-        W[vi, vi] = 1.0
-        Wh = sp.csr_matrix(sol)
-        Wh.data[np.abs(Wh.data) < 1e-9] = 0
-        Wh.eliminate_zeros()
-        full = sp.csr_matrix((Wh.data, vi[Wh.indices], Wh.indptr), shape=(len(hi), n))
-        W = sp.vstack([W[vi].tocsr(), full]).tocsr()
-        perm = np.concatenate([vi, hi])
-        inv = np.empty(n, dtype=np.int64)
-        inv[perm] = np.arange(n)
-        W = W[inv]
-    return sp.csr_matrix(W)
+    if not h.any():
+        return sp.identity(n, format="csr")
+    vi, hi = np.nonzero(v)[0], np.nonzero(h)[0]
+    # L_hh x_h = -L_hv x_v  →  x_h = -L_hh^{-1} L_hv x_v
+    sol = -splu(L[h][:, h].tocsc()).solve(L[h][:, v].toarray())
+    r, c = np.nonzero(np.abs(sol) >= 1e-9)
+    return sp.csr_matrix((np.r_[np.ones(len(vi)), sol[r, c]], (np.r_[vi, hi[r]], np.r_[vi, vi[c]])), shape=(n, n))
 
 
 def place_samples(V_face: np.ndarray, T: np.ndarray, layout: CurveLayout,

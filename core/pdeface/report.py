@@ -15,7 +15,7 @@ from .fit import grid_faces, surface_grid
 from .geometry import ClosestPoint, cast_cylinder_rays, cylinder_coords
 from .mesh import vertex_normals
 from .model import FaceModel
-from .pde import knot_slopes, residual_v_operator
+from .pde import SurfaceOperator, knot_slopes, surface_operator
 
 #: Resolution the report measures the surface at (rows, columns per interval).
 REPORT_RESOLUTION = (6, 6)
@@ -64,7 +64,6 @@ def _in_opening(model, th, y, r, depth=2.0):
     # Cell of each vertex: curve row from its height, point column from its angle on that row.
     i = np.clip(np.searchsorted(-lay.heights, -y) - 1, 0, K - 2)
     rows = np.stack([i, i + 1])
-    out = np.zeros(len(th), bool)
     hit = model.status == 0
     # Openings reach a grid step past their filled points (nostrils are wider than one ray).
     near_fill = ~hit
@@ -82,8 +81,7 @@ def _in_opening(model, th, y, r, depth=2.0):
     for ci, cj in corners:
         filled |= near_fill[ci, cj]
         rmin = np.where(hit[ci, cj], np.minimum(rmin, pr[ci, cj]), rmin)
-    out = filled & (r < rmin - depth)
-    return out
+    return filled & (r < rmin - depth)
 
 
 def seam_jump_deg(model: FaceModel, assembly=None, sub_v=4) -> float:
@@ -93,18 +91,13 @@ def seam_jump_deg(model: FaceModel, assembly=None, sub_v=4) -> float:
     J = model.layout.n_points
     N1 = model.coefficients.shape[1]
     Xv = surface_grid(model, 1, sub_v, assembly, deriv=(0, 1))  # rows are the curves
-    v = np.linspace(0, np.pi, (J - 1) * sub_v + 1)
-    cos_nv = np.cos(np.outer(v, np.arange(N1)))
-    Vop = residual_v_operator(J, sub_v)
+    # d/du at the curves from each side: the surface operator with one-sided slope matrices.
+    plain = surface_operator(kn, J, N1 - 1, float(model.a), float(model.remainder_w), 1, sub_v, assembly)
     sides = []
     for side in (0, 1):
-        Xu = np.zeros_like(Xv)
-        for m in range(N1):
-            S = knot_slopes(kn, model.a * m, assembly)[side]
-            Xu += np.einsum("kc,v->kvc", S @ model.coefficients[:, m, :], cos_nv[:, m])
-        S = knot_slopes(kn, model.remainder_w, assembly)[side]
-        Xu += np.einsum("kl,vj,ljc->kvc", S, Vop, model.residual)
-        n = np.cross(Xu, Xv)
+        op = SurfaceOperator(np.stack([knot_slopes(kn, model.a * m, assembly)[side] for m in range(N1)]),
+                             plain.cos_nv, knot_slopes(kn, model.remainder_w, assembly)[side], plain.remainder_v)
+        n = np.cross(op.apply(model.coefficients, model.residual), Xv)
         sides.append(n / np.maximum(np.linalg.norm(n, axis=2, keepdims=True), 1e-300))
     cosang = np.clip(np.einsum("kvc,kvc->kv", sides[0], sides[1])[1:-1], -1, 1)
     return float(np.degrees(np.arccos(cosang)).max()) if cosang.size else 0.0
