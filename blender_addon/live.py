@@ -9,7 +9,7 @@ import time
 import bpy
 
 from . import bridge
-from .operators import MIX_KEY, managed, write_mix_key
+from .operators import MIX_KEY, managed, set_pose, write_mix_key
 
 _state = {"player": None, "address": None, "face": None, "t0": 0.0, "frame0": 1, "record": False, "hz": 60.0, "mixer": "sum",
           "applied": 0}
@@ -66,13 +66,9 @@ def tick():
     pose = player.pose()
     keys = managed(obj)
     if _state["mixer"] == "sum":
-        touched = []
-        for e, kb in keys:
-            if e.kind == "AU":
-                kb.value = pose.get(e.au_key, 0.0)
-                touched.append(kb)
-            elif e.kind in ("EXPRESSION", "MIX"):
-                kb.value = 0.0
+        names = {e.au_key: e.name for e, _ in keys if e.kind == "AU"}
+        set_pose(obj, {names[k]: w for k, w in pose.items() if k in names})
+        touched = [kb for e, kb in keys if e.kind == "AU"]
     else:
         write_mix_key(obj, bridge.face_model(obj), pose, _state["mixer"])
         touched = [kb for e, kb in managed(obj) if e.name == MIX_KEY]
