@@ -34,3 +34,19 @@ def decode_residual(codes: np.ndarray, step: float, order: int = 1) -> np.ndarra
     for _ in range(order):
         q = np.cumsum(q, axis=-1)
     return np.moveaxis(q * float(step), 0, -1)
+
+
+def to_byte_planes(codes: np.ndarray) -> np.ndarray:
+    """int16 codes → uint8 (2, ...) high and low byte planes.
+
+    Small codes have high bytes of 0 or 255 only; kept apart from the low
+    bytes, they deflate to almost nothing.
+    """
+    c = np.asarray(codes, np.int16).astype(np.int32) & 0xFFFF
+    return np.stack([c >> 8, c & 0xFF]).astype(np.uint8)
+
+
+def from_byte_planes(planes: np.ndarray) -> np.ndarray:
+    """Inverse of :func:`to_byte_planes`."""
+    p = np.asarray(planes, np.uint16)
+    return ((p[0] << 8) | p[1]).astype(np.uint16).view(np.int16)

@@ -134,7 +134,7 @@ def place_samples(V_face: np.ndarray, T: np.ndarray, layout: CurveLayout,
     """
     K, J = layout.n_curves, layout.n_points
     theta = layout.angles()
-    height = np.repeat(layout.heights[:, None], J, axis=1)
+    height = layout.ray_heights()
     radius, tri, bary, facing = cast_cylinder_rays(V_face, T, layout.axis_z, theta.ravel(), height.ravel())
     status = np.full(K * J, HIT)
     status[tri < 0] = MISS

@@ -1,18 +1,25 @@
 """Where the boundary curves lie on a face, placed from its landmarks.
 
-Curves are horizontal sections of the face in the face frame, from the top of
-the forehead (curve 0) to the chin (last curve). Each is sampled by rays cast
+Curves run across the face in the face frame, from the top of the forehead
+(curve 0) to the chin (last curve). Each is sampled by horizontal rays cast
 from a vertical axis behind the face, so points sit at fixed angles on it.
+
+Away from the mouth a curve is a horizontal section at its *level* (height).
+Around the mouth the curves bend to follow the lips: the curve levels are
+anchored at landmark heights, and the anchors of the lips and the mouth line
+follow :class:`FeatureLine` s through the lip landmarks, so no curve crosses
+from one lip to the other (their motions differ in every lower-face AU).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from .errors import LayoutError
 from .frame import eye_distance
 from .geometry import cylinder_coords
+from .pde import cubic_spline_operator
 
 #: Relative curve density between the anchor heights, top to bottom: denser at
 #: brows, eyes, nose and lips, as the method's curves are.
@@ -21,6 +28,52 @@ SEGMENT_DENSITY = {
     "nose_tip-nose_bottom": 2.85, "nose_bottom-lip_upper": 1.5, "lip_upper-mouth": 4.0, "mouth-lip_lower": 2.45,
     "lip_lower-chin": 0.85,
 }
+
+
+#: Anchors the curves bend at, by name, and the landmarks of the line each follows.
+#: The mouth line runs between the inner lips; the lip lines along their outer edges.
+FEATURE_LINES = {
+    "lip_upper": ([48], [49], [50], [51], [52], [53], [54]),
+    "mouth": ([48], [60], [61, 67], [62, 66], [63, 65], [64], [54]),
+    "lip_lower": ([48], [59], [58], [57], [56], [55], [54]),
+}
+#: Beyond its ends a line's pull fades out over this fraction of its angular width.
+LINE_TAPER = 0.4
+#: Bent anchors keep at least this fraction of their level gap between them.
+MIN_ANCHOR_GAP = 0.3
+
+
+@dataclass
+class FeatureLine:
+    """A line on the face that one anchor follows, as heights at ray angles.
+
+    Attributes
+    ----------
+    anchor : int
+        Index of the anchor (in :attr:`CurveLayout.anchors`) that bends.
+    theta, y : (p,) float
+        Angles (increasing, radians) and heights (mm) of the line's knots.
+    taper : float
+        Angular width (radians) over which the bend fades out beyond the ends.
+    """
+
+    anchor: int
+    theta: np.ndarray
+    y: np.ndarray
+    taper: float
+
+    def pull(self, theta: np.ndarray, level: float) -> np.ndarray:
+        """Height offset from ``level`` the line asks for at angles ``theta``."""
+        th, y = self.theta, self.y
+        inside = (theta >= th[0]) & (theta <= th[-1])
+        val = np.where(theta < th[0], y[0], y[-1]).astype(np.float64)
+        if len(th) >= 4:
+            val[inside] = cubic_spline_operator(th, theta[inside]) @ y
+        else:
+            val[inside] = np.interp(theta[inside], th, y)
+        beyond = np.maximum(th[0] - theta, theta - th[-1]).clip(min=0.0)
+        fade = 0.5 * (1 + np.cos(np.pi * np.clip(beyond / self.taper, 0.0, 1.0)))
+        return fade * (val - level)
 
 
 @dataclass
@@ -40,6 +93,11 @@ class CurveLayout:
     centre_density : float
         0 samples evenly in angle; larger values put more points near the
         face's midline (nose, lips).
+    anchors : (A,) float
+        Levels (decreasing) between which the curves' bends are interpolated;
+        empty for straight curves.
+    lines : list of FeatureLine
+        The lines bent anchors follow.
     """
 
     heights: np.ndarray
@@ -47,6 +105,8 @@ class CurveLayout:
     axis_z: float
     n_points: int
     centre_density: float = 0.5
+    anchors: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    lines: list = field(default_factory=list)
 
     @property
     def n_curves(self) -> int:
@@ -63,19 +123,99 @@ class CurveLayout:
         b = self.centre_density
         return self.half_angles[:, None] * ((1 - b) * s + b * s ** 3)[None, :]
 
+    def anchor_heights(self, theta) -> np.ndarray:
+        """(A, len(theta)) heights of the anchors at angles ``theta``."""
+        theta = np.asarray(theta, dtype=np.float64).ravel()
+        Y = np.repeat(self.anchors[:, None], len(theta), axis=1)
+        for line in self.lines:
+            Y[line.anchor] += line.pull(theta, self.anchors[line.anchor])
+        for a in range(len(self.anchors) - 1):  # bent anchors never cross
+            short = np.maximum(MIN_ANCHOR_GAP * (self.anchors[a] - self.anchors[a + 1]) - (Y[a] - Y[a + 1]), 0.0)
+            Y[a] += 0.5 * short
+            Y[a + 1] -= 0.5 * short
+        return Y
+
+    def ray_heights(self) -> np.ndarray:
+        """(K, J) height of every curve point's ray."""
+        theta = self.angles()
+        if not self.lines:
+            return np.repeat(self.heights[:, None], self.n_points, axis=1)
+        s = self.anchors
+        a = np.clip(np.searchsorted(-s, -self.heights, side="right") - 1, 0, len(s) - 2)
+        t = (self.heights - s[a]) / (s[a + 1] - s[a])
+        out = np.empty_like(theta)
+        for k in range(self.n_curves):
+            Y = self.anchor_heights(theta[k])
+            out[k] = Y[a[k]] + t[k] * (Y[a[k] + 1] - Y[a[k]])
+        return out
+
+    def level(self, theta, y) -> np.ndarray:
+        """The curve level through points at angles ``theta`` and heights ``y``.
+
+        The inverse of the bend: points on curve k give ``heights[k]``.
+        """
+        theta, y = np.asarray(theta, np.float64).ravel(), np.asarray(y, np.float64).ravel()
+        if not self.lines:
+            return y.copy()
+        Y, s = self.anchor_heights(theta), self.anchors
+        out = np.where(y > Y[0], s[0] + (y - Y[0]), s[-1] + (y - Y[-1]))
+        for a in range(len(s) - 1):
+            m = (y <= Y[a]) & (y >= Y[a + 1])
+            out[m] = s[a] + (y[m] - Y[a][m]) / (Y[a + 1][m] - Y[a][m]) * (s[a + 1] - s[a])
+        return out
+
     def as_array(self) -> np.ndarray:
-        """Layout packed in one float array (for model files)."""
-        return np.concatenate([[self.axis_z, self.n_points, self.centre_density], self.heights, self.half_angles])
+        """Layout packed in one float array (for model files).
+
+        ``axis_z, n_points, centre_density``, the K heights, the K half
+        angles; then, for bent curves, ``A``, the A anchors, the number of
+        lines and per line ``anchor, p, taper``, p angles, p heights.
+        """
+        head = [[self.axis_z, self.n_points, self.centre_density], self.heights, self.half_angles]
+        if not self.lines:
+            return np.concatenate(head)
+        warp = [[len(self.anchors)], self.anchors, [len(self.lines)]]
+        for ln in self.lines:
+            warp += [[ln.anchor, len(ln.theta), ln.taper], ln.theta, ln.y]
+        return np.concatenate(head + warp)
 
     @classmethod
-    def from_array(cls, a) -> "CurveLayout":
+    def from_array(cls, a, n_curves: int) -> "CurveLayout":
+        """Unpack :meth:`as_array` of a layout with ``n_curves`` curves.
+
+        Raises
+        ------
+        LayoutError
+            When the array does not hold a layout of that many curves.
+        """
         a = np.asarray(a, dtype=np.float64)
-        k = (len(a) - 3) // 2
-        return cls(a[3:3 + k].copy(), a[3 + k:].copy(), float(a[0]), int(round(a[1])), float(a[2]))
+        k = int(n_curves)
+        if len(a) < 3 + 2 * k:
+            raise LayoutError(f"layout has {len(a)} values, a layout of {k} curves needs at least {3 + 2 * k}")
+        lay = cls(a[3:3 + k].copy(), a[3 + k:3 + 2 * k].copy(), float(a[0]), int(round(a[1])), float(a[2]))
+        rest = a[3 + 2 * k:]
+        if not len(rest):
+            return lay
+        try:
+            n_a = int(rest[0])
+            lay.anchors = rest[1:1 + n_a].copy()
+            pos, n_lines = 2 + n_a, int(rest[1 + n_a])
+            for _ in range(n_lines):
+                anchor, p, taper = int(rest[pos]), int(rest[pos + 1]), float(rest[pos + 2])
+                th, y = rest[pos + 3:pos + 3 + p].copy(), rest[pos + 3 + p:pos + 3 + 2 * p].copy()
+                if len(y) != p or p < 2 or not 0 <= anchor < n_a or not taper > 0 or np.any(np.diff(th) <= 0):
+                    raise LayoutError("layout's feature line is malformed")
+                lay.lines.append(FeatureLine(anchor, th, y, taper))
+                pos += 3 + 2 * p
+        except IndexError:
+            raise LayoutError("layout's feature lines are cut short") from None
+        if pos != len(rest) or n_a < 2 or np.any(np.diff(lay.anchors) >= 0):
+            raise LayoutError("layout's anchors or feature lines are malformed")
+        return lay
 
 
 def place_curves(landmarks_face: np.ndarray, n_curves: int = 31, n_points: int = 37,
-                 forehead: float = 2.0, side_margin: float = 0.92) -> CurveLayout:
+                 forehead: float = 2.0, side_margin: float = 0.92, follow_lips: bool = True) -> CurveLayout:
     """Place the curve layout from the 68 landmarks given in the face frame (mm).
 
     Parameters
@@ -88,6 +228,9 @@ def place_curves(landmarks_face: np.ndarray, n_curves: int = 31, n_points: int =
         Top curve height above the brows, in units of the brow-to-eye distance.
     side_margin : float
         Fraction of the jawline's angular width the curves span.
+    follow_lips : bool
+        Bend the curves around the mouth along the lips (see
+        :data:`FEATURE_LINES`); False gives straight horizontal sections.
     """
     if n_curves < 4:
         raise LayoutError(f"need at least 4 curves, got {n_curves}")
@@ -123,4 +266,14 @@ def place_curves(landmarks_face: np.ndarray, n_curves: int = 31, n_points: int =
     half = side_margin * 0.5 * (half[0] + half[1])
     # Never narrower than the mouth, so the chin curves cover the chin.
     half = np.maximum(half, 1.5 * np.abs(th[[48, 54]]).mean())
-    return CurveLayout(heights, half, float(axis_z), int(n_points))
+    layout = CurveLayout(heights, half, float(axis_z), int(n_points))
+    if follow_lips:
+        names = list(anchors)
+        layout.anchors = ys
+        for name, groups in FEATURE_LINES.items():
+            t, yy, _ = cylinder_coords(np.array([L[g].mean(axis=0) for g in groups]), axis_z)
+            o = np.argsort(t)
+            if np.any(np.diff(t[o]) <= 0):
+                raise LayoutError(f"the {name} landmarks do not run across the face; check the landmarks")
+            layout.lines.append(FeatureLine(names.index(name), t[o], yy[o], LINE_TAPER * (t[o][-1] - t[o][0])))
+    return layout

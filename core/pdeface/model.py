@@ -1,25 +1,29 @@
 """The PDE face model and its file format.
 
-File format (``.npz``, version 1): a NumPy ``savez_compressed`` archive read
+File format (``.npz``, version 2): a NumPy ``savez_compressed`` archive read
 with ``allow_pickle=False``. Members:
 
 ``meta`` (uint8)
-    UTF-8 JSON: ``format`` = ``"pdeface.face"``, ``version`` = 1, ``unit``,
+    UTF-8 JSON: ``format`` = ``"pdeface.face"``, ``version`` = 2, ``unit``,
     ``n_modes``, ``a``, ``w``, ``assembly``, ``feature_names``, ``source``,
     ``notice``.
 ``layout`` (float32)
     :meth:`pdeface.layout.CurveLayout.as_array`: axis z, points per curve,
-    centre density, the K curve heights and the K half angles (face frame).
+    centre density, the K curve heights and the K half angles (face frame);
+    from version 2, then the anchors and feature lines the curves bend
+    along around the mouth (version 1 files, with straight curves, still load).
 ``knots`` (float32, K)
     Curve parameters ``u_i`` in [0, 1].
 ``coefficients`` (float32, K × (N+1) × 3)
     Cosine Fourier coefficients of each curve, face frame, mm.
-``residual`` (int16, 3 × K × J)
-    Curve points minus their series, coordinate-major, in steps of
-    ``residual_step`` mm (meta; 0.01 unless a residual exceeds 160 mm), and
-    delta-coded along each curve (the first point absolute, then each point
-    minus the previous) so the smooth residual deflates well. Decode with a
-    cumulative sum along the last axis times the step; rounding ≤ step / 2.
+``residual`` (uint8, 2 × 3 × J × K)
+    Curve points minus their series in steps of ``residual_step`` mm (meta;
+    0.01 unless a residual exceeds 80 mm), delta-coded twice along each curve
+    (:func:`pdeface.codec.encode_residual`, order 2), stored point-major
+    (coordinate, point, curve) as the codes' high and low byte planes
+    (:func:`pdeface.codec.to_byte_planes`), so the smooth residual deflates
+    well. Decoding is exact integer sums; rounding ≤ step / 2. Version 1
+    files hold int16 codes (3 × K × J) delta-coded once.
 ``frame`` (float64, 4 × 4)
     User space → face frame (rotation and scale to mm, nose tip at origin).
 ``features`` (float32, 19 × 3)
@@ -44,13 +48,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .codec import decode_residual, encode_residual
-from .errors import ModelFormatError
+from .codec import decode_residual, encode_residual, from_byte_planes, to_byte_planes
+from .errors import LayoutError, ModelFormatError
 from .frame import FEATURE_NAMES, UNITS_MM, FaceFrame
 from .layout import CurveLayout
 
 FORMAT = "pdeface.face"
-VERSION = 1
+VERSION = 2
 ICT_NOTICE = ("Derived from ICT-FaceKit, Copyright (c) 2020 USC Institute for Creative Technologies, "
               "MIT License (see assets/ICT-FaceKit-LICENSE.txt).")
 
@@ -129,7 +133,7 @@ def _member(z, name, path):
 
 def model_to_bytes(model: FaceModel, descriptors: bool = True) -> bytes:
     """The model file's bytes (with or without the descriptors it carries)."""
-    q, step = encode_residual(model.residual)
+    q, step = encode_residual(model.residual, order=2)
     meta = {"format": FORMAT, "version": VERSION, "unit": model.frame.unit, "n_modes": model.n_modes,
             "residual_step": step,
             "a": model.a, "w": model.w, "assembly": model.assembly, "feature_names": FEATURE_NAMES,
@@ -139,7 +143,7 @@ def model_to_bytes(model: FaceModel, descriptors: bool = True) -> bytes:
         "layout": model.layout.as_array().astype(np.float32),
         "knots": np.asarray(model.knots, np.float32),
         "coefficients": np.asarray(model.coefficients, np.float32),
-        "residual": q,
+        "residual": to_byte_planes(q.transpose(0, 2, 1)),
         "frame": model.frame.matrix(),
         "features": np.asarray(model.features, np.float32),
     }
@@ -202,20 +206,30 @@ def load_model(path, where=None) -> FaceModel:
         coef = _member(z, "coefficients", path).astype(np.float64)
         res = _member(z, "residual", path)
         step = meta.get("residual_step")
-        if not isinstance(res, np.ndarray) or res.dtype != np.int16 or not isinstance(step, (int, float)) or not step > 0:
-            raise ModelFormatError(f"{path}: field 'residual' must be int16 with a positive meta 'residual_step'")
-        res = decode_residual(res, step)
+        if not isinstance(step, (int, float)) or not step > 0:
+            raise ModelFormatError(f"{path}: meta 'residual_step' must be a positive number")
+        if meta["version"] == 1:
+            if res.dtype != np.int16 or res.ndim != 3:
+                raise ModelFormatError(f"{path}: field 'residual' must be int16 (3, K, J) in a version 1 model")
+            res = decode_residual(res, step)
+        else:
+            if res.dtype != np.uint8 or res.ndim != 4 or res.shape[:2] != (2, 3):
+                raise ModelFormatError(f"{path}: field 'residual' must be uint8 (2, 3, J, K) byte planes")
+            res = decode_residual(from_byte_planes(res).transpose(0, 2, 1), step, order=2)
         M = _member(z, "frame", path).astype(np.float64)
         feats = _member(z, "features", path).astype(np.float64)
         K = len(knots)
-        if len(layout_arr) != 3 + 2 * K:
+        if meta["version"] == 1 and len(layout_arr) != 3 + 2 * K:
             raise ModelFormatError(f"{path}: field 'layout' has {len(layout_arr)} values, expected {3 + 2 * K}")
-        layout = CurveLayout.from_array(layout_arr)
+        try:
+            layout = CurveLayout.from_array(layout_arr, K)
+        except LayoutError as exc:
+            raise ModelFormatError(f"{path}: field 'layout': {exc}") from None
         J = layout.n_points
         if coef.ndim != 3 or coef.shape[0] != K or coef.shape[2] != 3:
             raise ModelFormatError(f"{path}: field 'coefficients' has shape {coef.shape}, expected ({K}, N+1, 3)")
         if res.shape != (K, J, 3):
-            raise ModelFormatError(f"{path}: field 'residual' has shape {res.shape[::-1]}, expected (3, {K}, {J})")
+            raise ModelFormatError(f"{path}: field 'residual' has shape {res.shape[:2]} (curves, points), expected ({K}, {J})")
         if M.shape != (4, 4) or feats.shape != (len(FEATURE_NAMES), 3):
             raise ModelFormatError(f"{path}: field 'frame' or 'features' has the wrong shape")
         for name, arr in (("knots", knots), ("coefficients", coef), ("residual", res), ("frame", M), ("layout", layout_arr)):

@@ -61,8 +61,8 @@ def _in_opening(model, th, y, r, depth=2.0):
     P = model.curve_points()
     pth, _, pr = cylinder_coords(P.reshape(-1, 3), lay.axis_z)
     pth, pr = pth.reshape(K, J), pr.reshape(K, J)
-    # Cell of each vertex: curve row from its height, point column from its angle on that row.
-    i = np.clip(np.searchsorted(-lay.heights, -y) - 1, 0, K - 2)
+    # Cell of each vertex: curve row from its level, point column from its angle on that row.
+    i = np.clip(np.searchsorted(-lay.heights, -lay.level(th, y)) - 1, 0, K - 2)
     rows = np.stack([i, i + 1])
     hit = model.status == 0
     # Openings reach a grid step past their filled points (nostrils are wider than one ray).

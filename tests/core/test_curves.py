@@ -27,8 +27,34 @@ def test_layout_from_landmarks(face_space):
     assert at(Lf[36:48, 1].mean()) < 0.6 * gaps[0]
     assert at(Lf[[62, 66], 1].mean()) < 0.6 * gaps[0]
     assert (lay.half_angles > 0).all() and (lay.half_angles < np.pi / 2).all()
-    back = CurveLayout.from_array(lay.as_array())
+    back = CurveLayout.from_array(lay.as_array(), lay.n_curves)
     np.testing.assert_allclose(back.angles(), lay.angles())
+
+
+def test_curves_follow_the_lips(face_space):
+    """Between the inner mouth corners every curve keeps clear of the line where the lips meet."""
+    from pdeface.geometry import cylinder_coords
+
+    _, _, Lf = face_space
+    lay = place_curves(Lf)
+    assert [lay.anchors[ln.anchor] for ln in lay.lines] == [Lf[51, 1], Lf[[62, 66], 1].mean(), Lf[57, 1]]
+    th, H = lay.angles(), lay.ray_heights()
+    corners = cylinder_coords(Lf[[60, 64]], lay.axis_z)[0]
+    mouth = lay.lines[1]
+    inner = (th > corners.min()) & (th < corners.max())
+    gap = np.abs(H - mouth.pull(th.ravel(), 0.0).reshape(th.shape))[inner]
+    assert gap.min() > 0.3
+    # the level inverts the bend, and straight layouts have none
+    np.testing.assert_allclose(lay.level(th, H).reshape(H.shape), np.broadcast_to(lay.heights[:, None], H.shape), atol=1e-9)
+    flat = place_curves(Lf, follow_lips=False)
+    np.testing.assert_array_equal(flat.ray_heights(), np.repeat(flat.heights[:, None], flat.n_points, 1))
+    assert not flat.lines and len(flat.as_array()) == 3 + 2 * flat.n_curves
+    back = CurveLayout.from_array(lay.as_array(), lay.n_curves)
+    np.testing.assert_allclose(back.ray_heights(), H, atol=1e-12)
+    with pytest.raises(LayoutError, match="cut short|malformed"):
+        CurveLayout.from_array(lay.as_array()[:-4], lay.n_curves)
+    with pytest.raises(LayoutError, match="needs at least"):
+        CurveLayout.from_array(lay.as_array()[:20], lay.n_curves)
 
 
 def test_layout_count_is_configurable_and_checked(face_space):
@@ -47,7 +73,7 @@ def test_samples_are_material_points_exact_on_same_topology(face_space, rng):
     hit = s.status == HIT
     # hits lie on their rays: same height as their curve, on the mesh surface
     lay = place_curves(Lf)
-    np.testing.assert_allclose(P[..., 1][hit], np.broadcast_to(lay.heights[:, None], hit.shape)[hit], atol=1e-9)
+    np.testing.assert_allclose(P[..., 1][hit], lay.ray_heights()[hit], atol=1e-9)
     # any deformation of the same mesh is read exactly and linearly
     D = rng.normal(size=V.shape)
     np.testing.assert_allclose(s.sample(V + 0.3 * D), P + 0.3 * s.sample(D), atol=1e-9)

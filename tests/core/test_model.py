@@ -50,7 +50,10 @@ def test_malformed_files_name_the_problem(tmp_path, fitted):
         (rewrite(good, tmp_path / "b.npz", meta=meta_of(good, version=99)), "newer"),
         (rewrite(good, tmp_path / "c.npz", meta=meta_of(good, format="other")), "not a pdeface face model"),
         (rewrite(good, tmp_path / "d.npz", coefficients=np.full((31, 6, 3), np.nan, np.float32)), "NaN"),
-        (rewrite(good, tmp_path / "e.npz", residual=np.zeros((3, 30, 37), np.int16)), "'residual' has shape"),
+        (rewrite(good, tmp_path / "e.npz", residual=np.zeros((2, 3, 37, 30), np.uint8)), "'residual' has shape"),
+        (rewrite(good, tmp_path / "e2.npz", residual=np.zeros((3, 31, 37), np.int16)), "'residual' must be uint8"),
+        (rewrite(good, tmp_path / "e3.npz", layout=np.zeros(20, np.float32)), "'layout'"),
+        (rewrite(good, tmp_path / "e4.npz", layout=np.load(good)["layout"][:-3]), "'layout'"),
         (rewrite(good, tmp_path / "f.npz", meta=np.frombuffer(b"{not json", np.uint8)), "not JSON"),
         (rewrite(good, tmp_path / "g.npz", meta=meta_of(good, unit="parsec")), "'unit'"),
     ]
@@ -72,3 +75,25 @@ def test_malformed_files_name_the_problem(tmp_path, fitted):
         zout.writestr("extra.npy", (tmp_path / "obj.npy").read_bytes())
     (tmp_path / "pk.npz").write_bytes(buf.getvalue())
     load_model(tmp_path / "pk.npz")  # unknown members are ignored, never unpickled
+
+
+def test_version_1_files_still_load(tmp_path, fitted):
+    """Version 1: straight curves (layout of 3 + 2K values) and int16 residual codes delta-coded once."""
+    from pdeface.codec import encode_residual
+    from pdeface.layout import CurveLayout
+
+    model, _ = fitted
+    lay = model.layout
+    straight = CurveLayout(lay.heights, lay.half_angles, lay.axis_z, lay.n_points, lay.centre_density)
+    path = tmp_path / "v2.npz"
+    save_model(path, model)
+    q, step = encode_residual(model.residual, order=1)
+    v1 = rewrite(path, tmp_path / "v1.npz", layout=straight.as_array().astype(np.float32), residual=q,
+                 meta=meta_of(path, version=1, residual_step=step))
+    back = load_model(v1)
+    assert not back.layout.lines
+    assert np.abs(back.residual - model.residual).max() <= 0.005 + 1e-9
+    np.testing.assert_allclose(back.layout.ray_heights(), np.repeat(lay.heights[:, None], lay.n_points, 1), atol=1e-4)
+    bad = rewrite(v1, tmp_path / "v1bad.npz", layout=lay.as_array().astype(np.float32))
+    with pytest.raises(ModelFormatError, match="'layout' has"):
+        load_model(bad)
