@@ -68,7 +68,8 @@ def cmd_fit(args):
     T, _ = mesh.triangles()
     t0 = time.perf_counter()
     model, sampler = fit_face(mesh.vertices, T, lm, unit=args.unit, n_curves=args.curves, n_points=args.points,
-                              n_modes=args.modes, a=args.a, assembly=args.assembly, source=str(args.mesh))
+                              n_modes=args.modes, a=args.a, assembly=args.assembly, source=str(args.mesh),
+                              follow_lips=not args.straight)
     if args.mesh == "default":
         from .model import ICT_NOTICE
         model.notice = ICT_NOTICE
@@ -379,6 +380,8 @@ def build_parser():
     p.add_argument("--modes", type=int, default=5)
     p.add_argument("--a", type=float, default=1.0, help="PDE smoothing parameter")
     p.add_argument("--assembly", choices=["smooth", "patches"], default="smooth")
+    p.add_argument("--straight", action="store_true",
+                   help="horizontal curves throughout, as the original method (default: bend along the lips)")
     p.add_argument("-o", "--output", required=True)
     p.set_defaults(func=cmd_fit)
 

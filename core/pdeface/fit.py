@@ -57,7 +57,7 @@ def chord_knots(points: np.ndarray) -> np.ndarray:
 
 
 def fit_face(vertices, triangles, landmarks, unit=None, n_curves=31, n_points=37, n_modes=5,
-             a=1.0, assembly="smooth", source=""):
+             a=1.0, assembly="smooth", source="", follow_lips=True):
     """Fit a PDE face model to a neutral face mesh.
 
     Parameters
@@ -76,6 +76,11 @@ def fit_face(vertices, triangles, landmarks, unit=None, n_curves=31, n_points=37
         PDE smoothing parameter.
     assembly : {'smooth', 'patches'}
         Default assembly stored in the model.
+    source : str
+        Where the mesh came from (kept in the model).
+    follow_lips : bool
+        Bend the curves along the lips (default) or keep them horizontal
+        (see :func:`pdeface.layout.place_curves`).
 
     Returns
     -------
@@ -93,7 +98,7 @@ def fit_face(vertices, triangles, landmarks, unit=None, n_curves=31, n_points=37
     frame = face_frame(landmarks, unit)
     Vf = frame.to_face(V)
     Lf = frame.to_face(landmarks)
-    layout = place_curves(Lf, n_curves, n_points)
+    layout = place_curves(Lf, n_curves, n_points, follow_lips=follow_lips)
     from scipy.spatial import cKDTree
 
     near = cKDTree(Vf).query(Lf)[1]  # the vertices at the landmarks pick the skin's connected pieces

@@ -48,6 +48,21 @@ def test_points_landmarks_and_unit_guess(tmp_path, capsys, scan_files):
     assert code == 0 and json.loads(out)["unit"] == "cm"
 
 
+def test_straight_curves_as_the_original_method(tmp_path, capsys, scan_files):
+    from pdeface.cli import load_face
+    from pdeface.model import load_model
+
+    code, _, _ = run(capsys, "fit", scan_files / "neutral.obj", "--landmarks", scan_files / "lm_indices.json",
+                     "--straight", "-o", tmp_path / "s.npz")
+    assert code == 0
+    straight, bent = load_model(tmp_path / "s.npz"), load_face("default")
+    assert not straight.layout.lines and len(bent.layout.lines) == 3
+    # hit points lie on their curve's height: flat rows when straight
+    P, hit = straight.curve_points(), straight.status == 0
+    np.testing.assert_allclose(P[..., 1][hit], np.broadcast_to(straight.layout.heights[:, None], hit.shape)[hit],
+                               atol=0.02)
+
+
 def test_default_face_and_patches(tmp_path, capsys):
     code, _, _ = run(capsys, "mesh", "default", "--assembly", "patches", "--resolution", "original",
                      "-o", tmp_path / "d.obj")
