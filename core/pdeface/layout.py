@@ -137,17 +137,15 @@ class CurveLayout:
 
     def ray_heights(self) -> np.ndarray:
         """(K, J) height of every curve point's ray."""
-        theta = self.angles()
         if not self.lines:
             return np.repeat(self.heights[:, None], self.n_points, axis=1)
+        theta = self.angles()
         s = self.anchors
         a = np.clip(np.searchsorted(-s, -self.heights, side="right") - 1, 0, len(s) - 2)
-        t = (self.heights - s[a]) / (s[a + 1] - s[a])
-        out = np.empty_like(theta)
-        for k in range(self.n_curves):
-            Y = self.anchor_heights(theta[k])
-            out[k] = Y[a[k]] + t[k] * (Y[a[k] + 1] - Y[a[k]])
-        return out
+        t = ((self.heights - s[a]) / (s[a + 1] - s[a]))[:, None]
+        Y = self.anchor_heights(theta).reshape(len(s), *theta.shape)
+        k = np.arange(self.n_curves)
+        return Y[a, k] + t * (Y[a + 1, k] - Y[a, k])
 
     def level(self, theta, y) -> np.ndarray:
         """The curve level through points at angles ``theta`` and heights ``y``.

@@ -64,6 +64,11 @@ def test_layout_count_is_configurable_and_checked(face_space):
         place_curves(Lf, 3)
     with pytest.raises(LayoutError, match="not in face order"):
         place_curves(Lf * np.array([1, -1, 1]))  # upside down
+    collapsed = Lf.copy()
+    collapsed[49:54] = Lf[51]  # the upper lip's edge squashed into one point
+    with pytest.raises(LayoutError, match="lip_upper landmarks do not run across the face"):
+        place_curves(collapsed)
+    assert not place_curves(collapsed, follow_lips=False).lines  # straight curves do not need them
 
 
 def test_samples_are_material_points_exact_on_same_topology(face_space, rng):
