@@ -89,6 +89,7 @@ def fit_face(vertices, triangles, landmarks, unit=None, n_curves=31, n_points=37
         The curve points as material points of this mesh.
     """
     from .curves import place_samples  # scipy is heavy: only fitting needs it
+    from .rims import follow_rims
     V = np.asarray(vertices, dtype=np.float64)
     T = np.asarray(triangles, dtype=np.int64)
     if V.ndim != 2 or V.shape[1] != 3 or not np.isfinite(V).all():
@@ -102,7 +103,9 @@ def fit_face(vertices, triangles, landmarks, unit=None, n_curves=31, n_points=37
     from scipy.spatial import cKDTree
 
     near = cKDTree(Vf).query(Lf)[1]  # the vertices at the landmarks pick the skin's connected pieces
-    sampler = place_samples(Vf, skin_triangles(T, len(V), near), layout)
+    skin = skin_triangles(T, len(V), near)
+    layout = follow_rims(layout, Vf, skin)
+    sampler = place_samples(Vf, skin, layout)
     points = sampler.sample(Vf)
     coef, res = fit_fourier(points, n_modes)
     model = FaceModel(layout, chord_knots(points), coef, res, frame, feature_points(Lf), a=a,
@@ -115,7 +118,7 @@ def surface_grid(model: FaceModel, sub_u=4, sub_v=4, assembly=None, coefficients
     return solve_surface(model.coefficients if coefficients is None else coefficients,
                          model.residual if residual is None else residual,
                          model.knots, model.a, model.remainder_w, sub_u, sub_v,
-                         assembly or model.assembly, deriv)
+                         assembly or model.assembly, deriv, model.layout.breaks())
 
 
 def grid_faces(n_u: int, n_v: int) -> np.ndarray:

@@ -9,6 +9,11 @@ Around the mouth the curves bend to follow the lips: the curve levels are
 anchored at landmark heights, and the anchors of the lips and the mouth line
 follow :class:`FeatureLine` s through the lip landmarks, so no curve crosses
 from one lip to the other (their motions differ in every lower-face AU).
+
+The mouth is an *opening*: two curves run along it, one on each lip's rim
+(where its skin turns into the slit, found on the mesh by
+:func:`pdeface.rims.follow_rims`), and the curve interval between them is a
+*break* the smooth assembly solves apart (see :mod:`pdeface.pde`).
 """
 from __future__ import annotations
 
@@ -25,18 +30,26 @@ from .pde import cubic_spline_operator
 #: brows, eyes, nose and lips, as the method's curves are.
 SEGMENT_DENSITY = {
     "forehead-brow": 0.7, "brow-eye_top": 1.55, "eye_top-eye_bottom": 2.95, "eye_bottom-nose_tip": 1.3,
-    "nose_tip-nose_bottom": 2.85, "nose_bottom-lip_upper": 1.5, "lip_upper-mouth": 4.0, "mouth-lip_lower": 2.45,
+    "nose_tip-nose_bottom": 2.85, "nose_bottom-lip_upper": 1.5, "lip_upper-mouth_top": 4.0,
+    "mouth_top-mouth_bottom": 0.0, "mouth_bottom-lip_lower": 2.45,
     "lip_lower-chin": 0.85,
 }
 
 
 #: Anchors the curves bend at, by name, and the landmarks of the line each follows.
-#: The mouth line runs between the inner lips; the lip lines along their outer edges.
+#: The lip lines run along the lips' outer edges; both of the mouth's start on the
+#: line between the inner lips (the rims on the mesh replace them when fitting).
+_MOUTH_LINE = ([48], [60], [61, 67], [62, 66], [63, 65], [64], [54])
 FEATURE_LINES = {
     "lip_upper": ([48], [49], [50], [51], [52], [53], [54]),
-    "mouth": ([48], [60], [61, 67], [62, 66], [63, 65], [64], [54]),
+    "mouth_top": _MOUTH_LINE,
+    "mouth_bottom": _MOUTH_LINE,
     "lip_lower": ([48], [59], [58], [57], [56], [55], [54]),
 }
+#: Openings, as (top anchor, bottom anchor): a curve runs along each rim.
+OPENINGS = (("mouth_top", "mouth_bottom"),)
+#: Height gap (mm) between an opening's two anchors, and between its rims where they meet.
+OPENING_GAP = 0.1
 #: Beyond its ends a line's pull fades out over this fraction of its angular width.
 LINE_TAPER = 0.4
 #: Bent anchors keep at least this fraction of their level gap between them.
@@ -98,6 +111,8 @@ class CurveLayout:
         empty for straight curves.
     lines : list of FeatureLine
         The lines bent anchors follow.
+    openings : list of int
+        Top anchor ``a`` of each opening (its bottom anchor is ``a + 1``).
     """
 
     heights: np.ndarray
@@ -107,10 +122,27 @@ class CurveLayout:
     centre_density: float = 0.5
     anchors: np.ndarray = field(default_factory=lambda: np.zeros(0))
     lines: list = field(default_factory=list)
+    openings: list = field(default_factory=list)
 
     @property
     def n_curves(self) -> int:
         return len(self.heights)
+
+    def opening_curves(self) -> list:
+        """``(a, k)`` for each opening whose rims carry curves: curve k at its top
+        anchor ``a``, curve k + 1 at its bottom anchor, and enough curves on
+        either side for the smooth assembly to solve them apart."""
+        out = []
+        for a in self.openings:
+            k = np.nonzero(np.abs(self.heights - self.anchors[a]) < 1e-4)[0]
+            if (len(k) and 3 <= k[0] <= self.n_curves - 5
+                    and abs(self.heights[k[0] + 1] - self.anchors[a + 1]) < 1e-4):
+                out.append((int(a), int(k[0])))
+        return out
+
+    def breaks(self) -> tuple:
+        """Curve intervals that span an opening (see :mod:`pdeface.pde`)."""
+        return tuple(k for _, k in self.opening_curves())
 
     def sample_params(self) -> np.ndarray:
         """Curve parameter ``v_j`` in [0, π] of every point (uniform)."""
@@ -129,11 +161,7 @@ class CurveLayout:
         Y = np.repeat(self.anchors[:, None], len(theta), axis=1)
         for line in self.lines:
             Y[line.anchor] += line.pull(theta, self.anchors[line.anchor])
-        for a in range(len(self.anchors) - 1):  # bent anchors never cross
-            short = np.maximum(MIN_ANCHOR_GAP * (self.anchors[a] - self.anchors[a + 1]) - (Y[a] - Y[a + 1]), 0.0)
-            Y[a] += 0.5 * short
-            Y[a + 1] -= 0.5 * short
-        return Y
+        return _keep_apart(Y, -MIN_ANCHOR_GAP * np.diff(self.anchors))
 
     def ray_heights(self) -> np.ndarray:
         """(K, J) height of every curve point's ray."""
@@ -167,7 +195,8 @@ class CurveLayout:
 
         ``axis_z, n_points, centre_density``, the K heights, the K half
         angles; then, for bent curves, ``A``, the A anchors, the number of
-        lines and per line ``anchor, p, taper``, p angles, p heights.
+        lines and per line ``anchor, p, taper``, p angles, p heights; then,
+        when there are openings, their number and top anchors.
         """
         head = [[self.axis_z, self.n_points, self.centre_density], self.heights, self.half_angles]
         if not self.lines:
@@ -175,6 +204,8 @@ class CurveLayout:
         warp = [[len(self.anchors)], self.anchors, [len(self.lines)]]
         for ln in self.lines:
             warp += [[ln.anchor, len(ln.theta), ln.taper], ln.theta, ln.y]
+        if self.openings:
+            warp += [[len(self.openings)], self.openings]
         return np.concatenate(head + warp)
 
     @classmethod
@@ -205,6 +236,12 @@ class CurveLayout:
                     raise LayoutError("layout's feature line is malformed")
                 lay.lines.append(FeatureLine(anchor, th, y, taper))
                 pos += 3 + 2 * p
+            if pos < len(rest):
+                n_o = int(rest[pos])
+                lay.openings = [int(x) for x in rest[pos + 1:pos + 1 + n_o]]
+                if len(lay.openings) != n_o or n_o < 1 or not all(0 <= x < n_a - 1 for x in lay.openings):
+                    raise LayoutError("layout's openings are malformed")
+                pos += 1 + n_o
         except IndexError:
             raise LayoutError("layout's feature lines are cut short") from None
         if pos != len(rest) or n_a < 2 or np.any(np.diff(lay.anchors) >= 0):
@@ -228,7 +265,8 @@ def place_curves(landmarks_face: np.ndarray, n_curves: int = 31, n_points: int =
         Fraction of the jawline's angular width the curves span.
     follow_lips : bool
         Bend the curves around the mouth along the lips (see
-        :data:`FEATURE_LINES`); False gives straight horizontal sections.
+        :data:`FEATURE_LINES`) and put a curve on each side of the mouth
+        line (:data:`OPENINGS`); False gives straight horizontal sections.
     """
     if n_curves < 4:
         raise LayoutError(f"need at least 4 curves, got {n_curves}")
@@ -240,12 +278,12 @@ def place_curves(landmarks_face: np.ndarray, n_curves: int = 31, n_points: int =
     lid_top, lid_bottom = L[[37, 38, 43, 44], 1].mean(), L[[40, 41, 46, 47], 1].mean()
     # Lids barely apart (a blink, a squint) still get their band of curves.
     gap = max(lid_top - lid_bottom, 0.25 * (brow - eye))
-    chin, lip_lower = L[8, 1], L[57, 1]
+    chin, lip_lower, mouth = L[8, 1], L[57, 1], L[[62, 66], 1].mean()
     anchors = {
         "forehead": brow + forehead * (brow - eye), "brow": brow, "eye_top": eye + 0.5 * gap,
         "eye_bottom": eye - 0.5 * gap, "nose_tip": L[30, 1],
-        "nose_bottom": L[33, 1], "lip_upper": L[51, 1], "mouth": L[[62, 66], 1].mean(),
-        "lip_lower": lip_lower, "chin": chin + 0.08 * (lip_lower - chin),
+        "nose_bottom": L[33, 1], "lip_upper": L[51, 1], "mouth_top": mouth + 0.5 * OPENING_GAP,
+        "mouth_bottom": mouth - 0.5 * OPENING_GAP, "lip_lower": lip_lower, "chin": chin + 0.08 * (lip_lower - chin),
     }
     ys = np.array(list(anchors.values()))
     if not (np.diff(ys) < 0).all():
@@ -255,6 +293,10 @@ def place_curves(landmarks_face: np.ndarray, n_curves: int = 31, n_points: int =
     # Curves at equal steps of the density-weighted height.
     measure = np.concatenate([[0.0], np.cumsum(-np.diff(ys) * density)])
     heights = np.interp(np.linspace(0, measure[-1], n_curves), measure, ys)
+    names = list(anchors)
+    openings = [names.index(top) for top, _ in OPENINGS] if follow_lips else []
+    for a in openings:
+        _snap_to_opening(heights, ys, density, a)
     # Angular extent from the jawline (landmarks 0-8 right, 8-16 left).
     th, y, _ = cylinder_coords(L, axis_z)
     half = []
@@ -266,12 +308,55 @@ def place_curves(landmarks_face: np.ndarray, n_curves: int = 31, n_points: int =
     half = np.maximum(half, 1.5 * np.abs(th[[48, 54]]).mean())
     layout = CurveLayout(heights, half, float(axis_z), int(n_points))
     if follow_lips:
-        names = list(anchors)
-        layout.anchors = ys
+        layout.anchors, layout.openings = ys, openings
+        offset = {top: 0.5 * OPENING_GAP for top, _ in OPENINGS} | {bottom: -0.5 * OPENING_GAP for _, bottom in OPENINGS}
         for name, groups in FEATURE_LINES.items():
             t, yy, _ = cylinder_coords(np.array([L[g].mean(axis=0) for g in groups]), axis_z)
             o = np.argsort(t)
             if np.any(np.diff(t[o]) <= 0):
                 raise LayoutError(f"the {name} landmarks do not run across the face; check the landmarks")
-            layout.lines.append(FeatureLine(names.index(name), t[o], yy[o], LINE_TAPER * (t[o][-1] - t[o][0])))
+            layout.lines.append(FeatureLine(names.index(name), t[o], yy[o] + offset.get(name, 0.0),
+                                            LINE_TAPER * (t[o][-1] - t[o][0])))
     return layout
+
+
+def _keep_apart(Y: np.ndarray, gaps: np.ndarray) -> np.ndarray:
+    """Heights nearest ``Y`` (A, q) (least squares, per column) whose rows stay ``gaps`` (A-1,) apart.
+
+    Bent anchors never cross. Where lines converge (the mouth corners) several
+    may crowd at once, so this is the exact projection: with ``Z = Y + Σ gaps``
+    it must not increase down the rows, which is isotonic regression,
+    ``Z'_a = min_{i≤a} max_{j≥a} mean(Z_i..Z_j)``. Uncrowded anchors stay put,
+    and two that crowd meet the gap around their middle.
+    """
+    c = np.concatenate([[0.0], np.cumsum(gaps)])[:, None]
+    Z = Y + c
+    if (np.diff(Z, axis=0) <= 0).all():
+        return Y
+    A = len(Z)
+    S = np.vstack([np.zeros((1, Z.shape[1])), np.cumsum(Z, axis=0)])
+    i, j = np.triu_indices(A)
+    mean = np.empty((A, A, Z.shape[1]))
+    mean[i, j] = (S[j + 1] - S[i]) / (j - i + 1)[:, None]
+    out = np.stack([mean[:a + 1, a:].max(axis=1).min(axis=0) for a in range(A)])
+    return out - c
+
+
+def _snap_to_opening(heights, ys, density, a):
+    """Put curves on an opening's two anchors ``a``, ``a + 1``, in place.
+
+    The curves between the anchors around it are spread again, by density,
+    above and below the pair. Too few curves there: the heights stay.
+    """
+    above, below = np.nonzero(heights > ys[a - 1])[0], np.nonzero(heights < ys[a + 2])[0]
+    if not len(above) or not len(below):
+        return
+    above, below = above[-1], below[0]
+    m = below - above - 1
+    if m < 2:
+        return
+    top, bottom = ys[a], ys[a + 1]
+    wu, wl = (heights[above] - top) * density[a - 1], (bottom - heights[below]) * density[a + 1]
+    cu = int(round((m - 2) * wu / (wu + wl)))
+    heights[above + 1:below] = np.concatenate([np.linspace(heights[above], top, cu + 2)[1:],
+                                               np.linspace(bottom, heights[below], m - cu)[:-1]])

@@ -1,17 +1,20 @@
 """The PDE face model and its file format.
 
-File format (``.npz``, version 2): a NumPy ``savez_compressed`` archive read
+File format (``.npz``, version 3): a NumPy ``savez_compressed`` archive read
 with ``allow_pickle=False``. Members:
 
 ``meta`` (uint8)
-    UTF-8 JSON: ``format`` = ``"pdeface.face"``, ``version`` = 2, ``unit``,
+    UTF-8 JSON: ``format`` = ``"pdeface.face"``, ``version`` = 3, ``unit``,
     ``n_modes``, ``a``, ``w``, ``assembly``, ``feature_names``, ``source``,
     ``notice``.
 ``layout`` (float32)
     :meth:`pdeface.layout.CurveLayout.as_array`: axis z, points per curve,
     centre density, the K curve heights and the K half angles (face frame);
     from version 2, then the anchors and feature lines the curves bend
-    along around the mouth (version 1 files, with straight curves, still load).
+    along around the mouth; from version 3, then the openings (the mouth's
+    pair of rim curves, whose interval the smooth assembly solves apart).
+    Version 1 (straight curves) and version 2 files (one sheet across the
+    mouth) still load and solve as they were saved.
 ``knots`` (float32, K)
     Curve parameters ``u_i`` in [0, 1].
 ``coefficients`` (float32, K × (N+1) × 3)
@@ -54,7 +57,7 @@ from .frame import FEATURE_NAMES, UNITS_MM, FaceFrame
 from .layout import CurveLayout
 
 FORMAT = "pdeface.face"
-VERSION = 2
+VERSION = 3
 ICT_NOTICE = ("Derived from ICT-FaceKit, Copyright (c) 2020 USC Institute for Creative Technologies, "
               "MIT License (see assets/ICT-FaceKit-LICENSE.txt).")
 

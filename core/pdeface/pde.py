@@ -16,7 +16,11 @@ Two assemblies:
 
 ``smooth`` (default)
     One piecewise solution through all curves, C2 at every curve (so no
-    creases), not-a-knot at the ends.
+    creases), not-a-knot at the ends. A layout may name *breaks*: curve
+    intervals that span an opening (the mouth slit between the lips). The
+    surface stays C1 there, but the pieces above and below are solved
+    apart (not-a-knot at their ends), so one lip's motion never rings into
+    the other's.
 ``patches``
     The original method: patches of four consecutive curves (1–4, 4–7, …),
     each one closed-form solution through its four positional curves, C0
@@ -142,11 +146,25 @@ def _check(knots, assembly):
         raise LayoutError(f"the patches assembly needs 3m+1 curves (4, 7, ..., 31), got {len(knots)}")
 
 
+def _check_breaks(K: int, breaks: tuple):
+    b = np.asarray(breaks, dtype=np.int64)
+    if len(b) and (np.any(b < 3) or np.any(b > K - 5) or np.any(np.diff(b) < 4)):
+        raise LayoutError(f"breaks {tuple(breaks)} must leave at least 3 curve intervals on each side of each "
+                          f"break ({K} curves)")
+
+
 @lru_cache(maxsize=512)
-def _smooth_coefficients(knots: tuple, k: float) -> np.ndarray:
-    """Per-interval basis coefficients (4(K-1), K) of the C2 interpolant."""
+def _smooth_coefficients(knots: tuple, k: float, breaks: tuple = ()) -> np.ndarray:
+    """Per-interval basis coefficients (4(K-1), K) of the C2 interpolant.
+
+    At a break ``b`` (the interval between curves b and b+1) C2 is released
+    at both curves, and the runs of intervals on either side get not-a-knot
+    ends instead: C1 everywhere, C2 within each run.
+    """
     u = np.array(knots)
     K = len(u)
+    _check_breaks(K, breaks)
+    ends = {c for b in breaks for c in (b, b + 1)}
     h = np.diff(u)
     n = 4 * (K - 1)
     A = np.zeros((n, n))
@@ -157,15 +175,17 @@ def _smooth_coefficients(knots: tuple, k: float) -> np.ndarray:
         A[r, 4 * i:4 * i + 4] = phi[i][0][0]; B[r, i] = 1; r += 1
         A[r, 4 * i:4 * i + 4] = phi[i][0][1]; B[r, i + 1] = 1; r += 1
     for i in range(1, K - 1):
-        for d in (1, 2):
+        for d in ((1,) if i in ends else (1, 2)):
             A[r, 4 * (i - 1):4 * i] = phi[i - 1][d][1]
             A[r, 4 * i:4 * i + 4] = -phi[i][d][0]
             r += 1
-    if K >= 4:  # not-a-knot: third derivative continuous at the second and last-but-one curves
-        for i in (1, K - 2):
-            A[r, 4 * (i - 1):4 * i] = phi[i - 1][3][1]
-            A[r, 4 * i:4 * i + 4] = -phi[i][3][0]
-            r += 1
+    if K >= 4:  # not-a-knot: third derivative continuous at the second and last-but-one curves of each run
+        bounds = [0, *sorted(ends), K - 1]
+        for first, last in zip(bounds[0::2], bounds[1::2]):
+            for i in (first + 1, last - 1):
+                A[r, 4 * (i - 1):4 * i] = phi[i - 1][3][1]
+                A[r, 4 * i:4 * i + 4] = -phi[i][3][0]
+                r += 1
     else:  # natural ends
         A[r, 0:4] = phi[0][2][0]; r += 1
         A[r, n - 4:n] = phi[-1][2][1]; r += 1
@@ -186,11 +206,13 @@ def _patch_coefficients(knots: tuple, k: float) -> list:
 
 
 @lru_cache(maxsize=512)
-def mode_operator(knots: tuple, k: float, sub_u: int, assembly: str = "smooth", deriv: int = 0) -> np.ndarray:
+def mode_operator(knots: tuple, k: float, sub_u: int, assembly: str = "smooth", deriv: int = 0,
+                  breaks: tuple = ()) -> np.ndarray:
     """Matrix (n_u, K) taking the K curve values of one mode to its values on the output rows.
 
     ``deriv=1`` gives d/du instead. At a curve shared by two pieces, the row
-    uses the piece below it (the value is the same either way).
+    uses the piece below it (the value is the same either way). ``breaks``
+    only affect the ``smooth`` assembly.
     """
     u = np.array(knots)
     _check(u, assembly)
@@ -198,7 +220,7 @@ def mode_operator(knots: tuple, k: float, sub_u: int, assembly: str = "smooth", 
     s = np.arange(sub_u) / sub_u
     rows = []
     if assembly == "smooth":
-        C = _smooth_coefficients(knots, k)
+        C = _smooth_coefficients(knots, k, breaks)
         h = np.diff(u)
         for i in range(K - 1):
             t = np.append(s, 1.0) if i == K - 2 else s
@@ -218,7 +240,7 @@ def mode_operator(knots: tuple, k: float, sub_u: int, assembly: str = "smooth", 
 
 
 @lru_cache(maxsize=512)
-def knot_slopes(knots: tuple, k: float, assembly: str = "smooth") -> tuple[np.ndarray, np.ndarray]:
+def knot_slopes(knots: tuple, k: float, assembly: str = "smooth", breaks: tuple = ()) -> tuple[np.ndarray, np.ndarray]:
     """d/du at each curve from the piece above and from the piece below.
 
     Returns two (K, K) matrices (rows for the first/last curve repeat the one
@@ -229,7 +251,7 @@ def knot_slopes(knots: tuple, k: float, assembly: str = "smooth") -> tuple[np.nd
     K = len(u)
     above, below = np.zeros((K, K)), np.zeros((K, K))
     if assembly == "smooth":
-        C = _smooth_coefficients(knots, k)
+        C = _smooth_coefficients(knots, k, breaks)
         h = np.diff(u)
         for i in range(K - 1):
             d = ode_basis(k * h[i], np.array([0.0, 1.0]), 1) / h[i] @ C[4 * i:4 * i + 4]
@@ -316,20 +338,20 @@ class SurfaceOperator:
 
 @lru_cache(maxsize=64)
 def surface_operator(knots: tuple, n_points: int, n_modes: int, a: float, w: float, sub_u: int, sub_v: int,
-                     assembly: str = "smooth", deriv: tuple = (0, 0)) -> SurfaceOperator:
+                     assembly: str = "smooth", deriv: tuple = (0, 0), breaks: tuple = ()) -> SurfaceOperator:
     """Cached :class:`SurfaceOperator` (see :func:`solve_surface` for the arguments)."""
     du, dv = deriv
     v = np.linspace(0.0, np.pi, (n_points - 1) * sub_v + 1)
     n = np.arange(n_modes + 1)
     # d^dv/dv^dv of cos(n v): cos for dv = 0, -n sin for dv = 1.
     cos_nv = np.cos(np.outer(v, n)) if dv == 0 else -np.sin(np.outer(v, n)) * n
-    modes = np.stack([mode_operator(knots, a * m, sub_u, assembly, du) for m in n])
-    return SurfaceOperator(modes, cos_nv, mode_operator(knots, w, sub_u, assembly, du),
+    modes = np.stack([mode_operator(knots, a * m, sub_u, assembly, du, breaks) for m in n])
+    return SurfaceOperator(modes, cos_nv, mode_operator(knots, w, sub_u, assembly, du, breaks),
                            residual_v_operator(n_points, sub_v, dv))
 
 
 def solve_surface(coefficients, residual, knots, a=1.0, w=None, sub_u=4, sub_v=4,
-                  assembly="smooth", deriv=(0, 0)):
+                  assembly="smooth", deriv=(0, 0), breaks=()):
     """Evaluate the PDE surface (or a derivative) on the output grid.
 
     Parameters
@@ -350,6 +372,9 @@ def solve_surface(coefficients, residual, knots, a=1.0, w=None, sub_u=4, sub_v=4
     assembly : {'smooth', 'patches'}
     deriv : (int, int)
         Derivative order in u and in v (each 0 or 1).
+    breaks : tuple of int
+        Curve intervals the ``smooth`` assembly solves apart (see the module
+        notes); from :meth:`pdeface.layout.CurveLayout.breaks`.
 
     Returns
     -------
@@ -365,5 +390,5 @@ def solve_surface(coefficients, residual, knots, a=1.0, w=None, sub_u=4, sub_v=4
         raise LayoutError(f"{K} curves of coefficients but {len(kn)} curve parameters and {residual.shape[0]} residual rows")
     w = a * N1 if w is None else w
     op = surface_operator(kn, residual.shape[1], N1 - 1, float(a), float(w), int(sub_u), int(sub_v), assembly,
-                          tuple(deriv))
+                          tuple(deriv), tuple(int(b) for b in breaks))
     return op.apply(coefficients, residual)

@@ -16,13 +16,12 @@ from .geometry import ClosestPoint, cast_cylinder_rays, cylinder_coords
 from .mesh import vertex_normals
 from .model import FaceModel
 from .pde import SurfaceOperator, knot_slopes, surface_operator
+from .rims import FACING_MIN_COS
 
 #: Resolution the report measures the surface at (rows, columns per interval).
 REPORT_RESOLUTION = (6, 6)
 #: A vertex more than this (mm) behind the first surface its ray meets is hidden.
 VISIBILITY_TOLERANCE_MM = 0.5
-#: Skin seen more obliquely than this (cosine between normal and ray, ~72°) is not counted as visible.
-FACING_MIN_COS = 0.3
 
 
 def band_vertices(model: FaceModel, V_face: np.ndarray, T: np.ndarray) -> dict:
@@ -92,11 +91,12 @@ def seam_jump_deg(model: FaceModel, assembly=None, sub_v=4) -> float:
     N1 = model.coefficients.shape[1]
     Xv = surface_grid(model, 1, sub_v, assembly, deriv=(0, 1))  # rows are the curves
     # d/du at the curves from each side: the surface operator with one-sided slope matrices.
+    br = model.layout.breaks()
     plain = surface_operator(kn, J, N1 - 1, float(model.a), float(model.remainder_w), 1, sub_v, assembly)
     sides = []
     for side in (0, 1):
-        op = SurfaceOperator(np.stack([knot_slopes(kn, model.a * m, assembly)[side] for m in range(N1)]),
-                             plain.cos_nv, knot_slopes(kn, model.remainder_w, assembly)[side], plain.remainder_v)
+        op = SurfaceOperator(np.stack([knot_slopes(kn, model.a * m, assembly, br)[side] for m in range(N1)]),
+                             plain.cos_nv, knot_slopes(kn, model.remainder_w, assembly, br)[side], plain.remainder_v)
         n = np.cross(op.apply(model.coefficients, model.residual), Xv)
         sides.append(n / np.maximum(np.linalg.norm(n, axis=2, keepdims=True), 1e-300))
     cosang = np.clip(np.einsum("kvc,kvc->kv", sides[0], sides[1])[1:-1], -1, 1)

@@ -32,29 +32,65 @@ def test_layout_from_landmarks(face_space):
 
 
 def test_curves_follow_the_lips(face_space):
-    """Between the inner mouth corners every curve keeps clear of the line where the lips meet."""
+    """A curve on each side of the mouth line; every other curve keeps clear of it."""
     from pdeface.geometry import cylinder_coords
+    from pdeface.layout import OPENING_GAP
 
     _, _, Lf = face_space
     lay = place_curves(Lf)
-    assert [lay.anchors[ln.anchor] for ln in lay.lines] == [Lf[51, 1], Lf[[62, 66], 1].mean(), Lf[57, 1]]
+    mouth = Lf[[62, 66], 1].mean()
+    assert [lay.anchors[ln.anchor] for ln in lay.lines] == [
+        Lf[51, 1], mouth + 0.5 * OPENING_GAP, mouth - 0.5 * OPENING_GAP, Lf[57, 1]]
+    (a, k), = lay.opening_curves()
+    assert lay.openings == [a] and lay.breaks() == (k,)
+    assert lay.heights[k] == lay.anchors[a] and lay.heights[k + 1] == lay.anchors[a + 1]
     th, H = lay.angles(), lay.ray_heights()
     corners = cylinder_coords(Lf[[60, 64]], lay.axis_z)[0]
-    mouth = lay.lines[1]
+    line = lay.lines[1]
     inner = (th > corners.min()) & (th < corners.max())
-    gap = np.abs(H - mouth.pull(th.ravel(), 0.0).reshape(th.shape))[inner]
-    assert gap.min() > 0.3
+    gap = np.abs(H - line.pull(th.ravel(), 0.0).reshape(th.shape) + 0.5 * OPENING_GAP)
+    others = np.ones(lay.n_curves, bool)
+    others[[k, k + 1]] = False
+    assert gap[others][inner[others]].min() > 0.3
+    assert gap[[k, k + 1]][inner[[k, k + 1]]].max() < OPENING_GAP  # the pair sits on it
     # the level inverts the bend, and straight layouts have none
     np.testing.assert_allclose(lay.level(th, H).reshape(H.shape), np.broadcast_to(lay.heights[:, None], H.shape), atol=1e-9)
     flat = place_curves(Lf, follow_lips=False)
     np.testing.assert_array_equal(flat.ray_heights(), np.repeat(flat.heights[:, None], flat.n_points, 1))
-    assert not flat.lines and len(flat.as_array()) == 3 + 2 * flat.n_curves
+    assert not flat.lines and not flat.breaks() and len(flat.as_array()) == 3 + 2 * flat.n_curves
     back = CurveLayout.from_array(lay.as_array(), lay.n_curves)
     np.testing.assert_allclose(back.ray_heights(), H, atol=1e-12)
+    assert back.openings == lay.openings and back.breaks() == lay.breaks()
     with pytest.raises(LayoutError, match="cut short|malformed"):
         CurveLayout.from_array(lay.as_array()[:-4], lay.n_curves)
+    with pytest.raises(LayoutError, match="openings are malformed"):
+        CurveLayout.from_array(np.r_[lay.as_array()[:-1], 99], lay.n_curves)
     with pytest.raises(LayoutError, match="needs at least"):
         CurveLayout.from_array(lay.as_array()[:20], lay.n_curves)
+
+
+def test_mouth_curves_lie_on_the_lip_rims(face_space):
+    """Fitted to the mesh, the pair runs along the lips' rims: each ray still meets its own lip facing
+    the viewer, and a step past it towards the slit leaves that lip's outward skin."""
+    from pdeface.geometry import cast_cylinder_rays
+    from pdeface.rims import FACING_MIN_COS, RIM_JUMP_MM, RIM_STEP_MM, follow_rims
+
+    V, T, Lf = face_space
+    seed = place_curves(Lf)
+    lay = follow_rims(seed, V, T)
+    (a, k), = lay.opening_curves()
+    th, H = lay.angles()[k], lay.ray_heights()
+    middle = np.abs(th) < 0.5 * lay.lines[1].theta[-1]  # well inside the mouth corners
+    assert middle.sum() >= 5
+    for row, step in ((k, -RIM_STEP_MM), (k + 1, RIM_STEP_MM)):
+        ys = H[row, middle]
+        r0, _, _, f0 = cast_cylinder_rays(V, T, lay.axis_z, th[middle], ys)
+        r1, _, _, f1 = cast_cylinder_rays(V, T, lay.axis_z, th[middle], ys + step)
+        assert (f0 >= FACING_MIN_COS).all()
+        past = ~np.isfinite(r1) | (f1 < FACING_MIN_COS) | (np.abs(r1 - r0) > RIM_JUMP_MM)
+        assert past.all()
+    assert (H[k, middle] - H[k + 1, middle]).min() > 0.3  # the slit between the rims is open
+    np.testing.assert_array_equal(lay.heights, seed.heights)  # only the pair's lines moved
 
 
 def test_layout_count_is_configurable_and_checked(face_space):

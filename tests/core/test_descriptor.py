@@ -165,3 +165,22 @@ def test_bundled_face_has_every_ict_au(scan):
     mesh, _, _ = scan
     pde = face_mesh(model)
     assert np.abs(pde.vertices.mean(0) - mesh.vertices.mean(0)).max() < 3.0
+
+
+def test_the_lips_move_apart(scan, fitted, shapes):
+    """The lower lip's AUs move the lower lip only: with the mouth's rim curves and break, the
+    motion is captured; solving the same curves as one sheet lets it leak into the upper lip."""
+    import copy
+
+    from pdeface.aureport import MotionProbe
+
+    mesh, T, _ = scan
+    model, sampler = fitted
+    one_sheet = copy.deepcopy(model)
+    one_sheet.layout.openings = []
+    probe, probe1 = MotionProbe(model, mesh.vertices, T), MotionProbe(one_sheet, mesh.vertices, T)
+    for key in ("16", "17", "26"):
+        off = au_offsets(key, shapes)
+        d = fit_descriptor(model, sampler, mesh.vertices, mesh.vertices + off, int(key))
+        split, joined = probe.measure(*d.dense(), off)["captured"], probe1.measure(*d.dense(), off)["captured"]
+        assert split >= 0.92 and split > joined + 0.05, (key, split, joined)

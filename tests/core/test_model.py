@@ -97,3 +97,24 @@ def test_version_1_files_still_load(tmp_path, fitted):
     bad = rewrite(v1, tmp_path / "v1bad.npz", layout=lay.as_array().astype(np.float32))
     with pytest.raises(ModelFormatError, match="'layout' has"):
         load_model(bad)
+
+
+def test_version_2_files_still_load_as_one_sheet(tmp_path, fitted):
+    """Version 2: bent curves but no openings, so the smooth assembly has no break."""
+    import copy
+
+    from pdeface.fit import surface_grid
+
+    model, _ = fitted
+    assert model.layout.breaks()  # the default layout has the mouth's break
+    path = tmp_path / "v3.npz"
+    save_model(path, model)
+    lay = copy.deepcopy(model.layout)
+    lay.openings = []
+    v2 = rewrite(path, tmp_path / "v2.npz", layout=lay.as_array().astype(np.float32), meta=meta_of(path, version=2))
+    back, now = load_model(v2), load_model(path)
+    assert back.layout.breaks() == () and now.layout.breaks() == model.layout.breaks()
+    assert len(back.layout.lines) == len(model.layout.lines)
+    one_sheet = surface_grid(back, 2, 2)
+    assert np.abs(one_sheet - surface_grid(now, 2, 2)).max() > 0.01  # the break changes the mouth
+    np.testing.assert_allclose(one_sheet[::2, ::2], surface_grid(now, 2, 2)[::2, ::2], atol=1e-4)  # same curves

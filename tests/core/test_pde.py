@@ -51,6 +51,29 @@ def test_interpolates_every_curve(assembly, k):
     np.testing.assert_allclose(M[::4], np.eye(13), atol=1e-9)
 
 
+@pytest.mark.parametrize("k", [0.0, 3.0, 60.0])
+def test_a_break_keeps_c1_and_parts_the_two_sides(k):
+    """Across a break the surface stays C1, but the curves below it no longer pull the pieces above it."""
+    kn = tuple(np.cumsum(np.r_[0, 1, 1, 1, 1, 1, 0.05, 1, 1, 1, 1]) / 9.05)
+    b = 6  # the short interval between curves 6 and 7 (two rims of a slit)
+    M = mode_operator(kn, k, 4, "smooth", 0, (b,))
+    np.testing.assert_allclose(M[::4], np.eye(11), atol=1e-9)  # still through every curve
+    above, below = knot_slopes(kn, k, "smooth", (b,))
+    np.testing.assert_allclose(above, below, atol=1e-9)  # no crease anywhere
+    assert np.abs(M[:4 * b, b + 1:]).max() < 1e-12  # above the break: only curves 0..b
+    assert np.abs(M[4 * (b + 1):, :b]).max() < 1e-12  # below it: only curves b+1..
+    # one side still; the other moves along u: without the break the motion leaks across the slit
+    u = output_grid(np.array(kn), 5, 4, 1).u
+    moved = np.where(np.arange(11) > b, np.array(kn), 0.0)
+    if k < 10:  # (high modes damp it within an interval anyway)
+        assert np.abs((mode_operator(kn, k, 4, "smooth") @ moved)[:4 * b + 1]).max() > 1e-3
+    assert np.abs((M @ moved)[:4 * b + 1]).max() < 1e-12
+    if k == 0.0:  # each side is its own not-a-knot spline, which reproduces the line exactly
+        np.testing.assert_allclose((M @ moved)[4 * (b + 1):], u[4 * (b + 1):], atol=1e-12)
+    with pytest.raises(LayoutError, match="at least 3 curve intervals"):
+        mode_operator(kn, k, 4, "smooth", 0, (1,))
+
+
 def test_smooth_has_no_creases_and_patches_do():
     kn = tuple(np.linspace(0, 1, 10))
     above, below = knot_slopes(kn, 3.0, "smooth")
