@@ -381,7 +381,8 @@ def build_parser():
     p.add_argument("--a", type=float, default=1.0, help="PDE smoothing parameter")
     p.add_argument("--assembly", choices=["smooth", "patches"], default="smooth")
     p.add_argument("--straight", action="store_true",
-                   help="horizontal curves throughout, as the original method (default: bend along the lips)")
+                   help="horizontal curves throughout, as the original method (default: bend along the lips "
+                        "and nostrils, with a curve on each rim of the eyes and mouth)")
     p.add_argument("-o", "--output", required=True)
     p.set_defaults(func=cmd_fit)
 

@@ -50,3 +50,30 @@ def from_byte_planes(planes: np.ndarray) -> np.ndarray:
     """Inverse of :func:`to_byte_planes`."""
     p = np.asarray(planes, np.uint16)
     return ((p[0] << 8) | p[1]).astype(np.uint16).view(np.int16)
+
+
+#: Default quantisation step (mm) of a face model's Fourier coefficients.
+COEFFICIENT_STEP_MM = 0.001
+
+
+def encode_coefficients(coefficients: np.ndarray, step: float = COEFFICIENT_STEP_MM) -> tuple[np.ndarray, float]:
+    """(K, N+1, 3) coefficients → (4, N+1, 3, K) uint8 byte planes, and the step used.
+
+    Values are rounded to ``step`` (1 µm: far below the fit's error),
+    differenced once from curve to curve (neighbouring curves have similar
+    series) and stored as the int32 codes' four byte planes, high byte first.
+    The step grows only if a code would not fit in 31 bits.
+    """
+    c = np.asarray(coefficients, np.float64).transpose(1, 2, 0)
+    step = max(step, float(np.abs(c).max(initial=0.0)) * 2 / 2 ** 30)
+    q = np.round(c / step).astype(np.int64)
+    q[..., 1:] = np.diff(q, axis=-1)
+    u = q.astype(np.int32).view(np.uint32)
+    return np.stack([(u >> s) & 0xFF for s in (24, 16, 8, 0)]).astype(np.uint8), step
+
+
+def decode_coefficients(planes: np.ndarray, step: float) -> np.ndarray:
+    """Inverse of :func:`encode_coefficients`: → (K, N+1, 3) float."""
+    p = np.asarray(planes, np.uint32)
+    q = ((p[0] << 24) | (p[1] << 16) | (p[2] << 8) | p[3]).view(np.int32).astype(np.int64)
+    return (np.cumsum(q, axis=-1) * float(step)).transpose(2, 0, 1)

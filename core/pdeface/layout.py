@@ -4,16 +4,17 @@ Curves run across the face in the face frame, from the top of the forehead
 (curve 0) to the chin (last curve). Each is sampled by horizontal rays cast
 from a vertical axis behind the face, so points sit at fixed angles on it.
 
-Away from the mouth a curve is a horizontal section at its *level* (height).
-Around the mouth the curves bend to follow the lips: the curve levels are
-anchored at landmark heights, and the anchors of the lips and the mouth line
-follow :class:`FeatureLine` s through the lip landmarks, so no curve crosses
-from one lip to the other (their motions differ in every lower-face AU).
+Away from the eyes, nose and mouth a curve is a horizontal section at its
+*level* (height). Near them the curves bend: the curve levels are anchored at
+landmark heights, and some anchors follow :class:`FeatureLine` s through
+landmarks (the lips' edges, the base of the nostrils), so no curve crosses
+from one lip to the other or falls into a nostril by chance.
 
-The mouth is an *opening*: two curves run along it, one on each lip's rim
-(where its skin turns into the slit, found on the mesh by
-:func:`pdeface.rims.follow_rims`), and the curve interval between them is a
-*break* the smooth assembly solves apart (see :mod:`pdeface.pde`).
+The eyes and the mouth are *openings*: two curves run along each, one on each
+lid's or lip's rim (where its skin turns into the opening, found on the mesh
+by :func:`pdeface.rims.follow_rims`), and the curve interval between them is a
+*break* the smooth assembly solves apart (see :mod:`pdeface.pde`), so the
+upper lid or lip moves without dragging the lower one.
 """
 from __future__ import annotations
 
@@ -26,10 +27,14 @@ from .frame import eye_distance
 from .geometry import cylinder_coords
 from .pde import cubic_spline_operator
 
-#: Relative curve density between the anchor heights, top to bottom: denser at
-#: brows, eyes, nose and lips, as the method's curves are.
+#: Relative curve density between successive heights, top to bottom: denser at
+#: brows, eyes, nose and lips, as the method's curves are. ``eye_top`` and
+#: ``eye_bottom`` (the lids' landmark heights) only shape the density; the
+#: other names are the anchors the curves bend at. An opening's two anchors
+#: have no curves between them.
 SEGMENT_DENSITY = {
-    "forehead-brow": 0.7, "brow-eye_top": 1.55, "eye_top-eye_bottom": 2.95, "eye_bottom-nose_tip": 1.3,
+    "forehead-brow": 0.7, "brow-eye_top": 2.0, "eye_top-lid_top": 2.95, "lid_top-lid_bottom": 0.0,
+    "lid_bottom-eye_bottom": 2.95, "eye_bottom-nose_tip": 1.3,
     "nose_tip-nose_bottom": 2.85, "nose_bottom-lip_upper": 1.5, "lip_upper-mouth_top": 4.0,
     "mouth_top-mouth_bottom": 0.0, "mouth_bottom-lip_lower": 2.45,
     "lip_lower-chin": 0.85,
@@ -37,17 +42,24 @@ SEGMENT_DENSITY = {
 
 
 #: Anchors the curves bend at, by name, and the landmarks of the line each follows.
-#: The lip lines run along the lips' outer edges; both of the mouth's start on the
-#: line between the inner lips (the rims on the mesh replace them when fitting).
+#: The lids' and the mouth's pairs start on the line through the eyes and the line
+#: between the inner lips (the rims on the mesh replace them when fitting); the nose
+#: line runs along the base of the nostrils; the lip lines along the lips' outer edges.
 _MOUTH_LINE = ([48], [60], [61, 67], [62, 66], [63, 65], [64], [54])
+_EYE_LINE = ([36], [37, 41], [38, 40], [39], [42], [43, 47], [44, 46], [45])  # corners and lid middles
 FEATURE_LINES = {
+    "lid_top": _EYE_LINE,
+    "lid_bottom": _EYE_LINE,
+    "nose_bottom": ([31], [32], [33], [34], [35]),
     "lip_upper": ([48], [49], [50], [51], [52], [53], [54]),
     "mouth_top": _MOUTH_LINE,
     "mouth_bottom": _MOUTH_LINE,
     "lip_lower": ([48], [59], [58], [57], [56], [55], [54]),
 }
 #: Openings, as (top anchor, bottom anchor): a curve runs along each rim.
-OPENINGS = (("mouth_top", "mouth_bottom"),)
+#: Each maps to the knot ranges of its line where the rims are searched (the eye line
+#: crosses the nose between the eyes).
+OPENINGS = {("lid_top", "lid_bottom"): ((0, 3), (4, 7)), ("mouth_top", "mouth_bottom"): ((0, 6),)}
 #: Height gap (mm) between an opening's two anchors, and between its rims where they meet.
 OPENING_GAP = 0.1
 #: Beyond its ends a line's pull fades out over this fraction of its angular width.
@@ -264,9 +276,10 @@ def place_curves(landmarks_face: np.ndarray, n_curves: int = 31, n_points: int =
     side_margin : float
         Fraction of the jawline's angular width the curves span.
     follow_lips : bool
-        Bend the curves around the mouth along the lips (see
+        Bend the curves along the lips, the nostrils' base and the eyes (see
         :data:`FEATURE_LINES`) and put a curve on each side of the mouth
-        line (:data:`OPENINGS`); False gives straight horizontal sections.
+        line and each lid (:data:`OPENINGS`); False gives straight
+        horizontal sections.
     """
     if n_curves < 4:
         raise LayoutError(f"need at least 4 curves, got {n_curves}")
@@ -280,23 +293,27 @@ def place_curves(landmarks_face: np.ndarray, n_curves: int = 31, n_points: int =
     gap = max(lid_top - lid_bottom, 0.25 * (brow - eye))
     chin, lip_lower, mouth = L[8, 1], L[57, 1], L[[62, 66], 1].mean()
     anchors = {
-        "forehead": brow + forehead * (brow - eye), "brow": brow, "eye_top": eye + 0.5 * gap,
-        "eye_bottom": eye - 0.5 * gap, "nose_tip": L[30, 1],
+        "forehead": brow + forehead * (brow - eye), "brow": brow, "lid_top": eye + 0.5 * OPENING_GAP,
+        "lid_bottom": eye - 0.5 * OPENING_GAP, "nose_tip": L[30, 1],
         "nose_bottom": L[33, 1], "lip_upper": L[51, 1], "mouth_top": mouth + 0.5 * OPENING_GAP,
         "mouth_bottom": mouth - 0.5 * OPENING_GAP, "lip_lower": lip_lower, "chin": chin + 0.08 * (lip_lower - chin),
     }
     ys = np.array(list(anchors.values()))
-    if not (np.diff(ys) < 0).all():
-        order = " > ".join(anchors)
-        raise LayoutError(f"landmark heights are not in face order ({order}); check the landmarks and their order")
+    # Density breakpoints: the anchors and the lids' heights, in SEGMENT_DENSITY's order.
+    levels = {**anchors, "eye_top": eye + 0.5 * gap, "eye_bottom": eye - 0.5 * gap}
+    order = list(dict.fromkeys(n for seg in SEGMENT_DENSITY for n in seg.split("-")))
+    yd = np.array([levels[n] for n in order])
+    if not (np.diff(yd) < 0).all():
+        raise LayoutError(f"landmark heights are not in face order ({' > '.join(order)}); "
+                          "check the landmarks and their order")
     density = np.array(list(SEGMENT_DENSITY.values()))
     # Curves at equal steps of the density-weighted height.
-    measure = np.concatenate([[0.0], np.cumsum(-np.diff(ys) * density)])
-    heights = np.interp(np.linspace(0, measure[-1], n_curves), measure, ys)
+    measure = np.concatenate([[0.0], np.cumsum(-np.diff(yd) * density)])
+    heights = np.interp(np.linspace(0, measure[-1], n_curves), measure, yd)
     names = list(anchors)
     openings = [names.index(top) for top, _ in OPENINGS] if follow_lips else []
     for a in openings:
-        _snap_to_opening(heights, ys, density, a)
+        _snap_to_opening(heights, ys, yd, measure, a)
     # Angular extent from the jawline (landmarks 0-8 right, 8-16 left).
     th, y, _ = cylinder_coords(L, axis_z)
     half = []
@@ -342,7 +359,7 @@ def _keep_apart(Y: np.ndarray, gaps: np.ndarray) -> np.ndarray:
     return out - c
 
 
-def _snap_to_opening(heights, ys, density, a):
+def _snap_to_opening(heights, ys, yd, measure, a):
     """Put curves on an opening's two anchors ``a``, ``a + 1``, in place.
 
     The curves between the anchors around it are spread again, by density,
@@ -356,7 +373,10 @@ def _snap_to_opening(heights, ys, density, a):
     if m < 2:
         return
     top, bottom = ys[a], ys[a + 1]
-    wu, wl = (heights[above] - top) * density[a - 1], (bottom - heights[below]) * density[a + 1]
+    M = lambda y: np.interp(-y, -yd, measure)  # noqa: E731
+    H = lambda q: np.interp(q, measure, yd)  # noqa: E731
+    wu, wl = M(top) - M(heights[above]), M(heights[below]) - M(bottom)
     cu = int(round((m - 2) * wu / (wu + wl)))
-    heights[above + 1:below] = np.concatenate([np.linspace(heights[above], top, cu + 2)[1:],
-                                               np.linspace(bottom, heights[below], m - cu)[:-1]])
+    cl = m - 2 - cu
+    heights[above + 1:below] = np.concatenate([H(np.linspace(M(heights[above]), M(top), cu + 2)[1:-1]), [top, bottom],
+                                               H(np.linspace(M(bottom), M(heights[below]), cl + 2)[1:-1])])

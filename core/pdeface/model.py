@@ -5,20 +5,24 @@ with ``allow_pickle=False``. Members:
 
 ``meta`` (uint8)
     UTF-8 JSON: ``format`` = ``"pdeface.face"``, ``version`` = 3, ``unit``,
-    ``n_modes``, ``a``, ``w``, ``assembly``, ``feature_names``, ``source``,
-    ``notice``.
+    ``n_modes``, ``a``, ``w``, ``assembly``, ``residual_step``,
+    ``coefficient_step``, ``feature_names``, ``source``, ``notice``.
 ``layout`` (float32)
     :meth:`pdeface.layout.CurveLayout.as_array`: axis z, points per curve,
     centre density, the K curve heights and the K half angles (face frame);
     from version 2, then the anchors and feature lines the curves bend
-    along around the mouth; from version 3, then the openings (the mouth's
-    pair of rim curves, whose interval the smooth assembly solves apart).
-    Version 1 (straight curves) and version 2 files (one sheet across the
-    mouth) still load and solve as they were saved.
+    along; from version 3, then the openings (the top anchors of the eyes'
+    and the mouth's pairs of rim curves, whose intervals the smooth assembly
+    solves apart). Version 1 (straight curves) and version 2 files (one
+    sheet across the openings) still load and solve as they were saved.
 ``knots`` (float32, K)
     Curve parameters ``u_i`` in [0, 1].
-``coefficients`` (float32, K × (N+1) × 3)
-    Cosine Fourier coefficients of each curve, face frame, mm.
+``coefficients`` (uint8, 4 × (N+1) × 3 × K)
+    Cosine Fourier coefficients of each curve, face frame, in steps of
+    ``coefficient_step`` mm (meta; 0.001), differenced once from curve to
+    curve, as the int32 codes' four byte planes
+    (:func:`pdeface.codec.encode_coefficients`): 40 % of the float32 size
+    deflated. Versions 1 and 2 hold float32 (K × (N+1) × 3).
 ``residual`` (uint8, 2 × 3 × J × K)
     Curve points minus their series in steps of ``residual_step`` mm (meta;
     0.01 unless a residual exceeds 80 mm), delta-coded twice along each curve
@@ -37,7 +41,7 @@ with ``allow_pickle=False``. Members:
     ``offsets[i]:offsets[i+1]``.
 ``status`` (uint8, K × J)
     How each curve point was found: 0 ray hit, 1 miss, 2 back-facing,
-    3 cavity (1-3 were filled from their neighbours).
+    3 cavity, 4 grazing (1-4 were filled from their neighbours).
 
 Readers refuse other formats and newer versions with a clear error.
 """
@@ -51,7 +55,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .codec import decode_residual, encode_residual, from_byte_planes, to_byte_planes
+from .codec import (decode_coefficients, decode_residual, encode_coefficients, encode_residual, from_byte_planes,
+                    to_byte_planes)
 from .errors import LayoutError, ModelFormatError
 from .frame import FEATURE_NAMES, UNITS_MM, FaceFrame
 from .layout import CurveLayout
@@ -137,15 +142,16 @@ def _member(z, name, path):
 def model_to_bytes(model: FaceModel, descriptors: bool = True) -> bytes:
     """The model file's bytes (with or without the descriptors it carries)."""
     q, step = encode_residual(model.residual, order=2)
+    cq, cstep = encode_coefficients(model.coefficients)
     meta = {"format": FORMAT, "version": VERSION, "unit": model.frame.unit, "n_modes": model.n_modes,
-            "residual_step": step,
+            "residual_step": step, "coefficient_step": cstep,
             "a": model.a, "w": model.w, "assembly": model.assembly, "feature_names": FEATURE_NAMES,
             "source": model.source, "notice": model.notice}
     arrays = {
         "meta": np.frombuffer(json.dumps(meta, separators=(",", ":")).encode(), dtype=np.uint8),
         "layout": model.layout.as_array().astype(np.float32),
         "knots": np.asarray(model.knots, np.float32),
-        "coefficients": np.asarray(model.coefficients, np.float32),
+        "coefficients": cq,
         "residual": to_byte_planes(q.transpose(0, 2, 1)),
         "frame": model.frame.matrix(),
         "features": np.asarray(model.features, np.float32),
@@ -206,7 +212,16 @@ def load_model(path, where=None) -> FaceModel:
             raise ModelFormatError(f"{path}: field 'unit' must be one of {', '.join(UNITS_MM)}")
         layout_arr = _member(z, "layout", path).astype(np.float64)
         knots = _member(z, "knots", path).astype(np.float64)
-        coef = _member(z, "coefficients", path).astype(np.float64)
+        coef = _member(z, "coefficients", path)
+        if coef.dtype == np.uint8:  # version 3: byte planes of µm codes
+            cstep = meta.get("coefficient_step")
+            if not isinstance(cstep, (int, float)) or not cstep > 0:
+                raise ModelFormatError(f"{path}: meta 'coefficient_step' must be a positive number")
+            if coef.ndim != 4 or coef.shape[0] != 4 or coef.shape[2] != 3:
+                raise ModelFormatError(f"{path}: field 'coefficients' must be uint8 (4, N+1, 3, K) byte planes")
+            coef = decode_coefficients(coef, cstep)
+        else:
+            coef = coef.astype(np.float64)
         res = _member(z, "residual", path)
         step = meta.get("residual_step")
         if not isinstance(step, (int, float)) or not step > 0:

@@ -1,11 +1,12 @@
-"""Where an opening's rims lie on the mesh: the curves on either side of the mouth.
+"""Where an opening's rims lie on the mesh: the curves on either side of the mouth and the eyes.
 
 The lips meet in a crease. Walking down the upper lip towards the slit, its
 skin turns away from the viewer and rolls into the mouth; the lower lip does
 the same walking up. A lip's *rim* is the last place its skin still faces the
-viewer (as :func:`pdeface.report.band_vertices` counts skin as visible). One
-curve runs along each rim, so every visible vertex of a lip lies on that lip's
-side of the pair, and the thin strip between the rims spans the slit.
+viewer (as :func:`pdeface.report.band_vertices` counts skin as visible), or
+where the skin ends (the lid margins, with the eyeball left out of the skin).
+One curve runs along each rim, so every visible vertex of a lip or lid lies on
+its own side of the pair, and the strip between the rims spans the opening.
 """
 from __future__ import annotations
 
@@ -14,7 +15,7 @@ import copy
 import numpy as np
 
 from .geometry import cast_cylinder_rays
-from .layout import OPENING_GAP, CurveLayout, FeatureLine
+from .layout import OPENING_GAP, OPENINGS, CurveLayout, FeatureLine
 
 #: Skin seen more obliquely than this (cosine between normal and ray, ~72°) faces away.
 FACING_MIN_COS = 0.3
@@ -27,12 +28,13 @@ RIM_JUMP_MM = 0.5
 def follow_rims(layout: CurveLayout, V_face: np.ndarray, T: np.ndarray) -> CurveLayout:
     """A copy of ``layout`` whose opening curves lie on the rims of ``V_face``.
 
-    At each point of an opening's top curve (within its line's ends) rays walk
-    down from halfway to the anchor above until the next ray would meet skin
-    facing away or another surface; the bottom rim likewise walking up. Where
-    the two rims meet (towards the mouth corners) they sit
-    :data:`pdeface.layout.OPENING_GAP` apart around their middle. The lines'
-    ends stay at the landmarks.
+    At each point of an opening's top curve within its spans (between the
+    mouth corners; between each eye's corners) rays walk down from halfway to
+    the anchor above until the next ray would meet skin facing away, no skin,
+    or another surface; the bottom rim likewise walking up. Where the two rims
+    meet (towards the corners) they sit :data:`pdeface.layout.OPENING_GAP`
+    apart around their middle. The lines' knots outside the spans (the
+    corners) stay at the landmarks.
 
     Parameters
     ----------
@@ -48,21 +50,23 @@ def follow_rims(layout: CurveLayout, V_face: np.ndarray, T: np.ndarray) -> Curve
     CurveLayout
     """
     out = copy.deepcopy(layout)
+    spans = dict(zip(layout.openings, OPENINGS.values()))
     for a, k in layout.opening_curves():
         top = next(i for i, ln in enumerate(out.lines) if ln.anchor == a)
         bottom = next(i for i, ln in enumerate(out.lines) if ln.anchor == a + 1)
-        line = out.lines[top]
-        th = layout.angles()[k]
-        th = th[(th > line.theta[0]) & (th < line.theta[-1])]
-        if not len(th):
-            continue
-        Y = layout.anchor_heights(th)
-        up, lo = _rims(V_face, T, layout.axis_z, th, Y[a - 1], Y[a], Y[a + 1], Y[a + 2])
-        lower = out.lines[bottom]
-        out.lines[top] = FeatureLine(a, np.r_[line.theta[0], th, line.theta[-1]],
-                                     np.r_[line.y[0], up, line.y[-1]], line.taper)
-        out.lines[bottom] = FeatureLine(a + 1, np.r_[lower.theta[0], th, lower.theta[-1]],
-                                        np.r_[lower.y[0], lo, lower.y[-1]], lower.taper)
+        line, lower = out.lines[top], out.lines[bottom]
+        keep = np.ones(len(line.theta), bool)  # the seed's knots outside the spans (ends included)
+        th_k, theta, up, lo = layout.angles()[k], [], [], []
+        for s0, s1 in spans[a]:
+            keep[s0 + 1:s1] = False
+            th = th_k[(th_k > line.theta[s0]) & (th_k < line.theta[s1])]
+            Y = layout.anchor_heights(th)
+            rims = _rims(V_face, T, layout.axis_z, th, Y[a - 1], Y[a], Y[a + 1], Y[a + 2])
+            theta.append(th), up.append(rims[0]), lo.append(rims[1])
+        t = np.concatenate([line.theta[keep], *theta])
+        o = np.argsort(t)
+        out.lines[top] = FeatureLine(a, t[o], np.concatenate([line.y[keep], *up])[o], line.taper)
+        out.lines[bottom] = FeatureLine(a + 1, t[o], np.concatenate([lower.y[keep], *lo])[o], lower.taper)
     return out
 
 

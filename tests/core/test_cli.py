@@ -56,8 +56,8 @@ def test_straight_curves_as_the_original_method(tmp_path, capsys, scan_files):
                      "--straight", "-o", tmp_path / "s.npz")
     assert code == 0
     straight, bent = load_model(tmp_path / "s.npz"), load_face("default")
-    assert not straight.layout.lines and len(bent.layout.lines) == 4
-    assert not straight.layout.breaks() and len(bent.layout.breaks()) == 1
+    assert not straight.layout.lines and len(bent.layout.lines) == 7
+    assert not straight.layout.breaks() and len(bent.layout.breaks()) == 2
     # hit points lie on their curve's height: flat rows when straight
     P, hit = straight.curve_points(), straight.status == 0
     np.testing.assert_allclose(P[..., 1][hit], np.broadcast_to(straight.layout.heights[:, None], hit.shape)[hit],

@@ -31,24 +31,35 @@ def test_layout_from_landmarks(face_space):
     np.testing.assert_allclose(back.angles(), lay.angles())
 
 
+def _opening(lay, name):
+    """(a, k, line) of the opening whose top anchor line starts from landmark group ``name``."""
+    from pdeface.layout import FEATURE_LINES
+
+    a = list(FEATURE_LINES).index(name)  # lines are made in FEATURE_LINES' order
+    line = lay.lines[a]
+    return next((aa, k) for aa, k in lay.opening_curves() if aa == line.anchor) + (line,)
+
+
 def test_curves_follow_the_lips(face_space):
-    """A curve on each side of the mouth line; every other curve keeps clear of it."""
+    """A curve on each side of the mouth line and of the eye line; every other curve keeps clear of
+    the mouth line."""
     from pdeface.geometry import cylinder_coords
     from pdeface.layout import OPENING_GAP
 
     _, _, Lf = face_space
     lay = place_curves(Lf)
-    mouth = Lf[[62, 66], 1].mean()
+    mouth, eye = Lf[[62, 66], 1].mean(), Lf[36:48, 1].mean()
+    g = 0.5 * OPENING_GAP
     assert [lay.anchors[ln.anchor] for ln in lay.lines] == [
-        Lf[51, 1], mouth + 0.5 * OPENING_GAP, mouth - 0.5 * OPENING_GAP, Lf[57, 1]]
-    (a, k), = lay.opening_curves()
-    assert lay.openings == [a] and lay.breaks() == (k,)
-    assert lay.heights[k] == lay.anchors[a] and lay.heights[k + 1] == lay.anchors[a + 1]
+        eye + g, eye - g, Lf[33, 1], Lf[51, 1], mouth + g, mouth - g, Lf[57, 1]]
+    assert len(lay.openings) == 2 and len(lay.breaks()) == 2
+    for a, k in lay.opening_curves():
+        assert lay.heights[k] == lay.anchors[a] and lay.heights[k + 1] == lay.anchors[a + 1]
+    a, k, line = _opening(lay, "mouth_top")
     th, H = lay.angles(), lay.ray_heights()
     corners = cylinder_coords(Lf[[60, 64]], lay.axis_z)[0]
-    line = lay.lines[1]
     inner = (th > corners.min()) & (th < corners.max())
-    gap = np.abs(H - line.pull(th.ravel(), 0.0).reshape(th.shape) + 0.5 * OPENING_GAP)
+    gap = np.abs(H - line.pull(th.ravel(), 0.0).reshape(th.shape) + g)
     others = np.ones(lay.n_curves, bool)
     others[[k, k + 1]] = False
     assert gap[others][inner[others]].min() > 0.3
@@ -69,19 +80,24 @@ def test_curves_follow_the_lips(face_space):
         CurveLayout.from_array(lay.as_array()[:20], lay.n_curves)
 
 
-def test_mouth_curves_lie_on_the_lip_rims(face_space):
-    """Fitted to the mesh, the pair runs along the lips' rims: each ray still meets its own lip facing
-    the viewer, and a step past it towards the slit leaves that lip's outward skin."""
-    from pdeface.geometry import cast_cylinder_rays
+@pytest.mark.parametrize("opening", ["mouth_top", "lid_top"])
+def test_opening_curves_lie_on_the_rims(face_space, opening):
+    """Fitted to the mesh, each pair runs along the rims of its lips or lids: each ray still meets its
+    own lip or lid facing the viewer, and a step past it towards the opening leaves that skin."""
+    from pdeface.geometry import cast_cylinder_rays, cylinder_coords
     from pdeface.rims import FACING_MIN_COS, RIM_JUMP_MM, RIM_STEP_MM, follow_rims
 
     V, T, Lf = face_space
     seed = place_curves(Lf)
     lay = follow_rims(seed, V, T)
-    (a, k), = lay.opening_curves()
+    _, k, _ = _opening(lay, opening)
     th, H = lay.angles()[k], lay.ray_heights()
-    middle = np.abs(th) < 0.5 * lay.lines[1].theta[-1]  # well inside the mouth corners
-    assert middle.sum() >= 5
+    # well inside the corners: the middle half of the mouth, or of each eye
+    corners = cylinder_coords(Lf[[48, 54] if opening == "mouth_top" else [36, 39, 42, 45]], lay.axis_z)[0]
+    middle = np.zeros(len(th), bool)
+    for lo, hi in zip(corners[0::2], corners[1::2]):
+        middle |= np.abs(th - 0.5 * (lo + hi)) < 0.25 * abs(hi - lo)
+    assert middle.sum() >= 2
     for row, step in ((k, -RIM_STEP_MM), (k + 1, RIM_STEP_MM)):
         ys = H[row, middle]
         r0, _, _, f0 = cast_cylinder_rays(V, T, lay.axis_z, th[middle], ys)
@@ -89,8 +105,8 @@ def test_mouth_curves_lie_on_the_lip_rims(face_space):
         assert (f0 >= FACING_MIN_COS).all()
         past = ~np.isfinite(r1) | (f1 < FACING_MIN_COS) | (np.abs(r1 - r0) > RIM_JUMP_MM)
         assert past.all()
-    assert (H[k, middle] - H[k + 1, middle]).min() > 0.3  # the slit between the rims is open
-    np.testing.assert_array_equal(lay.heights, seed.heights)  # only the pair's lines moved
+    assert (H[k, middle] - H[k + 1, middle]).min() > 0.3  # the opening between the rims is open
+    np.testing.assert_array_equal(lay.heights, seed.heights)  # only the pairs' lines moved
 
 
 def test_layout_count_is_configurable_and_checked(face_space):
