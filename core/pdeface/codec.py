@@ -36,20 +36,24 @@ def decode_residual(codes: np.ndarray, step: float, order: int = 1) -> np.ndarra
     return np.moveaxis(q * float(step), 0, -1)
 
 
-def to_byte_planes(codes: np.ndarray) -> np.ndarray:
-    """int16 codes → uint8 (2, ...) high and low byte planes.
+def to_byte_planes(codes: np.ndarray, nbytes: int = 2) -> np.ndarray:
+    """Signed integer codes (int16, or int32 with ``nbytes=4``) → uint8 (nbytes, ...) byte planes, high first.
 
     Small codes have high bytes of 0 or 255 only; kept apart from the low
     bytes, they deflate to almost nothing.
     """
-    c = np.asarray(codes, np.int16).astype(np.int32) & 0xFFFF
-    return np.stack([c >> 8, c & 0xFF]).astype(np.uint8)
+    c = np.asarray(codes).astype(np.int64) & ((1 << 8 * nbytes) - 1)
+    return np.stack([(c >> 8 * b) & 0xFF for b in range(nbytes - 1, -1, -1)]).astype(np.uint8)
 
 
 def from_byte_planes(planes: np.ndarray) -> np.ndarray:
-    """Inverse of :func:`to_byte_planes`."""
-    p = np.asarray(planes, np.uint16)
-    return ((p[0] << 8) | p[1]).astype(np.uint16).view(np.int16)
+    """Inverse of :func:`to_byte_planes`: int16 for 2 planes, int32 for 4."""
+    p = np.asarray(planes, np.int64)
+    nbytes = len(p)
+    u = np.zeros(p.shape[1:], np.int64)
+    for plane in p:
+        u = (u << 8) | plane
+    return u.astype({2: np.uint16, 4: np.uint32}[nbytes]).view({2: np.int16, 4: np.int32}[nbytes])
 
 
 #: Default quantisation step (mm) of a face model's Fourier coefficients.
@@ -68,12 +72,10 @@ def encode_coefficients(coefficients: np.ndarray, step: float = COEFFICIENT_STEP
     step = max(step, float(np.abs(c).max(initial=0.0)) * 2 / 2 ** 30)
     q = np.round(c / step).astype(np.int64)
     q[..., 1:] = np.diff(q, axis=-1)
-    u = q.astype(np.int32).view(np.uint32)
-    return np.stack([(u >> s) & 0xFF for s in (24, 16, 8, 0)]).astype(np.uint8), step
+    return to_byte_planes(q, 4), step
 
 
 def decode_coefficients(planes: np.ndarray, step: float) -> np.ndarray:
     """Inverse of :func:`encode_coefficients`: → (K, N+1, 3) float."""
-    p = np.asarray(planes, np.uint32)
-    q = ((p[0] << 24) | (p[1] << 16) | (p[2] << 8) | p[3]).view(np.int32).astype(np.int64)
+    q = from_byte_planes(planes).astype(np.int64)
     return (np.cumsum(q, axis=-1) * float(step)).transpose(2, 0, 1)

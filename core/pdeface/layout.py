@@ -25,7 +25,7 @@ import numpy as np
 from .errors import LayoutError
 from .frame import eye_distance
 from .geometry import cylinder_coords
-from .pde import cubic_spline_operator
+from .pde import break_fits, cubic_spline_operator
 
 #: Relative curve density between successive heights, top to bottom: denser at
 #: brows, eyes, nose and lips, as the method's curves are. ``eye_top`` and
@@ -147,7 +147,7 @@ class CurveLayout:
         out = []
         for a in self.openings:
             k = np.nonzero(np.abs(self.heights - self.anchors[a]) < 1e-4)[0]
-            if (len(k) and 3 <= k[0] <= self.n_curves - 5
+            if (len(k) and break_fits(self.n_curves, k[0])
                     and abs(self.heights[k[0] + 1] - self.anchors[a + 1]) < 1e-4):
                 out.append((int(a), int(k[0])))
         return out
@@ -340,7 +340,7 @@ def place_curves(landmarks_face: np.ndarray, n_curves: int = 31, n_points: int =
 def _keep_apart(Y: np.ndarray, gaps: np.ndarray) -> np.ndarray:
     """Heights nearest ``Y`` (A, q) (least squares, per column) whose rows stay ``gaps`` (A-1,) apart.
 
-    Bent anchors never cross. Where lines converge (the mouth corners) several
+    Bent anchors never cross. Where lines converge (mouth and eye corners) several
     may crowd at once, so this is the exact projection: with ``Z = Y + Σ gaps``
     it must not increase down the rows, which is isotonic regression,
     ``Z'_a = min_{i≤a} max_{j≥a} mean(Z_i..Z_j)``. Uncrowded anchors stay put,
@@ -348,15 +348,17 @@ def _keep_apart(Y: np.ndarray, gaps: np.ndarray) -> np.ndarray:
     """
     c = np.concatenate([[0.0], np.cumsum(gaps)])[:, None]
     Z = Y + c
-    if (np.diff(Z, axis=0) <= 0).all():
+    crowded = (np.diff(Z, axis=0) > 0).any(axis=0)  # only these columns move
+    if not crowded.any():
         return Y
-    A = len(Z)
-    S = np.vstack([np.zeros((1, Z.shape[1])), np.cumsum(Z, axis=0)])
+    Zc, A = Z[:, crowded], len(Z)
+    S = np.vstack([np.zeros((1, Zc.shape[1])), np.cumsum(Zc, axis=0)])
     i, j = np.triu_indices(A)
-    mean = np.empty((A, A, Z.shape[1]))
+    mean = np.empty((A, A, Zc.shape[1]))
     mean[i, j] = (S[j + 1] - S[i]) / (j - i + 1)[:, None]
-    out = np.stack([mean[:a + 1, a:].max(axis=1).min(axis=0) for a in range(A)])
-    return out - c
+    out = Y.copy()
+    out[:, crowded] = np.stack([mean[:a + 1, a:].max(axis=1).min(axis=0) for a in range(A)]) - c
+    return out
 
 
 def _snap_to_opening(heights, ys, yd, measure, a):

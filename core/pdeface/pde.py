@@ -17,10 +17,10 @@ Two assemblies:
 ``smooth`` (default)
     One piecewise solution through all curves, C2 at every curve (so no
     creases), not-a-knot at the ends. A layout may name *breaks*: curve
-    intervals that span an opening (the mouth slit between the lips). The
-    surface stays C1 there, but the pieces above and below are solved
-    apart (not-a-knot at their ends), so one lip's motion never rings into
-    the other's.
+    intervals that span an opening (between the lids, between the lips).
+    The surface stays C1 there, but the runs of curves above and below are
+    solved apart (not-a-knot at their ends), so one lip's or lid's motion
+    never rings into the other's.
 ``patches``
     The original method: patches of four consecutive curves (1–4, 4–7, …),
     each one closed-form solution through its four positional curves, C0
@@ -146,11 +146,20 @@ def _check(knots, assembly):
         raise LayoutError(f"the patches assembly needs 3m+1 curves (4, 7, ..., 31), got {len(knots)}")
 
 
+#: Curve intervals each run between breaks needs (its two not-a-knot conditions must differ).
+MIN_RUN = 3
+
+
+def break_fits(K: int, b: int) -> bool:
+    """Whether interval ``b`` of K curves can be a break: :data:`MIN_RUN` intervals on either side."""
+    return MIN_RUN <= b <= K - 2 - MIN_RUN
+
+
 def _check_breaks(K: int, breaks: tuple):
     b = np.asarray(breaks, dtype=np.int64)
-    if len(b) and (np.any(b < 3) or np.any(b > K - 5) or np.any(np.diff(b) < 4)):
-        raise LayoutError(f"breaks {tuple(breaks)} must leave at least 3 curve intervals on each side of each "
-                          f"break ({K} curves)")
+    if len(b) and (not all(break_fits(K, x) for x in b) or np.any(np.diff(b) < MIN_RUN + 1)):
+        raise LayoutError(f"breaks {tuple(breaks)} must leave at least {MIN_RUN} curve intervals on each side of "
+                          f"each break ({K} curves)")
 
 
 @lru_cache(maxsize=512)

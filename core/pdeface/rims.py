@@ -14,6 +14,7 @@ import copy
 
 import numpy as np
 
+from .errors import LayoutError
 from .geometry import cast_cylinder_rays
 from .layout import OPENING_GAP, OPENINGS, CurveLayout, FeatureLine
 
@@ -48,8 +49,16 @@ def follow_rims(layout: CurveLayout, V_face: np.ndarray, T: np.ndarray) -> Curve
     Returns
     -------
     CurveLayout
+
+    Raises
+    ------
+    LayoutError
+        When the layout's openings are not those of :data:`pdeface.layout.OPENINGS`.
     """
     out = copy.deepcopy(layout)
+    if layout.openings and len(layout.openings) != len(OPENINGS):
+        raise LayoutError(f"layout has {len(layout.openings)} openings; rims are found for the {len(OPENINGS)} "
+                          "of pdeface.layout.OPENINGS (a layout from place_curves)")
     spans = dict(zip(layout.openings, OPENINGS.values()))
     for a, k in layout.opening_curves():
         top = next(i for i, ln in enumerate(out.lines) if ln.anchor == a)

@@ -109,6 +109,33 @@ def test_opening_curves_lie_on_the_rims(face_space, opening):
     np.testing.assert_array_equal(lay.heights, seed.heights)  # only the pairs' lines moved
 
 
+def test_crowded_anchors_are_kept_apart():
+    """Where lines converge, heights move the least (least squares) that keeps every gap; others stay."""
+    from pdeface.layout import _keep_apart
+
+    gaps = np.array([1.0, 0.1, 1.0])
+    Y = np.array([[10.0, 5.0], [5.0, 5.2], [4.0, 5.1], [0.0, 5.0]])  # column 1: all four crowd
+    out = _keep_apart(Y, gaps)
+    np.testing.assert_array_equal(out[:, 0], Y[:, 0])
+    assert (-np.diff(out[:, 1]) >= gaps - 1e-12).all()
+    assert out[:, 1].mean() == pytest.approx(Y[:, 1].mean())  # pooled around the middle
+    # no other order-keeping heights lie closer
+    from itertools import product
+    best = min(np.sum((np.array(z) - Y[:, 1]) ** 2) for z in product(*[np.linspace(v - 1.2, v + 1.2, 25) for v in Y[:, 1]])
+               if (-np.diff(z) >= gaps - 1e-9).all())
+    assert np.sum((out[:, 1] - Y[:, 1]) ** 2) <= best + 1e-9
+
+
+def test_rims_need_a_layout_from_place_curves(face_space):
+    from pdeface.rims import follow_rims
+
+    V, T, Lf = face_space
+    lay = place_curves(Lf)
+    lay.openings = lay.openings[:1]
+    with pytest.raises(LayoutError, match="openings"):
+        follow_rims(lay, V, T)
+
+
 def test_layout_count_is_configurable_and_checked(face_space):
     _, _, Lf = face_space
     assert place_curves(Lf, 19, 21).angles().shape == (19, 21)

@@ -121,3 +121,20 @@ def test_version_2_files_still_load_as_one_sheet(tmp_path, fitted):
     one_sheet = surface_grid(back, 2, 2)
     assert np.abs(one_sheet - surface_grid(now, 2, 2)).max() > 0.01  # the break changes the mouth
     np.testing.assert_allclose(one_sheet[::2, ::2], surface_grid(now, 2, 2)[::2, ::2], atol=0.005)  # same curves
+
+
+def test_byte_planes_and_coefficient_codes_round_trip(rng):
+    from pdeface.codec import (decode_coefficients, encode_coefficients, from_byte_planes,
+                               to_byte_planes)
+
+    c16 = rng.integers(-2 ** 15, 2 ** 15, (3, 5, 7)).astype(np.int16)
+    c32 = rng.integers(-2 ** 31, 2 ** 31, (3, 5, 7)).astype(np.int32)
+    assert to_byte_planes(c16).shape == (2, 3, 5, 7) and (from_byte_planes(to_byte_planes(c16)) == c16).all()
+    assert to_byte_planes(c32, 4).shape == (4, 3, 5, 7) and (from_byte_planes(to_byte_planes(c32, 4)) == c32).all()
+    coef = rng.normal(0, 60, (31, 6, 3))
+    planes, step = encode_coefficients(coef)
+    assert planes.shape == (4, 6, 3, 31) and step == 0.001
+    assert np.abs(decode_coefficients(planes, step) - coef).max() <= 0.0005 + 1e-9
+    coef[3, 1, 2] = 1e7  # too large for 1 µm codes: the step grows, nothing wraps
+    planes, step = encode_coefficients(coef)
+    assert step > 0.001 and np.abs(decode_coefficients(planes, step) - coef).max() <= step / 2 + 1e-9
