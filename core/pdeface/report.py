@@ -3,7 +3,8 @@
 Measured on the scan's *visible* face vertices inside the curve band: a vertex
 is visible when the layout's ray through it meets the scan there first (not
 hidden in a nostril, a lid fold or the mouth corner). Hidden ones are reported
-separately. All figures are in millimetres and degrees.
+separately. Normals are compared over the visible skin's area, triangle by
+triangle. All figures are in millimetres and degrees.
 """
 from __future__ import annotations
 
@@ -22,6 +23,10 @@ from .rims import FACING_MIN_COS
 REPORT_RESOLUTION = (6, 6)
 #: A vertex more than this (mm) behind the first surface its ray meets is hidden.
 VISIBILITY_TOLERANCE_MM = 0.5
+#: A vertex lower than the skin on both sides of it, this far (mm) off in angle or
+#: height, by more than ``PIT_DEPTH_MM`` is seen down a hole (a flared nostril).
+PIT_REACH_MM = (1.0, 2.0, 4.0)
+PIT_DEPTH_MM = 4.0
 
 
 def band_vertices(model: FaceModel, V_face: np.ndarray, T: np.ndarray) -> dict:
@@ -31,8 +36,10 @@ def band_vertices(model: FaceModel, V_face: np.ndarray, T: np.ndarray) -> dict:
     first, the skin faces the ray within ~72°, and the vertex is not sunk in
     an opening (a grid cell with a filled corner, over 2 mm below that cell's
     ray hits, as nostril and mouth-corner interiors seen straight through their
-    openings are). ``occluded``: hidden behind other skin or sunk in an
-    opening. ``oblique``: otherwise visible but seen at a grazing angle.
+    openings are), nor at the bottom of a pit (see :data:`PIT_DEPTH_MM`: a
+    nostril flared so wide that no curve's ray went in). ``occluded``: hidden
+    behind other skin or sunk in an opening. ``oblique``: otherwise visible
+    but seen at a grazing angle.
 
     Returns
     -------
@@ -46,12 +53,26 @@ def band_vertices(model: FaceModel, V_face: np.ndarray, T: np.ndarray) -> dict:
     idx = np.nonzero(inside)[0]
     rad, _, _, _ = cast_cylinder_rays(V_face, T, lay.axis_z, th[idx], y[idx])
     first[idx] = np.isfinite(rad) & (rad - r[idx] <= VISIBILITY_TOLERANCE_MM)
+    idx = np.nonzero(first)[0]
+    first[idx] = ~_in_pit(V_face, T, lay.axis_z, th[idx], y[idx], r[idx])
     if model.status is not None and (model.status != 0).any():
         first &= ~_in_opening(model, th, y, r)
     n = vertex_normals(V_face, T)
     facing = n[:, 0] * np.sin(th) + n[:, 2] * np.cos(th) >= FACING_MIN_COS
     return {"inside": inside, "visible": inside & first & facing,
             "occluded": inside & ~first, "oblique": inside & first & ~facing}
+
+
+def _in_pit(V_face, T, axis_z, th, y, r):
+    """Which points (angle, height, radius) lie ``PIT_DEPTH_MM`` below the skin
+    on both sides of them, across or along the curves."""
+    pit = np.zeros(len(th), bool)
+    for reach in PIT_REACH_MM:
+        dth = reach / r
+        rays = [(th - dth, y), (th + dth, y), (th, y - reach), (th, y + reach)]
+        R = [np.nan_to_num(cast_cylinder_rays(V_face, T, axis_z, t, h)[0], nan=-np.inf) for t, h in rays]
+        pit |= (r + PIT_DEPTH_MM < np.minimum(R[0], R[1])) | (r + PIT_DEPTH_MM < np.minimum(R[2], R[3]))
+    return pit
 
 
 def _in_opening(model, th, y, r, depth=2.0):
@@ -103,6 +124,27 @@ def seam_jump_deg(model: FaceModel, assembly=None, sub_v=4) -> float:
     return float(np.degrees(np.arccos(cosang)).max()) if cosang.size else 0.0
 
 
+def _normal_deviation(cp, points, normals, npde, Tp):
+    """Angles (deg) between ``normals`` and the PDE normal at the surface point nearest each point."""
+    _, tri, bary, _ = cp.query(points)
+    n_at = np.einsum("pk,pkc->pc", bary, npde[Tp[tri]])
+    n_at /= np.maximum(np.linalg.norm(n_at, axis=1, keepdims=True), 1e-300)
+    cos = np.einsum("pc,pc->p", n_at, normals)
+    # The grid's orientation is fixed by the layout, so align it with the scan's once.
+    if np.median(cos) < 0:
+        cos = -cos
+    return np.degrees(np.arccos(np.clip(cos, -1, 1)))
+
+
+def weighted_percentile(x, weights, q) -> float:
+    """The ``q``-th percentile of ``x`` where each value counts with its weight (e.g. skin area)."""
+    if len(x) == 0:
+        return float("nan")
+    o = np.argsort(x)
+    cw = np.cumsum(np.asarray(weights, np.float64)[o])
+    return float(np.asarray(x)[o][min(np.searchsorted(cw, q / 100.0 * cw[-1]), len(o) - 1)])
+
+
 def _profiles(model, Vf, T, Vp, Tp, n=60):
     """Three cut sections through scan and PDE surface (the method's validation)."""
     lay = model.layout
@@ -143,8 +185,11 @@ def accuracy_report(model: FaceModel, scan_vertices, scan_triangles, assembly=No
     Returns
     -------
     dict
-        ``mean_mm``, ``p95_mm``, ``max_mm``, ``normal_p95_deg`` over the
-        visible band vertices (``n_visible``); ``n_occluded``,
+        ``mean_mm``, ``p95_mm``, ``max_mm`` over the visible band vertices
+        (``n_visible``); ``normal_p95_deg``, the 95th percentile by skin area
+        of the angle between each visible scan triangle's normal and the PDE
+        normal nearest its centre, and ``normal_p95_vertex_deg``, the same
+        from vertex normals counted per vertex; ``n_occluded``,
         ``occluded_mean_mm``, ``occluded_max_mm`` and the same for
         ``oblique`` (see :func:`band_vertices`); ``seam_max_deg``;
         ``assembly``.
@@ -161,25 +206,27 @@ def accuracy_report(model: FaceModel, scan_vertices, scan_triangles, assembly=No
     cls = band_vertices(model, Vf, T)
     visible = cls["visible"]
     cp = ClosestPoint(Vp, Tp)
-    d, tri, bary, _ = cp.query(Vf[visible])
+    d = cp.query(Vf[visible])[0]
     others = {k: cp.query(Vf[cls[k]])[0] if cls[k].any() else np.zeros(0) for k in ("occluded", "oblique")}
-    # Normal deviation: scan vertex normals against the PDE's interpolated normals.
+    # Normal deviation over the skin's area: each visible scan triangle's own normal (a
+    # vertex normal averages across creases) against the PDE normal nearest its centre.
     Xu = surface_grid(model, su, sv, assembly, deriv=(1, 0)).reshape(-1, 3)
     Xv = surface_grid(model, su, sv, assembly, deriv=(0, 1)).reshape(-1, 3)
     npde = np.cross(Xu, Xv)
     npde /= np.maximum(np.linalg.norm(npde, axis=1, keepdims=True), 1e-300)
-    n_at = np.einsum("pk,pkc->pc", bary, npde[Tp[tri]])
-    n_at /= np.maximum(np.linalg.norm(n_at, axis=1, keepdims=True), 1e-300)
-    nscan = vertex_normals(Vf, T)[visible]
-    # The grid's orientation is fixed by the layout, so align it with the scan's once.
-    if np.median(np.einsum("pc,pc->p", n_at, nscan)) < 0:
-        n_at = -n_at
-    ang = np.degrees(np.arccos(np.clip(np.einsum("pc,pc->p", n_at, nscan), -1, 1)))
+    Ts = T[visible[T].all(axis=1)]
+    P = Vf[Ts]
+    nscan = np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
+    area = 0.5 * np.linalg.norm(nscan, axis=1)
+    nscan /= np.maximum(2 * area, 1e-300)[:, None]
+    ang = _normal_deviation(cp, P.mean(axis=1), nscan, npde, Tp)
+    ang_vertex = _normal_deviation(cp, Vf[visible], vertex_normals(Vf, T)[visible], npde, Tp)
     result = {
         "assembly": assembly,
         "mean_mm": float(d.mean()), "p95_mm": float(np.percentile(d, 95)), "max_mm": float(d.max()),
         "n_visible": int(visible.sum()),
-        "normal_p95_deg": float(np.percentile(ang, 95)),
+        "normal_p95_deg": weighted_percentile(ang, area, 95),
+        "normal_p95_vertex_deg": float(np.percentile(ang_vertex, 95)),
         "seam_max_deg": seam_jump_deg(model, assembly),
     }
     for k, dk in others.items():

@@ -14,6 +14,8 @@ def test_fit_is_accurate_on_the_ict_scan(scan, fitted):
     # issue #2 targets for the ICT neutral, smooth assembly (see scripts/bench_fit.py)
     assert r["mean_mm"] <= 0.15 and r["p95_mm"] <= 0.6 and r["max_mm"] <= 3.0
     assert r["seam_max_deg"] <= 0.01
+    # Skin normals: by area 10.9° (target 8°, still missed); per vertex the eye and nostril rings dominate.
+    assert r["normal_p95_deg"] < 12.0 < r["normal_p95_vertex_deg"]
     assert r["n_visible"] > 4000 and r["n_occluded"] > 0
     p = accuracy_report(model, mesh.vertices, T, "patches")
     assert p["seam_max_deg"] > 1.0  # the original patches crease where they meet
