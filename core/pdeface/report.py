@@ -66,13 +66,15 @@ def band_vertices(model: FaceModel, V_face: np.ndarray, T: np.ndarray) -> dict:
 def _in_pit(V_face, T, axis_z, th, y, r):
     """Which points (angle, height, radius) lie ``PIT_DEPTH_MM`` below the skin
     on both sides of them, across or along the curves."""
-    pit = np.zeros(len(th), bool)
-    for reach in PIT_REACH_MM:
-        dth = reach / r
-        rays = [(th - dth, y), (th + dth, y), (th, y - reach), (th, y + reach)]
-        R = [np.nan_to_num(cast_cylinder_rays(V_face, T, axis_z, t, h)[0], nan=-np.inf) for t, h in rays]
-        pit |= (r + PIT_DEPTH_MM < np.minimum(R[0], R[1])) | (r + PIT_DEPTH_MM < np.minimum(R[2], R[3]))
-    return pit
+    n = len(th)
+    # Every probe in one cast: (reach, side) blocks of n rays each.
+    dth = np.concatenate([[-d / r, d / r, 0 * r, 0 * r] for d in PIT_REACH_MM]).ravel()
+    dy = np.concatenate([[0 * r, 0 * r, np.full(n, -d), np.full(n, d)] for d in PIT_REACH_MM]).ravel()
+    k = len(dth) // n
+    rad = cast_cylinder_rays(V_face, T, axis_z, np.tile(th, k) + dth, np.tile(y, k) + dy)[0]
+    R = np.nan_to_num(rad, nan=-np.inf).reshape(len(PIT_REACH_MM), 4, n)
+    floor = np.maximum(np.minimum(R[:, 0], R[:, 1]), np.minimum(R[:, 2], R[:, 3])).max(axis=0)
+    return r + PIT_DEPTH_MM < floor
 
 
 def _in_opening(model, th, y, r, depth=2.0):
@@ -124,9 +126,10 @@ def seam_jump_deg(model: FaceModel, assembly=None, sub_v=4) -> float:
     return float(np.degrees(np.arccos(cosang)).max()) if cosang.size else 0.0
 
 
-def _normal_deviation(cp, points, normals, npde, Tp):
-    """Angles (deg) between ``normals`` and the PDE normal at the surface point nearest each point."""
-    _, tri, bary, _ = cp.query(points)
+def _normal_deviation(nearest, normals, npde, Tp):
+    """Angles (deg) between ``normals`` and the PDE normal at the nearest surface points
+    (a :meth:`ClosestPoint.query` result)."""
+    _, tri, bary, _ = nearest
     n_at = np.einsum("pk,pkc->pc", bary, npde[Tp[tri]])
     n_at /= np.maximum(np.linalg.norm(n_at, axis=1, keepdims=True), 1e-300)
     cos = np.einsum("pc,pc->p", n_at, normals)
@@ -206,7 +209,8 @@ def accuracy_report(model: FaceModel, scan_vertices, scan_triangles, assembly=No
     cls = band_vertices(model, Vf, T)
     visible = cls["visible"]
     cp = ClosestPoint(Vp, Tp)
-    d = cp.query(Vf[visible])[0]
+    nearest = cp.query(Vf[visible])
+    d = nearest[0]
     others = {k: cp.query(Vf[cls[k]])[0] if cls[k].any() else np.zeros(0) for k in ("occluded", "oblique")}
     # Normal deviation over the skin's area: each visible scan triangle's own normal (a
     # vertex normal averages across creases) against the PDE normal nearest its centre.
@@ -219,8 +223,8 @@ def accuracy_report(model: FaceModel, scan_vertices, scan_triangles, assembly=No
     nscan = np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
     area = 0.5 * np.linalg.norm(nscan, axis=1)
     nscan /= np.maximum(2 * area, 1e-300)[:, None]
-    ang = _normal_deviation(cp, P.mean(axis=1), nscan, npde, Tp)
-    ang_vertex = _normal_deviation(cp, Vf[visible], vertex_normals(Vf, T)[visible], npde, Tp)
+    ang = _normal_deviation(cp.query(P.mean(axis=1)), nscan, npde, Tp)
+    ang_vertex = _normal_deviation(nearest, vertex_normals(Vf, T)[visible], npde, Tp)
     result = {
         "assembly": assembly,
         "mean_mm": float(d.mean()), "p95_mm": float(np.percentile(d, 95)), "max_mm": float(d.max()),
