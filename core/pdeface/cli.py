@@ -368,6 +368,8 @@ def cmd_au_report(args):
 
 
 def build_parser():
+    from .layout import DEFAULT_CURVES
+
     ap = argparse.ArgumentParser(prog="pdeface", description="PDE face models and FACS Action Units.")
     sub = ap.add_subparsers(dest="command", required=True)
 
@@ -375,7 +377,8 @@ def build_parser():
     p.add_argument("mesh", help="neutral face mesh (.obj/.ply) or 'default'")
     p.add_argument("--landmarks", help="JSON with 68 'indices' or 'points' (Multi-PIE order)")
     p.add_argument("--unit", choices=["mm", "cm", "m", "in"], help="mesh unit (default: guessed from the eyes)")
-    p.add_argument("--curves", type=int, default=31)
+    p.add_argument("--curves", type=int, default=DEFAULT_CURVES,
+                   help=f"boundary curves (default {DEFAULT_CURVES}; 31 is the method's 10 patches of 4)")
     p.add_argument("--points", type=int, default=37)
     p.add_argument("--modes", type=int, default=5)
     p.add_argument("--a", type=float, default=1.0, help="PDE smoothing parameter")

@@ -13,7 +13,7 @@ JSON (``.json``, for people)::
     {"format": "pdeface.descriptor", "version": 1, "au": 12, "side": "both",
      "name": "Lip Corner Puller", "source": "...", "notice": "...",
      "unit": "mm", "frame": "face",
-     "layout": {"curves": 31, "points": 37, "modes": 5},
+     "layout": {"curves": 34, "points": 37, "modes": 5},
      "curves": [14, 15, ...],                       # affected curve indices (0 = top)
      "coefficients": [[[dx, dy, dz] × (modes+1)] × len(curves)],
      "residual": [[[dx, dy, dz] × points] × len(curves)] or null}

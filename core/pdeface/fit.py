@@ -11,7 +11,7 @@ import numpy as np
 from .errors import MeshError
 from .fourier import fit_fourier
 from .frame import face_frame, feature_points
-from .layout import place_curves
+from .layout import DEFAULT_CURVES, place_curves
 from .mesh import Mesh
 from .model import FaceModel
 from .pde import output_grid, solve_surface
@@ -56,7 +56,7 @@ def chord_knots(points: np.ndarray) -> np.ndarray:
     return u / u[-1]
 
 
-def fit_face(vertices, triangles, landmarks, unit=None, n_curves=31, n_points=37, n_modes=5,
+def fit_face(vertices, triangles, landmarks, unit=None, n_curves=DEFAULT_CURVES, n_points=37, n_modes=5,
              a=1.0, assembly="smooth", source="", follow_lips=True):
     """Fit a PDE face model to a neutral face mesh.
 

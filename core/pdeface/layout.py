@@ -27,17 +27,24 @@ from .frame import eye_distance
 from .geometry import cylinder_coords
 from .pde import break_fits, cubic_spline_operator
 
+#: Curves in the default layout. The method used 31 (10 patches of 4); 34 (11
+#: patches of 4) is the fewest that keep every AU's capture on target and the
+#: smooth surface's normals within 8° of the scan on the ICT neutral and its 20
+#: identities: 31 curves leave 11° on the chin, nostrils and lower lids.
+DEFAULT_CURVES = 34
+
 #: Relative curve density between successive heights, top to bottom: denser at
 #: brows, eyes, nose and lips, as the method's curves are. ``eye_top`` and
 #: ``eye_bottom`` (the lids' landmark heights) only shape the density; the
 #: other names are the anchors the curves bend at. An opening's two anchors
-#: have no curves between them.
+#: have no curves between them. Tuned with ``DEFAULT_CURVES`` (see README,
+#: "Curves and normals").
 SEGMENT_DENSITY = {
-    "forehead-brow": 0.7, "brow-eye_top": 2.0, "eye_top-lid_top": 2.95, "lid_top-lid_bottom": 0.0,
-    "lid_bottom-eye_bottom": 2.95, "eye_bottom-nose_tip": 1.3,
-    "nose_tip-nose_bottom": 2.85, "nose_bottom-lip_upper": 1.5, "lip_upper-mouth_top": 4.0,
-    "mouth_top-mouth_bottom": 0.0, "mouth_bottom-lip_lower": 2.45,
-    "lip_lower-chin": 0.85,
+    "forehead-brow": 0.7, "brow-eye_top": 1.78, "eye_top-lid_top": 3.05, "lid_top-lid_bottom": 0.0,
+    "lid_bottom-eye_bottom": 3.61, "eye_bottom-nose_tip": 1.26,
+    "nose_tip-nose_bottom": 3.13, "nose_bottom-lip_upper": 1.83, "lip_upper-mouth_top": 3.6,
+    "mouth_top-mouth_bottom": 0.0, "mouth_bottom-lip_lower": 2.16,
+    "lip_lower-chin": 1.11,
 }
 
 
@@ -261,7 +268,7 @@ class CurveLayout:
         return lay
 
 
-def place_curves(landmarks_face: np.ndarray, n_curves: int = 31, n_points: int = 37,
+def place_curves(landmarks_face: np.ndarray, n_curves: int = DEFAULT_CURVES, n_points: int = 37,
                  forehead: float = 2.0, side_margin: float = 0.92, follow_lips: bool = True) -> CurveLayout:
     """Place the curve layout from the 68 landmarks given in the face frame (mm).
 

@@ -143,7 +143,7 @@ def _check(knots, assembly):
     if np.any(np.diff(knots) <= 0):
         raise LayoutError("curve parameters must increase strictly")
     if assembly == "patches" and (len(knots) - 1) % 3:
-        raise LayoutError(f"the patches assembly needs 3m+1 curves (4, 7, ..., 31), got {len(knots)}")
+        raise LayoutError(f"the patches assembly needs 3m+1 curves (4, 7, ..., 31, 34), got {len(knots)}")
 
 
 #: Curve intervals each run between breaks needs (its two not-a-knot conditions must differ).

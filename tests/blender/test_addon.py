@@ -35,7 +35,7 @@ def test_manifest_validates():
 def test_default_face_and_its_shape_keys(bpy, face):
     from pdeface.cli import load_face
     model = load_face("default")
-    assert face.pdeface.is_face and len(face.data.vertices) == 121 * 145
+    assert face.pdeface.is_face and len(face.data.vertices) == ((model.layout.n_curves - 1) * 4 + 1) * 145
     assert all(p.use_smooth for p in face.data.polygons[:50])
     assert face.data.materials[0].name.startswith("PDE Skin")
     kb = key_blocks(face)

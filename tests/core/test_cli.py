@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from pdeface.cli import main
+from pdeface.layout import DEFAULT_CURVES
 from pdeface.mesh import Mesh
 from pdeface.meshio import read_obj, write_obj
 
@@ -33,7 +34,7 @@ def test_fit_mesh_report(tmp_path, capsys, scan_files):
     code, _, err = run(capsys, "mesh", tmp_path / "face.npz", "-o", tmp_path / "face.obj", "--resolution", "2,2")
     assert code == 0 and "vertices" in err
     pde = read_obj(tmp_path / "face.obj")
-    assert pde.vertices.shape == (61 * 73, 3) and pde.uvs is not None
+    assert pde.vertices.shape == (((DEFAULT_CURVES - 1) * 2 + 1) * 73, 3) and pde.uvs is not None
     code, out, _ = run(capsys, "report", tmp_path / "face.npz", scan_files / "neutral.obj", "--json")
     r = json.loads(out)
     assert code == 0
@@ -67,7 +68,7 @@ def test_straight_curves_as_the_original_method(tmp_path, capsys, scan_files):
 def test_default_face_and_patches(tmp_path, capsys):
     code, _, _ = run(capsys, "mesh", "default", "--assembly", "patches", "--resolution", "original",
                      "-o", tmp_path / "d.obj")
-    assert code == 0 and read_obj(tmp_path / "d.obj").vertices.shape == (301 * 37, 3)
+    assert code == 0 and read_obj(tmp_path / "d.obj").vertices.shape == (((DEFAULT_CURVES - 1) * 10 + 1) * 37, 3)
     code, out, _ = run(capsys, "report", "default", "default", "--json", "--assembly", "patches")
     assert code == 0 and json.loads(out)["assembly"] == "patches"
 
@@ -103,4 +104,4 @@ def test_console_script_is_installed(tmp_path):
     res = subprocess.run([exe, "mesh", "default", "-o", str(tmp_path / "c.obj"), "--resolution", "1,1"],
                          capture_output=True, text=True)
     assert res.returncode == 0, res.stderr
-    assert read_obj(tmp_path / "c.obj").vertices.shape == (31 * 37, 3)
+    assert read_obj(tmp_path / "c.obj").vertices.shape == (DEFAULT_CURVES * 37, 3)

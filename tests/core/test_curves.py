@@ -4,7 +4,7 @@ import pytest
 from pdeface.curves import CAVITY, HIT, MISS, place_samples
 from pdeface.errors import LayoutError
 from pdeface.frame import face_frame
-from pdeface.layout import CurveLayout, place_curves
+from pdeface.layout import DEFAULT_CURVES, CurveLayout, place_curves
 
 
 @pytest.fixture(scope="module")
@@ -17,7 +17,7 @@ def face_space(scan):
 def test_layout_from_landmarks(face_space):
     _, _, Lf = face_space
     lay = place_curves(Lf)
-    assert lay.n_curves == 31 and lay.n_points == 37
+    assert lay.n_curves == DEFAULT_CURVES and lay.n_points == 37
     h = lay.heights
     assert (np.diff(h) < 0).all()  # forehead to chin
     assert h[0] > Lf[17:27, 1].max() and h[-1] < Lf[57, 1]

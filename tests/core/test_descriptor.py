@@ -26,7 +26,7 @@ def au12(scan, fitted, shapes):
 def test_descriptor_is_sparse_with_metadata(au12):
     d = au12
     assert d.key == "12" and d.label == "AU12 Lip Corner Puller" and d.side == "both"
-    assert 0 < len(d.curves) < 31 and d.curves.min() > 5  # the lower face, not the forehead
+    assert 0 < len(d.curves) < d.layout[0] and d.curves.min() > 5  # the lower face, not the forehead
     assert d.coefficients.shape == (len(d.curves), 6, 3) and d.residual.shape == (len(d.curves), 37, 3)
     C, R = d.dense()
     assert np.abs(C[:d.curves.min()]).max() == 0  # unaffected curves hold nothing
@@ -137,7 +137,7 @@ def test_other_topology_is_aligned_and_projected(scan, fitted, shapes):
                                        au_landmarks=move(Va)[idx]))
     from pdeface.mesh import vertex_normals
     Vf = model.frame.to_face(mesh.vertices)
-    n = np.asarray(sampler.matrix @ vertex_normals(Vf, T)).reshape(31, 37, 3)
+    n = np.asarray(sampler.matrix @ vertex_normals(Vf, T)).reshape(model.layout.n_curves, 37, 3)
     n /= np.linalg.norm(n, axis=2, keepdims=True)
     across = np.abs(np.einsum("kjc,kjc->kj", proj - exact, n))
     moving = np.linalg.norm(exact, axis=2) > 0.5

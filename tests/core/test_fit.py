@@ -14,8 +14,8 @@ def test_fit_is_accurate_on_the_ict_scan(scan, fitted):
     # issue #2 targets for the ICT neutral, smooth assembly (see scripts/bench_fit.py)
     assert r["mean_mm"] <= 0.15 and r["p95_mm"] <= 0.6 and r["max_mm"] <= 3.0
     assert r["seam_max_deg"] <= 0.01
-    # Skin normals: by area 10.9° (target 8°, still missed); per vertex the eye and nostril rings dominate.
-    assert r["normal_p95_deg"] < 12.0 < r["normal_p95_vertex_deg"]
+    # Skin normals by area (target 8°); per vertex the eye and nostril rings dominate.
+    assert r["normal_p95_deg"] <= 8.0 < 12.0 < r["normal_p95_vertex_deg"]
     assert r["n_visible"] > 4000 and r["n_occluded"] > 0
     p = accuracy_report(model, mesh.vertices, T, "patches")
     assert p["seam_max_deg"] > 1.0  # the original patches crease where they meet
@@ -28,7 +28,7 @@ def test_mesh_drops_onto_the_scan_in_its_own_frame(scan, fitted):
     # in ICT's frame and unit (cm): every PDE vertex lies near the scan surface
     d = ClosestPoint(mesh.vertices, T).query(pde.vertices)[0]
     assert np.median(d) < 0.01  # cm
-    n_u, n_v = 30 * 4 + 1, 36 * 4 + 1
+    n_u, n_v = (model.layout.n_curves - 1) * 4 + 1, 36 * 4 + 1
     assert pde.vertices.shape == (n_u * n_v, 3) and (pde.face_counts == 4).all()
     assert len(np.unique(pde.vertices.round(9), axis=0)) == len(pde.vertices)  # no duplicated seam vertices
     uv = pde.uvs[pde.face_uv_indices]
@@ -37,7 +37,17 @@ def test_mesh_drops_onto_the_scan_in_its_own_frame(scan, fitted):
     again = face_mesh(model)
     np.testing.assert_array_equal(again.face_indices, pde.face_indices)
     orig = face_mesh(model, "original", "patches")
-    assert orig.vertices.shape == ((30 * 10 + 1) * 37, 3)
+    assert orig.vertices.shape == (((model.layout.n_curves - 1) * 10 + 1) * 37, 3)
+
+
+def test_the_methods_31_curves_give_its_10_patches(scan):
+    mesh, T, idx = scan
+    model, _ = fit_face(mesh.vertices, T, mesh.vertices[idx], unit="cm", n_curves=31)
+    assert model.layout.n_curves == 31 and len(model.layout.breaks()) == 2
+    orig = face_mesh(model, "original", "patches")  # 10 patches of 4 curves, 31 rows each
+    assert orig.vertices.shape == ((10 * 30 + 1) * 37, 3)
+    r = accuracy_report(model, mesh.vertices, T)
+    assert r["p95_mm"] <= 0.6 and r["seam_max_deg"] <= 0.01
 
 
 def test_fit_in_another_pose_and_unit_gives_the_same_face(scan, fitted, rng):
