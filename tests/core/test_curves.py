@@ -201,3 +201,23 @@ def test_missing_face_is_a_clear_error(face_space):
     V, T, Lf = face_space
     with pytest.raises(LayoutError, match="landed on the face"):
         place_samples(V + np.array([0, 0, -500.0]), T, place_curves(Lf))
+
+
+def test_deep_set_eye_corners_are_skin_not_pockets(scan):
+    # An ICT face with deep-set eyes (identity modes mixed; mode 3 at +2.2 sigma): its inner eye
+    # corners lie 12-16 mm below their neighbours, shallower than any opening's pocket.
+    from pdeface.assets import load_ict_shapes
+    from pdeface.fit import fit_face, skin_triangles
+    from pdeface.report import accuracy_report
+    mesh, T, idx = scan
+    shapes = load_ict_shapes()
+    z = [-0.3, -0.9, 0.16, 2.24, -0.83, -0.62, 0.21, 0.49, -0.18, -0.21,
+         0.7, 0.52, -1.03, -0.08, 0.04, -1.05, 0.26, -0.86, 0.97, 0.19]
+    V = mesh.vertices + sum(w * shapes[f"identity{i:03d}"] for i, w in enumerate(z))
+    model, _ = fit_face(V, T, V[idx], unit="cm")
+    Vf = model.frame.to_face(V)
+    eyes = place_samples(Vf, skin_triangles(T, len(V), idx), model.layout, cavity_depth=12.0)
+    rims = [k + d for k in model.layout.breaks()[:1] for d in (0, 1)]
+    assert (eyes.status[rims] == CAVITY).sum() >= 4  # the old 12 mm rule filled the corners over
+    assert (model.status[rims] == CAVITY).sum() == 0
+    assert accuracy_report(model, V, T)["max_mm"] < 3.0  # 3.9 mm when they were filled
