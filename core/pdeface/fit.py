@@ -88,7 +88,9 @@ def fit_face(vertices, triangles, landmarks, unit=None, n_curves=DEFAULT_CURVES,
     sampler : pdeface.curves.CurveSampler
         The curve points as material points of this mesh.
     """
-    from .curves import place_samples  # scipy is heavy: only fitting needs it
+    from scipy.spatial import cKDTree  # scipy is heavy: only fitting needs it
+
+    from .curves import place_samples
     from .rims import follow_rims
     V = np.asarray(vertices, dtype=np.float64)
     T = np.asarray(triangles, dtype=np.int64)
@@ -100,8 +102,6 @@ def fit_face(vertices, triangles, landmarks, unit=None, n_curves=DEFAULT_CURVES,
     Vf = frame.to_face(V)
     Lf = frame.to_face(landmarks)
     layout = place_curves(Lf, n_curves, n_points, follow_lips=follow_lips)
-    from scipy.spatial import cKDTree
-
     near = cKDTree(Vf).query(Lf)[1]  # the vertices at the landmarks pick the skin's connected pieces
     skin = skin_triangles(T, len(V), near)
     layout = follow_rims(layout, Vf, skin)

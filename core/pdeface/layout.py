@@ -28,9 +28,10 @@ from .geometry import cylinder_coords
 from .pde import break_fits, cubic_spline_operator
 
 #: Curves in the default layout. The method used 31 (10 patches of 4); 34 (11
-#: patches of 4) is the fewest that keep every AU's capture on target and the
-#: smooth surface's normals within 8° of the scan on the ICT neutral and its 20
-#: identities: 31 curves leave 11° on the chin, nostrils and lower lids.
+#: patches of 4) is the fewest that still tile into patches of 4 and keep every
+#: AU's capture on target with the smooth surface's normals within 8° of the
+#: scan on the ICT neutral and its 20 identities. No 31-curve layout found did
+#: both (the former one left 11° on the chin, nostrils and lower lids).
 DEFAULT_CURVES = 34
 
 #: Relative curve density between successive heights, top to bottom: denser at
