@@ -72,7 +72,7 @@ def new_mesh(name, pde_mesh):
 
 def store_model(obj, model, data=None):
     """Keep the model on the object; ``data``: its file's bytes when at hand (saves re-encoding)."""
-    from pdeface.model import model_to_bytes
+    from pdeface.io.modelfile import model_to_bytes
 
     obj.pdeface.model_data = base64.b64encode(data or model_to_bytes(model)).decode("ascii")
     _models.pop(obj.as_pointer(), None)
@@ -81,7 +81,7 @@ def store_model(obj, model, data=None):
 def face_model(obj):
     """The FaceModel stored on a PDE face object (cached)."""
     from pdeface.errors import PdeFaceError
-    from pdeface.model import model_from_bytes
+    from pdeface.io.modelfile import model_from_bytes
 
     data = obj.pdeface.model_data
     if not data:

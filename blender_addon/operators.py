@@ -19,12 +19,12 @@ MIX_KEY = "PDE Mix"
 def _pd():
     """The pdeface modules the operators use (imported lazily: heavy, and only when needed)."""
     import pdeface.cli
-    import pdeface.expressions
-    import pdeface.facs
-    import pdeface.fit
-    import pdeface.frame
-    import pdeface.model
-    import pdeface.retarget
+    import pdeface.au.expressions
+    import pdeface.au.facs
+    import pdeface.surface.fit
+    import pdeface.surface.frame
+    import pdeface.surface.model
+    import pdeface.au.retarget
     return pdeface
 
 
@@ -431,7 +431,7 @@ class PDEFACE_OT_animate_sequence(_FaceOperator, bpy.types.Operator):
 
     def run(self, context):
         pd = _pd()
-        from pdeface.sequence import sequence_keys
+        from pdeface.au.sequence import sequence_keys
         obj = active_face(context)
         s = context.scene.pdeface
         names = [n.strip() for n in (self.presets or s.sequence).split(",") if n.strip()]
@@ -518,8 +518,8 @@ class PDEFACE_OT_import_au(_FaceOperator, bpy.types.Operator):
         return {"RUNNING_MODAL"}
 
     def run(self, context):
-        from pdeface.audata import import_au
-        from pdeface.timeline import load_timeline
+        from pdeface.io.trackers import import_au
+        from pdeface.io.timeline import load_timeline
         obj = active_face(context)
         if not self.filepath:
             raise _pd().errors.PdeFaceError("choose an AU data file")
@@ -553,7 +553,7 @@ class PDEFACE_OT_transfer_texture(_FaceOperator, bpy.types.Operator):
 
     def run(self, context):
         pd = _pd()
-        from pdeface.texture import atlas_uvs, transfer_uvs
+        from pdeface.surface.texture import atlas_uvs, transfer_uvs
         obj = active_face(context)
         s = context.scene.pdeface
         method = s.texture_method if self.method == "SCENE" else self.method

@@ -128,8 +128,8 @@ def contact_sheet(obj, path, items=None, cell=160, columns=8, samples=16, resolu
     All cells are posed copies of the face rendered together in one orthographic
     view (Cycles), each labelled by a text object under it.
     """
-    from pdeface.expressions import ShapeBasis, resolve_preset
-    from pdeface.fit import face_mesh
+    from pdeface.au.expressions import ShapeBasis, resolve_preset
+    from pdeface.surface.fit import face_mesh
 
     from .operators import all_presets
 

@@ -21,20 +21,19 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "core"))
 
 from pdeface.assets import load_ict_shapes, load_neutral_scan  # noqa: E402
-from pdeface.aureport import MotionProbe  # noqa: E402
-from pdeface.cli import load_face  # noqa: E402
-from pdeface.descriptor import descriptor_to_bytes  # noqa: E402
-from pdeface.expressions import ShapeBasis, mix  # noqa: E402
-from pdeface.fit import fit_face, surface_grid  # noqa: E402
-from pdeface.ict import au_offsets  # noqa: E402
-from pdeface.retarget import retarget  # noqa: E402
+from pdeface.au.aureport import au_report  # noqa: E402
+from pdeface.assets import load_face  # noqa: E402
+from pdeface.au.expressions import ShapeBasis, mix  # noqa: E402
+from pdeface.au.facs import au_number  # noqa: E402
+from pdeface.surface.fit import fit_face, surface_grid  # noqa: E402
+from pdeface.au.retarget import retarget  # noqa: E402
 
 STRICT = {"1", "2", "4", "12", "15"}  # captured >= 0.95
 MOUTH_OPENING = {"25", "26", "27"}  # the method's admitted gap: reported, no target
 
 
 def target_of(key):
-    base = key.rstrip("LR")
+    base = str(au_number(key))
     return None if base in MOUTH_OPENING else (0.95 if base in STRICT else 0.90)
 
 
@@ -48,14 +47,14 @@ def main(argv=None):
     T, _ = mesh.triangles()
     V = mesh.vertices
     shapes = load_ict_shapes()
-    probe = MotionProbe(face, V, T)
+    report = au_report(face, V, T, shapes)
     out = {"aus": {}}
     print("== bundled descriptors (ICT-FaceKit generic neutral)")
     print(f"  {'AU':5s} {'captured':>8s} {'target':>6s} {'p95 mm':>7s} {'bytes':>6s} (target <= 2560)  curves")
     misses = []
     for d in face.descriptors:
-        r = probe.measure(*d.dense(), au_offsets(d.key, shapes))
-        size = len(descriptor_to_bytes(d))
+        r = report[d.key]
+        size = r.pop("bytes")
         t = target_of(d.key)
         cap = r["captured"]
         flag = "" if t is None or cap is None or cap >= t else "  <-- below target"
@@ -97,8 +96,7 @@ def main(argv=None):
             Vi = V + shapes[f"identity{i:03d}"]
             target, _ = fit_face(Vi, T, Vi[idx], unit="cm")
             rt = retarget(face, target)
-            pr = MotionProbe(rt, Vi, T)
-            caps = [pr.measure(*d.dense(), au_offsets(d.key, shapes))["captured"] for d in rt.descriptors]
+            caps = [r["captured"] for r in au_report(rt, Vi, T, shapes).values()]
             medians.append(float(np.median([c for c in caps if c is not None])))
         print(f"  median captured per identity: min {min(medians):.3f}, median {np.median(medians):.3f}, "
               f"max {max(medians):.3f} (target median >= 0.90)")

@@ -41,7 +41,7 @@ def main(argv=None):
     ap.add_argument("--frames", type=int, default=24)
     args = ap.parse_args(argv)
     sys.path.insert(0, str(ROOT / "core"))
-    from pdeface.audata import import_au
+    from pdeface.io.trackers import import_au
 
     tmp = Path(tempfile.mkdtemp())
     write_openface(tmp / "of.csv")
@@ -69,8 +69,8 @@ def main(argv=None):
         bpy.ops.pdeface.add_default_face()
         face = bpy.context.active_object
         scene = bpy.context.scene
-        from pdeface.sequence import METHOD_SEQUENCE
-        from pdeface.timeline import sequence_timeline
+        from pdeface.au.sequence import METHOD_SEQUENCE
+        from pdeface.io.timeline import sequence_timeline
         timeline = sequence_timeline(METHOD_SEQUENCE, 12, 0.33, 0.33)
         t = time.perf_counter()
         first, last, _ = render.apply_timeline(face, timeline)

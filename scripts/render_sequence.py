@@ -3,7 +3,7 @@
 Runs both as ``blender -b -P scripts/render_sequence.py -- ARGS`` and as
 ``python scripts/render_sequence.py ARGS`` with the bpy module. Builds the PDE
 face with its shape keys (or loads a .blend), keyframes a timeline (a
-pdeface.timeline JSON, a list of presets, or an AU data file), frames the face
+pdeface.io.timeline JSON, a list of presets, or an AU data file), frames the face
 with a camera and lights, renders PNG frames (Cycles CPU by default), and
 optionally a video, a contact sheet and the .blend.
 
@@ -121,17 +121,17 @@ def main(argv=None):
         t0 = time.perf_counter()
         timeline = None
         if args.timeline:
-            from pdeface.timeline import load_timeline
+            from pdeface.io.timeline import load_timeline
             timeline = load_timeline(args.timeline)
         elif args.au_data:
-            from pdeface.audata import import_au
+            from pdeface.io.trackers import import_au
             result = import_au(args.au_data, fps=args.fps)
             timeline = result.timeline
             summary["au_data"] = {"format": result.format, "rows": result.rows, "dropped": result.dropped,
                                   "unknown": result.unknown}
         elif not args.blend or args.sequence:
-            from pdeface.sequence import METHOD_SEQUENCE
-            from pdeface.timeline import sequence_timeline
+            from pdeface.au.sequence import METHOD_SEQUENCE
+            from pdeface.io.timeline import sequence_timeline
             names = [n.strip() for n in (args.sequence or ",".join(METHOD_SEQUENCE)).split(",") if n.strip()]
             timeline = sequence_timeline(names, args.fps, args.hold, args.blend_time)
         if timeline is not None:

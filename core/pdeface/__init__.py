@@ -2,10 +2,10 @@
 
 The core is numpy/scipy only and never imports bpy. Main entry points:
 
-- :func:`pdeface.fit.fit_face` — neutral mesh + landmarks → :class:`pdeface.model.FaceModel`
-- :func:`pdeface.fit.face_mesh` — PDE surface as a quad mesh
-- :func:`pdeface.report.accuracy_report` — how well the PDE face matches its scan
-- :func:`pdeface.model.save_model` / :func:`pdeface.model.load_model`
+- :func:`pdeface.surface.fit.fit_face` — neutral mesh + landmarks → :class:`pdeface.surface.model.FaceModel`
+- :func:`pdeface.surface.fit.face_mesh` — PDE surface as a quad mesh
+- :func:`pdeface.surface.report.accuracy_report` — how well the PDE face matches its scan
+- :func:`pdeface.surface.model.save_model` / :func:`pdeface.surface.model.load_model`
 """
 from .errors import LandmarkError, LayoutError, MeshError, ModelFormatError, PdeFaceError
 

@@ -18,6 +18,9 @@ DEFAULT = "default"
 DEFAULT_FACE = "default_face.npz"
 NEUTRAL_SCAN = "ict_neutral_face.npz"
 LICENSE = "ICT-FaceKit-LICENSE.txt"
+#: The notice that models and meshes derived from the bundled data carry in their metadata.
+ICT_NOTICE = ("Derived from ICT-FaceKit, Copyright (c) 2020 USC Institute for Creative Technologies, "
+              "MIT License (see assets/ICT-FaceKit-LICENSE.txt).")
 
 
 def assets_dir() -> Path:
@@ -60,3 +63,31 @@ def load_ict_shapes() -> dict:
     with np.load(asset_path(ICT_SHAPES), allow_pickle=False) as z:
         step = float(z["step_cm"])
         return {str(n): o.astype(np.float64) * step for n, o in zip(z["names"], z["offsets"])}
+
+
+def load_face(arg):
+    """A face model from a path, or the bundled one for ``"default"``."""
+    from .io.modelfile import load_model
+
+    return load_model(asset_path(DEFAULT_FACE) if arg == DEFAULT else arg)
+
+
+def load_scan(arg, landmarks=None) -> tuple[Mesh, np.ndarray | None]:
+    """A scan and its 68 landmark positions from a path or ``"default"`` (the bundled ICT neutral).
+
+    ``landmarks`` is a landmarks JSON file; without one, a path's landmarks are
+    None and the bundled scan's are its own.
+    """
+    from .io.meshio import read_mesh
+    from .surface.frame import landmark_points, read_landmarks
+
+    if arg == DEFAULT:
+        mesh, idx = load_neutral_scan()
+        lm = mesh.vertices[idx]
+    else:
+        mesh, lm = read_mesh(arg), None
+    mesh.validate(str(arg))
+    if landmarks:
+        idx, pts = read_landmarks(landmarks)
+        lm = landmark_points(mesh.vertices, idx, pts)
+    return mesh, lm

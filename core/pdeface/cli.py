@@ -21,46 +21,10 @@ def _log(msg):
     print(msg, file=sys.stderr, flush=True)
 
 
-def load_face(arg):
-    """A face model from a path, or the bundled one for ``default``."""
-    from .assets import DEFAULT, DEFAULT_FACE, asset_path
-    from .model import load_model
-
-    return load_model(asset_path(DEFAULT_FACE) if arg == DEFAULT else arg)
-
-
-def load_scan(arg, landmarks_arg=None):
-    """(mesh, 68 landmarks xyz or None) from a path or ``default``."""
-    from .assets import DEFAULT, load_neutral_scan
-    from .frame import landmark_points, read_landmarks
-    from .meshio import read_mesh
-
-    if arg == DEFAULT:
-        mesh, idx = load_neutral_scan()
-        lm = mesh.vertices[idx]
-    else:
-        mesh, lm = read_mesh(arg), None
-    mesh.validate(str(arg))
-    if landmarks_arg:
-        idx, pts = read_landmarks(landmarks_arg)
-        lm = landmark_points(mesh.vertices, idx, pts)
-    return mesh, lm
-
-
-def skin_of(mesh, model):
-    """Skin triangles of a scan: the pieces nearest the model's feature points."""
-    from scipy.spatial import cKDTree
-
-    from .fit import skin_triangles
-
-    T, _ = mesh.triangles()
-    near = cKDTree(mesh.vertices).query(model.frame.to_user(model.features))[1]
-    return skin_triangles(T, len(mesh.vertices), near)
-
-
 def cmd_fit(args):
-    from .fit import fit_face
-    from .model import save_model
+    from .assets import DEFAULT, ICT_NOTICE, load_scan
+    from .io.modelfile import save_model
+    from .surface.fit import fit_face
 
     mesh, lm = load_scan(args.mesh, args.landmarks)
     if lm is None:
@@ -70,8 +34,7 @@ def cmd_fit(args):
     model, sampler = fit_face(mesh.vertices, T, lm, unit=args.unit, n_curves=args.curves, n_points=args.points,
                               n_modes=args.modes, a=args.a, assembly=args.assembly, source=str(args.mesh),
                               follow_lips=not args.straight)
-    if args.mesh == "default":
-        from .model import ICT_NOTICE
+    if args.mesh == DEFAULT:
         model.notice = ICT_NOTICE
     size = save_model(args.output, model)
     _log(f"fitted {model.layout.n_curves} curves x {model.layout.n_points} points in "
@@ -81,8 +44,9 @@ def cmd_fit(args):
 
 
 def cmd_mesh(args):
-    from .fit import face_mesh
-    from .meshio import write_mesh
+    from .assets import load_face
+    from .io.meshio import write_mesh
+    from .surface.fit import face_mesh
 
     model = load_face(args.face)
     mesh = face_mesh(model, args.resolution, args.assembly)
@@ -91,13 +55,15 @@ def cmd_mesh(args):
 
 
 def cmd_report(args):
-    from .model import model_nbytes
-    from .report import accuracy_report
+    from .assets import load_face, load_scan
+    from .io.modelfile import model_nbytes
+    from .surface.fit import skin_triangles
+    from .surface.report import accuracy_report
 
     model = load_face(args.face)
     mesh, _ = load_scan(args.mesh)
-    result = accuracy_report(model, mesh.vertices, skin_of(mesh, model), args.assembly,
-                             args.profiles_png, args.profiles_csv)
+    skin = skin_triangles(mesh.vertices, mesh.triangles()[0], model.frame.to_user(model.features))
+    result = accuracy_report(model, mesh.vertices, skin, args.assembly, args.profiles_png, args.profiles_csv)
     result["model_bytes"] = model_nbytes(model)
     if args.json:
         print(json.dumps(result))
@@ -107,8 +73,8 @@ def cmd_report(args):
 
 
 def cmd_import_au(args):
-    from .audata import import_au
-    from .timeline import save_timeline
+    from .io.trackers import import_au
+    from .io.timeline import save_timeline
 
     r = import_au(args.file, args.format, args.fps, args.hold, args.smooth, args.reduce, args.min_confidence)
     save_timeline(args.output, r.timeline)
@@ -153,21 +119,11 @@ def cmd_stream_play(args):
             _log(f"listening on {host}:{port}")
     except OSError as exc:
         raise PdeFaceError(f"cannot listen/connect: {exc.strerror or exc}") from None
-    t0 = time.monotonic()
-    last = None
-    tick = 1.0 / args.hz
+    def print_pose(t, pose):
+        print(json.dumps({"t": round(t, 4), "au": {k: round(w, 4) for k, w in pose.items()}}), flush=True)
+
     try:
-        while True:
-            now = time.monotonic()
-            pose = player.pose(now)
-            if args.print and pose != last:
-                print(json.dumps({"t": round(now - t0, 4), "au": {k: round(w, 4) for k, w in pose.items()}}), flush=True)
-            last = pose
-            if player.stats.stopped or (args.duration and now - t0 > args.duration):
-                break
-            if player.stats.ended and not args.keep_running and player.idle:
-                break
-            player.wait(tick) if player.idle else time.sleep(tick)
+        player.run(args.hz, args.duration, args.keep_running, print_pose if args.print else None)
     except KeyboardInterrupt:
         pass
     finally:
@@ -182,15 +138,16 @@ def render_script():
 
 
 def cmd_demo(args):
-    from .fit import face_mesh, fit_face
-    from .meshio import write_mesh
-    from .model import ICT_NOTICE, save_model
-    from .report import accuracy_report
+    from .assets import DEFAULT, ICT_NOTICE, load_scan
+    from .io.meshio import write_mesh
+    from .io.modelfile import save_model
+    from .surface.fit import face_mesh, fit_face
+    from .surface.report import accuracy_report
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     total = 3 if args.no_render else 4
-    mesh, lm = load_scan("default")
+    mesh, lm = load_scan(DEFAULT)
     T, _ = mesh.triangles()
     _log(f"[1/{total}] fit")
     model, _ = fit_face(mesh.vertices, T, lm, unit="cm", source="ICT-FaceKit generic neutral (face region)")
@@ -222,7 +179,7 @@ def render_demo(out, args):
     if importlib.util.find_spec("bpy") is None or script is None:
         raise PdeFaceError("rendering needs the bpy module and a source checkout: "
                            "python -m pip install -e '.[blender]' (or pdeface demo --no-render)")
-    from .sequence import METHOD_SEQUENCE
+    from .au.sequence import METHOD_SEQUENCE
     cmd = [sys.executable, str(script), "--sequence", ",".join(METHOD_SEQUENCE), "--out", str(out),
            "--fps", str(args.fps), "--hold", "0.33", "--blend-time", "0.33", "--size", args.size,
            "--samples", str(args.samples), "--contact-sheet", "--save-blend", str(out / "demo.blend")]
@@ -238,7 +195,7 @@ def render_demo(out, args):
 
 def parse_au_weights(items):
     """``["12=1", "6=0.5", "AU4=C"]`` → {"12": 1.0, "6": 0.5, "4": 0.6}."""
-    from .expressions import normalise_weights
+    from .au.expressions import normalise_weights
 
     weights = {}
     for item in items or []:
@@ -254,10 +211,12 @@ def parse_au_weights(items):
 
 
 def cmd_descriptor(args):
-    from .descriptor import fit_descriptor, save_descriptor
-    from .fit import fit_face
-    from .frame import landmark_points, read_landmarks
-    from .meshio import read_mesh
+    from .assets import load_scan
+    from .au.capture import fit_descriptor
+    from .io.descriptorfile import save_descriptor
+    from .io.meshio import read_mesh
+    from .surface.fit import fit_face
+    from .surface.frame import landmark_points, read_landmarks
 
     neutral, lm = load_scan(args.neutral, args.landmarks)
     if lm is None:
@@ -283,17 +242,18 @@ def cmd_descriptor(args):
 
 
 def cmd_pose(args):
-    from .expressions import PRESETS, load_presets, resolve_preset
-    from .fit import face_mesh
-    from .meshio import write_mesh
+    from .assets import load_face
+    from .au.expressions import PRESETS, choose_mixer, load_presets, pose_curves, resolve_preset
+    from .io.meshio import write_mesh
+    from .surface.fit import face_mesh
 
     model = load_face(args.face)
     if args.descriptor:
-        from .descriptor import load_descriptor
+        from .io.descriptorfile import load_descriptor
         extra = [load_descriptor(p) for p in args.descriptor]
         keys = {d.key for d in extra}
         model.descriptors = [d for d in model.descriptors if d.key not in keys] + extra
-    weights, mixer = parse_au_weights(args.au), args.mixer
+    weights, preset = parse_au_weights(args.au), None
     if args.preset:
         presets = dict(PRESETS)
         for f in args.presets or []:
@@ -304,19 +264,20 @@ def cmd_pose(args):
         if missing:
             _log(f"preset {args.preset}: this face has no descriptor for AU {', '.join(missing)} (skipped)")
         weights = {**pw, **weights}
-        mixer = mixer or presets[args.preset].mixer
+        preset = presets[args.preset]
     if not weights:
         raise PdeFaceError("give AU weights (--au 12=1) or a --preset")
-    from .expressions import pose_curves
-    C, R = pose_curves(model, weights, mixer or "sum")
+    mixer = choose_mixer(args.mixer, preset)
+    C, R = pose_curves(model, weights, mixer)
     mesh = face_mesh(model, args.resolution, args.assembly, coefficients=C, residual=R)
     write_mesh(args.output, mesh)
-    _log(f"wrote {args.output}: " + ", ".join(f"AU{k}={w:g}" for k, w in weights.items()) + f" ({mixer or 'sum'})")
+    _log(f"wrote {args.output}: " + ", ".join(f"AU{k}={w:g}" for k, w in weights.items()) + f" ({mixer})")
 
 
 def cmd_retarget(args):
-    from .model import save_model
-    from .retarget import retarget
+    from .assets import load_face
+    from .au.retarget import retarget
+    from .io.modelfile import save_model
 
     target = load_face(args.target)
     source = load_face(args.descriptors)
@@ -326,38 +287,23 @@ def cmd_retarget(args):
 
 
 def cmd_au_report(args):
-    from .aureport import MotionProbe
-    from .descriptor import descriptor_to_bytes
-    from .ict import au_offsets
+    from .assets import DEFAULT, load_face, load_ict_shapes, load_scan
+    from .au.aureport import au_report
+    from .au.ict import IctFolder
 
     model = load_face(args.face)
     if not model.descriptors:
         raise PdeFaceError(f"{args.face}: carries no AU descriptors")
-    if args.truth == "default":
-        from .assets import load_ict_shapes
-        mesh, _ = load_scan("default")
-        shapes = load_ict_shapes()
-        V, T = mesh.vertices, mesh.triangles()[0]
+    if args.truth == DEFAULT:
+        mesh, _ = load_scan(DEFAULT)
+        V, T, shapes = mesh.vertices, mesh.triangles()[0], load_ict_shapes()
     else:
-        from .ict import IctFolder
-        from .mesh import Mesh
-        ict = IctFolder(args.truth)
-        V, T = ict.vertices, Mesh.from_faces(ict.vertices, ict.faces).triangles()[0]
-        shapes = None
+        shapes = IctFolder(args.truth)
+        V, T = shapes.vertices, shapes.triangles()
     if args.neutral:
-        from .meshio import read_mesh
+        from .io.meshio import read_mesh
         V = read_mesh(args.neutral).vertices[:len(V)]
-    probe = MotionProbe(model, V, T)
-    result = {}
-    for d in model.descriptors:
-        from .ict import AU_SHAPES
-        if d.key not in AU_SHAPES:
-            continue
-        sh = shapes if shapes is not None else ict.shapes(AU_SHAPES[d.key])
-        C, R = d.dense()
-        r = probe.measure(C, R, au_offsets(d.key, sh))
-        result[d.key] = {"captured": r["captured"], "p95_err_mm": r["p95_err_mm"], "n_vertices": r["n_vertices"],
-                         "bytes": len(descriptor_to_bytes(d))}
+    result = au_report(model, V, T, shapes)
     if args.json:
         print(json.dumps(result))
     else:
@@ -368,7 +314,14 @@ def cmd_au_report(args):
 
 
 def build_parser():
-    from .layout import DEFAULT_CURVES
+    from .au.expressions import MIXERS
+    from .au.facs import SIDES
+    from .au.retarget import SCALINGS
+    from .io.trackers import FORMATS
+    from .stream.player import MODES
+    from .surface.frame import UNITS_MM
+    from .surface.layout import DEFAULT_CURVES
+    from .surface.pde import ASSEMBLIES
 
     ap = argparse.ArgumentParser(prog="pdeface", description="PDE face models and FACS Action Units.")
     sub = ap.add_subparsers(dest="command", required=True)
@@ -376,13 +329,13 @@ def build_parser():
     p = sub.add_parser("fit", help="fit a PDE face model to a neutral mesh")
     p.add_argument("mesh", help="neutral face mesh (.obj/.ply) or 'default'")
     p.add_argument("--landmarks", help="JSON with 68 'indices' or 'points' (Multi-PIE order)")
-    p.add_argument("--unit", choices=["mm", "cm", "m", "in"], help="mesh unit (default: guessed from the eyes)")
+    p.add_argument("--unit", choices=list(UNITS_MM), help="mesh unit (default: guessed from the eyes)")
     p.add_argument("--curves", type=int, default=DEFAULT_CURVES,
                    help=f"boundary curves (default {DEFAULT_CURVES}; 31 is the method's 10 patches of 4)")
     p.add_argument("--points", type=int, default=37)
     p.add_argument("--modes", type=int, default=5)
     p.add_argument("--a", type=float, default=1.0, help="PDE smoothing parameter")
-    p.add_argument("--assembly", choices=["smooth", "patches"], default="smooth")
+    p.add_argument("--assembly", choices=ASSEMBLIES, default="smooth")
     p.add_argument("--straight", action="store_true",
                    help="horizontal curves throughout, as the original method (default: bend along the lips "
                         "and nostrils, with a curve on each rim of the eyes and mouth)")
@@ -392,14 +345,14 @@ def build_parser():
     p = sub.add_parser("mesh", help="mesh the PDE surface of a face model")
     p.add_argument("face", help="face model (.npz) or 'default'")
     p.add_argument("--resolution", default="default", help="default, original, fine, or ROWS,COLS subdivisions")
-    p.add_argument("--assembly", choices=["smooth", "patches"])
+    p.add_argument("--assembly", choices=ASSEMBLIES)
     p.add_argument("-o", "--output", required=True)
     p.set_defaults(func=cmd_mesh)
 
     p = sub.add_parser("report", help="accuracy of a face model against its scan")
     p.add_argument("face", help="face model (.npz) or 'default'")
     p.add_argument("mesh", help="the scan (.obj/.ply) or 'default'")
-    p.add_argument("--assembly", choices=["smooth", "patches"])
+    p.add_argument("--assembly", choices=ASSEMBLIES)
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--profiles-png")
     p.add_argument("--profiles-csv")
@@ -411,8 +364,8 @@ def build_parser():
     p.add_argument("--landmarks", help="68 landmarks of the neutral (JSON)")
     p.add_argument("--au-landmarks", help="68 landmarks of the AU mesh, when its topology differs")
     p.add_argument("--au", type=int, required=True)
-    p.add_argument("--side", choices=["both", "left", "right"], default="both")
-    p.add_argument("--unit", choices=["mm", "cm", "m", "in"])
+    p.add_argument("--side", choices=SIDES, default="both")
+    p.add_argument("--unit", choices=list(UNITS_MM))
     p.add_argument("-o", "--output", required=True, help=".json (readable) or .pdd (compact binary)")
     p.set_defaults(func=cmd_descriptor)
 
@@ -422,16 +375,16 @@ def build_parser():
     p.add_argument("--preset", help="expression preset (happy, sad, ... or one from --presets)")
     p.add_argument("--presets", action="append", help="user preset JSON file(s)")
     p.add_argument("--descriptor", action="append", help="extra descriptor file(s) (.json/.pdd)")
-    p.add_argument("--mixer", choices=["sum", "average", "max"])
+    p.add_argument("--mixer", choices=MIXERS)
     p.add_argument("--resolution", default="default")
-    p.add_argument("--assembly", choices=["smooth", "patches"])
+    p.add_argument("--assembly", choices=ASSEMBLIES)
     p.add_argument("-o", "--output", required=True)
     p.set_defaults(func=cmd_pose)
 
     p = sub.add_parser("retarget", help="carry AU descriptors over to another face model")
     p.add_argument("target", help="the target face model (.npz)")
     p.add_argument("--descriptors", default="default", help="face model whose descriptors to use (default: bundled)")
-    p.add_argument("--scaling", choices=["face", "none"], default="face")
+    p.add_argument("--scaling", choices=SCALINGS, default="face")
     p.add_argument("-o", "--output", required=True)
     p.set_defaults(func=cmd_retarget)
 
@@ -444,7 +397,7 @@ def build_parser():
 
     p = sub.add_parser("import-au", help="AU data from a tracker (OpenFace, Py-Feat, Live Link Face, FAS) → timeline")
     p.add_argument("file")
-    p.add_argument("--format", default="auto", choices=["auto", "openface", "pyfeat", "livelink", "fas"])
+    p.add_argument("--format", default="auto", choices=("auto",) + FORMATS)
     p.add_argument("--fps", type=float, default=30.0)
     p.add_argument("--hold", type=float, default=0.5, help="seconds per FAS AU set")
     p.add_argument("--smooth", type=int, default=1, help="moving-average window (samples)")
@@ -467,7 +420,7 @@ def build_parser():
     g.add_argument("--listen", default="127.0.0.1:5000", help="HOST:PORT to listen on (default 127.0.0.1:5000)")
     g.add_argument("--connect", help="HOST:PORT of a sender that listens")
     q.add_argument("--print", action="store_true", help="print each pose as a JSON line")
-    q.add_argument("--mode", choices=["queue", "live"], default="queue")
+    q.add_argument("--mode", choices=MODES, default="queue")
     q.add_argument("--transition", type=float, default=0.25, help="seconds from one pose to the next")
     q.add_argument("--rules", nargs="?", const="", default=None,
                    help="apply the AU blender's co-occurrence rules (a rules JSON, or the bundled ones)")

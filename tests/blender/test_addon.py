@@ -33,7 +33,7 @@ def test_manifest_validates():
 
 
 def test_default_face_and_its_shape_keys(bpy, face):
-    from pdeface.cli import load_face
+    from pdeface.assets import load_face
     model = load_face("default")
     assert face.pdeface.is_face and len(face.data.vertices) == ((model.layout.n_curves - 1) * 4 + 1) * 145
     assert all(p.use_smooth for p in face.data.polygons[:50])
@@ -52,9 +52,9 @@ def test_default_face_and_its_shape_keys(bpy, face):
 
 @pytest.mark.parametrize("key", ["12", "1", "30L", "45R"])
 def test_au_slider_reproduces_pdeface_pose(bpy, face, key):
-    from pdeface.cli import load_face
-    from pdeface.expressions import pose_curves
-    from pdeface.fit import face_mesh
+    from pdeface.assets import load_face
+    from pdeface.au.expressions import pose_curves
+    from pdeface.surface.fit import face_mesh
     model = load_face("default")
     d = next(x for x in model.descriptors if x.key == key)
     key_blocks(face)[f"AU{key} {d.name}"].value = 1.0
@@ -79,9 +79,9 @@ def test_presets_as_keys_or_weights_without_double_counting(bpy, face):
 
 
 def test_nonlinear_mixer_goes_into_its_own_key(bpy, face):
-    from pdeface.cli import load_face
-    from pdeface.expressions import PRESETS, pose_curves, resolve_preset
-    from pdeface.fit import face_mesh
+    from pdeface.assets import load_face
+    from pdeface.au.expressions import PRESETS, pose_curves, resolve_preset
+    from pdeface.surface.fit import face_mesh
     model = load_face("default")
     bpy.context.scene.pdeface.mixer = "max"
     bpy.ops.pdeface.apply_preset(preset="fear", mode="AUS")

@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from pdeface.assets import load_neutral_scan
-from pdeface.fit import fit_face
+from pdeface.surface.fit import fit_face
 
 
 @pytest.fixture(scope="session")

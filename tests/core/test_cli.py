@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from pdeface.cli import main
-from pdeface.layout import DEFAULT_CURVES
+from pdeface.surface.layout import DEFAULT_CURVES
 from pdeface.mesh import Mesh
-from pdeface.meshio import read_obj, write_obj
+from pdeface.io.meshio import read_obj, write_obj
 
 
 @pytest.fixture(scope="module")
@@ -50,8 +50,8 @@ def test_points_landmarks_and_unit_guess(tmp_path, capsys, scan_files):
 
 
 def test_straight_curves_as_the_original_method(tmp_path, capsys, scan_files):
-    from pdeface.cli import load_face
-    from pdeface.model import load_model
+    from pdeface.assets import load_face
+    from pdeface.io.modelfile import load_model
 
     code, _, _ = run(capsys, "fit", scan_files / "neutral.obj", "--landmarks", scan_files / "lm_indices.json",
                      "--straight", "-o", tmp_path / "s.npz")

@@ -5,14 +5,15 @@ import numpy as np
 import pytest
 
 from pdeface.assets import load_ict_shapes
-from pdeface.cli import load_face, main
-from pdeface.descriptor import load_descriptor
-from pdeface.expressions import Preset, save_presets
-from pdeface.fit import face_mesh
-from pdeface.ict import au_offsets
+from pdeface.assets import load_face
+from pdeface.cli import main
+from pdeface.io.descriptorfile import load_descriptor
+from pdeface.au.expressions import Preset, save_presets
+from pdeface.surface.fit import face_mesh
+from pdeface.au.ict import au_offsets
 from pdeface.mesh import Mesh
-from pdeface.meshio import read_obj, write_obj
-from pdeface.model import save_model
+from pdeface.io.meshio import read_obj, write_obj
+from pdeface.io.modelfile import save_model
 
 
 def run(capsys, *args):

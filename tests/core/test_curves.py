@@ -1,10 +1,10 @@
 import numpy as np
 import pytest
 
-from pdeface.curves import CAVITY, HIT, MISS, place_samples
+from pdeface.surface.curves import CAVITY, HIT, MISS, place_samples
 from pdeface.errors import LayoutError
-from pdeface.frame import face_frame
-from pdeface.layout import DEFAULT_CURVES, CurveLayout, place_curves
+from pdeface.surface.frame import face_frame
+from pdeface.surface.layout import DEFAULT_CURVES, CurveLayout, place_curves
 
 
 @pytest.fixture(scope="module")
@@ -33,7 +33,7 @@ def test_layout_from_landmarks(face_space):
 
 def _opening(lay, name):
     """(a, k, line) of the opening whose top anchor line starts from landmark group ``name``."""
-    from pdeface.layout import FEATURE_LINES
+    from pdeface.surface.layout import FEATURE_LINES
 
     a = list(FEATURE_LINES).index(name)  # lines are made in FEATURE_LINES' order
     line = lay.lines[a]
@@ -44,7 +44,7 @@ def test_curves_follow_the_lips(face_space):
     """A curve on each side of the mouth line and of the eye line; every other curve keeps clear of
     the mouth line."""
     from pdeface.geometry import cylinder_coords
-    from pdeface.layout import OPENING_GAP
+    from pdeface.surface.layout import OPENING_GAP
 
     _, _, Lf = face_space
     lay = place_curves(Lf)
@@ -85,7 +85,7 @@ def test_opening_curves_lie_on_the_rims(face_space, opening):
     """Fitted to the mesh, each pair runs along the rims of its lips or lids: each ray still meets its
     own lip or lid facing the viewer, and a step past it towards the opening leaves that skin."""
     from pdeface.geometry import cast_cylinder_rays, cylinder_coords
-    from pdeface.rims import FACING_MIN_COS, RIM_JUMP_MM, RIM_STEP_MM, follow_rims
+    from pdeface.surface.rims import FACING_MIN_COS, RIM_JUMP_MM, RIM_STEP_MM, follow_rims
 
     V, T, Lf = face_space
     seed = place_curves(Lf)
@@ -111,7 +111,7 @@ def test_opening_curves_lie_on_the_rims(face_space, opening):
 
 def test_crowded_anchors_are_kept_apart():
     """Where lines converge, heights move the least (least squares) that keeps every gap; others stay."""
-    from pdeface.layout import _keep_apart
+    from pdeface.surface.layout import _keep_apart
 
     gaps = np.array([1.0, 0.1, 1.0])
     Y = np.array([[10.0, 5.0], [5.0, 5.2], [4.0, 5.1], [0.0, 5.0]])  # column 1: all four crowd
@@ -127,7 +127,7 @@ def test_crowded_anchors_are_kept_apart():
 
 
 def test_rims_need_a_layout_from_place_curves(face_space):
-    from pdeface.rims import follow_rims
+    from pdeface.surface.rims import follow_rims
 
     V, T, Lf = face_space
     lay = place_curves(Lf)
@@ -207,8 +207,8 @@ def test_deep_set_eye_corners_are_skin_not_pockets(scan):
     # An ICT face with deep-set eyes (identity modes mixed; mode 3 at +2.2 sigma): its inner eye
     # corners lie 12-16 mm below their neighbours, shallower than any opening's pocket.
     from pdeface.assets import load_ict_shapes
-    from pdeface.fit import fit_face, skin_triangles
-    from pdeface.report import accuracy_report
+    from pdeface.surface.fit import fit_face, skin_triangles
+    from pdeface.surface.report import accuracy_report
     mesh, T, idx = scan
     shapes = load_ict_shapes()
     z = [-0.3, -0.9, 0.16, 2.24, -0.83, -0.62, 0.21, 0.49, -0.18, -0.21,
@@ -216,7 +216,7 @@ def test_deep_set_eye_corners_are_skin_not_pockets(scan):
     V = mesh.vertices + sum(w * shapes[f"identity{i:03d}"] for i, w in enumerate(z))
     model, _ = fit_face(V, T, V[idx], unit="cm")
     Vf = model.frame.to_face(V)
-    eyes = place_samples(Vf, skin_triangles(T, len(V), idx), model.layout, cavity_depth=12.0)
+    eyes = place_samples(Vf, skin_triangles(V, T, V[idx]), model.layout, cavity_depth=12.0)
     rims = [k + d for k in model.layout.breaks()[:1] for d in (0, 1)]
     assert (eyes.status[rims] == CAVITY).sum() >= 4  # the old 12 mm rule filled the corners over
     assert (model.status[rims] == CAVITY).sum() == 0

@@ -3,11 +3,12 @@ import json
 import numpy as np
 import pytest
 
-from pdeface.descriptor import (Descriptor, descriptor_from_bytes, descriptor_to_bytes, fit_descriptor,
-                                load_descriptor, save_descriptor)
+from pdeface.au.capture import fit_descriptor
+from pdeface.au.descriptor import Descriptor
+from pdeface.io.descriptorfile import descriptor_from_bytes, descriptor_to_bytes, load_descriptor, save_descriptor
 from pdeface.errors import LandmarkError, ModelFormatError, PdeFaceError
-from pdeface.fit import face_mesh, surface_grid
-from pdeface.ict import AU_SHAPES, au_offsets
+from pdeface.surface.fit import face_mesh, surface_grid
+from pdeface.au.ict import AU_SHAPES, au_offsets
 
 
 @pytest.fixture(scope="module")
@@ -36,7 +37,6 @@ def test_sum_identity_solve_is_linear(scan, fitted, shapes, au12):
     """solve(neutral + Σ wᵢ Dᵢ) == neutral mesh + Σ wᵢ (AU mesh − neutral mesh)."""
     mesh, T, idx = scan
     model, sampler = fitted
-    from pdeface.fit import fit_face
     d1 = fit_descriptor(model, sampler, mesh.vertices, mesh.vertices + au_offsets("1", shapes), 1)
     w = {12: 0.7, 1: 0.4}
     C = model.coefficients + w[12] * au12.dense()[0] + w[1] * d1.dense()[0]
@@ -46,7 +46,7 @@ def test_sum_identity_solve_is_linear(scan, fitted, shapes, au12):
 
     def au_mesh(key):  # the AU's own PDE face, its curves read off the AU mesh
         P = sampler.sample(model.frame.to_face(mesh.vertices + au_offsets(key, shapes)))
-        from pdeface.fourier import fit_fourier
+        from pdeface.surface.fourier import fit_fourier
         c, r = fit_fourier(P, 5)
         return surface_grid(model, coefficients=c, residual=r)
     expect = neutral + w[12] * (au_mesh("12") - neutral) + w[1] * (au_mesh("1") - neutral)
@@ -79,7 +79,7 @@ def test_files_roundtrip(tmp_path, au12, suffix):
 
 
 def test_malformed_descriptor_files(tmp_path, au12):
-    from pdeface.descriptor import descriptor_to_json
+    from pdeface.io.descriptorfile import descriptor_to_json
     good = descriptor_to_json(au12)
     cases = [
         ({**good, "format": "x"}, "'format'"),
@@ -113,7 +113,7 @@ def test_malformed_descriptor_files(tmp_path, au12):
 
 def dense_points(d):
     C, R = d.dense()
-    from pdeface.fourier import evaluate_fourier
+    from pdeface.surface.fourier import evaluate_fourier
     return evaluate_fourier(C, np.linspace(0, np.pi, d.layout[1])) + R
 
 
@@ -152,7 +152,7 @@ def test_other_topology_is_aligned_and_projected(scan, fitted, shapes):
 
 
 def test_bundled_face_has_every_ict_au(scan):
-    from pdeface.cli import load_face
+    from pdeface.assets import load_face
     model = load_face("default")
     keys = {d.key for d in model.descriptors}
     assert set(AU_SHAPES) <= keys
@@ -173,7 +173,7 @@ def test_the_lips_and_lids_move_apart(scan, fitted, shapes):
     across the opening."""
     import copy
 
-    from pdeface.aureport import MotionProbe
+    from pdeface.au.aureport import MotionProbe
 
     mesh, T, _ = scan
     model, sampler = fitted

@@ -2,9 +2,9 @@ import numpy as np
 import pytest
 
 from pdeface.errors import LandmarkError, MeshError
-from pdeface.fit import face_mesh, fit_face, parse_resolution, surface_grid
+from pdeface.surface.fit import face_mesh, fit_face, parse_resolution, surface_grid
 from pdeface.geometry import ClosestPoint
-from pdeface.report import accuracy_report
+from pdeface.surface.report import accuracy_report
 
 
 def test_fit_is_accurate_on_the_ict_scan(scan, fitted):

@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from pdeface.fourier import evaluate_fourier, fit_fourier
+from pdeface.surface.fourier import evaluate_fourier, fit_fourier
 
 
 def test_recovers_a_cosine_series_exactly(rng):

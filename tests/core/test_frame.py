@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from pdeface.errors import LandmarkError
-from pdeface.frame import (FEATURE_NAMES, UNITS_MM, face_frame, feature_points, guess_unit, landmark_points,
+from pdeface.surface.frame import (FEATURE_NAMES, UNITS_MM, face_frame, feature_points, guess_unit, landmark_points,
                            read_landmarks)
 
 

@@ -3,7 +3,7 @@ import pytest
 
 from pdeface.errors import MeshError
 from pdeface.mesh import Mesh
-from pdeface.meshio import read_mesh, read_obj, read_ply, write_mesh, write_obj
+from pdeface.io.meshio import read_mesh, read_obj, read_ply, write_mesh, write_obj
 
 OBJ = """# a comment
 mtllib skin.mtl

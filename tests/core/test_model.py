@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from pdeface.errors import ModelFormatError
-from pdeface.model import load_model, save_model
+from pdeface.io.modelfile import load_model, save_model
 
 
 def test_roundtrip_and_size(tmp_path, fitted):
@@ -81,8 +81,8 @@ def test_malformed_files_name_the_problem(tmp_path, fitted):
 
 def test_version_1_files_still_load(tmp_path, fitted):
     """Version 1: straight curves (layout of 3 + 2K values) and int16 residual codes delta-coded once."""
-    from pdeface.codec import encode_residual
-    from pdeface.layout import CurveLayout
+    from pdeface.io.codec import encode_residual
+    from pdeface.surface.layout import CurveLayout
 
     model, _ = fitted
     lay = model.layout
@@ -105,7 +105,7 @@ def test_version_2_files_still_load_as_one_sheet(tmp_path, fitted):
     """Version 2: bent curves but no openings, so the smooth assembly has no break."""
     import copy
 
-    from pdeface.fit import surface_grid
+    from pdeface.surface.fit import surface_grid
 
     model, _ = fitted
     assert model.layout.breaks()  # the default layout has the mouth's break
@@ -124,7 +124,7 @@ def test_version_2_files_still_load_as_one_sheet(tmp_path, fitted):
 
 
 def test_byte_planes_and_coefficient_codes_round_trip(rng):
-    from pdeface.codec import (decode_coefficients, encode_coefficients, from_byte_planes,
+    from pdeface.io.codec import (decode_coefficients, encode_coefficients, from_byte_planes,
                                to_byte_planes)
 
     c16 = rng.integers(-2 ** 15, 2 ** 15, (3, 5, 7)).astype(np.int16)

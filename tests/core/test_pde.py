@@ -2,8 +2,8 @@ import numpy as np
 import pytest
 
 from pdeface.errors import LayoutError
-from pdeface.fourier import fit_fourier
-from pdeface.pde import _taylor_table, knot_slopes, mode_operator, ode_basis, output_grid, solve_surface
+from pdeface.surface.fourier import fit_fourier
+from pdeface.surface.pde import _taylor_table, knot_slopes, mode_operator, ode_basis, output_grid, solve_surface
 
 T01 = np.linspace(0, 1, 11)
 
@@ -130,7 +130,7 @@ def test_bad_parameters():
 def test_own_cubic_spline_matches_scipy(deriv):
     from scipy.interpolate import CubicSpline
 
-    from pdeface.pde import cubic_spline_operator
+    from pdeface.surface.pde import cubic_spline_operator
     x = np.sort(np.random.default_rng(3).random(11))
     xe = np.linspace(x[0], x[-1], 40)
     expect = CubicSpline(x, np.eye(11), bc_type="not-a-knot")(xe, deriv)

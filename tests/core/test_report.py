@@ -1,7 +1,7 @@
 import numpy as np
 
-from pdeface.fit import grid_faces
-from pdeface.report import PIT_DEPTH_MM, _in_pit, weighted_percentile
+from pdeface.surface.fit import grid_faces
+from pdeface.surface.report import PIT_DEPTH_MM, _in_pit, weighted_percentile
 
 AXIS_Z = -100.0
 

@@ -10,7 +10,7 @@ import pytest
 from pdeface.errors import ModelFormatError
 from pdeface.stream.player import Player
 from pdeface.stream.rules import AUBlender
-from pdeface.stream.sender import Sender, read_packets, send
+from pdeface.stream.sender import read_packets, send
 from pdeface.stream.wire import (END, PAUSE, RESUME, Control, Garbage, Packet, PacketError, StreamParser,
                                  format_packet, parse_json_line, parse_packet)
 

@@ -25,13 +25,10 @@ import threading
 import time
 from dataclasses import dataclass, field
 
-from .wire import ACK, END, PAUSE, RESUME, STOP, Control, Garbage, Packet, StreamParser
+from ..au.facs import split_au_key
+from .wire import ACK, END, MAX_PACKET, PAUSE, RESUME, STOP, Control, Garbage, Packet, StreamParser
 
 MODES = ("queue", "live")
-
-
-def _au_order(key):
-    return int(key.rstrip("LR")), key
 
 
 @dataclass
@@ -79,7 +76,7 @@ class Player:
     """
 
     def __init__(self, receive_capacity=100, playout_capacity=30, resume_below=0.4, transition=0.25,
-                 mode="queue", blender=None, clock=time.monotonic, max_packet=1024):
+                 mode="queue", blender=None, clock=time.monotonic, max_packet=MAX_PACKET):
         if mode not in MODES:
             raise ValueError(f"mode must be one of {MODES}")
         self.receive_capacity, self.playout_capacity = receive_capacity, playout_capacity
@@ -299,7 +296,7 @@ class Player:
             s = 1.0 if self.transition <= 0 else min(1.0, (now - self._t0) / self.transition)
             keys = set(self._from) | set(self._to)
             self._pose = {k: (1 - s) * self._from.get(k, 0.0) + s * self._to.get(k, 0.0) for k in keys}
-            self._pose = {k: self._pose[k] for k in sorted(self._pose, key=_au_order) if self._pose[k] > 1e-9}
+            self._pose = {k: self._pose[k] for k in sorted(self._pose, key=split_au_key) if self._pose[k] > 1e-9}
             if s >= 1.0 and self.mode == "live":
                 self._t0 = None
         return dict(self._pose)
@@ -317,3 +314,32 @@ class Player:
         """Nothing buffered, queued or in transition."""
         with self._lock:
             return not self._buffer and not self._playout and self._t0 is None
+
+    def run(self, hz=60.0, duration=0.0, keep_running=False, on_pose=None):
+        """Play until the sender ends and everything is played (the headless player's loop).
+
+        Parameters
+        ----------
+        hz : float
+            Poses per second.
+        duration : float
+            Stop after this many seconds (0: no limit).
+        keep_running : bool
+            Go on after the sender ends (only a stop, ``duration`` or Ctrl-C end it).
+        on_pose : callable, optional
+            ``on_pose(seconds since start, pose)`` for each pose that differs from the last.
+        """
+        t0 = time.monotonic()
+        last = None
+        tick = 1.0 / hz
+        while True:
+            now = time.monotonic()
+            pose = self.pose(now)
+            if on_pose is not None and pose != last:
+                on_pose(now - t0, pose)
+            last = pose
+            if self.stats.stopped or (duration and now - t0 > duration):
+                return
+            if self.stats.ended and not keep_running and self.idle:
+                return
+            self.wait(tick) if self.idle else time.sleep(tick)

@@ -13,14 +13,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..au.facs import au_number
 from ..errors import ModelFormatError
-from ..files import load_json
+from ..io.files import load_json
 
 DEFAULT_RULES = Path(__file__).resolve().parent.parent / "data" / "au_rules.json"
-
-
-def _number(key: str) -> int:
-    return int(str(key).rstrip("LR"))
 
 
 class AUBlender:
@@ -49,16 +46,16 @@ class AUBlender:
     def apply(self, weights: dict) -> dict:
         """The AU set with the rules applied (a new dict, order kept)."""
         out = {k: w for k, w in weights.items() if w > 0}
-        present = {_number(k) for k in out}
+        present = {au_number(k) for k in out}
         for au, removed in self.supersedes.items():
             if au in present:
-                out = {k: w for k, w in out.items() if _number(k) not in removed}
-                present = {_number(k) for k in out}
+                out = {k: w for k, w in out.items() if au_number(k) not in removed}
+                present = {au_number(k) for k in out}
         for a, b in self.exclusive:
             if a in present and b in present:
-                wa = max(w for k, w in out.items() if _number(k) == a)
-                wb = max(w for k, w in out.items() if _number(k) == b)
+                wa = max(w for k, w in out.items() if au_number(k) == a)
+                wb = max(w for k, w in out.items() if au_number(k) == b)
                 loser = b if wa >= wb else a
-                out = {k: w for k, w in out.items() if _number(k) != loser}
+                out = {k: w for k, w in out.items() if au_number(k) != loser}
                 present.discard(loser)
         return out

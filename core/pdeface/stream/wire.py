@@ -18,7 +18,7 @@ import re
 from dataclasses import dataclass, field
 
 from ..errors import PdeFaceError
-from ..facs import INTENSITY, parse_au_key
+from ..au.facs import INTENSITY, clamp_weight, parse_au_key
 
 ACK, PAUSE, END, RESUME, STOP = 1, -1, -2, -3, -4
 CONTROLS = {ACK: "ack", PAUSE: "pause", END: "end", RESUME: "resume", STOP: "stop"}
@@ -81,7 +81,7 @@ def parse_packet(text: str) -> Packet:
             w = float(value)
             if not math.isfinite(w):
                 raise PacketError(f"weight of AU{num} is not finite")
-            w = min(max(w, 0.0), 1.0)
+            w = clamp_weight(w)
         else:
             w = 1.0
         try:
@@ -122,7 +122,7 @@ def parse_json_line(line: str) -> Packet:
         except PdeFaceError:
             unknown.append(k)
             continue
-        weights[key] = min(max(v / scale, 0.0), 1.0)
+        weights[key] = clamp_weight(v / scale)
     ts = obj.get("timestamp")
     ts = float(ts) if isinstance(ts, (int, float)) and not isinstance(ts, bool) and math.isfinite(ts) else None
     return Packet(weights, line[:200], unknown, ts)

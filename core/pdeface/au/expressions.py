@@ -5,7 +5,7 @@ system's idea): ``sum`` (default, linear: Σ wᵢ Dᵢ), ``average`` (each
 coefficient's sum divided by how many weighted AUs act on that curve) and
 ``max`` (each coefficient from the weighted AU with the largest magnitude).
 Weights are clamped to [0, 1]; FACS letters A-E are accepted (see
-:mod:`pdeface.facs`).
+:mod:`pdeface.au.facs`).
 
 Presets (``PRESETS``): the method's six basic expressions (its Table 5-3: main
 AUs at weight 1, supplementary AUs at ``SUPPLEMENTARY_WEIGHT``) and the four it
@@ -25,9 +25,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .errors import ModelFormatError, PdeFaceError
-from .facs import letter_to_weight, parse_au_key
+from ..errors import ModelFormatError, PdeFaceError
+from .facs import clamp_weight, clamp_weights, letter_to_weight, parse_au_key, split_au_key
 
+#: How AUs that move the same curves combine: their changes add up, are averaged per curve, or the
+#: larger change wins (the FAS's mixers; only ``sum`` is linear, i.e. plain shape keys).
 MIXERS = ("sum", "average", "max")
 SUPPLEMENTARY_WEIGHT = 0.3
 
@@ -78,7 +80,7 @@ def parse_weight(value, where="weight") -> float:
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)) \
             or not np.isfinite(value):
         raise PdeFaceError(f"{where}: {value!r} is not a weight (a number in [0, 1] or a letter A-E)")
-    return float(min(max(value, 0.0), 1.0))
+    return clamp_weight(value)
 
 
 def normalise_weights(weights: dict) -> dict:
@@ -92,7 +94,7 @@ def mix(descriptors: dict, weights: dict, mixer: str = "sum") -> tuple[np.ndarra
     Parameters
     ----------
     descriptors : dict
-        AU key → :class:`~pdeface.descriptor.Descriptor` (one layout).
+        AU key → :class:`~pdeface.au.descriptor.Descriptor` (one layout).
     weights : dict
         AU key → weight; keys must be in ``descriptors``.
     mixer : {'sum', 'average', 'max'}
@@ -113,7 +115,7 @@ def mix(descriptors: dict, weights: dict, mixer: str = "sum") -> tuple[np.ndarra
     for key, w in weights.items():
         w = parse_weight(w, f"AU{key}")
         if key not in descriptors:
-            raise PdeFaceError(f"AU{key} has no descriptor in this face (has: {', '.join(sorted(descriptors, key=_order))})")
+            raise PdeFaceError(f"AU{key} has no descriptor in this face (has: {', '.join(sorted(descriptors, key=split_au_key))})")
         d = descriptors[key]
         if d.layout != layout:
             raise PdeFaceError(f"AU{key}: descriptor layout {d.layout} differs from {layout}")
@@ -134,16 +136,20 @@ def mix(descriptors: dict, weights: dict, mixer: str = "sum") -> tuple[np.ndarra
     return dC, dR
 
 
-def _order(key: str):
-    return (int(key.rstrip("LR")), key[-1] if key[-1] in "LR" else "")
-
-
 def resolve_preset(preset: Preset, available) -> tuple[dict, list]:
     """Weights of a preset restricted to the available AU keys, and the missing keys."""
     weights, missing = {}, []
     for k, w in normalise_weights(preset.weights).items():
         (weights.__setitem__(k, w) if k in available else missing.append(k))
     return weights, missing
+
+
+def choose_mixer(requested=None, preset: Preset | None = None) -> str:
+    """The mixer to pose with: the one asked for, else the preset's own, else ``sum``."""
+    mixer = requested or (preset.mixer if preset is not None else "sum")
+    if mixer not in MIXERS:
+        raise PdeFaceError(f"unknown mixer {mixer!r}; use one of {', '.join(MIXERS)}")
+    return mixer
 
 
 def pose_curves(model, weights: dict, mixer: str = "sum"):
@@ -158,11 +164,11 @@ class ShapeBasis:
 
     ``vertices(W) = neutral + W @ deltas``: one matrix product per batch of
     faces, in the source mesh's space, same vertex order as
-    :func:`pdeface.fit.face_mesh`. This is what Blender shape keys are.
+    :func:`pdeface.surface.fit.face_mesh`. This is what Blender shape keys are.
     """
 
     def __init__(self, model, resolution="default", assembly=None, dtype=np.float32):
-        from .fit import face_mesh, parse_resolution, surface_grid
+        from ..surface.fit import face_mesh, parse_resolution, surface_grid
 
         su, sv = parse_resolution(resolution)
         self.keys = [d.key for d in model.descriptors]
@@ -198,7 +204,7 @@ class ShapeBasis:
         ``out`` (B, n_vertices * 3), when given, is filled and reused, which
         keeps batch evaluation allocation-free.
         """
-        W = np.clip(np.atleast_2d(np.asarray(W, dtype=self._deltas_t.dtype)), 0, 1)
+        W = clamp_weights(np.atleast_2d(np.asarray(W, dtype=self._deltas_t.dtype)))
         if out is None:
             out = np.empty((len(W), self._deltas_t.shape[0]), dtype=self._deltas_t.dtype)
         np.matmul(W, self.deltas, out=out)
@@ -246,7 +252,7 @@ def save_presets(path, presets) -> None:
 
 def load_presets(path) -> list:
     """Read a preset file (one preset or a ``pdeface.presets`` list)."""
-    from .files import load_json
+    from ..io.files import load_json
 
     obj = load_json(path)
     if isinstance(obj, dict) and obj.get("format") == "pdeface.presets":

@@ -16,7 +16,9 @@ from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 
-from .errors import PdeFaceError
+import numpy as np
+
+from ..errors import PdeFaceError
 
 INTENSITY = {"A": 0.2, "B": 0.4, "C": 0.6, "D": 0.8, "E": 1.0}
 REGIONS = {"upper": "Upper face", "lower": "Lower face", "eyes_head": "Eyes & head"}
@@ -39,7 +41,7 @@ class ActionUnit:
 @lru_cache(maxsize=1)
 def catalogue() -> dict:
     """All FACS AUs: ``{number: ActionUnit}``."""
-    data = json.loads((Path(__file__).parent / "data" / "facs.json").read_text())
+    data = json.loads((Path(__file__).resolve().parent.parent / "data" / "facs.json").read_text())
     return {d["au"]: ActionUnit(d["au"], d["name"], d["region"], tuple(d["muscles"])) for d in data["action_units"]}
 
 
@@ -59,9 +61,19 @@ def letter_to_weight(letter: str) -> float:
         raise PdeFaceError(f"intensity {letter!r} is not a FACS letter A-E") from None
 
 
+def clamp_weight(weight) -> float:
+    """One AU weight clamped to [0, 1] (the one rule every reader applies)."""
+    return min(max(float(weight), 0.0), 1.0)
+
+
+def clamp_weights(weights: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+    """An array of AU weights clamped to [0, 1] (see :func:`clamp_weight`)."""
+    return np.clip(weights, 0.0, 1.0, out=out)
+
+
 def weight_to_letter(weight: float) -> str:
     """Weight in [0, 1] → FACS letter ('' for 0)."""
-    w = min(max(float(weight), 0.0), 1.0)
+    w = clamp_weight(weight)
     return "" if w <= 0 else "ABCDE"[min(4, max(0, math.ceil(round(w * 5, 9)) - 1))]
 
 
@@ -77,8 +89,18 @@ def parse_au_key(key) -> str:
     return f"{int(m.group(1))}{m.group(2).upper()}"
 
 
+def split_au_key(key: str) -> tuple[int, str]:
+    """A normalised key → (AU number, side letter): ``"12L"`` → (12, "L"), ``"12"`` → (12, "")."""
+    side = key[-1] if key[-1] in "LR" else ""
+    return int(key[:-1] if side else key), side
+
+
+def au_number(key: str) -> int:
+    """A normalised key's AU number: ``"12L"`` → 12."""
+    return split_au_key(key)[0]
+
+
 def key_side(key: str) -> tuple[int, str]:
     """``"12L"`` → (12, 'left')."""
-    k = parse_au_key(key)
-    side = {"L": "left", "R": "right"}.get(k[-1], "both")
-    return int(k.rstrip("LR")), side
+    au, side = split_au_key(parse_au_key(key))
+    return au, {"L": "left", "R": "right"}.get(side, "both")

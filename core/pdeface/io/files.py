@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import json
 
-from .errors import ModelFormatError
+from ..errors import ModelFormatError
 
 
 def load_json(path, error=ModelFormatError):

@@ -35,7 +35,7 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
-from .errors import LayoutError
+from ..errors import LayoutError
 
 ASSEMBLIES = ("smooth", "patches")
 _TAYLOR_TERMS = 40
@@ -383,7 +383,7 @@ def solve_surface(coefficients, residual, knots, a=1.0, w=None, sub_u=4, sub_v=4
         Derivative order in u and in v (each 0 or 1).
     breaks : tuple of int
         Curve intervals the ``smooth`` assembly solves apart (see the module
-        notes); from :meth:`pdeface.layout.CurveLayout.breaks`.
+        notes); from :meth:`pdeface.surface.layout.CurveLayout.breaks`.
 
     Returns
     -------

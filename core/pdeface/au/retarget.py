@@ -11,8 +11,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from .errors import PdeFaceError
-from .frame import FEATURE_NAMES
+from ..errors import PdeFaceError
+from ..surface.frame import FEATURE_NAMES
 
 SCALINGS = ("face", "none")
 

@@ -12,8 +12,8 @@ from one lip to the other or falls into a nostril by chance.
 
 The eyes and the mouth are *openings*: two curves run along each, one on each
 lid's or lip's rim (where its skin turns into the opening, found on the mesh
-by :func:`pdeface.rims.follow_rims`), and the curve interval between them is a
-*break* the smooth assembly solves apart (see :mod:`pdeface.pde`), so the
+by :func:`pdeface.surface.rims.follow_rims`), and the curve interval between them is a
+*break* the smooth assembly solves apart (see :mod:`pdeface.surface.pde`), so the
 upper lid or lip moves without dragging the lower one.
 """
 from __future__ import annotations
@@ -22,9 +22,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .errors import LayoutError
+from ..errors import LayoutError
 from .frame import eye_distance
-from .geometry import cylinder_coords
+from ..geometry import cylinder_coords
 from .pde import break_fits, cubic_spline_operator
 
 #: Curves in the default layout. The method used 31 (10 patches of 4); 34 (11
@@ -161,7 +161,7 @@ class CurveLayout:
         return out
 
     def breaks(self) -> tuple:
-        """Curve intervals that span an opening (see :mod:`pdeface.pde`)."""
+        """Curve intervals that span an opening (see :mod:`pdeface.surface.pde`)."""
         return tuple(k for _, k in self.opening_curves())
 
     def sample_params(self) -> np.ndarray:
@@ -276,7 +276,7 @@ def place_curves(landmarks_face: np.ndarray, n_curves: int = DEFAULT_CURVES, n_p
     Parameters
     ----------
     landmarks_face : (68, 3) array
-        Landmarks in the face frame (see :func:`pdeface.frame.face_frame`).
+        Landmarks in the face frame (see :func:`pdeface.surface.frame.face_frame`).
     n_curves, n_points : int
         Number of curves and of points per curve.
     forehead : float

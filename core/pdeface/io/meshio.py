@@ -9,8 +9,8 @@ import struct
 
 import numpy as np
 
-from .errors import MeshError
-from .mesh import Mesh
+from ..errors import MeshError
+from ..mesh import Mesh
 
 
 def read_mesh(path) -> Mesh:

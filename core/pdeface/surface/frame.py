@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import LandmarkError
+from ..errors import LandmarkError
 
 #: Millimetres per mesh unit.
 UNITS_MM = {"mm": 1.0, "cm": 10.0, "m": 1000.0, "in": 25.4}
@@ -41,7 +41,7 @@ def read_landmarks(path):
     indices : (68,) int array or None
     points : (68, 3) float array or None
     """
-    from .files import load_json
+    from ..io.files import load_json
 
     return parse_landmarks(load_json(path, LandmarkError), str(path))
 

@@ -31,8 +31,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .errors import ModelFormatError, PdeFaceError
-from .facs import parse_au_key
+from ..errors import ModelFormatError, PdeFaceError
+from ..au.facs import clamp_weight, clamp_weights, parse_au_key, split_au_key
 from .timeline import Key, Timeline
 
 FORMATS = ("openface", "pyfeat", "livelink", "fas")
@@ -158,7 +158,7 @@ def _samples_openface(path, min_confidence, face_id):
             w = _number(row[idx[h]], path, lineno, h) / 5.0
             if a in c_cols and _number(row[idx[c_cols[a]]], path, lineno, c_cols[a]) == 0:
                 w = 0.0
-            pose[a] = min(max(w, 0.0), 1.0)
+            pose[a] = clamp_weight(w)
         for a, h in c_cols.items():
             if a not in pose:
                 pose[a] = 1.0 if _number(row[idx[h]], path, lineno, h) > 0 else 0.0
@@ -187,7 +187,7 @@ def _samples_pyfeat(path, fps, min_face_score):
         if any(not v for v in values):  # no face found in this frame
             dropped += 1
             continue
-        pose = {a: min(max(_number(v, path, lineno, h), 0.0), 1.0) for (h, a), v in zip(au_cols, values)}
+        pose = {a: clamp_weight(_number(v, path, lineno, h)) for (h, a), v in zip(au_cols, values)}
         if tcol == "approx_time":
             t = _number(row[idx[tcol]], path, lineno, tcol)
         elif tcol == "frame":
@@ -221,7 +221,7 @@ def _samples_livelink(path, fps):
         idx, shape_cols, tc = cols
         pose = {}
         for h in shape_cols:
-            w = min(max(_number(row[idx[h]], path, lineno, h), 0.0), 1.0)
+            w = clamp_weight(_number(row[idx[h]], path, lineno, h))
             for au, share in ARKIT_TO_AU[h.lower()]:
                 pose[au] = pose.get(au, 0.0) + share * w
         times.append(_timecode(row[idx[tc]], fps, path, lineno) if tc else len(times) / fps)
@@ -238,7 +238,7 @@ def _frame(seconds, fps):
 
 
 def _keys_fas(path, fps, hold):
-    from .stream.wire import PacketError, parse_packet
+    from ..stream.wire import PacketError, parse_packet
 
     if not hold > 0:
         raise ModelFormatError(f"hold must be > 0 seconds, got {hold}")
@@ -343,7 +343,7 @@ def import_au(path, fmt="auto", fps=30.0, hold=0.5, smooth_window=1, reduce_tole
         times, poses, dropped, unknown = _samples_livelink(path, fps)
     if not poses:
         raise ModelFormatError(f"{path}: no usable rows ({dropped} dropped for tracking failure or low confidence)")
-    channels = sorted({a for p in poses for a in p}, key=lambda a: (int(a.rstrip("LR")), a))
+    channels = sorted({a for p in poses for a in p}, key=split_au_key)
     frames = 1 + np.floor(np.asarray(times) * fps + 0.5).astype(np.int64)
     values = np.array([[p.get(c, 0.0) for c in channels] for p in poses])
     # One key per frame (trackers may sample faster than the timeline): the last sample wins.
@@ -351,7 +351,7 @@ def import_au(path, fmt="auto", fps=30.0, hold=0.5, smooth_window=1, reduce_tole
     frames, values = frames[order], values[order]
     last = np.r_[frames[1:] != frames[:-1], True]
     frames, values = frames[last], values[last]
-    values = np.clip(smooth(values, int(smooth_window)), 0.0, 1.0)
+    values = clamp_weights(smooth(values, int(smooth_window)))
     keep = reduce_keys(frames, values, reduce_tolerance)
     keys = [Key(int(frames[i]), {c: float(v) for c, v in zip(channels, values[i])}, {}, "linear") for i in keep]
     return ImportResult(Timeline(float(fps), keys, 1), fmt, len(poses) + dropped, dropped, unknown)

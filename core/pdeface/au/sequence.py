@@ -6,7 +6,7 @@ over ``blend`` frames and holds for ``hold`` frames.
 """
 from __future__ import annotations
 
-from .errors import PdeFaceError
+from ..errors import PdeFaceError
 
 MODES = ("via_neutral", "direct")
 #: The method's demonstration order, then the remaining basic expressions.

@@ -13,8 +13,8 @@ import csv
 import numpy as np
 
 from .fit import grid_faces, surface_grid
-from .geometry import ClosestPoint, cast_cylinder_rays, cylinder_coords
-from .mesh import vertex_normals
+from ..geometry import ClosestPoint, cast_cylinder_rays, cylinder_coords
+from ..mesh import vertex_normals
 from .model import FaceModel
 from .pde import SurfaceOperator, knot_slopes, surface_operator
 from .rims import FACING_MIN_COS
@@ -248,7 +248,7 @@ def accuracy_report(model: FaceModel, scan_vertices, scan_triangles, assembly=No
                         wr.writerow([name, i, f"{np.degrees(th[i]):.4f}", f"{y[i]:.4f}", f"{rs[i]:.4f}",
                                      f"{rp[i]:.4f}", f"{rp[i] - rs[i]:.4f}"])
         if profiles_png:
-            from .png import plot_panels
+            from ..io.png import plot_panels
             panels = []
             for name, (th, y, rs, rp) in prof.items():
                 along = np.concatenate([[0], np.cumsum(np.hypot(np.diff(th) * np.nanmean(rs), np.diff(y)))])

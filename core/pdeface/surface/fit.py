@@ -8,11 +8,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from .errors import MeshError
+from ..errors import MeshError
 from .fourier import fit_fourier
 from .frame import face_frame, feature_points
 from .layout import DEFAULT_CURVES, place_curves
-from .mesh import Mesh
+from ..mesh import Mesh
 from .model import FaceModel
 from .pde import output_grid, solve_surface
 
@@ -36,15 +36,18 @@ def parse_resolution(value) -> tuple[int, int]:
     return int(su), int(sv)
 
 
-def skin_triangles(T: np.ndarray, n_vertices: int, landmark_vertices: np.ndarray) -> np.ndarray:
-    """Triangles of the connected pieces that hold the landmarks.
+def skin_triangles(V: np.ndarray, T: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Triangles of the connected pieces whose vertices lie nearest ``points`` (the landmarks).
 
     Separate pieces (eyeballs, teeth, eyelashes) are left out of the skin.
     """
-    from .mesh import connected_components
+    from scipy.spatial import cKDTree  # scipy is heavy: only fitting and reports need it
 
-    lab = connected_components(n_vertices, T)
-    return T[np.isin(lab[T[:, 0]], np.unique(lab[landmark_vertices]))]
+    from ..mesh import connected_components
+
+    near = cKDTree(V).query(points)[1]
+    lab = connected_components(len(V), T)
+    return T[np.isin(lab[T[:, 0]], np.unique(lab[near]))]
 
 
 def chord_knots(points: np.ndarray) -> np.ndarray:
@@ -80,16 +83,14 @@ def fit_face(vertices, triangles, landmarks, unit=None, n_curves=DEFAULT_CURVES,
         Where the mesh came from (kept in the model).
     follow_lips : bool
         Bend the curves along the lips (default) or keep them horizontal
-        (see :func:`pdeface.layout.place_curves`).
+        (see :func:`pdeface.surface.layout.place_curves`).
 
     Returns
     -------
     model : FaceModel
-    sampler : pdeface.curves.CurveSampler
+    sampler : pdeface.surface.curves.CurveSampler
         The curve points as material points of this mesh.
     """
-    from scipy.spatial import cKDTree  # scipy is heavy: only fitting needs it
-
     from .curves import place_samples
     from .rims import follow_rims
     V = np.asarray(vertices, dtype=np.float64)
@@ -102,8 +103,7 @@ def fit_face(vertices, triangles, landmarks, unit=None, n_curves=DEFAULT_CURVES,
     Vf = frame.to_face(V)
     Lf = frame.to_face(landmarks)
     layout = place_curves(Lf, n_curves, n_points, follow_lips=follow_lips)
-    near = cKDTree(Vf).query(Lf)[1]  # the vertices at the landmarks pick the skin's connected pieces
-    skin = skin_triangles(T, len(V), near)
+    skin = skin_triangles(Vf, T, Lf)
     layout = follow_rims(layout, Vf, skin)
     sampler = place_samples(Vf, skin, layout)
     points = sampler.sample(Vf)

@@ -1,4 +1,4 @@
-"""The PDE face model and its file format.
+"""The face model file format (:class:`pdeface.surface.model.FaceModel` on disk).
 
 File format (``.npz``, version 3): a NumPy ``savez_compressed`` archive read
 with ``allow_pickle=False``. Members:
@@ -8,7 +8,7 @@ with ``allow_pickle=False``. Members:
     ``n_modes``, ``a``, ``w``, ``assembly``, ``residual_step``,
     ``coefficient_step``, ``feature_names``, ``source``, ``notice``.
 ``layout`` (float32)
-    :meth:`pdeface.layout.CurveLayout.as_array`: axis z, points per curve,
+    :meth:`pdeface.surface.layout.CurveLayout.as_array`: axis z, points per curve,
     centre density, the K curve heights and the K half angles (face frame);
     from version 2, then the anchors and feature lines the curves bend
     along; from version 3, then the openings (the top anchors of the eyes'
@@ -21,14 +21,14 @@ with ``allow_pickle=False``. Members:
     Cosine Fourier coefficients of each curve, face frame, in steps of
     ``coefficient_step`` mm (meta; 0.001), differenced once from curve to
     curve, as the int32 codes' four byte planes
-    (:func:`pdeface.codec.encode_coefficients`): 40 % of the float32 size
+    (:func:`pdeface.io.codec.encode_coefficients`): 40 % of the float32 size
     deflated. Versions 1 and 2 hold float32 (K × (N+1) × 3).
 ``residual`` (uint8, 2 × 3 × J × K)
     Curve points minus their series in steps of ``residual_step`` mm (meta;
     0.01 unless a residual exceeds 80 mm), delta-coded twice along each curve
-    (:func:`pdeface.codec.encode_residual`, order 2), stored point-major
+    (:func:`pdeface.io.codec.encode_residual`, order 2), stored point-major
     (coordinate, point, curve) as the codes' high and low byte planes
-    (:func:`pdeface.codec.to_byte_planes`), so the smooth residual deflates
+    (:func:`pdeface.io.codec.to_byte_planes`), so the smooth residual deflates
     well. Decoding is exact integer sums; rounding ≤ step / 2. Version 1
     files hold int16 codes (3 × K × J) delta-coded once.
 ``frame`` (float64, 4 × 4)
@@ -37,7 +37,7 @@ with ``allow_pickle=False``. Members:
     The method's feature points in the face frame.
 ``descriptors`` (uint8) and ``descriptor_offsets`` (int64), optional
     AU descriptors carried with the face: binary descriptors (see
-    :mod:`pdeface.descriptor`) back to back, descriptor i in bytes
+    :mod:`pdeface.au.descriptor`) back to back, descriptor i in bytes
     ``offsets[i]:offsets[i+1]``.
 ``status`` (uint8, K × J)
     How each curve point was found: 0 ray hit, 1 miss, 2 back-facing,
@@ -51,83 +51,18 @@ import io
 import json
 import os
 import zipfile
-from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..errors import LayoutError, ModelFormatError
+from ..surface.frame import FEATURE_NAMES, UNITS_MM, FaceFrame
+from ..surface.layout import CurveLayout
+from ..surface.model import FaceModel
 from .codec import (decode_coefficients, decode_residual, encode_coefficients, encode_residual, from_byte_planes,
                     to_byte_planes)
-from .errors import LayoutError, ModelFormatError
-from .frame import FEATURE_NAMES, UNITS_MM, FaceFrame
-from .layout import CurveLayout
 
 FORMAT = "pdeface.face"
 VERSION = 3
-ICT_NOTICE = ("Derived from ICT-FaceKit, Copyright (c) 2020 USC Institute for Creative Technologies, "
-              "MIT License (see assets/ICT-FaceKit-LICENSE.txt).")
-
-
-@dataclass
-class FaceModel:
-    """A neutral face as PDE boundary curves.
-
-    All geometry is in the face frame (mm); :attr:`frame` maps back to the
-    source mesh's space and unit.
-
-    Attributes
-    ----------
-    layout : CurveLayout
-    knots : (K,) array
-        Curve parameters ``u_i``.
-    coefficients : (K, N+1, 3) array
-    residual : (K, J, 3) array
-    frame : FaceFrame
-    features : (19, 3) array
-    a : float
-        PDE smoothing parameter.
-    w : float
-        Remainder wavenumber.
-    assembly : str
-        Default assembly for meshing.
-    source : str
-        Where the model came from (free text).
-    notice : str
-        Licence notice of the data it derives from, if any.
-    status : (K, J) int array or None
-        Curve point status (see :mod:`pdeface.curves`).
-    descriptors : list
-        AU descriptors carried with the model (see :mod:`pdeface.descriptor`).
-    """
-
-    layout: CurveLayout
-    knots: np.ndarray
-    coefficients: np.ndarray
-    residual: np.ndarray
-    frame: FaceFrame
-    features: np.ndarray
-    a: float = 1.0
-    w: float | None = None
-    assembly: str = "smooth"
-    source: str = ""
-    notice: str = ""
-    status: np.ndarray | None = None
-    descriptors: list = field(default_factory=list)
-
-    @property
-    def n_modes(self) -> int:
-        return self.coefficients.shape[1] - 1
-
-    @property
-    def remainder_w(self) -> float:
-        return self.a * (self.n_modes + 1) if self.w is None else self.w
-
-    def curve_points(self, coefficients=None, residual=None) -> np.ndarray:
-        """Curve points (K, J, 3) in the face frame (from the series and residual)."""
-        from .fourier import evaluate_fourier
-
-        c = self.coefficients if coefficients is None else coefficients
-        r = self.residual if residual is None else residual
-        return evaluate_fourier(c, self.layout.sample_params()) + r
 
 
 def _member(z, name, path):
@@ -159,7 +94,7 @@ def model_to_bytes(model: FaceModel, descriptors: bool = True) -> bytes:
     if model.status is not None:
         arrays["status"] = np.asarray(model.status, np.uint8)
     if descriptors and model.descriptors:
-        from .descriptor import pack_descriptors
+        from .descriptorfile import pack_descriptors
         arrays.update(pack_descriptors(model.descriptors))
     buf = io.BytesIO()
     np.savez_compressed(buf, **arrays)
@@ -268,6 +203,6 @@ def load_model(path, where=None) -> FaceModel:
                 raise ModelFormatError(f"{path}: field 'status' has shape {st.shape}, expected ({K}, {J})")
             model.status = st.astype(np.int64)
         if "descriptors" in z.files:
-            from .descriptor import unpack_descriptors
+            from .descriptorfile import unpack_descriptors
             model.descriptors = unpack_descriptors(z, path)
     return model

@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .errors import MeshError, PdeFaceError
-from .geometry import ClosestPoint
+from ..errors import MeshError, PdeFaceError
+from ..geometry import ClosestPoint
 
 
 def transfer_uvs(points, src_vertices, src_triangles, src_corner_uvs) -> tuple[np.ndarray, np.ndarray]:

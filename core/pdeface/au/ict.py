@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import PdeFaceError
+from ..errors import PdeFaceError
 
 FACE_VERTICES = 9409  # ICT "Face" region: vertices 0-9408
 FACE_POLYGONS = 9230  # and polygons 0-9229
@@ -51,7 +51,7 @@ APPROXIMATIONS = {"25": "0.2 jawOpen + 0.5 mouthLowerDown_L/R (ICT has no lips-p
 
 
 def au_offsets(key: str, shapes: dict) -> np.ndarray:
-    """Offsets of AU ``key`` from ICT shape offsets ``{name: (n, 3)}``."""
+    """Offsets of AU ``key`` from ICT shape offsets (a mapping ``name → (n, 3)``)."""
     if key not in AU_SHAPES:
         raise PdeFaceError(f"AU{key} has no ICT-FaceKit shapes")
     return sum(w * shapes[name] for name, w in AU_SHAPES[key].items())
@@ -76,7 +76,7 @@ class IctFolder:
     """An ICT-FaceKit folder: the neutral face region, landmarks, shapes as offsets (cm)."""
 
     def __init__(self, path):
-        from .meshio import read_obj
+        from ..io.meshio import read_obj
 
         self.path = Path(path)
         if not (self.path / "generic_neutral_mesh.obj").exists():
@@ -100,5 +100,10 @@ class IctFolder:
             self._cache[name] = self._read_obj(f).vertices[:FACE_VERTICES] - self.vertices
         return self._cache[name]
 
-    def shapes(self, names) -> dict:
-        return {n: self.shape(n) for n in names}
+    def triangles(self) -> np.ndarray:
+        """The face region's triangles."""
+        from ..mesh import Mesh
+
+        return Mesh.from_faces(self.vertices, self.faces).triangles()[0]
+
+    __getitem__ = shape  # a mapping of shape offsets, like the bundled ones

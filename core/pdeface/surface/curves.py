@@ -15,8 +15,8 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
-from .errors import LayoutError
-from .geometry import ClosestPoint, cast_cylinder_rays
+from ..errors import LayoutError
+from ..geometry import ClosestPoint, cast_cylinder_rays
 from .layout import CurveLayout
 
 #: Status codes of curve points.

@@ -3,7 +3,7 @@
 The lips meet in a crease. Walking down the upper lip towards the slit, its
 skin turns away from the viewer and rolls into the mouth; the lower lip does
 the same walking up. A lip's *rim* is the last place its skin still faces the
-viewer (as :func:`pdeface.report.band_vertices` counts skin as visible), or
+viewer (as :func:`pdeface.surface.report.band_vertices` counts skin as visible), or
 where the skin ends (the lid margins, with the eyeball left out of the skin).
 One curve runs along each rim, so every visible vertex of a lip or lid lies on
 its own side of the pair, and the strip between the rims spans the opening.
@@ -14,8 +14,8 @@ import copy
 
 import numpy as np
 
-from .errors import LayoutError
-from .geometry import cast_cylinder_rays
+from ..errors import LayoutError
+from ..geometry import cast_cylinder_rays
 from .layout import OPENING_GAP, OPENINGS, CurveLayout, FeatureLine
 
 #: Skin seen more obliquely than this (cosine between normal and ray, ~72°) faces away.
@@ -33,14 +33,14 @@ def follow_rims(layout: CurveLayout, V_face: np.ndarray, T: np.ndarray) -> Curve
     mouth corners; between each eye's corners) rays walk down from halfway to
     the anchor above until the next ray would meet skin facing away, no skin,
     or another surface; the bottom rim likewise walking up. Where the two rims
-    meet (towards the corners) they sit :data:`pdeface.layout.OPENING_GAP`
+    meet (towards the corners) they sit :data:`pdeface.surface.layout.OPENING_GAP`
     apart around their middle. The lines' knots outside the spans (the
     corners) stay at the landmarks.
 
     Parameters
     ----------
     layout : CurveLayout
-        From :func:`pdeface.layout.place_curves`.
+        From :func:`pdeface.surface.layout.place_curves`.
     V_face : (n, 3) array
         Mesh vertices in the face frame (mm).
     T : (t, 3) int array
@@ -53,12 +53,12 @@ def follow_rims(layout: CurveLayout, V_face: np.ndarray, T: np.ndarray) -> Curve
     Raises
     ------
     LayoutError
-        When the layout's openings are not those of :data:`pdeface.layout.OPENINGS`.
+        When the layout's openings are not those of :data:`pdeface.surface.layout.OPENINGS`.
     """
     out = copy.deepcopy(layout)
     if layout.openings and len(layout.openings) != len(OPENINGS):
         raise LayoutError(f"layout has {len(layout.openings)} openings; rims are found for the {len(OPENINGS)} "
-                          "of pdeface.layout.OPENINGS (a layout from place_curves)")
+                          "of pdeface.surface.layout.OPENINGS (a layout from place_curves)")
     spans = dict(zip(layout.openings, OPENINGS.values()))
     for a, k in layout.opening_curves():
         top = next(i for i, ln in enumerate(out.lines) if ln.anchor == a)

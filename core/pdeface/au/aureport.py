@@ -11,9 +11,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .fit import grid_faces, surface_grid
-from .geometry import ClosestPoint
-from .report import REPORT_RESOLUTION, band_vertices
+from ..surface.fit import grid_faces, surface_grid
+from ..geometry import ClosestPoint
+from ..surface.report import REPORT_RESOLUTION, band_vertices
 
 #: Only vertices moving more than this (mm) are measured.
 MOTION_MM = 0.5
@@ -59,3 +59,35 @@ class MotionProbe:
         rms_true = np.sqrt((np.linalg.norm(d_true[moving], axis=1) ** 2).mean())
         return {"captured": float(1 - np.sqrt((err ** 2).mean()) / rms_true),
                 "p95_err_mm": float(np.percentile(err, 95)), "n_vertices": int(moving.sum())}
+
+
+def au_report(model, scan_vertices, scan_triangles, shapes) -> dict:
+    """How much of each AU's true motion the model's descriptors capture.
+
+    Parameters
+    ----------
+    model : FaceModel
+        A face with descriptors, fitted to ``scan_vertices``.
+    scan_vertices, scan_triangles : arrays
+        The neutral scan (ICT-FaceKit's face region topology).
+    shapes : mapping
+        ICT shape name → (n, 3) offsets: the bundled shapes
+        (:func:`pdeface.assets.load_ict_shapes`) or an :class:`pdeface.au.ict.IctFolder`.
+
+    Returns
+    -------
+    dict
+        AU key → ``captured``, ``p95_err_mm``, ``n_vertices`` (see
+        :meth:`MotionProbe.measure`) and ``bytes`` (binary descriptor size), for
+        every descriptor whose AU ICT-FaceKit has shapes for.
+    """
+    from ..io.descriptorfile import descriptor_to_bytes
+    from .ict import AU_SHAPES, au_offsets
+
+    probe = MotionProbe(model, scan_vertices, scan_triangles)
+    result = {}
+    for d in model.descriptors:
+        if d.key in AU_SHAPES:
+            r = probe.measure(*d.dense(), au_offsets(d.key, shapes))
+            result[d.key] = {**r, "bytes": len(descriptor_to_bytes(d))}
+    return result

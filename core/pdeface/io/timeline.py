@@ -23,9 +23,9 @@ import json
 import math
 from dataclasses import dataclass, field
 
-from .errors import ModelFormatError, PdeFaceError
-from .expressions import parse_weight
-from .facs import parse_au_key
+from ..errors import ModelFormatError, PdeFaceError
+from ..au.expressions import parse_weight
+from ..au.facs import parse_au_key, split_au_key
 
 FORMAT = "pdeface.timeline"
 INTERPOLATIONS = ("constant", "linear", "bezier")
@@ -51,7 +51,7 @@ class Timeline:
 
     def channels(self) -> tuple[list, list]:
         """AU keys and preset names used anywhere."""
-        aus = sorted({a for k in self.keys for a in k.aus}, key=lambda a: (int(a.rstrip("LR")), a))
+        aus = sorted({a for k in self.keys for a in k.aus}, key=split_au_key)
         presets = sorted({p for k in self.keys for p in k.presets})
         return aus, presets
 
@@ -138,8 +138,8 @@ def save_timeline(path, t: Timeline) -> None:
 
 
 def sequence_timeline(presets, fps=24, hold=0.5, blend=0.5, mode="via_neutral") -> Timeline:
-    """A timeline of presets, as :func:`pdeface.sequence.sequence_keys` times them."""
-    from .sequence import sequence_keys
+    """A timeline of presets, as :func:`pdeface.au.sequence.sequence_keys` times them."""
+    from ..au.sequence import sequence_keys
 
     frames = sequence_keys([{p: 1.0} for p in presets], 1, int(round(hold * fps)), max(1, int(round(blend * fps))), mode)
     return Timeline(fps, [Key(f, {}, {p: w for p, w in pose.items() if w > 0}) for f, pose in frames], 1)

@@ -1,0 +1,76 @@
+"""The PDE face model: a neutral face as boundary curves in its face frame.
+
+The value that fitting makes and everything downstream reads; its file format
+lives in :mod:`pdeface.io.modelfile`.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .frame import FaceFrame
+from .layout import CurveLayout
+
+
+@dataclass
+class FaceModel:
+    """A neutral face as PDE boundary curves.
+
+    All geometry is in the face frame (mm); :attr:`frame` maps back to the
+    source mesh's space and unit.
+
+    Attributes
+    ----------
+    layout : CurveLayout
+    knots : (K,) array
+        Curve parameters ``u_i``.
+    coefficients : (K, N+1, 3) array
+    residual : (K, J, 3) array
+    frame : FaceFrame
+    features : (19, 3) array
+    a : float
+        PDE smoothing parameter.
+    w : float
+        Remainder wavenumber.
+    assembly : str
+        Default assembly for meshing.
+    source : str
+        Where the model came from (free text).
+    notice : str
+        Licence notice of the data it derives from, if any.
+    status : (K, J) int array or None
+        Curve point status (see :mod:`pdeface.surface.curves`).
+    descriptors : list
+        AU descriptors carried with the model (see :mod:`pdeface.au.descriptor`).
+    """
+
+    layout: CurveLayout
+    knots: np.ndarray
+    coefficients: np.ndarray
+    residual: np.ndarray
+    frame: FaceFrame
+    features: np.ndarray
+    a: float = 1.0
+    w: float | None = None
+    assembly: str = "smooth"
+    source: str = ""
+    notice: str = ""
+    status: np.ndarray | None = None
+    descriptors: list = field(default_factory=list)
+
+    @property
+    def n_modes(self) -> int:
+        return self.coefficients.shape[1] - 1
+
+    @property
+    def remainder_w(self) -> float:
+        return self.a * (self.n_modes + 1) if self.w is None else self.w
+
+    def curve_points(self, coefficients=None, residual=None) -> np.ndarray:
+        """Curve points (K, J, 3) in the face frame (from the series and residual)."""
+        from .fourier import evaluate_fourier
+
+        c = self.coefficients if coefficients is None else coefficients
+        r = self.residual if residual is None else residual
+        return evaluate_fourier(c, self.layout.sample_params()) + r
