@@ -20,13 +20,16 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "core"))
 
-from pdeface.assets import load_ict_shapes, load_neutral_scan  # noqa: E402
+from pdeface.assets import (  # noqa: E402
+    load_face,  # noqa: E402
+    load_ict_shapes,
+    load_neutral_scan,
+)
 from pdeface.au.aureport import au_report  # noqa: E402
-from pdeface.assets import load_face  # noqa: E402
 from pdeface.au.expressions import ShapeBasis, mix  # noqa: E402
 from pdeface.au.facs import au_number  # noqa: E402
-from pdeface.surface.fit import fit_face, surface_grid  # noqa: E402
 from pdeface.au.retarget import retarget  # noqa: E402
+from pdeface.surface.fit import fit_face, surface_grid  # noqa: E402
 
 STRICT = {"1", "2", "4", "12", "15"}  # captured >= 0.95
 MOUTH_OPENING = {"25", "26", "27"}  # the method's admitted gap: reported, no target

@@ -24,10 +24,10 @@ from scipy.sparse.linalg import spsolve
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "core"))
 
 from pdeface.assets import load_ict_shapes, load_neutral_scan  # noqa: E402
-from pdeface.surface.fit import fit_face, grid_faces, surface_grid  # noqa: E402
-from pdeface.surface.fourier import fit_fourier  # noqa: E402
 from pdeface.geometry import ClosestPoint  # noqa: E402
 from pdeface.io.modelfile import save_model  # noqa: E402
+from pdeface.surface.fit import fit_face, grid_faces, surface_grid  # noqa: E402
+from pdeface.surface.fourier import fit_fourier  # noqa: E402
 from pdeface.surface.pde import output_grid, solve_surface  # noqa: E402
 from pdeface.surface.report import accuracy_report, band_vertices  # noqa: E402
 

@@ -21,14 +21,14 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "core"))
 
-from pdeface.au.capture import fit_descriptor  # noqa: E402
-from pdeface.io.descriptorfile import descriptor_to_bytes  # noqa: E402
-from pdeface.au.facs import key_side  # noqa: E402
-from pdeface.surface.fit import fit_face  # noqa: E402
-from pdeface.au.ict import APPROXIMATIONS, AU_SHAPES, NOTICE_SHORT, IctFolder, au_offsets  # noqa: E402
-from pdeface.mesh import Mesh  # noqa: E402
 from pdeface.assets import ICT_NOTICE  # noqa: E402
+from pdeface.au.capture import fit_descriptor  # noqa: E402
+from pdeface.au.facs import key_side  # noqa: E402
+from pdeface.au.ict import APPROXIMATIONS, AU_SHAPES, NOTICE_SHORT, IctFolder, au_offsets  # noqa: E402
+from pdeface.io.descriptorfile import descriptor_to_bytes  # noqa: E402
 from pdeface.io.modelfile import model_nbytes, save_model  # noqa: E402
+from pdeface.mesh import Mesh  # noqa: E402
+from pdeface.surface.fit import fit_face  # noqa: E402
 
 OFFSET_STEP = 2e-4  # cm per int16 step of stored offsets (2 µm; range ±6.5 cm)
 

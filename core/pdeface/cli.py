@@ -73,8 +73,8 @@ def cmd_report(args):
 
 
 def cmd_import_au(args):
-    from .io.trackers import import_au
     from .io.timeline import save_timeline
+    from .io.trackers import import_au
 
     r = import_au(args.file, args.format, args.fps, args.hold, args.smooth, args.reduce, args.min_confidence)
     save_timeline(args.output, r.timeline)

@@ -16,6 +16,83 @@ def cylinder_coords(P: np.ndarray, axis_z: float) -> tuple[np.ndarray, np.ndarra
     return np.arctan2(dx, dz), P[:, 1].copy(), np.hypot(dx, dz)
 
 
+def triangle_cross(V: np.ndarray, T: np.ndarray) -> np.ndarray:
+    """Cross product of each triangle's two edges from its first corner: the normal times twice the area."""
+    P = V[T]
+    return np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
+
+
+def unit_rows(X: np.ndarray) -> np.ndarray:
+    """Rows scaled to unit length (zero rows stay zero)."""
+    return X / np.maximum(np.linalg.norm(X, axis=1, keepdims=True), 1e-300)
+
+
+def cylinder_ray_candidates(V, T, axis_z, theta, height) -> tuple[np.ndarray, np.ndarray]:
+    """(ray, triangle) pairs worth a hit test for rays cast from a vertical axis.
+
+    Triangles are binned into a uniform (angle, height) grid over their boxes, a
+    few per cell; a ray is paired with the triangles of its own cell. Triangles
+    wrapping round the back of the axis, or touching it, never face the rays
+    and are left out.
+    """
+    th, y, r = cylinder_coords(V, axis_z)
+    tth, ty = th[T], y[T]
+    ok = (np.ptp(tth, axis=1) < np.pi / 2) & (r[T].min(axis=1) > 1e-9)
+    cand = np.nonzero(ok)[0]
+    lo = np.stack([tth[cand].min(1), ty[cand].min(1)], 1)
+    hi = np.stack([tth[cand].max(1), ty[cand].max(1)], 1)
+    size = np.maximum(np.median(hi - lo, axis=0) * 2.0, 1e-9)
+    origin = lo.min(0)
+    c0 = np.floor((lo - origin) / size).astype(np.int64)
+    c1 = np.floor((hi - origin) / size).astype(np.int64)
+    ncell = c1.max(0) + 1
+    span = c1 - c0 + 1
+    reps = span[:, 0] * span[:, 1]
+    tid = np.repeat(np.arange(len(cand)), reps)
+    k = np.arange(len(tid)) - np.repeat(np.cumsum(reps) - reps, reps)
+    cx = c0[tid, 0] + k % span[tid, 0]
+    cy = c0[tid, 1] + k // span[tid, 0]
+    cell = cx * ncell[1] + cy
+    order = np.argsort(cell, kind="stable")
+    cell, tid = cell[order], cand[tid[order]]
+    qc = np.floor((np.stack([theta, height], 1) - origin) / size).astype(np.int64)
+    inside = (qc >= 0).all(1) & (qc < ncell).all(1)
+    qcell = np.where(inside, qc[:, 0] * ncell[1] + qc[:, 1], -1)
+    start = np.searchsorted(cell, qcell, "left")
+    stop = np.where(inside, np.searchsorted(cell, qcell, "right"), start)
+    counts = stop - start
+    rays = np.repeat(np.arange(len(theta)), counts)
+    pos = np.arange(len(rays)) - np.repeat(np.cumsum(counts) - counts, counts) + np.repeat(start, counts)
+    return rays, tid[pos]
+
+
+def ray_triangle(origins, directions, A, B, C, eps=1e-9):
+    """Möller–Trumbore hit test of ray i against triangle (A[i], B[i], C[i]).
+
+    Returns
+    -------
+    hit : (m,) bool
+    u, v : (m,) float, barycentric weights of B and C at the hit
+    t : (m,) float, distance along the (unit) direction
+    """
+    e1, e2 = B - A, C - A
+    p = np.cross(directions, e2)
+    det = np.einsum("ij,ij->i", e1, p)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv = 1.0 / det
+        s = origins - A
+        u = np.einsum("ij,ij->i", s, p) * inv
+        q = np.cross(s, e1)
+        v = np.einsum("ij,ij->i", directions, q) * inv
+        t = np.einsum("ij,ij->i", e2, q) * inv
+    hit = (np.abs(det) > 1e-15) & (u >= -eps) & (v >= -eps) & (u + v <= 1 + eps) & (t > 0)
+    return hit, u, v, t
+
+
+def _ray_directions(theta):
+    return np.stack([np.sin(theta), np.zeros(len(theta)), np.cos(theta)], 1)
+
+
 def cast_cylinder_rays(V, T, axis_z, theta, height, batch=200_000):
     """Outermost hit of horizontal rays cast from a vertical axis outwards.
 
@@ -40,53 +117,11 @@ def cast_cylinder_rays(V, T, axis_z, theta, height, batch=200_000):
     facing = np.zeros(nq)
     if nq == 0 or len(T) == 0:
         return radius, tri, bary, facing
-    th, y, r = cylinder_coords(V, axis_z)
-    tth, ty = th[T], y[T]
-    # Triangles wrapping round the back of the axis, or touching it, never face the rays we cast.
-    ok = (np.ptp(tth, axis=1) < np.pi / 2) & (r[T].min(axis=1) > 1e-9)
-    cand = np.nonzero(ok)[0]
-    lo = np.stack([tth[cand].min(1), ty[cand].min(1)], 1)
-    hi = np.stack([tth[cand].max(1), ty[cand].max(1)], 1)
-    # Uniform (theta, y) grid over the triangles' boxes, a few triangles per cell.
-    size = np.maximum(np.median(hi - lo, axis=0) * 2.0, 1e-9)
-    origin = lo.min(0)
-    c0 = np.floor((lo - origin) / size).astype(np.int64)
-    c1 = np.floor((hi - origin) / size).astype(np.int64)
-    ncell = c1.max(0) + 1
-    span = c1 - c0 + 1
-    reps = span[:, 0] * span[:, 1]
-    tid = np.repeat(np.arange(len(cand)), reps)
-    k = np.arange(len(tid)) - np.repeat(np.cumsum(reps) - reps, reps)
-    cx = c0[tid, 0] + k % span[tid, 0]
-    cy = c0[tid, 1] + k // span[tid, 0]
-    cell = cx * ncell[1] + cy
-    order = np.argsort(cell, kind="stable")
-    cell, tid = cell[order], cand[tid[order]]
-    qc = np.floor((np.stack([theta, height], 1) - origin) / size).astype(np.int64)
-    inside = (qc >= 0).all(1) & (qc < ncell).all(1)
-    qcell = np.where(inside, qc[:, 0] * ncell[1] + qc[:, 1], -1)
-    start = np.searchsorted(cell, qcell, "left")
-    stop = np.where(inside, np.searchsorted(cell, qcell, "right"), start)
-    counts = stop - start
-    qid_all = np.repeat(np.arange(nq), counts)
-    pos_all = np.arange(len(qid_all)) - np.repeat(np.cumsum(counts) - counts, counts) + np.repeat(start, counts)
-    for b in range(0, len(qid_all), batch):
-        qid, t_ = qid_all[b:b + batch], tid[pos_all[b:b + batch]]
-        d = np.stack([np.sin(theta[qid]), np.zeros(len(qid)), np.cos(theta[qid])], 1)
+    rays, tris = cylinder_ray_candidates(V, T, axis_z, theta, height)
+    for b in range(0, len(rays), batch):
+        qid, t_ = rays[b:b + batch], tris[b:b + batch]
         o = np.stack([np.zeros(len(qid)), height[qid], np.full(len(qid), axis_z)], 1)
-        a, bb, c = V[T[t_, 0]], V[T[t_, 1]], V[T[t_, 2]]
-        e1, e2 = bb - a, c - a
-        p = np.cross(d, e2)
-        det = np.einsum("ij,ij->i", e1, p)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            inv = 1.0 / det
-            s = o - a
-            u = np.einsum("ij,ij->i", s, p) * inv
-            qv = np.cross(s, e1)
-            v = np.einsum("ij,ij->i", d, qv) * inv
-            t = np.einsum("ij,ij->i", e2, qv) * inv
-        eps = 1e-9
-        hit = (np.abs(det) > 1e-15) & (u >= -eps) & (v >= -eps) & (u + v <= 1 + eps) & (t > 0)
+        hit, u, v, t = ray_triangle(o, _ray_directions(theta[qid]), V[T[t_, 0]], V[T[t_, 1]], V[T[t_, 2]])
         qid, t_, u, v, t = qid[hit], t_[hit], u[hit], v[hit], t[hit]
         # Keep the farthest hit per ray: sort by (ray, -t) and take each ray's first.
         order = np.lexsort((-t, qid))
@@ -100,10 +135,8 @@ def cast_cylinder_rays(V, T, axis_z, theta, height, batch=200_000):
         bary[qid] = np.stack([1 - u - v, u, v], 1)
     hit = tri >= 0
     if hit.any():
-        n = np.cross(V[T[tri[hit], 1]] - V[T[tri[hit], 0]], V[T[tri[hit], 2]] - V[T[tri[hit], 0]])
-        n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
-        d = np.stack([np.sin(theta[hit]), np.zeros(hit.sum()), np.cos(theta[hit])], 1)
-        facing[hit] = np.einsum("ij,ij->i", n, d)
+        n = unit_rows(triangle_cross(V, T[tri[hit]]))
+        facing[hit] = np.einsum("ij,ij->i", n, _ray_directions(theta[hit]))
     return radius, tri, bary, facing
 
 

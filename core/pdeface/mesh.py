@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .errors import MeshError
+from .geometry import triangle_cross, unit_rows
 
 
 @dataclass
@@ -112,39 +113,14 @@ class Mesh:
         T = np.stack([idx[s], idx[s + k + 1], idx[s + k + 2]], axis=1)
         return T, polygon
 
-    def submesh(self, keep_faces: np.ndarray) -> tuple["Mesh", np.ndarray]:
-        """The polygons selected by the boolean mask ``keep_faces``, compacted.
-
-        Returns the new mesh and, for each of its vertices, the old index.
-        """
-        keep_faces = np.asarray(keep_faces, bool)
-        corner_keep = np.repeat(keep_faces, self.face_counts)
-        idx = self.face_indices[corner_keep]
-        old = np.unique(idx)
-        remap = np.full(len(self.vertices), -1, dtype=np.int64)
-        remap[old] = np.arange(len(old))
-        sub = Mesh(self.vertices[old], self.face_counts[keep_faces], remap[idx])
-        if self.uvs is not None and self.face_uv_indices is not None:
-            sub.uvs = self.uvs
-            sub.face_uv_indices = self.face_uv_indices[corner_keep]
-        return sub, old
-
-
-def triangle_normals(V: np.ndarray, T: np.ndarray) -> np.ndarray:
-    """Unit normals of triangles ``T (t, 3)``; degenerate triangles get zeros."""
-    n = np.cross(V[T[:, 1]] - V[T[:, 0]], V[T[:, 2]] - V[T[:, 0]])
-    length = np.linalg.norm(n, axis=1, keepdims=True)
-    return np.divide(n, length, out=np.zeros_like(n), where=length > 0)
-
 
 def vertex_normals(V: np.ndarray, T: np.ndarray) -> np.ndarray:
     """Area-weighted unit vertex normals of a triangle mesh."""
-    n = np.cross(V[T[:, 1]] - V[T[:, 0]], V[T[:, 2]] - V[T[:, 0]])
+    n = triangle_cross(V, T)
     out = np.zeros_like(V, dtype=np.float64)
     for c in range(3):
         np.add.at(out, T[:, c], n)
-    length = np.linalg.norm(out, axis=1, keepdims=True)
-    return np.divide(out, length, out=np.zeros_like(out), where=length > 0)
+    return unit_rows(out)
 
 
 def connected_components(n_vertices: int, T: np.ndarray) -> np.ndarray:

@@ -1,6 +1,5 @@
 import numpy as np
 import pytest
-
 from pdeface.assets import load_neutral_scan
 from pdeface.surface.fit import fit_face
 

@@ -4,11 +4,10 @@ import subprocess
 
 import numpy as np
 import pytest
-
 from pdeface.cli import main
-from pdeface.surface.layout import DEFAULT_CURVES
-from pdeface.mesh import Mesh
 from pdeface.io.meshio import read_obj, write_obj
+from pdeface.mesh import Mesh
+from pdeface.surface.layout import DEFAULT_CURVES
 
 
 @pytest.fixture(scope="module")

@@ -3,17 +3,15 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-
-from pdeface.assets import load_ict_shapes
-from pdeface.assets import load_face
+from pdeface.assets import load_face, load_ict_shapes
+from pdeface.au.expressions import Preset, save_presets
+from pdeface.au.ict import au_offsets
 from pdeface.cli import main
 from pdeface.io.descriptorfile import load_descriptor
-from pdeface.au.expressions import Preset, save_presets
-from pdeface.surface.fit import face_mesh
-from pdeface.au.ict import au_offsets
-from pdeface.mesh import Mesh
 from pdeface.io.meshio import read_obj, write_obj
 from pdeface.io.modelfile import save_model
+from pdeface.mesh import Mesh
+from pdeface.surface.fit import face_mesh
 
 
 def run(capsys, *args):

@@ -1,8 +1,7 @@
 import numpy as np
 import pytest
-
-from pdeface.surface.curves import CAVITY, HIT, MISS, place_samples
 from pdeface.errors import LayoutError
+from pdeface.surface.curves import CAVITY, HIT, MISS, place_samples
 from pdeface.surface.frame import face_frame
 from pdeface.surface.layout import DEFAULT_CURVES, CurveLayout, place_curves
 

@@ -2,13 +2,12 @@ import json
 
 import numpy as np
 import pytest
-
 from pdeface.au.capture import fit_descriptor
 from pdeface.au.descriptor import Descriptor
-from pdeface.io.descriptorfile import descriptor_from_bytes, descriptor_to_bytes, load_descriptor, save_descriptor
-from pdeface.errors import LandmarkError, ModelFormatError, PdeFaceError
-from pdeface.surface.fit import face_mesh, surface_grid
 from pdeface.au.ict import AU_SHAPES, au_offsets
+from pdeface.errors import LandmarkError, ModelFormatError, PdeFaceError
+from pdeface.io.descriptorfile import descriptor_from_bytes, descriptor_to_bytes, load_descriptor, save_descriptor
+from pdeface.surface.fit import face_mesh, surface_grid
 
 
 @pytest.fixture(scope="module")

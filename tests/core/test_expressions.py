@@ -2,12 +2,22 @@ import json
 
 import numpy as np
 import pytest
-
 from pdeface.assets import load_face
-from pdeface.errors import ModelFormatError, PdeFaceError
-from pdeface.au.expressions import (BASIC_EXPRESSIONS, PRESETS, SUPPLEMENTARY_WEIGHT, Preset, ShapeBasis, load_presets,
-                                 mix, normalise_weights, pose_curves, resolve_preset, save_presets)
+from pdeface.au.expressions import (
+    BASIC_EXPRESSIONS,
+    PRESETS,
+    SUPPLEMENTARY_WEIGHT,
+    Preset,
+    ShapeBasis,
+    load_presets,
+    mix,
+    normalise_weights,
+    pose_curves,
+    resolve_preset,
+    save_presets,
+)
 from pdeface.au.facs import action_unit, catalogue, letter_to_weight, parse_au_key, weight_to_letter
+from pdeface.errors import ModelFormatError, PdeFaceError
 from pdeface.surface.fit import face_mesh
 
 

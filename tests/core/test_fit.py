@@ -1,9 +1,8 @@
 import numpy as np
 import pytest
-
 from pdeface.errors import LandmarkError, MeshError
-from pdeface.surface.fit import face_mesh, fit_face, parse_resolution, surface_grid
 from pdeface.geometry import ClosestPoint
+from pdeface.surface.fit import face_mesh, fit_face, parse_resolution, surface_grid
 from pdeface.surface.report import accuracy_report
 
 

@@ -1,6 +1,5 @@
 import numpy as np
 import pytest
-
 from pdeface.surface.fourier import evaluate_fourier, fit_fourier
 
 

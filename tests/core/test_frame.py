@@ -2,10 +2,16 @@ import json
 
 import numpy as np
 import pytest
-
 from pdeface.errors import LandmarkError
-from pdeface.surface.frame import (FEATURE_NAMES, UNITS_MM, face_frame, feature_points, guess_unit, landmark_points,
-                           read_landmarks)
+from pdeface.surface.frame import (
+    FEATURE_NAMES,
+    UNITS_MM,
+    face_frame,
+    feature_points,
+    guess_unit,
+    landmark_points,
+    read_landmarks,
+)
 
 
 def random_rotation(rng):

@@ -1,9 +1,8 @@
 import numpy as np
 import pytest
-
 from pdeface.errors import MeshError
-from pdeface.mesh import Mesh
 from pdeface.io.meshio import read_mesh, read_obj, read_ply, write_mesh, write_obj
+from pdeface.mesh import Mesh
 
 OBJ = """# a comment
 mtllib skin.mtl

@@ -4,7 +4,6 @@ import zipfile
 
 import numpy as np
 import pytest
-
 from pdeface.errors import ModelFormatError
 from pdeface.io.modelfile import load_model, save_model
 
@@ -124,8 +123,7 @@ def test_version_2_files_still_load_as_one_sheet(tmp_path, fitted):
 
 
 def test_byte_planes_and_coefficient_codes_round_trip(rng):
-    from pdeface.io.codec import (decode_coefficients, encode_coefficients, from_byte_planes,
-                               to_byte_planes)
+    from pdeface.io.codec import decode_coefficients, encode_coefficients, from_byte_planes, to_byte_planes
 
     c16 = rng.integers(-2 ** 15, 2 ** 15, (3, 5, 7)).astype(np.int16)
     c32 = rng.integers(-2 ** 31, 2 ** 31, (3, 5, 7)).astype(np.int32)

@@ -1,6 +1,5 @@
 import numpy as np
 import pytest
-
 from pdeface.errors import LayoutError
 from pdeface.surface.fourier import fit_fourier
 from pdeface.surface.pde import _taylor_table, knot_slopes, mode_operator, ode_basis, output_grid, solve_surface
@@ -128,9 +127,8 @@ def test_bad_parameters():
 
 @pytest.mark.parametrize("deriv", [0, 1])
 def test_own_cubic_spline_matches_scipy(deriv):
-    from scipy.interpolate import CubicSpline
-
     from pdeface.surface.pde import cubic_spline_operator
+    from scipy.interpolate import CubicSpline
     x = np.sort(np.random.default_rng(3).random(11))
     xe = np.linspace(x[0], x[-1], 40)
     expect = CubicSpline(x, np.eye(11), bc_type="not-a-knot")(xe, deriv)

@@ -1,5 +1,4 @@
 import numpy as np
-
 from pdeface.surface.fit import grid_faces
 from pdeface.surface.report import PIT_DEPTH_MM, _in_pit, weighted_percentile
 

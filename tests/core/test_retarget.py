@@ -1,13 +1,11 @@
 import numpy as np
 import pytest
-
-from pdeface.assets import load_ict_shapes
+from pdeface.assets import load_face, load_ict_shapes
 from pdeface.au.aureport import MotionProbe
-from pdeface.assets import load_face
-from pdeface.errors import PdeFaceError
-from pdeface.surface.fit import fit_face
 from pdeface.au.ict import au_offsets
 from pdeface.au.retarget import face_size, retarget
+from pdeface.errors import PdeFaceError
+from pdeface.surface.fit import fit_face
 
 
 def test_retarget_to_an_ict_identity(scan):

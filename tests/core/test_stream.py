@@ -6,13 +6,23 @@ import threading
 import time
 
 import pytest
-
 from pdeface.errors import ModelFormatError
 from pdeface.stream.player import Player
 from pdeface.stream.rules import AUBlender
 from pdeface.stream.sender import read_packets, send
-from pdeface.stream.wire import (END, PAUSE, RESUME, Control, Garbage, Packet, PacketError, StreamParser,
-                                 format_packet, parse_json_line, parse_packet)
+from pdeface.stream.wire import (
+    END,
+    PAUSE,
+    RESUME,
+    Control,
+    Garbage,
+    Packet,
+    PacketError,
+    StreamParser,
+    format_packet,
+    parse_json_line,
+    parse_packet,
+)
 
 PUBLISHED = {"{1,2,5,15,16,20,26}": 19, "{1,2,4,5,15,20,26}": 18, "{2,4,9,15,17}": 13,
              "{2,4,7,9,10,20,26}": 18, "{1,6,12,14}": 11, "{1,4,15,23}": 11}

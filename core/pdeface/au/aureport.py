@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..surface.fit import grid_faces, surface_grid
 from ..geometry import ClosestPoint
+from ..surface.fit import grid_faces, surface_grid
 from ..surface.report import REPORT_RESOLUTION, band_vertices
 
 #: Only vertices moving more than this (mm) are measured.

@@ -7,12 +7,12 @@ that table (with left/right variants where ICT has ``_L``/``_R`` shapes; ICT's
 """
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import PdeFaceError
+from .facs import split_au_key
 
 FACE_VERTICES = 9409  # ICT "Face" region: vertices 0-9408
 FACE_POLYGONS = 9230  # and polygons 0-9229
@@ -50,6 +50,40 @@ APPROXIMATIONS = {"25": "0.2 jawOpen + 0.5 mouthLowerDown_L/R (ICT has no lips-p
                   "26": "0.5 jawOpen (ICT has no jaw-drop shape; jawOpen is closer to AU27)"}
 
 
+#: ARKit blendshapes that ICT splits into ``_L``/``_R`` shapes but ARKit has once.
+ARKIT_UNSIDED = ("browInnerUp", "cheekPuff")
+
+
+def arkit_name(ict_name: str) -> str:
+    """ICT shape name → ARKit blendshape name: ``mouthSmile_L`` → ``mouthSmileLeft``."""
+    base, _, side = ict_name.rpartition("_")
+    if not base or side not in ("L", "R"):
+        return ict_name
+    return base if base in ARKIT_UNSIDED else base + ("Left" if side == "L" else "Right")
+
+
+def _arkit_to_au() -> dict:
+    table = {}
+    for key, shapes in AU_SHAPES.items():
+        if key in APPROXIMATIONS:
+            continue
+        au, side = split_au_key(key)
+        has_sides = not side and f"{au}L" in AU_SHAPES
+        for name in shapes:
+            arkit = arkit_name(name)
+            if arkit in ARKIT_UNSIDED:  # one ARKit shape: the AU as a whole
+                if not side:
+                    table[arkit.lower()] = [(key, 1.0)]
+            elif not has_sides:  # (a pair's shapes go to its sides' keys)
+                table.setdefault(arkit.lower(), []).append((key, 1.0 / len(shapes)))
+    return table
+
+
+#: ARKit blendshape (lower case) → [(AU key, share)]: :data:`AU_SHAPES` read backwards; an AU that
+#: ICT builds from two shapes (AU28, AU61-64) is the mean of both. The approximations are left out.
+ARKIT_TO_AU = _arkit_to_au()
+
+
 def au_offsets(key: str, shapes: dict) -> np.ndarray:
     """Offsets of AU ``key`` from ICT shape offsets (a mapping ``name → (n, 3)``)."""
     if key not in AU_SHAPES:
@@ -84,11 +118,13 @@ class IctFolder:
         self._read_obj = read_obj
         head = read_obj(self.path / "generic_neutral_mesh.obj")
         self.vertices, self.faces, self.uvs, self.face_uvs = face_region(head)
+        from ..io.files import load_json
+
+        data = load_json(self.path / "vertex_indices.json", PdeFaceError)
         try:
-            data = json.loads((self.path / "vertex_indices.json").read_text())
             self.landmarks = np.array(data["idx_to_landmark_verts"], dtype=np.int64)
-        except (OSError, KeyError, ValueError) as exc:
-            raise PdeFaceError(f"{path}: vertex_indices.json is missing or malformed ({exc})") from None
+        except (TypeError, KeyError, ValueError) as exc:
+            raise PdeFaceError(f"{path}: vertex_indices.json is malformed ({exc})") from None
         self._cache = {}
 
     def shape(self, name: str) -> np.ndarray:

@@ -34,6 +34,7 @@ from ..au.facs import SIDES, action_unit
 from ..errors import ModelFormatError, PdeFaceError
 from ..surface.fourier import fit_fourier
 from .codec import decode_residual, encode_residual
+from .files import read_bytes
 
 FORMAT = "pdeface.descriptor"
 VERSION = 1
@@ -184,10 +185,7 @@ def save_descriptor(path, d: Descriptor) -> int:
 
 def load_descriptor(path) -> Descriptor:
     """Read a descriptor file (JSON or binary, by content)."""
-    try:
-        data = open(path, "rb").read()
-    except OSError as exc:
-        raise ModelFormatError(f"{path}: cannot open ({exc.strerror})") from None
+    data = read_bytes(path)
     if data[:8] == MAGIC:
         return descriptor_from_bytes(data, str(path))
     try:

@@ -11,6 +11,7 @@ import numpy as np
 
 from ..errors import MeshError
 from ..mesh import Mesh
+from .files import open_file, read_bytes
 
 
 def read_mesh(path) -> Mesh:
@@ -71,10 +72,7 @@ def read_obj(path) -> Mesh:
         With file and line, for bad numbers, indices out of range, NaN/inf,
         missing file or a file without faces.
     """
-    try:
-        fh = open(path, "r", encoding="utf-8", errors="replace")
-    except OSError as exc:
-        raise MeshError(f"{path}: cannot open ({exc.strerror})") from None
+    fh = open_file(path, "r", MeshError, encoding="utf-8", errors="replace")
     V, VT, VN = [], [], []
     counts, fv, ft, fn, fmat = [], [], [], [], []
     materials, current_mat, mtllib = [], -1, None
@@ -189,10 +187,7 @@ def read_ply(path) -> Mesh:
     Reads ``vertex`` x, y, z (and s/t or u/v texture coordinates) and the
     ``face`` vertex index lists.
     """
-    try:
-        data = open(path, "rb").read()
-    except OSError as exc:
-        raise MeshError(f"{path}: cannot open ({exc.strerror})") from None
+    data = read_bytes(path, MeshError)
     end = data.find(b"end_header")
     if not data.startswith(b"ply") or end < 0:
         raise MeshError(f"{path}:1: not a PLY file (missing 'ply' magic or 'end_header')")

@@ -58,8 +58,14 @@ from ..errors import LayoutError, ModelFormatError
 from ..surface.frame import FEATURE_NAMES, UNITS_MM, FaceFrame
 from ..surface.layout import CurveLayout
 from ..surface.model import FaceModel
-from .codec import (decode_coefficients, decode_residual, encode_coefficients, encode_residual, from_byte_planes,
-                    to_byte_planes)
+from .codec import (
+    decode_coefficients,
+    decode_residual,
+    encode_coefficients,
+    encode_residual,
+    from_byte_planes,
+    to_byte_planes,
+)
 
 FORMAT = "pdeface.face"
 VERSION = 3

@@ -23,9 +23,9 @@ import json
 import math
 from dataclasses import dataclass, field
 
-from ..errors import ModelFormatError, PdeFaceError
 from ..au.expressions import parse_weight
 from ..au.facs import parse_au_key, split_au_key
+from ..errors import ModelFormatError, PdeFaceError
 
 FORMAT = "pdeface.timeline"
 INTERPOLATIONS = ("constant", "linear", "bezier")

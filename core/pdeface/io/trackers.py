@@ -13,7 +13,7 @@ Formats (``detect_format`` picks one from the file's first line):
     time; rows with ``FaceScore`` below the threshold are dropped.
 ``livelink``
     Live Link Face CSV (ARKit's 52 blendshape names): mapped to AUs with the
-    ICT-FaceKit table (:data:`ARKIT_TO_AU`); ``Timecode`` ``HH:MM:SS:FF[.ms]``.
+    ICT-FaceKit table (:data:`pdeface.au.ict.ARKIT_TO_AU`); ``Timecode`` ``HH:MM:SS:FF[.ms]``.
 ``fas``
     The FAS system's plain-text AU sets, one ``{1,2,5,15,16,20,26}`` per line
     (extended forms too, see :mod:`pdeface.stream.wire`), each held for
@@ -31,32 +31,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import ModelFormatError, PdeFaceError
 from ..au.facs import clamp_weight, clamp_weights, parse_au_key, split_au_key
+from ..au.ict import ARKIT_TO_AU
+from ..errors import ModelFormatError, PdeFaceError
+from .files import open_file, read_lines
 from .timeline import Key, Timeline
 
 FORMATS = ("openface", "pyfeat", "livelink", "fas")
 
-#: ARKit blendshape → [(AU key, share)], from ICT-FaceKit's FACS table; AUs ICT builds from
-#: two shapes (AU28, AU61-64) take the mean of both.
-ARKIT_TO_AU = {
-    "browinnerup": [("1", 1.0)], "browouterupleft": [("2L", 1.0)], "browouterupright": [("2R", 1.0)],
-    "browdownleft": [("4L", 1.0)], "browdownright": [("4R", 1.0)], "eyewideleft": [("5L", 1.0)],
-    "eyewideright": [("5R", 1.0)], "cheeksquintleft": [("6L", 1.0)], "cheeksquintright": [("6R", 1.0)],
-    "eyesquintleft": [("7L", 1.0)], "eyesquintright": [("7R", 1.0)], "nosesneerleft": [("9L", 1.0)],
-    "nosesneerright": [("9R", 1.0)], "mouthshrugupper": [("10", 1.0)], "mouthupperupleft": [("11L", 1.0)],
-    "mouthupperupright": [("11R", 1.0)], "mouthsmileleft": [("12L", 1.0)], "mouthsmileright": [("12R", 1.0)],
-    "mouthdimpleleft": [("14L", 1.0)], "mouthdimpleright": [("14R", 1.0)], "mouthfrownleft": [("15L", 1.0)],
-    "mouthfrownright": [("15R", 1.0)], "mouthlowerdownleft": [("16L", 1.0)], "mouthlowerdownright": [("16R", 1.0)],
-    "mouthshruglower": [("17", 1.0)], "mouthpucker": [("18", 1.0)], "mouthstretchleft": [("20L", 1.0)],
-    "mouthstretchright": [("20R", 1.0)], "mouthfunnel": [("22", 1.0)], "mouthpressleft": [("24L", 1.0)],
-    "mouthpressright": [("24R", 1.0)], "jawopen": [("27", 1.0)], "mouthrolllower": [("28", 0.5)],
-    "mouthrollupper": [("28", 0.5)], "jawforward": [("29", 1.0)], "jawleft": [("30L", 1.0)],
-    "jawright": [("30R", 1.0)], "cheekpuff": [("33", 1.0)], "eyeblinkleft": [("45L", 1.0)],
-    "eyeblinkright": [("45R", 1.0)], "eyelookoutleft": [("61", 0.5)], "eyelookinright": [("61", 0.5)],
-    "eyelookoutright": [("62", 0.5)], "eyelookinleft": [("62", 0.5)], "eyelookupleft": [("63", 0.5)],
-    "eyelookupright": [("63", 0.5)], "eyelookdownleft": [("64", 0.5)], "eyelookdownright": [("64", 0.5)],
-}
 _LLF_META = {"timecode", "blendshapecount"}
 
 
@@ -70,15 +52,12 @@ class ImportResult:
 
 
 def detect_format(path) -> str:
-    try:
-        with open(path, "r", encoding="utf-8-sig", errors="replace") as fh:
-            first = ""
-            for line in fh:
-                if line.strip() and not line.lstrip().startswith("#"):
-                    first = line
-                    break
-    except OSError as exc:
-        raise ModelFormatError(f"{path}: cannot open ({exc.strerror})") from None
+    with open_file(path, encoding="utf-8-sig", errors="replace") as fh:
+        first = ""
+        for line in fh:
+            if line.strip() and not line.lstrip().startswith("#"):
+                first = line
+                break
     head = [h.strip().lower() for h in first.split(",")]
     if first.lstrip().startswith("{"):
         return "fas"
@@ -103,11 +82,7 @@ def _number(text, path, lineno, column):
 
 
 def _rows(path):
-    try:
-        fh = open(path, "r", encoding="utf-8-sig", newline="")
-    except OSError as exc:
-        raise ModelFormatError(f"{path}: cannot open ({exc.strerror})") from None
-    with fh:
+    with open_file(path, encoding="utf-8-sig", newline="") as fh:
         reader = csv.reader(fh)
         header = None
         for row in reader:
@@ -245,10 +220,7 @@ def _keys_fas(path, fps, hold):
     keys, unknown = [Key(1, {}, {}, "linear")], set()
     blend = min(0.25, hold / 2)  # the FAS player's 250 ms between expressions
     t = 0.0
-    try:
-        lines = open(path, "r", encoding="utf-8", errors="replace").read().splitlines()
-    except OSError as exc:
-        raise ModelFormatError(f"{path}: cannot open ({exc.strerror})") from None
+    lines = read_lines(path)
     n = 0
     for lineno, line in enumerate(lines, 1):
         s = line.strip()

@@ -6,15 +6,13 @@ import threading
 import time
 
 from ..errors import ModelFormatError
+from ..io.files import read_lines
 from .wire import ACK, END, PAUSE, RESUME, STOP, Control, PacketError, StreamParser, parse_json_line, parse_packet
 
 
 def read_packets(path) -> list:
     """Packets of a file: one ``{...}`` AU set or JSON line per line (``#`` comments, blanks skipped)."""
-    try:
-        lines = open(path, "r", encoding="utf-8", errors="replace").read().splitlines()
-    except OSError as exc:
-        raise ModelFormatError(f"{path}: cannot open ({exc.strerror})") from None
+    lines = read_lines(path)
     out = []
     for lineno, line in enumerate(lines, 1):
         s = line.strip()

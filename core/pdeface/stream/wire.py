@@ -17,8 +17,8 @@ import math
 import re
 from dataclasses import dataclass, field
 
-from ..errors import PdeFaceError
 from ..au.facs import INTENSITY, clamp_weight, parse_au_key
+from ..errors import PdeFaceError
 
 ACK, PAUSE, END, RESUME, STOP = 1, -1, -2, -3, -4
 CONTROLS = {ACK: "ack", PAUSE: "pause", END: "end", RESUME: "resume", STOP: "stop"}

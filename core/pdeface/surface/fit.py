@@ -9,10 +9,10 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import MeshError
+from ..mesh import Mesh
 from .fourier import fit_fourier
 from .frame import face_frame, feature_points
 from .layout import DEFAULT_CURVES, place_curves
-from ..mesh import Mesh
 from .model import FaceModel
 from .pde import output_grid, solve_surface
 

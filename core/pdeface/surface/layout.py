@@ -23,8 +23,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import LayoutError
-from .frame import eye_distance
 from ..geometry import cylinder_coords
+from .frame import eye_distance
 from .pde import break_fits, cubic_spline_operator
 
 #: Curves in the default layout. The method used 31 (10 patches of 4); 34 (11

@@ -35,6 +35,7 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
+
 from ..errors import LayoutError
 
 ASSEMBLIES = ("smooth", "patches")
@@ -108,21 +109,13 @@ class Grid:
 
     ``u`` has ``sub_u`` steps per curve interval and ``v`` has ``sub_v`` steps
     per sample interval, so every curve point is a grid vertex:
-    ``u[knot_rows[i]] == knots[i]`` and ``v[sample_cols[j]] == v_j``.
+    ``u[i * sub_u] == knots[i]`` and ``v[j * sub_v] == v_j``.
     """
 
     u: np.ndarray
     v: np.ndarray
     sub_u: int
     sub_v: int
-
-    @property
-    def knot_rows(self) -> np.ndarray:
-        return np.arange(0, len(self.u), self.sub_u)
-
-    @property
-    def sample_cols(self) -> np.ndarray:
-        return np.arange(0, len(self.v), self.sub_v)
 
 
 def output_grid(knots: np.ndarray, n_points: int, sub_u: int, sub_v: int) -> Grid:
@@ -214,6 +207,26 @@ def _patch_coefficients(knots: tuple, k: float) -> list:
     return out
 
 
+def _pieces(knots: tuple, k: float, assembly: str, breaks: tuple) -> list:
+    """The assembly's pieces: (first curve, height H, its curves' local u in [0, 1], basis coefficients, columns).
+
+    ``smooth``: one piece per curve interval, whose coefficients (4, K) read all
+    K curves; ``patches``: one per patch of 4 curves, whose (4, 4) read its own.
+    """
+    u = np.array(knots)
+    if assembly == "smooth":
+        C = _smooth_coefficients(knots, k, breaks)
+        h = np.diff(u)
+        ends = np.array([0.0, 1.0])
+        return [(i, h[i], ends, C[4 * i:4 * i + 4], slice(None)) for i in range(len(u) - 1)]
+    pieces = []
+    for p, Cp in enumerate(_patch_coefficients(knots, k)):
+        a = 3 * p
+        H = u[a + 3] - u[a]
+        pieces.append((a, H, (u[a:a + 4] - u[a]) / H, Cp, slice(a, a + 4)))
+    return pieces
+
+
 @lru_cache(maxsize=512)
 def mode_operator(knots: tuple, k: float, sub_u: int, assembly: str = "smooth", deriv: int = 0,
                   breaks: tuple = ()) -> np.ndarray:
@@ -223,28 +236,17 @@ def mode_operator(knots: tuple, k: float, sub_u: int, assembly: str = "smooth", 
     uses the piece below it (the value is the same either way). ``breaks``
     only affect the ``smooth`` assembly.
     """
-    u = np.array(knots)
-    _check(u, assembly)
-    K = len(u)
+    _check(np.array(knots), assembly)
+    K = len(knots)
     s = np.arange(sub_u) / sub_u
     rows = []
-    if assembly == "smooth":
-        C = _smooth_coefficients(knots, k, breaks)
-        h = np.diff(u)
-        for i in range(K - 1):
-            t = np.append(s, 1.0) if i == K - 2 else s
-            rows.append(ode_basis(k * h[i], t, deriv) / h[i] ** deriv @ C[4 * i:4 * i + 4])
-    else:
-        for p, Cp in enumerate(_patch_coefficients(knots, k)):
-            a = 3 * p
-            H = u[a + 3] - u[a]
-            tk = (u[a:a + 4] - u[a]) / H
-            t = np.concatenate([tk[j] + (tk[j + 1] - tk[j]) * s for j in range(3)])
-            if a + 3 == K - 1:
-                t = np.append(t, 1.0)
-            M = np.zeros((len(t), K))
-            M[:, a:a + 4] = ode_basis(k * H, t, deriv) / H ** deriv @ Cp
-            rows.append(M)
+    for a, H, tk, C, cols in _pieces(knots, k, assembly, breaks):
+        t = np.concatenate([tk[j] + (tk[j + 1] - tk[j]) * s for j in range(len(tk) - 1)])
+        if a + len(tk) - 1 == K - 1:
+            t = np.append(t, 1.0)
+        M = np.zeros((len(t), K))
+        M[:, cols] = ode_basis(k * H, t, deriv) / H ** deriv @ C
+        rows.append(M)
     return np.vstack(rows)
 
 
@@ -255,27 +257,16 @@ def knot_slopes(knots: tuple, k: float, assembly: str = "smooth", breaks: tuple 
     Returns two (K, K) matrices (rows for the first/last curve repeat the one
     side that exists). Their difference shows creases at shared curves.
     """
-    u = np.array(knots)
-    _check(u, assembly)
-    K = len(u)
+    _check(np.array(knots), assembly)
+    K = len(knots)
     above, below = np.zeros((K, K)), np.zeros((K, K))
-    if assembly == "smooth":
-        C = _smooth_coefficients(knots, k, breaks)
-        h = np.diff(u)
-        for i in range(K - 1):
-            d = ode_basis(k * h[i], np.array([0.0, 1.0]), 1) / h[i] @ C[4 * i:4 * i + 4]
-            below[i], above[i + 1] = d[0], d[1]
-    else:
-        for p, Cp in enumerate(_patch_coefficients(knots, k)):
-            a = 3 * p
-            H = u[a + 3] - u[a]
-            tk = (u[a:a + 4] - u[a]) / H
-            d = ode_basis(k * H, tk, 1) / H @ Cp
-            for j in range(4):
-                if j < 3:
-                    below[a + j, a:a + 4] = d[j]
-                if j > 0:
-                    above[a + j, a:a + 4] = d[j]
+    for a, H, tk, C, cols in _pieces(knots, k, assembly, breaks):
+        d = ode_basis(k * H, tk, 1) / H @ C
+        for j in range(len(tk)):
+            if j < len(tk) - 1:
+                below[a + j, cols] = d[j]
+            if j > 0:
+                above[a + j, cols] = d[j]
     above[0], below[K - 1] = below[0], above[K - 1]
     return above, below
 

@@ -8,13 +8,11 @@ triangle. All figures are in millimetres and degrees.
 """
 from __future__ import annotations
 
-import csv
-
 import numpy as np
 
-from .fit import grid_faces, surface_grid
-from ..geometry import ClosestPoint, cast_cylinder_rays, cylinder_coords
+from ..geometry import ClosestPoint, cast_cylinder_rays, cylinder_coords, triangle_cross, unit_rows
 from ..mesh import vertex_normals
+from .fit import grid_faces, surface_grid
 from .model import FaceModel
 from .pde import SurfaceOperator, knot_slopes, surface_operator
 from .rims import FACING_MIN_COS
@@ -216,14 +214,12 @@ def accuracy_report(model: FaceModel, scan_vertices, scan_triangles, assembly=No
     # vertex normal averages across creases) against the PDE normal nearest its centre.
     Xu = surface_grid(model, su, sv, assembly, deriv=(1, 0)).reshape(-1, 3)
     Xv = surface_grid(model, su, sv, assembly, deriv=(0, 1)).reshape(-1, 3)
-    npde = np.cross(Xu, Xv)
-    npde /= np.maximum(np.linalg.norm(npde, axis=1, keepdims=True), 1e-300)
+    npde = unit_rows(np.cross(Xu, Xv))
     Ts = T[visible[T].all(axis=1)]
-    P = Vf[Ts]
-    nscan = np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
+    nscan = triangle_cross(Vf, Ts)
     area = 0.5 * np.linalg.norm(nscan, axis=1)
-    nscan /= np.maximum(2 * area, 1e-300)[:, None]
-    ang = _normal_deviation(cp.query(P.mean(axis=1)), nscan, npde, Tp)
+    nscan = unit_rows(nscan)
+    ang = _normal_deviation(cp.query(Vf[Ts].mean(axis=1)), nscan, npde, Tp)
     ang_vertex = _normal_deviation(nearest, vertex_normals(Vf, T)[visible], npde, Tp)
     result = {
         "assembly": assembly,
@@ -238,29 +234,12 @@ def accuracy_report(model: FaceModel, scan_vertices, scan_triangles, assembly=No
         result[f"{k}_mean_mm"] = float(dk.mean()) if len(dk) else 0.0
         result[f"{k}_max_mm"] = float(dk.max()) if len(dk) else 0.0
     if profiles_png or profiles_csv:
+        from ..io.profiles import write_profiles_csv, write_profiles_png
+
         prof = _profiles(model, Vf, T, Vp, Tp)
         if profiles_csv:
-            with open(profiles_csv, "w", newline="") as fh:
-                wr = csv.writer(fh)
-                wr.writerow(["cut", "i", "angle_deg", "height_mm", "scan_radius_mm", "pde_radius_mm", "difference_mm"])
-                for name, (th, y, rs, rp) in prof.items():
-                    for i in range(len(th)):
-                        wr.writerow([name, i, f"{np.degrees(th[i]):.4f}", f"{y[i]:.4f}", f"{rs[i]:.4f}",
-                                     f"{rp[i]:.4f}", f"{rp[i] - rs[i]:.4f}"])
+            write_profiles_csv(profiles_csv, prof)
         if profiles_png:
-            from ..io.png import plot_panels
-            panels = []
-            for name, (th, y, rs, rp) in prof.items():
-                along = np.concatenate([[0], np.cumsum(np.hypot(np.diff(th) * np.nanmean(rs), np.diff(y)))])
-                # Profiles (scan black, PDE red) above their difference magnified 10x (blue) around
-                # a zero line with ±1 mm marks (grey), so sub-millimetre errors are visible.
-                base = np.nanmin(np.r_[rs, rp]) - 25.0
-                diff = base + 10.0 * (rp - rs)
-                ends = along[[0, -1]]
-                panels.append([(along, rs, (0, 0, 0)), (along, rp, (220, 30, 30)),
-                               (ends, np.full(2, base), (150, 150, 150)),
-                               (ends, np.full(2, base + 10.0), (210, 210, 210)),
-                               (ends, np.full(2, base - 10.0), (210, 210, 210)), (along, diff, (30, 60, 220))])
-            plot_panels(profiles_png, panels)
+            write_profiles_png(profiles_png, prof)
     return result
 
