@@ -8,11 +8,12 @@ import time
 
 import bpy
 
-from . import bridge
-from .operators import MIX_KEY, managed, set_pose, write_mix_key
+from . import face
 
-_state = {"player": None, "address": None, "face": None, "t0": 0.0, "frame0": 1, "record": False, "hz": 60.0, "mixer": "sum",
-          "applied": 0}
+LOOPBACK = ("127.0.0.1", "localhost", "::1")
+
+_state = {"player": None, "address": None, "face": None, "t0": 0.0, "frame0": 1, "record": False, "hz": 60.0,
+          "mixer": "sum", "applied": 0}
 
 
 def running() -> bool:
@@ -20,33 +21,50 @@ def running() -> bool:
 
 
 def start(obj, role="LISTEN", host="127.0.0.1", port=5000, mode="live", rules=False, record=False, hz=60.0,
-          mixer="sum", transition=0.25):
-    """Start the player for face ``obj``; returns the address it listens on (or connects to)."""
+          mixer=None, allow_remote=False, transition=0.25):
+    """Start the player for face ``obj``; returns the address it listens on (or connects to).
+
+    Listening on an address other than loopback needs ``allow_remote``. ``mixer``
+    None is ``sum`` (the AU keys themselves).
+    """
+    from pdeface.au.expressions import choose_mixer
     from pdeface.stream.player import Player
     from pdeface.stream.rules import AUBlender
 
+    if role == "LISTEN" and host not in LOOPBACK and not allow_remote:
+        raise face.error(f"listening on {host} opens the player to the network: tick 'Allow remote' to do that")
+    if not face.managed(obj, "AU"):
+        raise face.error("build shape keys first")
+    mixer = choose_mixer(mixer)
     stop()
     player = Player(mode=mode, transition=transition, blender=AUBlender.load() if rules else None)
-    if role == "LISTEN":
-        address = tuple(player.listen(host, port))
-    else:
-        player.connect(host, port)
-        address = (host, port)
+    try:
+        if role == "LISTEN":
+            address = tuple(player.listen(host, port))
+        else:
+            player.connect(host, port)
+            address = (host, port)
+    except OSError as exc:
+        player.close()
+        raise face.error(f"cannot {role.lower()} on {host}:{port}: {exc.strerror or exc}") from None
     scene = bpy.context.scene
-    _state.update(player=player, address=address, face=obj.name, t0=time.monotonic(), frame0=scene.frame_current, record=record,
-                  hz=min(max(hz, 1.0), 60.0), mixer=mixer, applied=0)
+    _state.update(player=player, address=address, face=obj.name, t0=time.monotonic(), frame0=scene.frame_current,
+                  record=record, hz=min(max(hz, 1.0), 60.0), mixer=mixer, applied=0)
     if not bpy.app.timers.is_registered(_timer):
         bpy.app.timers.register(_timer, first_interval=0.0, persistent=True)
     return address
 
 
-def stop():
+def stop() -> int:
+    """Stop the player (if running); returns how many packets it received."""
     player = _state["player"]
     _state["player"] = None
     if bpy.app.timers.is_registered(_timer):
         bpy.app.timers.unregister(_timer)
-    if player is not None:
-        player.close()
+    if player is None:
+        return 0
+    player.close()
+    return player.stats.packets
 
 
 def status() -> dict:
@@ -63,20 +81,11 @@ def tick():
     if player is None or obj is None or not obj.pdeface.is_face:
         stop()
         return
-    pose = player.pose()
-    keys = managed(obj)
-    if _state["mixer"] == "sum":
-        names = {e.au_key: e.name for e, _ in keys if e.kind == "AU"}
-        set_pose(obj, {names[k]: w for k, w in pose.items() if k in names})
-        touched = [kb for e, kb in keys if e.kind == "AU"]
-    else:
-        write_mix_key(obj, bridge.face_model(obj), pose, _state["mixer"])
-        touched = [kb for e, kb in managed(obj) if e.name == MIX_KEY]
+    touched = face.pose_aus(obj, player.pose(), _state["mixer"])
     _state["applied"] += 1
     if _state["record"]:
         scene = bpy.context.scene
-        fps = scene.render.fps / scene.render.fps_base
-        frame = _state["frame0"] + round((time.monotonic() - _state["t0"]) * fps)
+        frame = _state["frame0"] + round((time.monotonic() - _state["t0"]) * face.scene_fps(scene))
         for kb in touched:
             kb.keyframe_insert("value", frame=frame)
     obj.data.update()

@@ -1,9 +1,8 @@
 """The PDE Face tab of the 3D View sidebar."""
 import bpy
 
-from .operators import active_face, managed, preset_items
-
-REGIONS = (("upper", "Upper face"), ("lower", "Lower face"), ("eyes_head", "Eyes & head"))
+from . import live
+from .face import active_face, managed, preset_items
 
 
 class _Panel:
@@ -58,7 +57,8 @@ class PDEFACE_PT_action_units(_FacePanel, bpy.types.Panel):
             layout.label(text="No AU shape keys yet: Build Shape Keys", icon="INFO")
             return
         needle = s.au_filter.strip().lower()
-        for region, title in REGIONS:
+        from pdeface.au.facs import REGIONS
+        for region, title in REGIONS.items():
             rows = [(e, kb) for e, kb in keys if e.region == region and needle in e.label.lower()]
             if not rows:
                 continue
@@ -114,7 +114,6 @@ class PDEFACE_PT_live(_FacePanel, bpy.types.Panel):
     bl_options = {"DEFAULT_CLOSED"}
 
     def draw(self, context):
-        from . import live
         layout = self.layout
         s = context.scene.pdeface
         st = live.status()

@@ -1,11 +1,26 @@
 """Properties: what a PDE face object carries, and the scene's PDE Face settings."""
 import bpy
-from bpy.props import (BoolProperty, CollectionProperty, EnumProperty, FloatProperty, IntProperty,
-                       PointerProperty, StringProperty)
+from bpy.props import (
+    BoolProperty,
+    CollectionProperty,
+    EnumProperty,
+    FloatProperty,
+    IntProperty,
+    PointerProperty,
+    StringProperty,
+)
+from pdeface.au.expressions import MIXERS
+from pdeface.au.sequence import METHOD_SEQUENCE, MODES
+from pdeface.stream.player import MODES as PLAYBACK_MODES
+from pdeface.surface.frame import UNITS_MM
 
-MIXERS = [("sum", "Sum", "Linear: the AUs' changes add up (shape keys)"),
-          ("average", "Average", "Each coefficient averaged over the AUs acting on its curve"),
-          ("max", "Max", "Each coefficient from the AU moving it most")]
+from .face import PRESET_MIXER
+
+MIXER_ITEMS = [(PRESET_MIXER, "Preset", "Each preset's own mixer (sum unless it names another); AUs alone: sum")] + \
+    [(m, m.capitalize(), text) for m, text in MIXERS.items()]
+SEQUENCE_PATHS = {"via_neutral": ("Via neutral", "neutral → expression → neutral → next"),
+                  "direct": ("Direct", "expression → expression")}
+PLAYBACK = {"live": ("Live", "Head for the newest packet"), "queue": ("Queue", "Play every packet in turn (the FAS player)")}
 
 
 class PDEFACE_PG_key(bpy.types.PropertyGroup):
@@ -31,7 +46,7 @@ class PDEFACE_PG_face(bpy.types.PropertyGroup):
 class PDEFACE_PG_settings(bpy.types.PropertyGroup):
     """Per scene: the panel's settings."""
 
-    mixer: EnumProperty(name="Mixer", items=MIXERS, default="sum")
+    mixer: EnumProperty(name="Mixer", items=MIXER_ITEMS, default=PRESET_MIXER)
     preset_mode: EnumProperty(
         name="Apply as", default="AUS",
         items=[("AUS", "AU weights", "Set the preset's AU keys (expression keys go to 0)"),
@@ -46,16 +61,14 @@ class PDEFACE_PG_settings(bpy.types.PropertyGroup):
     landmark_group: StringProperty(name="Group", default="landmarks")
     landmark_file: StringProperty(name="File", subtype="FILE_PATH")
     unit: EnumProperty(name="Unit", default="AUTO",
-                       items=[("AUTO", "Guess", "From the eye distance"), ("mm", "mm", ""), ("cm", "cm", ""),
-                              ("m", "m", ""), ("in", "in", "")])
+                       items=[("AUTO", "Guess", "From the eye distance")] + [(u, u, "") for u in UNITS_MM])
     presets_file: StringProperty(name="User presets", subtype="FILE_PATH",
                                  description="JSON file of user presets (pdeface.preset / pdeface.presets)")
-    sequence: StringProperty(name="Sequence", default="happy,sad,fear,disgust,surprise,anger")
+    sequence: StringProperty(name="Sequence", default=",".join(METHOD_SEQUENCE))
     sequence_hold: IntProperty(name="Hold", default=12, min=0)
     sequence_blend: IntProperty(name="Blend", default=12, min=1)
     sequence_mode: EnumProperty(name="Path", default="via_neutral",
-                                items=[("via_neutral", "Via neutral", "neutral → expression → neutral → next"),
-                                       ("direct", "Direct", "expression → expression")])
+                                items=[(m, *SEQUENCE_PATHS[m]) for m in MODES])
     sequence_channels: EnumProperty(name="Animate", default="KEY",
                                     items=[("KEY", "Expression keys", ""), ("AUS", "AU keys", "")])
     # No poll= filter here: a poll callback on this pointer crashes Blender 4.2 at exit (found by the
@@ -72,8 +85,7 @@ class PDEFACE_PG_settings(bpy.types.PropertyGroup):
     live_allow_remote: BoolProperty(name="Allow remote", default=False,
                                     description="Listen on an address other than this machine's loopback")
     live_mode: EnumProperty(name="Playback", default="live",
-                            items=[("live", "Live", "Head for the newest packet"),
-                                   ("queue", "Queue", "Play every packet in turn (the FAS player)")])
+                            items=[(m, *PLAYBACK[m]) for m in PLAYBACK_MODES])
     live_rules: BoolProperty(name="AU blender rules", default=False, description="Apply the co-occurrence rules")
     live_record: BoolProperty(name="Record keyframes", default=False)
     live_hz: FloatProperty(name="Rate", default=60.0, min=1.0, max=60.0, description="Pose updates per second")

@@ -1,8 +1,9 @@
-"""Rendering a PDE face: timeline keyframes, framing, frames, video, contact sheet.
+"""Rendering a PDE face: framing, frames, video, contact sheet.
 
 Used by scripts/render_sequence.py (``blender -b -P`` or plain ``python`` with
-bpy) and by the operators. Camera and lights depend only on the face at rest,
-and Cycles' seed is fixed, so frame ranges rendered apart join seamlessly.
+bpy), which keyframes its timeline with ``face.apply_timeline``. Camera and
+lights depend only on the face at rest, and Cycles' seed is fixed, so frame
+ranges rendered apart join seamlessly.
 """
 import math
 from pathlib import Path
@@ -11,8 +12,7 @@ import bpy
 import numpy as np
 from mathutils import Matrix, Vector
 
-from . import bridge, compat
-from .operators import apply_timeline  # noqa: F401 - part of this module's API
+from . import bridge, compat, face
 
 RIG = "PDE Render"  # prefix of the camera and lights this module makes
 
@@ -131,12 +131,10 @@ def contact_sheet(obj, path, items=None, cell=160, columns=8, samples=16, resolu
     from pdeface.au.expressions import ShapeBasis, resolve_preset
     from pdeface.surface.fit import face_mesh
 
-    from .operators import all_presets
-
     model = bridge.face_model(obj)
     basis = ShapeBasis(model, resolution, dtype=np.float64)
     cells = [("neutral", {})] + [(f"AU{d.key}", {d.key: 1.0}) for d in model.descriptors]
-    for name, preset in all_presets(bpy.context).items():
+    for name, preset in face.all_presets(bpy.context.scene).items():
         w, _ = resolve_preset(preset, set(basis.keys))
         cells.append((name, w))
     if items is not None:

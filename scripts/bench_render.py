@@ -62,8 +62,8 @@ def main(argv=None):
     import bpy
 
     module = rs.enable_addon(bpy)
-    render = sys.modules[module + ".render"] if module + ".render" in sys.modules else \
-        __import__(module + ".render", fromlist=["render"])
+    render = __import__(module + ".render", fromlist=["render"])
+    face_logic = __import__(module + ".face", fromlist=["face"])
     try:
         bpy.ops.wm.read_homefile(use_empty=True)
         bpy.ops.pdeface.add_default_face()
@@ -73,7 +73,7 @@ def main(argv=None):
         from pdeface.io.timeline import sequence_timeline
         timeline = sequence_timeline(METHOD_SEQUENCE, 12, 0.33, 0.33)
         t = time.perf_counter()
-        first, last, _ = render.apply_timeline(face, timeline)
+        first, last, _ = face_logic.apply_timeline(face, timeline)
         t_keys = time.perf_counter() - t
         render.setup_render(scene, face, "CYCLES", (192, 192), 16, 0, 12)
         frames = list(range(first, min(last, first + args.frames - 1) + 1))

@@ -97,6 +97,7 @@ def main(argv=None):
 
     module = enable_addon(bpy)
     render = __import__(module + ".render", fromlist=["render"])
+    face_logic = __import__(module + ".face", fromlist=["face"])
     from pdeface.errors import PdeFaceError
     try:
         width, height = (int(v) for v in args.size.lower().split("x"))
@@ -135,7 +136,7 @@ def main(argv=None):
             names = [n.strip() for n in (args.sequence or ",".join(METHOD_SEQUENCE)).split(",") if n.strip()]
             timeline = sequence_timeline(names, args.fps, args.hold, args.blend_time)
         if timeline is not None:
-            first, last, missing = render.apply_timeline(face, timeline)
+            first, last, missing = face_logic.apply_timeline(face, timeline)
             scene.frame_start, scene.frame_end = first, last
             if missing:
                 sys.stderr.write(f"this face has no shape key for: {', '.join(missing)} (skipped)\n")

@@ -247,3 +247,60 @@ def test_bad_input_reports_an_error_and_loses_nothing(bpy, scan_object, tmp_path
     with pytest.raises(RuntimeError, match="not valid JSON"):
         bpy.ops.pdeface.build_shape_keys()
     assert bpy.context.active_object.data.shape_keys is None or len(key_blocks(bpy.context.active_object)) <= 1
+
+
+def face_module():
+    return __import__(MODULE + ".face", fromlist=["face"])
+
+
+def shape_key_coords(obj):
+    return {kb.name: np.array([d.co[:] for d in kb.data]) for kb in key_blocks(obj)}
+
+
+def test_scripting_api_and_operators_make_the_same_face(bpy):
+    # The operators only parse, call face.* and report: both paths give the same mesh and keys.
+    fm = face_module()
+    assert bpy.ops.pdeface.add_default_face() == {"FINISHED"}
+    by_operator = bpy.context.active_object
+    obj = fm.add_face(bpy.context)
+    result = fm.build_keys(obj, fm.all_presets(bpy.context.scene))
+    assert result["made"] == len(key_blocks(by_operator)) - 1 and result["skipped"] == 0
+    np.testing.assert_array_equal(np.array([v.co[:] for v in obj.data.vertices]),
+                                  np.array([v.co[:] for v in by_operator.data.vertices]))
+    a, b = shape_key_coords(obj), shape_key_coords(by_operator)
+    assert a.keys() == b.keys()
+    for name in a:
+        np.testing.assert_array_equal(a[name], b[name], err_msg=name)
+    # posing: the operator with the scene's settings, the function with the same arguments
+    bpy.context.scene.pdeface.mixer = "max"
+    bpy.context.view_layer.objects.active = by_operator
+    assert bpy.ops.pdeface.apply_preset(preset="fear", mode="AUS") == {"FINISHED"}
+    presets = fm.all_presets(bpy.context.scene)
+    assert fm.apply_preset(obj, "fear", presets["fear"], "AUS", 1.0, "max")[0] == "max"
+    np.testing.assert_array_equal(evaluated_vertices(bpy, obj), evaluated_vertices(bpy, by_operator))
+    # keyframes
+    assert bpy.ops.pdeface.animate_sequence(presets="happy,sad", start=1, hold=2, blend=3, mode="direct",
+                                            channels="AUS") == {"FINISHED"}
+    fm.animate_sequence(bpy.context.scene, obj, ["happy", "sad"], presets, 1, 2, 3, "direct", "AUS")
+    for frame in (1, 4, 6, 9, 11):
+        bpy.context.scene.frame_set(frame)
+        np.testing.assert_array_equal(evaluated_vertices(bpy, obj), evaluated_vertices(bpy, by_operator))
+
+
+def test_a_presets_own_mixer_unless_the_panel_names_one(bpy, face, tmp_path):
+    (tmp_path / "p.json").write_text(json.dumps({"format": "pdeface.preset", "version": 1, "name": "brows",
+                                                 "weights": {"1": 1, "2": 1, "4": 1}, "mixer": "average"}))
+    s = bpy.context.scene.pdeface
+    s.presets_file = str(tmp_path / "p.json")
+    assert s.mixer == face_module().PRESET_MIXER  # the default defers to the preset
+    kb = key_blocks(face)
+    bpy.ops.pdeface.apply_preset(preset="brows", mode="AUS")
+    assert kb["PDE Mix"].value == 1.0 and kb["AU1 Inner Brow Raiser"].value == 0.0
+    s.mixer = "sum"
+    bpy.ops.pdeface.apply_preset(preset="brows", mode="AUS")
+    assert kb["PDE Mix"].value == 0.0 and kb["AU1 Inner Brow Raiser"].value == 1.0
+
+
+def test_every_operator_reports_through_one_wrapper(bpy):
+    ops = __import__(MODULE + ".operators", fromlist=["operators"])
+    assert ops._classes and all(issubclass(c, ops._Operator) and "execute" not in vars(c) for c in ops._classes)

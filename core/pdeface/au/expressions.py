@@ -28,9 +28,10 @@ import numpy as np
 from ..errors import ModelFormatError, PdeFaceError
 from .facs import clamp_weight, clamp_weights, letter_to_weight, parse_au_key, split_au_key
 
-#: How AUs that move the same curves combine: their changes add up, are averaged per curve, or the
-#: larger change wins (the FAS's mixers; only ``sum`` is linear, i.e. plain shape keys).
-MIXERS = ("sum", "average", "max")
+#: How AUs that move the same curves combine (the FAS's mixers); only ``sum`` is linear, i.e. plain shape keys.
+MIXERS = {"sum": "Linear: the AUs' changes add up (shape keys)",
+          "average": "Each coefficient averaged over the AUs acting on its curve",
+          "max": "Each coefficient from the AU moving it most"}
 SUPPLEMENTARY_WEIGHT = 0.3
 
 #: The method's Table 5-3: (main AUs, supplementary AUs).

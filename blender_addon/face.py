@@ -1,0 +1,414 @@
+"""The Blender side of a PDE face: its object, its shape keys, poses and keyframes.
+
+Operators, the live link, the render script and tests all call these functions;
+each reads Blender data, calls pdeface, writes back, and returns what it did
+(operators turn that into reports). Errors are ``PdeFaceError``s naming the
+problem, raised before anything is written.
+
+Shape keys this add-on made are listed on the face (``obj.pdeface.keys``); the
+user's own keys, drivers and keyframes are never deleted or renamed.
+"""
+import math
+
+import bpy
+import numpy as np
+
+from . import bridge
+
+MIX_KEY = "PDE Mix"
+#: The scene's mixer choice that defers to each preset's own mixer.
+PRESET_MIXER = "PRESET"
+
+
+def _pd():
+    """The pdeface modules used here (imported on first use: the fit pulls in scipy)."""
+    import pdeface.assets
+    import pdeface.au.expressions
+    import pdeface.au.facs
+    import pdeface.au.retarget
+    import pdeface.io.modelfile
+    import pdeface.surface.fit
+    import pdeface.surface.frame
+    return pdeface
+
+
+def error(message):
+    from pdeface.errors import PdeFaceError
+    return PdeFaceError(message)
+
+
+# ------------------------------------------------------------------ the face object and its keys
+
+def active_face(context):
+    """The active object if it is a PDE face, else None."""
+    obj = context.active_object
+    return obj if obj is not None and obj.type == "MESH" and obj.pdeface.is_face else None
+
+
+def au_key_name(descriptor):
+    """``AU12 Lip Corner Puller``, ``AU12L Lip Corner Puller``."""
+    return f"AU{descriptor.key} {descriptor.name}"
+
+
+def expression_key_name(preset_name):
+    return f"Expr {preset_name}"
+
+
+def managed(obj, kind=None):
+    """(entry, key block) of our shape keys still present on the object (of ``kind`` AU/EXPRESSION/MIX)."""
+    blocks = obj.data.shape_keys.key_blocks if obj.data.shape_keys else {}
+    return [(e, blocks[e.name]) for e in obj.pdeface.keys if e.name in blocks and (kind is None or e.kind == kind)]
+
+
+def au_key_names(obj):
+    """``{AU key: shape key name}`` of the face's AU keys (``"12L"`` → ``"AU12L Lip Corner Puller"``)."""
+    return {e.au_key: e.name for e, _ in managed(obj, "AU")}
+
+
+def expression_key_names(obj, preset_names):
+    """``{preset: shape key name}`` for the presets whose expression key the face has."""
+    ours = {e.name for e, _ in managed(obj, "EXPRESSION")}
+    return {p: expression_key_name(p) for p in preset_names if expression_key_name(p) in ours}
+
+
+def new_face_object(context, name, model, resolution, matrix=None, source=None, data=None):
+    """A PDE face object for ``model`` (linked, selected and active); ``data``: the model file's bytes."""
+    pd = _pd()
+    mesh = bridge.new_mesh(name, pd.surface.fit.face_mesh(model, resolution))
+    obj = bpy.data.objects.new(name, mesh)
+    context.collection.objects.link(obj)
+    if matrix is not None:
+        obj.matrix_world = matrix
+    obj.pdeface.is_face = True
+    obj.pdeface.resolution = resolution
+    obj.pdeface.source = source
+    bridge.store_model(obj, model, data)
+    mesh.materials.append(bridge.skin_material())
+    for o in context.view_layer.objects:
+        o.select_set(False)
+    obj.select_set(True)
+    context.view_layer.objects.active = obj
+    return obj
+
+
+def add_face(context, model_path="", resolution="default"):
+    """The bundled face (or the model file at ``model_path``) as a new PDE face object, +Z up."""
+    from pdeface.io.files import read_bytes
+
+    pd = _pd()
+    pd.surface.fit.parse_resolution(resolution)
+    path = bpy.path.abspath(model_path) if model_path else pd.assets.asset_path(pd.assets.DEFAULT_FACE)
+    data = read_bytes(path)
+    model = pd.io.modelfile.model_from_bytes(data, str(path))
+    obj = new_face_object(context, "PDE Face", model, resolution, data=data)
+    obj.rotation_euler = (math.pi / 2, 0.0, 0.0)  # the face frame's +y up becomes Blender's +Z up
+    return obj
+
+
+def read_landmarks(settings, obj):
+    """68 landmark positions (object space) from the scene's chosen source (group, selection or file)."""
+    pd = _pd()
+    from pdeface.errors import LandmarkError
+    V = bridge.vertices(obj.data)
+    if settings.landmark_source == "FILE":
+        path = bpy.path.abspath(settings.landmark_file)
+        if not path:
+            raise LandmarkError("choose a landmarks JSON file")
+        idx, pts = pd.surface.frame.read_landmarks(path)
+        return pd.surface.frame.landmark_points(V, idx, pts)
+    if settings.landmark_source == "GROUP":
+        group = obj.vertex_groups.get(settings.landmark_group)
+        if group is None:
+            raise LandmarkError(f"{obj.name} has no vertex group {settings.landmark_group!r}")
+        members = [(g.weight, v.index) for v in obj.data.vertices for g in v.groups if g.group == group.index]
+        if len(members) != 68:
+            raise LandmarkError(f"vertex group {group.name!r} has {len(members)} vertices; it needs the 68 landmarks")
+        return V[[i for _, i in sorted(members)]]
+    import bmesh
+    bm = bmesh.new()
+    try:
+        bm.from_mesh(obj.data)
+        hist = [e.index for e in bm.select_history if isinstance(e, bmesh.types.BMVert)]
+    finally:
+        bm.free()
+    if len(hist) != 68:
+        raise LandmarkError(f"{len(hist)} vertices selected in order; select the 68 landmarks one by one in Edit Mode")
+    return V[hist]
+
+
+def fit_face_object(context, src, landmarks, unit=None, resolution="default", retarget=True, progress=None):
+    """Fit a PDE face to mesh object ``src`` and put it on it; returns (face object, model, sampler).
+
+    ``progress(step, message)`` is called before each of the three steps.
+    """
+    pd = _pd()
+    step = progress or (lambda i, msg: None)
+    V = bridge.vertices(src.data)
+    T, _ = bridge.triangles(src.data)
+    if len(T) == 0:
+        raise error(f"{src.name} has no faces")
+    step(1, "fitting curves")
+    model, sampler = pd.surface.fit.fit_face(V, T, landmarks, unit=unit, source=src.name)
+    step(2, "retargeting AU descriptors")
+    if retarget:
+        model = pd.au.retarget.retarget(pd.assets.load_face(pd.assets.DEFAULT), model)
+    step(3, "building the face")
+    obj = new_face_object(context, f"PDE {src.name}", model, resolution, src.matrix_world.copy(), src)
+    return obj, model, sampler
+
+
+# ------------------------------------------------------------------ presets
+
+def all_presets(scene):
+    """Built-in presets plus the scene's user preset file (if set; a broken file raises)."""
+    pd = _pd()
+    presets = dict(pd.au.expressions.PRESETS)
+    path = bpy.path.abspath(scene.pdeface.presets_file) if scene else ""
+    if path:
+        presets.update({p.name: p for p in pd.au.expressions.load_presets(path)})
+    return presets
+
+
+_preset_items = []  # Blender needs the enum items kept alive
+
+
+def preset_items(self, context):
+    """Enum items of every preset (built-in ones only while the user's file is broken)."""
+    _preset_items.clear()
+    try:
+        names = list(all_presets(context.scene if context else None))
+    except Exception:  # a broken user file must not break the UI; the operators report it
+        names = list(_pd().au.expressions.PRESETS)
+    _preset_items.extend((n, n.replace("_", " "), "") for n in names)
+    return _preset_items
+
+
+def scene_mixer(settings):
+    """The mixer the scene asks for, or None to defer to each preset's own."""
+    return None if settings.mixer == PRESET_MIXER else settings.mixer
+
+
+# ------------------------------------------------------------------ shape keys
+
+def build_keys(obj, presets):
+    """Basis = neutral PDE face; one key per AU and per preset, updated in place when present.
+
+    A key of the user's with one of our names is left alone. Returns
+    ``{"made", "updated", "skipped", "aus", "expressions"}``.
+    """
+    pd = _pd()
+    model = bridge.face_model(obj)
+    if not model.descriptors:
+        raise error(f"{obj.name}'s model carries no AU descriptors")
+    basis = pd.au.expressions.ShapeBasis(model, obj.pdeface.resolution, dtype=np.float64)
+    if len(basis.neutral) != len(obj.data.vertices):
+        raise error(f"{obj.name} has {len(obj.data.vertices)} vertices, its model meshes to {len(basis.neutral)}: "
+                    "the mesh was edited; add the face again")
+    expressions = []  # every input computed before anything is written
+    available = set(basis.keys)
+    for name, preset in presets.items():
+        weights, _ = pd.au.expressions.resolve_preset(preset, available)
+        if not weights:
+            continue
+        if preset.mixer == "sum":
+            coords = basis.vertices(basis.weights_matrix(weights))[0]
+        else:
+            C, R = pd.au.expressions.pose_curves(model, weights, preset.mixer)
+            coords = pd.surface.fit.face_mesh(model, obj.pdeface.resolution, coefficients=C, residual=R).vertices
+        expressions.append((name, f"{name} ({preset.description})", coords))
+
+    if obj.data.shape_keys is None:
+        obj.shape_key_add(name="Basis", from_mix=False)
+    bridge.set_key_coords(obj.data.shape_keys.reference_key, basis.neutral)
+    obj.data.vertices.foreach_set("co", basis.neutral.astype(np.float32).ravel())
+    catalogue = pd.au.facs.catalogue()
+    counts = {"made": 0, "updated": 0, "skipped": 0}
+    entries = {e.name: e for e in obj.pdeface.keys}
+    blocks = obj.data.shape_keys.key_blocks
+
+    def put(name, coords, kind, au_key="", label=""):
+        if name in blocks and name not in entries:
+            counts["skipped"] += 1  # the user's own key of that name: not ours to touch
+            return
+        kb = blocks.get(name)
+        if kb is None:
+            kb = obj.shape_key_add(name=name, from_mix=False)
+            kb.value = 0.0  # new keys start at 1 in Blender 5.0
+            counts["made"] += 1
+        else:
+            counts["updated"] += 1
+        kb.slider_min, kb.slider_max = 0.0, 1.0
+        bridge.set_key_coords(kb, coords)
+        e = entries.get(name)
+        if e is None:
+            e = obj.pdeface.keys.add()
+            e.name = name
+            entries[name] = e
+        e.kind, e.au_key, e.label = kind, au_key, label or name
+        e.region = catalogue[pd.au.facs.au_number(au_key)].region if au_key else ""
+
+    for i, d in enumerate(model.descriptors):
+        put(au_key_name(d), basis.neutral + basis.deltas[i].reshape(-1, 3), "AU", d.key, d.label)
+    for name, label, coords in expressions:
+        put(expression_key_name(name), coords, "EXPRESSION", label=label)
+    obj.data.update()
+    return {**counts, "aus": len(model.descriptors), "expressions": len(expressions)}
+
+
+def set_pose(obj, values, kinds=("AU", "EXPRESSION", "MIX")):
+    """Set our keys of ``kinds``: those named in ``values`` to their value, the others to 0."""
+    for e, kb in managed(obj):
+        if e.kind in kinds:
+            kb.value = values.get(e.name, 0.0)
+
+
+def write_mix_key(obj, model, weights, mixer):
+    """Average and max are not linear: the mixed pose goes into one key of its own, set to 1."""
+    pd = _pd()
+    if obj.data.shape_keys is None:
+        raise error("build shape keys first")
+    blocks = obj.data.shape_keys.key_blocks
+    kb = blocks.get(MIX_KEY)
+    if kb is not None and MIX_KEY not in {e.name for e in obj.pdeface.keys}:
+        raise error(f"a shape key named {MIX_KEY!r} is yours; rename it to use the {mixer} mixer")
+    C, R = pd.au.expressions.pose_curves(model, weights, mixer)
+    coords = pd.surface.fit.face_mesh(model, obj.pdeface.resolution, coefficients=C, residual=R).vertices
+    if kb is None:
+        kb = obj.shape_key_add(name=MIX_KEY, from_mix=False)
+        kb.value = 0.0
+        e = obj.pdeface.keys.add()
+        e.name, e.kind, e.label = MIX_KEY, "MIX", "mixed pose"
+    kb.slider_min, kb.slider_max = 0.0, 1.0
+    bridge.set_key_coords(kb, coords)
+    set_pose(obj, {MIX_KEY: 1.0})
+
+
+def pose_aus(obj, weights, mixer="sum"):
+    """Pose the face with AU ``weights``: the AU keys for ``sum``, the mix key for the others.
+
+    Returns the shape keys written.
+    """
+    if mixer == "sum":
+        names = au_key_names(obj)
+        set_pose(obj, {names[k]: w for k, w in weights.items() if k in names})
+        return [kb for _, kb in managed(obj, "AU")]
+    write_mix_key(obj, bridge.face_model(obj), weights, mixer)
+    return [kb for _, kb in managed(obj, "MIX")]
+
+
+def apply_preset(obj, name, preset, mode="AUS", weight=1.0, mixer=None):
+    """Pose the face with a preset: as its AU weights (``AUS``) or as its own key (``KEY``).
+
+    ``mixer`` None uses the preset's own. Returns (mixer used or None for
+    ``KEY``, the preset's AUs this face has no descriptor for).
+    """
+    pd = _pd()
+    if mode == "KEY":
+        key = expression_key_names(obj, [name]).get(name)
+        if key is None:
+            raise error(f"no {expression_key_name(name)!r} shape key: build shape keys first")
+        set_pose(obj, {key: weight})  # AU keys to 0: the expression key already holds them
+        return None, []
+    model = bridge.face_model(obj)
+    weights, missing = pd.au.expressions.resolve_preset(preset, {d.key for d in model.descriptors})
+    mixer = pd.au.expressions.choose_mixer(mixer, preset)
+    pose_aus(obj, {k: w * weight for k, w in weights.items()}, mixer)
+    return mixer, missing
+
+
+# ------------------------------------------------------------------ keyframes
+
+def keyframe_pose(obj, frame):
+    """Keyframe every PDE key at ``frame``; returns how many."""
+    keys = managed(obj)
+    for _, kb in keys:
+        kb.keyframe_insert("value", frame=frame)
+    return len(keys)
+
+
+def _extend_scene(scene, last_frame):
+    if scene.frame_end < last_frame:
+        scene.frame_end = last_frame
+
+
+def animate_sequence(scene, obj, names, presets, start, hold, blend, mode="via_neutral", channels="KEY"):
+    """Keyframe presets ``names`` in turn (their expression keys, or their AU keys for ``AUS``).
+
+    Returns the last keyframed frame.
+    """
+    from pdeface.au.sequence import sequence_keys
+
+    pd = _pd()
+    unknown = [n for n in names if n not in presets]
+    if unknown:
+        raise error(f"unknown preset(s): {', '.join(unknown)}")
+    if channels == "KEY":
+        keys = expression_key_names(obj, names)
+        lacking = [expression_key_name(n) for n in names if n not in keys]
+        if lacking:
+            raise error(f"no {lacking[0]!r} shape key: build shape keys first")
+        poses = [{keys[n]: 1.0} for n in names]
+    else:
+        by_au = au_key_names(obj)
+        poses = []
+        for n in names:
+            w, _ = pd.au.expressions.resolve_preset(presets[n], set(by_au))
+            poses.append({by_au[k]: v for k, v in w.items()})
+    frames = sequence_keys(poses, start, hold, blend, mode)
+    blocks = obj.data.shape_keys.key_blocks
+    for frame, pose in frames:
+        for name, value in pose.items():
+            kb = blocks[name]
+            kb.value = value
+            kb.keyframe_insert("value", frame=frame)
+    last = frames[-1][0]
+    _extend_scene(scene, last)
+    set_pose(obj, {})
+    scene.frame_set(scene.frame_current)
+    return last
+
+
+def apply_timeline(obj, timeline, scene=None):
+    """Keyframe the face's shape keys from a pdeface Timeline (and extend ``scene``'s range to it).
+
+    Returns (first frame, last frame, channels the face lacks).
+    """
+    by_au = au_key_names(obj)
+    aus, presets = timeline.channels()
+    by_preset = expression_key_names(obj, presets)
+    missing = [f"AU{a}" for a in aus if a not in by_au] + [p for p in presets if p not in by_preset]
+    names = [by_au[a] for a in aus if a in by_au] + [by_preset[p] for p in presets if p in by_preset]
+    blocks = obj.data.shape_keys.key_blocks
+    prefs = bpy.context.preferences.edit
+    saved = prefs.keyframe_new_interpolation_type
+    try:
+        for key in timeline.keys:
+            # New keys take the user-preference interpolation: the one way that works on 4.2-5.0.
+            prefs.keyframe_new_interpolation_type = key.interpolation.upper()
+            values = {by_au[a]: w for a, w in key.aus.items() if a in by_au}
+            values.update({by_preset[p]: w for p, w in key.presets.items() if p in by_preset})
+            for name in names:
+                kb = blocks[name]
+                kb.value = values.get(name, 0.0)
+                kb.keyframe_insert("value", frame=key.frame)
+    finally:
+        prefs.keyframe_new_interpolation_type = saved
+    if scene is not None:
+        _extend_scene(scene, timeline.frame_end)
+    return timeline.keys[0].frame, timeline.frame_end, missing
+
+
+def read_au_file(path, fmt="auto", fps=30.0, hold=0.5, smooth=1, reduce=0.0):
+    """A timeline from a tracker file or a timeline JSON: (timeline, rows dropped, unknown channels)."""
+    from pdeface.io.timeline import load_timeline
+    from pdeface.io.trackers import import_au
+
+    if fmt == "timeline" or (fmt == "auto" and path.lower().endswith(".json")):
+        return load_timeline(path), 0, []
+    r = import_au(path, fmt, fps, hold, smooth, reduce)
+    return r.timeline, r.dropped, r.unknown
+
+
+def scene_fps(scene):
+    return scene.render.fps / scene.render.fps_base
+
