@@ -1,8 +1,9 @@
-"""Operators: each parses the context, calls ``face`` (or ``texturing``, ``live``), and reports.
+"""Operators: each parses the context, calls ``face`` (or ``texturing``, ``live``), and says what it did.
 
-Every operator runs through :class:`_Operator`: errors pdeface raises on purpose
-(``PdeFaceError``) become one ``self.report`` error and ``CANCELLED``, never a
-traceback, and nothing has been written by then.
+Every operator runs through :class:`_Operator`: ``run`` returns its message
+(reported as INFO), and errors pdeface raises on purpose (``PdeFaceError``)
+become one ``self.report`` error and ``CANCELLED``, never a traceback, with
+nothing written by then.
 """
 import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, StringProperty
@@ -12,17 +13,22 @@ from . import compat, face, live, texturing
 
 
 class _Operator:
-    """Runs ``self.run(context)``; a PdeFaceError becomes an ERROR report."""
+    """Runs ``self.run(context)``: its message becomes an INFO report, a PdeFaceError an ERROR report."""
 
     bl_options = {"REGISTER", "UNDO"}
 
     def execute(self, context):
         from pdeface.errors import PdeFaceError
         try:
-            return self.run(context)
+            message = self.run(context)
         except PdeFaceError as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
+        if isinstance(message, set):  # the result of an operator it handed over to
+            return message
+        if message:
+            self.report({"INFO"}, message)
+        return {"FINISHED"}
 
 
 class _FaceOperator(_Operator):
@@ -61,8 +67,7 @@ class PDEFACE_OT_add_default_face(_ObjectModeOperator, Operator):
         obj = face.add_face(context, self.model_path, self.resolution)
         if self.shape_keys:
             return bpy.ops.pdeface.build_shape_keys()
-        self.report({"INFO"}, f"Added {obj.name}")
-        return {"FINISHED"}
+        return f"Added {obj.name}"
 
 
 class PDEFACE_OT_fit_to_selected(_ObjectModeOperator, Operator):
@@ -104,9 +109,8 @@ class PDEFACE_OT_fit_to_selected(_ObjectModeOperator, Operator):
             wm.progress_end()
             compat.set_status(context, None)
         filled = int((sampler.status != 0).sum())
-        self.report({"INFO"}, f"Fitted {obj.name}: {model.layout.n_curves} curves, unit {model.frame.unit}, "
-                              f"{filled} curve points filled over openings")
-        return {"FINISHED"}
+        return (f"Fitted {obj.name}: {model.layout.n_curves} curves, unit {model.frame.unit}, "
+                f"{filled} curve points filled over openings")
 
 
 class PDEFACE_OT_build_shape_keys(_FaceOperator, Operator):
@@ -124,11 +128,9 @@ Rebuilding updates these keys in place; your own keys are left alone"""
         r = face.build_keys(obj, presets)
         msg = (f"{obj.name}: {r['made']} shape keys made, {r['updated']} updated "
                f"({r['aus']} AUs, {r['expressions']} expressions)")
-        if r["skipped"]:
-            self.report({"WARNING"}, msg + f"; {r['skipped']} left alone (your own keys share those names)")
-        else:
-            self.report({"INFO"}, msg)
-        return {"FINISHED"}
+        if not r["skipped"]:
+            return msg
+        self.report({"WARNING"}, msg + f"; {r['skipped']} left alone (your own keys share those names)")
 
 
 class PDEFACE_OT_apply_preset(_FaceOperator, Operator):
@@ -151,11 +153,9 @@ class PDEFACE_OT_apply_preset(_FaceOperator, Operator):
         mixer, missing = face.apply_preset(face.active_face(context), self.preset, presets[self.preset], mode,
                                            self.weight, face.scene_mixer(s))
         if mixer is None:
-            self.report({"INFO"}, f"{self.preset} as its own key at {self.weight:g}")
-        else:
-            note = f" (no descriptor for AU {', '.join(missing)})" if missing else ""
-            self.report({"INFO"}, f"{self.preset} as AU weights, {mixer} mixer{note}")
-        return {"FINISHED"}
+            return f"{self.preset} as its own key at {self.weight:g}"
+        note = f" (no descriptor for AU {', '.join(missing)})" if missing else ""
+        return f"{self.preset} as AU weights, {mixer} mixer{note}"
 
 
 class PDEFACE_OT_reset_pose(_FaceOperator, Operator):
@@ -166,7 +166,6 @@ class PDEFACE_OT_reset_pose(_FaceOperator, Operator):
 
     def run(self, context):
         face.set_pose(face.active_face(context), {})
-        return {"FINISHED"}
 
 
 class PDEFACE_OT_keyframe_pose(_FaceOperator, Operator):
@@ -178,8 +177,7 @@ class PDEFACE_OT_keyframe_pose(_FaceOperator, Operator):
     def run(self, context):
         frame = context.scene.frame_current
         n = face.keyframe_pose(face.active_face(context), frame)
-        self.report({"INFO"}, f"Keyframed {n} shape keys at frame {frame}")
-        return {"FINISHED"}
+        return f"Keyframed {n} shape keys at frame {frame}"
 
 
 class PDEFACE_OT_animate_sequence(_FaceOperator, Operator):
@@ -203,8 +201,7 @@ class PDEFACE_OT_animate_sequence(_FaceOperator, Operator):
                                      s.sequence_hold if self.hold < 0 else self.hold,
                                      s.sequence_blend if self.blend < 0 else self.blend,
                                      self.mode or s.sequence_mode, self.channels or s.sequence_channels)
-        self.report({"INFO"}, f"Animated {len(names)} expressions over frames {start}-{last}")
-        return {"FINISHED"}
+        return f"Animated {len(names)} expressions over frames {start}-{last}"
 
 
 class PDEFACE_OT_import_au(_FaceOperator, Operator):
@@ -237,8 +234,7 @@ class PDEFACE_OT_import_au(_FaceOperator, Operator):
         if missing:
             self.report({"WARNING"}, f"this face has no shape key for {', '.join(missing)}")
         note = f"; {dropped} rows dropped" if dropped else ""
-        self.report({"INFO"}, f"Keyframed {len(timeline.keys)} keys, frames {first}-{last}{note}")
-        return {"FINISHED"}
+        return f"Keyframed {len(timeline.keys)} keys, frames {first}-{last}{note}"
 
 
 class PDEFACE_OT_transfer_texture(_FaceOperator, Operator):
@@ -255,13 +251,11 @@ class PDEFACE_OT_transfer_texture(_FaceOperator, Operator):
         obj = face.active_face(context)
         if (s.texture_method if self.method == "SCENE" else self.method) == "ATLAS":
             texturing.atlas(obj)
-            self.report({"INFO"}, f"{obj.name}: fresh UV atlas {texturing.ATLAS_LAYER!r}")
-            return {"FINISHED"}
+            return f"{obj.name}: fresh UV atlas {texturing.ATLAS_LAYER!r}"
         src = s.texture_source or obj.pdeface.source
         dist, image = texturing.from_scan(obj, src)
-        self.report({"INFO"}, f"{obj.name}: UVs from {src.name} (median distance {dist:.3g})"
-                              + (f", textured with {image.name}" if image else ""))
-        return {"FINISHED"}
+        return (f"{obj.name}: UVs from {src.name} (median distance {dist:.3g})"
+                + (f", textured with {image.name}" if image else ""))
 
 
 class PDEFACE_OT_live_start(_FaceOperator, Operator):
@@ -275,8 +269,7 @@ class PDEFACE_OT_live_start(_FaceOperator, Operator):
         obj = face.active_face(context)
         host, port = live.start(obj, s.live_role, s.live_host, s.live_port, s.live_mode, s.live_rules,
                                 s.live_record, s.live_hz, face.scene_mixer(s), s.live_allow_remote)
-        self.report({"INFO"}, f"Live link {'listening on' if s.live_role == 'LISTEN' else 'connecting to'} {host}:{port}")
-        return {"FINISHED"}
+        return f"Live link {'listening on' if s.live_role == 'LISTEN' else 'connecting to'} {host}:{port}"
 
 
 class PDEFACE_OT_live_stop(_Operator, Operator):
@@ -294,8 +287,7 @@ class PDEFACE_OT_live_stop(_Operator, Operator):
 
     def run(self, context):
         packets = live.stop()
-        self.report({"INFO"}, f"Live link stopped after {packets} packets")
-        return {"FINISHED"}
+        return f"Live link stopped after {packets} packets"
 
 
 _classes = (PDEFACE_OT_add_default_face, PDEFACE_OT_fit_to_selected, PDEFACE_OT_build_shape_keys,

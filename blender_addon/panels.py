@@ -12,13 +12,23 @@ class _Panel:
 
 
 class _FacePanel(_Panel):
-    """A sub-panel shown while a PDE face is active."""
+    """A sub-panel shown while a PDE face is active: draws with ``draw_face(layout, settings, face)``."""
 
     bl_parent_id = "PDEFACE_PT_face"
 
     @classmethod
     def poll(cls, context):
         return active_face(context) is not None
+
+    def draw(self, context):
+        self.draw_face(self.layout, context.scene.pdeface, active_face(context))
+
+
+def _sliders(layout, rows, text):
+    """One slider per (entry, key block), labelled ``text(entry)``."""
+    col = layout.column(align=True)
+    for e, kb in rows:
+        col.prop(kb, "value", text=text(e), slider=True)
 
 
 class PDEFACE_PT_face(_Panel, bpy.types.Panel):
@@ -47,10 +57,7 @@ class PDEFACE_PT_face(_Panel, bpy.types.Panel):
 class PDEFACE_PT_action_units(_FacePanel, bpy.types.Panel):
     bl_label = "Action Units"
 
-    def draw(self, context):
-        layout = self.layout
-        s = context.scene.pdeface
-        obj = active_face(context)
+    def draw_face(self, layout, s, obj):
         layout.prop(s, "au_filter", icon="VIEWZOOM", text="")
         keys = managed(obj, "AU")
         if not keys:
@@ -64,39 +71,28 @@ class PDEFACE_PT_action_units(_FacePanel, bpy.types.Panel):
                 continue
             box = layout.box()
             box.label(text=title)
-            col = box.column(align=True)
-            for e, kb in rows:
-                col.prop(kb, "value", text=e.label, slider=True)
+            _sliders(box, rows, lambda e: e.label)
 
 
 class PDEFACE_PT_expressions(_FacePanel, bpy.types.Panel):
     bl_label = "Expressions"
 
-    def draw(self, context):
-        layout = self.layout
-        s = context.scene.pdeface
-        row = layout.row()
-        row.prop(s, "mixer", expand=True)
+    def draw_face(self, layout, s, obj):
+        layout.row().prop(s, "mixer", expand=True)
         layout.prop(s, "preset_mode")
         layout.prop(s, "presets_file")
         grid = layout.grid_flow(columns=2, align=True)
-        for name, label, _ in preset_items(None, context):
+        for name, label, _ in preset_items(None, bpy.context):
             op = grid.operator("pdeface.apply_preset", text=label)
             op.preset = name
         layout.operator("pdeface.reset_pose", icon="LOOP_BACK")
-        exprs = managed(active_face(context), "EXPRESSION")
-        if exprs:
-            col = layout.column(align=True)
-            for e, kb in exprs:
-                col.prop(kb, "value", text=e.name, slider=True)
+        _sliders(layout, managed(obj, "EXPRESSION"), lambda e: e.name)
 
 
 class PDEFACE_PT_animation(_FacePanel, bpy.types.Panel):
     bl_label = "Animation"
 
-    def draw(self, context):
-        layout = self.layout
-        s = context.scene.pdeface
+    def draw_face(self, layout, s, obj):
         layout.operator("pdeface.keyframe_pose", icon="KEY_HLT")
         box = layout.box()
         box.prop(s, "sequence")
@@ -113,9 +109,7 @@ class PDEFACE_PT_live(_FacePanel, bpy.types.Panel):
     bl_label = "Live Link"
     bl_options = {"DEFAULT_CLOSED"}
 
-    def draw(self, context):
-        layout = self.layout
-        s = context.scene.pdeface
+    def draw_face(self, layout, s, obj):
         st = live.status()
         col = layout.column()
         col.enabled = not st["running"]
@@ -145,9 +139,7 @@ class PDEFACE_PT_texture(_FacePanel, bpy.types.Panel):
     bl_label = "Texture"
     bl_options = {"DEFAULT_CLOSED"}
 
-    def draw(self, context):
-        layout = self.layout
-        s = context.scene.pdeface
+    def draw_face(self, layout, s, obj):
         layout.prop(s, "texture_method")
         if s.texture_method == "CLOSEST":
             layout.prop(s, "texture_source")

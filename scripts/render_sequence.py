@@ -58,24 +58,29 @@ def parse(args):
     return ap.parse_args(args)
 
 
-def enable_addon(bpy):
-    """Enable the add-on from this checkout as an extension (if it is not installed already)."""
+def enable_addon(bpy, repo_name="pdeface_render"):
+    """Enable the add-on from this checkout as an extension (if it is not installed already).
+
+    The checkout's ``blender_addon`` is linked into a new local extension
+    repository ``repo_name``; returns the add-on's module name.
+    """
     import addon_utils
 
     for name in list(addon_utils.addons_fake_modules) + [m.module for m in bpy.context.preferences.addons]:
         if name.endswith(".pdeface") and name.startswith("bl_ext.") and name in bpy.context.preferences.addons:
             return name
-    repo = Path(tempfile.mkdtemp(prefix="pdeface_render_repo_"))
+    repo = Path(tempfile.mkdtemp(prefix=f"{repo_name}_repo_"))
     try:
         os.symlink(ROOT / "blender_addon", repo / "pdeface")
     except OSError:
         import shutil
         shutil.copytree(ROOT / "blender_addon", repo / "pdeface")
-    bpy.context.preferences.extensions.repos.new(name="pdeface_render", module="pdeface_render",
-                                                 custom_directory=str(repo), source="USER")
-    if addon_utils.enable(MODULE, default_set=True) is None:
+    bpy.context.preferences.extensions.repos.new(name=repo_name, module=repo_name, custom_directory=str(repo),
+                                                 source="USER")
+    module = f"bl_ext.{repo_name}.pdeface"
+    if addon_utils.enable(module, default_set=True) is None:
         raise SystemExit("could not enable the PDE Face add-on")
-    return MODULE
+    return module
 
 
 def progress_bar(done, total, label, quiet):

@@ -224,7 +224,6 @@ def test_bad_input_reports_an_error_and_loses_nothing(bpy, scan_object, tmp_path
         bpy.ops.pdeface.fit_to_selected()
     # a mesh that is not a face
     bpy.ops.mesh.primitive_plane_add(size=10)
-    plane = bpy.context.active_object
     s.landmark_source = "FILE"
     (tmp_path / "lm.json").write_text(json.dumps({"points": (np.random.default_rng(0).random((68, 3)) * 10).tolist()}))
     s.landmark_file = str(tmp_path / "lm.json")

@@ -98,6 +98,19 @@ def _rows(path):
             raise ModelFormatError(f"{path}: empty file")
 
 
+def _table(path, columns):
+    """A CSV's rows with what ``columns(header, index)`` reads off its header, once.
+
+    Yields (line number, ``{column name: index}``, that reading, row).
+    """
+    idx = cols = None
+    for lineno, header, row in _rows(path):
+        if cols is None:
+            idx = {h: i for i, h in enumerate(header)}
+            cols = columns(header, idx)
+        yield lineno, idx, cols, row
+
+
 def _au_of(name):
     """'AU01_r' / 'AU01' → '1', or None when FACS has no such AU."""
     m = re.fullmatch(r"AU(\d+)(?:_[rc])?", name, re.IGNORECASE)
@@ -109,17 +122,16 @@ def _au_of(name):
 
 def _samples_openface(path, min_confidence, face_id):
     times, poses, dropped, unknown = [], [], 0, set()
-    cols = None
-    for lineno, header, row in _rows(path):
-        if cols is None:
-            idx = {h: i for i, h in enumerate(header)}
-            if "timestamp" not in idx:
-                raise ModelFormatError(f"{path}:1: OpenFace CSV without a 'timestamp' column")
-            r_cols = [(h, _au_of(h)) for h in header if re.fullmatch(r"AU\d+_r", h)]
-            c_cols = {_au_of(h): h for h in header if re.fullmatch(r"AU\d+_c", h)}
-            unknown |= {h for h, a in r_cols if a is None} | {h for a, h in c_cols.items() if a is None}
-            cols = (idx, [(h, a) for h, a in r_cols if a], {a: h for a, h in c_cols.items() if a})
-        idx, r_cols, c_cols = cols
+
+    def columns(header, idx):
+        if "timestamp" not in idx:
+            raise ModelFormatError(f"{path}:1: OpenFace CSV without a 'timestamp' column")
+        r_cols = [(h, _au_of(h)) for h in header if re.fullmatch(r"AU\d+_r", h)]
+        c_cols = {_au_of(h): h for h in header if re.fullmatch(r"AU\d+_c", h)}
+        unknown.update({h for h, a in r_cols if a is None} | {h for a, h in c_cols.items() if a is None})
+        return [(h, a) for h, a in r_cols if a], {a: h for a, h in c_cols.items() if a}
+
+    for lineno, idx, (r_cols, c_cols), row in _table(path, columns):
         if "face_id" in idx and int(_number(row[idx["face_id"]], path, lineno, "face_id")) != face_id:
             continue
         if "success" in idx and _number(row[idx["success"]], path, lineno, "success") == 0:
@@ -144,15 +156,14 @@ def _samples_openface(path, min_confidence, face_id):
 
 def _samples_pyfeat(path, fps, min_face_score):
     times, poses, dropped, unknown = [], [], 0, set()
-    cols = None
-    for lineno, header, row in _rows(path):
-        if cols is None:
-            idx = {h: i for i, h in enumerate(header)}
-            au_cols = [(h, _au_of(h)) for h in header if re.fullmatch(r"AU\d+", h, re.IGNORECASE)]
-            unknown |= {h for h, a in au_cols if a is None}
-            tcol = "approx_time" if "approx_time" in idx else ("frame" if "frame" in idx else None)
-            cols = (idx, [(h, a) for h, a in au_cols if a], tcol)
-        idx, au_cols, tcol = cols
+
+    def columns(header, idx):
+        au_cols = [(h, _au_of(h)) for h in header if re.fullmatch(r"AU\d+", h, re.IGNORECASE)]
+        unknown.update(h for h, a in au_cols if a is None)
+        tcol = "approx_time" if "approx_time" in idx else ("frame" if "frame" in idx else None)
+        return [(h, a) for h, a in au_cols if a], tcol
+
+    for lineno, idx, (au_cols, tcol), row in _table(path, columns):
         if "FaceScore" in idx:
             score = row[idx["FaceScore"]].strip()
             if not score or _number(score, path, lineno, "FaceScore") < min_face_score:
@@ -185,15 +196,14 @@ def _timecode(text, fps, path, lineno):
 
 def _samples_livelink(path, fps):
     times, poses, unknown = [], [], set()
-    cols = None
-    for lineno, header, row in _rows(path):
-        if cols is None:
-            idx = {h: i for i, h in enumerate(header)}
-            shape_cols = [h for h in header if h.lower() not in _LLF_META]
-            unknown |= {h for h in shape_cols if h.lower() not in ARKIT_TO_AU}
-            tc = next((h for h in header if h.lower() == "timecode"), None)
-            cols = (idx, [h for h in shape_cols if h.lower() in ARKIT_TO_AU], tc)
-        idx, shape_cols, tc = cols
+
+    def columns(header, idx):
+        shape_cols = [h for h in header if h.lower() not in _LLF_META]
+        unknown.update(h for h in shape_cols if h.lower() not in ARKIT_TO_AU)
+        tc = next((h for h in header if h.lower() == "timecode"), None)
+        return [h for h in shape_cols if h.lower() in ARKIT_TO_AU], tc
+
+    for lineno, idx, (shape_cols, tc), row in _table(path, columns):
         pose = {}
         for h in shape_cols:
             w = clamp_weight(_number(row[idx[h]], path, lineno, h))
