@@ -94,7 +94,7 @@ def test_bad_input_is_a_clear_error(tmp_path, capsys, scan_files):
     code, _, err = run(capsys, "fit", faceless, "--landmarks", tmp_path / "lm.json", "-o", tmp_path / "x.npz")
     assert code == 2 and "pdeface: error:" in err
     code, _, err = run(capsys, "mesh", tmp_path / "nope.npz", "-o", tmp_path / "y.obj")
-    assert code == 2 and "no such file" in err
+    assert code == 2 and "no such file" in err.lower()
 
 
 def test_console_script_is_installed(tmp_path):

@@ -66,6 +66,7 @@ from .codec import (
     from_byte_planes,
     to_byte_planes,
 )
+from .files import read_bytes
 
 FORMAT = "pdeface.face"
 VERSION = 3
@@ -133,9 +134,9 @@ def load_model(path, where=None) -> FaceModel:
     ModelFormatError
         For a missing file, a non-model file, a newer version or a bad field.
     """
-    if isinstance(path, (str, os.PathLike)) and not os.path.exists(path):
-        raise ModelFormatError(f"{path}: no such file")
     path_arg, path = path, (where or path)
+    if isinstance(path_arg, (str, os.PathLike)):
+        path_arg = io.BytesIO(read_bytes(path_arg))
     try:
         z = np.load(path_arg, allow_pickle=False)
     except (OSError, ValueError, zipfile.BadZipFile) as exc:
