@@ -16,8 +16,6 @@ from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 
-import numpy as np
-
 from ..errors import PdeFaceError
 
 INTENSITY = {"A": 0.2, "B": 0.4, "C": 0.6, "D": 0.8, "E": 1.0}
@@ -66,9 +64,12 @@ def clamp_weight(weight) -> float:
     return min(max(float(weight), 0.0), 1.0)
 
 
-def clamp_weights(weights: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
-    """An array of AU weights clamped to [0, 1] (see :func:`clamp_weight`)."""
-    return np.clip(weights, 0.0, 1.0, out=out)
+def clamp_weights(weights, out=None):
+    """A numpy array of AU weights clamped to [0, 1] (see :func:`clamp_weight`).
+
+    (A method of the array: this module stays free of numpy, which the stream player does not need.)
+    """
+    return weights.clip(0.0, 1.0, out=out)
 
 
 def weight_to_letter(weight: float) -> str:
