@@ -97,11 +97,14 @@ def _address(text, default_host="127.0.0.1"):
 def cmd_stream_send(args):
     from .stream.sender import read_packets, send
 
+    packets, bad = read_packets(args.file)
+    for line in bad:
+        _log(f"skipped {line}")
     try:
-        result = send(read_packets(args.file), args.host, args.port, args.rate, args.listen)
+        result = send(packets, args.host, args.port, args.rate, args.listen)
     except OSError as exc:
         raise PdeFaceError(f"{args.host}:{args.port}: {exc.strerror or exc}") from None
-    print(json.dumps(result))
+    print(json.dumps({**result, "skipped": len(bad)}))
 
 
 def cmd_stream_play(args):

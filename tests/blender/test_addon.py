@@ -303,3 +303,10 @@ def test_a_presets_own_mixer_unless_the_panel_names_one(bpy, face, tmp_path):
 def test_every_operator_reports_through_one_wrapper(bpy):
     ops = __import__(MODULE + ".operators", fromlist=["operators"])
     assert ops._classes and all(issubclass(c, ops._Operator) and "execute" not in vars(c) for c in ops._classes)
+
+
+def test_manifest_declares_what_the_addon_opens():
+    import tomllib
+    permissions = tomllib.loads((ROOT / "blender_addon" / "blender_manifest.toml").read_text())["permissions"]
+    assert {"files", "network"} <= set(permissions)  # the live link opens a TCP socket
+    assert "TCP" in permissions["network"]

@@ -239,14 +239,18 @@ def test_sender_honours_flow_control_and_connect_role(tmp_path):
 
 def test_read_packets(tmp_path):
     (tmp_path / "p.txt").write_text("# demo\n{1,2}\n\n{12:0.5}\n" + '{"au_r": {"AU12": 1}}\n')
-    assert read_packets(tmp_path / "p.txt") == ["{1,2}", "{12:0.5}", '{"au_r": {"AU12": 1}}']
-    (tmp_path / "bad.txt").write_text("{1,2}\n{1,zz}\n")
-    with pytest.raises(ModelFormatError, match="bad.txt:2"):
-        read_packets(tmp_path / "bad.txt")
+    assert read_packets(tmp_path / "p.txt") == (["{1,2}", "{12:0.5}", '{"au_r": {"AU12": 1}}'], [])
+    # a malformed line is skipped and reported, the rest is sent
+    (tmp_path / "bad.txt").write_text("{1,2}\n{1,zz}\n{12}\n")
+    packets, bad = read_packets(tmp_path / "bad.txt")
+    assert packets == ["{1,2}", "{12}"] and len(bad) == 1 and "bad.txt:2:" in bad[0]
+    (tmp_path / "worse.txt").write_text("{1,zz}\nnonsense\n")
+    with pytest.raises(ModelFormatError, match="no packets .2 malformed lines; first: .*worse.txt:1"):
+        read_packets(tmp_path / "worse.txt")
 
 
 def test_cli_send_and_play(tmp_path):
-    (tmp_path / "p.txt").write_text("{12}\n{6:0.5}\n")
+    (tmp_path / "p.txt").write_text("{12}\n{6:zz}\n{6:0.5}\n")  # one malformed line, skipped and reported
     with socket.socket() as probe:
         probe.bind(("127.0.0.1", 0))
         port = probe.getsockname()[1]
@@ -264,6 +268,7 @@ def test_cli_send_and_play(tmp_path):
         sent = subprocess.run([sys.executable, "-m", "pdeface.cli", "stream", "send", str(tmp_path / "p.txt"),
                                "--port", str(port), "--rate", "20"], capture_output=True, text=True, timeout=30)
         assert sent.returncode == 0 and json.loads(sent.stdout)["acks"] == 2
+        assert json.loads(sent.stdout)["skipped"] == 1 and "p.txt:2:" in sent.stderr
         out, err = play.communicate(timeout=30)
     finally:
         play.kill()

@@ -10,22 +10,27 @@ from ..io.files import read_lines
 from .wire import ACK, END, PAUSE, RESUME, STOP, Control, PacketError, StreamParser, parse_json_line, parse_packet
 
 
-def read_packets(path) -> list:
-    """Packets of a file: one ``{...}`` AU set or JSON line per line (``#`` comments, blanks skipped)."""
-    lines = read_lines(path)
-    out = []
-    for lineno, line in enumerate(lines, 1):
+def read_packets(path) -> tuple[list, list]:
+    """Packets of a file: one ``{...}`` AU set or JSON line per line (``#`` comments, blanks skipped).
+
+    Returns (packets, bad lines): a malformed line is skipped and reported as
+    ``"FILE:LINE: reason"``, as the player skips a malformed packet. A file
+    without one good packet is an error.
+    """
+    packets, bad = [], []
+    for lineno, line in enumerate(read_lines(path), 1):
         s = line.strip()
         if not s or s.startswith("#"):
             continue
         try:
             (parse_json_line if s.startswith('{"') else parse_packet)(s)
         except PacketError as exc:
-            raise ModelFormatError(f"{path}:{lineno}: {exc}") from None
-        out.append(s)
-    if not out:
-        raise ModelFormatError(f"{path}: no packets")
-    return out
+            bad.append(f"{path}:{lineno}: {exc}")
+            continue
+        packets.append(s)
+    if not packets:
+        raise ModelFormatError(f"{path}: no packets" + (f" ({len(bad)} malformed lines; first: {bad[0]})" if bad else ""))
+    return packets, bad
 
 
 class Sender:
