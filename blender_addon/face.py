@@ -102,6 +102,7 @@ def add_face(context, model_path="", resolution="default"):
     model = pd.io.modelfile.model_from_bytes(data, str(path))
     obj = new_face_object(context, "PDE Face", model, resolution, data=data)
     obj.rotation_euler = (math.pi / 2, 0.0, 0.0)  # the face frame's +y up becomes Blender's +Z up
+    context.view_layer.update()  # matrix_world follows now, not after the next depsgraph update
     return obj
 
 

@@ -56,7 +56,7 @@ def main(argv=None):
           f"csv module alone {t_csv:.3f} s; {len(r.timeline.keys)} keys")
 
     os.environ.setdefault("BLENDER_USER_RESOURCES", tempfile.mkdtemp())
-    spec = importlib.util.spec_from_file_location("render_sequence", ROOT / "scripts" / "render_sequence.py")
+    spec = importlib.util.spec_from_file_location("pdeface_headless", ROOT / "blender_addon" / "headless.py")
     rs = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(rs)
     import bpy

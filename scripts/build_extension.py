@@ -49,14 +49,14 @@ def build_core_wheel(dest: Path) -> Path:
     """A pdeface wheel with the default assets inside the package."""
     with tempfile.TemporaryDirectory() as tmp:
         stage = Path(tmp)
-        shutil.copytree(ROOT / "core", stage / "core", ignore=shutil.ignore_patterns("__pycache__", "*.egg-info"))
-        (stage / "core" / "pdeface" / "assets").mkdir()
-        for name in BUNDLED_ASSETS:
-            shutil.copy(ROOT / "assets" / name, stage / "core" / "pdeface" / "assets" / name)
-        text = (ROOT / "pyproject.toml").read_text()
-        text = text.replace('pdeface = ["data/*"]', 'pdeface = ["data/*", "assets/*"]')
-        (stage / "pyproject.toml").write_text(text)
-        shutil.copy(ROOT / "README.md", stage / "README.md")
+        skip = shutil.ignore_patterns("__pycache__", "*.egg-info")
+        for folder in ("core", "blender_addon"):
+            shutil.copytree(ROOT / folder, stage / folder, ignore=skip)
+        (stage / "assets").mkdir()
+        for name in BUNDLED_ASSETS:  # the ICT shapes (tests and benchmarks only) stay out
+            shutil.copy(ROOT / "assets" / name, stage / "assets" / name)
+        for name in ("pyproject.toml", "README.md"):
+            shutil.copy(ROOT / name, stage / name)
         subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-q",
                         "-w", str(dest), str(stage)], check=True)
     return next(dest.glob("pdeface-*.whl"))

@@ -1,7 +1,8 @@
 """The bundled data: the default face model and the ICT-FaceKit neutral scan.
 
 Assets are looked up in ``$PDEFACE_ASSETS``, then the repository's
-``assets/`` folder, then a copy inside the installed package. They derive
+``assets/`` folder, then the copy an installed package carries
+(``pdeface/bundled/``). They derive
 from ICT-FaceKit (MIT); its notice travels with them.
 """
 from __future__ import annotations
@@ -26,7 +27,7 @@ ICT_NOTICE = ("Derived from ICT-FaceKit, Copyright (c) 2020 USC Institute for Cr
 def assets_dir() -> Path:
     """The folder holding the bundled assets."""
     here = Path(__file__).resolve().parent
-    candidates = [os.environ.get("PDEFACE_ASSETS"), here.parent.parent / "assets", here / "assets"]
+    candidates = [os.environ.get("PDEFACE_ASSETS"), here.parent.parent / "assets", here / "bundled"]
     for c in candidates:
         if c and (Path(c) / DEFAULT_FACE).exists():
             return Path(c)

@@ -134,10 +134,31 @@ def cmd_stream_play(args):
     _log(json.dumps(player.stats.as_dict()))
 
 
-def render_script():
-    """scripts/render_sequence.py of this checkout, if there is one."""
-    p = Path(__file__).resolve().parents[2] / "scripts" / "render_sequence.py"
-    return p if p.exists() else None
+def run_headless(argv, capture=False):
+    """Run the add-on's headless renderer (``headless.py``) in a child Python with the bpy module.
+
+    The add-on travels with the package (``pdeface_blender``, or ``blender_addon/``
+    in a checkout), so this works from an install; this package never imports
+    bpy itself. Returns the child's exit status and, with ``capture``, its stdout.
+    """
+    import importlib.util
+    import subprocess
+
+    addon = importlib.util.find_spec("pdeface_blender")
+    if importlib.util.find_spec("bpy") is None or addon is None:
+        raise PdeFaceError("rendering needs Blender's bpy module and the add-on: "
+                           "python -m pip install 'pdeface[blender]' (or -e '.[blender]' in a checkout)")
+    script = Path(list(addon.submodule_search_locations)[0]) / "headless.py"
+    code = ("import runpy, sys; sys.exit(runpy.run_path(sys.argv.pop(1))['main'](prog='pdeface render'))")
+    res = subprocess.run([sys.executable, "-c", code, str(script), *argv],
+                         stdout=subprocess.PIPE if capture else None, text=True)
+    return res.returncode, res.stdout
+
+
+def cmd_render(args):
+    code, _ = run_headless(args.extra)
+    if code:
+        raise SystemExit(code)
 
 
 def cmd_demo(args):
@@ -173,26 +194,17 @@ def cmd_demo(args):
 def render_demo(out, args):
     """The rig, the method's sequence, frames, contact sheet and .blend, rendered with the bpy module.
 
-    Runs in a child process, so this package never imports bpy itself.
+    Runs in a child process (:func:`run_headless`), so this package never imports bpy itself.
     """
-    import importlib.util
-    import subprocess
-
-    script = render_script()
-    if importlib.util.find_spec("bpy") is None or script is None:
-        raise PdeFaceError("rendering needs the bpy module and a source checkout: "
-                           "python -m pip install -e '.[blender]' (or pdeface demo --no-render)")
     from .au.sequence import METHOD_SEQUENCE
-    cmd = [sys.executable, str(script), "--sequence", ",".join(METHOD_SEQUENCE), "--out", str(out),
-           "--fps", str(args.fps), "--hold", "0.33", "--blend-time", "0.33", "--size", args.size,
-           "--samples", str(args.samples), "--contact-sheet", "--save-blend", str(out / "demo.blend")]
-    if args.video:
-        cmd.append("--video")
-    res = subprocess.run(cmd, stdout=subprocess.PIPE, text=True)
-    if res.returncode != 0:
-        raise PdeFaceError(f"rendering failed (exit {res.returncode}); see the messages above")
-    summary = json.loads(res.stdout.strip().splitlines()[-1])
-    _log(f"wrote {len(summary.get('frames', []))} frames in {out}/frames, {out}/contact_sheet.png, {out}/demo.blend")
+    argv = ["--sequence", ",".join(METHOD_SEQUENCE), "--out", str(out), "--fps", str(args.fps), "--hold", "0.33",
+            "--blend-time", "0.33", "--size", args.size, "--samples", str(args.samples), "--contact-sheet",
+            "--save-blend", str(out / "demo.blend")] + (["--video"] if args.video else [])
+    code, stdout = run_headless(argv, capture=True)
+    if code != 0:
+        raise PdeFaceError(f"rendering failed (exit {code}); see the messages above")
+    summary = json.loads(stdout.strip().splitlines()[-1])
+    _log(f"wrote {summary.get('frames', 0)} frames in {out}/frames, {out}/contact_sheet.png, {out}/demo.blend")
     return {k: summary[k] for k in ("frame_start", "frame_end", "contact_sheet", "blend", "render_s") if k in summary}
 
 
@@ -316,6 +328,15 @@ def cmd_au_report(args):
             print(f"AU{k:4s} captured {cap}  p95 {p95} mm  {r['bytes']} bytes")
 
 
+class _HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
+    """Shows each option's default, where it has one worth showing."""
+
+    def _get_help_string(self, action):
+        if action.default is None or action.default is False or "default" in (action.help or ""):
+            return action.help
+        return super()._get_help_string(action)
+
+
 def build_parser():
     from .au.expressions import MIXERS
     from .au.facs import SIDES
@@ -326,49 +347,54 @@ def build_parser():
     from .surface.layout import DEFAULT_CURVES
     from .surface.pde import ASSEMBLIES
 
+    from . import __version__
+
     ap = argparse.ArgumentParser(prog="pdeface", description="PDE face models and FACS Action Units.")
-    sub = ap.add_subparsers(dest="command", required=True)
+    ap.add_argument("--version", action="version", version=f"pdeface {__version__}")
+    sub = ap.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     p = sub.add_parser("fit", help="fit a PDE face model to a neutral mesh")
-    p.add_argument("mesh", help="neutral face mesh (.obj/.ply) or 'default'")
-    p.add_argument("--landmarks", help="JSON with 68 'indices' or 'points' (Multi-PIE order)")
+    p.add_argument("mesh", help="neutral face mesh (.obj/.ply) or 'default' (the bundled ICT neutral)")
+    p.add_argument_group("required for a mesh file (the bundled 'default' has its own)").add_argument(
+        "--landmarks", help="JSON with the 68 Multi-PIE landmarks as 'indices' or 'points'")
     p.add_argument("--unit", choices=list(UNITS_MM), help="mesh unit (default: guessed from the eyes)")
     p.add_argument("--curves", type=int, default=DEFAULT_CURVES,
                    help=f"boundary curves (default {DEFAULT_CURVES}; 31 is the method's 10 patches of 4)")
-    p.add_argument("--points", type=int, default=37)
-    p.add_argument("--modes", type=int, default=5)
+    p.add_argument("--points", type=int, default=37, help="points per curve (rays from the axis behind the face)")
+    p.add_argument("--modes", type=int, default=5, help="Fourier modes per curve (the rest goes to the remainder)")
     p.add_argument("--a", type=float, default=1.0, help="PDE smoothing parameter")
-    p.add_argument("--assembly", choices=ASSEMBLIES, default="smooth")
+    p.add_argument("--assembly", choices=ASSEMBLIES, default="smooth",
+                   help="smooth: one C1 surface through all curves; patches: the method's patches of 4")
     p.add_argument("--straight", action="store_true",
                    help="horizontal curves throughout, as the original method (default: bend along the lips "
                         "and nostrils, with a curve on each rim of the eyes and mouth)")
-    p.add_argument("-o", "--output", required=True)
+    p.add_argument("-o", "--output", required=True, help="file to write")
     p.set_defaults(func=cmd_fit)
 
     p = sub.add_parser("mesh", help="mesh the PDE surface of a face model")
     p.add_argument("face", help="face model (.npz) or 'default'")
     p.add_argument("--resolution", default="default", help="default, original, fine, or ROWS,COLS subdivisions")
-    p.add_argument("--assembly", choices=ASSEMBLIES)
-    p.add_argument("-o", "--output", required=True)
+    p.add_argument("--assembly", choices=ASSEMBLIES, help="assembly to mesh with (default: the model's own)")
+    p.add_argument("-o", "--output", required=True, help="file to write")
     p.set_defaults(func=cmd_mesh)
 
     p = sub.add_parser("report", help="accuracy of a face model against its scan")
     p.add_argument("face", help="face model (.npz) or 'default'")
     p.add_argument("mesh", help="the scan (.obj/.ply) or 'default'")
-    p.add_argument("--assembly", choices=ASSEMBLIES)
+    p.add_argument("--assembly", choices=ASSEMBLIES, help="assembly to mesh with (default: the model's own)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
-    p.add_argument("--profiles-png")
-    p.add_argument("--profiles-csv")
+    p.add_argument("--profiles-png", help="write the three cut profiles (scan, PDE, difference x10) as a PNG")
+    p.add_argument("--profiles-csv", help="write the three cut profiles as CSV")
     p.set_defaults(func=cmd_report)
 
     p = sub.add_parser("descriptor", help="AU descriptor from a neutral mesh and an AU mesh")
     p.add_argument("neutral", help="neutral mesh (.obj/.ply) or 'default'")
     p.add_argument("au_mesh", help="the same face showing the AU")
-    p.add_argument("--landmarks", help="68 landmarks of the neutral (JSON)")
+    p.add_argument("--landmarks", help="68 landmarks of the neutral (JSON; required unless NEUTRAL is 'default')")
     p.add_argument("--au-landmarks", help="68 landmarks of the AU mesh, when its topology differs")
-    p.add_argument("--au", type=int, required=True)
-    p.add_argument("--side", choices=SIDES, default="both")
-    p.add_argument("--unit", choices=list(UNITS_MM))
+    p.add_argument("--au", type=int, required=True, help="the FACS AU number the AU mesh shows")
+    p.add_argument("--side", choices=SIDES, default="both", help="the subject's side(s) the AU acts on")
+    p.add_argument("--unit", choices=list(UNITS_MM), help="mesh unit (default: guessed from the eyes)")
     p.add_argument("-o", "--output", required=True, help=".json (readable) or .pdd (compact binary)")
     p.set_defaults(func=cmd_descriptor)
 
@@ -378,43 +404,45 @@ def build_parser():
     p.add_argument("--preset", help="expression preset (happy, sad, ... or one from --presets)")
     p.add_argument("--presets", action="append", help="user preset JSON file(s)")
     p.add_argument("--descriptor", action="append", help="extra descriptor file(s) (.json/.pdd)")
-    p.add_argument("--mixer", choices=MIXERS)
-    p.add_argument("--resolution", default="default")
-    p.add_argument("--assembly", choices=ASSEMBLIES)
-    p.add_argument("-o", "--output", required=True)
+    p.add_argument("--mixer", choices=MIXERS, help="how AUs on the same curves combine (default: the preset's "
+                                                   "own, else sum)")
+    p.add_argument("--resolution", default="default", help="default, original, fine, or ROWS,COLS subdivisions")
+    p.add_argument("--assembly", choices=ASSEMBLIES, help="assembly to mesh with (default: the model's own)")
+    p.add_argument("-o", "--output", required=True, help="file to write")
     p.set_defaults(func=cmd_pose)
 
     p = sub.add_parser("retarget", help="carry AU descriptors over to another face model")
     p.add_argument("target", help="the target face model (.npz)")
     p.add_argument("--descriptors", default="default", help="face model whose descriptors to use (default: bundled)")
-    p.add_argument("--scaling", choices=SCALINGS, default="face")
-    p.add_argument("-o", "--output", required=True)
+    p.add_argument("--scaling", choices=SCALINGS, default="face", help="scale the descriptors by the faces' sizes")
+    p.add_argument("-o", "--output", required=True, help="file to write")
     p.set_defaults(func=cmd_retarget)
 
     p = sub.add_parser("au-report", help="how much of each AU's true motion the descriptors capture")
     p.add_argument("face", help="face model with descriptors (.npz) or 'default'")
     p.add_argument("--truth", required=True, help="ICT-FaceKit folder, or 'default' for the bundled ICT shapes")
     p.add_argument("--neutral", help="the neutral scan the face was fitted to (default: ICT's generic neutral)")
-    p.add_argument("--json", action="store_true")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=cmd_au_report)
 
     p = sub.add_parser("import-au", help="AU data from a tracker (OpenFace, Py-Feat, Live Link Face, FAS) → timeline")
-    p.add_argument("file")
-    p.add_argument("--format", default="auto", choices=("auto",) + FORMATS)
-    p.add_argument("--fps", type=float, default=30.0)
+    p.add_argument("file", help="the tracker's CSV or FAS text file")
+    p.add_argument("--format", default="auto", choices=("auto",) + FORMATS, help="file format (auto: from its header)")
+    p.add_argument("--fps", type=float, default=30.0, help="frame rate of the timeline written")
     p.add_argument("--hold", type=float, default=0.5, help="seconds per FAS AU set")
     p.add_argument("--smooth", type=int, default=1, help="moving-average window (samples)")
     p.add_argument("--reduce", type=float, default=0.0, help="keyframe reduction tolerance (weight)")
-    p.add_argument("--min-confidence", type=float, default=0.75)
-    p.add_argument("-o", "--output", required=True)
+    p.add_argument("--min-confidence", type=float, default=0.75,
+                   help="drop OpenFace rows below this confidence (Py-Feat: FaceScore)")
+    p.add_argument("-o", "--output", required=True, help="file to write")
     p.set_defaults(func=cmd_import_au)
 
     p = sub.add_parser("stream", help="live AU stream: the remote player and a sender")
     ssub = p.add_subparsers(dest="stream_command", required=True)
     q = ssub.add_parser("send", help="replay a file of AU packets to a player")
     q.add_argument("file", help="one {1,2,5} / {12:0.8} / {12E} packet or JSON line per line")
-    q.add_argument("--host", default="127.0.0.1")
-    q.add_argument("--port", type=int, default=5000)
+    q.add_argument("--host", default="127.0.0.1", help="the player's address")
+    q.add_argument("--port", type=int, default=5000, help="the player's port")
     q.add_argument("--rate", type=float, default=4.0, help="packets per second (0: as fast as allowed)")
     q.add_argument("--listen", action="store_true", help="wait for a player to connect instead")
     q.set_defaults(func=cmd_stream_send)
@@ -423,28 +451,50 @@ def build_parser():
     g.add_argument("--listen", default="127.0.0.1:5000", help="HOST:PORT to listen on (default 127.0.0.1:5000)")
     g.add_argument("--connect", help="HOST:PORT of a sender that listens")
     q.add_argument("--print", action="store_true", help="print each pose as a JSON line")
-    q.add_argument("--mode", choices=MODES, default="queue")
+    q.add_argument("--mode", choices=MODES, default="queue",
+                   help="queue: play every packet in turn (the FAS player); live: head for the newest")
     q.add_argument("--transition", type=float, default=0.25, help="seconds from one pose to the next")
     q.add_argument("--rules", nargs="?", const="", default=None,
                    help="apply the AU blender's co-occurrence rules (a rules JSON, or the bundled ones)")
-    q.add_argument("--hz", type=float, default=60.0)
+    q.add_argument("--hz", type=float, default=60.0, help="poses per second")
     q.add_argument("--duration", type=float, default=0.0, help="stop after this many seconds (0: never)")
     q.add_argument("--keep-running", action="store_true", help="do not exit when the sender ends")
     q.set_defaults(func=cmd_stream_play)
 
+    p = sub.add_parser("render", add_help=False, help="render a timeline, presets or AU data headless "
+                                                      "(pdeface render --help lists its options)")
+    p.set_defaults(func=cmd_render)
+
     p = sub.add_parser("demo", help="the main job on the bundled face")
-    p.add_argument("--out", default="out")
+    p.add_argument("--out", default="out", help="output folder")
     p.add_argument("--no-render", action="store_true", help="fit, mesh and report only (no bpy needed)")
-    p.add_argument("--size", default="192x192")
-    p.add_argument("--samples", type=int, default=16)
-    p.add_argument("--fps", type=float, default=12)
-    p.add_argument("--video", action="store_true")
+    p.add_argument("--size", default="192x192", help="frame size, WIDTHxHEIGHT")
+    p.add_argument("--samples", type=int, default=16, help="Cycles samples per pixel")
+    p.add_argument("--fps", type=float, default=12, help="frames per second of the animation")
+    p.add_argument("--video", action="store_true", help="also write frames.mp4")
     p.set_defaults(func=cmd_demo)
+    for command in subcommands(ap).values():
+        command.formatter_class = _HelpFormatter
     return ap
 
 
+def subcommands(parser, prefix="") -> dict:
+    """Every (nested) subcommand parser: ``{"fit": ..., "stream send": ...}``."""
+    out = {}
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for name, sub in action.choices.items():
+                out[prefix + name] = sub
+                out.update(subcommands(sub, prefix + name + " "))
+    return out
+
+
 def main(argv=None):
-    args = build_parser().parse_args(argv)
+    ap = build_parser()
+    args, extra = ap.parse_known_args(argv)
+    if extra and args.command != "render":
+        ap.error(f"unrecognized arguments: {' '.join(extra)}")
+    args.extra = extra  # pdeface render passes its arguments on to the renderer
     try:
         args.func(args)
     except PdeFaceError as exc:

@@ -1,9 +1,9 @@
 """Blender tests: the add-on enabled as a real extension, with the bpy module, headless.
 
 BLENDER_USER_RESOURCES points at a temporary folder before bpy is imported, the
-add-on folder is linked into a local extension repository (as the render script
-does it) and enabled as ``bl_ext.pdeface_test.pdeface``; every test starts from
-an empty file, and the add-on is disabled at the end of the session.
+add-on folder is linked into a local extension repository (as the headless
+renderer does it) and enabled as ``bl_ext.pdeface_test.pdeface``; every test
+starts from an empty file, and the add-on is disabled at the end of the session.
 """
 import importlib.util
 import os
@@ -22,10 +22,10 @@ def bpy():
     bpy = pytest.importorskip("bpy", reason="the Blender tests need the bpy module (pip install bpy==5.0.1)")
     import addon_utils
 
-    spec = importlib.util.spec_from_file_location("render_sequence", ROOT / "scripts" / "render_sequence.py")
-    render_sequence = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(render_sequence)
-    assert render_sequence.enable_addon(bpy, "pdeface_test") == MODULE
+    spec = importlib.util.spec_from_file_location("pdeface_headless", ROOT / "blender_addon" / "headless.py")
+    headless = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(headless)
+    assert headless.enable_addon(bpy, "pdeface_test") == MODULE
     yield bpy
     addon_utils.disable(MODULE, default_set=True)
 

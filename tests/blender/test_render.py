@@ -42,8 +42,9 @@ def chunks(tmp_path_factory):
 
 def test_frames_video_and_blend(chunks):
     tmp, a, b = chunks
-    assert [Path(p).name for p in a["frames"]] == [f"frame_{i:04d}.png" for i in range(1, 5)]
-    assert [Path(p).name for p in b["frames"]] == [f"frame_{i:04d}.png" for i in range(3, 8)]
+    assert a["frames"] == 4 and b["frames"] == 5  # counts, not 360 paths
+    assert sorted(p.name for p in Path(a["frames_dir"]).iterdir()) == [f"frame_{i:04d}.png" for i in range(1, 5)]
+    assert sorted(p.name for p in Path(b["frames_dir"]).iterdir()) == [f"frame_{i:04d}.png" for i in range(3, 8)]
     assert a["timeline"] == {"frame_start": 1, "frame_end": 7, "fps": 4.0}
     assert Path(a["video"]).stat().st_size > 1000
     assert (tmp / "a" / "scene.blend").read_bytes()[:4] in (b"BLEN", b"\x28\xb5\x2f\xfd")  # plain or zstd
@@ -75,7 +76,7 @@ def test_loading_a_blend_renders_the_same(bpy, chunks, tmp_path):
     tmp, _, _ = chunks
     out = run_script([str(SCRIPT), "--blend", str(tmp / "a" / "scene.blend"), "--size", "64x64", "--samples", "4",
                       "--quiet", "--out", str(tmp_path / "c"), "--frame-start", "3", "--frame-end", "3"], tmp_path)
-    x = pixels(bpy, out["frames"][0])
+    x = pixels(bpy, Path(out["frames_dir"]) / "frame_0003.png")
     y = pixels(bpy, tmp / "a" / "frames" / "frame_0003.png")
     assert np.abs(x - y).mean() < 0.01
 
@@ -124,6 +125,29 @@ def test_the_main_job(bpy, tmp_path):
         assert (out / name).stat().st_size > 0, name
     frames = sorted((out / "frames").glob("frame_*.png"))
     assert len(frames) == summary["render"]["frame_end"] - summary["render"]["frame_start"] + 1 > 20
-    assert "[4/4]" in res.stderr and "frames [" in res.stderr  # progress is shown
+    for stage in ("[4/4]", "Blender start-up [", "rig [", "frames [", "contact sheet ["):
+        assert stage in res.stderr, stage  # progress is shown for every stage
     sheet = pixels(bpy, out / "contact_sheet.png")
     assert sheet.shape[0] > 1000 and sheet.std() > 0.05  # 74 labelled cells
+
+
+def test_pdeface_render_from_an_installed_package(tmp_path):
+    """`pdeface render` with pdeface installed from its wheel: no checkout, no scripts/ folder."""
+    subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-q",
+                    "-w", str(tmp_path / "wheel"), str(ROOT)], check=True, timeout=300)
+    subprocess.run([sys.executable, "-m", "venv", "--system-site-packages", str(tmp_path / "venv")], check=True)
+    bin_dir = tmp_path / "venv" / ("Scripts" if sys.platform == "win32" else "bin")
+    subprocess.run([str(bin_dir / "python"), "-m", "pip", "install", "-q", "--no-deps", "--no-index",
+                    *map(str, (tmp_path / "wheel").glob("pdeface-*.whl"))], check=True, timeout=300)
+    where = subprocess.run([str(bin_dir / "python"), "-c", "import importlib.util as u, pdeface.assets as a; "
+                            "print(u.find_spec('pdeface_blender').origin); print(a.assets_dir())"],
+                           capture_output=True, text=True, cwd=tmp_path, check=True).stdout.split()
+    assert all(str(tmp_path / "venv") in w for w in where), where  # the installed copy, with its own assets
+    res = subprocess.run([str(bin_dir / "pdeface"), "render", *TINY, "--out", str(tmp_path / "out")],
+                         capture_output=True, text=True, cwd=tmp_path, timeout=600)
+    assert res.returncode == 0, res.stderr[-3000:]
+    summary = json.loads(res.stdout.strip().splitlines()[-1])
+    assert summary["frames"] == 7 and len(list((tmp_path / "out" / "frames").glob("frame_*.png"))) == 7
+    bad = subprocess.run([str(bin_dir / "pdeface"), "render", "--face", str(tmp_path / "missing.npz"), *TINY,
+                          "--out", str(tmp_path / "out2")], capture_output=True, text=True, cwd=tmp_path, timeout=600)
+    assert bad.returncode == 2 and "pdeface render: error:" in bad.stderr and "missing.npz" in bad.stderr

@@ -104,3 +104,30 @@ def test_console_script_is_installed(tmp_path):
                          capture_output=True, text=True)
     assert res.returncode == 0, res.stderr
     assert read_obj(tmp_path / "c.obj").vertices.shape == (DEFAULT_CURVES * 37, 3)
+
+
+def test_version_and_help_for_every_option(capsys):
+    import pdeface
+    from pdeface.cli import build_parser, subcommands
+    with pytest.raises(SystemExit) as exc:
+        main(["--version"])
+    assert exc.value.code == 0 and capsys.readouterr().out.strip() == f"pdeface {pdeface.__version__}"
+    commands = subcommands(build_parser())
+    assert {"fit", "render", "demo", "stream play", "stream send"} <= set(commands)
+    for name, parser in commands.items():
+        for action in parser._actions:
+            if action.dest not in ("help", "func") and not action.__class__.__name__.startswith("_SubParsers"):
+                assert action.help, f"pdeface {name} {action.option_strings or action.dest}: no help text"
+    # defaults are shown; --landmarks is listed as required for a mesh file
+    fit_help = commands["fit"].format_help()
+    assert "(default: 37)" in fit_help and "required for a mesh file" in fit_help
+    assert "(default: 192x192)" in commands["demo"].format_help()
+
+
+def test_render_passes_its_arguments_on(capsys):
+    from pdeface.cli import build_parser
+    args, extra = build_parser().parse_known_args(["render", "--sequence", "happy", "--size", "64x64"])
+    assert args.command == "render" and extra == ["--sequence", "happy", "--size", "64x64"]
+    with pytest.raises(SystemExit):  # other commands still refuse unknown options
+        main(["mesh", "default", "-o", "x.obj", "--no-such-option"])
+    assert "unrecognized arguments: --no-such-option" in capsys.readouterr().err

@@ -1,0 +1,194 @@
+"""Render a PDE face animation headless: ``pdeface render``, ``scripts/render_sequence.py``.
+
+Runs as ``pdeface render ARGS``, ``blender -b -P scripts/render_sequence.py -- ARGS``
+and ``python scripts/render_sequence.py ARGS`` (with the bpy module); this
+file travels with the add-on (and, installed, as ``pdeface_blender``), so an
+installed pdeface renders without a checkout. It imports nothing of Blender's
+until it has parsed its arguments, and enables the add-on from its own folder
+as an extension. Builds the PDE
+face with its shape keys (or loads a .blend), keyframes a timeline (a
+pdeface.io.timeline JSON, a list of presets, or an AU data file), frames the face
+with a camera and lights, renders PNG frames (Cycles CPU by default), and
+optionally a video, a contact sheet and the .blend.
+
+``--frame-start/--frame-end`` render a chunk: the camera depends only on the
+face at rest and the sampling seed is fixed, so chunks from several machines
+(e.g. a Flamenco job) join seamlessly. Prints a JSON summary on stdout.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ADDON_DIR = Path(__file__).resolve().parent
+MODULE = "bl_ext.pdeface_render.pdeface"
+
+
+def script_args(argv):
+    """Arguments after ``--`` (Blender's convention), else all of them."""
+    return argv[argv.index("--") + 1:] if "--" in argv else argv[1:]
+
+
+def build_parser(prog="render_sequence.py"):
+    ap = argparse.ArgumentParser(prog=prog, description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    src = ap.add_mutually_exclusive_group()
+    src.add_argument("--timeline", help="pdeface.timeline JSON")
+    src.add_argument("--sequence", help="comma-separated presets (default: the method's sequence)")
+    src.add_argument("--au-data", help="an OpenFace / Py-Feat / Live Link Face CSV or FAS text file")
+    ap.add_argument("--face", default="default", help="face model (.npz) or 'default'")
+    ap.add_argument("--blend", help="load this .blend (its PDE face) instead of building one")
+    ap.add_argument("--out", default="render", help="output folder")
+    ap.add_argument("--frame-start", type=int)
+    ap.add_argument("--frame-end", type=int)
+    ap.add_argument("--engine", default="CYCLES", choices=["CYCLES", "EEVEE", "WORKBENCH"])
+    ap.add_argument("--size", default="256x256", help="WIDTHxHEIGHT")
+    ap.add_argument("--samples", type=int, default=16)
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--fps", type=float, default=24)
+    ap.add_argument("--hold", type=float, default=0.5, help="seconds each preset is held (--sequence)")
+    ap.add_argument("--blend-time", type=float, default=0.5, help="seconds between poses (--sequence)")
+    ap.add_argument("--video", action="store_true", help="also write frames.mp4 (Blender's FFmpeg)")
+    ap.add_argument("--contact-sheet", action="store_true", help="also write contact_sheet.png")
+    ap.add_argument("--sheet-cell", type=int, default=128)
+    ap.add_argument("--no-frames", action="store_true", help="render no animation frames")
+    ap.add_argument("--save-blend", help="save the scene to this .blend")
+    ap.add_argument("--quiet", action="store_true", help="no progress bars")
+    return ap
+
+
+def enable_addon(bpy, repo_name="pdeface_render"):
+    """Enable the add-on from this checkout as an extension (if it is not installed already).
+
+    This folder (the add-on) is linked into a new local extension
+    repository ``repo_name``; returns the add-on's module name.
+    """
+    import addon_utils
+
+    for name in list(addon_utils.addons_fake_modules) + [m.module for m in bpy.context.preferences.addons]:
+        if name.endswith(".pdeface") and name.startswith("bl_ext.") and name in bpy.context.preferences.addons:
+            return name
+    repo = Path(tempfile.mkdtemp(prefix=f"{repo_name}_repo_"))
+    try:
+        os.symlink(ADDON_DIR, repo / "pdeface")
+    except OSError:
+        import shutil
+        shutil.copytree(ADDON_DIR, repo / "pdeface")
+    bpy.context.preferences.extensions.repos.new(name=repo_name, module=repo_name, custom_directory=str(repo),
+                                                 source="USER")
+    module = f"bl_ext.{repo_name}.pdeface"
+    if addon_utils.enable(module, default_set=True) is None:
+        raise SystemExit("could not enable the PDE Face add-on")
+    return module
+
+
+def progress_bar(done, total, label, quiet):
+    if quiet:
+        return
+    width = 30
+    n = int(width * done / max(total, 1))
+    sys.stderr.write(f"\r{label} [{'#' * n}{'.' * (width - n)}] {done}/{total}")
+    if done >= total:
+        sys.stderr.write("\n")
+    sys.stderr.flush()
+
+
+def main(argv=None, prog="render_sequence.py"):
+    args = build_parser(prog).parse_args(script_args(sys.argv if argv is None else argv))
+    if "bpy" not in sys.modules:  # plain python: keep Blender's user config out of the user's home
+        os.environ.setdefault("BLENDER_USER_RESOURCES", tempfile.mkdtemp(prefix="pdeface_blender_"))
+    progress_bar(0, 1, "Blender start-up", args.quiet)
+    import bpy
+
+    module = enable_addon(bpy)
+    progress_bar(1, 1, "Blender start-up", args.quiet)
+    render = __import__(module + ".render", fromlist=["render"])
+    face_logic = __import__(module + ".face", fromlist=["face"])
+    from pdeface.errors import PdeFaceError
+    try:
+        width, height = (int(v) for v in args.size.lower().split("x"))
+    except ValueError:
+        raise SystemExit(f"--size {args.size!r}: use WIDTHxHEIGHT") from None
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    summary = {}
+    try:
+        progress_bar(0, 1, "rig", args.quiet)
+        if args.blend:
+            bpy.ops.wm.open_mainfile(filepath=str(args.blend))
+            faces = [o for o in bpy.context.scene.objects if o.type == "MESH" and o.pdeface.is_face]
+            if not faces:
+                raise SystemExit(f"{args.blend}: no PDE face in the scene")
+            face = faces[0]
+            bpy.context.view_layer.objects.active = face
+        else:
+            bpy.ops.wm.read_homefile(use_empty=True)
+            face = face_logic.add_face(bpy.context, "" if args.face == "default" else str(Path(args.face).resolve()))
+            face_logic.build_keys(face, face_logic.all_presets(bpy.context.scene))
+        progress_bar(1, 1, "rig", args.quiet)
+        scene = bpy.context.scene
+        t0 = time.perf_counter()
+        timeline = None
+        if args.timeline:
+            from pdeface.io.timeline import load_timeline
+            timeline = load_timeline(args.timeline)
+        elif args.au_data:
+            from pdeface.io.trackers import import_au
+            result = import_au(args.au_data, fps=args.fps)
+            timeline = result.timeline
+            summary["au_data"] = {"format": result.format, "rows": result.rows, "dropped": result.dropped,
+                                  "unknown": result.unknown}
+        elif not args.blend or args.sequence:
+            from pdeface.au.sequence import METHOD_SEQUENCE
+            from pdeface.io.timeline import sequence_timeline
+            names = [n.strip() for n in (args.sequence or ",".join(METHOD_SEQUENCE)).split(",") if n.strip()]
+            timeline = sequence_timeline(names, args.fps, args.hold, args.blend_time)
+        if timeline is not None:
+            first, last, missing = face_logic.apply_timeline(face, timeline)
+            scene.frame_start, scene.frame_end = first, last
+            if missing:
+                sys.stderr.write(f"this face has no shape key for: {', '.join(missing)} (skipped)\n")
+            summary["timeline"] = {"frame_start": first, "frame_end": last, "fps": timeline.fps}
+            fps = timeline.fps
+        else:
+            fps = scene.render.fps
+        render.setup_render(scene, face, args.engine, (width, height), args.samples, args.seed, fps)
+        summary["setup_s"] = time.perf_counter() - t0
+        start = scene.frame_start if args.frame_start is None else args.frame_start
+        end = scene.frame_end if args.frame_end is None else args.frame_end
+        if not args.no_frames:
+            t = time.perf_counter()
+            frames = render.render_frames(scene, out / "frames", start, end,
+                                          lambda d, n: progress_bar(d, n, "frames", args.quiet))
+            summary["frames"] = len(frames)  # frames/frame_####.png, frame_start to frame_end
+            summary["frames_dir"] = str(out / "frames")
+            summary["render_s"] = time.perf_counter() - t
+            if args.video:
+                summary["video"] = str(render.make_video(frames, fps, out / "frames.mp4"))
+        if args.contact_sheet:
+            progress_bar(0, 1, "contact sheet", args.quiet)
+            path, cells = render.contact_sheet(face, out / "contact_sheet.png", cell=args.sheet_cell,
+                                               samples=args.samples)
+            progress_bar(1, 1, "contact sheet", args.quiet)
+            summary["contact_sheet"], summary["contact_sheet_cells"] = str(path), cells
+        if args.save_blend:
+            bpy.ops.wm.save_as_mainfile(filepath=str(Path(args.save_blend).resolve()), copy=True)
+            summary["blend"] = str(args.save_blend)
+    except PdeFaceError as exc:
+        sys.stderr.write(f"{prog}: error: {exc}\n")
+        return 2
+    finally:
+        import addon_utils
+        if module == MODULE:
+            addon_utils.disable(module, default_set=True)
+    summary.update({"frame_start": start, "frame_end": end, "engine": args.engine})
+    print(json.dumps(summary))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())  # inside blender -b -P too: Blender exits with this status
