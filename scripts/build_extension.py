@@ -103,8 +103,9 @@ def main(argv=None):
         # Top-level keys must come before the first [table].
         manifest = manifest.replace("[permissions]", f"platforms = [{quoted}]\nwheels = [\n{listing}]\n\n[permissions]", 1)
         (stage / "blender_manifest.toml").write_text(manifest)
-        subprocess.run(ext + ["build", "--source-dir", str(stage), "--output-dir", str(args.out)]
-                       + (["--split-platforms"] if len(platforms) > 1 else []), check=True)
+        # One zip per platform, always named pdeface-VERSION-PLATFORM.zip (linux_x64, windows_x64, ...).
+        subprocess.run(ext + ["build", "--source-dir", str(stage), "--output-dir", str(args.out),
+                              "--split-platforms"], check=True)
     built = sorted(args.out.glob("pdeface-*.zip"))
     for z in built:
         subprocess.run(ext + ["validate", str(z)], check=True)

@@ -57,13 +57,12 @@ def cmd_mesh(args):
 def cmd_report(args):
     from .assets import load_face, load_scan
     from .io.modelfile import model_nbytes
-    from .surface.fit import skin_triangles
     from .surface.report import accuracy_report
 
     model = load_face(args.face)
     mesh, _ = load_scan(args.mesh)
-    skin = skin_triangles(mesh.vertices, mesh.triangles()[0], model.frame.to_user(model.features))
-    result = accuracy_report(model, mesh.vertices, skin, args.assembly, args.profiles_png, args.profiles_csv)
+    result = accuracy_report(model, mesh.vertices, mesh.triangles()[0], args.assembly, args.profiles_png,
+                             args.profiles_csv)
     result["model_bytes"] = model_nbytes(model)
     if args.json:
         print(json.dumps(result))

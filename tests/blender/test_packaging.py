@@ -15,6 +15,7 @@ def test_build_install_and_use_the_linux_zip(tmp_path):
                          capture_output=True, text=True)
     assert res.returncode == 0, res.stdout + res.stderr
     (zip_path,) = out.glob("pdeface-*.zip")
+    assert zip_path.name == "pdeface-0.1.0-linux_x64.zip"  # the same naming as a build for every platform
     names = zipfile.ZipFile(zip_path).namelist()
     wheels = [n for n in names if n.startswith("wheels/")]
     assert any("pdeface-" in w for w in wheels) and any("scipy-" in w for w in wheels) and any("xatlas-" in w for w in wheels)

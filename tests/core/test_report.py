@@ -37,3 +37,35 @@ def test_weighted_percentile_counts_each_value_by_its_weight():
     w[:10] = 100.0  # the ten smallest values hold 1000 of 1090 units of weight
     assert weighted_percentile(x, w, 50) < 10 and weighted_percentile(x, w, 95) > 40
     assert weighted_percentile(x[::-1], w[::-1], 50) == weighted_percentile(x, w, 50)
+
+
+def test_api_and_cli_measure_the_same_skin_on_a_head_with_separate_parts(tmp_path, capsys, scan, fitted):
+    # A strip of "lashes" 2 mm in front of the right eye, not joined to the skin: the README's Python
+    # API (all triangles) and `pdeface report` measure the skin alone, and agree.
+    import json
+
+    from pdeface.cli import main
+    from pdeface.io.meshio import write_obj
+    from pdeface.io.meshio import read_mesh
+    from pdeface.io.modelfile import load_model, save_model
+    from pdeface.mesh import Mesh
+    from pdeface.surface.report import accuracy_report
+    mesh, T, idx = scan
+    model, _ = fitted
+    eye = mesh.vertices[idx[36:42]].mean(axis=0) + np.array([0, 0, 0.2])  # cm
+    strip = eye + np.array([[-1.5, -0.1, 0], [1.5, -0.1, 0], [1.5, 0.1, 0], [-1.5, 0.1, 0]])
+    V = np.vstack([mesh.vertices, strip])
+    n = len(mesh.vertices)
+    T_head = np.vstack([T, [[n, n + 1, n + 2], [n, n + 2, n + 3]]])
+    face_only = accuracy_report(model, mesh.vertices, T)
+    head = accuracy_report(model, V, T_head)
+    assert head == face_only
+    write_obj(tmp_path / "head.obj", Mesh.from_faces(V, T_head))
+    save_model(tmp_path / "face.npz", model)
+    assert main(["report", str(tmp_path / "face.npz"), str(tmp_path / "head.obj"), "--json"]) == 0
+    cli = json.loads(capsys.readouterr().out)
+    # the same files through the README's Python API (the model file holds µm codes, the OBJ 6 digits)
+    read = read_mesh(tmp_path / "head.obj")
+    api = accuracy_report(load_model(tmp_path / "face.npz"), read.vertices, read.triangles()[0])
+    assert cli == {**api, "model_bytes": cli["model_bytes"]}
+    assert abs(api["p95_mm"] - head["p95_mm"]) < 0.01

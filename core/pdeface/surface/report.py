@@ -12,7 +12,7 @@ import numpy as np
 
 from ..geometry import ClosestPoint, cast_cylinder_rays, cylinder_coords, triangle_cross, unit_rows
 from ..mesh import vertex_normals
-from .fit import grid_faces, surface_grid
+from .fit import grid_faces, skin_triangles, surface_grid
 from .model import FaceModel
 from .pde import SurfaceOperator, knot_slopes, surface_operator
 from .rims import FACING_MIN_COS
@@ -28,7 +28,7 @@ PIT_DEPTH_MM = 4.0
 
 
 def band_vertices(model: FaceModel, V_face: np.ndarray, T: np.ndarray) -> dict:
-    """Classify the scan's vertices inside the curve band.
+    """Classify the vertices of triangles ``T`` inside the curve band.
 
     ``visible``: the layout's ray through the vertex meets the scan there
     first, the skin faces the ray within ~72°, and the vertex is not sunk in
@@ -47,6 +47,7 @@ def band_vertices(model: FaceModel, V_face: np.ndarray, T: np.ndarray) -> dict:
     th, y, r = cylinder_coords(V_face, lay.axis_z)
     half = np.interp(y, lay.heights[::-1], lay.half_angles[::-1])
     inside = (y <= lay.heights[0]) & (y >= lay.heights[-1]) & (np.abs(th) <= half)
+    inside &= np.bincount(T.ravel(), minlength=len(V_face)) > 0  # vertices of these triangles only
     first = np.zeros(len(V_face), bool)
     idx = np.nonzero(inside)[0]
     rad, _, _, _ = cast_cylinder_rays(V_face, T, lay.axis_z, th[idx], y[idx])
@@ -177,7 +178,9 @@ def accuracy_report(model: FaceModel, scan_vertices, scan_triangles, assembly=No
     scan_vertices : (n, 3) array
         The scan in its own space (the model's frame maps it).
     scan_triangles : (t, 3) int array
-        Skin triangles of the scan.
+        The scan's triangles. Only its skin counts: the connected pieces at the
+        model's feature points (eyeballs, lashes, teeth and other separate parts
+        of a full head are left out), so every caller measures the same thing.
     assembly : str, optional
     profiles_png, profiles_csv : path, optional
         Where to write the three cut profiles (scan black, PDE red; below them
@@ -197,7 +200,7 @@ def accuracy_report(model: FaceModel, scan_vertices, scan_triangles, assembly=No
     """
     assembly = assembly or model.assembly
     Vf = model.frame.to_face(scan_vertices)
-    T = np.asarray(scan_triangles, dtype=np.int64)
+    T = skin_triangles(Vf, np.asarray(scan_triangles, dtype=np.int64), model.features)
     su, sv = REPORT_RESOLUTION
     X = surface_grid(model, su, sv, assembly)
     nu, nv, _ = X.shape
