@@ -50,3 +50,19 @@ def set_image_output(scene, path, file_format="PNG"):
 def strips(sequence_editor):
     """The sequencer's strips ('sequences' before 4.4)."""
     return sequence_editor.strips if hasattr(sequence_editor, "strips") else sequence_editor.sequences
+
+
+def fcurves_of(id_data):
+    """The F-curves animating ``id_data`` (a collection with ``remove``), or None when it has none.
+
+    Layered actions (4.4+) keep them in the channel bag of the ID's own slot;
+    before, ``Action.fcurves`` (gone in 5.0).
+    """
+    ad = id_data.animation_data if id_data is not None else None
+    if ad is None or ad.action is None:
+        return None
+    if VERSION >= (4, 4, 0):
+        from bpy_extras.anim_utils import action_get_channelbag_for_slot
+        bag = action_get_channelbag_for_slot(ad.action, ad.action_slot)
+        return bag.fcurves if bag is not None else None
+    return ad.action.fcurves

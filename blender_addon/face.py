@@ -13,7 +13,7 @@ import math
 import bpy
 import numpy as np
 
-from . import bridge
+from . import bridge, compat
 
 MIX_KEY = "PDE Mix"
 #: The scene's mixer choice that defers to each preset's own mixer.
@@ -369,9 +369,24 @@ def animate_sequence(scene, obj, names, presets, start, hold, blend, mode="via_n
     return last
 
 
-def apply_timeline(obj, timeline, scene=None):
-    """Keyframe the face's shape keys from a pdeface Timeline (and extend ``scene``'s range to it).
+def clear_keyframes(obj):
+    """Delete the keyframes of our shape keys (the user's own keys keep theirs); returns how many curves."""
+    fcurves = compat.fcurves_of(obj.data.shape_keys)
+    if fcurves is None:
+        return 0
+    ours = {f'key_blocks["{bpy.utils.escape_identifier(e.name)}"].value' for e in obj.pdeface.keys}
+    doomed = [fc for fc in fcurves if fc.data_path in ours]
+    for fc in doomed:
+        fcurves.remove(fc)
+    return len(doomed)
 
+
+def apply_timeline(obj, timeline, scene=None, merge=False):
+    """Keyframe the face's shape keys from a pdeface Timeline.
+
+    By default the timeline replaces the animation of our keys (the user's own
+    keys keep theirs) and ``scene``'s frame range becomes the timeline's; with
+    ``merge`` its keys go in among those already there and the range only grows.
     Returns (first frame, last frame, channels the face lacks).
     """
     by_au = au_key_names(obj)
@@ -379,6 +394,8 @@ def apply_timeline(obj, timeline, scene=None):
     by_preset = expression_key_names(obj, presets)
     missing = [f"AU{a}" for a in aus if a not in by_au] + [p for p in presets if p not in by_preset]
     names = [by_au[a] for a in aus if a in by_au] + [by_preset[p] for p in presets if p in by_preset]
+    if not merge:
+        clear_keyframes(obj)
     blocks = obj.data.shape_keys.key_blocks
     prefs = bpy.context.preferences.edit
     saved = prefs.keyframe_new_interpolation_type
@@ -394,20 +411,23 @@ def apply_timeline(obj, timeline, scene=None):
                 kb.keyframe_insert("value", frame=key.frame)
     finally:
         prefs.keyframe_new_interpolation_type = saved
-    if scene is not None:
-        _extend_scene(scene, timeline.frame_end)
-    return timeline.keys[0].frame, timeline.frame_end, missing
+    first, last = timeline.keys[0].frame, timeline.frame_end
+    if scene is not None and merge:
+        _extend_scene(scene, last)
+    elif scene is not None:
+        scene.frame_start, scene.frame_end = first, last
+    return first, last, missing
 
 
-def read_au_file(path, fmt="auto", fps=30.0, hold=0.5, smooth=1, reduce=0.0):
-    """A timeline from a tracker file or a timeline JSON: (timeline, rows dropped, unknown channels)."""
+def read_au_file(path, fmt="auto", fps=30.0, hold=0.5, smooth=1, reduce=0.0, capture_fps=None):
+    """A timeline from a tracker file or a timeline JSON: (timeline, rows dropped, unknown channels, notes)."""
     from pdeface.io.timeline import load_timeline
     from pdeface.io.trackers import import_au
 
     if fmt == "timeline" or (fmt == "auto" and path.lower().endswith(".json")):
-        return load_timeline(path), 0, []
-    r = import_au(path, fmt, fps, hold, smooth, reduce)
-    return r.timeline, r.dropped, r.unknown
+        return load_timeline(path), 0, [], []
+    r = import_au(path, fmt, fps, hold, smooth, reduce, capture_fps=capture_fps)
+    return r.timeline, r.dropped, r.unknown, r.notes
 
 
 def scene_fps(scene):

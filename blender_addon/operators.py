@@ -217,6 +217,11 @@ class PDEFACE_OT_import_au(_FaceOperator, Operator):
     smooth: IntProperty(name="Smooth", default=1, min=1, description="Moving-average window (samples)")
     reduce: FloatProperty(name="Reduce", default=0.0, min=0.0, max=0.5, description="Keyframe reduction tolerance")
     hold: FloatProperty(name="Hold", default=0.5, min=0.01, description="Seconds per FAS AU set")
+    capture_fps: FloatProperty(name="Capture FPS", default=0.0, min=0.0,
+                               description="Rate of a Live Link Face timecode's frames; 0: read off the file")
+    merge: BoolProperty(name="Merge", default=False,
+                        description="Add to the face's animation instead of replacing it (your own keys are "
+                                    "never touched)")
 
     def invoke(self, context, event):
         context.window_manager.fileselect_add(self)
@@ -225,12 +230,14 @@ class PDEFACE_OT_import_au(_FaceOperator, Operator):
     def run(self, context):
         if not self.filepath:
             raise face.error("choose an AU data file")
-        timeline, dropped, unknown = face.read_au_file(bpy.path.abspath(self.filepath), self.format,
-                                                       self.fps or face.scene_fps(context.scene), self.hold,
-                                                       self.smooth, self.reduce)
+        timeline, dropped, unknown, notes = face.read_au_file(bpy.path.abspath(self.filepath), self.format,
+                                                              self.fps or face.scene_fps(context.scene), self.hold,
+                                                              self.smooth, self.reduce, self.capture_fps or None)
+        for note in notes:
+            self.report({"WARNING"}, note)
         if unknown:
             self.report({"WARNING"}, f"not FACS AUs / not mapped, ignored: {', '.join(map(str, unknown))}")
-        first, last, missing = face.apply_timeline(face.active_face(context), timeline, context.scene)
+        first, last, missing = face.apply_timeline(face.active_face(context), timeline, context.scene, self.merge)
         if missing:
             self.report({"WARNING"}, f"this face has no shape key for {', '.join(missing)}")
         note = f"; {dropped} rows dropped" if dropped else ""

@@ -75,14 +75,17 @@ def cmd_import_au(args):
     from .io.timeline import save_timeline
     from .io.trackers import import_au
 
-    r = import_au(args.file, args.format, args.fps, args.hold, args.smooth, args.reduce, args.min_confidence)
+    r = import_au(args.file, args.format, args.fps, args.hold, args.smooth, args.reduce, args.min_confidence,
+                  capture_fps=args.capture_fps)
     save_timeline(args.output, r.timeline)
+    for note in r.notes:
+        _log(note)
     if r.unknown:
         _log(f"ignored (not FACS AUs, or not mapped): {', '.join(map(str, r.unknown))}")
     aus, _ = r.timeline.channels()
     print(json.dumps({"output": str(args.output), "format": r.format, "rows": r.rows, "dropped": r.dropped,
                       "keys": len(r.timeline.keys), "frames": [r.timeline.keys[0].frame, r.timeline.frame_end],
-                      "aus": aus, "unknown": [str(u) for u in r.unknown]}))
+                      "aus": aus, "unknown": [str(u) for u in r.unknown], "capture_fps": r.capture_fps}))
 
 
 def _address(text, default_host="127.0.0.1"):
@@ -431,6 +434,8 @@ def build_parser():
     p.add_argument("--hold", type=float, default=0.5, help="seconds per FAS AU set")
     p.add_argument("--smooth", type=int, default=1, help="moving-average window (samples)")
     p.add_argument("--reduce", type=float, default=0.0, help="keyframe reduction tolerance (weight)")
+    p.add_argument("--capture-fps", type=float,
+                   help="rate of a Live Link Face timecode's frames (default: read off the file)")
     p.add_argument("--min-confidence", type=float, default=0.75,
                    help="drop OpenFace rows below this confidence (Py-Feat: FaceScore)")
     p.add_argument("-o", "--output", required=True, help="file to write")

@@ -113,6 +113,43 @@ def test_import_au_operator(bpy, face, tmp_path):
         bpy.ops.pdeface.import_au(filepath=str(bad))
 
 
+def test_importing_again_replaces_our_animation_and_keeps_the_users(bpy, face, tmp_path):
+    kb = face.data.shape_keys.key_blocks
+    scene = bpy.context.scene
+    scene.render.fps = 10
+    mine = face.shape_key_add(name="Smirk", from_mix=False)  # the user's own animated key
+    for frame, value in ((1, 0.0), (40, 0.9)):
+        mine.value = value
+        mine.keyframe_insert("value", frame=frame)
+    long = tmp_path / "long.txt"
+    long.write_text("{12}\n{1}\n{12}\n{1}\n")  # FAS: 4 sets of 0.5 s, 0.25 s between
+    assert bpy.ops.pdeface.import_au(filepath=str(long)) == {"FINISHED"}
+    first_end = scene.frame_end
+    short = tmp_path / "short.csv"
+    short.write_text("frame, timestamp, confidence, success, AU06_r\n1, 0.0, 0.98, 1, 5.0\n2, 0.4, 0.98, 1, 0.0\n")
+    assert bpy.ops.pdeface.import_au(filepath=str(short)) == {"FINISHED"}
+    assert (scene.frame_start, scene.frame_end) == (1, 5) and first_end > 5  # the new import's range
+    scene.frame_set(3)  # AU12 was keyed here by the first import: gone, not merged
+    assert kb["AU12 Lip Corner Puller"].value == 0.0 and kb["AU6 Cheek Raiser"].value > 0
+    scene.frame_set(40)
+    assert kb["Smirk"].value == pytest.approx(0.9)  # the user's own keyframes are untouched
+    # merging, when asked, keeps the first import's keys and only grows the range
+    assert bpy.ops.pdeface.import_au(filepath=str(long), merge=True) == {"FINISHED"}
+    assert scene.frame_end == first_end
+    scene.frame_set(6)
+    assert kb["AU12 Lip Corner Puller"].value == pytest.approx(1.0)
+
+
+def test_live_link_face_rate_guess_is_reported(bpy, face, tmp_path):
+    clip = tmp_path / "llf.csv"
+    clip.write_text("Timecode,BlendShapeCount,JawOpen\n10:00:00:00.000,61,0.0\n10:00:00:20.000,61,1.0\n")
+    bpy.context.scene.render.fps = 24
+    assert bpy.ops.pdeface.import_au(filepath=str(clip), capture_fps=60) == {"FINISHED"}
+    assert bpy.context.scene.frame_end == 9  # 20 frames at 60 fps = 1/3 s
+    assert bpy.ops.pdeface.import_au(filepath=str(clip)) == {"FINISHED"}  # guessed from frames up to 20: 24 fps
+    assert bpy.context.scene.frame_end == 21
+
+
 def test_the_main_job(bpy, tmp_path):
     """`pdeface demo`, the README's first command, at a tiny size."""
     res = subprocess.run([sys.executable, "-m", "pdeface.cli", "demo", "--out", str(tmp_path / "out"),

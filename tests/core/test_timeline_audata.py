@@ -97,7 +97,10 @@ def test_live_link_face(tmp_path):
                  "10:00:00:00.000,61,1.0,0.5,0.25,0.0,0.4,0.6,0.9,0.1\n"
                  "10:00:00:30.000,61,0.0,0.0,0.0,1.0,0.0,0.0,0.0,0.0\n")
     assert detect_format(p) == "livelink"
-    r = import_au(p, fps=60)
+    guessed = import_au(p, fps=60)  # under a second: frames up to 30 only bound the timecode's rate
+    assert guessed.capture_fps == 48 and "shorter than a second" in guessed.notes[0]
+    r = import_au(p, fps=60, capture_fps=60)
+    assert r.notes == [] and r.capture_fps == 60
     assert r.unknown == ["HeadYaw", "TongueOut"]
     first, second = r.timeline.keys
     assert (first.frame, second.frame) == (1, 31)  # 30 frames at 60 fps = 0.5 s
@@ -105,6 +108,33 @@ def test_live_link_face(tmp_path):
     assert first.aus["28"] == pytest.approx(0.5)  # mean of the two rolls, as ICT builds AU28
     assert second.aus["1"] == 1.0
     assert ARKIT_TO_AU["jawopen"] == [("27", 1.0)]
+
+
+def live_link_clip(path, capture_fps, seconds=5.0):
+    """A Live Link Face CSV captured at ``capture_fps``: jawOpen ramps 0 → 1 over the clip."""
+    n = int(seconds * capture_fps)
+    lines = ["Timecode,BlendShapeCount,JawOpen"]
+    start = 9 * 3600 + 59 * 60 + 58  # 09:59:58, so the clip crosses an hour
+    for i in range(n):
+        s, f = divmod(i, capture_fps)
+        h, rest = divmod(start + s, 3600)
+        lines.append(f"{h:02d}:{rest // 60:02d}:{rest % 60:02d}:{f:02d}.000,61,{i / n:.6f}")
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+@pytest.mark.parametrize("capture_fps", [30, 60])
+def test_live_link_face_timecode_counts_at_the_capture_rate(tmp_path, capture_fps):
+    # A 5 s clip comes out 5 s long at the timeline's 30 fps, the ramp rising with no jitter.
+    r = import_au(live_link_clip(tmp_path / "clip.csv", capture_fps), fps=30)
+    assert r.capture_fps == capture_fps and r.notes == []
+    frames = np.array([k.frame for k in r.timeline.keys])
+    jaw = np.array([k.aus["27"] for k in r.timeline.keys])
+    last_t = (5 * capture_fps - 1) / capture_fps  # the last sample, 4.97-4.98 s after the first
+    assert frames[0] == 1 and frames[-1] == 1 + int(np.floor(last_t * 30 + 0.5))
+    assert np.all(np.diff(frames) == 1) and np.all(np.diff(jaw) > 0)
+    expected = (frames - 1) / 30 / 5.0  # jawOpen at the frame's time
+    assert np.abs(jaw - expected).max() < 1.5 / capture_fps / 5.0
 
 
 def test_fas_text(tmp_path):
@@ -155,3 +185,13 @@ def test_import_au_cli(tmp_path, capsys):
     assert t.fps == 30 and len(t.keys) == summary["keys"]
     code = main(["import-au", str(tmp_path / "nope.csv"), "-o", str(tmp_path / "u.json")])
     assert code == 2 and "cannot open" in capsys.readouterr().err
+
+
+def test_cli_reads_the_capture_rate_or_takes_it(tmp_path, capsys):
+    clip = live_link_clip(tmp_path / "clip.csv", 60, seconds=2.0)
+    assert main(["import-au", str(clip), "--fps", "30", "-o", str(tmp_path / "t.json")]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["capture_fps"] == 60 and out["frames"] == [1, 61]
+    # told a wrong rate (the clip's frames reach 59), it says so
+    assert main(["import-au", str(clip), "--capture-fps", "30", "-o", str(tmp_path / "u.json")]) == 2
+    assert "does not fit 30" in capsys.readouterr().err

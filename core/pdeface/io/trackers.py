@@ -13,7 +13,8 @@ Formats (``detect_format`` picks one from the file's first line):
     time; rows with ``FaceScore`` below the threshold are dropped.
 ``livelink``
     Live Link Face CSV (ARKit's 52 blendshape names): mapped to AUs with the
-    ICT-FaceKit table (:data:`pdeface.au.ict.ARKIT_TO_AU`); ``Timecode`` ``HH:MM:SS:FF[.ms]``.
+    ICT-FaceKit table (:data:`pdeface.au.ict.ARKIT_TO_AU`); ``Timecode`` ``HH:MM:SS:FF[.ms]``,
+    whose FF counts at the capture's rate, read off the file (:func:`timecode_rate`).
 ``fas``
     The FAS system's plain-text AU sets, one ``{1,2,5,15,16,20,26}`` per line
     (extended forms too, see :mod:`pdeface.stream.wire`), each held for
@@ -49,6 +50,8 @@ class ImportResult:
     rows: int
     dropped: int = 0
     unknown: list = field(default_factory=list)
+    capture_fps: float | None = None  # the rate the file's own time stamps count at, where they do (Live Link Face)
+    notes: list = field(default_factory=list)  # what the reader had to guess
 
 
 def detect_format(path) -> str:
@@ -185,17 +188,38 @@ def _samples_pyfeat(path, fps, min_face_score):
     return times, poses, dropped, sorted(unknown)
 
 
-def _timecode(text, fps, path, lineno):
+#: Frame rates a timecode's frame field (FF) may count at.
+TIMECODE_RATES = (24, 25, 30, 48, 50, 60, 72, 90, 100, 120, 240)
+
+
+def _timecode(text, path, lineno):
+    """``HH:MM:SS:FF[.sub]`` → (whole seconds, frames within the second incl. the sub-frame)."""
     m = re.fullmatch(r"\s*(\d+):(\d+):(\d+)[:;](\d+)(?:\.(\d+))?\s*", text)
     if not m:
         raise ModelFormatError(f"{path}:{lineno}: Timecode {text.strip()[:24]!r} is not HH:MM:SS:FF[.sub]")
     h, mi, s, f, sub = m.groups()
-    frames = int(f) + (float("0." + sub) if sub else 0.0)
-    return int(h) * 3600 + int(mi) * 60 + int(s) + frames / fps
+    return int(h) * 3600 + int(mi) * 60 + int(s), int(f) + (float("0." + sub) if sub else 0.0)
 
 
-def _samples_livelink(path, fps):
-    times, poses, unknown = [], [], set()
+def timecode_rate(seconds, frames, path="timecode"):
+    """The rate a timecode's frame field counts at, from its range: (rate, note or "").
+
+    The frame field runs 0 … rate-1 within each second; a clip that crosses a
+    second shows the whole range. A shorter one only bounds it from below: the
+    smallest standard rate above its largest frame is taken, with a note.
+    """
+    top = int(max(frames))
+    rate = next((r for r in TIMECODE_RATES if r > top), None)
+    if rate is None:
+        raise ModelFormatError(f"{path}: Timecode frame {top} is beyond {TIMECODE_RATES[-1]} fps")
+    if len(set(seconds)) > 1:
+        return rate, ""
+    return rate, (f"{path}: the clip is shorter than a second, so its timecode's frame rate is a guess "
+                  f"({rate} fps from its frames up to {top}); give the capture rate if it differs")
+
+
+def _samples_livelink(path, fps, capture_fps=None):
+    times, poses, unknown, stamps = [], [], set(), []
 
     def columns(header, idx):
         shape_cols = [h for h in header if h.lower() not in _LLF_META]
@@ -209,12 +233,20 @@ def _samples_livelink(path, fps):
             w = clamp_weight(_number(row[idx[h]], path, lineno, h))
             for au, share in ARKIT_TO_AU[h.lower()]:
                 pose[au] = pose.get(au, 0.0) + share * w
-        times.append(_timecode(row[idx[tc]], fps, path, lineno) if tc else len(times) / fps)
+        if tc:
+            stamps.append(_timecode(row[idx[tc]], path, lineno))
         poses.append(pose)
-    if times:
-        t0 = times[0]
-        times = [t - t0 for t in times]
-    return times, poses, 0, sorted(unknown)
+    note = ""
+    if not stamps:  # no timecode: one row per timeline frame
+        times = [i / fps for i in range(len(poses))]
+    else:
+        seconds, frames = (np.array(x, dtype=np.float64) for x in zip(*stamps))
+        if capture_fps is None:
+            capture_fps, note = timecode_rate(seconds, frames, str(path))
+        elif frames.max() >= capture_fps:
+            raise ModelFormatError(f"{path}: Timecode frame {int(frames.max())} does not fit {capture_fps} fps")
+        times = list(seconds - seconds[0] + (frames - frames[0]) / capture_fps)
+    return times, poses, 0, sorted(unknown), capture_fps, note
 
 
 def _frame(seconds, fps):
@@ -292,14 +324,17 @@ def reduce_keys(frames: np.ndarray, values: np.ndarray, tolerance: float) -> np.
 
 
 def import_au(path, fmt="auto", fps=30.0, hold=0.5, smooth_window=1, reduce_tolerance=0.0,
-              min_confidence=0.75, face_id=0) -> ImportResult:
+              min_confidence=0.75, face_id=0, capture_fps=None) -> ImportResult:
     """Read an AU data file into a timeline.
 
     Parameters
     ----------
     fmt : {'auto', 'openface', 'pyfeat', 'livelink', 'fas'}
     fps : float
-        Frame rate of the timeline (and of Py-Feat/Live Link frame counters).
+        Frame rate of the timeline (and of Py-Feat's frame counter).
+    capture_fps : float, optional
+        The rate Live Link Face's timecode frames count at; None: read off the
+        file (the frame field's range, see :func:`timecode_rate`).
     hold : float
         Seconds each FAS AU set is held.
     smooth_window : int
@@ -317,12 +352,14 @@ def import_au(path, fmt="auto", fps=30.0, hold=0.5, smooth_window=1, reduce_tole
     if fmt == "fas":
         keys, n, unknown = _keys_fas(path, fps, hold)
         return ImportResult(Timeline(float(fps), keys, 1), fmt, n, 0, unknown)
+    notes = []
     if fmt == "openface":
         times, poses, dropped, unknown = _samples_openface(path, min_confidence, face_id)
     elif fmt == "pyfeat":
         times, poses, dropped, unknown = _samples_pyfeat(path, fps, min_confidence)
     else:
-        times, poses, dropped, unknown = _samples_livelink(path, fps)
+        times, poses, dropped, unknown, capture_fps, note = _samples_livelink(path, fps, capture_fps)
+        notes += [note] if note else []
     if not poses:
         raise ModelFormatError(f"{path}: no usable rows ({dropped} dropped for tracking failure or low confidence)")
     channels = sorted({a for p in poses for a in p}, key=split_au_key)
@@ -336,4 +373,5 @@ def import_au(path, fmt="auto", fps=30.0, hold=0.5, smooth_window=1, reduce_tole
     values = clamp_weights(smooth(values, int(smooth_window)))
     keep = reduce_keys(frames, values, reduce_tolerance)
     keys = [Key(int(frames[i]), {c: float(v) for c, v in zip(channels, values[i])}, {}, "linear") for i in keep]
-    return ImportResult(Timeline(float(fps), keys, 1), fmt, len(poses) + dropped, dropped, unknown)
+    return ImportResult(Timeline(float(fps), keys, 1), fmt, len(poses) + dropped, dropped, unknown,
+                        capture_fps if fmt == "livelink" else None, notes)
