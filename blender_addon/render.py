@@ -72,7 +72,10 @@ def setup_render(scene, obj, engine="CYCLES", size=(256, 256), samples=16, seed=
         scene.cycles.samples = samples
         scene.cycles.seed = seed
         scene.cycles.use_animated_seed = False
-        scene.cycles.use_denoising = False  # OIDN is not everywhere; noise-free at these sizes anyway
+        scene.cycles.use_denoising = _has_denoiser()
+        if hasattr(scene.cycles, "denoising_quality"):  # 4.1+: the high-quality filter costs minutes at this size
+            scene.cycles.denoising_quality = "FAST"
+        scene.cycles.denoising_prefilter = "FAST"  # OIDN is not everywhere; noise-free at these sizes anyway
     scene.render.resolution_x, scene.render.resolution_y = size
     scene.render.resolution_percentage = 100
     scene.render.fps = int(round(fps))
@@ -122,18 +125,30 @@ def make_video(frames, fps, path):
     return candidates[0] if candidates else out
 
 
-def contact_sheet(obj, path, items=None, cell=160, columns=8, samples=16, resolution="2,2"):
-    """One PNG grid of the neutral and every AU and preset at weight 1, with labels.
+def _has_denoiser() -> bool:
+    """Whether this Blender's Cycles has OpenImageDenoise (it runs on the CPU; builds without it exist)."""
+    try:
+        import _cycles
+        return bool(getattr(_cycles, "with_openimagedenoise", False))
+    except ImportError:
+        return False
+
+
+def contact_sheet(obj, path, items=None, cell=256, columns=8, samples=16, resolution="2,2"):
+    """One PNG grid of the neutral, every AU (in numeric order) and every preset at weight 1, labelled.
 
     All cells are posed copies of the face rendered together in one orthographic
-    view (Cycles), each labelled by a text object under it.
+    view (Cycles, denoised where Blender has OpenImageDenoise), each labelled by
+    a text object in a strip below the lowest chin of any cell.
     """
     from pdeface.au.expressions import ShapeBasis, resolve_preset
+    from pdeface.au.facs import split_au_key
     from pdeface.surface.fit import face_mesh
 
     model = bridge.face_model(obj)
     basis = ShapeBasis(model, resolution, dtype=np.float64)
-    cells = [("neutral", {})] + [(f"AU{d.key}", {d.key: 1.0}) for d in model.descriptors]
+    keys = sorted((d.key for d in model.descriptors), key=split_au_key)
+    cells = [("neutral", {})] + [(f"AU{k}", {k: 1.0}) for k in keys]
     for name, preset in face.all_presets(bpy.context.scene).items():
         w, _ = resolve_preset(preset, set(basis.keys))
         cells.append((name, w))
@@ -143,43 +158,50 @@ def contact_sheet(obj, path, items=None, cell=160, columns=8, samples=16, resolu
     try:
         pde = face_mesh(model, resolution)
         rows = math.ceil(len(cells) / columns)
-        # Faces in the face frame (mm), looking +z, each centred on its cell by its bounding box,
-        # with a strip under the chin for its label.
-        neutral = model.frame.to_face(basis.neutral)
+        # Faces in the face frame (mm), looking +z, each centred on its cell by the neutral's
+        # bounding box; the labels go in a strip below the lowest point any pose reaches (an open jaw).
+        posed = [model.frame.to_face(basis.vertices(basis.weights_matrix(w))[0] if w else basis.neutral)
+                 for _, w in cells]
+        neutral = posed[0]
         lo, hi = neutral.min(axis=0), neutral.max(axis=0)
         centre = (lo + hi) / 2
         width, height = hi[0] - lo[0], hi[1] - lo[1]
-        pitch_x, pitch_y = 1.08 * width, 1.25 * height
+        lowest = min(float(V[:, 1].min()) for V in posed) - centre[1]
+        label_size = 0.09 * width
+        label_y = lowest - 0.04 * height - label_size  # the text's baseline, its top clear of every chin
+        top = hi[1] - centre[1]
+        pitch_x, pitch_y = 1.08 * width, (top - label_y) + 0.08 * height
         text_mat = bpy.data.materials.new("PDE label")
         text_mat.diffuse_color = (0.9, 0.9, 0.9, 1)
         compat.use_nodes(text_mat)
         bsdf = text_mat.node_tree.nodes.get("Principled BSDF")
         if bsdf is not None:
             bsdf.inputs["Base Color"].default_value = (0.9, 0.9, 0.9, 1)
-        for i, (label, weights) in enumerate(cells):
-            V = basis.vertices(basis.weights_matrix(weights))[0] if weights else basis.neutral
-            pde.vertices = model.frame.to_face(V) - centre
+        for i, ((label, _), V) in enumerate(zip(cells, posed)):
+            pde.vertices = V - centre
             me = bridge.new_mesh(f"sheet {label}", pde)
             me.materials.append(bridge.skin_material())
             o = bpy.data.objects.new(f"sheet {label}", me)
             r, c = divmod(i, columns)
-            cx, cy = c * pitch_x, -r * pitch_y + 0.08 * height  # faces sit high in their cell
+            cx, cy = c * pitch_x, -r * pitch_y
             o.location = (cx, cy, 0)
             scene.collection.objects.link(o)
             curve = bpy.data.curves.new(f"label {label}", "FONT")
             curve.body = label.replace("_", " ")
             curve.align_x = "CENTER"
-            curve.size = 0.09 * width
+            curve.size = label_size
             curve.materials.append(text_mat)
             t = bpy.data.objects.new(f"label {label}", curve)
-            t.location = (cx, cy - 0.5 * height - 0.1 * height, hi[2] - centre[2])
+            t.visible_shadow = False  # the sun would print it on the forehead below
+            t.location = (cx, cy + label_y, hi[2] - centre[2])
             scene.collection.objects.link(t)
         cam_data = bpy.data.cameras.new("sheet camera")
         cam_data.type = "ORTHO"
         sheet_w, sheet_h = columns * pitch_x, rows * pitch_y
         cam_data.ortho_scale = max(sheet_w, sheet_h)
         cam = bpy.data.objects.new("sheet camera", cam_data)
-        cam.location = ((columns - 1) * pitch_x / 2, -(rows - 1) * pitch_y / 2, 500)
+        mid_y = (top + label_y) / 2  # the middle of a cell's face and label
+        cam.location = ((columns - 1) * pitch_x / 2, -(rows - 1) * pitch_y / 2 + mid_y, 500)
         cam_data.clip_end = 2000
         scene.collection.objects.link(cam)
         scene.camera = cam
@@ -192,7 +214,10 @@ def contact_sheet(obj, path, items=None, cell=160, columns=8, samples=16, resolu
         scene.render.engine = "CYCLES"
         scene.cycles.device = "CPU"
         scene.cycles.samples = samples
-        scene.cycles.use_denoising = False
+        scene.cycles.use_denoising = _has_denoiser()
+        if hasattr(scene.cycles, "denoising_quality"):  # 4.1+: the high-quality filter costs minutes at this size
+            scene.cycles.denoising_quality = "FAST"
+        scene.cycles.denoising_prefilter = "FAST"
         scene.render.resolution_x = columns * cell
         scene.render.resolution_y = int(round(rows * cell * pitch_y / pitch_x))
         scene.render.resolution_percentage = 100

@@ -91,6 +91,10 @@ def test_contact_sheet(bpy, face, tmp_path):
     cols = [img[:, i * 48:(i + 1) * 48] for i in range(4)]
     assert all(c.mean() > img[:2].mean() for c in cols)  # a face in every cell
     assert np.abs(cols[0] - cols[2]).mean() > 0.005  # jaw open differs from neutral
+    # AUs in numeric order (12 before 27, sides after both), whatever order they are asked in
+    _, cells = render.contact_sheet(face, tmp_path / "order.png", items=["AU27", "AU1R", "AU12", "neutral", "AU1"],
+                                    cell=16, columns=5, samples=1)
+    assert cells == ["neutral", "AU1", "AU1R", "AU12", "AU27"]
 
 
 def test_import_au_operator(bpy, face, tmp_path):

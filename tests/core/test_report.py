@@ -69,3 +69,38 @@ def test_api_and_cli_measure_the_same_skin_on_a_head_with_separate_parts(tmp_pat
     api = accuracy_report(load_model(tmp_path / "face.npz"), read.vertices, read.triangles()[0])
     assert cli == {**api, "model_bytes": cli["model_bytes"]}
     assert abs(api["p95_mm"] - head["p95_mm"]) < 0.01
+
+
+def read_png(path):
+    """(h, w, 3) uint8 of a PNG written by pdeface.io.png (8-bit RGB, filter 0)."""
+    import struct
+    import zlib
+    data = path.read_bytes()
+    w, h = struct.unpack(">II", data[16:24])
+    idat, pos = b"", 8
+    while pos < len(data):
+        n, tag = struct.unpack(">I4s", data[pos:pos + 8])
+        idat += data[pos + 8:pos + 8 + n] if tag == b"IDAT" else b""
+        pos += 12 + n
+    raw = np.frombuffer(zlib.decompress(idat), np.uint8).reshape(h, 1 + 3 * w)
+    return raw[:, 1:].reshape(h, w, 3)
+
+
+def test_profiles_png_has_titles_ticks_and_a_legend(tmp_path, scan, fitted):
+    from pdeface.io.png import draw_text, text_width
+    from pdeface.surface.report import accuracy_report
+    img = np.full((10, 40, 3), 255, np.uint8)
+    draw_text(img, 1, 1, "AU12")
+    assert (img == 0).all(axis=2).sum() > 20 and text_width("AU12") == 23
+    mesh, T, _ = scan
+    accuracy_report(fitted[0], mesh.vertices, T, profiles_png=tmp_path / "p.png")
+    img = read_png(tmp_path / "p.png")
+    h, w, _ = img.shape
+    dark = (img < 100).all(axis=2)
+    assert dark[:16].sum() > 3 * 60  # three panel titles above the axes
+    legend = img[h - 44:]
+    for colour in ((40, 40, 40), (220, 30, 30), (30, 60, 220)):  # scan, PDE, difference swatches
+        assert (legend == colour).all(axis=2).sum() >= 18, colour
+    # the scan's thick line shows beside the PDE's red one: both colours inside the first panel
+    panel = img[22:h - 80, 46:410]
+    assert (panel == (40, 40, 40)).all(axis=2).sum() > 100 and (panel == (220, 30, 30)).all(axis=2).sum() > 100

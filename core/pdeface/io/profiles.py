@@ -12,6 +12,9 @@ import numpy as np
 
 from .png import plot_panels
 
+SCAN, PDE, DIFFERENCE = (40, 40, 40), (220, 30, 30), (30, 60, 220)
+ZERO, MARKS = (150, 150, 150), (210, 210, 210)
+
 
 def write_profiles_csv(path, profiles: dict) -> None:
     """One row per point of each cut, with the scan's and the PDE face's radius and their difference."""
@@ -25,19 +28,19 @@ def write_profiles_csv(path, profiles: dict) -> None:
 
 
 def write_profiles_png(path, profiles: dict) -> None:
-    """One panel per cut: scan black, PDE red, and below them their difference ×10 (blue).
-
-    The difference is drawn around a grey zero line with ±1 mm marks, so
-    sub-millimetre errors are visible.
-    """
+    """One panel per cut: the scan (thick, grey-black) under the PDE face (red), and below them their
+    difference ×10 (blue) around a zero line with ±1 mm marks, so sub-millimetre errors show."""
     panels = []
     for th, y, rs, rp in profiles.values():
         along = np.concatenate([[0], np.cumsum(np.hypot(np.diff(th) * np.nanmean(rs), np.diff(y)))])
         base = np.nanmin(np.r_[rs, rp]) - 25.0
         diff = base + 10.0 * (rp - rs)
         ends = along[[0, -1]]
-        panels.append([(along, rs, (0, 0, 0)), (along, rp, (220, 30, 30)),
-                       (ends, np.full(2, base), (150, 150, 150)),
-                       (ends, np.full(2, base + 10.0), (210, 210, 210)),
-                       (ends, np.full(2, base - 10.0), (210, 210, 210)), (along, diff, (30, 60, 220))])
-    plot_panels(path, panels)
+        panels.append([(along, rs, SCAN, 3), (along, rp, PDE),
+                       (ends, np.full(2, base), ZERO),
+                       (ends, np.full(2, base + 10.0), MARKS),
+                       (ends, np.full(2, base - 10.0), MARKS), (along, diff, DIFFERENCE)])
+    plot_panels(path, panels, titles=[f"{name} cut" for name in profiles], xlabel="along the cut (mm)",
+                ylabel="radius from the axis (mm)",
+                legend=[(SCAN, "scan"), (PDE, "PDE face"),
+                        (DIFFERENCE, "PDE - scan, *10 (grey: 0 and +-1 mm)")])
