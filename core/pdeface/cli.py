@@ -351,6 +351,15 @@ def build_parser():
 
     from . import __version__
 
+    ASSEMBLY_HELP = "assembly to mesh with (default: the model's own)"
+
+    def meshing_options(p):
+        p.add_argument("--resolution", default="default", help="default, original, fine, or ROWS,COLS subdivisions")
+        p.add_argument("--assembly", choices=ASSEMBLIES, help=ASSEMBLY_HELP)
+
+    def output_option(p, help="file to write"):
+        p.add_argument("-o", "--output", required=True, help=help)
+
     ap = argparse.ArgumentParser(prog="pdeface", description="PDE face models and FACS Action Units.")
     ap.add_argument("--version", action="version", version=f"pdeface {__version__}")
     sub = ap.add_subparsers(dest="command", required=True, metavar="COMMAND")
@@ -370,20 +379,19 @@ def build_parser():
     p.add_argument("--straight", action="store_true",
                    help="horizontal curves throughout, as the original method (default: bend along the lips "
                         "and nostrils, with a curve on each rim of the eyes and mouth)")
-    p.add_argument("-o", "--output", required=True, help="file to write")
+    output_option(p)
     p.set_defaults(func=cmd_fit)
 
     p = sub.add_parser("mesh", help="mesh the PDE surface of a face model")
     p.add_argument("face", help="face model (.npz) or 'default'")
-    p.add_argument("--resolution", default="default", help="default, original, fine, or ROWS,COLS subdivisions")
-    p.add_argument("--assembly", choices=ASSEMBLIES, help="assembly to mesh with (default: the model's own)")
-    p.add_argument("-o", "--output", required=True, help="file to write")
+    meshing_options(p)
+    output_option(p)
     p.set_defaults(func=cmd_mesh)
 
     p = sub.add_parser("report", help="accuracy of a face model against its scan")
     p.add_argument("face", help="face model (.npz) or 'default'")
     p.add_argument("mesh", help="the scan (.obj/.ply) or 'default'")
-    p.add_argument("--assembly", choices=ASSEMBLIES, help="assembly to mesh with (default: the model's own)")
+    p.add_argument("--assembly", choices=ASSEMBLIES, help=ASSEMBLY_HELP)
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--profiles-png", help="write the three cut profiles (scan, PDE, difference x10) as a PNG")
     p.add_argument("--profiles-csv", help="write the three cut profiles as CSV")
@@ -397,7 +405,7 @@ def build_parser():
     p.add_argument("--au", type=int, required=True, help="the FACS AU number the AU mesh shows")
     p.add_argument("--side", choices=SIDES, default="both", help="the subject's side(s) the AU acts on")
     p.add_argument("--unit", choices=list(UNITS_MM), help="mesh unit (default: guessed from the eyes)")
-    p.add_argument("-o", "--output", required=True, help=".json (readable) or .pdd (compact binary)")
+    output_option(p, ".json (readable) or .pdd (compact binary)")
     p.set_defaults(func=cmd_descriptor)
 
     p = sub.add_parser("pose", help="mesh a face with AU weights or an expression preset")
@@ -408,16 +416,15 @@ def build_parser():
     p.add_argument("--descriptor", action="append", help="extra descriptor file(s) (.json/.pdd)")
     p.add_argument("--mixer", choices=MIXERS, help="how AUs on the same curves combine (default: the preset's "
                                                    "own, else sum)")
-    p.add_argument("--resolution", default="default", help="default, original, fine, or ROWS,COLS subdivisions")
-    p.add_argument("--assembly", choices=ASSEMBLIES, help="assembly to mesh with (default: the model's own)")
-    p.add_argument("-o", "--output", required=True, help="file to write")
+    meshing_options(p)
+    output_option(p)
     p.set_defaults(func=cmd_pose)
 
     p = sub.add_parser("retarget", help="carry AU descriptors over to another face model")
     p.add_argument("target", help="the target face model (.npz)")
     p.add_argument("--descriptors", default="default", help="face model whose descriptors to use (default: bundled)")
     p.add_argument("--scaling", choices=SCALINGS, default="face", help="scale the descriptors by the faces' sizes")
-    p.add_argument("-o", "--output", required=True, help="file to write")
+    output_option(p)
     p.set_defaults(func=cmd_retarget)
 
     p = sub.add_parser("au-report", help="how much of each AU's true motion the descriptors capture")
@@ -438,7 +445,7 @@ def build_parser():
                    help="rate of a Live Link Face timecode's frames (default: read off the file)")
     p.add_argument("--min-confidence", type=float, default=0.75,
                    help="drop OpenFace rows below this confidence (Py-Feat: FaceScore)")
-    p.add_argument("-o", "--output", required=True, help="file to write")
+    output_option(p)
     p.set_defaults(func=cmd_import_au)
 
     p = sub.add_parser("stream", help="live AU stream: the remote player and a sender")
