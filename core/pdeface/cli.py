@@ -23,8 +23,11 @@ def _log(msg):
 
 def cmd_fit(args):
     from .assets import DEFAULT, ICT_NOTICE, load_scan
+    from .io.files import check_output
     from .io.modelfile import save_model
     from .surface.fit import fit_face
+
+    check_output(args.output, args.mesh, args.landmarks)
 
     mesh, lm = load_scan(args.mesh, args.landmarks)
     if lm is None:
@@ -45,8 +48,11 @@ def cmd_fit(args):
 
 def cmd_mesh(args):
     from .assets import load_face
+    from .io.files import check_output
     from .io.meshio import write_mesh
     from .surface.fit import face_mesh
+
+    check_output(args.output, args.face)
 
     model = load_face(args.face)
     mesh = face_mesh(model, args.resolution, args.assembly)
@@ -56,8 +62,13 @@ def cmd_mesh(args):
 
 def cmd_report(args):
     from .assets import load_face, load_scan
+    from .io.files import check_output
     from .io.modelfile import model_nbytes
     from .surface.report import accuracy_report
+
+    for out in (args.profiles_png, args.profiles_csv):
+        if out:
+            check_output(out, args.face, args.mesh)
 
     model = load_face(args.face)
     mesh, _ = load_scan(args.mesh)
@@ -72,8 +83,11 @@ def cmd_report(args):
 
 
 def cmd_import_au(args):
+    from .io.files import check_output
     from .io.timeline import save_timeline
     from .io.trackers import import_au
+
+    check_output(args.output, args.file)
 
     r = import_au(args.file, args.format, args.fps, args.hold, args.smooth, args.reduce, args.min_confidence,
                   capture_fps=args.capture_fps)
@@ -165,6 +179,7 @@ def cmd_render(args):
 
 def cmd_demo(args):
     from .assets import DEFAULT, ICT_NOTICE, load_scan
+    from .io.files import write_bytes
     from .io.meshio import write_mesh
     from .io.modelfile import save_model
     from .surface.fit import face_mesh, fit_face
@@ -185,7 +200,7 @@ def cmd_demo(args):
     result = accuracy_report(model, mesh.vertices, T, profiles_png=out / "profiles.png",
                              profiles_csv=out / "profiles.csv")
     result["model_bytes"] = size
-    (out / "report.json").write_text(json.dumps(result, indent=2))
+    write_bytes(out / "report.json", json.dumps(result, indent=2).encode())
     _log(f"wrote {out}/face.npz, face.obj, report.json, profiles.png, profiles.csv")
     if not args.no_render:
         _log(f"[4/{total}] rig, animation, render (Blender, headless)")
@@ -231,9 +246,12 @@ def cmd_descriptor(args):
     from .assets import load_scan
     from .au.capture import fit_descriptor
     from .io.descriptorfile import save_descriptor
+    from .io.files import check_output
     from .io.meshio import read_mesh
     from .surface.fit import fit_face
     from .surface.frame import landmark_points, read_landmarks
+
+    check_output(args.output, args.neutral, args.au_mesh, args.landmarks, args.au_landmarks)
 
     neutral, lm = load_scan(args.neutral, args.landmarks)
     if lm is None:
@@ -261,8 +279,11 @@ def cmd_descriptor(args):
 def cmd_pose(args):
     from .assets import load_face
     from .au.expressions import PRESETS, choose_mixer, load_presets, pose_curves, resolve_preset
+    from .io.files import check_output
     from .io.meshio import write_mesh
     from .surface.fit import face_mesh
+
+    check_output(args.output, args.face, *(args.presets or []), *(args.descriptor or []))
 
     model = load_face(args.face)
     if args.descriptor:
@@ -294,7 +315,10 @@ def cmd_pose(args):
 def cmd_retarget(args):
     from .assets import load_face
     from .au.retarget import retarget
+    from .io.files import check_output
     from .io.modelfile import save_model
+
+    check_output(args.output, args.target, args.descriptors)
 
     target = load_face(args.target)
     source = load_face(args.descriptors)
@@ -340,6 +364,7 @@ class _HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
 
 
 def build_parser():
+    from . import __version__
     from .au.expressions import MIXERS
     from .au.facs import SIDES
     from .au.retarget import SCALINGS
@@ -348,8 +373,6 @@ def build_parser():
     from .surface.frame import UNITS_MM
     from .surface.layout import DEFAULT_CURVES
     from .surface.pde import ASSEMBLIES
-
-    from . import __version__
 
     ASSEMBLY_HELP = "assembly to mesh with (default: the model's own)"
 

@@ -23,3 +23,7 @@ class LayoutError(PdeFaceError, ValueError):
 
 class ModelFormatError(PdeFaceError, ValueError):
     """A face model or descriptor file is malformed or of an unknown version."""
+
+
+class FileError(PdeFaceError, OSError):
+    """A file cannot be written (or would overwrite one of the command's own inputs)."""

@@ -311,3 +311,39 @@ def test_a_peer_that_never_reads_acks_cannot_stall_the_player():
         stop.set()
         t.join()
         player.close()
+
+
+HOSTILE_PACKETS = [
+    b'{"au_r": {"AU12": ' + b"9" * 400 + b'}, "timestamp": 1}\n',  # an AU value of 400 digits
+    b'{"au_r": {"AU12": 0.5}, "timestamp": ' + b"9" * 400 + b"}\n",  # a timestamp of 400 digits (ignored)
+    b"-" + b"5" * 5000 + b" ",  # a control integer of 5,000 digits
+    b'{"au_r": {"AU1": 1}, "x": "' + b"a" * 60000 + b'"}\n',  # a 60 KB JSON line in one read
+    b"[" * 900 + b"\n",  # deep nesting
+    b"7" * 200000,  # digits with no delimiter
+    b" {12:" + b"9" * 900 + b"}",  # a weight of 900 digits
+]
+
+
+@pytest.mark.parametrize("hostile", HOSTILE_PACKETS, ids=range(len(HOSTILE_PACKETS)))
+def test_one_bad_packet_never_stops_the_stream(hostile):
+    # Every packet above, then a good one: it is acked and played; the reader thread lives on.
+    player = Player(transition=0.0)
+    address = player.listen()
+    try:
+        s = connect(address)
+        s.sendall(hostile)
+        s.sendall(b" {6:0.5}")
+        acks = b""
+        deadline = time.monotonic() + 5
+        while b"1\n" not in acks:
+            assert time.monotonic() < deadline, player.stats
+            s.settimeout(0.1)
+            try:
+                acks += s.recv(4096)
+            except socket.timeout:
+                pass
+        until(lambda: player.pose().get("6") == 0.5)
+        assert player.stats.garbage + player.stats.packets >= 2 and player.stats.connected
+        s.close()
+    finally:
+        player.close()

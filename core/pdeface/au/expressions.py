@@ -247,7 +247,9 @@ def save_presets(path, presets) -> None:
     presets = list(presets)
     obj = preset_to_json(presets[0]) if len(presets) == 1 else \
         {"format": "pdeface.presets", "version": 1, "presets": [preset_to_json(p) for p in presets]}
-    with open(path, "w", encoding="utf-8") as fh:
+    from ..io.files import atomic_open
+
+    with atomic_open(path, "w", encoding="utf-8") as fh:
         json.dump(obj, fh, indent=1)
 
 

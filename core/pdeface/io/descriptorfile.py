@@ -34,7 +34,7 @@ from ..au.facs import SIDES, action_unit
 from ..errors import ModelFormatError, PdeFaceError
 from ..surface.fourier import fit_fourier
 from .codec import decode_residual, encode_residual
-from .files import read_bytes
+from .files import read_bytes, write_bytes
 
 FORMAT = "pdeface.descriptor"
 VERSION = 1
@@ -178,9 +178,7 @@ def save_descriptor(path, d: Descriptor) -> int:
         data = json.dumps(descriptor_to_json(d), indent=1).encode()
     else:
         data = descriptor_to_bytes(d)
-    with open(path, "wb") as fh:
-        fh.write(data)
-    return len(data)
+    return write_bytes(path, data)
 
 
 def load_descriptor(path) -> Descriptor:

@@ -1,9 +1,13 @@
-"""Opening a user's files with errors that name the file (the one way pdeface does it)."""
+"""Opening a user's files with errors that name the file, and writing them atomically (the one way
+pdeface does it)."""
 from __future__ import annotations
 
+import contextlib
 import json
+import os
+import tempfile
 
-from ..errors import ModelFormatError
+from ..errors import FileError, ModelFormatError
 
 
 def open_file(path, mode="r", error=ModelFormatError, **kwargs):
@@ -35,3 +39,58 @@ def load_json(path, error=ModelFormatError):
         raise error(f"{path}: not valid JSON ({exc.msg}, line {exc.lineno})") from None
     except UnicodeDecodeError:
         raise error(f"{path}: not UTF-8 text") from None
+
+
+@contextlib.contextmanager
+def atomic_open(path, mode="w", **kwargs):
+    """Write ``path`` through a temporary file beside it, renamed over it on success.
+
+    On any failure (a full disk, an exception in the ``with`` block) the
+    temporary file is removed and an existing ``path`` is left as it was. OS
+    failures raise :class:`FileError` naming ``path``.
+    """
+    path = os.fspath(path)
+    folder = os.path.dirname(os.path.abspath(path))
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{os.path.basename(path)}.", suffix=".part", dir=folder)
+    except OSError as exc:
+        raise FileError(f"{path}: cannot write ({exc.strerror})") from None
+    try:
+        with os.fdopen(fd, mode, **kwargs) as fh:
+            yield fh
+        os.chmod(tmp, _new_file_mode(path))  # mkstemp makes it private; a written file is not
+        os.replace(tmp, path)
+    except OSError as exc:
+        _remove(tmp)
+        raise FileError(f"{path}: cannot write ({exc.strerror or exc})") from None
+    except BaseException:
+        _remove(tmp)
+        raise
+
+
+def write_bytes(path, data: bytes) -> int:
+    """Write ``data`` to ``path`` atomically (see :func:`atomic_open`); returns its length."""
+    with atomic_open(path, "wb") as fh:
+        fh.write(data)
+    return len(data)
+
+
+def check_output(output, *inputs) -> None:
+    """Refuse an output path that is one of the command's input files (it would be lost)."""
+    for source in inputs:
+        if source and os.path.exists(source) and os.path.exists(output) and os.path.samefile(source, output):
+            raise FileError(f"{output}: is also an input of this command ({source}); write to another file")
+
+
+def _new_file_mode(path) -> int:
+    try:
+        return os.stat(path).st_mode & 0o777  # replacing a file keeps its permissions
+    except OSError:
+        umask = os.umask(0)
+        os.umask(umask)
+        return 0o666 & ~umask
+
+
+def _remove(path):
+    with contextlib.suppress(OSError):
+        os.remove(path)

@@ -11,7 +11,7 @@ import numpy as np
 
 from ..errors import MeshError
 from ..mesh import Mesh
-from .files import open_file, read_bytes
+from .files import atomic_open, open_file, read_bytes
 
 
 def read_mesh(path) -> Mesh:
@@ -172,7 +172,7 @@ def write_obj(path, mesh: Mesh, header: str | None = None) -> None:
             last_mat = m
         faces.append("f " + " ".join(corners[s:s + c]) + "\n")
     out.append("".join(faces))
-    with open(path, "w", encoding="utf-8") as fh:
+    with atomic_open(path, "w", encoding="utf-8") as fh:
         fh.write("".join(out))
 
 
@@ -307,7 +307,7 @@ def write_ply(path, mesh: Mesh) -> None:
     if uv is not None:
         head += ["property float s", "property float t"]
     head += [f"element face {len(mesh.face_counts)}", "property list uchar int vertex_indices", "end_header"]
-    with open(path, "wb") as fh:
+    with atomic_open(path, "wb") as fh:
         fh.write(("\n".join(head) + "\n").encode("ascii"))
         fh.write((np.hstack([V, uv]) if uv is not None else V).astype("<f4").tobytes())
         for s, c in zip(mesh.face_starts, mesh.face_counts):

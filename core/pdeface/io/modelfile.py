@@ -66,7 +66,7 @@ from .codec import (
     from_byte_planes,
     to_byte_planes,
 )
-from .files import read_bytes
+from .files import read_bytes, write_bytes
 
 FORMAT = "pdeface.face"
 VERSION = 3
@@ -115,10 +115,7 @@ def model_nbytes(model: FaceModel) -> int:
 
 def save_model(path, model: FaceModel) -> int:
     """Write a face model (with its descriptors); returns the file size in bytes."""
-    data = model_to_bytes(model)
-    with open(path, "wb") as fh:
-        fh.write(data)
-    return len(data)
+    return write_bytes(path, model_to_bytes(model))
 
 
 def model_from_bytes(data: bytes, where: str = "model") -> FaceModel:

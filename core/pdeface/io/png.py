@@ -7,6 +7,8 @@ import zlib
 
 import numpy as np
 
+from .files import write_bytes
+
 # A 5 × 7 bitmap font (the HD44780 character ROM's shapes): each glyph is seven rows of five pixels.
 # Lower case is drawn as upper case; "*" is a multiplication sign.
 _GLYPHS = {
@@ -49,11 +51,8 @@ def write_png(path, rgb: np.ndarray) -> None:
     def chunk(tag, data):
         return struct.pack(">I", len(data)) + tag + data + struct.pack(">I", zlib.crc32(tag + data) & 0xFFFFFFFF)
 
-    with open(path, "wb") as fh:
-        fh.write(b"\x89PNG\r\n\x1a\n")
-        fh.write(chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 8, 2, 0, 0, 0)))
-        fh.write(chunk(b"IDAT", zlib.compress(raw, 9)))
-        fh.write(chunk(b"IEND", b""))
+    write_bytes(path, b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 8, 2, 0, 0, 0))
+                + chunk(b"IDAT", zlib.compress(raw, 9)) + chunk(b"IEND", b""))
 
 
 def text_width(text: str, scale: int = 1) -> int:

@@ -10,6 +10,7 @@ import csv
 
 import numpy as np
 
+from .files import atomic_open
 from .png import plot_panels
 
 SCAN, PDE, DIFFERENCE = (40, 40, 40), (220, 30, 30), (30, 60, 220)
@@ -18,7 +19,7 @@ ZERO, MARKS = (150, 150, 150), (210, 210, 210)
 
 def write_profiles_csv(path, profiles: dict) -> None:
     """One row per point of each cut, with the scan's and the PDE face's radius and their difference."""
-    with open(path, "w", newline="") as fh:
+    with atomic_open(path, "w", newline="") as fh:
         wr = csv.writer(fh)
         wr.writerow(["cut", "i", "angle_deg", "height_mm", "scan_radius_mm", "pde_radius_mm", "difference_mm"])
         for name, (th, y, rs, rp) in profiles.items():

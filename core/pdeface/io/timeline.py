@@ -28,6 +28,8 @@ from ..au.facs import parse_au_key, split_au_key
 from ..errors import ModelFormatError, PdeFaceError
 
 FORMAT = "pdeface.timeline"
+#: The highest frame rate a timeline may have.
+MAX_FPS = 1000
 INTERPOLATIONS = ("constant", "linear", "bezier")
 
 
@@ -63,8 +65,8 @@ def timeline_from_json(obj, where="timeline") -> Timeline:
     if not isinstance(obj.get("version"), int) or obj["version"] > 1:
         raise ModelFormatError(f"{where}: field 'version' must be 1")
     fps = obj.get("fps", 24)
-    if isinstance(fps, bool) or not isinstance(fps, (int, float)) or not math.isfinite(fps) or not 0 < fps <= 1000:
-        raise ModelFormatError(f"{where}: field 'fps' must be a number in (0, 1000]")
+    if isinstance(fps, bool) or not isinstance(fps, (int, float)) or not math.isfinite(fps) or not 0 < fps <= MAX_FPS:
+        raise ModelFormatError(f"{where}: field 'fps' must be a number in (0, {MAX_FPS}]")
     start = obj.get("frame_start", 1)
     if not isinstance(start, int) or isinstance(start, bool):
         raise ModelFormatError(f"{where}: field 'frame_start' must be an integer")
@@ -133,8 +135,13 @@ def load_timeline(path) -> Timeline:
 
 
 def save_timeline(path, t: Timeline) -> None:
-    with open(path, "w", encoding="utf-8") as fh:
-        json.dump(timeline_to_json(t), fh, indent=1)
+    """Write a timeline (atomically); one its own reader would refuse is refused here, naming why."""
+    from .files import atomic_open
+
+    obj = timeline_to_json(t)
+    timeline_from_json(obj, str(path))
+    with atomic_open(path, "w", encoding="utf-8") as fh:
+        json.dump(obj, fh, indent=1)
 
 
 def sequence_timeline(presets, fps=24, hold=0.5, blend=0.5, mode="via_neutral") -> Timeline:

@@ -36,7 +36,7 @@ from ..au.facs import clamp_weight, clamp_weights, parse_au_key, split_au_key
 from ..au.ict import ARKIT_TO_AU
 from ..errors import ModelFormatError, PdeFaceError
 from .files import open_file, read_lines
-from .timeline import Key, Timeline
+from .timeline import MAX_FPS, Key, Timeline
 
 FORMATS = ("openface", "pyfeat", "livelink", "fas")
 
@@ -274,8 +274,10 @@ def _keys_fas(path, fps, hold):
             raise ModelFormatError(f"{path}:{lineno}: {exc}") from None
         unknown |= {f"AU{u}" for u in p.unknown}
         f_in, f_out = _frame(t + blend, fps), _frame(t + hold, fps)
-        keys.append(Key(f_in, dict(p.weights), {}, "linear"))
-        if f_out > f_in:
+        if f_in <= keys[-1].frame:  # sets held shorter than a frame: the later one wins its frame
+            keys.pop()
+        keys.append(Key(max(f_in, keys[-1].frame + 1 if keys else 1), dict(p.weights), {}, "linear"))
+        if f_out > keys[-1].frame:
             keys.append(Key(f_out, dict(p.weights), {}, "linear"))
         t += hold
         n += 1
@@ -344,8 +346,8 @@ def import_au(path, fmt="auto", fps=30.0, hold=0.5, smooth_window=1, reduce_tole
     min_confidence : float
         OpenFace confidence / Py-Feat FaceScore below which a row is dropped.
     """
-    if not fps > 0:
-        raise ModelFormatError(f"fps must be > 0, got {fps}")
+    if not 0 < fps <= MAX_FPS:
+        raise ModelFormatError(f"fps must be in (0, {MAX_FPS}], got {fps}")
     fmt = detect_format(path) if fmt == "auto" else fmt
     if fmt not in FORMATS:
         raise ModelFormatError(f"unknown format {fmt!r}; use one of {', '.join(FORMATS)}")

@@ -176,7 +176,10 @@ class Player:
                 if pending:
                     if isinstance(pending[0], Packet) and not self._wait_room(0.2):
                         continue
-                    self._handle(pending.popleft())
+                    try:
+                        self._handle(pending.popleft())
+                    except Exception as exc:  # noqa: BLE001 - one bad event must not end the reader
+                        self._handle(Garbage(f"could not handle: {exc}"[:200]))
                     continue
                 try:
                     data = conn.recv(65536)
@@ -187,7 +190,11 @@ class Player:
                     break
                 if not data:
                     break
-                pending.extend(parser.feed(data))
+                try:
+                    pending.extend(parser.feed(data))
+                except Exception as exc:  # noqa: BLE001 - a parser fault drops this read, not the link
+                    parser = StreamParser(self.max_packet)
+                    self._handle(Garbage(f"could not parse: {exc}"[:200]))
         finally:
             self.stats.connected = False
             self._conn = None

@@ -24,6 +24,8 @@ ACK, PAUSE, END, RESUME, STOP = 1, -1, -2, -3, -4
 CONTROLS = {ACK: "ack", PAUSE: "pause", END: "end", RESUME: "resume", STOP: "stop"}
 #: Longest packet accepted (bytes); longer input is dropped up to the next packet.
 MAX_PACKET = 1024
+#: Digits a control integer may have (they are -4 … 1); a longer run is garbage, however it arrives.
+MAX_CONTROL_DIGITS = 8
 
 _ITEM = re.compile(r"^(\d{1,3})([LR]?)(?:([A-E])|:([0-9]*\.?[0-9]+(?:[eE][-+]?\d+)?))?$")
 
@@ -100,23 +102,36 @@ def format_packet(weights: dict, plain: bool = False) -> str:
     return "{" + ",".join(f"{k}:{w:.3g}" for k, w in weights.items()) + "}"
 
 
+def _finite(v) -> bool:
+    """A JSON number that is a finite float (a huge integer is not: it overflows)."""
+    try:
+        return math.isfinite(float(v))
+    except OverflowError:
+        return False
+
+
 def parse_json_line(line: str) -> Packet:
     """A FACSvatar-style JSON line: ``{"au_r": {"AU12": 0.8, ...}, "timestamp": ...}``.
 
     Intensities above 1 are taken as OpenFace's 0-5 scale.
     """
+    if len(line) > MAX_PACKET:
+        raise PacketError(f"JSON line longer than {MAX_PACKET} bytes")
     try:
         obj = json.loads(line)
     except json.JSONDecodeError as exc:
         raise PacketError(f"bad JSON line ({exc.msg})") from None
+    except (ValueError, RecursionError) as exc:  # a number of thousands of digits, nesting too deep
+        raise PacketError(f"bad JSON line ({str(exc)[:60]})") from None
     if not isinstance(obj, dict) or not isinstance(obj.get("au_r"), dict):
         raise PacketError("JSON line needs an 'au_r' object")
     weights, unknown = {}, []
     values = obj["au_r"]
-    scale = 5.0 if any(isinstance(v, (int, float)) and v > 1.0 for v in values.values()) else 1.0
     for k, v in values.items():
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-            raise PacketError(f"au_r[{k!r}] is not a finite number")
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not _finite(v):
+            raise PacketError(f"au_r[{str(k)[:20]!r}] is not a finite number")
+    scale = 5.0 if any(v > 1.0 for v in values.values()) else 1.0
+    for k, v in values.items():
         try:
             key = parse_au_key(k)
         except PdeFaceError:
@@ -124,7 +139,7 @@ def parse_json_line(line: str) -> Packet:
             continue
         weights[key] = clamp_weight(v / scale)
     ts = obj.get("timestamp")
-    ts = float(ts) if isinstance(ts, (int, float)) and not isinstance(ts, bool) and math.isfinite(ts) else None
+    ts = float(ts) if isinstance(ts, (int, float)) and not isinstance(ts, bool) and _finite(ts) else None
     return Packet(weights, line[:200], unknown, ts)
 
 
@@ -161,6 +176,9 @@ class StreamParser:
                             self._buf, self._skipping = "", True
                         break
                     line, self._buf = s[:end], s[end + 1:]
+                    if len(line) > self.max_packet:  # however it arrived: whole in one read, or in pieces
+                        events.append(Garbage("JSON line too long", line[:40]))
+                        continue
                     try:
                         events.append(parse_json_line(line))
                     except PacketError as exc:
@@ -184,6 +202,10 @@ class StreamParser:
                     events.append(Garbage(str(exc), text[:40]))
                 continue
             m = re.match(r"-?\d+", s)
+            if m and len(m.group()) > MAX_CONTROL_DIGITS:  # no control is this long: drop the run of digits
+                events.append(Garbage("control integer too long", m.group()[:40]))
+                self._buf = s[m.end():]
+                continue
             if m and (m.end() < len(s)):  # a control integer needs a delimiter after it
                 code = int(m.group())
                 events.append(Control(code) if code in CONTROLS else Garbage(f"unknown control {code}", m.group()))
