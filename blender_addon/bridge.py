@@ -98,6 +98,13 @@ def set_key_coords(key_block, V):
     key_block.data.foreach_set("co", np.asarray(V, np.float32).ravel())
 
 
+def key_coords(key_block) -> np.ndarray:
+    """A shape key's coordinates, float32 (n, 3), as Blender stores them."""
+    co = np.empty(len(key_block.data) * 3, dtype=np.float32)
+    key_block.data.foreach_get("co", co)
+    return co.reshape(-1, 3)
+
+
 def skin_material():
     mat = bpy.data.materials.get("PDE Skin")
     if mat is None:

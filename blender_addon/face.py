@@ -191,6 +191,23 @@ def scene_mixer(settings):
 
 # ------------------------------------------------------------------ shape keys
 
+def _fingerprint(coords) -> str:
+    import hashlib
+    return hashlib.blake2b(np.ascontiguousarray(coords, np.float32).tobytes(), digest_size=8).hexdigest()
+
+
+def _is_ours(key_block, entry) -> bool:
+    """Our key still: made by us and holding what we wrote (an entry from before marks counts as ours)."""
+    return not entry.mark or entry.mark == _fingerprint(bridge.key_coords(key_block))
+
+
+def _write_key(key_block, entry, coords):
+    coords = np.asarray(coords, np.float32)
+    key_block.slider_min, key_block.slider_max = 0.0, 1.0
+    bridge.set_key_coords(key_block, coords)
+    entry.mark = _fingerprint(coords)
+
+
 def build_keys(obj, presets):
     """Basis = neutral PDE face; one key per AU and per preset, updated in place when present.
 
@@ -228,8 +245,8 @@ def build_keys(obj, presets):
     blocks = obj.data.shape_keys.key_blocks
 
     def put(name, coords, kind, au_key="", label=""):
-        if name in blocks and name not in entries:
-            counts["skipped"] += 1  # the user's own key of that name: not ours to touch
+        if name in blocks and (name not in entries or not _is_ours(blocks[name], entries[name])):
+            counts["skipped"] += 1  # the user's own key of that name (perhaps made after deleting ours)
             return
         kb = blocks.get(name)
         if kb is None:
@@ -238,13 +255,12 @@ def build_keys(obj, presets):
             counts["made"] += 1
         else:
             counts["updated"] += 1
-        kb.slider_min, kb.slider_max = 0.0, 1.0
-        bridge.set_key_coords(kb, coords)
         e = entries.get(name)
         if e is None:
             e = obj.pdeface.keys.add()
             e.name = name
             entries[name] = e
+        _write_key(kb, e, coords)
         e.kind, e.au_key, e.label = kind, au_key, label or name
         e.region = catalogue[pd.au.facs.au_number(au_key)].region if au_key else ""
 
@@ -270,17 +286,18 @@ def write_mix_key(obj, model, weights, mixer):
         raise error("build shape keys first")
     blocks = obj.data.shape_keys.key_blocks
     kb = blocks.get(MIX_KEY)
-    if kb is not None and MIX_KEY not in {e.name for e in obj.pdeface.keys}:
+    entry = next((e for e in obj.pdeface.keys if e.name == MIX_KEY), None)
+    if kb is not None and (entry is None or not _is_ours(kb, entry)):
         raise error(f"a shape key named {MIX_KEY!r} is yours; rename it to use the {mixer} mixer")
     C, R = pd.au.expressions.pose_curves(model, weights, mixer)
     coords = pd.surface.fit.face_mesh(model, obj.pdeface.resolution, coefficients=C, residual=R).vertices
     if kb is None:
         kb = obj.shape_key_add(name=MIX_KEY, from_mix=False)
         kb.value = 0.0
-        e = obj.pdeface.keys.add()
-        e.name, e.kind, e.label = MIX_KEY, "MIX", "mixed pose"
-    kb.slider_min, kb.slider_max = 0.0, 1.0
-    bridge.set_key_coords(kb, coords)
+    if entry is None:
+        entry = obj.pdeface.keys.add()
+        entry.name, entry.kind, entry.label = MIX_KEY, "MIX", "mixed pose"
+    _write_key(kb, entry, coords)
     set_pose(obj, {MIX_KEY: 1.0})
 
 

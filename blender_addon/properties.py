@@ -31,6 +31,8 @@ class PDEFACE_PG_key(bpy.types.PropertyGroup):
     au_key: StringProperty(description="AU key, e.g. 12 or 12L")
     region: StringProperty(description="upper, lower or eyes_head")
     label: StringProperty()
+    mark: StringProperty(description="Fingerprint of the coordinates we last wrote: a key whose coordinates "
+                                     "no longer match is the user's")
 
 
 class PDEFACE_PG_face(bpy.types.PropertyGroup):

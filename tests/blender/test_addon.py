@@ -310,3 +310,24 @@ def test_manifest_declares_what_the_addon_opens():
     permissions = tomllib.loads((ROOT / "blender_addon" / "blender_manifest.toml").read_text())["permissions"]
     assert {"files", "network"} <= set(permissions)  # the live link opens a TCP socket
     assert "TCP" in permissions["network"]
+
+
+def test_a_user_key_under_one_of_our_old_names_is_theirs(bpy, face):
+    # The user deletes our key (its entry stays in the registry) and makes their own of that name,
+    # slider up to 3, keyframed at 2.5: a rebuild leaves it as it is.
+    kb = key_blocks(face)
+    face.shape_key_remove(kb["Expr sad"])
+    theirs = face.shape_key_add(name="Expr sad", from_mix=False)
+    co = np.array([v.co[:] for v in theirs.data]) + 0.2
+    theirs.data.foreach_set("co", co.astype(np.float32).ravel())
+    theirs.slider_max = 3.0
+    theirs.value = 2.5
+    theirs.keyframe_insert("value", frame=1)
+    assert bpy.ops.pdeface.build_shape_keys() == {"FINISHED"}
+    theirs = key_blocks(face)["Expr sad"]
+    assert theirs.slider_max == 3.0
+    np.testing.assert_allclose(np.array([v.co[:] for v in theirs.data]), co, atol=1e-6)
+    bpy.context.scene.frame_set(1)
+    assert theirs.value == pytest.approx(2.5)
+    # our own keys are still rebuilt in place
+    assert key_blocks(face)["Expr happy"].slider_max == 1.0
