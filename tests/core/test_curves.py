@@ -138,8 +138,10 @@ def test_rims_need_a_layout_from_place_curves(face_space):
 def test_layout_count_is_configurable_and_checked(face_space):
     _, _, Lf = face_space
     assert place_curves(Lf, 19, 21).angles().shape == (19, 21)
-    with pytest.raises(LayoutError, match="at least 4 curves"):
+    with pytest.raises(LayoutError, match="3 curves; a face has 4 to"):
         place_curves(Lf, 3)
+    with pytest.raises(LayoutError, match="2000 points per curve; a face has 7 to"):
+        place_curves(Lf, 34, 2000)  # a face needs nothing like it: refused before anything is allocated
     with pytest.raises(LayoutError, match="not in face order"):
         place_curves(Lf * np.array([1, -1, 1]))  # upside down
     collapsed = Lf.copy()

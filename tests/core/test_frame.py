@@ -83,8 +83,14 @@ def test_bad_landmark_geometry(scan):
     L = mesh.vertices[idx]
     with pytest.raises(LandmarkError, match="out of range"):
         landmark_points(mesh.vertices, np.full(68, len(mesh.vertices)))
-    with pytest.raises(LandmarkError, match="degenerate"):
+    with pytest.raises(LandmarkError, match="eyes are 0 mm apart"):
         face_frame(np.zeros((68, 3)), "cm")
+    flat = L.copy()
+    flat[27] = flat[8]  # the nose bridge on the chin
+    with pytest.raises(LandmarkError, match="degenerate"):
+        face_frame(flat, "cm")
+    with pytest.raises(LandmarkError, match=r"eyes are 6\.\d+e\+03 mm apart in unit 'm'"):
+        face_frame(L, "m")  # a scan in cm said to be in metres: a face over a metre wide
     with pytest.raises(LandmarkError, match="unknown unit"):
         face_frame(L, "furlong")
     mirrored = L * np.array([1, 1, -1])  # the face now looks -z, but the order says +z

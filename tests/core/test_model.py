@@ -55,7 +55,7 @@ def test_malformed_files_name_the_problem(tmp_path, fitted):
         (rewrite(good, tmp_path / "e2.npz", residual=np.zeros((3, model.layout.n_curves, 37), np.int16)), "'residual' must be uint8"),
         (rewrite(good, tmp_path / "e3.npz", layout=np.zeros(20, np.float32)), "'layout'"),
         (rewrite(good, tmp_path / "e4.npz", layout=np.load(good)["layout"][:-4]), "'layout'"),
-        (rewrite(good, tmp_path / "f.npz", meta=np.frombuffer(b"{not json", np.uint8)), "not JSON"),
+        (rewrite(good, tmp_path / "f.npz", meta=np.frombuffer(b"{not json", np.uint8)), "not valid JSON"),
         (rewrite(good, tmp_path / "g.npz", meta=meta_of(good, unit="parsec")), "'unit'"),
     ]
     for path, message in cases:

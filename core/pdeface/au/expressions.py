@@ -21,6 +21,7 @@ or ``{"format": "pdeface.presets", "version": 1, "presets": [ ...objects as abov
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -78,10 +79,13 @@ def parse_weight(value, where="weight") -> float:
     """A weight: number (clamped to [0, 1]) or FACS letter A-E."""
     if isinstance(value, str):
         return letter_to_weight(value)
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)) \
-            or not np.isfinite(value):
-        raise PdeFaceError(f"{where}: {value!r} is not a weight (a number in [0, 1] or a letter A-E)")
-    return clamp_weight(value)
+    try:
+        number = float(value) if isinstance(value, (int, float, np.integer, np.floating)) else math.nan
+    except OverflowError:  # an integer of hundreds of digits
+        number = math.nan
+    if isinstance(value, (bool, np.bool_)) or not math.isfinite(number):
+        raise PdeFaceError(f"{where}: {str(value)[:20]!r} is not a weight (a number in [0, 1] or a letter A-E)")
+    return clamp_weight(number)
 
 
 def normalise_weights(weights: dict) -> dict:

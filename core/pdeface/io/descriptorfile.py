@@ -33,14 +33,17 @@ from ..au.descriptor import Descriptor
 from ..au.facs import SIDES, action_unit
 from ..errors import ModelFormatError, PdeFaceError
 from ..surface.fourier import fit_fourier
+from ..surface.layout import check_sizes
 from .codec import decode_residual, encode_residual
-from .files import read_bytes, write_bytes
+from .files import parse_json, read_bytes, write_bytes
 
 FORMAT = "pdeface.descriptor"
 VERSION = 1
 MAGIC = b"PDEDESC\0"
 #: Rounding step of point changes in binary descriptors (mm).
 POINT_STEP_MM = 0.05
+#: The most a binary descriptor's body may inflate to (a full face's points at 1 µm would be far less).
+MAX_INFLATED = 16 * 2**20
 
 
 def _meta(d: Descriptor) -> dict:
@@ -89,10 +92,9 @@ def _check_meta(obj, where):
     lay = _field(obj, "layout", where, dict)
     try:
         layout = (int(lay["curves"]), int(lay["points"]), int(lay["modes"]))
-    except (KeyError, TypeError, ValueError):
+    except (KeyError, TypeError, ValueError, OverflowError):
         raise ModelFormatError(f"{where}: field 'layout' needs integer curves, points, modes") from None
-    if min(layout) < 0 or layout[0] < 1 or layout[1] < 1:
-        raise ModelFormatError(f"{where}: field 'layout' has impossible sizes {layout}")
+    check_sizes(*layout, f"{where}: field 'layout'", ModelFormatError)
     extra = {k: v for k, v in obj.items() if k in ("approximation",)}
     return au, side, layout, extra
 
@@ -143,17 +145,17 @@ def descriptor_from_bytes(data: bytes, where="descriptor") -> Descriptor:
     """Read the compact binary form; errors name the problem."""
     if data[:8] != MAGIC:
         raise ModelFormatError(f"{where}: not a pdeface binary descriptor (bad magic)")
-    try:
-        raw = zlib.decompress(data[8:])
+    inflate = zlib.decompressobj()
+    try:  # inflated with a cap: a small file must not claim gigabytes
+        raw = inflate.decompress(data[8:], MAX_INFLATED)
     except zlib.error:
         raise ModelFormatError(f"{where}: body is corrupt (zlib)") from None
+    if inflate.unconsumed_tail:
+        raise ModelFormatError(f"{where}: body inflates past {MAX_INFLATED // 2**20} MiB; no descriptor is that large")
     if len(raw) < 4:
         raise ModelFormatError(f"{where}: truncated")
     (n,) = struct.unpack("<I", raw[:4])
-    try:
-        meta = json.loads(raw[4:4 + n].decode())
-    except (UnicodeDecodeError, json.JSONDecodeError):
-        raise ModelFormatError(f"{where}: header is not JSON") from None
+    meta = parse_json(raw[4:4 + n], f"{where}: header")
     au, side, (K, J, N), extra = _check_meta(meta, where)
     body = raw[4 + n:]
     step = meta.get("point_step")
@@ -186,11 +188,7 @@ def load_descriptor(path) -> Descriptor:
     data = read_bytes(path)
     if data[:8] == MAGIC:
         return descriptor_from_bytes(data, str(path))
-    try:
-        obj = json.loads(data.decode("utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise ModelFormatError(f"{path}: neither a binary descriptor nor JSON ({exc})") from None
-    return descriptor_from_json(obj, str(path))
+    return descriptor_from_json(parse_json(data, f"{path} (neither a binary descriptor nor JSON)"), str(path))
 
 
 def pack_descriptors(descriptors) -> dict:

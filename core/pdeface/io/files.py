@@ -30,15 +30,30 @@ def read_lines(path, error=ModelFormatError) -> list:
         return fh.read().splitlines()
 
 
+def parse_json(text, where="JSON", error=ModelFormatError):
+    """Parse JSON text or bytes; ``error`` (a PdeFaceError subclass) says what is wrong, where."""
+    try:
+        return json.loads(text, parse_int=_json_int)
+    except json.JSONDecodeError as exc:
+        raise error(f"{where}: not valid JSON ({exc.msg}, line {exc.lineno})") from None
+    except UnicodeDecodeError:
+        raise error(f"{where}: not UTF-8 text") from None
+    except RecursionError:
+        raise error(f"{where}: JSON nested too deeply") from None
+    except ValueError as exc:  # an integer of thousands of digits
+        raise error(f"{where}: {str(exc)[:80]}") from None
+
+
+def _json_int(text: str) -> int:
+    """A JSON integer; one of more than 15 digits (no count, index or frame in pdeface's files) is refused."""
+    if len(text.lstrip("-")) > 15:
+        raise ValueError(f"integer of {len(text.lstrip('-'))} digits")
+    return int(text)
+
+
 def load_json(path, error=ModelFormatError):
     """Parse a JSON file; ``error`` names the file and line of a problem."""
-    try:
-        with open_file(path, "r", error, encoding="utf-8") as fh:
-            return json.load(fh)
-    except json.JSONDecodeError as exc:
-        raise error(f"{path}: not valid JSON ({exc.msg}, line {exc.lineno})") from None
-    except UnicodeDecodeError:
-        raise error(f"{path}: not UTF-8 text") from None
+    return parse_json(read_bytes(path, error), str(path), error)
 
 
 @contextlib.contextmanager

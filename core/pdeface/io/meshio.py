@@ -201,10 +201,14 @@ def read_ply(path) -> Mesh:
         if p[0] == "format":
             fmt = p[1]
         elif p[0] == "element":
+            if len(p) != 3 or not p[2].isdigit():
+                raise MeshError(f"{path}:{lineno}: 'element NAME COUNT' expected, got {line[:60]!r}")
             elements.append([p[1], int(p[2]), []])
         elif p[0] == "property":
             if not elements:
                 raise MeshError(f"{path}:{lineno}: property before any element")
+            if len(p) < 3 or (p[1] == "list" and len(p) < 5):
+                raise MeshError(f"{path}:{lineno}: incomplete property {line[:60]!r}")
             if p[1] == "list":
                 if p[2] not in _PLY_TYPES or p[3] not in _PLY_TYPES:
                     raise MeshError(f"{path}:{lineno}: unknown PLY type in {line!r}")
@@ -269,9 +273,11 @@ def read_ply(path) -> Mesh:
     if not {"x", "y", "z"} <= set(names):
         raise MeshError(f"{path}: vertex element lacks x, y, z")
     if isinstance(rows, np.ndarray):
-        V = np.stack([rows["x"], rows["y"], rows["z"]], 1).astype(np.float64)
-        uv_names = next((n for n in (("s", "t"), ("u", "v"), ("texture_u", "texture_v")) if set(n) <= set(names)), None)
-        UV = np.stack([rows[uv_names[0]], rows[uv_names[1]]], 1).astype(np.float64) if uv_names else None
+        with np.errstate(invalid="ignore"):  # NaN/inf coordinates are refused below, naming the file
+            V = np.stack([rows["x"], rows["y"], rows["z"]], 1).astype(np.float64)
+            uv_names = next((n for n in (("s", "t"), ("u", "v"), ("texture_u", "texture_v"))
+                             if set(n) <= set(names)), None)
+            UV = np.stack([rows[uv_names[0]], rows[uv_names[1]]], 1).astype(np.float64) if uv_names else None
     else:
         arr = np.array(rows, dtype=np.float64).reshape(len(rows), len(names))
         V = arr[:, [names.index(c) for c in "xyz"]]

@@ -54,9 +54,9 @@ import zipfile
 
 import numpy as np
 
-from ..errors import LayoutError, ModelFormatError
+from ..errors import LayoutError, ModelFormatError, PdeFaceError
 from ..surface.frame import FEATURE_NAMES, UNITS_MM, FaceFrame
-from ..surface.layout import CurveLayout
+from ..surface.layout import CurveLayout, check_sizes
 from ..surface.model import FaceModel
 from .codec import (
     decode_coefficients,
@@ -66,10 +66,12 @@ from .codec import (
     from_byte_planes,
     to_byte_planes,
 )
-from .files import read_bytes, write_bytes
+from .files import parse_json, read_bytes, write_bytes
 
 FORMAT = "pdeface.face"
 VERSION = 3
+#: The most a model file's arrays may inflate to (the bundled face with 63 descriptors: under 1 MiB).
+MAX_INFLATED = 64 * 2**20
 
 
 def _member(z, name, path):
@@ -132,17 +134,33 @@ def load_model(path, where=None) -> FaceModel:
         For a missing file, a non-model file, a newer version or a bad field.
     """
     path_arg, path = path, (where or path)
-    if isinstance(path_arg, (str, os.PathLike)):
-        path_arg = io.BytesIO(read_bytes(path_arg))
+    data = read_bytes(path_arg) if isinstance(path_arg, (str, os.PathLike)) else path_arg.read()
     try:
-        z = np.load(path_arg, allow_pickle=False)
-    except (OSError, ValueError, zipfile.BadZipFile) as exc:
+        _check_members(data, path)
+        return _read_model(io.BytesIO(data), path)
+    except PdeFaceError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - a damaged archive or array header raises many kinds; all mean one thing
+        raise ModelFormatError(f"{path}: not a valid pdeface model file ({type(exc).__name__}: "
+                               f"{str(exc)[:80]})") from None
+
+
+def _check_members(data: bytes, path):
+    """Refuse an archive whose members would inflate past :data:`MAX_INFLATED` (before inflating any)."""
+    try:
+        with zipfile.ZipFile(io.BytesIO(data)) as zf:
+            total = sum(info.file_size for info in zf.infolist())
+    except zipfile.BadZipFile as exc:
         raise ModelFormatError(f"{path}: not a pdeface model file ({exc})") from None
+    if total > MAX_INFLATED:
+        raise ModelFormatError(f"{path}: its arrays claim {total / 2**20:.0f} MiB; a face model is far smaller "
+                               f"(limit {MAX_INFLATED // 2**20} MiB)")
+
+
+def _read_model(fileobj, path) -> FaceModel:
+    z = np.load(fileobj, allow_pickle=False)
     with z:
-        try:
-            meta = json.loads(bytes(_member(z, "meta", path)).decode())
-        except (UnicodeDecodeError, json.JSONDecodeError):
-            raise ModelFormatError(f"{path}: field 'meta' is not JSON") from None
+        meta = parse_json(bytes(_member(z, "meta", path)), f"{path}: field 'meta'")
         if not isinstance(meta, dict) or meta.get("format") != FORMAT:
             raise ModelFormatError(f"{path}: not a pdeface face model (format {meta.get('format') if isinstance(meta, dict) else None!r})")
         if not isinstance(meta.get("version"), int) or meta["version"] > VERSION:
@@ -183,6 +201,7 @@ def load_model(path, where=None) -> FaceModel:
         except LayoutError as exc:
             raise ModelFormatError(f"{path}: field 'layout': {exc}") from None
         J = layout.n_points
+        check_sizes(K, J, coef.shape[1] - 1 if coef.ndim == 3 else 0, f"{path}: field 'layout'", ModelFormatError)
         if coef.ndim != 3 or coef.shape[0] != K or coef.shape[2] != 3:
             raise ModelFormatError(f"{path}: field 'coefficients' has shape {coef.shape}, expected ({K}, N+1, 3)")
         if res.shape != (K, J, 3):

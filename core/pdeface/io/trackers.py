@@ -39,6 +39,8 @@ from .files import open_file, read_lines
 from .timeline import MAX_FPS, Key, Timeline
 
 FORMATS = ("openface", "pyfeat", "livelink", "fas")
+#: The longest recording read (a day): time stamps beyond it are a broken file, not a take.
+MAX_SECONDS = 24 * 3600
 
 _LLF_META = {"timecode", "blendshapecount"}
 
@@ -85,7 +87,7 @@ def _number(text, path, lineno, column):
 
 
 def _rows(path):
-    with open_file(path, encoding="utf-8-sig", newline="") as fh:
+    with open_file(path, encoding="utf-8-sig", errors="replace", newline="") as fh:
         reader = csv.reader(fh)
         header = None
         for row in reader:
@@ -194,7 +196,7 @@ TIMECODE_RATES = (24, 25, 30, 48, 50, 60, 72, 90, 100, 120, 240)
 
 def _timecode(text, path, lineno):
     """``HH:MM:SS:FF[.sub]`` → (whole seconds, frames within the second incl. the sub-frame)."""
-    m = re.fullmatch(r"\s*(\d+):(\d+):(\d+)[:;](\d+)(?:\.(\d+))?\s*", text)
+    m = re.fullmatch(r"\s*(\d{1,3}):(\d{1,2}):(\d{1,2})[:;](\d{1,3})(?:\.(\d{1,9}))?\s*", text)
     if not m:
         raise ModelFormatError(f"{path}:{lineno}: Timecode {text.strip()[:24]!r} is not HH:MM:SS:FF[.sub]")
     h, mi, s, f, sub = m.groups()
@@ -289,7 +291,7 @@ def _keys_fas(path, fps, hold):
 
 def smooth(values: np.ndarray, window: int) -> np.ndarray:
     """Centred moving average over ``window`` samples along axis 0 (edges use what is there)."""
-    if window <= 1:
+    if window <= 1 or values.size == 0:
         return values
     kernel = np.ones(window)
     pad = window // 2
@@ -365,7 +367,10 @@ def import_au(path, fmt="auto", fps=30.0, hold=0.5, smooth_window=1, reduce_tole
     if not poses:
         raise ModelFormatError(f"{path}: no usable rows ({dropped} dropped for tracking failure or low confidence)")
     channels = sorted({a for p in poses for a in p}, key=split_au_key)
-    frames = 1 + np.floor(np.asarray(times) * fps + 0.5).astype(np.int64)
+    times = np.asarray(times, dtype=np.float64)
+    if not (np.abs(times) <= MAX_SECONDS).all():
+        raise ModelFormatError(f"{path}: time stamps span more than {MAX_SECONDS // 3600} hours")
+    frames = 1 + np.floor(times * fps + 0.5).astype(np.int64)
     values = np.array([[p.get(c, 0.0) for c in channels] for p in poses])
     # One key per frame (trackers may sample faster than the timeline): the last sample wins.
     order = np.argsort(frames, kind="stable")

@@ -50,6 +50,22 @@ def skin_triangles(V: np.ndarray, T: np.ndarray, points: np.ndarray) -> np.ndarr
     return T[np.isin(lab[T[:, 0]], np.unique(lab[near]))]
 
 
+def check_landmarks_on_mesh(V_face, L_face, reach_mm=20.0):
+    """Refuse landmarks that lie off the mesh (a point moved by hand, landmarks of another mesh).
+
+    Each landmark must be within ``reach_mm`` of a mesh vertex (face frame, mm).
+    """
+    from scipy.spatial import cKDTree
+
+    from ..errors import LandmarkError
+
+    dist = cKDTree(V_face).query(L_face)[0]
+    worst = int(np.argmax(dist))
+    if dist[worst] > reach_mm:
+        raise LandmarkError(f"landmark {worst} lies {dist[worst]:.3g} mm from the mesh (limit {reach_mm:g} mm): "
+                            "are these this mesh's landmarks, in its unit?")
+
+
 def chord_knots(points: np.ndarray) -> np.ndarray:
     """Curve parameters in [0, 1] by mean chord length between consecutive curves."""
     gaps = np.linalg.norm(np.diff(points, axis=0), axis=2).mean(axis=1)
@@ -102,6 +118,7 @@ def fit_face(vertices, triangles, landmarks, unit=None, n_curves=DEFAULT_CURVES,
     frame = face_frame(landmarks, unit)
     Vf = frame.to_face(V)
     Lf = frame.to_face(landmarks)
+    check_landmarks_on_mesh(Vf, Lf)
     layout = place_curves(Lf, n_curves, n_points, follow_lips=follow_lips)
     skin = skin_triangles(Vf, T, Lf)
     layout = follow_rims(layout, Vf, skin)

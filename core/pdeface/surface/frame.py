@@ -17,6 +17,8 @@ UNITS_MM = {"mm": 1.0, "cm": 10.0, "m": 1000.0, "in": 25.4}
 
 #: Typical adult distance between the eye centres (mm), used to guess the unit.
 EYE_DISTANCE_MM = 63.0
+#: Eye-centre distances a face may have (a small child's to a giant caricature's), in mm.
+EYE_DISTANCE_RANGE_MM = (20.0, 200.0)
 
 #: The 19 feature points of the method, from the Multi-PIE 68 (0-based) landmarks.
 #: Each is the mean of the listed landmarks. "right"/"left" are the subject's.
@@ -56,6 +58,8 @@ def parse_landmarks(data, name="landmarks"):
             raise LandmarkError(f"{name}: 'indices' must be a list of integers")
         if len(idx) != 68:
             raise LandmarkError(f"{name}: 'indices' needs 68 entries (Multi-PIE), got {len(idx)}")
+        if not all(0 <= i < 2**31 for i in idx):
+            raise LandmarkError(f"{name}: 'indices' must be vertex numbers from 0")
         return np.array(idx, dtype=np.int64), None
     pts = data["points"]
     try:
@@ -161,6 +165,10 @@ def face_frame(landmarks68: np.ndarray, unit: str | None = None) -> FaceFrame:
         unit = guess_unit(L)
     if unit not in UNITS_MM:
         raise LandmarkError(f"unknown unit {unit!r}; use one of {', '.join(UNITS_MM)}")
+    eyes_mm = eye_distance(L) * UNITS_MM[unit]
+    if not EYE_DISTANCE_RANGE_MM[0] <= eyes_mm <= EYE_DISTANCE_RANGE_MM[1]:
+        raise LandmarkError(f"the eyes are {eyes_mm:.3g} mm apart in unit {unit!r}; a face's are "
+                            f"{EYE_DISTANCE_RANGE_MM[0]}-{EYE_DISTANCE_RANGE_MM[1]} mm: check the unit and the landmarks")
     x = L[42:48].mean(0) - L[36:42].mean(0)  # right eye → left eye
     up = L[27] - L[8]  # chin → nose bridge
     nx = np.linalg.norm(x)

@@ -33,6 +33,17 @@ from .pde import break_fits, cubic_spline_operator
 #: scan on the ICT neutral and its 20 identities. No 31-curve layout found did
 #: both (the former one left 11° on the chin, nostrils and lower lids).
 DEFAULT_CURVES = 34
+#: The most curves, points per curve and Fourier modes a face can need (about 10x the defaults):
+#: files claiming more are refused before anything is allocated.
+MAX_CURVES, MAX_POINTS, MAX_MODES = 400, 400, 64
+
+
+def check_sizes(n_curves, n_points, n_modes, where="layout", error=LayoutError):
+    """Refuse curve, point or mode counts outside what a face can need (see :data:`MAX_CURVES`)."""
+    for name, value, low, high in (("curves", n_curves, 4, MAX_CURVES), ("points per curve", n_points, 7, MAX_POINTS),
+                                   ("modes", n_modes, 0, MAX_MODES)):
+        if not low <= value <= high:
+            raise error(f"{where}: {value} {name}; a face has {low} to {high}")
 
 #: Relative curve density between successive heights, top to bottom: denser at
 #: brows, eyes, nose and lips, as the method's curves are. ``eye_top`` and
@@ -289,10 +300,7 @@ def place_curves(landmarks_face: np.ndarray, n_curves: int = DEFAULT_CURVES, n_p
         line and each lid (:data:`OPENINGS`); False gives straight
         horizontal sections.
     """
-    if n_curves < 4:
-        raise LayoutError(f"need at least 4 curves, got {n_curves}")
-    if n_points < 7:
-        raise LayoutError(f"need at least 7 points per curve, got {n_points}")
+    check_sizes(n_curves, n_points, 0)
     L = np.asarray(landmarks_face, dtype=np.float64)
     axis_z = -1.75 * eye_distance(L)
     brow, eye = L[17:27, 1].mean(), L[36:48, 1].mean()

@@ -1,0 +1,65 @@
+"""Every reader, fed mutated copies of valid files, says what is wrong with a PdeFaceError or reads them.
+
+A fixed slice of scripts/fuzz_readers.py (the long run's harness): the same seed, a few hundred
+inputs per reader, so a failure here replays exactly.
+"""
+import importlib.util
+import io
+import time
+import zipfile
+import zlib
+from pathlib import Path
+
+import numpy as np
+import pytest
+from pdeface.errors import LandmarkError, ModelFormatError
+
+spec = importlib.util.spec_from_file_location("fuzz_readers", Path(__file__).parents[2] / "scripts" / "fuzz_readers.py")
+fuzz_readers = importlib.util.module_from_spec(spec)
+spec.loader.exec_module(fuzz_readers)
+
+
+@pytest.mark.parametrize("reader", sorted(fuzz_readers.readers()))
+def test_mutated_files_raise_only_pdeface_errors(reader):
+    r = fuzz_readers.fuzz(reader, 250, seed=0)
+    assert r["failures"] == 0, r["examples"]
+    assert r["slowest_s"] < 2.0
+
+
+def refused_fast(call, error, match):
+    t = time.perf_counter()
+    with pytest.raises(error, match=match):
+        call()
+    assert time.perf_counter() - t < 1.0
+
+
+def test_bombs_and_absurd_sizes_are_refused_before_allocating(tmp_path, fitted, scan):
+    from pdeface.io.descriptorfile import MAGIC, load_descriptor
+    from pdeface.io.modelfile import load_model, model_to_bytes
+    from pdeface.surface.fit import fit_face
+    # a .pdd whose body inflates to 64 MiB of zeros
+    (tmp_path / "bomb.pdd").write_bytes(MAGIC + zlib.compress(b"\0" * 64 * 2**20, 9))
+    refused_fast(lambda: load_descriptor(tmp_path / "bomb.pdd"), ModelFormatError, "inflates past")
+    # a model archive whose member inflates to 128 MiB
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED) as zf:
+        zf.writestr("meta.npy", b"\0" * 128 * 2**20)
+    (tmp_path / "bomb.npz").write_bytes(buf.getvalue())
+    refused_fast(lambda: load_model(tmp_path / "bomb.npz"), ModelFormatError, "claim 128 MiB")
+    # a model claiming 2,000 points per curve
+    model, _ = fitted
+    data = bytearray(model_to_bytes(model, descriptors=False))
+    with zipfile.ZipFile(io.BytesIO(bytes(data))) as zf:
+        arrays = {n[:-4]: np.load(io.BytesIO(zf.read(n))) for n in zf.namelist()}
+    arrays["layout"][1] = 2000.0  # points per curve
+    out = io.BytesIO()
+    np.savez_compressed(out, **arrays)
+    (tmp_path / "wide.npz").write_bytes(out.getvalue())
+    refused_fast(lambda: load_model(tmp_path / "wide.npz"), ModelFormatError, "2000 points per curve")
+    # landmarks with one moved a kilometre, or all scaled by a million
+    mesh, T, idx = scan
+    L = mesh.vertices[idx].copy()
+    far = L.copy()
+    far[30] += [0, 0, 1e5]  # cm
+    refused_fast(lambda: fit_face(mesh.vertices, T, far, unit="cm"), LandmarkError, "landmark 30 lies .* from the mesh")
+    refused_fast(lambda: fit_face(mesh.vertices, T, L * 1e6), LandmarkError, "eyes are|from the mesh")
