@@ -299,8 +299,8 @@ def test_a_peer_that_never_reads_acks_cannot_stall_the_player():
         s = socket.socket()
         s.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)  # small buffers: acks back up quickly
         s.connect(address)
-        until(lambda: player._conn is not None)
-        player._conn.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, 4096)
+        until(lambda: len(player._conns) == 1)
+        next(iter(player._conns)).setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, 4096)
         s.settimeout(20)
         n = 300_000  # ~1 MB of packets, ~600 KB of acks the sender never reads
         s.sendall(b"{4}" * n)  # would hang forever if the player blocked on its acks
@@ -345,5 +345,26 @@ def test_one_bad_packet_never_stops_the_stream(hostile):
         until(lambda: player.pose().get("6") == 0.5)
         assert player.stats.garbage + player.stats.packets >= 2 and player.stats.connected
         s.close()
+    finally:
+        player.close()
+
+
+def test_senders_are_served_at_once_and_an_idle_half_packet_is_dropped():
+    player = Player(transition=0.0, idle_timeout=0.5, max_senders=2)
+    address = player.listen()
+    try:
+        stuck = connect(address)
+        stuck.sendall(b"{1,2")  # half a packet, then silence
+        until(lambda: player.stats.senders == 1)
+        other = connect(address)
+        other.sendall(b"{12}")
+        until(lambda: player.pose().get("12") == 1.0)  # served while the first one sits there
+        third = connect(address)  # over max_senders: turned away, the others go on
+        until(lambda: player.stats.refused == 1)
+        until(lambda: player.stats.idle_drops == 1 and player.stats.senders == 1, timeout=5)
+        other.sendall(b"{6}")
+        until(lambda: player.pose().get("6") == 1.0)
+        for s in (stuck, other, third):
+            s.close()
     finally:
         player.close()

@@ -43,6 +43,9 @@ class Stats:
     pauses_sent: int = 0
     controls_dropped: int = 0
     resumes_sent: int = 0
+    senders: int = 0  # connected now
+    refused: int = 0  # connections turned away (too many senders)
+    idle_drops: int = 0  # connections dropped for sitting on half a packet
     ended: bool = False
     stopped: bool = False
     latencies: collections.deque = field(default_factory=lambda: collections.deque(maxlen=100_000))
@@ -54,8 +57,8 @@ class Stats:
         return {"connected": self.connected, "connections": self.connections, "packets": self.packets,
                 "played": self.played, "dropped": self.dropped, "garbage": self.garbage,
                 "unknown_aus": sorted(self.unknown_aus, key=str), "pauses_sent": self.pauses_sent,
-                "controls_dropped": self.controls_dropped,
-                "resumes_sent": self.resumes_sent, "ended": self.ended, "latency_ms_p50": p(0.5),
+                "controls_dropped": self.controls_dropped, "senders": self.senders, "refused": self.refused,
+                "idle_drops": self.idle_drops, "resumes_sent": self.resumes_sent, "ended": self.ended, "latency_ms_p50": p(0.5),
                 "latency_ms_p99": p(0.99), "last_error": self.last_error}
 
 
@@ -73,15 +76,21 @@ class Player:
     mode : {'queue', 'live'}
     blender : AUBlender or None
         Co-occurrence rules applied to each packet (off when None).
+    max_senders : int
+        Senders served at once when listening; more are turned away.
+    idle_timeout : float
+        Seconds a sender may sit on half a packet before it is dropped (the others go on regardless).
     """
 
     def __init__(self, receive_capacity=100, playout_capacity=30, resume_below=0.4, transition=0.25,
-                 mode="queue", blender=None, clock=time.monotonic, max_packet=MAX_PACKET):
+                 mode="queue", blender=None, clock=time.monotonic, max_packet=MAX_PACKET, max_senders=8,
+                 idle_timeout=10.0):
         if mode not in MODES:
             raise ValueError(f"mode must be one of {MODES}")
         self.receive_capacity, self.playout_capacity = receive_capacity, playout_capacity
         self.resume_below, self.transition, self.mode = resume_below, transition, mode
         self.blender, self.clock, self.max_packet = blender, clock, max_packet
+        self.max_senders, self.idle_timeout = max_senders, idle_timeout
         self.stats = Stats()
         self._buffer = collections.deque()  # (packet, receive time)
         self._playout = collections.deque()
@@ -89,7 +98,7 @@ class Player:
         self._arrived = threading.Condition(self._lock)
         self._room = threading.Condition(self._lock)
         self._paused_sender = False
-        self._conn = None
+        self._conns = set()
         self._threads = []
         self._closing = threading.Event()
         self._pose = {}
@@ -98,8 +107,8 @@ class Player:
 
     # ------------------------------------------------------------ receiving
 
-    def receive(self, packet: Packet, when=None) -> bool:
-        """Put a packet in the receiver buffer (False: buffer full, packet dropped).
+    def receive(self, packet: Packet, when=None, conn=None) -> bool:
+        """Put a packet in the receiver buffer (False: buffer full, packet dropped); ack it to ``conn``.
 
         The socket reader never drops: it waits for room (see ``_read``).
         """
@@ -112,31 +121,31 @@ class Player:
             self._buffer.append((packet, self.clock() if when is None else when))
             full = len(self._buffer) >= self.receive_capacity
             self._arrived.notify_all()
-        self._send(ACK)
+        self._send(ACK, conn)
         if full and not self._paused_sender:
             self._paused_sender = True
             self.stats.pauses_sent += 1
             self._send(PAUSE)
         return True
 
-    def _send(self, code: int):
-        """Send a control integer without ever blocking.
+    def _send(self, code: int, conn=None):
+        """Send a control integer to ``conn`` (None: every sender) without ever blocking.
 
         A peer that does not read its acks must not stall the reader (that
         deadlocks both ends): when the socket cannot take the bytes now, the
         control is dropped and counted. Backpressure still protects the buffer.
         """
-        conn = self._conn
-        if conn is None:
-            return
-        try:
-            _, writable, _ = select.select([], [conn], [], 0)
-            if not writable:
-                self.stats.controls_dropped += 1
-                return
-            conn.send(f"{code}\n".encode())
-        except (OSError, ValueError):
-            pass  # a vanished peer: the reader notices and cleans up
+        with self._lock:
+            conns = [conn] if conn is not None else list(self._conns)
+        for c in conns:
+            try:
+                _, writable, _ = select.select([], [c], [], 0)
+                if not writable:
+                    self.stats.controls_dropped += 1
+                    continue
+                c.send(f"{code}\n".encode())
+            except (OSError, ValueError):
+                pass  # a vanished peer: its reader notices and cleans up
 
     def _wait_room(self, timeout) -> bool:
         with self._lock:
@@ -145,9 +154,9 @@ class Player:
             self._room.wait(timeout)
             return len(self._buffer) < self.receive_capacity
 
-    def _handle(self, ev):
+    def _handle(self, ev, conn=None):
         if isinstance(ev, Packet):
-            self.receive(ev)
+            self.receive(ev, conn=conn)
         elif isinstance(ev, Control):
             if ev.code == END:
                 self.stats.ended = True
@@ -164,10 +173,13 @@ class Player:
 
     def _read(self, conn):
         parser = StreamParser(self.max_packet)
-        self._conn = conn
+        with self._lock:
+            self._conns.add(conn)
+            self.stats.senders = len(self._conns)
         self.stats.connected, self.stats.ended = True, False
         self.stats.connections += 1
         conn.settimeout(0.2)
+        last_data = time.monotonic()
         # Packets parsed but not yet in the buffer. While the buffer is full nothing more is read,
         # so TCP holds the sender back: no packet is lost, whatever the sender does with -1.
         pending = collections.deque()
@@ -177,34 +189,42 @@ class Player:
                     if isinstance(pending[0], Packet) and not self._wait_room(0.2):
                         continue
                     try:
-                        self._handle(pending.popleft())
+                        self._handle(pending.popleft(), conn)
                     except Exception as exc:  # noqa: BLE001 - one bad event must not end the reader
                         self._handle(Garbage(f"could not handle: {exc}"[:200]))
                     continue
                 try:
                     data = conn.recv(65536)
                 except socket.timeout:
+                    if parser.buffered and time.monotonic() - last_data > self.idle_timeout:
+                        self.stats.idle_drops += 1
+                        self.stats.last_error = f"dropped a sender idle on half a packet for {self.idle_timeout:g} s"
+                        break
                     continue
                 except OSError as exc:
                     self.stats.last_error = f"connection lost: {exc}"
                     break
                 if not data:
                     break
+                last_data = time.monotonic()
                 try:
                     pending.extend(parser.feed(data))
                 except Exception as exc:  # noqa: BLE001 - a parser fault drops this read, not the link
                     parser = StreamParser(self.max_packet)
                     self._handle(Garbage(f"could not parse: {exc}"[:200]))
         finally:
-            self.stats.connected = False
-            self._conn = None
+            with self._lock:
+                self._conns.discard(conn)
+                self.stats.senders = len(self._conns)
+                self.stats.connected = bool(self._conns)
             try:
                 conn.close()
             except OSError:
                 pass
 
     def listen(self, host="127.0.0.1", port=0) -> tuple:
-        """Accept senders on ``host:port`` (one at a time, reconnects welcome); returns the bound address."""
+        """Accept senders on ``host:port`` (up to ``max_senders`` at once, each on its own reader thread;
+        reconnects welcome); returns the bound address."""
         srv = socket.create_server((host, port), reuse_port=False)
         srv.settimeout(0.2)
         self._server = srv
@@ -217,8 +237,15 @@ class Player:
                     continue
                 except OSError:
                     break
+                with self._lock:
+                    full = len(self._conns) >= self.max_senders
+                if full:
+                    self.stats.refused += 1
+                    conn.close()
+                    continue
                 conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-                self._read(conn)
+                self._threads = [t for t in self._threads if t.is_alive()]
+                self._start(lambda c=conn: self._read(c))
         self._start(serve)
         return srv.getsockname()[:2]
 
@@ -248,13 +275,14 @@ class Player:
         self._closing.set()
         if self._server is not None:
             self._server.close()
-        conn = self._conn
-        if conn is not None:
+        with self._lock:
+            conns = list(self._conns)
+        for conn in conns:
             try:
                 conn.shutdown(socket.SHUT_RDWR)
             except OSError:
                 pass
-        for t in self._threads:
+        for t in list(self._threads):
             t.join(timeout=2)
 
     # ------------------------------------------------------------ playing
