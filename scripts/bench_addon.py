@@ -19,7 +19,6 @@ import time
 from pathlib import Path
 
 import numpy as np
-
 from benchlib import median_time
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -31,8 +30,8 @@ def main(argv=None):
     args = ap.parse_args(argv)
     os.environ["BLENDER_USER_RESOURCES"] = tempfile.mkdtemp()
     t = time.perf_counter()
-    import bpy
     import addon_utils  # noqa: I001 - available once bpy is imported
+    import bpy
     t_import = time.perf_counter() - t
     repo = Path(tempfile.mkdtemp())
     os.symlink(ROOT / "blender_addon", repo / "pdeface")

@@ -1,12 +1,15 @@
 """Benchmark the live AU stream on loopback (issue #6 targets).
 
-Usage: python scripts/bench_stream.py [--duration 60] [--rate 1000] [--flood 600]
+Usage: python scripts/bench_stream.py [--duration 60] [--rate 1000] [--flood 600] [--hostile 600]
 
 Prints, measured in this run:
 - receive → pose applied latency (p50, p99) in live mode at RATE packets/s for DURATION s, and
   packets sent / received / played / lost, against the 16.7 ms (one frame at 60 Hz) target;
 - the player's resident memory at the start and end of a FLOOD-second flood of malformed
-  packets (garbage, oversized, NaN, unknown AUs, partial packets), which must stay flat.
+  packets (garbage, oversized, NaN, unknown AUs, partial packets), which must stay flat;
+- HOSTILE seconds of the packets that once broke the reader (huge numbers, 60 KB lines, endless
+  digits, deep nesting: scripts/fuzz_readers.HOSTILE_PACKETS) each followed by a good packet, in
+  queue mode: every good packet must be acked and played, RSS flat.
 """
 from __future__ import annotations
 
@@ -41,6 +44,7 @@ def main(argv=None):
     ap.add_argument("--duration", type=float, default=60.0)
     ap.add_argument("--rate", type=float, default=1000.0)
     ap.add_argument("--flood", type=float, default=600.0)
+    ap.add_argument("--hostile", type=float, default=600.0)
     args = ap.parse_args(argv)
 
     player = Player(mode="live", transition=0.05)
@@ -92,6 +96,55 @@ def main(argv=None):
     print(f"malformed flood {args.flood:.0f} s, {sent / 1e6:.0f} MB: garbage events {st['garbage']}, valid packets "
           f"{st['packets']}; RSS start {start:.1f} MB, end {end_rss:.1f} MB (growth {end_rss - start:+.1f} MB); "
           f"samples {samples}")
+    stop.set()
+    controller.join()
+    player.close()
+    hostile_run(args.hostile)
+
+
+def hostile_run(seconds):
+    """Hostile packets, each followed by a good one: count the good ones acked and played."""
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from fuzz_readers import HOSTILE_PACKETS
+
+    bad = [h for h in HOSTILE_PACKETS if b"timestamp" not in h]  # (the one with a silly time stamp is good)
+    player = Player(mode="queue", transition=0.0, receive_capacity=10_000, playout_capacity=10_000)
+    address = player.listen()
+    stop = threading.Event()
+    controller = threading.Thread(target=play, args=(player, stop), daemon=True)
+    controller.start()
+    acks, good, hostile, samples = [0], 0, 0, []
+    start = rss_mb()
+    with socket.create_connection(address) as sock:
+        def count_acks():
+            buf = b""
+            while True:
+                try:
+                    data = sock.recv(65536)
+                except OSError:
+                    return
+                if not data:
+                    return
+                buf += data
+                *lines, buf = buf.split(b"\n")
+                acks[0] += sum(1 for x in lines if x.strip() == b"1")
+        reader = threading.Thread(target=count_acks, daemon=True)
+        reader.start()
+        t_end = time.monotonic() + seconds
+        while time.monotonic() < t_end:
+            for h in bad:
+                sock.sendall(h + b" {12:0.5}")
+                hostile, good = hostile + 1, good + 1
+            if len(samples) < 10 and time.monotonic() > t_end - seconds * (1 - len(samples) / 10):
+                samples.append(round(rss_mb(), 1))
+        deadline = time.monotonic() + 30
+        while (acks[0] < good or player.stats.played < good) and time.monotonic() < deadline:
+            time.sleep(0.05)
+        sock.shutdown(socket.SHUT_WR)
+    st = player.stats.as_dict()
+    print(f"hostile packets {seconds:.0f} s: {hostile} hostile, {good} good; good acked {acks[0]}, played "
+          f"{st['played']} (every one: {acks[0] == good == st['played']}); garbage {st['garbage']}; "
+          f"RSS start {start:.1f} MB, end {rss_mb():.1f} MB; samples {samples}")
     stop.set()
     controller.join()
     player.close()

@@ -25,6 +25,16 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "core"))
 
+#: Packets that once broke the player's reader (each is garbage or a packet; the next one must still play).
+HOSTILE_PACKETS = [
+    b'{"au_r": {"AU12": ' + b"9" * 400 + b'}, "timestamp": 1}\n',  # an AU value of 400 digits
+    b'{"au_r": {"AU12": 0.5}, "timestamp": ' + b"9" * 400 + b"}\n",  # a timestamp of 400 digits (ignored)
+    b"-" + b"5" * 5000 + b" ",  # a control integer of 5,000 digits
+    b'{"au_r": {"AU1": 1}, "x": "' + b"a" * 60000 + b'"}\n',  # a 60 KB JSON line in one read
+    b"[" * 900 + b"\n",  # deep nesting
+    b"7" * 200000,  # digits with no delimiter
+    b" {12:" + b"9" * 900 + b"}",  # a weight of 900 digits
+]
 NUMBERS = [b"1e308", b"-1e308", b"nan", b"NaN", b"inf", b"-inf", b"Infinity", b"9" * 400, b"-1", b"0",
            b"4294967296", b"1e-320", b"99999999999", b"-0"]
 

@@ -45,8 +45,7 @@ def test_api_and_cli_measure_the_same_skin_on_a_head_with_separate_parts(tmp_pat
     import json
 
     from pdeface.cli import main
-    from pdeface.io.meshio import write_obj
-    from pdeface.io.meshio import read_mesh
+    from pdeface.io.meshio import read_mesh, write_obj
     from pdeface.io.modelfile import load_model, save_model
     from pdeface.mesh import Mesh
     from pdeface.surface.report import accuracy_report

@@ -79,8 +79,17 @@ def test_the_01_module_names_still_import():
     assert pdeface.load_model is load_model and pdeface.save_model is save_model
     with pytest.raises(ImportError):
         from pdeface.fit import no_such_name  # noqa: F401
-    from pdeface import (accuracy_report, face_mesh, fit_face, landmark_points, load_model,  # noqa: F401
-                         read_landmarks, read_mesh, save_model, write_mesh)  # the README's Python API
+    from pdeface import (  # noqa: F401
+        accuracy_report,
+        face_mesh,
+        fit_face,
+        landmark_points,
+        load_model,
+        read_landmarks,  # the README's Python API
+        read_mesh,
+        save_model,
+        write_mesh,
+    )
     assert read_mesh is importlib.import_module("pdeface.io.meshio").read_mesh
 
 

@@ -1,9 +1,11 @@
+import importlib.util
 import json
 import socket
 import subprocess
 import sys
 import threading
 import time
+from pathlib import Path
 
 import pytest
 from pdeface.errors import ModelFormatError
@@ -313,15 +315,10 @@ def test_a_peer_that_never_reads_acks_cannot_stall_the_player():
         player.close()
 
 
-HOSTILE_PACKETS = [
-    b'{"au_r": {"AU12": ' + b"9" * 400 + b'}, "timestamp": 1}\n',  # an AU value of 400 digits
-    b'{"au_r": {"AU12": 0.5}, "timestamp": ' + b"9" * 400 + b"}\n",  # a timestamp of 400 digits (ignored)
-    b"-" + b"5" * 5000 + b" ",  # a control integer of 5,000 digits
-    b'{"au_r": {"AU1": 1}, "x": "' + b"a" * 60000 + b'"}\n',  # a 60 KB JSON line in one read
-    b"[" * 900 + b"\n",  # deep nesting
-    b"7" * 200000,  # digits with no delimiter
-    b" {12:" + b"9" * 900 + b"}",  # a weight of 900 digits
-]
+spec = importlib.util.spec_from_file_location("fuzz_readers", Path(__file__).parents[2] / "scripts" / "fuzz_readers.py")
+fuzz_readers = importlib.util.module_from_spec(spec)
+spec.loader.exec_module(fuzz_readers)
+HOSTILE_PACKETS = fuzz_readers.HOSTILE_PACKETS
 
 
 @pytest.mark.parametrize("hostile", HOSTILE_PACKETS, ids=range(len(HOSTILE_PACKETS)))
