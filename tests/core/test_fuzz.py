@@ -63,3 +63,11 @@ def test_bombs_and_absurd_sizes_are_refused_before_allocating(tmp_path, fitted, 
     far[30] += [0, 0, 1e5]  # cm
     refused_fast(lambda: fit_face(mesh.vertices, T, far, unit="cm"), LandmarkError, "landmark 30 lies .* from the mesh")
     refused_fast(lambda: fit_face(mesh.vertices, T, L * 1e6), LandmarkError, "eyes are|from the mesh")
+
+
+def test_a_field_past_the_csv_limit_is_named(tmp_path):
+    from pdeface.io.trackers import import_au
+    big = tmp_path / "big.csv"
+    big.write_text("frame, timestamp, AU12_r\n1, 0.0, " + "1" * 200_000 + "\n")
+    with pytest.raises(ModelFormatError, match="big.csv:2: field larger than field limit"):
+        import_au(big)

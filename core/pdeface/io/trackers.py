@@ -90,7 +90,13 @@ def _rows(path):
     with open_file(path, encoding="utf-8-sig", errors="replace", newline="") as fh:
         reader = csv.reader(fh)
         header = None
-        for row in reader:
+        while True:
+            try:
+                row = next(reader)
+            except StopIteration:
+                break
+            except csv.Error as exc:  # a field past the csv module's limit (128 KiB), a NUL byte, ...
+                raise ModelFormatError(f"{path}:{reader.line_num}: {exc}") from None
             if not row or all(not c.strip() for c in row):
                 continue
             if header is None:
