@@ -71,3 +71,15 @@ def test_a_field_past_the_csv_limit_is_named(tmp_path):
     big.write_text("frame, timestamp, AU12_r\n1, 0.0, " + "1" * 200_000 + "\n")
     with pytest.raises(ModelFormatError, match="big.csv:2: field larger than field limit"):
         import_au(big)
+
+
+def test_ply_headers_that_once_escaped(tmp_path):
+    from pdeface.errors import MeshError
+    from pdeface.io.meshio import read_mesh
+    cases = {b"ply\nformat binary_little_endian 1.0\nelement vertex 19999999999999999999\nproperty float x\n"
+             b"property float y\nproperty float z\nend_header\n\0\0": "elements claimed in",
+             b"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nend_header": "nothing after 'end_header'"}
+    for i, (data, match) in enumerate(cases.items()):
+        (tmp_path / f"{i}.ply").write_bytes(data)
+        with pytest.raises(MeshError, match=match):
+            read_mesh(tmp_path / f"{i}.ply")

@@ -192,7 +192,10 @@ def read_ply(path) -> Mesh:
     if not data.startswith(b"ply") or end < 0:
         raise MeshError(f"{path}:1: not a PLY file (missing 'ply' magic or 'end_header')")
     header = data[:end].decode("ascii", "replace").splitlines()
-    body = data[data.index(b"\n", end) + 1:]
+    newline = data.find(b"\n", end)
+    if newline < 0:
+        raise MeshError(f"{path}:{len(header) + 1}: nothing after 'end_header'")
+    body = data[newline + 1:]
     fmt, elements = None, []
     for lineno, line in enumerate(header, 1):
         p = line.split()
@@ -203,6 +206,8 @@ def read_ply(path) -> Mesh:
         elif p[0] == "element":
             if len(p) != 3 or not p[2].isdigit():
                 raise MeshError(f"{path}:{lineno}: 'element NAME COUNT' expected, got {line[:60]!r}")
+            if int(p[2]) > len(data):  # every element takes at least a byte: checked before any allocation
+                raise MeshError(f"{path}:{lineno}: {p[2][:20]} {p[1][:20]} elements claimed in {len(data)} bytes")
             elements.append([p[1], int(p[2]), []])
         elif p[0] == "property":
             if not elements:
