@@ -152,3 +152,11 @@ def test_skin_is_the_pieces_at_the_landmarks():
     T = np.array([[0, 1, 2], [3, 4, 5]])
     np.testing.assert_array_equal(skin_triangles(V, T, V[[3, 4]] + 0.01), T[1:])
     np.testing.assert_array_equal(skin_triangles(V, T, V[[0, 5]]), T)
+
+
+def test_every_package_is_in_the_distribution():
+    import tomllib
+    listed = set(tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"])
+    found = {".".join(p.parent.relative_to(ROOT / "core").parts) for p in CORE.rglob("__init__.py")}
+    assert found <= listed, f"add {sorted(found - listed)} to pyproject.toml's packages"
+    assert {"pdeface.bundled", "pdeface_blender"} <= listed  # the assets and the add-on travel too
