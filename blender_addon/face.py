@@ -279,15 +279,19 @@ def set_pose(obj, values, kinds=("AU", "EXPRESSION", "MIX")):
             kb.value = values.get(e.name, 0.0)
 
 
-def write_mix_key(obj, model, weights, mixer):
-    """Average and max are not linear: the mixed pose goes into one key of its own, set to 1."""
+def write_mix_key(obj, model, weights, mixer, check=True):
+    """Average and max are not linear: the mixed pose goes into one key of its own, set to 1.
+
+    ``check=False`` skips reading the key back to see it is still ours (the live link checks once,
+    at its start, not 60 times a second).
+    """
     pd = _pd()
     if obj.data.shape_keys is None:
         raise error("build shape keys first")
     blocks = obj.data.shape_keys.key_blocks
     kb = blocks.get(MIX_KEY)
     entry = next((e for e in obj.pdeface.keys if e.name == MIX_KEY), None)
-    if kb is not None and (entry is None or not _is_ours(kb, entry)):
+    if kb is not None and (entry is None or (check and not _is_ours(kb, entry))):
         raise error(f"a shape key named {MIX_KEY!r} is yours; rename it to use the {mixer} mixer")
     C, R = pd.au.expressions.pose_curves(model, weights, mixer)
     coords = pd.surface.fit.face_mesh(model, obj.pdeface.resolution, coefficients=C, residual=R).vertices
@@ -301,7 +305,7 @@ def write_mix_key(obj, model, weights, mixer):
     set_pose(obj, {MIX_KEY: 1.0})
 
 
-def pose_aus(obj, weights, mixer="sum"):
+def pose_aus(obj, weights, mixer="sum", check=True):
     """Pose the face with AU ``weights``: the AU keys for ``sum``, the mix key for the others.
 
     Returns the shape keys written.
@@ -310,7 +314,7 @@ def pose_aus(obj, weights, mixer="sum"):
         names = au_key_names(obj)
         set_pose(obj, {names[k]: w for k, w in weights.items() if k in names})
         return [kb for _, kb in managed(obj, "AU")]
-    write_mix_key(obj, bridge.face_model(obj), weights, mixer)
+    write_mix_key(obj, bridge.face_model(obj), weights, mixer, check)
     return [kb for _, kb in managed(obj, "MIX")]
 
 

@@ -36,6 +36,7 @@ def start(obj, role="LISTEN", host="127.0.0.1", port=5000, mode="live", rules=Fa
     if not face.managed(obj, "AU"):
         raise face.error("build shape keys first")
     mixer = choose_mixer(mixer)
+    face.pose_aus(obj, {}, mixer)  # the mix key is checked to be ours here, once (the timer does not)
     stop()
     player = Player(mode=mode, transition=transition, blender=AUBlender.load() if rules else None)
     try:
@@ -81,7 +82,7 @@ def tick():
     if player is None or obj is None or not obj.pdeface.is_face:
         stop()
         return
-    touched = face.pose_aus(obj, player.pose(), _state["mixer"])
+    touched = face.pose_aus(obj, player.pose(), _state["mixer"], check=False)
     _state["applied"] += 1
     if _state["record"]:
         scene = bpy.context.scene

@@ -107,7 +107,6 @@ def hostile_run(seconds):
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     from fuzz_readers import HOSTILE_PACKETS
 
-    bad = [h for h in HOSTILE_PACKETS if b"timestamp" not in h]  # (the one with a silly time stamp is good)
     player = Player(mode="queue", transition=0.0, receive_capacity=10_000, playout_capacity=10_000)
     address = player.listen()
     stop = threading.Event()
@@ -132,7 +131,7 @@ def hostile_run(seconds):
         reader.start()
         t_end = time.monotonic() + seconds
         while time.monotonic() < t_end:
-            for h in bad:
+            for h in HOSTILE_PACKETS:
                 sock.sendall(h + b" {12:0.5}")
                 hostile, good = hostile + 1, good + 1
             if len(samples) < 10 and time.monotonic() > t_end - seconds * (1 - len(samples) / 10):

@@ -28,7 +28,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "core"))
 #: Packets that once broke the player's reader (each is garbage or a packet; the next one must still play).
 HOSTILE_PACKETS = [
     b'{"au_r": {"AU12": ' + b"9" * 400 + b'}, "timestamp": 1}\n',  # an AU value of 400 digits
-    b'{"au_r": {"AU12": 0.5}, "timestamp": ' + b"9" * 400 + b"}\n",  # a timestamp of 400 digits (ignored)
+    b'{"au_r": {"AU12": 0.5}, "timestamp": ' + b"9" * 400 + b"}\n",  # a timestamp of 400 digits
     b"-" + b"5" * 5000 + b" ",  # a control integer of 5,000 digits
     b'{"au_r": {"AU1": 1}, "x": "' + b"a" * 60000 + b'"}\n',  # a 60 KB JSON line in one read
     b"[" * 900 + b"\n",  # deep nesting

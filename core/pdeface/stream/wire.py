@@ -12,13 +12,13 @@ floods) and yields events; it never evaluates anything and bounds its buffer.
 """
 from __future__ import annotations
 
-import json
 import math
 import re
 from dataclasses import dataclass, field
 
 from ..au.facs import INTENSITY, clamp_weight, parse_au_key
 from ..errors import PdeFaceError
+from ..io.files import parse_json
 
 ACK, PAUSE, END, RESUME, STOP = 1, -1, -2, -3, -4
 CONTROLS = {ACK: "ack", PAUSE: "pause", END: "end", RESUME: "resume", STOP: "stop"}
@@ -102,14 +102,6 @@ def format_packet(weights: dict, plain: bool = False) -> str:
     return "{" + ",".join(f"{k}:{w:.3g}" for k, w in weights.items()) + "}"
 
 
-def _finite(v) -> bool:
-    """A JSON number that is a finite float (a huge integer is not: it overflows)."""
-    try:
-        return math.isfinite(float(v))
-    except OverflowError:
-        return False
-
-
 def parse_json_line(line: str) -> Packet:
     """A FACSvatar-style JSON line: ``{"au_r": {"AU12": 0.8, ...}, "timestamp": ...}``.
 
@@ -117,18 +109,13 @@ def parse_json_line(line: str) -> Packet:
     """
     if len(line) > MAX_PACKET:
         raise PacketError(f"JSON line longer than {MAX_PACKET} bytes")
-    try:
-        obj = json.loads(line)
-    except json.JSONDecodeError as exc:
-        raise PacketError(f"bad JSON line ({exc.msg})") from None
-    except (ValueError, RecursionError) as exc:  # a number of thousands of digits, nesting too deep
-        raise PacketError(f"bad JSON line ({str(exc)[:60]})") from None
+    obj = parse_json(line, "JSON line", PacketError)  # (depth and huge integers refused there)
     if not isinstance(obj, dict) or not isinstance(obj.get("au_r"), dict):
         raise PacketError("JSON line needs an 'au_r' object")
     weights, unknown = {}, []
     values = obj["au_r"]
     for k, v in values.items():
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not _finite(v):
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
             raise PacketError(f"au_r[{str(k)[:20]!r}] is not a finite number")
     scale = 5.0 if any(v > 1.0 for v in values.values()) else 1.0
     for k, v in values.items():
@@ -139,7 +126,7 @@ def parse_json_line(line: str) -> Packet:
             continue
         weights[key] = clamp_weight(v / scale)
     ts = obj.get("timestamp")
-    ts = float(ts) if isinstance(ts, (int, float)) and not isinstance(ts, bool) and _finite(ts) else None
+    ts = float(ts) if isinstance(ts, (int, float)) and not isinstance(ts, bool) and math.isfinite(ts) else None
     return Packet(weights, line[:200], unknown, ts)
 
 
