@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import PdeFaceError
+from .io.files import check_output
 
 
 def _log(msg):
@@ -23,7 +24,6 @@ def _log(msg):
 
 def cmd_fit(args):
     from .assets import DEFAULT, ICT_NOTICE, load_scan
-    from .io.files import check_output
     from .io.modelfile import save_model
     from .surface.fit import fit_face
 
@@ -48,7 +48,6 @@ def cmd_fit(args):
 
 def cmd_mesh(args):
     from .assets import load_face
-    from .io.files import check_output
     from .io.meshio import write_mesh
     from .surface.fit import face_mesh
 
@@ -62,7 +61,6 @@ def cmd_mesh(args):
 
 def cmd_report(args):
     from .assets import load_face, load_scan
-    from .io.files import check_output
     from .io.modelfile import model_nbytes
     from .surface.report import accuracy_report
 
@@ -83,7 +81,6 @@ def cmd_report(args):
 
 
 def cmd_import_au(args):
-    from .io.files import check_output
     from .io.timeline import save_timeline
     from .io.trackers import import_au
 
@@ -246,7 +243,6 @@ def cmd_descriptor(args):
     from .assets import load_scan
     from .au.capture import fit_descriptor
     from .io.descriptorfile import save_descriptor
-    from .io.files import check_output
     from .io.meshio import read_mesh
     from .surface.fit import fit_face
     from .surface.frame import landmark_points, read_landmarks
@@ -279,7 +275,6 @@ def cmd_descriptor(args):
 def cmd_pose(args):
     from .assets import load_face
     from .au.expressions import PRESETS, choose_mixer, load_presets, pose_curves, resolve_preset
-    from .io.files import check_output
     from .io.meshio import write_mesh
     from .surface.fit import face_mesh
 
@@ -315,7 +310,6 @@ def cmd_pose(args):
 def cmd_retarget(args):
     from .assets import load_face
     from .au.retarget import retarget
-    from .io.files import check_output
     from .io.modelfile import save_model
 
     check_output(args.output, args.target, args.descriptors)
