@@ -40,9 +40,34 @@ def error(message):
 # ------------------------------------------------------------------ the face object and its keys
 
 def active_face(context):
-    """The active object if it is a PDE face, else None."""
+    """The active PDE face: the active object, or the face driving the active user's object; else None."""
     obj = context.active_object
-    return obj if obj is not None and obj.type == "MESH" and obj.pdeface.is_face else None
+    if obj is None or obj.type != "MESH":
+        return None
+    if obj.pdeface.is_face:
+        return obj
+    rig = obj.pdeface.rig_face
+    return rig if rig is not None and rig.pdeface.is_face else None
+
+
+def user_objects(face):
+    """The user's objects this face drives (the fitted mesh first, then the other parts), if it drives them."""
+    if not face.pdeface.head_keys:
+        return []
+    objs = [face.pdeface.source] + [p.obj for p in face.pdeface.parts]
+    return [o for o in objs if o is not None and o.type == "MESH" and o.pdeface.rig_face == face]
+
+
+def key_owner(context):
+    """Whose keys the sliders show: the active user's object when it carries ours, else the active face."""
+    obj = context.active_object
+    face = active_face(context)
+    return obj if face is not None and obj is not face and obj.pdeface.keys else face
+
+
+def rig_objects(face):
+    """The face and the user's objects carrying its keys: what poses and keyframes go to."""
+    return [face] + [o for o in user_objects(face) if o.pdeface.keys]
 
 
 def au_key_name(descriptor):
@@ -137,9 +162,14 @@ def read_landmarks(settings, obj):
     return V[hist]
 
 
-def fit_face_object(context, src, landmarks, unit=None, resolution="default", retarget=True, progress=None):
+def fit_face_object(context, src, landmarks, unit=None, resolution="default", retarget=True, progress=None,
+                    parts=(), keys_on_mesh=False):
     """Fit a PDE face to mesh object ``src`` and put it on it; returns (face object, model, sampler).
 
+    ``keys_on_mesh``: the face will drive ``src`` and the other objects of the
+    head in ``parts`` (eyes, teeth ...): :func:`build_keys` puts its keys on
+    them, the face is hidden as their reference and ``src`` stays active.
+    A vertex group ``pdeface_skin`` on ``src`` names the skin to fit.
     ``progress(step, message)`` is called before each of the three steps.
     """
     pd = _pd()
@@ -148,14 +178,46 @@ def fit_face_object(context, src, landmarks, unit=None, resolution="default", re
     T, _ = bridge.triangles(src.data)
     if len(T) == 0:
         raise error(f"{src.name} has no faces")
+    from .head import GROUP_PREFIX
+    skin = None
+    group = src.vertex_groups.get(GROUP_PREFIX + "skin")
+    if group is not None:
+        skin = np.zeros(len(V), bool)
+        skin[[v.index for v in src.data.vertices for g in v.groups if g.group == group.index and g.weight > 0]] = True
     step(1, "fitting curves")
-    model, sampler = pd.surface.fit.fit_face(V, T, landmarks, unit=unit, source=src.name)
+    model, sampler = pd.surface.fit.fit_face(V, T, landmarks, unit=unit, source=src.name, skin=skin)
     step(2, "retargeting AU descriptors")
     if retarget:
         model = pd.au.retarget.retarget(pd.assets.load_face(pd.assets.DEFAULT), model)
     step(3, "building the face")
     obj = new_face_object(context, f"PDE {src.name}", model, resolution, src.matrix_world.copy(), src)
+    if keys_on_mesh:
+        obj.pdeface.head_keys = True
+        src.pdeface.rig_face = obj
+        for p in parts:
+            if p is not src and p.type == "MESH" and not p.pdeface.is_face:
+                obj.pdeface.parts.add().obj = p
+                p.pdeface.rig_face = obj
     return obj, model, sampler
+
+
+def binding_notes(face):
+    """What binding the user's objects decided (parts found, eyeballs missing ...), for the report."""
+    from . import head
+    users = user_objects(face)
+    return head.binding(face, bridge.face_model(face), users)[0].notes if users else []
+
+
+def show_user_objects(context, face):
+    """Hide the PDE face (the reference) and make the user's mesh active and selected."""
+    users = user_objects(face)
+    if not users:
+        return
+    face.hide_set(True)
+    face.hide_render = True
+    for o in context.view_layer.objects:
+        o.select_set(o in users)
+    context.view_layer.objects.active = users[0]
 
 
 # ------------------------------------------------------------------ presets
@@ -208,11 +270,62 @@ def _write_key(key_block, entry, coords):
     entry.mark = _fingerprint(coords)
 
 
+class KeyWriter:
+    """Writes our shape keys on one object: made or updated in place; a user's key of our name is left alone."""
+
+    def __init__(self, obj):
+        from pdeface.au.facs import catalogue
+
+        self.obj = obj
+        if obj.data.shape_keys is None:
+            obj.shape_key_add(name="Basis", from_mix=False)
+        self.blocks = obj.data.shape_keys.key_blocks
+        self.entries = {e.name: e for e in obj.pdeface.keys}
+        self.catalogue = catalogue()
+        self.counts = {"made": 0, "updated": 0, "skipped": 0}
+
+    def put(self, name, coords, kind, au_key="", label=""):
+        from pdeface.au.facs import au_number
+
+        blocks, entries = self.blocks, self.entries
+        if name in blocks and (name not in entries or not _is_ours(blocks[name], entries[name])):
+            self.counts["skipped"] += 1  # the user's own key of that name (perhaps made after deleting ours)
+            return
+        kb = blocks.get(name)
+        if kb is None:
+            kb = self.obj.shape_key_add(name=name, from_mix=False)
+            kb.value = 0.0  # new keys start at 1 in Blender 5.0
+            self.counts["made"] += 1
+        else:
+            self.counts["updated"] += 1
+        e = entries.get(name)
+        if e is None:
+            e = self.obj.pdeface.keys.add()
+            e.name = name
+            entries[name] = e
+        _write_key(kb, e, coords)
+        e.kind, e.au_key, e.label = kind, au_key, label or name
+        e.region = self.catalogue[au_number(au_key)].region if au_key else ""
+
+
+def preset_poses(model, presets):
+    """``[(preset name, label, weights, mixer)]`` of the presets this model has AUs for."""
+    pd = _pd()
+    available = {d.key for d in model.descriptors}
+    out = []
+    for name, preset in presets.items():
+        weights, _ = pd.au.expressions.resolve_preset(preset, available)
+        if weights:
+            out.append((name, f"{name} ({preset.description})", weights, preset.mixer))
+    return out
+
+
 def build_keys(obj, presets):
     """Basis = neutral PDE face; one key per AU and per preset, updated in place when present.
 
-    A key of the user's with one of our names is left alone. Returns
-    ``{"made", "updated", "skipped", "aus", "expressions"}``.
+    When the face drives the user's objects (:func:`user_objects`), they get the
+    same keys (see :mod:`.head`). A key of the user's with one of our names is
+    left alone. Returns ``{"made", "updated", "skipped", "aus", "expressions", "objects"}``.
     """
     pd = _pd()
     model = bridge.face_model(obj)
@@ -222,61 +335,47 @@ def build_keys(obj, presets):
     if len(basis.neutral) != len(obj.data.vertices):
         raise error(f"{obj.name} has {len(obj.data.vertices)} vertices, its model meshes to {len(basis.neutral)}: "
                     "the mesh was edited; add the face again")
+    poses = preset_poses(model, presets)
     expressions = []  # every input computed before anything is written
-    available = set(basis.keys)
-    for name, preset in presets.items():
-        weights, _ = pd.au.expressions.resolve_preset(preset, available)
-        if not weights:
-            continue
-        if preset.mixer == "sum":
+    for name, label, weights, mixer in poses:
+        if mixer == "sum":
             coords = basis.vertices(basis.weights_matrix(weights))[0]
         else:
-            C, R = pd.au.expressions.pose_curves(model, weights, preset.mixer)
+            C, R = pd.au.expressions.pose_curves(model, weights, mixer)
             coords = pd.surface.fit.face_mesh(model, obj.pdeface.resolution, coefficients=C, residual=R).vertices
-        expressions.append((name, f"{name} ({preset.description})", coords))
+        expressions.append((name, label, coords))
+    from . import head
+    users = user_objects(obj)
+    head_keys = head.head_keys(obj, model, poses, users, au_key_name, expression_key_name) if users else []
 
-    if obj.data.shape_keys is None:
-        obj.shape_key_add(name="Basis", from_mix=False)
+    writer = KeyWriter(obj)
     bridge.set_key_coords(obj.data.shape_keys.reference_key, basis.neutral)
     obj.data.vertices.foreach_set("co", basis.neutral.astype(np.float32).ravel())
-    catalogue = pd.au.facs.catalogue()
-    counts = {"made": 0, "updated": 0, "skipped": 0}
-    entries = {e.name: e for e in obj.pdeface.keys}
-    blocks = obj.data.shape_keys.key_blocks
-
-    def put(name, coords, kind, au_key="", label=""):
-        if name in blocks and (name not in entries or not _is_ours(blocks[name], entries[name])):
-            counts["skipped"] += 1  # the user's own key of that name (perhaps made after deleting ours)
-            return
-        kb = blocks.get(name)
-        if kb is None:
-            kb = obj.shape_key_add(name=name, from_mix=False)
-            kb.value = 0.0  # new keys start at 1 in Blender 5.0
-            counts["made"] += 1
-        else:
-            counts["updated"] += 1
-        e = entries.get(name)
-        if e is None:
-            e = obj.pdeface.keys.add()
-            e.name = name
-            entries[name] = e
-        _write_key(kb, e, coords)
-        e.kind, e.au_key, e.label = kind, au_key, label or name
-        e.region = catalogue[pd.au.facs.au_number(au_key)].region if au_key else ""
-
     for i, d in enumerate(model.descriptors):
-        put(au_key_name(d), basis.neutral + basis.deltas[i].reshape(-1, 3), "AU", d.key, d.label)
+        writer.put(au_key_name(d), basis.neutral + basis.deltas[i].reshape(-1, 3), "AU", d.key, d.label)
     for name, label, coords in expressions:
-        put(expression_key_name(name), coords, "EXPRESSION", label=label)
+        writer.put(expression_key_name(name), coords, "EXPRESSION", label=label)
     obj.data.update()
-    return {**counts, "aus": len(model.descriptors), "expressions": len(expressions)}
+    counts = dict(writer.counts)
+    for user, keys in head_keys:
+        w = KeyWriter(user)
+        for name, coords, kind, au_key, label in keys:
+            w.put(name, coords, kind, au_key, label)
+        user.data.update()
+        for k in counts:
+            counts[k] += w.counts[k]
+    return {**counts, "aus": len(model.descriptors), "expressions": len(expressions), "objects": 1 + len(head_keys)}
 
 
 def set_pose(obj, values, kinds=("AU", "EXPRESSION", "MIX")):
-    """Set our keys of ``kinds``: those named in ``values`` to their value, the others to 0."""
-    for e, kb in managed(obj):
-        if e.kind in kinds:
-            kb.value = values.get(e.name, 0.0)
+    """Set our keys of ``kinds``: those named in ``values`` to their value, the others to 0.
+
+    On the face and on every user's object it drives (same key names).
+    """
+    for o in rig_objects(obj):
+        for e, kb in managed(o):
+            if e.kind in kinds:
+                kb.value = values.get(e.name, 0.0)
 
 
 def write_mix_key(obj, model, weights, mixer, check=True):
@@ -286,22 +385,28 @@ def write_mix_key(obj, model, weights, mixer, check=True):
     at its start, not 60 times a second).
     """
     pd = _pd()
+    from . import head
     if obj.data.shape_keys is None:
         raise error("build shape keys first")
-    blocks = obj.data.shape_keys.key_blocks
-    kb = blocks.get(MIX_KEY)
-    entry = next((e for e in obj.pdeface.keys if e.name == MIX_KEY), None)
-    if kb is not None and (entry is None or (check and not _is_ours(kb, entry))):
-        raise error(f"a shape key named {MIX_KEY!r} is yours; rename it to use the {mixer} mixer")
     C, R = pd.au.expressions.pose_curves(model, weights, mixer)
-    coords = pd.surface.fit.face_mesh(model, obj.pdeface.resolution, coefficients=C, residual=R).vertices
-    if kb is None:
-        kb = obj.shape_key_add(name=MIX_KEY, from_mix=False)
-        kb.value = 0.0
-    if entry is None:
-        entry = obj.pdeface.keys.add()
-        entry.name, entry.kind, entry.label = MIX_KEY, "MIX", "mixed pose"
-    _write_key(kb, entry, coords)
+    targets = [(obj, pd.surface.fit.face_mesh(model, obj.pdeface.resolution, coefficients=C, residual=R).vertices)]
+    targets += [(o, coords) for o, coords in head.pose_coords(obj, model, weights, mixer, user_objects(obj))
+                if o.pdeface.keys]
+    for o, _ in targets:
+        kb = o.data.shape_keys.key_blocks.get(MIX_KEY) if o.data.shape_keys else None
+        entry = next((e for e in o.pdeface.keys if e.name == MIX_KEY), None)
+        if kb is not None and (entry is None or (check and not _is_ours(kb, entry))):
+            raise error(f"a shape key named {MIX_KEY!r} on {o.name} is yours; rename it to use the {mixer} mixer")
+    for o, coords in targets:
+        kb = o.data.shape_keys.key_blocks.get(MIX_KEY)
+        entry = next((e for e in o.pdeface.keys if e.name == MIX_KEY), None)
+        if kb is None:
+            kb = o.shape_key_add(name=MIX_KEY, from_mix=False)
+            kb.value = 0.0
+        if entry is None:
+            entry = o.pdeface.keys.add()
+            entry.name, entry.kind, entry.label = MIX_KEY, "MIX", "mixed pose"
+        _write_key(kb, entry, coords)
     set_pose(obj, {MIX_KEY: 1.0})
 
 
@@ -313,9 +418,9 @@ def pose_aus(obj, weights, mixer="sum", check=True):
     if mixer == "sum":
         names = au_key_names(obj)
         set_pose(obj, {names[k]: w for k, w in weights.items() if k in names})
-        return [kb for _, kb in managed(obj, "AU")]
+        return [kb for o in rig_objects(obj) for _, kb in managed(o, "AU")]
     write_mix_key(obj, bridge.face_model(obj), weights, mixer, check)
-    return [kb for _, kb in managed(obj, "MIX")]
+    return [kb for o in rig_objects(obj) for _, kb in managed(o, "MIX")]
 
 
 def apply_preset(obj, name, preset, mode="AUS", weight=1.0, mixer=None):
@@ -341,8 +446,8 @@ def apply_preset(obj, name, preset, mode="AUS", weight=1.0, mixer=None):
 # ------------------------------------------------------------------ keyframes
 
 def keyframe_pose(obj, frame):
-    """Keyframe every PDE key at ``frame``; returns how many."""
-    keys = managed(obj)
+    """Keyframe every PDE key (of the face and the user's objects it drives) at ``frame``; returns how many."""
+    keys = [k for o in rig_objects(obj) for k in managed(o)]
     for _, kb in keys:
         kb.keyframe_insert("value", frame=frame)
     return len(keys)
@@ -377,12 +482,14 @@ def animate_sequence(scene, obj, names, presets, start, hold, blend, mode="via_n
             w, _ = pd.au.expressions.resolve_preset(presets[n], set(by_au))
             poses.append({by_au[k]: v for k, v in w.items()})
     frames = sequence_keys(poses, start, hold, blend, mode)
-    blocks = obj.data.shape_keys.key_blocks
-    for frame, pose in frames:
-        for name, value in pose.items():
-            kb = blocks[name]
-            kb.value = value
-            kb.keyframe_insert("value", frame=frame)
+    for o in rig_objects(obj):
+        blocks = o.data.shape_keys.key_blocks
+        for frame, pose in frames:
+            for name, value in pose.items():
+                if name in blocks:
+                    kb = blocks[name]
+                    kb.value = value
+                    kb.keyframe_insert("value", frame=frame)
     last = frames[-1][0]
     _extend_scene(scene, last)
     set_pose(obj, {})
@@ -391,15 +498,21 @@ def animate_sequence(scene, obj, names, presets, start, hold, blend, mode="via_n
 
 
 def clear_keyframes(obj):
-    """Delete the keyframes of our shape keys (the user's own keys keep theirs); returns how many curves."""
-    fcurves = compat.fcurves_of(obj.data.shape_keys)
-    if fcurves is None:
-        return 0
-    ours = {f'key_blocks["{bpy.utils.escape_identifier(e.name)}"].value' for e in obj.pdeface.keys}
-    doomed = [fc for fc in fcurves if fc.data_path in ours]
-    for fc in doomed:
-        fcurves.remove(fc)
-    return len(doomed)
+    """Delete the keyframes of our shape keys (the user's own keys keep theirs); returns how many curves.
+
+    On the face and on the user's objects it drives.
+    """
+    count = 0
+    for o in rig_objects(obj):
+        fcurves = compat.fcurves_of(o.data.shape_keys)
+        if fcurves is None:
+            continue
+        ours = {f'key_blocks["{bpy.utils.escape_identifier(e.name)}"].value' for e in o.pdeface.keys}
+        doomed = [fc for fc in fcurves if fc.data_path in ours]
+        for fc in doomed:
+            fcurves.remove(fc)
+        count += len(doomed)
+    return count
 
 
 def apply_timeline(obj, timeline, scene=None, merge=False):
@@ -417,7 +530,6 @@ def apply_timeline(obj, timeline, scene=None, merge=False):
     names = [by_au[a] for a in aus if a in by_au] + [by_preset[p] for p in presets if p in by_preset]
     if not merge:
         clear_keyframes(obj)
-    blocks = obj.data.shape_keys.key_blocks
     prefs = bpy.context.preferences.edit
     saved = prefs.keyframe_new_interpolation_type
     try:
@@ -426,10 +538,13 @@ def apply_timeline(obj, timeline, scene=None, merge=False):
             prefs.keyframe_new_interpolation_type = key.interpolation.upper()
             values = {by_au[a]: w for a, w in key.aus.items() if a in by_au}
             values.update({by_preset[p]: w for p, w in key.presets.items() if p in by_preset})
-            for name in names:
-                kb = blocks[name]
-                kb.value = values.get(name, 0.0)
-                kb.keyframe_insert("value", frame=key.frame)
+            for o in rig_objects(obj):
+                blocks = o.data.shape_keys.key_blocks
+                for name in names:
+                    if name in blocks:
+                        kb = blocks[name]
+                        kb.value = values.get(name, 0.0)
+                        kb.keyframe_insert("value", frame=key.frame)
     finally:
         prefs.keyframe_new_interpolation_type = saved
     first, last = timeline.keys[0].frame, timeline.frame_end

@@ -78,6 +78,10 @@ class PDEFACE_OT_fit_to_selected(_ObjectModeOperator, Operator):
 
     resolution: StringProperty(name="Resolution", default="default")
     retarget: BoolProperty(name="Retarget AU descriptors", default=True)
+    keys_on_mesh: BoolProperty(name="Keys on my mesh", default=True,
+                               description="Put the AU and expression keys on the selected mesh(es) themselves: "
+                                           "the active one's skin and the other selected objects of the head "
+                                           "(eyes, teeth). The PDE face stays hidden as their reference")
 
     @classmethod
     def poll(cls, context):
@@ -101,16 +105,27 @@ class PDEFACE_OT_fit_to_selected(_ObjectModeOperator, Operator):
         try:
             compat.set_status(context, "PDE Face: reading landmarks")
             landmarks = face.read_landmarks(s, context.active_object)
-            obj, model, sampler = face.fit_face_object(context, context.active_object, landmarks,
+            src = context.active_object
+            parts = [o for o in context.selected_objects if o is not src and o.type == "MESH"]
+            obj, model, sampler = face.fit_face_object(context, src, landmarks,
                                                        None if s.unit == "AUTO" else s.unit, self.resolution,
-                                                       self.retarget, progress)
+                                                       self.retarget, progress, parts, self.keys_on_mesh)
+            if self.keys_on_mesh and model.descriptors:
+                compat.set_status(context, "PDE Face: binding your mesh and building its shape keys")
+                r = face.build_keys(obj, face.all_presets(context.scene))
+                for note in face.binding_notes(obj):
+                    self.report({"INFO"}, note)
+                face.show_user_objects(context, obj)
             wm.progress_update(4)
         finally:
             wm.progress_end()
             compat.set_status(context, None)
         filled = int((sampler.status != 0).sum())
-        return (f"Fitted {obj.name}: {model.layout.n_curves} curves, unit {model.frame.unit}, "
-                f"{filled} curve points filled over openings")
+        msg = (f"Fitted {obj.name}: {model.layout.n_curves} curves, unit {model.frame.unit}, "
+               f"{filled} curve points filled over openings")
+        if self.keys_on_mesh and model.descriptors:
+            msg += f"; {r['aus']} AU and {r['expressions']} expression keys on {r['objects'] - 1} object(s) of yours"
+        return msg
 
 
 class PDEFACE_OT_build_shape_keys(_FaceOperator, Operator):

@@ -2,7 +2,7 @@
 import bpy
 
 from . import live
-from .face import active_face, managed, preset_items
+from .face import active_face, key_owner, managed, preset_items
 
 
 class _Panel:
@@ -59,7 +59,7 @@ class PDEFACE_PT_action_units(_FacePanel, bpy.types.Panel):
 
     def draw_face(self, layout, s, obj):
         layout.prop(s, "au_filter", icon="VIEWZOOM", text="")
-        keys = managed(obj, "AU")
+        keys = managed(key_owner(bpy.context), "AU")
         if not keys:
             layout.label(text="No AU shape keys yet: Build Shape Keys", icon="INFO")
             return
@@ -86,7 +86,7 @@ class PDEFACE_PT_expressions(_FacePanel, bpy.types.Panel):
             op = grid.operator("pdeface.apply_preset", text=label)
             op.preset = name
         layout.operator("pdeface.reset_pose", icon="LOOP_BACK")
-        _sliders(layout, managed(obj, "EXPRESSION"), lambda e: e.name)
+        _sliders(layout, managed(key_owner(bpy.context), "EXPRESSION"), lambda e: e.name)
 
 
 class PDEFACE_PT_animation(_FacePanel, bpy.types.Panel):

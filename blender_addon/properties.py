@@ -35,13 +35,22 @@ class PDEFACE_PG_key(bpy.types.PropertyGroup):
                                      "no longer match is the user's")
 
 
+class PDEFACE_PG_part(bpy.types.PropertyGroup):
+    """One more object of the user's head (eyes, teeth as objects of their own)."""
+
+    obj: PointerProperty(type=bpy.types.Object)
+
+
 class PDEFACE_PG_face(bpy.types.PropertyGroup):
-    """Per object: set on PDE faces."""
+    """Per object: set on PDE faces, and on the user's objects they drive."""
 
     is_face: BoolProperty(default=False)
     model_data: StringProperty(description="The face model file (base64), so the .blend is self-contained")
     resolution: StringProperty(default="default")
     source: PointerProperty(type=bpy.types.Object, description="The scan this face was fitted to")
+    parts: CollectionProperty(type=PDEFACE_PG_part, description="Other objects of the user's head it drives")
+    head_keys: BoolProperty(default=False, description="Put the AU and expression keys on the user's objects too")
+    rig_face: PointerProperty(type=bpy.types.Object, description="On a user's object: the PDE face driving it")
     keys: CollectionProperty(type=PDEFACE_PG_key)
 
 
@@ -93,7 +102,7 @@ class PDEFACE_PG_settings(bpy.types.PropertyGroup):
     live_hz: FloatProperty(name="Rate", default=60.0, min=1.0, max=60.0, description="Pose updates per second")
 
 
-_classes = (PDEFACE_PG_key, PDEFACE_PG_face, PDEFACE_PG_settings)
+_classes = (PDEFACE_PG_key, PDEFACE_PG_part, PDEFACE_PG_face, PDEFACE_PG_settings)
 
 
 def register():

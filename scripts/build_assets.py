@@ -6,6 +6,10 @@ Writes, all derived from ICT-FaceKit (MIT, notice copied alongside):
   ict_neutral_face.npz   the neutral face region (vertices 0-9408, cm) with UVs and landmarks
   ict_shapes.npz         the 53 expression shapes and 20 identity meshes as offsets from
                          the neutral face region (int16, OFFSET_STEP cm steps)
+  ict_head.npz           the whole generic head (26,719 vertices: face, head and neck, mouth,
+                         teeth, eyes, lashes; cm) with UVs, landmarks and ICT's part ranges
+  ict_head_shapes.npz    the same 53 shapes and 20 identities for the rest of the head
+                         (vertices 9409-26718; the face region's are in ict_shapes.npz)
   default_face.npz       the PDE face model fitted to the neutral (default layout), carrying a
                          descriptor for every AU ICT-FaceKit maps (pdeface.au.ict.AU_SHAPES)
   ICT-FaceKit-LICENSE.txt
@@ -13,6 +17,7 @@ Writes, all derived from ICT-FaceKit (MIT, notice copied alongside):
 from __future__ import annotations
 
 import argparse
+import json
 import shutil
 import sys
 from pathlib import Path
@@ -24,7 +29,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "core"))
 from pdeface.assets import ICT_NOTICE  # noqa: E402
 from pdeface.au.capture import fit_descriptor  # noqa: E402
 from pdeface.au.facs import key_side  # noqa: E402
-from pdeface.au.ict import APPROXIMATIONS, AU_SHAPES, NOTICE_SHORT, IctFolder, au_offsets  # noqa: E402
+from pdeface.au.ict import APPROXIMATIONS, AU_SHAPES, FACE_VERTICES, NOTICE_SHORT, IctFolder, au_offsets  # noqa: E402
 from pdeface.io.descriptorfile import descriptor_to_bytes  # noqa: E402
 from pdeface.io.modelfile import model_nbytes, save_model  # noqa: E402
 from pdeface.mesh import Mesh  # noqa: E402
@@ -45,7 +50,6 @@ def main(argv=None):
     np.savez_compressed(out / "ict_neutral_face.npz", vertices=V.astype(np.float32), faces=ict.faces.astype(np.int32),
                         uvs=ict.uvs.astype(np.float32), face_uvs=ict.face_uvs.astype(np.int32),
                         landmarks=ict.landmarks.astype(np.int32), notice=np.array(ICT_NOTICE))
-    import json
     names = json.loads((args.ict_dir / "vertex_indices.json").read_text())["expressions"]
     names += [f"identity{i:03d}" for i in range(20)]
     offsets = np.empty((len(names), len(V), 3), np.int16)
@@ -56,6 +60,7 @@ def main(argv=None):
         offsets[k] = q
     np.savez_compressed(out / "ict_shapes.npz", names=np.array(names), offsets=offsets,
                         step_cm=np.array(OFFSET_STEP), notice=np.array(ICT_NOTICE))
+    write_head(args.ict_dir, names, out)
     shutil.copyfile(args.ict_dir / "LICENSE", out / "ICT-FaceKit-LICENSE.txt")
     # Fit on exactly what the package ships (float32 vertices, int16 offsets).
     V32 = V.astype(np.float32).astype(np.float64)
@@ -78,6 +83,29 @@ def main(argv=None):
           f"curve points {sampler.summary()}")
     for p in sorted(out.iterdir()):
         print(f"{p.name}: {p.stat().st_size} bytes")
+
+
+def write_head(ict_dir, names, out):
+    """The whole generic head and its shapes' offsets beyond the face region."""
+    from pdeface.assets import HEAD_PARTS
+    from pdeface.io.meshio import read_obj
+
+    head = read_obj(ict_dir / "generic_neutral_mesh.obj")
+    landmarks = json.loads((ict_dir / "vertex_indices.json").read_text())["idx_to_landmark_verts"]
+    np.savez_compressed(out / "ict_head.npz", vertices=head.vertices.astype(np.float32),
+                        face_counts=head.face_counts.astype(np.uint8), faces=head.face_indices.astype(np.int32),
+                        uvs=head.uvs.astype(np.float32), face_uvs=head.face_uv_indices.astype(np.int32),
+                        landmarks=np.array(landmarks, np.int32), part_names=np.array(list(HEAD_PARTS)),
+                        part_starts=np.array(list(HEAD_PARTS.values()), np.int32), notice=np.array(ICT_NOTICE))
+    rest = slice(FACE_VERTICES, None)
+    offsets = np.empty((len(names), len(head.vertices) - FACE_VERTICES, 3), np.int16)
+    for k, name in enumerate(names):
+        q = np.round((read_obj(ict_dir / f"{name}.obj").vertices[rest] - head.vertices[rest]) / OFFSET_STEP)
+        if np.abs(q).max() > 32767:
+            raise SystemExit(f"{name}: offset too large for int16 at {OFFSET_STEP} cm")
+        offsets[k] = q
+    np.savez_compressed(out / "ict_head_shapes.npz", names=np.array(names), offsets=offsets,
+                        step_cm=np.array(OFFSET_STEP), notice=np.array(ICT_NOTICE))
 
 
 if __name__ == "__main__":

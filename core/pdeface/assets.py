@@ -66,6 +66,36 @@ def load_ict_shapes() -> dict:
         return {str(n): o.astype(np.float64) * step for n, o in zip(z["names"], z["offsets"])}
 
 
+HEAD = "head"
+ICT_HEAD = "ict_head.npz"
+ICT_HEAD_SHAPES = "ict_head_shapes.npz"
+#: ICT-FaceKit's parts of its head: name → first vertex (each runs to the next one's start).
+HEAD_PARTS = {"face": 0, "head_and_neck": 9409, "mouth_socket": 11248, "eye_socket_left": 13294,
+              "eye_socket_right": 13678, "gums_and_tongue": 14062, "teeth": 17039, "eyeball_left": 21451,
+              "eyeball_right": 23021, "lacrimal_fluid_left": 24591, "lacrimal_fluid_right": 24795,
+              "eye_blend_left": 24999, "eye_blend_right": 25023, "eye_occlusion_left": 25047,
+              "eye_occlusion_right": 25199, "eyelashes_left": 25351, "eyelashes_right": 26035}
+
+
+def load_head() -> tuple[Mesh, np.ndarray]:
+    """ICT-FaceKit's whole generic head (cm, ICT frame) with UVs, and its 68 landmark indices."""
+    with np.load(asset_path(ICT_HEAD), allow_pickle=False) as z:
+        mesh = Mesh(z["vertices"].astype(np.float64), z["face_counts"].astype(np.int64),
+                    z["faces"].astype(np.int64))
+        mesh.uvs = z["uvs"].astype(np.float64)
+        mesh.face_uv_indices = z["face_uvs"].astype(np.int64)
+        return mesh, z["landmarks"].astype(np.int64)
+
+
+def load_head_shapes() -> dict:
+    """ICT-FaceKit's shapes and identities as offsets (cm) of every vertex of :func:`load_head`."""
+    face = load_ict_shapes()
+    with np.load(asset_path(ICT_HEAD_SHAPES), allow_pickle=False) as z:
+        step = float(z["step_cm"])
+        return {str(n): np.concatenate([face[str(n)], o.astype(np.float64) * step])
+                for n, o in zip(z["names"], z["offsets"])}
+
+
 def load_face(arg):
     """A face model from a path, or the bundled one for ``"default"``."""
     from .io.modelfile import load_model
@@ -74,16 +104,17 @@ def load_face(arg):
 
 
 def load_scan(arg, landmarks=None) -> tuple[Mesh, np.ndarray | None]:
-    """A scan and its 68 landmark positions from a path or ``"default"`` (the bundled ICT neutral).
+    """A scan and its 68 landmark positions from a path, ``"default"`` (the bundled ICT neutral face
+    region) or ``"head"`` (the bundled ICT whole head).
 
     ``landmarks`` is a landmarks JSON file; without one, a path's landmarks are
-    None and the bundled scan's are its own.
+    None and the bundled scans' are their own.
     """
     from .io.meshio import read_mesh
     from .surface.frame import landmark_points, read_landmarks
 
-    if arg == DEFAULT:
-        mesh, idx = load_neutral_scan()
+    if arg in (DEFAULT, HEAD):
+        mesh, idx = load_neutral_scan() if arg == DEFAULT else load_head()
         lm = mesh.vertices[idx]
     else:
         mesh, lm = read_mesh(arg), None

@@ -23,21 +23,27 @@ def _log(msg):
 
 
 def cmd_fit(args):
-    from .assets import DEFAULT, ICT_NOTICE, load_scan
+    from .assets import DEFAULT, HEAD, ICT_NOTICE, load_scan
     from .io.modelfile import save_model
     from .surface.fit import fit_face
 
-    check_output(args.output, args.mesh, args.landmarks)
+    check_output(args.output, args.mesh, args.landmarks, args.parts)
 
     mesh, lm = load_scan(args.mesh, args.landmarks)
     if lm is None:
         raise PdeFaceError(f"{args.mesh}: --landmarks is required (JSON with 'indices' or 'points')")
     T, _ = mesh.triangles()
+    skin = None
+    if args.parts:
+        listed = read_parts(args.parts).get("skin")
+        if listed:
+            skin = np.zeros(len(mesh.vertices), bool)
+            skin[np.asarray(listed, np.int64)] = True
     t0 = time.perf_counter()
     model, sampler = fit_face(mesh.vertices, T, lm, unit=args.unit, n_curves=args.curves, n_points=args.points,
                               n_modes=args.modes, a=args.a, assembly=args.assembly, source=str(args.mesh),
-                              follow_lips=not args.straight)
-    if args.mesh == DEFAULT:
+                              follow_lips=not args.straight, skin=skin)
+    if args.mesh in (DEFAULT, HEAD):
         model.notice = ICT_NOTICE
     size = save_model(args.output, model)
     _log(f"fitted {model.layout.n_curves} curves x {model.layout.n_points} points in "
@@ -301,10 +307,78 @@ def cmd_pose(args):
     if not weights:
         raise PdeFaceError("give AU weights (--au 12=1) or a --preset")
     mixer = choose_mixer(args.mixer, preset)
+    if args.mesh:
+        _pose_head(args, model, weights, mixer)
+        return
     C, R = pose_curves(model, weights, mixer)
     mesh = face_mesh(model, args.resolution, args.assembly, coefficients=C, residual=R)
     write_mesh(args.output, mesh)
     _log(f"wrote {args.output}: " + ", ".join(f"AU{k}={w:g}" for k, w in weights.items()) + f" ({mixer})")
+
+
+def _bind_head(model, mesh_arg, landmarks=None, parts=None):
+    """(mesh, binding) of the head ``mesh_arg`` that ``model`` was fitted on."""
+    from .assets import load_scan
+    from .head.bind import HeadBinding
+
+    mesh, lm = load_scan(mesh_arg, landmarks)
+    overrides = read_parts(parts) if parts else None
+    given = lm if (landmarks or model.landmarks is None) else None
+    return mesh, HeadBinding(model, mesh.vertices, mesh.triangles()[0], landmarks=given, overrides=overrides)
+
+
+def read_parts(path) -> dict:
+    from .errors import MeshError
+    from .head.parts import parse_overrides
+    from .io.files import load_json
+
+    return parse_overrides(load_json(path, MeshError), str(path))
+
+
+def _pose_head(args, model, weights, mixer):
+    from dataclasses import replace
+
+    from .assets import DEFAULT, HEAD
+    from .io.meshio import write_mesh, write_posed
+
+    check_output(args.output, args.mesh, args.parts, args.landmarks)
+    t0 = time.perf_counter()
+    mesh, binding = _bind_head(model, args.mesh, args.landmarks, args.parts)
+    V = mesh.vertices + binding.pose_displacement(weights, mixer)
+    if args.mesh in (DEFAULT, HEAD):
+        write_mesh(args.output, replace(mesh, vertices=V))
+    else:
+        write_posed(args.output, args.mesh, mesh, V)
+    for note in binding.notes:
+        _log(note)
+    _log(f"wrote {args.output}: {len(V)} vertices of {args.mesh} posed in {time.perf_counter() - t0:.2f} s, "
+         + ", ".join(f"AU{k}={w:g}" for k, w in weights.items()) + f" ({mixer})")
+
+
+def cmd_parts(args):
+    from .head.parts import KINDS
+    from .io.files import write_bytes
+
+    check_output(args.output, args.mesh, args.landmarks)
+    from .assets import load_scan
+    from .surface.frame import face_frame
+
+    mesh, lm = load_scan(args.mesh, args.landmarks)
+    if lm is None:
+        raise PdeFaceError(f"{args.mesh}: --landmarks is required (JSON with 'indices' or 'points')")
+    from .head.parts import classify_parts, eye_distance_mm
+    from .head.rigid import jaw_hinge
+
+    frame = face_frame(lm, args.unit)
+    Lf = frame.to_face(lm)
+    overrides = read_parts(args.parts) if args.parts else None
+    parts = classify_parts(frame.to_face(mesh.vertices), mesh.triangles()[0], Lf,
+                           jaw_hinge(Lf, eye_distance_mm(Lf)), overrides)
+    data = {k: np.nonzero(parts.kind == i)[0].tolist() for i, k in enumerate(KINDS)}
+    write_bytes(args.output, json.dumps({k: v for k, v in data.items() if v}).encode())
+    for note in parts.notes:
+        _log(note)
+    print(json.dumps({"output": str(args.output), **parts.counts()}))
 
 
 def cmd_retarget(args):
@@ -382,9 +456,12 @@ def build_parser():
     sub = ap.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     p = sub.add_parser("fit", help="fit a PDE face model to a neutral mesh")
-    p.add_argument("mesh", help="neutral face mesh (.obj/.ply) or 'default' (the bundled ICT neutral)")
-    p.add_argument_group("required for a mesh file (the bundled 'default' has its own)").add_argument(
+    p.add_argument("mesh", help="neutral face, head or body mesh (.obj/.ply), 'default' (the bundled ICT neutral "
+                                "face) or 'head' (the bundled ICT whole head)")
+    p.add_argument_group("required for a mesh file (the bundled ones have their own)").add_argument(
         "--landmarks", help="JSON with the 68 Multi-PIE landmarks as 'indices' or 'points'")
+    p.add_argument("--parts", help="JSON of part kind → vertex indices; its 'skin' list is the skin to fit "
+                                   "(default: the parts under the landmarks; see 'pdeface parts')")
     p.add_argument("--unit", choices=list(UNITS_MM), help="mesh unit (default: guessed from the eyes)")
     p.add_argument("--curves", type=int, default=DEFAULT_CURVES,
                    help=f"boundary curves (default {DEFAULT_CURVES}; 31 is the method's 10 patches of 4)")
@@ -433,9 +510,23 @@ def build_parser():
     p.add_argument("--descriptor", action="append", help="extra descriptor file(s) (.json/.pdd)")
     p.add_argument("--mixer", choices=MIXERS, help="how AUs on the same curves combine (default: the preset's "
                                                    "own, else sum)")
+    g = p.add_argument_group("the whole head (the mesh FACE was fitted on)")
+    g.add_argument("--mesh", help="pose this head or body mesh (.obj/.ply, or 'head': the bundled ICT head) instead "
+                                  "of the PDE face: same vertices, order, faces, UVs, groups and materials")
+    g.add_argument("--parts", help="JSON of part kind → vertex indices overriding the automatic parts "
+                                   "(see 'pdeface parts')")
+    g.add_argument("--landmarks", help="the mesh's 68 landmarks (JSON), for a face model made by pdeface 0.1")
     meshing_options(p)
     output_option(p)
     p.set_defaults(func=cmd_pose)
+
+    p = sub.add_parser("parts", help="what each vertex of a head is: skin, eyeball, jaw, skull, attached, rest")
+    p.add_argument("mesh", help="head mesh (.obj/.ply) or 'head' (the bundled ICT head)")
+    p.add_argument("--landmarks", help="JSON with the 68 landmarks (required for a mesh file)")
+    p.add_argument("--unit", choices=list(UNITS_MM), help="mesh unit (default: guessed from the eyes)")
+    p.add_argument("--parts", help="overrides to apply (JSON, as written by this command)")
+    output_option(p, ".json: part kind → vertex indices, editable and given back with --parts")
+    p.set_defaults(func=cmd_parts)
 
     p = sub.add_parser("retarget", help="carry AU descriptors over to another face model")
     p.add_argument("target", help="the target face model (.npz)")

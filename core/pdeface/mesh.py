@@ -132,3 +132,27 @@ def connected_components(n_vertices: int, T: np.ndarray) -> np.ndarray:
     j = np.concatenate([T[:, 1], T[:, 2], T[:, 0]])
     graph = coo_matrix((np.ones(len(i)), (i, j)), shape=(n_vertices, n_vertices))
     return cc(graph, directed=False)[1]
+
+
+def cotan_laplacian(V: np.ndarray, T: np.ndarray):
+    """Cotangent Laplacian ``L = D - W`` (sparse, symmetric, positive semi-definite).
+
+    Weights are clamped to [1e-6, 1e3] so that obtuse and sliver triangles of real
+    meshes keep it an M-matrix: harmonic functions then obey the maximum principle
+    (an extension never overshoots its boundary values).
+    """
+    from scipy.sparse import coo_matrix, diags
+
+    rows, cols, vals = [], [], []
+    for k in range(3):
+        i, j, o = T[:, k], T[:, (k + 1) % 3], T[:, (k + 2) % 3]
+        u, v = V[i] - V[o], V[j] - V[o]
+        cross = np.linalg.norm(np.cross(u, v), axis=1)
+        cot = (u * v).sum(1) / np.maximum(cross, 1e-12)
+        rows += [i, j]
+        cols += [j, i]
+        vals += [0.5 * cot, 0.5 * cot]
+    n = len(V)
+    W = coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n, n)).tocsr()
+    W.data = np.clip(W.data, 1e-6, 1e3)
+    return (diags(np.asarray(W.sum(axis=1)).ravel()) - W).tocsr()

@@ -168,16 +168,35 @@ def test_fit_to_selected(bpy, scan_object, tmp_path, source):
         (tmp_path / "lm.json").write_text(json.dumps({"indices": idx.tolist()}))
         s.landmark_file = str(tmp_path / "lm.json")
     assert bpy.ops.pdeface.fit_to_selected() == {"FINISHED"}
-    pde = bpy.context.active_object
-    assert pde is not obj and pde.pdeface.is_face and pde.pdeface.source == obj
+    # The keys go on the user's mesh, which stays active; the PDE face is its hidden reference.
+    assert bpy.context.active_object == obj
+    pde = obj.pdeface.rig_face
+    assert pde is not None and pde.pdeface.is_face and pde.pdeface.source == obj and pde.hide_get()
     assert tuple(pde.location) == pytest.approx((5.0, 0.0, 1.0))
     from pdeface.geometry import ClosestPoint
     addon = __import__(MODULE, fromlist=["bridge"])
     T, _ = addon.bridge.triangles(obj.data)
     d = ClosestPoint(addon.bridge.vertices(obj.data), T).query(addon.bridge.vertices(pde.data))[0]
     assert np.median(d) < 0.01  # cm: drops onto the scan
+    assert "AU12 Lip Corner Puller" in key_blocks(pde) and "AU12 Lip Corner Puller" in key_blocks(obj)
+    smile = addon.bridge.key_coords(key_blocks(obj)["AU12 Lip Corner Puller"])
+    rest = addon.bridge.key_coords(key_blocks(obj)["Basis"])
+    assert np.linalg.norm(smile - rest, axis=1).max() > 0.5  # cm: the user's own mesh smiles
+    assert bpy.ops.pdeface.build_shape_keys() == {"FINISHED"}  # works with the user's mesh active
+
+
+def test_fit_without_keys_on_the_mesh_leaves_it_alone(bpy, scan_object, tmp_path):
+    obj, idx = scan_object
+    s = bpy.context.scene.pdeface
+    s.landmark_source = "FILE"
+    (tmp_path / "lm.json").write_text(json.dumps({"indices": idx.tolist()}))
+    s.landmark_file = str(tmp_path / "lm.json")
+    assert bpy.ops.pdeface.fit_to_selected(keys_on_mesh=False) == {"FINISHED"}
+    pde = bpy.context.active_object
+    assert pde is not obj and pde.pdeface.is_face and pde.pdeface.source == obj
+    assert obj.data.shape_keys is None and obj.pdeface.rig_face is None
     assert bpy.ops.pdeface.build_shape_keys() == {"FINISHED"}
-    assert "AU12 Lip Corner Puller" in key_blocks(pde)
+    assert obj.data.shape_keys is None and "AU12 Lip Corner Puller" in key_blocks(pde)
 
 
 def test_transfer_texture(bpy, face, scan_object):

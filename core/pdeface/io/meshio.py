@@ -35,6 +35,41 @@ def write_mesh(path, mesh: Mesh) -> None:
         raise MeshError(f"{path}: unsupported mesh format {ext!r} (use .obj or .ply)")
 
 
+def write_posed(path, source, mesh: Mesh, vertices) -> None:
+    """Write ``mesh`` (read from ``source``) with new vertex positions, changing nothing else.
+
+    An OBJ source is copied line by line with only its ``v`` lines' x y z
+    replaced: groups, objects, smoothing, materials, UVs, normals, vertex
+    colours and comments stay exactly as they were. Other sources are written
+    with :func:`write_mesh`.
+    """
+    V = np.asarray(vertices, dtype=np.float64)
+    if V.shape != mesh.vertices.shape or not np.isfinite(V).all():
+        raise MeshError(f"{path}: posed vertices must be finite and shaped {mesh.vertices.shape}, got {V.shape}")
+    src_ext = os.path.splitext(str(source))[1].lower()
+    out_ext = os.path.splitext(str(path))[1].lower()
+    if src_ext != ".obj" or out_ext != ".obj":
+        posed = Mesh(**{**mesh.__dict__, "vertices": V})
+        write_mesh(path, posed)
+        return
+    out, k = [], 0
+    with open_file(source, "r", MeshError, encoding="utf-8", errors="replace", newline="") as fh:
+        for line in fh:
+            parts = line.split()
+            if parts and parts[0] == "v":
+                if k >= len(V):
+                    raise MeshError(f"{source}: has more vertices than the mesh read from it ({len(V)})")
+                end = "\r\n" if line.endswith("\r\n") else "\n"
+                out.append("v %.6f %.6f %.6f%s%s" % (*V[k], "".join(" " + p for p in parts[4:]), end))
+                k += 1
+            else:
+                out.append(line)
+    if k != len(V):
+        raise MeshError(f"{source}: changed since it was read ({k} vertices, expected {len(V)})")
+    with atomic_open(path, "w", encoding="utf-8", newline="") as fh:
+        fh.write("".join(out))
+
+
 def _floats(parts, n, path, lineno, what):
     try:
         vals = [float(p) for p in parts[:n]]

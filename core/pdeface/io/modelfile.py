@@ -6,7 +6,11 @@ with ``allow_pickle=False``. Members:
 ``meta`` (uint8)
     UTF-8 JSON: ``format`` = ``"pdeface.face"``, ``version`` = 3, ``unit``,
     ``n_modes``, ``a``, ``w``, ``assembly``, ``residual_step``,
-    ``coefficient_step``, ``feature_names``, ``source``, ``notice``.
+    ``coefficient_step``, ``feature_names``, ``source``, ``notice``; since
+    pdeface 0.2, optionally ``landmarks``: ``{"indices": [...], "step_mm":
+    0.1, "codes": [[x, y, z], ...]}``, the landmarks binding a whole head
+    reads (:data:`pdeface.surface.model.KEPT_LANDMARKS`), face frame, in
+    integer steps.
 ``layout`` (float32)
     :meth:`pdeface.surface.layout.CurveLayout.as_array`: axis z, points per curve,
     centre density, the K curve heights and the K half angles (face frame);
@@ -57,7 +61,7 @@ import numpy as np
 from ..errors import LayoutError, ModelFormatError, PdeFaceError
 from ..surface.frame import FEATURE_NAMES, UNITS_MM, FaceFrame
 from ..surface.layout import CurveLayout, check_sizes
-from ..surface.model import FaceModel
+from ..surface.model import KEPT_LANDMARKS, FaceModel
 from .codec import (
     decode_coefficients,
     decode_residual,
@@ -69,6 +73,7 @@ from .codec import (
 from .files import parse_json, read_bytes, write_bytes
 
 FORMAT = "pdeface.face"
+LANDMARK_STEP_MM = 0.1
 VERSION = 3
 #: The most a model file's arrays may inflate to (the bundled face with 63 descriptors: under 1 MiB).
 MAX_INFLATED = 64 * 2**20
@@ -91,6 +96,10 @@ def model_to_bytes(model: FaceModel, descriptors: bool = True) -> bytes:
             "residual_step": step, "coefficient_step": cstep,
             "a": model.a, "w": model.w, "assembly": model.assembly, "feature_names": FEATURE_NAMES,
             "source": model.source, "notice": model.notice}
+    if model.landmarks is not None:
+        kept = list(KEPT_LANDMARKS)
+        meta["landmarks"] = {"indices": kept, "step_mm": LANDMARK_STEP_MM,
+                             "codes": np.round(model.landmarks[kept] / LANDMARK_STEP_MM).astype(int).tolist()}
     arrays = {
         "meta": np.frombuffer(json.dumps(meta, separators=(",", ":")).encode(), dtype=np.uint8),
         "layout": model.layout.as_array().astype(np.float32),
@@ -155,6 +164,22 @@ def _check_members(data: bytes, path):
     if total > MAX_INFLATED:
         raise ModelFormatError(f"{path}: its arrays claim {total / 2**20:.0f} MiB; a face model is far smaller "
                                f"(limit {MAX_INFLATED // 2**20} MiB)")
+
+
+def _landmarks(entry, path) -> np.ndarray:
+    """The landmarks a model file keeps, as (68, 3) with NaN rows for the others."""
+    try:
+        idx = np.array(entry["indices"], dtype=np.int64)
+        step = float(entry["step_mm"])
+        codes = np.array(entry["codes"], dtype=np.float64)
+    except (TypeError, KeyError, ValueError, OverflowError):
+        raise ModelFormatError(f"{path}: meta 'landmarks' must hold 'indices', 'step_mm' and 'codes'") from None
+    if (idx.ndim != 1 or codes.shape != (len(idx), 3) or not len(idx) or idx.min() < 0 or idx.max() > 67
+            or not step > 0 or not np.isfinite(codes).all()):
+        raise ModelFormatError(f"{path}: meta 'landmarks' is malformed (indices 0-67, one finite point each)")
+    out = np.full((68, 3), np.nan)
+    out[idx] = codes * step
+    return out
 
 
 def _read_model(fileobj, path) -> FaceModel:
@@ -225,6 +250,8 @@ def _read_model(fileobj, path) -> FaceModel:
             if st.shape != (K, J):
                 raise ModelFormatError(f"{path}: field 'status' has shape {st.shape}, expected ({K}, {J})")
             model.status = st.astype(np.int64)
+        if "landmarks" in meta:
+            model.landmarks = _landmarks(meta["landmarks"], path)
         if "descriptors" in z.files:
             from .descriptorfile import unpack_descriptors
             model.descriptors = unpack_descriptors(z, path)

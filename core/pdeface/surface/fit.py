@@ -36,18 +36,32 @@ def parse_resolution(value) -> tuple[int, int]:
     return int(su), int(sv)
 
 
-def skin_triangles(V: np.ndarray, T: np.ndarray, points: np.ndarray) -> np.ndarray:
-    """Triangles of the connected pieces whose vertices lie nearest ``points`` (the landmarks).
+def skin_vertices(V: np.ndarray, T: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Mask of the vertices of the connected pieces that lie under ``points`` (the landmarks).
 
-    Separate pieces (eyeballs, teeth, eyelashes) are left out of the skin.
+    Separate pieces (eyeballs, teeth) are left out. Eyelashes and other strips often
+    share the lids' vertex positions: where several pieces are equally near a
+    point, the largest is the skin.
     """
     from scipy.spatial import cKDTree  # scipy is heavy: only fitting and reports need it
 
     from ..mesh import connected_components
 
-    near = cKDTree(V).query(points)[1]
     lab = connected_components(len(V), T)
-    return T[np.isin(lab[T[:, 0]], np.unique(lab[near]))]
+    sizes = np.bincount(lab)
+    tree = cKDTree(V)
+    dist, _ = tree.query(points)
+    scale = float(np.ptp(V, axis=0).max()) or 1.0
+    labels = set()
+    for p, d in zip(points, dist):
+        near = tree.query_ball_point(p, d + 1e-6 * scale)
+        labels.add(int(lab[max(near, key=lambda i: sizes[lab[i]])]))
+    return np.isin(lab, list(labels))
+
+
+def skin_triangles(V: np.ndarray, T: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Triangles of the skin: the pieces under ``points`` (see :func:`skin_vertices`)."""
+    return T[skin_vertices(V, T, points)[T[:, 0]]]
 
 
 def check_landmarks_on_mesh(V_face, L_face, reach_mm=20.0):
@@ -76,7 +90,7 @@ def chord_knots(points: np.ndarray) -> np.ndarray:
 
 
 def fit_face(vertices, triangles, landmarks, unit=None, n_curves=DEFAULT_CURVES, n_points=37, n_modes=5,
-             a=1.0, assembly="smooth", source="", follow_lips=True):
+             a=1.0, assembly="smooth", source="", follow_lips=True, skin=None):
     """Fit a PDE face model to a neutral face mesh.
 
     Parameters
@@ -100,6 +114,9 @@ def fit_face(vertices, triangles, landmarks, unit=None, n_curves=DEFAULT_CURVES,
     follow_lips : bool
         Bend the curves along the lips (default) or keep them horizontal
         (see :func:`pdeface.surface.layout.place_curves`).
+    skin : (n,) bool array, optional
+        The skin vertices; by default the pieces under the landmarks
+        (:func:`skin_vertices`), leaving eyeballs, teeth and lashes out.
 
     Returns
     -------
@@ -120,13 +137,21 @@ def fit_face(vertices, triangles, landmarks, unit=None, n_curves=DEFAULT_CURVES,
     Lf = frame.to_face(landmarks)
     check_landmarks_on_mesh(Vf, Lf)
     layout = place_curves(Lf, n_curves, n_points, follow_lips=follow_lips)
-    skin = skin_triangles(Vf, T, Lf)
+    if skin is None:
+        skin = skin_triangles(Vf, T, Lf)
+    else:
+        skin = np.asarray(skin, bool)
+        if skin.shape != (len(V),):
+            raise MeshError(f"skin mask must have one entry per vertex ({len(V)}), got {skin.shape}")
+        skin = T[skin[T].all(axis=1)]
+        if len(skin) == 0:
+            raise MeshError("the skin given has no triangles")
     layout = follow_rims(layout, Vf, skin)
     sampler = place_samples(Vf, skin, layout)
     points = sampler.sample(Vf)
     coef, res = fit_fourier(points, n_modes)
     model = FaceModel(layout, chord_knots(points), coef, res, frame, feature_points(Lf), a=a,
-                      assembly=assembly, source=source, status=sampler.status.copy())
+                      assembly=assembly, source=source, status=sampler.status.copy(), landmarks=Lf)
     return model, sampler
 
 

@@ -13,6 +13,11 @@ from .frame import FaceFrame
 from .layout import CurveLayout
 
 
+#: The landmarks a model file keeps (to 0.1 mm): jawline 0, 5, 8, 11, 16, nose bottom 33, the eyes
+#: 36-47 and the lips 48, 51, 54, 57, 62, 66: what binding a whole head reads (:mod:`pdeface.head`).
+KEPT_LANDMARKS = (0, 5, 8, 11, 16, 33, *range(36, 48), 48, 51, 54, 57, 62, 66)
+
+
 @dataclass
 class FaceModel:
     """A neutral face as PDE boundary curves.
@@ -43,6 +48,10 @@ class FaceModel:
         Curve point status (see :mod:`pdeface.surface.curves`).
     descriptors : list
         AU descriptors carried with the model (see :mod:`pdeface.au.descriptor`).
+    landmarks : (68, 3) array or None
+        The 68 landmarks it was fitted with, face frame (binding a whole head needs
+        them). A model read from a file has the :data:`KEPT_LANDMARKS` and NaN rows
+        for the others.
     """
 
     layout: CurveLayout
@@ -58,6 +67,7 @@ class FaceModel:
     notice: str = ""
     status: np.ndarray | None = None
     descriptors: list = field(default_factory=list)
+    landmarks: np.ndarray | None = None
 
     @property
     def n_modes(self) -> int:

@@ -1,0 +1,111 @@
+"""The user's own head in Blender: AU and expression keys on their objects, driven by a PDE face.
+
+A PDE face fitted to the user's mesh keeps it as its ``source``, and any other
+selected objects of the head (eyes, teeth, lashes as objects of their own) as
+``parts``; each of them points back with ``rig_face``. The face's model binds
+all of them at once (:class:`pdeface.head.bind.HeadBinding`, in the source's
+object space), and each object gets the same keys as the face, under the same
+names, so every slider, preset, keyframe and the live link drive both.
+
+Vertex groups ``pdeface_skin``, ``pdeface_jaw``, ``pdeface_eye_L`` ... (one per
+kind of :data:`pdeface.head.parts.KINDS`) override the automatic parts. The
+user's basis, other keys, drivers, modifiers, UVs and materials are never
+touched.
+"""
+import numpy as np
+
+from . import bridge
+
+GROUP_PREFIX = "pdeface_"
+_bindings = {}  # face name → (fingerprint, binding): reused by the mix key at 60 Hz
+
+
+def rest_coords(obj) -> np.ndarray:
+    """The object's rest shape (object space): its reference key if it has keys, else its mesh."""
+    keys = obj.data.shape_keys
+    if keys is not None:
+        return bridge.key_coords(keys.reference_key).astype(np.float64)
+    return bridge.vertices(obj.data)
+
+
+def _to_space(src, obj) -> np.ndarray:
+    """4×4 matrix from ``obj``'s object space to ``src``'s."""
+    return np.array(src.matrix_world.inverted() @ obj.matrix_world)
+
+
+def _overrides(objs, starts) -> dict:
+    from pdeface.head.parts import KINDS
+
+    out = {}
+    for obj, start in zip(objs, starts):
+        for kind in KINDS:
+            g = obj.vertex_groups.get(GROUP_PREFIX + kind)
+            if g is None:
+                continue
+            idx = [v.index for v in obj.data.vertices for e in v.groups if e.group == g.index and e.weight > 0]
+            out.setdefault(kind, []).extend(start + i for i in idx)
+    return out
+
+
+def binding(face, model, users):
+    """The head binding of ``users`` (cached while their shapes and the model stay the same)."""
+    from pdeface.head.bind import HeadBinding
+
+    src = users[0]
+    parts_V, parts_T, starts = [], [], []
+    n = 0
+    for obj in users:
+        M = _to_space(src, obj)
+        V = rest_coords(obj) @ M[:3, :3].T + M[:3, 3]
+        T, _ = bridge.triangles(obj.data)
+        parts_V.append(V)
+        parts_T.append(T + n)
+        starts.append(n)
+        n += len(V)
+    V = np.concatenate(parts_V)
+    T = np.concatenate(parts_T)
+    overrides = _overrides(users, starts)
+    import hashlib
+    h = hashlib.blake2b(digest_size=8)
+    for a in (V.astype(np.float32), T.astype(np.int32), face.pdeface.model_data.encode()):
+        h.update(np.ascontiguousarray(a).tobytes() if isinstance(a, np.ndarray) else a)
+    h.update(repr(sorted((k, len(v)) for k, v in overrides.items())).encode())
+    key = h.hexdigest()
+    layout = [(obj, start, len(pv), np.linalg.inv(_to_space(src, obj))[:3, :3]) for obj, start, pv in
+              zip(users, starts, parts_V)]
+    cached = _bindings.get(face.name)
+    if cached is not None and cached[0] == key:
+        return cached[1], layout
+    b = HeadBinding(model, V, T, overrides=overrides or None)
+    _bindings[face.name] = (key, b)
+    return b, layout
+
+
+def _split(layout, displacement):
+    """Per object: its rest coordinates plus its share of ``displacement`` (source space → object space)."""
+    return [(obj, rest_coords(obj) + displacement[s:s + n] @ back.T) for obj, s, n, back in layout]
+
+
+def head_keys(face, model, poses, users, au_name, expression_name):
+    """Every AU and expression key of the user's objects: ``[(object, [(name, coords, kind, au_key, label)])]``.
+
+    ``poses`` are ``(preset, label, weights, mixer)``; ``au_name(descriptor)`` and
+    ``expression_name(preset)`` name the keys. Nothing is written here.
+    """
+    b, layout = binding(face, model, users)
+    per_object = {obj.name: (obj, []) for obj, *_ in layout}
+    for d in model.descriptors:
+        for obj, coords in _split(layout, b.descriptor_displacement(d)):
+            per_object[obj.name][1].append((au_name(d), coords, "AU", d.key, d.label))
+    for name, label, weights, mixer in poses:
+        for obj, coords in _split(layout, b.pose_displacement(weights, mixer)):
+            per_object[obj.name][1].append((expression_name(name), coords, "EXPRESSION", "", label))
+    return list(per_object.values())
+
+
+def pose_coords(face, model, weights, mixer, users):
+    """``[(object, coordinates)]`` of the user's objects posed with AU ``weights`` (the mix key)."""
+    if not users:
+        return []
+    b, layout = binding(face, model, users)
+    return _split(layout, b.pose_displacement(weights, mixer))

@@ -1,0 +1,215 @@
+"""What each vertex of a user's head is: skin, an eyeball, the jaw, the skull, or attached.
+
+A head mesh has several connected parts. The skin is the part (or parts) the
+68 landmarks lie on. The others are told apart by where they sit in the face
+frame, measured in eye distances (IOD) so any unit and any face size works:
+
+========  ==============================================================
+kind      rule (first that matches)
+========  ==============================================================
+skin      holds the vertex nearest a landmark (ties go to the largest part)
+follow    touches the skin (within ``TOUCH_IOD``): lashes, lacrimal and
+          occlusion meshes, brows and beards glued to the skin
+eye_L/R   lies within an eyeball sphere: the sphere is fitted to the
+          roundest part behind each eye's landmarks (sclera, then the
+          iris and cornea inside it)
+jaw       inside the mouth (behind the lips, between nose and chin) and
+          below the mouth line, in front of the jaw hinge: lower teeth,
+          lower gums, tongue. A part spanning the mouth line (ICT's gums
+          and tongue are one) is split per vertex.
+skull     inside the mouth, above the line or behind the hinge: upper teeth
+          and gums; they do not move
+follow    within ``NEAR_IOD`` of the skin: hair cards, brows
+rest      anything else (a body's other parts, props): never moves
+========  ==============================================================
+
+Users override any of it by naming vertices per kind (a JSON file on the
+command line, vertex groups ``pdeface_<kind>`` in Blender).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import MeshError
+
+#: Part kinds, in the order of their integer codes.
+KINDS = ("skin", "follow", "eye_L", "eye_R", "jaw", "skull", "rest")
+CODE = {k: i for i, k in enumerate(KINDS)}
+
+#: A part within this many eye distances of the skin is glued to it (lashes, lacrimal meshes).
+TOUCH_IOD = 0.008
+#: A part within this many eye distances of the skin follows it (brows, hair cards).
+NEAR_IOD = 0.15
+#: Eyeball diameter range, in eye distances (adults ~24 mm for ~63 mm IOD: 0.38).
+EYEBALL_IOD = (0.2, 0.6)
+
+
+@dataclass
+class Parts:
+    """Per-vertex part kinds of a head mesh, and the eyeballs found.
+
+    Attributes
+    ----------
+    kind : (n,) int8 array
+        Code of :data:`KINDS` per vertex.
+    eyes : dict
+        ``"eye_L"``/``"eye_R"`` → (centre (3,), radius) in the face frame (mm), for eyes found.
+    notes : list of str
+        What was decided, for the user (how many vertices of each kind, overrides applied).
+    """
+
+    kind: np.ndarray
+    eyes: dict = field(default_factory=dict)
+    notes: list = field(default_factory=list)
+
+    def mask(self, *kinds) -> np.ndarray:
+        return np.isin(self.kind, [CODE[k] for k in kinds])
+
+    def counts(self) -> dict:
+        return {k: int((self.kind == CODE[k]).sum()) for k in KINDS}
+
+
+def mouth_line(Lf) -> float:
+    """Height (face frame) of the line between the lips: mouth corners and inner lip centres."""
+    return float(Lf[[48, 54, 62, 66], 1].mean())
+
+
+def eye_distance_mm(Lf) -> float:
+    return float(np.linalg.norm(Lf[42:48].mean(0) - Lf[36:42].mean(0)))
+
+
+def fit_sphere(P):
+    """Least-squares sphere through points: (centre, radius)."""
+    A = np.c_[2 * P, np.ones(len(P))]
+    b = (P ** 2).sum(1)
+    sol, *_ = np.linalg.lstsq(A, b, rcond=None)
+    c = sol[:3]
+    return c, float(np.sqrt(max(sol[3] + c @ c, 0.0)))
+
+
+def classify_parts(Vf, T, Lf, hinge, overrides=None) -> Parts:
+    """Part kind of every vertex of a head mesh.
+
+    Parameters
+    ----------
+    Vf : (n, 3) array
+        Vertices in the face frame (mm).
+    T : (t, 3) int array
+        Triangles.
+    Lf : (68, 3) array
+        Landmarks in the face frame.
+    hinge : (3,) array
+        The jaw hinge (see :func:`pdeface.head.rigid.jaw_hinge`).
+    overrides : dict, optional
+        Kind → vertex indices, applied last (see :func:`apply_overrides`).
+    """
+    from scipy.spatial import cKDTree
+
+    from ..mesh import connected_components
+    from ..surface.fit import skin_vertices
+
+    n = len(Vf)
+    lab = connected_components(n, T)
+    s = eye_distance_mm(Lf)
+    kind = np.full(n, CODE["rest"], np.int8)
+
+    skin = skin_vertices(Vf, T, Lf)
+    kind[skin] = CODE["skin"]
+    skin_tree = cKDTree(Vf[skin])
+
+    others = [int(c) for c in np.unique(lab[~skin])]
+    members = {c: np.nonzero(lab == c)[0] for c in others}
+    gap = {c: float(skin_tree.query(Vf[m])[0].min()) for c, m in members.items()}
+
+    # Eyeballs: the roundest part of the right size behind each eye, and what lies inside its sphere.
+    eyes = {}
+    for name, sl in (("eye_R", slice(36, 42)), ("eye_L", slice(42, 48))):
+        E = Lf[sl].mean(0)
+        best = None
+        for c, m in members.items():
+            P = Vf[m]
+            ctr = P.mean(0)
+            ext = P.max(0) - P.min(0)
+            if np.hypot(*(ctr[:2] - E[:2])) > 0.3 * s or not (E[2] - 0.5 * s < ctr[2] < E[2] + 0.1 * s):
+                continue
+            if not (EYEBALL_IOD[0] * s < ext.max() < EYEBALL_IOD[1] * s) or ext.min() < 0.5 * ext.max():
+                continue
+            c0, r = fit_sphere(P)
+            err = np.abs(np.linalg.norm(P - c0, axis=1) - r).mean() / r
+            if err < 0.1 and (best is None or r > best[0]):  # the outermost sphere: sclera, not iris
+                best = (r, c0, r, c)
+        if best is not None:
+            eyes[name] = (best[1], best[2])
+            kind[members[best[3]]] = CODE[name]
+    balls = {best_c for best_c in (int(lab[np.nonzero(kind == CODE[e])[0][0]]) for e in eyes)}
+
+    ymouth = mouth_line(Lf)
+    lips_z = Lf[[51, 57, 62, 66], 2].max()
+    half_width = 0.75 * s
+    zcut = hinge[2] + JAW_CUT_IOD * s
+    for c, m in members.items():
+        if c in balls:
+            continue
+        P = Vf[m]
+        ctr = P.mean(0)
+        in_mouth = (abs(ctr[0] - Lf[[48, 54], 0].mean()) < half_width and Lf[8, 1] < ctr[1] < Lf[33, 1]
+                    and lips_z - 2 * s < ctr[2] < lips_z)
+        if in_mouth:
+            if P[:, 1].min() < ymouth - 0.05 * s and P[:, 1].max() > ymouth + 0.05 * s:
+                lower = (P[:, 1] < ymouth) & (P[:, 2] > zcut)  # spans the mouth line: per vertex
+            else:
+                lower = np.full(len(m), ctr[1] < ymouth and ctr[2] > zcut)
+            kind[m] = np.where(lower, CODE["jaw"], CODE["skull"])
+            continue
+        eye = next((e for e, (c0, r) in eyes.items() if np.linalg.norm(P - c0, axis=1).max() < r + 0.03 * s), None)
+        if eye:  # iris, cornea: inside the eyeball's sphere
+            kind[m] = CODE[eye]
+            continue
+        if gap[c] < TOUCH_IOD * s:
+            kind[m] = CODE["follow"]
+            continue
+        if gap[c] < NEAR_IOD * s:
+            kind[m] = CODE["follow"]
+    parts = Parts(kind, eyes)
+    if overrides:
+        apply_overrides(parts, overrides)
+    counts = parts.counts()
+    parts.notes.append("parts: " + ", ".join(f"{k} {v}" for k, v in counts.items() if v))
+    missing = [e for e in ("eye_L", "eye_R") if e not in eyes]
+    if missing and len(members):
+        parts.notes.append(f"no eyeball found for {', '.join(missing)} (gaze AUs will move the lids only)")
+    return parts
+
+
+#: How far in front of the jaw hinge (eye distances) the jaw's inner parts start moving with it
+#: (ICT-FaceKit's jawOpen: gums and tongue further back stay put).
+JAW_CUT_IOD = 0.15
+
+
+def apply_overrides(parts: Parts, overrides: dict) -> None:
+    """Set the kind of named vertices: ``{"skin": [...], "jaw": [...], ...}`` (indices, 0-based)."""
+    n = len(parts.kind)
+    for k, idx in overrides.items():
+        if k not in CODE:
+            raise MeshError(f"part override: unknown kind {k!r}; use {', '.join(KINDS)}")
+        idx = np.asarray(idx, dtype=np.int64).ravel()
+        if len(idx) and (idx.min() < 0 or idx.max() >= n):
+            raise MeshError(f"part override {k!r}: vertex index out of range 0..{n - 1}")
+        parts.kind[idx] = CODE[k]
+        parts.notes.append(f"{len(idx)} vertices set to {k} by the user")
+
+
+def parse_overrides(data, name="parts") -> dict:
+    """Validate part overrides read from JSON: an object of kind → list of vertex indices."""
+    if not isinstance(data, dict):
+        raise MeshError(f"{name}: expected an object of part kind → vertex indices")
+    out = {}
+    for k, v in data.items():
+        if k not in CODE:
+            raise MeshError(f"{name}: unknown part kind {k!r}; use {', '.join(KINDS)}")
+        if not isinstance(v, list) or not all(isinstance(i, int) and not isinstance(i, bool) for i in v):
+            raise MeshError(f"{name}: {k!r} must be a list of vertex indices")
+        out[k] = v
+    return out
