@@ -115,7 +115,7 @@ def classify_parts(Vf, T, Lf, hinge, overrides=None) -> Parts:
     s = eye_distance_mm(Lf)
     kind = np.full(n, CODE["rest"], np.int8)
 
-    skin = skin_vertices(Vf, T, Lf)
+    skin = skin_vertices(Vf, T, Lf[np.isfinite(Lf).all(axis=1)])  # a model file keeps some landmarks
     kind[skin] = CODE["skin"]
     skin_tree = cKDTree(Vf[skin])
 
@@ -157,8 +157,9 @@ def classify_parts(Vf, T, Lf, hinge, overrides=None) -> Parts:
         in_mouth = (abs(ctr[0] - Lf[[48, 54], 0].mean()) < half_width and Lf[8, 1] < ctr[1] < Lf[33, 1]
                     and lips_z - 2 * s < ctr[2] < lips_z)
         if in_mouth:
-            if P[:, 1].min() < ymouth - 0.05 * s and P[:, 1].max() > ymouth + 0.05 * s:
-                lower = (P[:, 1] < ymouth) & (P[:, 2] > zcut)  # spans the mouth line: per vertex
+            spans = P[:, 1].min() < ymouth - 0.05 * s and P[:, 1].max() > ymouth + 0.05 * s
+            if spans and np.ptp(P[:, 0]) > 0.5 * abs(Lf[54, 0] - Lf[48, 0]):
+                lower = (P[:, 1] < ymouth) & (P[:, 2] > zcut)  # gums and tongue in one piece: per vertex
             else:
                 lower = np.full(len(m), ctr[1] < ymouth and ctr[2] > zcut)
             kind[m] = np.where(lower, CODE["jaw"], CODE["skull"])
