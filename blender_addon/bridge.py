@@ -37,6 +37,26 @@ def triangles(mesh):
     return tv.reshape(-1, 3).astype(np.int64), tl.reshape(-1, 3).astype(np.int64)
 
 
+def polygon_triangles(mesh) -> np.ndarray:
+    """Triangles fanned from each polygon's first corner, as pdeface fans an OBJ's faces.
+
+    Blender's own loop triangles may split a quad along its other diagonal;
+    binding a head on the same triangles as ``pdeface pose --mesh`` makes the
+    keys equal to its poses.
+    """
+    from pdeface.mesh import Mesh
+
+    counts = np.empty(len(mesh.polygons), dtype=np.int32)
+    starts = np.empty(len(mesh.polygons), dtype=np.int32)
+    mesh.polygons.foreach_get("loop_total", counts)
+    mesh.polygons.foreach_get("loop_start", starts)
+    corners = np.empty(len(mesh.loops), dtype=np.int32)
+    mesh.loops.foreach_get("vertex_index", corners)
+    first = np.repeat(np.cumsum(counts) - counts, counts)
+    loops = np.repeat(starts, counts) + np.arange(counts.sum()) - first  # each polygon's loops, in polygon order
+    return Mesh(vertices(mesh), counts.astype(np.int64), corners[loops].astype(np.int64)).triangles()[0]
+
+
 def loop_uvs(mesh, layer=None) -> np.ndarray:
     layer = layer or mesh.uv_layers.active
     uv = np.empty(len(mesh.loops) * 2, dtype=np.float32)

@@ -57,7 +57,7 @@ def binding(face, model, users):
     for obj in users:
         M = _to_space(src, obj)
         V = rest_coords(obj) @ M[:3, :3].T + M[:3, 3]
-        T, _ = bridge.triangles(obj.data)
+        T = bridge.polygon_triangles(obj.data)
         parts_V.append(V)
         parts_T.append(T + n)
         starts.append(n)
@@ -81,9 +81,10 @@ def binding(face, model, users):
     return b, layout
 
 
-def _split(layout, displacement):
+def _split(layout, displacement, rests=None):
     """Per object: its rest coordinates plus its share of ``displacement`` (source space → object space)."""
-    return [(obj, rest_coords(obj) + displacement[s:s + n] @ back.T) for obj, s, n, back in layout]
+    rests = rests or [rest_coords(obj) for obj, *_ in layout]
+    return [(obj, rest + displacement[s:s + n] @ back.T) for (obj, s, n, back), rest in zip(layout, rests)]
 
 
 def head_keys(face, model, poses, users, au_name, expression_name):
@@ -93,12 +94,13 @@ def head_keys(face, model, poses, users, au_name, expression_name):
     ``expression_name(preset)`` name the keys. Nothing is written here.
     """
     b, layout = binding(face, model, users)
+    rests = [rest_coords(obj) for obj, *_ in layout]
     per_object = {obj.name: (obj, []) for obj, *_ in layout}
     for d in model.descriptors:
-        for obj, coords in _split(layout, b.descriptor_displacement(d)):
+        for obj, coords in _split(layout, b.descriptor_displacement(d), rests):
             per_object[obj.name][1].append((au_name(d), coords, "AU", d.key, d.label))
     for name, label, weights, mixer in poses:
-        for obj, coords in _split(layout, b.pose_displacement(weights, mixer)):
+        for obj, coords in _split(layout, b.pose_displacement(weights, mixer), rests):
             per_object[obj.name][1].append((expression_name(name), coords, "EXPRESSION", "", label))
     return list(per_object.values())
 

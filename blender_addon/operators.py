@@ -106,7 +106,7 @@ class PDEFACE_OT_fit_to_selected(_ObjectModeOperator, Operator):
             compat.set_status(context, "PDE Face: reading landmarks")
             landmarks = face.read_landmarks(s, context.active_object)
             src = context.active_object
-            parts = [o for o in context.selected_objects if o is not src and o.type == "MESH"]
+            parts = [o for o in context.view_layer.objects.selected if o is not src and o.type == "MESH"]
             obj, model, sampler = face.fit_face_object(context, src, landmarks,
                                                        None if s.unit == "AUTO" else s.unit, self.resolution,
                                                        self.retarget, progress, parts, self.keys_on_mesh)

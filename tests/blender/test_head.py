@@ -1,0 +1,167 @@
+"""The user's own head in Blender: keys on their objects, driven like the PDE face, nothing of theirs lost."""
+import json
+import time
+
+import numpy as np
+import pytest
+
+MODULE = "bl_ext.pdeface_test.pdeface"
+
+AU12 = "AU12 Lip Corner Puller"
+
+
+def addon(name="bridge"):
+    return __import__(MODULE + "." + name, fromlist=[name])
+
+
+def key_blocks(obj):
+    return obj.data.shape_keys.key_blocks
+
+
+@pytest.fixture
+def ict_head(bpy, tmp_path):
+    """ICT-FaceKit's head as the user's objects: the skin with lashes and mouth, and the eyeballs apart."""
+    from pdeface.assets import HEAD_PARTS, load_head
+    from pdeface.mesh import Mesh
+
+    mesh, lm = load_head()
+    cut = HEAD_PARTS["eyeball_left"], HEAD_PARTS["lacrimal_fluid_left"]
+    starts = np.r_[0, np.cumsum(mesh.face_counts)]
+    polys = [mesh.face_indices[starts[k]:starts[k + 1]] for k in range(len(mesh.face_counts))]
+    in_eyes = np.array([cut[0] <= p[0] < cut[1] for p in polys])
+
+    def part(keep, offset):
+        ps = [p - offset for p, k in zip(polys, keep) if k]
+        used = np.unique(np.concatenate(ps))
+        remap = np.full(len(mesh.vertices), -1)
+        remap[used] = np.arange(len(used))
+        return Mesh(mesh.vertices[used + offset], np.array([len(p) for p in ps]),
+                    remap[np.concatenate(ps)]), used + offset
+
+    head_mesh, head_idx = part(~in_eyes, 0)
+    eye_mesh, eye_idx = part(in_eyes, 0)
+    objs = []
+    for name, m in (("Head", head_mesh), ("Eyes", eye_mesh)):
+        me = addon().new_mesh(name, m)
+        obj = bpy.data.objects.new(name, me)
+        bpy.context.collection.objects.link(obj)
+        objs.append(obj)
+    head_obj, eyes = objs
+    eyes.location = (0.0, 0.0, 0.0)
+    remap = {int(v): i for i, v in enumerate(head_idx)}
+    g = head_obj.vertex_groups.new(name="landmarks")
+    for i, v in enumerate(lm):
+        g.add([remap[int(v)]], (i + 1) / 68, "REPLACE")
+    bpy.context.scene.pdeface.landmark_source = "GROUP"
+    bpy.context.view_layer.update()
+    for o in objs:
+        o.select_set(True)
+    bpy.context.view_layer.objects.active = head_obj
+    return head_obj, eyes, head_idx, eye_idx
+
+
+def test_fit_puts_every_key_on_the_users_objects(bpy, ict_head, tmp_path):
+    head, eyes, head_idx, eye_idx = ict_head
+    t = time.perf_counter()
+    assert bpy.ops.pdeface.fit_to_selected() == {"FINISHED"}
+    elapsed = time.perf_counter() - t
+    face = head.pdeface.rig_face
+    assert bpy.context.active_object == head and face.hide_get() and eyes.pdeface.rig_face == face
+    for obj in (head, eyes):
+        assert AU12 in key_blocks(obj) and "Expr happy" in key_blocks(obj) and "AU63 Eyes Up" in key_blocks(obj)
+    # the keys at weight 1 are `pdeface pose --mesh` on the same head, to float32 precision
+    from pdeface.assets import load_head
+    from pdeface.head.bind import HeadBinding
+    mesh, _ = load_head()
+    model = addon().face_model(face)
+    b = HeadBinding(model, mesh.vertices, mesh.triangles()[0])
+    want = mesh.vertices + b.pose_displacement({"12": 1.0})
+    got = addon().key_coords(key_blocks(head)[AU12])
+    np.testing.assert_allclose(got, want[head_idx], atol=1e-5)
+    happy = addon("face").all_presets(bpy.context.scene)["happy"]
+    from pdeface.au.expressions import resolve_preset
+    w, _ = resolve_preset(happy, {d.key for d in model.descriptors})
+    want = mesh.vertices + b.pose_displacement(w, happy.mixer)
+    np.testing.assert_allclose(addon().key_coords(key_blocks(head)["Expr happy"]), want[head_idx], atol=1e-5)
+    up = addon().key_coords(key_blocks(eyes)["AU63 Eyes Up"]) - addon().key_coords(key_blocks(eyes)["Basis"])
+    assert np.linalg.norm(up, axis=1).max() > 0.3  # cm: the eyeballs turn
+    print(f"fit, bind and {len(key_blocks(head)) - 1} keys on {len(mesh.vertices)} vertices: {elapsed:.2f} s")
+
+
+def test_panel_operations_drive_the_users_mesh(bpy, ict_head):
+    head, eyes, *_ = ict_head
+    assert bpy.ops.pdeface.fit_to_selected() == {"FINISHED"}
+    assert bpy.ops.pdeface.apply_preset(preset="happy", mode="KEY") == {"FINISHED"}
+    assert key_blocks(head)["Expr happy"].value == 1.0 and key_blocks(eyes)["Expr happy"].value == 1.0
+    assert bpy.ops.pdeface.apply_preset(preset="surprise", mode="AUS", weight=0.5) == {"FINISHED"}
+    assert key_blocks(head)["AU1 Inner Brow Raiser"].value == pytest.approx(0.5)
+    assert bpy.ops.pdeface.keyframe_pose() == {"FINISHED"}
+    fcurves = addon("compat").fcurves_of(head.data.shape_keys)
+    assert any("AU1 Inner Brow Raiser" in fc.data_path for fc in fcurves)
+    bpy.context.scene.pdeface.mixer = "max"
+    assert bpy.ops.pdeface.apply_preset(preset="happy", mode="AUS") == {"FINISHED"}
+    assert key_blocks(head)["PDE Mix"].value == 1.0  # a non-linear mix: one key of its own, on the user's head too
+    mix = addon().key_coords(key_blocks(head)["PDE Mix"]) - addon().key_coords(key_blocks(head)["Basis"])
+    assert np.abs(mix).max() > 0.1
+
+
+def test_rebuild_keeps_the_users_keys_drivers_and_modifiers(bpy, ict_head):
+    head, eyes, *_ = ict_head
+    head.shape_key_add(name="Basis", from_mix=False)
+    mine = head.shape_key_add(name="Frown mine", from_mix=False)
+    co = addon().key_coords(mine) + 0.05
+    addon().set_key_coords(mine, co)
+    mine.value = 0.3
+    mine.keyframe_insert("value", frame=5)
+    drv = key_blocks(head)["Frown mine"].driver_add("slider_max").driver
+    drv.expression = "1.5"
+    head.modifiers.new("Sub", "SUBSURF")
+    uv_before = [tuple(d.uv) for d in head.data.uv_layers[0].data] if head.data.uv_layers else []
+    assert bpy.ops.pdeface.fit_to_selected() == {"FINISHED"}
+    assert bpy.ops.pdeface.build_shape_keys() == {"FINISHED"}  # a rebuild
+    kb = key_blocks(head)
+    assert kb[0].name == "Basis" and "Frown mine" in kb and AU12 in kb
+    np.testing.assert_allclose(addon().key_coords(kb["Frown mine"]), co, atol=1e-6)
+    assert head.data.shape_keys.animation_data.drivers[0].driver.expression == "1.5"
+    assert [m.name for m in head.modifiers] == ["Sub"]
+    assert uv_before == ([tuple(d.uv) for d in head.data.uv_layers[0].data] if head.data.uv_layers else [])
+    bpy.context.scene.frame_set(5)
+    assert kb["Frown mine"].value == pytest.approx(0.3)
+
+
+def test_part_overrides_from_vertex_groups(bpy, ict_head):
+    head, eyes, *_ = ict_head
+    g = eyes.vertex_groups.new(name="pdeface_rest")
+    g.add(list(range(len(eyes.data.vertices))), 1.0, "REPLACE")
+    assert bpy.ops.pdeface.fit_to_selected() == {"FINISHED"}
+    kb = key_blocks(eyes)
+    up = addon().key_coords(kb["AU63 Eyes Up"]) - addon().key_coords(kb["Basis"])
+    assert np.abs(up).max() == 0  # the user said the eyeballs do not move
+
+
+def test_a_mesh_without_a_face_loses_nothing(bpy, tmp_path):
+    bpy.ops.mesh.primitive_uv_sphere_add(radius=10)
+    ball = bpy.context.active_object
+    s = bpy.context.scene.pdeface
+    s.landmark_source = "FILE"
+    pts = np.array([[np.cos(a) * 9, np.sin(a) * 9, 0.0] for a in np.linspace(0, 6, 68)])
+    (tmp_path / "lm.json").write_text(json.dumps({"points": pts.tolist()}))
+    s.landmark_file = str(tmp_path / "lm.json")
+    n = len(bpy.data.objects)
+    with pytest.raises(RuntimeError):
+        bpy.ops.pdeface.fit_to_selected()
+    assert len(bpy.data.objects) == n and ball.data.shape_keys is None
+
+
+def test_rebuild_timing_is_printed(bpy, ict_head):
+    """Not a timed test: bench_addon.py holds the target; this prints what a rebuild costs here."""
+    head, *_ = ict_head
+    assert bpy.ops.pdeface.fit_to_selected() == {"FINISHED"}
+    addon("head")._bindings.clear()
+    t = time.perf_counter()
+    assert bpy.ops.pdeface.build_shape_keys() == {"FINISHED"}
+    print(f"first build (binding included): {time.perf_counter() - t:.2f} s")
+    t = time.perf_counter()
+    assert bpy.ops.pdeface.build_shape_keys() == {"FINISHED"}
+    print(f"rebuild: {time.perf_counter() - t:.2f} s")
+    assert len(key_blocks(head)) > 70
