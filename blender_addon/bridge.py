@@ -37,13 +37,8 @@ def triangles(mesh):
     return tv.reshape(-1, 3).astype(np.int64), tl.reshape(-1, 3).astype(np.int64)
 
 
-def polygon_triangles(mesh) -> np.ndarray:
-    """Triangles fanned from each polygon's first corner, as pdeface fans an OBJ's faces.
-
-    Blender's own loop triangles may split a quad along its other diagonal;
-    binding a head on the same triangles as ``pdeface pose --mesh`` makes the
-    keys equal to its poses.
-    """
+def as_pdeface_mesh(mesh):
+    """A Blender mesh's polygons as a pdeface Mesh (object space), corners in polygon order."""
     from pdeface.mesh import Mesh
 
     counts = np.empty(len(mesh.polygons), dtype=np.int32)
@@ -54,7 +49,23 @@ def polygon_triangles(mesh) -> np.ndarray:
     mesh.loops.foreach_get("vertex_index", corners)
     first = np.repeat(np.cumsum(counts) - counts, counts)
     loops = np.repeat(starts, counts) + np.arange(counts.sum()) - first  # each polygon's loops, in polygon order
-    return Mesh(vertices(mesh), counts.astype(np.int64), corners[loops].astype(np.int64)).triangles()[0]
+    return Mesh(vertices(mesh), counts.astype(np.int64), corners[loops].astype(np.int64))
+
+
+def polygon_materials(mesh) -> np.ndarray:
+    index = np.empty(len(mesh.polygons), dtype=np.int32)
+    mesh.polygons.foreach_get("material_index", index)
+    return index
+
+
+def polygon_triangles(mesh) -> np.ndarray:
+    """Triangles fanned from each polygon's first corner, as pdeface fans an OBJ's faces.
+
+    Blender's own loop triangles may split a quad along its other diagonal;
+    binding a head on the same triangles as ``pdeface pose --mesh`` makes the
+    keys equal to its poses.
+    """
+    return as_pdeface_mesh(mesh).triangles()[0]
 
 
 def loop_uvs(mesh, layer=None) -> np.ndarray:

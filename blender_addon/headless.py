@@ -41,6 +41,8 @@ def build_parser(prog="render_sequence.py"):
     src.add_argument("--sequence", help="comma-separated presets (default: the method's sequence)")
     src.add_argument("--au-data", help="an OpenFace / Py-Feat / Live Link Face CSV or FAS text file")
     ap.add_argument("--face", default="default", help="face model (.npz) or 'default'")
+    ap.add_argument("--head", action="store_true", help="render ICT-FaceKit's whole head (eyes, teeth, lashes) "
+                                                        "with every key on it, instead of the PDE face")
     ap.add_argument("--blend", help="load this .blend (its PDE face) instead of building one")
     ap.add_argument("--out", default="render", help="output folder")
     ap.add_argument("--frame-start", type=int)
@@ -126,10 +128,16 @@ def main(argv=None, prog="render_sequence.py"):
                 raise SystemExit(f"{args.blend}: no PDE face in the scene")
             face = faces[0]
             bpy.context.view_layer.objects.active = face
+            shown = next(iter(face_logic.user_objects(face)), face)
+        elif args.head:
+            bpy.ops.wm.read_homefile(use_empty=True)
+            shown = face_logic.add_ict_head(bpy.context)
+            face = shown.pdeface.rig_face
         else:
             bpy.ops.wm.read_homefile(use_empty=True)
             face = face_logic.add_face(bpy.context, "" if args.face == "default" else str(Path(args.face).resolve()))
             face_logic.build_keys(face, face_logic.all_presets(bpy.context.scene))
+            shown = face
         progress_bar(1, 1, "rig", args.quiet)
         scene = bpy.context.scene
         t0 = time.perf_counter()
@@ -157,7 +165,7 @@ def main(argv=None, prog="render_sequence.py"):
             fps = timeline.fps
         else:
             fps = scene.render.fps
-        render.setup_render(scene, face, args.engine, (width, height), args.samples, args.seed, fps)
+        render.setup_render(scene, shown, args.engine, (width, height), args.samples, args.seed, fps)
         summary["setup_s"] = time.perf_counter() - t0
         start = scene.frame_start if args.frame_start is None else args.frame_start
         end = scene.frame_end if args.frame_end is None else args.frame_end
@@ -172,7 +180,7 @@ def main(argv=None, prog="render_sequence.py"):
                 summary["video"] = str(render.make_video(frames, fps, out / "frames.mp4"))
         if args.contact_sheet:
             progress_bar(0, 1, "contact sheet", args.quiet)
-            path, cells = render.contact_sheet(face, out / "contact_sheet.png", cell=args.sheet_cell,
+            path, cells = render.contact_sheet(shown, out / "contact_sheet.png", cell=args.sheet_cell,
                                                samples=args.sheet_samples)
             progress_bar(1, 1, "contact sheet", args.quiet)
             summary["contact_sheet"], summary["contact_sheet_cells"] = str(path), cells

@@ -70,6 +70,17 @@ class PDEFACE_OT_add_default_face(_ObjectModeOperator, Operator):
         return f"Added {obj.name}"
 
 
+class PDEFACE_OT_add_ict_head(_ObjectModeOperator, Operator):
+    """Add ICT-FaceKit's whole head (eyes, teeth, lashes), rigged: every AU and expression key on it"""
+
+    bl_idname = "pdeface.add_ict_head"
+    bl_label = "Add ICT Head (rigged)"
+
+    def run(self, context):
+        obj = face.add_ict_head(context)
+        return f"Added {obj.name}: {len(obj.data.shape_keys.key_blocks) - 1} keys on its {len(obj.data.vertices)} vertices"
+
+
 class PDEFACE_OT_fit_to_selected(_ObjectModeOperator, Operator):
     """Fit a PDE face to the selected mesh, beside it, with the bundled AU descriptors retargeted to it"""
 
@@ -312,8 +323,8 @@ class PDEFACE_OT_live_stop(_Operator, Operator):
         return f"Live link stopped after {packets} packets"
 
 
-_classes = (PDEFACE_OT_add_default_face, PDEFACE_OT_fit_to_selected, PDEFACE_OT_build_shape_keys,
-            PDEFACE_OT_apply_preset, PDEFACE_OT_reset_pose, PDEFACE_OT_keyframe_pose, PDEFACE_OT_animate_sequence,
+_classes = (PDEFACE_OT_add_default_face, PDEFACE_OT_add_ict_head, PDEFACE_OT_fit_to_selected,
+            PDEFACE_OT_build_shape_keys, PDEFACE_OT_apply_preset, PDEFACE_OT_reset_pose, PDEFACE_OT_keyframe_pose, PDEFACE_OT_animate_sequence,
             PDEFACE_OT_import_au, PDEFACE_OT_transfer_texture, PDEFACE_OT_live_start, PDEFACE_OT_live_stop)
 
 

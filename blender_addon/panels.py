@@ -40,6 +40,7 @@ class PDEFACE_PT_face(_Panel, bpy.types.Panel):
         obj = active_face(context)
         col = layout.column(align=True)
         col.operator("pdeface.add_default_face", icon="USER")
+        col.operator("pdeface.add_ict_head", icon="MONKEY")
         box = layout.box()
         box.label(text="Fit to selected mesh")
         box.prop(s, "landmark_source")

@@ -17,17 +17,23 @@ from . import bridge, compat, face
 RIG = "PDE Render"  # prefix of the camera and lights this module makes
 
 
+#: A user's head is framed wider than its PDE face: the face's extent times this.
+HEAD_FRAMING = 1.35
+
+
 def face_axes(obj):
-    """World-space centre, forward and up of a PDE face (from its model's frame)."""
-    model = bridge.face_model(obj)
-    M = obj.matrix_world
+    """World-space centre, forward and up of a PDE face or the user's head it drives (the model's frame)."""
+    pde = obj if obj.pdeface.is_face else obj.pdeface.rig_face
+    model = bridge.face_model(pde)
+    M = pde.matrix_world
     R = model.frame.rotation  # rows: face x, y, z axes in the object's space
     fwd = (M.to_3x3() @ Vector(R[2])).normalized()
     up = (M.to_3x3() @ Vector(R[1])).normalized()
     # The rest mesh, not bound_box: that follows the pose of the current frame.
-    V = bridge.world_vertices(obj)
+    V = bridge.world_vertices(pde)
     lo, hi = V.min(axis=0), V.max(axis=0)
-    return Vector((lo + hi) / 2), fwd, up, float(np.linalg.norm(hi - lo))
+    extent = float(np.linalg.norm(hi - lo)) * (1.0 if pde is obj else HEAD_FRAMING)
+    return Vector((lo + hi) / 2), fwd, up, extent
 
 
 def _look_at(location, target, up):
@@ -145,23 +151,33 @@ def contact_sheet(obj, path, items=None, cell=256, columns=8, samples=16, resolu
     from pdeface.au.facs import split_au_key
     from pdeface.surface.fit import face_mesh
 
-    model = bridge.face_model(obj)
-    basis = ShapeBasis(model, resolution, dtype=np.float64)
+    pde = obj if obj.pdeface.is_face else obj.pdeface.rig_face
+    model = bridge.face_model(pde)
     keys = sorted((d.key for d in model.descriptors), key=split_au_key)
     cells = [("neutral", {})] + [(f"AU{k}", {k: 1.0}) for k in keys]
     for name, preset in face.all_presets(bpy.context.scene).items():
-        w, _ = resolve_preset(preset, set(basis.keys))
+        w, _ = resolve_preset(preset, set(keys))
         cells.append((name, w))
     if items is not None:
         cells = [c for c in cells if c[0] in items]
     scene = bpy.data.scenes.new("PDE contact sheet")
     try:
-        pde = face_mesh(model, resolution)
+        if pde is obj:  # the PDE face, meshed at the sheet's resolution
+            basis = ShapeBasis(model, resolution, dtype=np.float64)
+            cell_mesh = face_mesh(model, resolution)
+            user_space = [basis.vertices(basis.weights_matrix(w))[0] if w else basis.neutral for _, w in cells]
+        else:  # the user's head: its own keys at weight 1
+            cell_mesh = bridge.as_pdeface_mesh(obj.data)
+            blocks = obj.data.shape_keys.key_blocks
+            names = {**{f"AU{k}": n for k, n in face.au_key_names(obj).items()},
+                     **face.expression_key_names(obj, [c[0] for c in cells])}
+            rest = bridge.key_coords(obj.data.shape_keys.reference_key).astype(np.float64)
+            user_space = [bridge.key_coords(blocks[names[label]]).astype(np.float64) if w else rest
+                          for label, w in cells]
         rows = math.ceil(len(cells) / columns)
         # Faces in the face frame (mm), looking +z, each centred on its cell by the neutral's
         # bounding box; the labels go in a strip below the lowest point any pose reaches (an open jaw).
-        posed = [model.frame.to_face(basis.vertices(basis.weights_matrix(w))[0] if w else basis.neutral)
-                 for _, w in cells]
+        posed = [model.frame.to_face(V) for V in user_space]
         neutral = posed[0]
         lo, hi = neutral.min(axis=0), neutral.max(axis=0)
         centre = (lo + hi) / 2
@@ -178,9 +194,15 @@ def contact_sheet(obj, path, items=None, cell=256, columns=8, samples=16, resolu
         if bsdf is not None:
             bsdf.inputs["Base Color"].default_value = (0.9, 0.9, 0.9, 1)
         for i, ((label, _), V) in enumerate(zip(cells, posed)):
-            pde.vertices = V - centre
-            me = bridge.new_mesh(f"sheet {label}", pde)
-            me.materials.append(bridge.skin_material())
+            cell_mesh.vertices = V - centre
+            me = bridge.new_mesh(f"sheet {label}", cell_mesh)
+            if pde is obj:
+                me.materials.append(bridge.skin_material())
+            else:  # the user's own materials, per polygon
+                for m in obj.data.materials:
+                    me.materials.append(m)
+                me.polygons.foreach_set("material_index", bridge.polygon_materials(obj.data))
+                me.polygons.foreach_set("use_smooth", np.ones(len(me.polygons), bool))
             o = bpy.data.objects.new(f"sheet {label}", me)
             r, c = divmod(i, columns)
             cx, cy = c * pitch_x, -r * pitch_y

@@ -212,12 +212,12 @@ def cmd_demo(args):
 
 
 def render_demo(out, args):
-    """The rig, the method's sequence, frames, contact sheet and .blend, rendered with the bpy module.
+    """The rig on ICT-FaceKit's whole head, the method's sequence, frames, contact sheet and .blend (bpy).
 
     Runs in a child process (:func:`run_headless`), so this package never imports bpy itself.
     """
     from .au.sequence import METHOD_SEQUENCE
-    argv = ["--sequence", ",".join(METHOD_SEQUENCE), "--out", str(out), "--fps", str(args.fps), "--hold", "0.33",
+    argv = ["--head", "--sequence", ",".join(METHOD_SEQUENCE), "--out", str(out), "--fps", str(args.fps), "--hold", "0.33",
             "--blend-time", "0.33", "--size", args.size, "--samples", str(args.samples), "--contact-sheet",
             "--save-blend", str(out / "demo.blend")] + (["--video"] if args.video else [])
     code, stdout = run_headless(argv, capture=True)
