@@ -4,7 +4,7 @@ Usage: python scripts/build_extension.py [--platforms linux-x64,macos-arm64,maco
                                          [--out dist] [--wheel-cache DIR]
 
 Stages blender_addon/, builds a pdeface wheel carrying the default face assets
-(default_face.npz, the ICT neutral scan, ICT-FaceKit's licence), downloads
+(default_face.npz, the ICT neutral scan and whole head, ICT-FaceKit's licence), downloads
 CPython 3.11 wheels of scipy and xatlas for each platform (Blender 4.2-5.0 run
 Python 3.11 and ship numpy), lists them in the manifest, then builds one zip
 per platform with Blender's own extension tool and validates them. The tool

@@ -143,7 +143,8 @@ class HeadBinding:
         edge = np.linalg.norm(X0[Tp[:, 0]] - X0[Tp[:, 1]], axis=1).max()
         near = cKDTree(X0).query(P, distance_upper_bound=COVER_IOD * s + edge)[0] < np.inf
         dist, tri, bary = np.full(len(P), np.inf), np.zeros(len(P), np.int64), np.zeros((len(P), 3))
-        dist[near], tri[near], bary[near], _ = ClosestPoint(X0, Tp).query(P[near])
+        if near.any():
+            dist[near], tri[near], bary[near], _ = ClosestPoint(X0, Tp).query(P[near])
         r, c = Tp[tri] // nv, Tp[tri] % nv
         inside = (r.min(1) > 0) & (r.max(1) < nu - 1) & (c.min(1) > 0) & (c.max(1) < nv - 1)
         A, B, C = X0[Tp[tri, 0]], X0[Tp[tri, 1]], X0[Tp[tri, 2]]
