@@ -10,13 +10,12 @@ motion to all of the user's mesh, once per fit:
   harmonic extension of that motion over the mesh (cotangent Laplacian,
   Dirichlet values on the covered skin), falling to exactly zero in the
   **rest region**: skin farther than ``REST_IOD`` eye distances from the
-  covered skin, or more than ``BELOW_CHIN_IOD`` below the chin. Tried and
-  measured on ICT-FaceKit (``scripts/bench_head.py``): biharmonic extension
-  (overshoots: worse on every AU), a uniform graph Laplacian (0.02 lower median);
+  covered skin, more than ``BELOW_CHIN_IOD`` below the chin, or deeper in the
+  mouth than ``MOUTH_DEPTH_IOD`` behind the lips (in jaw AUs only its upper half).
+  The README lists what else was tried and measured;
 - **jaw AUs** (25, 26, 27, 29, 30) turn the jaw's parts (lower teeth, gums,
   tongue) about the hinge with the rotation recovered from the chin's own PDE
-  motion (:mod:`pdeface.head.rigid`); the mouth's lining next to them moves
-  with the chin in those AUs;
+  motion (:mod:`pdeface.head.rigid`);
 - **gaze AUs** (61-64) turn the eyeballs about their fitted centres;
 - **attached parts** (lashes, brows, hair cards, lacrimal meshes) ride on their
   nearest skin vertex, turning with its normal;
@@ -33,7 +32,7 @@ import numpy as np
 from ..errors import MeshError
 from ..surface.fit import grid_faces, surface_grid
 from ..surface.model import KEPT_LANDMARKS
-from .parts import CODE, classify_parts, eye_distance_mm
+from .parts import classify_parts, eye_distance_mm, mouth_line
 from .rigid import JAW_BONE_GAIN, gaze_matrix, jaw_hinge, jaw_motion, rigid_displacement, rotation_vector_matrix
 
 #: PDE grid the binding reads (rows per curve interval, columns per point interval).
@@ -45,8 +44,8 @@ COVER_COS = 0.3
 REST_IOD = 1.1
 #: nor skin this far below the chin.
 BELOW_CHIN_IOD = 0.75
-#: Mouth lining this close (eye distances) to the jaw's or skull's parts moves with them in jaw AUs.
-SOCKET_IOD = 0.0
+#: Skin inside the mouth this far (eye distances) behind the lips does not move (but with the jaw).
+MOUTH_DEPTH_IOD = 0.8
 #: AUs that move the jaw, and the gaze AUs.
 JAW_AUS = frozenset({25, 26, 27, 29, 30})
 GAZE_AUS = frozenset({61, 62, 63, 64})
@@ -168,24 +167,25 @@ class HeadBinding:
         L = cotan_laplacian(P, Ts) if len(Ts) else None
         if L is None:
             raise MeshError("the skin has no triangles")
-        # Only skin within reach of the motion enters the solves.
         self._L = L
-        self._ext = _Extension(L, covered | rest)
 
-        # Jaw: chin drivers, the jaw's parts, and the lining next to them.
+        # Jaw: the chin that drives it, and the parts it turns.
         chin = covered & (P[:, 1] < Lf[57, 1] - 0.08 * s) & (np.abs(P[:, 0]) < abs(Lf[5, 0] - Lf[11, 0]) / 2) \
             & (P[:, 2] > min(Lf[5, 2], Lf[11, 2]))
         self.chin = chin if chin.sum() >= 10 else None
         if self.chin is None:
             self.notes.append("too little chin under the PDE face: jaw AUs move the skin only")
         self.jaw_parts = np.nonzero(parts.mask("jaw"))[0]
-        skull_parts = np.nonzero(parts.mask("skull"))[0]
-        big = 1e9
-        dj = cKDTree(Vf[self.jaw_parts]).query(P)[0] if len(self.jaw_parts) else np.full(len(si), big)
-        dk = cKDTree(Vf[skull_parts]).query(P)[0] if len(skull_parts) else np.full(len(si), big)
-        lining = ~covered & ~rest
-        self.lining_jaw = lining & (dj < SOCKET_IOD * s) & (dj < dk)
-        self.lining_skull = lining & (dk < SOCKET_IOD * s) & (dk <= dj)
+        # The mouth's depths (lining, throat) stay put, but for the lower half in jaw AUs: the
+        # lips' motion would otherwise spread through the whole mouth (ICT-FaceKit's truth: it fades).
+        lips_z = Lf[[51, 57, 62, 66], 2].max()
+        depths = (~covered & (P[:, 2] < lips_z - MOUTH_DEPTH_IOD * s) & (np.abs(P[:, 0]) < 0.6 * s)
+                  & (P[:, 1] < Lf[33, 1]) & (P[:, 1] > Lf[8, 1]))
+        for centre, radius in parts.eyes.values():  # the orbit behind an eyeball, likewise
+            depths |= ~covered & (np.linalg.norm(P - centre, axis=1) < radius + 0.1 * s) & (P[:, 2] < centre[2])
+        self.depths = depths
+        self._ext = _Extension(L, covered | rest | depths)
+        self._jaw_fixed = covered | rest | (depths & (P[:, 1] > mouth_line(Lf)))
         self._ext_jaw = None  # factorised on first use
 
         # Attached parts ride on their nearest skin vertex.
@@ -232,15 +232,12 @@ class HeadBinding:
         """Skin displacement (face frame, mm) from the PDE grid's; ``jaw``: the skin's jaw motion (R, t)."""
         values = np.zeros((len(self.skin), 3))
         values[self.covered] = self.read_grid @ grid_displacement
-        ext = self._ext
-        if jaw is not None:
-            ext = self._jaw_extension()
-            values[self.lining_jaw] = rigid_displacement(self.Vf[self.skin[self.lining_jaw]], self.hinge, *jaw)
+        ext = self._ext if jaw is None else self._jaw_extension()
         return ext.solve(np.zeros((len(self.skin), 3)), values[ext.fixed])
 
     def _jaw_extension(self):
         if self._ext_jaw is None:
-            self._ext_jaw = _Extension(self._L, self.covered | self.rest | self.lining_jaw | self.lining_skull)
+            self._ext_jaw = _Extension(self._L, self._jaw_fixed)
         return self._ext_jaw
 
     def displacement(self, delta_coefficients, delta_residual, jaw=False, gaze=None) -> np.ndarray:
