@@ -186,7 +186,7 @@ def test_pose_mesh_keeps_the_file_but_its_positions(tmp_path, head, capsys):
 def test_bad_input(tmp_path, head, capsys):
     mesh, T, lm, _ = head
     model = load_face("default")
-    with pytest.raises(MeshError, match="under the PDE face"):  # a model fitted on another mesh
+    with pytest.raises(MeshError, match="fitted on this head"):  # a model fitted on another mesh
         HeadBinding(model, mesh.vertices + [0, 0, 30.0], T)
     with pytest.raises(MeshError, match="unknown part kind"):
         parse_overrides({"teeth": [1, 2]})
@@ -233,3 +233,56 @@ def test_rigid_helpers():
     np.testing.assert_allclose(got_t, 0, atol=1e-9)
     _, got_t = jaw_motion(P, np.tile([0.0, 0.0, 2.0], (len(P), 1)), np.array([0.0, 0.0, -1e6]))
     np.testing.assert_allclose(got_t, [0, 0, 2.0], atol=1e-3)  # a slide, seen from a far hinge
+
+
+def test_report_on_a_whole_head_measures_its_skin(head, generic):
+    from pdeface.surface.report import accuracy_report
+    mesh, T, lm, _ = head
+    model, _ = fit_face(mesh.vertices, T, mesh.vertices[lm], unit="cm")
+    r = accuracy_report(model, mesh.vertices, T)
+    # lash strips in front of the lids and the orbit behind the eyeballs are not skin seen by the face
+    assert r["max_mm"] < 3 and r["mean_mm"] < 0.15
+
+
+def test_another_topology_and_unit(head):
+    """Each quad split in four (another topology, 4x the faces) and the head in metres."""
+    mesh, _, lm, _ = head
+    starts = np.r_[0, np.cumsum(mesh.face_counts)]
+    quads = np.array([mesh.face_indices[starts[k]:starts[k + 1]] for k in range(len(mesh.face_counts))
+                      if mesh.face_counts[k] == 4])
+    V = mesh.vertices.copy()
+    edges = {}
+    new = []
+
+    def mid(a, b):
+        key = (min(a, b), max(a, b))
+        if key not in edges:
+            edges[key] = len(V) + len(new)
+            new.append((V[a] + V[b]) / 2)
+        return edges[key]
+
+    faces = []
+    for a, b, c, d in quads:
+        ab, bc, cd, da = mid(a, b), mid(b, c), mid(c, d), mid(d, a)
+        centre = len(V) + len(new)
+        new.append(V[[a, b, c, d]].mean(0))
+        faces += [[a, ab, centre, da], [ab, b, bc, centre], [centre, bc, c, cd], [da, centre, cd, d]]
+    Vs = np.concatenate([V, np.array(new)]) / 100  # metres
+    F = np.array(faces)
+    Ts = np.concatenate([F[:, [0, 1, 2]], F[:, [0, 2, 3]]])
+    model = rig(Vs, Ts, lm)
+    b = HeadBinding(model, Vs, Ts)
+    smile = b.descriptor_displacement(next(d for d in model.descriptors if d.key == "12")) * 1000  # mm
+    corner = lm[[48, 54]]
+    assert np.linalg.norm(smile[corner], axis=1).min() > 5
+    chin_y = b.Vf[lm[8], 1]
+    assert np.abs(smile[b.Vf[:, 1] < chin_y - 50]).max() == 0
+
+
+def test_landmarks_on_a_part_that_is_not_skin(head):
+    mesh, T, lm, _ = head
+    teeth = part_range("teeth")
+    with pytest.raises(PdeFaceError):
+        HeadBinding(load_face("default"), mesh.vertices, T, landmarks=mesh.vertices[teeth[:68 * 60:60]])
+    with pytest.raises(MeshError, match="do not lie on skin"):  # the face's landmarks pushed 3 cm into the head
+        HeadBinding(load_face("default"), mesh.vertices, T, landmarks=mesh.vertices[lm] + [0, 0, -3.0])

@@ -124,6 +124,13 @@ class HeadBinding:
         self.skin = si = np.nonzero(skin)[0]
         if len(si) == 0:
             raise MeshError("no skin: the landmarks lie on no part of this mesh")
+        known = Lf[np.isfinite(Lf).all(axis=1)]
+        off = cKDTree(Vf[si]).query(known)[0]
+        if np.median(off) > 0.05 * s or off.max() > 0.3 * s:
+            worst = int(np.argmax(off))
+            raise MeshError(f"the landmarks do not lie on skin (median {np.median(off):.3g} mm off it, the worst "
+                            f"{off[worst]:.3g} mm): was the face fitted on this head, in this unit, with landmarks "
+                            "on its face (not inside it)?")
         local = np.full(len(V), -1)
         local[si] = np.arange(len(si))
         Ts = local[T[skin[T].all(axis=1)]]

@@ -27,8 +27,11 @@ PIT_REACH_MM = (1.0, 2.0, 4.0)
 PIT_DEPTH_MM = 4.0
 
 
-def band_vertices(model: FaceModel, V_face: np.ndarray, T: np.ndarray) -> dict:
+def band_vertices(model: FaceModel, V_face: np.ndarray, T: np.ndarray, occluders=None) -> dict:
     """Classify the vertices of triangles ``T`` inside the curve band.
+
+    ``occluders`` (default ``T``) are the triangles rays may hit first: the whole
+    mesh when ``T`` is its skin, so skin behind an eyeball or teeth is hidden.
 
     ``visible``: the layout's ray through the vertex meets the scan there
     first, the skin faces the ray within ~72°, and the vertex is not sunk in
@@ -50,10 +53,11 @@ def band_vertices(model: FaceModel, V_face: np.ndarray, T: np.ndarray) -> dict:
     inside &= np.bincount(T.ravel(), minlength=len(V_face)) > 0  # vertices of these triangles only
     first = np.zeros(len(V_face), bool)
     idx = np.nonzero(inside)[0]
-    rad, _, _, _ = cast_cylinder_rays(V_face, T, lay.axis_z, th[idx], y[idx])
+    blockers = T if occluders is None else occluders
+    rad, _, _, _ = cast_cylinder_rays(V_face, blockers, lay.axis_z, th[idx], y[idx])
     first[idx] = np.isfinite(rad) & (rad - r[idx] <= VISIBILITY_TOLERANCE_MM)
     idx = np.nonzero(first)[0]
-    first[idx] = ~_in_pit(V_face, T, lay.axis_z, th[idx], y[idx], r[idx])
+    first[idx] = ~_in_pit(V_face, blockers, lay.axis_z, th[idx], y[idx], r[idx])
     if model.status is not None and (model.status != 0).any():
         first &= ~_in_opening(model, th, y, r)
     n = vertex_normals(V_face, T)
@@ -200,14 +204,15 @@ def accuracy_report(model: FaceModel, scan_vertices, scan_triangles, assembly=No
     """
     assembly = assembly or model.assembly
     Vf = model.frame.to_face(scan_vertices)
-    T = skin_triangles(Vf, np.asarray(scan_triangles, dtype=np.int64), model.features)
+    T_all = np.asarray(scan_triangles, dtype=np.int64)
+    T = skin_triangles(Vf, T_all, model.features)
     su, sv = REPORT_RESOLUTION
     X = surface_grid(model, su, sv, assembly)
     nu, nv, _ = X.shape
     Vp = X.reshape(-1, 3)
     Q = grid_faces(nu, nv)
     Tp = np.concatenate([Q[:, [0, 1, 2]], Q[:, [0, 2, 3]]])
-    cls = band_vertices(model, Vf, T)
+    cls = band_vertices(model, Vf, T, T_all)  # eyeballs and teeth hide what is behind them
     visible = cls["visible"]
     cp = ClosestPoint(Vp, Tp)
     nearest = cp.query(Vf[visible])
