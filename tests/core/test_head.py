@@ -4,7 +4,7 @@ import json
 import numpy as np
 import pytest
 from pdeface.assets import HEAD_PARTS, load_face, load_head, load_head_shapes
-from pdeface.au.ict import AU_SHAPES, FACE_VERTICES, au_offsets
+from pdeface.au.ict import FACE_VERTICES, au_offsets
 from pdeface.au.retarget import retarget
 from pdeface.cli import main
 from pdeface.errors import MeshError, PdeFaceError

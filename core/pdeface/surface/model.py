@@ -12,7 +12,6 @@ import numpy as np
 from .frame import FaceFrame
 from .layout import CurveLayout
 
-
 #: The landmarks a model file keeps (to 0.1 mm): jawline 0, 5, 8, 11, 16, nose bottom 33, the eyes
 #: 36-47 and the lips 48, 51, 54, 57, 62, 66: what binding a whole head reads (:mod:`pdeface.head`).
 KEPT_LANDMARKS = (0, 5, 8, 11, 16, 33, *range(36, 48), 48, 51, 54, 57, 62, 66)
