@@ -165,3 +165,32 @@ def test_rebuild_timing_is_printed(bpy, ict_head):
     assert bpy.ops.pdeface.build_shape_keys() == {"FINISHED"}
     print(f"rebuild: {time.perf_counter() - t:.2f} s")
     assert len(key_blocks(head)) > 70
+
+
+def test_live_link_and_tracker_import_drive_the_users_head(bpy, ict_head, tmp_path):
+    import socket
+
+    head, eyes, *_ = ict_head
+    assert bpy.ops.pdeface.fit_to_selected() == {"FINISHED"}
+    s = bpy.context.scene.pdeface
+    s.live_port, s.live_mode = 0, "queue"
+    assert bpy.ops.pdeface.live_start() == {"FINISHED"}  # the user's head is active
+    link = addon("live")
+    try:
+        sock = socket.create_connection(tuple(link.status()["address"]), timeout=5)
+        sock.sendall(b"{12}")
+        deadline = time.monotonic() + 5
+        while key_blocks(head)[AU12].value < 1.0:  # the timer's work, called directly (no event loop headless)
+            assert time.monotonic() < deadline
+            link.tick()
+            time.sleep(0.02)
+        assert key_blocks(eyes)[AU12].value == 1.0
+        sock.close()
+    finally:
+        bpy.ops.pdeface.live_stop()
+    timeline = {"format": "pdeface.timeline", "version": 1, "fps": 24,
+                "keys": [{"frame": 1, "aus": {"4": 0.0}}, {"frame": 12, "aus": {"4": 1.0}}]}
+    (tmp_path / "t.json").write_text(json.dumps(timeline))
+    assert bpy.ops.pdeface.import_au(filepath=str(tmp_path / "t.json"), format="timeline") == {"FINISHED"}
+    bpy.context.scene.frame_set(12)
+    assert key_blocks(head)["AU4 Brow Lowerer"].value == pytest.approx(1.0)
