@@ -76,6 +76,69 @@ class _Extension:
         return d
 
 
+def _check_on_skin(Lf, skin_points, s):
+    """Refuse landmarks off the skin (a model fitted on another mesh, landmarks inside the head)."""
+    from scipy.spatial import cKDTree
+
+    off = cKDTree(skin_points).query(Lf[np.isfinite(Lf).all(axis=1)])[0]
+    if np.median(off) > 0.05 * s or off.max() > 0.3 * s:
+        raise MeshError(f"the landmarks do not lie on skin (median {np.median(off):.3g} mm off it, the worst "
+                        f"{off.max():.3g} mm): was the face fitted on this head, in this unit, with landmarks "
+                        "on its face (not inside it)?")
+
+
+def _read_pde(model, P, N, s, resolution):
+    """Which skin points the PDE face covers, and the sparse map reading its grid at their closest points."""
+    from scipy.spatial import cKDTree
+
+    from ..geometry import ClosestPoint, triangle_cross, unit_rows
+
+    X0 = surface_grid(model, *resolution)
+    nu, nv, _ = X0.shape
+    X0 = X0.reshape(-1, 3)
+    Q = grid_faces(nu, nv)
+    Tp = np.concatenate([Q[:, [0, 1, 2]], Q[:, [0, 2, 3]]])
+    # Only skin near the grid can be under it (the back of a head, a body: skip the exact query).
+    edge = np.linalg.norm(X0[Tp[:, 0]] - X0[Tp[:, 1]], axis=1).max()
+    near = cKDTree(X0).query(P, distance_upper_bound=COVER_IOD * s + edge)[0] < np.inf
+    dist, tri, bary = np.full(len(P), np.inf), np.zeros(len(P), np.int64), np.zeros((len(P), 3))
+    if near.any():
+        dist[near], tri[near], bary[near], _ = ClosestPoint(X0, Tp).query(P[near])
+    r, c = Tp[tri] // nv, Tp[tri] % nv
+    inside = (r.min(1) > 0) & (r.max(1) < nu - 1) & (c.min(1) > 0) & (c.max(1) < nv - 1)
+    n_pde = unit_rows(triangle_cross(X0, Tp[tri]))
+    covered = inside & (dist < COVER_IOD * s) & ((N * n_pde).sum(1) > COVER_COS)
+    if covered.sum() < 100:
+        raise MeshError(f"only {int(covered.sum())} skin vertices lie under the PDE face: "
+                        "was the model fitted on this mesh, in this unit?")
+    return covered, _barycentric_matrix(Tp[tri[covered]], bary[covered], len(X0))
+
+
+def _rest_region(P, Ts, covered, Lf, s):
+    """Skin that never moves: far from the covered skin, well below the chin, or in a piece it misses."""
+    from scipy.spatial import cKDTree
+
+    from ..mesh import connected_components
+
+    far = cKDTree(P[covered]).query(P)[0] > REST_IOD * s
+    below = P[:, 1] < Lf[8, 1] - BELOW_CHIN_IOD * s
+    lab = connected_components(len(P), Ts)
+    return ((far | below) & ~covered) | ~np.isin(lab, np.unique(lab[covered]))
+
+
+def _depths(P, covered, Lf, s, eyes):
+    """The mouth's depths (lining, throat) and the orbits behind the eyeballs: left at rest.
+
+    The lips' motion would otherwise spread through the whole mouth (ICT-FaceKit's truth fades).
+    """
+    lips_z = Lf[[51, 57, 62, 66], 2].max()
+    depths = (~covered & (P[:, 2] < lips_z - MOUTH_DEPTH_IOD * s) & (np.abs(P[:, 0]) < 0.6 * s)
+              & (P[:, 1] < Lf[33, 1]) & (P[:, 1] > Lf[8, 1]))
+    for centre, radius in eyes.values():
+        depths |= ~covered & (np.linalg.norm(P - centre, axis=1) < radius + 0.1 * s) & (P[:, 2] < centre[2])
+    return depths
+
+
 class HeadBinding:
     """The linear map from a PDE face's motion to every vertex of the user's head mesh.
 
@@ -93,9 +156,7 @@ class HeadBinding:
     """
 
     def __init__(self, model, vertices, triangles, landmarks=None, overrides=None, resolution=RESOLUTION):
-        from scipy.spatial import cKDTree
-
-        from ..mesh import connected_components, cotan_laplacian
+        from ..mesh import connected_components, cotan_laplacian, vertex_normals
 
         V = np.asarray(vertices, np.float64)
         T = np.asarray(triangles, np.int64)
@@ -124,57 +185,22 @@ class HeadBinding:
         self.skin = si = np.nonzero(skin)[0]
         if len(si) == 0:
             raise MeshError("no skin: the landmarks lie on no part of this mesh")
-        known = Lf[np.isfinite(Lf).all(axis=1)]
-        off = cKDTree(Vf[si]).query(known)[0]
-        if np.median(off) > 0.05 * s or off.max() > 0.3 * s:
-            worst = int(np.argmax(off))
-            raise MeshError(f"the landmarks do not lie on skin (median {np.median(off):.3g} mm off it, the worst "
-                            f"{off[worst]:.3g} mm): was the face fitted on this head, in this unit, with landmarks "
-                            "on its face (not inside it)?")
+        _check_on_skin(Lf, Vf[si], s)
         local = np.full(len(V), -1)
         local[si] = np.arange(len(si))
         Ts = local[T[skin[T].all(axis=1)]]
-        P = Vf[si]
-
-        # Covered skin reads the PDE grid at its closest point.
-        from ..geometry import ClosestPoint
-        from ..mesh import vertex_normals
-
-        X0 = surface_grid(model, *resolution)
-        nu, nv, _ = X0.shape
-        X0 = X0.reshape(-1, 3)
-        Q = grid_faces(nu, nv)
-        Tp = np.concatenate([Q[:, [0, 1, 2]], Q[:, [0, 2, 3]]])
-        # Only skin near the grid can be under it (the back of a head, a body: skip the exact query).
-        edge = np.linalg.norm(X0[Tp[:, 0]] - X0[Tp[:, 1]], axis=1).max()
-        near = cKDTree(X0).query(P, distance_upper_bound=COVER_IOD * s + edge)[0] < np.inf
-        dist, tri, bary = np.full(len(P), np.inf), np.zeros(len(P), np.int64), np.zeros((len(P), 3))
-        if near.any():
-            dist[near], tri[near], bary[near], _ = ClosestPoint(X0, Tp).query(P[near])
-        r, c = Tp[tri] // nv, Tp[tri] % nv
-        inside = (r.min(1) > 0) & (r.max(1) < nu - 1) & (c.min(1) > 0) & (c.max(1) < nv - 1)
-        A, B, C = X0[Tp[tri, 0]], X0[Tp[tri, 1]], X0[Tp[tri, 2]]
-        n_pde = np.cross(B - A, C - A)
-        n_pde /= np.maximum(np.linalg.norm(n_pde, axis=1), 1e-12)[:, None]
-        self.skin_normals = N = vertex_normals(P, Ts) if len(Ts) else np.zeros_like(P)
-        covered = inside & (dist < COVER_IOD * s) & ((N * n_pde).sum(1) > COVER_COS)
-        if covered.sum() < 100:
-            raise MeshError(f"only {int(covered.sum())} skin vertices lie under the PDE face: "
-                            "was the model fitted on this mesh, in this unit?")
-        self.covered = covered
-        self.read_grid = _barycentric_matrix(Tp[tri[covered]], bary[covered], len(X0))
-
-        # Rest region, and skin pieces no covered vertex reaches.
-        far = cKDTree(P[covered]).query(P)[0] > REST_IOD * s
-        below = P[:, 1] < Lf[8, 1] - BELOW_CHIN_IOD * s
-        rest = (far | below) & ~covered
-        lab = connected_components(len(si), Ts) if len(Ts) else np.arange(len(si))
-        rest |= ~np.isin(lab, np.unique(lab[covered]))
-        self.rest = rest
-        L = cotan_laplacian(P, Ts) if len(Ts) else None
-        if L is None:
+        if len(Ts) == 0:
             raise MeshError("the skin has no triangles")
-        self._L = L
+        P = Vf[si]
+        self.skin_normals = vertex_normals(P, Ts)
+        covered, self.read_grid = _read_pde(model, P, self.skin_normals, s, resolution)
+        self.covered = covered
+        self.rest = rest = _rest_region(P, Ts, covered, Lf, s)
+        self.depths = depths = _depths(P, covered, Lf, s, parts.eyes)
+        self._L = L = cotan_laplacian(P, Ts)
+        self._ext = _Extension(L, covered | rest | depths)
+        self._jaw_fixed = covered | rest | (depths & (P[:, 1] > mouth_line(Lf)))  # the jaw moves the lower depths
+        self._ext_jaw = None  # factorised on first use
 
         # Jaw: the chin that drives it, and the parts it turns.
         chin = covered & (P[:, 1] < Lf[57, 1] - 0.08 * s) & (np.abs(P[:, 0]) < abs(Lf[5, 0] - Lf[11, 0]) / 2) \
@@ -183,26 +209,13 @@ class HeadBinding:
         if self.chin is None:
             self.notes.append("too little chin under the PDE face: jaw AUs move the skin only")
         self.jaw_parts = np.nonzero(parts.mask("jaw"))[0]
-        # The mouth's depths (lining, throat) stay put, but for the lower half in jaw AUs: the
-        # lips' motion would otherwise spread through the whole mouth (ICT-FaceKit's truth: it fades).
-        lips_z = Lf[[51, 57, 62, 66], 2].max()
-        depths = (~covered & (P[:, 2] < lips_z - MOUTH_DEPTH_IOD * s) & (np.abs(P[:, 0]) < 0.6 * s)
-                  & (P[:, 1] < Lf[33, 1]) & (P[:, 1] > Lf[8, 1]))
-        for centre, radius in parts.eyes.values():  # the orbit behind an eyeball, likewise
-            depths |= ~covered & (np.linalg.norm(P - centre, axis=1) < radius + 0.1 * s) & (P[:, 2] < centre[2])
-        self.depths = depths
-        self._ext = _Extension(L, covered | rest | depths)
-        self._jaw_fixed = covered | rest | (depths & (P[:, 1] > mouth_line(Lf)))
-        self._ext_jaw = None  # factorised on first use
 
         # Attached parts ride on their nearest skin vertex.
-        follow = np.nonzero(parts.mask("follow"))[0]
-        self.follow = follow
+        self.follow = follow = np.nonzero(parts.mask("follow"))[0]
         if len(follow):
             self.anchor = self._anchors(Vf[follow], connected_components(len(V), T)[follow], P)
             self.follow_offset = Vf[follow] - P[self.anchor]
-            ring = np.isin(Ts, np.unique(self.anchor)).any(axis=1)
-            self._ring = Ts[ring]
+            self._ring = Ts[np.isin(Ts, np.unique(self.anchor)).any(axis=1)]
 
         # Lids stay outside the eyeballs.
         self.eyes = {}
