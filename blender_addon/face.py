@@ -229,12 +229,11 @@ def fit_face_object(context, src, landmarks, unit=None, resolution="default", re
     T, _ = bridge.triangles(src.data)
     if len(T) == 0:
         raise error(f"{src.name} has no faces")
-    from .head import GROUP_PREFIX
-    skin = None
-    group = src.vertex_groups.get(GROUP_PREFIX + "skin")
-    if group is not None:
+    from .head import group_members
+    skin, listed = None, group_members(src, "skin")
+    if listed is not None:
         skin = np.zeros(len(V), bool)
-        skin[[v.index for v in src.data.vertices for g in v.groups if g.group == group.index and g.weight > 0]] = True
+        skin[listed] = True
     step(1, "fitting curves")
     model, sampler = pd.surface.fit.fit_face(V, T, landmarks, unit=unit, source=src.name, skin=skin)
     step(2, "retargeting AU descriptors")

@@ -33,17 +33,23 @@ def _to_space(src, obj) -> np.ndarray:
     return np.array(src.matrix_world.inverted() @ obj.matrix_world)
 
 
+def group_members(obj, kind):
+    """Indices of the vertices in ``obj``'s vertex group ``pdeface_<kind>`` (weight > 0), or None without one."""
+    g = obj.vertex_groups.get(GROUP_PREFIX + kind)
+    if g is None:
+        return None
+    return [v.index for v in obj.data.vertices for e in v.groups if e.group == g.index and e.weight > 0]
+
+
 def _overrides(objs, starts) -> dict:
     from pdeface.head.parts import KINDS
 
     out = {}
     for obj, start in zip(objs, starts):
         for kind in KINDS:
-            g = obj.vertex_groups.get(GROUP_PREFIX + kind)
-            if g is None:
-                continue
-            idx = [v.index for v in obj.data.vertices for e in v.groups if e.group == g.index and e.weight > 0]
-            out.setdefault(kind, []).extend(start + i for i in idx)
+            idx = group_members(obj, kind)
+            if idx is not None:
+                out.setdefault(kind, []).extend(start + i for i in idx)
     return out
 
 
