@@ -194,3 +194,13 @@ def test_live_link_and_tracker_import_drive_the_users_head(bpy, ict_head, tmp_pa
     assert bpy.ops.pdeface.import_au(filepath=str(tmp_path / "t.json"), format="timeline") == {"FINISHED"}
     bpy.context.scene.frame_set(12)
     assert key_blocks(head)["AU4 Brow Lowerer"].value == pytest.approx(1.0)
+
+
+def test_add_ict_head_is_a_rigged_character(bpy):
+    assert bpy.ops.pdeface.add_ict_head() == {"FINISHED"}
+    head = bpy.context.active_object
+    assert "ICT-FaceKit" in head["pdeface_notice"] and len(head.data.vertices) == 26719
+    assert head.pdeface.rig_face.hide_get() and len(key_blocks(head)) == 1 + 63 + 10
+    assert {m.name for m in head.data.materials} >= {"PDE Skin", "PDE Sclera", "PDE Teeth"}
+    jaw = addon().key_coords(key_blocks(head)["AU27 Mouth Stretch"]) - addon().key_coords(key_blocks(head)["Basis"])
+    assert np.linalg.norm(jaw, axis=1).max() > 2  # cm: the jaw opens, teeth with it
