@@ -156,3 +156,48 @@ def cotan_laplacian(V: np.ndarray, T: np.ndarray):
     W = coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n, n)).tocsr()
     W.data = np.clip(W.data, 1e-6, 1e3)
     return (diags(np.asarray(W.sum(axis=1)).ravel()) - W).tocsr()
+
+
+def seam_welds(V: np.ndarray, T: np.ndarray, tol: float | None = None, min_piece: int = 1) -> np.ndarray:
+    """Representative of every vertex, joining copies split along open seams.
+
+    Exporters split vertices where UVs or normals break (FBX, glTF, many PLYs): the
+    mesh then falls apart into pieces along those seams. Vertices that lie on an
+    open border and coincide (within ``tol``, default 1e-6 of the mesh's size) are
+    joined when both their pieces have at least ``min_piece`` vertices (so lash
+    strips and eye helper meshes sewn along a lid's edge stay pieces of their own).
+
+    Returns
+    -------
+    (n,) int array
+        The smallest index of each vertex's group (itself when alone).
+    """
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components as cc
+    from scipy.spatial import cKDTree
+
+    n = len(V)
+    rep = np.arange(n)
+    if len(T) == 0:
+        return rep
+    edges = np.sort(np.concatenate([T[:, [0, 1]], T[:, [1, 2]], T[:, [2, 0]]]), axis=1)
+    uniq, counts = np.unique(edges, axis=0, return_counts=True)
+    border = np.unique(uniq[counts == 1])
+    if len(border) < 2:
+        return rep
+    if tol is None:
+        tol = 1e-6 * float(np.linalg.norm(np.ptp(V, axis=0)))
+    pairs = cKDTree(V[border]).query_pairs(tol, output_type="ndarray")
+    if len(pairs) == 0:
+        return rep
+    i, j = border[pairs[:, 0]], border[pairs[:, 1]]
+    piece = connected_components(n, T)
+    size = np.bincount(piece)
+    big = (size[piece[i]] >= min_piece) & (size[piece[j]] >= min_piece)
+    i, j = i[big], j[big]
+    if len(i) == 0:
+        return rep
+    _, lab = cc(coo_matrix((np.ones(len(i)), (i, j)), shape=(n, n)), directed=False)
+    first = np.full(lab.max() + 1, n)
+    np.minimum.at(first, lab, np.arange(n))
+    return first[lab]

@@ -286,3 +286,28 @@ def test_landmarks_on_a_part_that_is_not_skin(head):
         HeadBinding(load_face("default"), mesh.vertices, T, landmarks=mesh.vertices[teeth[:68 * 60:60]])
     with pytest.raises(MeshError, match="do not lie on skin"):  # the face's landmarks pushed 3 cm into the head
         HeadBinding(load_face("default"), mesh.vertices, T, landmarks=mesh.vertices[lm] + [0, 0, -3.0])
+
+
+def test_a_head_split_along_seams_moves_in_one_piece(head, generic):
+    """An exporter's copy of the head, its vertices split where UVs break: the keys match the whole head's."""
+    mesh, T, lm, _ = head
+    model, b = generic
+    V = mesh.vertices
+    # the skin's triangles beyond a vertical seam down the subject's right cheek get copies of the seam's vertices
+    skin = np.zeros(len(V), bool)
+    skin[b.skin] = True
+    seam_x = V[lm[2], 0] * 0.5
+    tri_right = (V[T].mean(axis=1)[:, 0] < seam_x) & skin[T].all(axis=1)
+    on_seam = np.unique(T[tri_right][np.isin(T[tri_right], T[~tri_right])])
+    copies = np.arange(len(V), len(V) + len(on_seam))
+    remap = np.arange(len(V))
+    remap[on_seam] = copies
+    T_split = np.where(tri_right[:, None], remap[T], T)
+    V_split = np.concatenate([V, V[on_seam]])
+    split = HeadBinding(model, V_split, T_split)
+    assert f"{len(on_seam)} vertices split along seams joined" in split.notes
+    d = next(x for x in model.descriptors if x.key == "12")
+    want = b.descriptor_displacement(d)
+    got = split.descriptor_displacement(d)
+    np.testing.assert_allclose(got[:len(V)], want, atol=1e-9)
+    np.testing.assert_allclose(got[copies], want[on_seam], atol=1e-9)  # no crack along the seam

@@ -156,7 +156,7 @@ class HeadBinding:
     """
 
     def __init__(self, model, vertices, triangles, landmarks=None, overrides=None, resolution=RESOLUTION):
-        from ..mesh import connected_components, cotan_laplacian, vertex_normals
+        from ..mesh import connected_components, cotan_laplacian, seam_welds, vertex_normals
 
         V = np.asarray(vertices, np.float64)
         T = np.asarray(triangles, np.int64)
@@ -164,6 +164,12 @@ class HeadBinding:
             raise MeshError("head vertices must be a finite (n, 3) array")
         if len(T) == 0 or T.min() < 0 or T.max() >= len(V):
             raise MeshError("head triangles are empty or index missing vertices")
+        # Copies split along UV or normal seams: one vertex for the skin's topology; the copies ride on it.
+        rep = seam_welds(V, T, min_piece=max(50, len(V) // 100))
+        seams = int((rep != np.arange(len(V))).sum())
+        if seams:
+            T = rep[T]
+            T = T[(T[:, 0] != T[:, 1]) & (T[:, 1] != T[:, 2]) & (T[:, 2] != T[:, 0])]
         self.model, self.resolution = model, resolution
         self.frame = frame = model.frame
         self.V = V
@@ -178,10 +184,16 @@ class HeadBinding:
         self.s = s = eye_distance_mm(Lf)
         self.hinge = jaw_hinge(Lf, s)
         self.parts = parts = classify_parts(Vf, T, Lf, self.hinge, overrides)
-        self.notes = list(parts.notes)
+        # Seam copies take their vertex's kind and, in the end, its motion; nothing else counts them.
+        self._copies = np.nonzero(rep != np.arange(len(V)))[0]
+        self._copy_of = rep[self._copies]
+        parts.kind[self._copies] = parts.kind[self._copy_of]
+        original = np.ones(len(V), bool)
+        original[self._copies] = False
+        self.notes = list(parts.notes) + ([f"{seams} vertices split along seams joined"] if seams else [])
 
         # Skin: its own index space.
-        skin = parts.mask("skin")
+        skin = parts.mask("skin") & original
         self.skin = si = np.nonzero(skin)[0]
         if len(si) == 0:
             raise MeshError("no skin: the landmarks lie on no part of this mesh")
@@ -208,10 +220,10 @@ class HeadBinding:
         self.chin = chin if chin.sum() >= 10 else None
         if self.chin is None:
             self.notes.append("too little chin under the PDE face: jaw AUs move the skin only")
-        self.jaw_parts = np.nonzero(parts.mask("jaw"))[0]
+        self.jaw_parts = np.nonzero(parts.mask("jaw") & original)[0]
 
         # Attached parts ride on their nearest skin vertex.
-        self.follow = follow = np.nonzero(parts.mask("follow"))[0]
+        self.follow = follow = np.nonzero(parts.mask("follow") & original)[0]
         if len(follow):
             self.anchor = self._anchors(Vf[follow], connected_components(len(V), T)[follow], P)
             self.follow_offset = Vf[follow] - P[self.anchor]
@@ -220,7 +232,7 @@ class HeadBinding:
         # Lids stay outside the eyeballs.
         self.eyes = {}
         for name, (centre, radius) in parts.eyes.items():
-            idx = np.nonzero(parts.mask(name))[0]
+            idx = np.nonzero(parts.mask(name) & original)[0]
             rho = np.linalg.norm(P - centre, axis=1)
             guard = (rho >= radius) & (rho < radius + 0.15 * s) & (P[:, 2] > centre[2])
             self.eyes[name] = (centre, radius, idx, np.nonzero(guard)[0])
@@ -296,6 +308,7 @@ class HeadBinding:
                 if inside.any():
                     k = self.skin[guard[inside]]
                     out[k] = centre + (p[inside] - centre) * (radius / rho[inside])[:, None] - self.Vf[k]
+        out[self._copies] = out[self._copy_of]
         return self.frame.to_user_vectors(out)
 
     def _follow(self, d_skin):
