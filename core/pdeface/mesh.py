@@ -158,14 +158,15 @@ def cotan_laplacian(V: np.ndarray, T: np.ndarray):
     return (diags(np.asarray(W.sum(axis=1)).ravel()) - W).tocsr()
 
 
-def seam_welds(V: np.ndarray, T: np.ndarray, tol: float | None = None, min_piece: int = 1) -> np.ndarray:
+def seam_welds(V: np.ndarray, T: np.ndarray, tol: float | None = None, min_piece: int | None = None) -> np.ndarray:
     """Representative of every vertex, joining copies split along open seams.
 
     Exporters split vertices where UVs or normals break (FBX, glTF, many PLYs): the
     mesh then falls apart into pieces along those seams. Vertices that lie on an
     open border and coincide (within ``tol``, default 1e-6 of the mesh's size) are
-    joined when both their pieces have at least ``min_piece`` vertices (so lash
-    strips and eye helper meshes sewn along a lid's edge stay pieces of their own).
+    joined when both their pieces have at least ``min_piece`` vertices (default:
+    1 % of the mesh, at least 50; so lash strips and eye helper meshes sewn along a
+    lid's edge stay pieces of their own).
 
     Returns
     -------
@@ -180,9 +181,10 @@ def seam_welds(V: np.ndarray, T: np.ndarray, tol: float | None = None, min_piece
     rep = np.arange(n)
     if len(T) == 0:
         return rep
-    edges = np.sort(np.concatenate([T[:, [0, 1]], T[:, [1, 2]], T[:, [2, 0]]]), axis=1)
-    uniq, counts = np.unique(edges, axis=0, return_counts=True)
-    border = np.unique(uniq[counts == 1])
+    edges = np.sort(np.concatenate([T[:, [0, 1]], T[:, [1, 2]], T[:, [2, 0]]]), axis=1).astype(np.int64)
+    keys, counts = np.unique(edges[:, 0] * n + edges[:, 1], return_counts=True)  # 1-D: much faster
+    once = keys[counts == 1]
+    border = np.unique(np.concatenate([once // n, once % n]))
     if len(border) < 2:
         return rep
     if tol is None:
@@ -191,6 +193,8 @@ def seam_welds(V: np.ndarray, T: np.ndarray, tol: float | None = None, min_piece
     if len(pairs) == 0:
         return rep
     i, j = border[pairs[:, 0]], border[pairs[:, 1]]
+    if min_piece is None:
+        min_piece = max(50, n // 100)
     piece = connected_components(n, T)
     size = np.bincount(piece)
     big = (size[piece[i]] >= min_piece) & (size[piece[j]] >= min_piece)

@@ -165,7 +165,7 @@ class HeadBinding:
         if len(T) == 0 or T.min() < 0 or T.max() >= len(V):
             raise MeshError("head triangles are empty or index missing vertices")
         # Copies split along UV or normal seams: one vertex for the skin's topology; the copies ride on it.
-        rep = seam_welds(V, T, min_piece=max(50, len(V) // 100))
+        rep = seam_welds(V, T)
         seams = int((rep != np.arange(len(V))).sum())
         if seams:
             T = rep[T]

@@ -39,15 +39,17 @@ def parse_resolution(value) -> tuple[int, int]:
 def skin_vertices(V: np.ndarray, T: np.ndarray, points: np.ndarray) -> np.ndarray:
     """Mask of the vertices of the connected pieces that lie under ``points`` (the landmarks).
 
-    Separate pieces (eyeballs, teeth) are left out. Eyelashes and other strips often
+    Separate pieces (eyeballs, teeth) are left out; copies an exporter split along
+    seams join their piece (:func:`pdeface.mesh.seam_welds`). Eyelashes and other strips often
     share the lids' vertex positions: where several pieces are equally near a
     point, the largest is the skin.
     """
     from scipy.spatial import cKDTree  # scipy is heavy: only fitting and reports need it
 
-    from ..mesh import connected_components
+    from ..mesh import connected_components, seam_welds
 
-    lab = connected_components(len(V), T)
+    rep = seam_welds(V, T)  # a face split along its UV seams is still one piece
+    lab = connected_components(len(V), rep[T])[rep]
     sizes = np.bincount(lab)
     tree = cKDTree(V)
     dist, _ = tree.query(points)
