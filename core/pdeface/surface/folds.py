@@ -1,0 +1,88 @@
+"""Folds and cracks of a PDE face mesh, counted the way a viewer sees them.
+
+A mesh edge is a **fold** when the two faces meeting there turn by more than a
+given angle (30° by default) and it lies outside the eye, mouth and nostril
+openings (their landmark polygons in the frontal view, grown by a third about
+their centres), where the lids and lips are meant to part. Distance and seam
+figures do not see folds; a render shows them first.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..geometry import unit_rows
+
+#: Landmark polygons of the openings (Multi-PIE, 0-based): eyes, outer lips, the nose's underside.
+OPENINGS = {"eye_right": list(range(36, 42)), "eye_left": list(range(42, 48)), "mouth": list(range(48, 60)),
+            "nostrils": [30, 31, 32, 33, 34, 35]}
+#: Openings are grown by this fraction about their centres.
+GROW = 1 / 3
+
+
+def _inside(points, polygon) -> np.ndarray:
+    """Even-odd test of 2-D ``points`` against a closed ``polygon`` (vectorised over points)."""
+    x, y = points[:, 0], points[:, 1]
+    inside = np.zeros(len(points), bool)
+    for (x0, y0), (x1, y1) in zip(polygon, np.roll(polygon, -1, axis=0)):
+        crosses = (y0 > y) != (y1 > y)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            xc = x0 + (y - y0) * (x1 - x0) / (y1 - y0)
+        inside ^= crosses & (x < xc)
+    return inside
+
+
+def opening_mask(points_face, landmarks_face, grow=GROW) -> np.ndarray:
+    """Which face-frame points lie inside an opening's grown landmark polygon (frontal view)."""
+    mask = np.zeros(len(points_face), bool)
+    for idx in OPENINGS.values():
+        poly = landmarks_face[idx, :2]
+        centre = poly.mean(axis=0)
+        mask |= _inside(points_face[:, :2], centre + (1 + grow) * (poly - centre))
+    return mask
+
+
+def fold_edges(mesh, frame, landmarks_face, angle_deg=30.0) -> dict:
+    """Edges of a polygon mesh whose two faces turn by more than ``angle_deg``, outside the openings.
+
+    Parameters
+    ----------
+    mesh : Mesh
+        A PDE face mesh (:func:`pdeface.surface.fit.face_mesh`), in the user's space.
+    frame : FaceFrame
+        The face's frame (the openings are tested in its frontal view).
+    landmarks_face : (68, 3) array
+        Landmarks in the face frame (the model's).
+
+    Returns
+    -------
+    dict
+        ``count`` (folds outside the openings), ``max_deg`` (largest turn there),
+        ``inside`` (edges over the angle inside openings, allowed), and
+        ``where`` ((count, 3) edge midpoints, face frame) for pictures.
+    """
+    V = frame.to_face(mesh.vertices)
+    starts, counts, idx = mesh.face_starts, mesh.face_counts, mesh.face_indices
+    # Face normals by Newell's method (planar or not), from each polygon's corners.
+    normals = np.zeros((len(counts), 3))
+    for k in range(int(counts.max())):
+        has = counts > k
+        a = idx[starts[has] + k]
+        b = idx[starts[has] + (k + 1) % counts[has]]
+        normals[has] += np.cross(V[a], V[b])
+    normals = unit_rows(normals)
+    # Each undirected edge with the faces on either side.
+    face_of = np.repeat(np.arange(len(counts)), counts)
+    nxt = idx[starts[face_of] + (np.arange(len(idx)) - starts[face_of] + 1) % counts[face_of]]
+    lo, hi = np.minimum(idx, nxt), np.maximum(idx, nxt)
+    key = lo.astype(np.int64) * len(V) + hi
+    order = np.argsort(key, kind="stable")
+    key, face_of, lo, hi = key[order], face_of[order], lo[order], hi[order]
+    pair = np.nonzero(key[1:] == key[:-1])[0]
+    f0, f1 = face_of[pair], face_of[pair + 1]
+    turn = np.degrees(np.arccos(np.clip((normals[f0] * normals[f1]).sum(1), -1.0, 1.0)))
+    mid = 0.5 * (V[lo[pair]] + V[hi[pair]])
+    folded = turn > angle_deg
+    opening = opening_mask(mid, landmarks_face)
+    outside = folded & ~opening
+    return {"count": int(outside.sum()), "max_deg": float(turn[~opening].max()) if (~opening).any() else 0.0,
+            "inside": int((folded & opening).sum()), "where": mid[outside]}

@@ -1,0 +1,69 @@
+"""Count the folds of PDE face meshes (issue #16's figure), at rest and in every AU and preset.
+
+Usage: python scripts/bench_folds.py [--identities N] [--resolution default] [--json OUT]
+
+A fold is a mesh edge of ``pdeface mesh``'s output whose two faces turn by more than 30°
+outside the eye, mouth and nostril openings (landmark polygons grown by a third;
+:mod:`pdeface.surface.folds`). Target (issue #16): 0 everywhere. Printed for the face fitted
+on the bundled neutral and on identities 000-(N-1), each with the bundled descriptors
+(retargeted): the count and the largest turn at rest, and the worst AU or preset.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "core"))
+
+from pdeface.assets import load_face, load_ict_shapes, load_neutral_scan  # noqa: E402
+from pdeface.au.expressions import PRESETS, pose_curves, resolve_preset  # noqa: E402
+from pdeface.au.retarget import retarget  # noqa: E402
+from pdeface.surface.fit import face_mesh, fit_face  # noqa: E402
+from pdeface.surface.folds import fold_edges  # noqa: E402
+
+
+def folds_of(model, resolution):
+    """{pose name: (count, max_deg)} at rest, every AU at 1 and every preset."""
+    poses = {"neutral": {}} | {f"AU{d.key}": {d.key: 1.0} for d in model.descriptors}
+    keys = {d.key for d in model.descriptors}
+    for name, preset in PRESETS.items():
+        poses[name] = resolve_preset(preset, keys)[0]
+    out = {}
+    for name, weights in poses.items():
+        C, R = pose_curves(model, weights) if weights else (None, None)
+        r = fold_edges(face_mesh(model, resolution, coefficients=C, residual=R), model.frame, model.landmarks)
+        out[name] = (r["count"], r["max_deg"])
+    return out
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--identities", type=int, default=3)
+    ap.add_argument("--resolution", default="default")
+    ap.add_argument("--json")
+    args = ap.parse_args(argv)
+    mesh, idx = load_neutral_scan()
+    T, _ = mesh.triangles()
+    shapes = load_ict_shapes()
+    source = load_face("default")
+    faces = [("generic neutral", mesh.vertices)]
+    faces += [(f"identity{i:03d}", mesh.vertices + shapes[f"identity{i:03d}"]) for i in range(args.identities)]
+    report = {}
+    for label, V in faces:
+        model, _ = fit_face(V, T, V[idx], unit="cm")  # in memory: all 68 landmarks
+        folds = folds_of(retarget(source, model), args.resolution)
+        rest, worst = folds["neutral"], max(folds, key=lambda k: folds[k][0])
+        print(f"{label}: {rest[0]} folds at rest (largest turn {rest[1]:.0f}°); worst pose {worst} "
+              f"{folds[worst][0]} folds; median over {len(folds)} poses {np.median([v[0] for v in folds.values()]):.0f} "
+              f"(target 0)")
+        report[label] = folds
+    if args.json:
+        Path(args.json).write_text(json.dumps(report, indent=1))
+
+
+if __name__ == "__main__":
+    main()

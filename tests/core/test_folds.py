@@ -1,0 +1,49 @@
+"""Folds of a PDE face mesh: counted where a viewer sees them, not inside the openings."""
+import numpy as np
+from pdeface.mesh import Mesh
+from pdeface.surface.fit import face_mesh
+from pdeface.surface.folds import OPENINGS, fold_edges
+from pdeface.surface.frame import FaceFrame
+
+
+def grid(fold_x=None, angle_deg=90.0, n=21):
+    """A 20 × 20 mm quad grid in the xy plane, bent by ``angle_deg`` along x = fold_x."""
+    x, y = np.meshgrid(np.linspace(-10, 10, n), np.linspace(-10, 10, n))
+    z = np.zeros_like(x)
+    if fold_x is not None:
+        right = x > fold_x
+        z[right] = (x[right] - fold_x) * np.tan(np.radians(angle_deg))
+    V = np.stack([x, y, z], -1).reshape(-1, 3)
+    r, c = np.meshgrid(np.arange(n - 1), np.arange(n - 1), indexing="ij")
+    i = (r * n + c).ravel()
+    return Mesh.from_faces(V, np.stack([i, i + 1, i + n + 1, i + n], 1))
+
+
+FRAME = FaceFrame(np.eye(3), np.zeros(3), 1.0, "mm")
+
+
+def far_landmarks():
+    return np.full((68, 3), 1000.0) + np.arange(68)[:, None] * [1.0, 0.7, 0.0]  # openings far away
+
+
+def test_a_flat_sheet_has_no_folds_and_a_bent_one_has_a_row():
+    assert fold_edges(grid(), FRAME, far_landmarks())["count"] == 0
+    bent = fold_edges(grid(fold_x=0.0, angle_deg=45), FRAME, far_landmarks())
+    assert bent["count"] == 20 and abs(bent["max_deg"] - 45) < 1e-6  # one edge per row, along the crease
+    assert fold_edges(grid(fold_x=0.0, angle_deg=20), FRAME, far_landmarks())["count"] == 0  # under 30°
+
+
+def test_folds_inside_an_opening_are_allowed():
+    L = far_landmarks()
+    eye = OPENINGS["eye_right"]
+    ring = np.linspace(0, 2 * np.pi, len(eye), endpoint=False)
+    L[eye] = np.stack([4 * np.cos(ring), 12 * np.sin(ring), 0 * ring], 1)  # an "eye" around the crease
+    r = fold_edges(grid(fold_x=0.0, angle_deg=45), FRAME, L)
+    assert r["count"] == 0 and r["inside"] == 20
+
+
+def test_the_bundled_face_is_measured(fitted):
+    model, _ = fitted
+    r = fold_edges(face_mesh(model), model.frame, model.landmarks)
+    assert len(r["where"]) == r["count"] and 0 <= r["max_deg"] <= 180
+    assert r["inside"] > 0  # the lids and lips part inside their openings: allowed, counted apart
