@@ -7,18 +7,19 @@ frame, measured in eye distances (IOD) so any unit and any face size works:
 ========  ==============================================================
 kind      rule (first that matches)
 ========  ==============================================================
-skin      holds the vertex nearest a landmark (ties go to the largest part)
-follow    touches the skin (within ``TOUCH_IOD``): lashes, lacrimal and
-          occlusion meshes, brows and beards glued to the skin
-eye_L/R   lies within an eyeball sphere: the sphere is fitted to the
-          roundest part behind each eye's landmarks (sclera, then the
-          iris and cornea inside it)
+skin      holds the vertex nearest a landmark (ties go to the largest part;
+          copies split along seams join their part)
+eye_L/R   the eyeball: the outermost round part of the right size behind
+          each eye's landmarks (a sphere is fitted to it)
 jaw       inside the mouth (behind the lips, between nose and chin) and
           below the mouth line, in front of the jaw hinge: lower teeth,
-          lower gums, tongue. A part spanning the mouth line (ICT's gums
-          and tongue are one) is split per vertex.
+          lower gums, tongue. A part spanning the mouth's width and line
+          (ICT's gums and tongue are one) is split per vertex.
 skull     inside the mouth, above the line or behind the hinge: upper teeth
           and gums; they do not move
+eye_L/R   lies within an eyeball's sphere: iris, cornea
+follow    touches the skin (within ``TOUCH_IOD``): lashes, lacrimal and
+          occlusion meshes, brows and beards glued to the skin
 follow    within ``NEAR_IOD`` of the skin: hair cards, brows
 rest      anything else (a body's other parts, props): never moves
 ========  ==============================================================
