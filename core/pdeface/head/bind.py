@@ -208,7 +208,7 @@ class HeadBinding:
         covered, self.read_grid = _read_pde(model, P, self.skin_normals, s, resolution)
         self.covered = covered
         self.rest = rest = _rest_region(P, Ts, covered, Lf, s)
-        self.depths = depths = _depths(P, covered, Lf, s, parts.eyes)
+        depths = _depths(P, covered, Lf, s, parts.eyes)
         self._L = L = cotan_laplacian(P, Ts)
         self._ext = _Extension(L, covered | rest | depths)
         self._jaw_fixed = covered | rest | (depths & (P[:, 1] > mouth_line(Lf)))  # the jaw moves the lower depths
