@@ -125,6 +125,20 @@ def face_model(obj):
     return cached[1]
 
 
+def fingerprint(*parts) -> str:
+    """A short hash of arrays (as float32 / int32 where they are numbers) and strings."""
+    import hashlib
+    h = hashlib.blake2b(digest_size=8)
+    for p in parts:
+        if isinstance(p, str):
+            h.update(p.encode())
+        else:
+            a = np.asarray(p)
+            a = a.astype(np.int32 if np.issubdtype(a.dtype, np.integer) else np.float32)
+            h.update(np.ascontiguousarray(a).tobytes())
+    return h.hexdigest()
+
+
 def set_key_coords(key_block, V):
     key_block.data.foreach_set("co", np.asarray(V, np.float32).ravel())
 

@@ -303,21 +303,16 @@ def scene_mixer(settings):
 
 # ------------------------------------------------------------------ shape keys
 
-def _fingerprint(coords) -> str:
-    import hashlib
-    return hashlib.blake2b(np.ascontiguousarray(coords, np.float32).tobytes(), digest_size=8).hexdigest()
-
-
 def _is_ours(key_block, entry) -> bool:
     """Our key still: made by us and holding what we wrote (an entry from before marks counts as ours)."""
-    return not entry.mark or entry.mark == _fingerprint(bridge.key_coords(key_block))
+    return not entry.mark or entry.mark == bridge.fingerprint(bridge.key_coords(key_block))
 
 
 def _write_key(key_block, entry, coords):
     coords = np.asarray(coords, np.float32)
     key_block.slider_min, key_block.slider_max = 0.0, 1.0
     bridge.set_key_coords(key_block, coords)
-    entry.mark = _fingerprint(coords)
+    entry.mark = bridge.fingerprint(coords)
 
 
 class KeyWriter:

@@ -71,12 +71,8 @@ def binding(face, model, users):
     V = np.concatenate(parts_V)
     T = np.concatenate(parts_T)
     overrides = _overrides(users, starts)
-    import hashlib
-    h = hashlib.blake2b(digest_size=8)
-    for a in (V.astype(np.float32), T.astype(np.int32), face.pdeface.model_data.encode()):
-        h.update(np.ascontiguousarray(a).tobytes() if isinstance(a, np.ndarray) else a)
-    h.update(repr(sorted((k, len(v)) for k, v in overrides.items())).encode())
-    key = h.hexdigest()
+    kinds = sorted(overrides)
+    key = bridge.fingerprint(V, T, face.pdeface.model_data, ",".join(kinds), *(overrides[k] for k in kinds))
     layout = [(obj, start, len(pv), np.linalg.inv(_to_space(src, obj))[:3, :3]) for obj, start, pv in
               zip(users, starts, parts_V)]
     cached = _bindings.get(face.name)

@@ -35,7 +35,8 @@ def cmd_fit(args):
     T, _ = mesh.triangles()
     skin = None
     if args.parts:
-        listed = read_parts(args.parts).get("skin")
+        from .head.parts import read_overrides
+        listed = read_overrides(args.parts).get("skin")
         if listed:
             skin = np.zeros(len(mesh.vertices), bool)
             skin[np.asarray(listed, np.int64)] = True
@@ -320,19 +321,12 @@ def _bind_head(model, mesh_arg, landmarks=None, parts=None):
     """(mesh, binding) of the head ``mesh_arg`` that ``model`` was fitted on."""
     from .assets import load_scan
     from .head.bind import HeadBinding
+    from .head.parts import read_overrides
 
     mesh, lm = load_scan(mesh_arg, landmarks)
-    overrides = read_parts(parts) if parts else None
+    overrides = read_overrides(parts) if parts else None
     given = lm if (landmarks or model.landmarks is None) else None
     return mesh, HeadBinding(model, mesh.vertices, mesh.triangles()[0], landmarks=given, overrides=overrides)
-
-
-def read_parts(path) -> dict:
-    from .errors import MeshError
-    from .head.parts import parse_overrides
-    from .io.files import load_json
-
-    return parse_overrides(load_json(path, MeshError), str(path))
 
 
 def _pose_head(args, model, weights, mixer):
@@ -356,26 +350,17 @@ def _pose_head(args, model, weights, mixer):
 
 
 def cmd_parts(args):
-    from .head.parts import KINDS
+    from .assets import load_scan
+    from .head.parts import classify_mesh, overrides_of, read_overrides
     from .io.files import write_bytes
 
-    check_output(args.output, args.mesh, args.landmarks)
-    from .assets import load_scan
-    from .surface.frame import face_frame
-
+    check_output(args.output, args.mesh, args.landmarks, args.parts)
     mesh, lm = load_scan(args.mesh, args.landmarks)
     if lm is None:
         raise PdeFaceError(f"{args.mesh}: --landmarks is required (JSON with 'indices' or 'points')")
-    from .head.parts import classify_parts, eye_distance_mm
-    from .head.rigid import jaw_hinge
-
-    frame = face_frame(lm, args.unit)
-    Lf = frame.to_face(lm)
-    overrides = read_parts(args.parts) if args.parts else None
-    parts = classify_parts(frame.to_face(mesh.vertices), mesh.triangles()[0], Lf,
-                           jaw_hinge(Lf, eye_distance_mm(Lf)), overrides)
-    data = {k: np.nonzero(parts.kind == i)[0].tolist() for i, k in enumerate(KINDS)}
-    write_bytes(args.output, json.dumps({k: v for k, v in data.items() if v}).encode())
+    parts = classify_mesh(mesh.vertices, mesh.triangles()[0], lm, args.unit,
+                          read_overrides(args.parts) if args.parts else None)
+    write_bytes(args.output, json.dumps(overrides_of(parts)).encode())
     for note in parts.notes:
         _log(note)
     print(json.dumps({"output": str(args.output), **parts.counts()}))

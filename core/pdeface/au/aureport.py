@@ -19,6 +19,12 @@ from ..surface.report import REPORT_RESOLUTION, band_vertices
 MOTION_MM = 0.5
 
 
+def captured(predicted, true) -> float:
+    """``1 − RMS(predicted − true) / RMS(true)`` over rows of displacements (the same vertices)."""
+    err = np.linalg.norm(predicted - true, axis=1)
+    return float(1 - np.sqrt((err ** 2).mean()) / np.sqrt((np.linalg.norm(true, axis=1) ** 2).mean()))
+
+
 class MotionProbe:
     """Neutral PDE surface and scan correspondence, shared by many AUs."""
 
@@ -56,8 +62,7 @@ class MotionProbe:
             return {"captured": None, "p95_err_mm": None, "n_vertices": 0}
         d_pde = self.pde_displacement(delta_coefficients, delta_residual)[moving]
         err = np.linalg.norm(d_pde - d_true[moving], axis=1)
-        rms_true = np.sqrt((np.linalg.norm(d_true[moving], axis=1) ** 2).mean())
-        return {"captured": float(1 - np.sqrt((err ** 2).mean()) / rms_true),
+        return {"captured": captured(d_pde, d_true[moving]),
                 "p95_err_mm": float(np.percentile(err, 95)), "n_vertices": int(moving.sum())}
 
 

@@ -203,6 +203,28 @@ def apply_overrides(parts: Parts, overrides: dict) -> None:
         parts.notes.append(f"{len(idx)} vertices set to {k} by the user")
 
 
+def classify_mesh(vertices, triangles, landmarks, unit=None, overrides=None) -> Parts:
+    """:func:`classify_parts` of a mesh in the user's space, from its 68 landmarks (no fitted face needed)."""
+    from ..surface.frame import face_frame
+    from .rigid import jaw_hinge
+
+    frame = face_frame(landmarks, unit)
+    Lf = frame.to_face(landmarks)
+    return classify_parts(frame.to_face(vertices), triangles, Lf, jaw_hinge(Lf, eye_distance_mm(Lf)), overrides)
+
+
+def overrides_of(parts: Parts) -> dict:
+    """The parts as the override format: kind → vertex indices (kinds with none left out)."""
+    return {k: idx.tolist() for i, k in enumerate(KINDS) if len(idx := np.nonzero(parts.kind == i)[0])}
+
+
+def read_overrides(path) -> dict:
+    """Part overrides from a JSON file (see :func:`parse_overrides`)."""
+    from ..io.files import load_json
+
+    return parse_overrides(load_json(path, MeshError), str(path))
+
+
 def parse_overrides(data, name="parts") -> dict:
     """Validate part overrides read from JSON: an object of kind → list of vertex indices."""
     if not isinstance(data, dict):

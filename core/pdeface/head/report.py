@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..au.aureport import MOTION_MM
+from ..au.aureport import MOTION_MM, captured
 from ..au.facs import au_number
 from .bind import GAZE_AUS
 
@@ -17,14 +17,12 @@ from .bind import GAZE_AUS
 STILL_MM = 0.1
 
 
-def captured(pred, true, mask) -> tuple[float | None, int]:
+def captured_over(pred, true, mask) -> tuple[float | None, int]:
     """``captured`` and vertex count over ``mask`` & truly moving (mm arrays)."""
     moving = mask & (np.linalg.norm(true, axis=1) > MOTION_MM)
     if not moving.any():
         return None, 0
-    err = np.linalg.norm(pred[moving] - true[moving], axis=1)
-    rms_true = np.sqrt((np.linalg.norm(true[moving], axis=1) ** 2).mean())
-    return float(1 - np.sqrt((err ** 2).mean()) / rms_true), int(moving.sum())
+    return captured(pred[moving], true[moving]), int(moving.sum())
 
 
 def head_report(binding, truth: dict, regions: dict) -> dict:
@@ -56,7 +54,7 @@ def head_report(binding, truth: dict, regions: dict) -> dict:
         true = np.asarray(truth[d.key]) * mm
         row = {}
         for name, mask in regions.items():
-            row[name], row[name + "_n"] = captured(pred, true, mask)
+            row[name], row[name + "_n"] = captured_over(pred, true, mask)
         still = np.linalg.norm(true, axis=1) < STILL_MM
         if au_number(d.key) in GAZE_AUS:
             still &= ~eyes
