@@ -153,20 +153,6 @@ def test_a_mesh_without_a_face_loses_nothing(bpy, tmp_path):
     assert len(bpy.data.objects) == n and ball.data.shape_keys is None
 
 
-def test_rebuild_timing_is_printed(bpy, ict_head):
-    """Not a timed test: bench_addon.py holds the target; this prints what a rebuild costs here."""
-    head, *_ = ict_head
-    assert bpy.ops.pdeface.fit_to_selected() == {"FINISHED"}
-    addon("head")._bindings.clear()
-    t = time.perf_counter()
-    assert bpy.ops.pdeface.build_shape_keys() == {"FINISHED"}
-    print(f"first build (binding included): {time.perf_counter() - t:.2f} s")
-    t = time.perf_counter()
-    assert bpy.ops.pdeface.build_shape_keys() == {"FINISHED"}
-    print(f"rebuild: {time.perf_counter() - t:.2f} s")
-    assert len(key_blocks(head)) > 70
-
-
 def test_live_link_and_tracker_import_drive_the_users_head(bpy, ict_head, tmp_path):
     import socket
 

@@ -260,11 +260,11 @@ class HeadBinding:
 
     # ---------------------------------------------------------------- motion
 
-    def skin_displacement(self, grid_displacement, jaw=None):
-        """Skin displacement (face frame, mm) from the PDE grid's; ``jaw``: the skin's jaw motion (R, t)."""
+    def skin_displacement(self, grid_displacement, jaw=False):
+        """Skin displacement (face frame, mm) from the PDE grid's; ``jaw``: the lower depths of the mouth move."""
         values = np.zeros((len(self.skin), 3))
         values[self.covered] = self.read_grid @ grid_displacement
-        ext = self._ext if jaw is None else self._jaw_extension()
+        ext = self._jaw_extension() if jaw else self._ext
         return ext.solve(np.zeros((len(self.skin), 3)), values[ext.fixed])
 
     def _jaw_extension(self):
@@ -287,15 +287,14 @@ class HeadBinding:
         m = self.model
         D = surface_grid(m, *self.resolution, coefficients=delta_coefficients, residual=delta_residual).reshape(-1, 3)
         out = np.zeros((len(self.V), 3))
-        motion = None
-        if jaw and self.chin is not None:
+        jaw = jaw and self.chin is not None
+        d = self.skin_displacement(D, jaw)
+        out[self.skin] = d
+        if jaw and len(self.jaw_parts):
             d_chin = self.read_grid[np.nonzero(self.chin[self.covered])[0]] @ D
             rv, t = jaw_motion(self.Vf[self.skin[self.chin]], d_chin, self.hinge)
-            motion = ((rotation_vector_matrix(rv), t), (rotation_vector_matrix(JAW_BONE_GAIN * rv), t))
-        d = self.skin_displacement(D, None if motion is None else motion[0])
-        out[self.skin] = d
-        if motion is not None and len(self.jaw_parts):
-            out[self.jaw_parts] = rigid_displacement(self.Vf[self.jaw_parts], self.hinge, *motion[1])
+            bone = rotation_vector_matrix(JAW_BONE_GAIN * rv)  # the bone turns further than the chin's skin
+            out[self.jaw_parts] = rigid_displacement(self.Vf[self.jaw_parts], self.hinge, bone, t)
         if len(self.follow):
             out[self.follow] = self._follow(d)
         for name, (centre, radius, idx, guard) in self.eyes.items():
