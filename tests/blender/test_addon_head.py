@@ -62,9 +62,7 @@ def ict_head(bpy, tmp_path):
 
 def test_fit_puts_every_key_on_the_users_objects(bpy, ict_head, tmp_path):
     head, eyes, head_idx, eye_idx = ict_head
-    t = time.perf_counter()
     assert bpy.ops.pdeface.fit_to_selected() == {"FINISHED"}
-    elapsed = time.perf_counter() - t
     face = head.pdeface.rig_face
     assert bpy.context.active_object == head and face.hide_get() and eyes.pdeface.rig_face == face
     for obj in (head, eyes):
@@ -85,7 +83,6 @@ def test_fit_puts_every_key_on_the_users_objects(bpy, ict_head, tmp_path):
     np.testing.assert_allclose(addon().key_coords(key_blocks(head)["Expr happy"]), want[head_idx], atol=1e-5)
     up = addon().key_coords(key_blocks(eyes)["AU63 Eyes Up"]) - addon().key_coords(key_blocks(eyes)["Basis"])
     assert np.linalg.norm(up, axis=1).max() > 0.3  # cm: the eyeballs turn
-    print(f"fit, bind and {len(key_blocks(head)) - 1} keys on {len(mesh.vertices)} vertices: {elapsed:.2f} s")
 
 
 def test_panel_operations_drive_the_users_mesh(bpy, ict_head):
