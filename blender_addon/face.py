@@ -26,6 +26,8 @@ def _pd():
     import pdeface.au.expressions
     import pdeface.au.facs
     import pdeface.au.retarget
+    import pdeface.fdt.deform
+    import pdeface.head.bind
     import pdeface.io.modelfile
     import pdeface.surface.fit
     import pdeface.surface.frame
@@ -351,6 +353,40 @@ class KeyWriter:
         _write_key(kb, e, coords)
         e.kind, e.au_key, e.label = kind, au_key, label or name
         e.region = self.catalogue[au_number(au_key)].region if au_key else ""
+
+
+def fdt_key_name(fdt):
+    """``FDT happy (3d)``."""
+    return f"FDT {fdt.name} ({fdt.model})"
+
+
+def add_fdt_key(obj, fdt):
+    """One shape key of a Facial Deformation Table on the face and on the user's objects it drives.
+
+    The table deforms the face model's curves (:func:`pdeface.fdt.deform.fdt_curves`), so the
+    key is linear like the AU keys; kind EXPRESSION, so poses, sequences and resets treat it as
+    one. Returns ``{"name", "made", "updated", "skipped", "objects"}``.
+    """
+    pd = _pd()
+    from . import head
+    model = bridge.face_model(obj)
+    dC, dR = pd.fdt.deform.fdt_curves(model, fdt)
+    coords = pd.surface.fit.face_mesh(model, obj.pdeface.resolution, coefficients=model.coefficients + dC,
+                                      residual=model.residual + dR).vertices
+    if len(coords) != len(obj.data.vertices):
+        raise error(f"{obj.name} has {len(obj.data.vertices)} vertices, its model meshes to {len(coords)}: "
+                    "the mesh was edited; add the face again")
+    jaw = bool(set(pd.fdt.deform.fdt_aus(fdt.name)) & set(pd.head.bind.JAW_AUS))
+    targets = [(obj, coords)] + head.change_coords(obj, model, dC, dR, jaw, user_objects(obj))
+    name, label = fdt_key_name(fdt), f"FDT {fdt.name} ({fdt.model}, {fdt.subjects} subject(s))"
+    counts = {"made": 0, "updated": 0, "skipped": 0}
+    for o, c in targets:
+        w = KeyWriter(o)
+        w.put(name, c, "EXPRESSION", label=label)
+        o.data.update()
+        for k in counts:
+            counts[k] += w.counts[k]
+    return {"name": name, **counts, "objects": len(targets)}
 
 
 def preset_poses(model, presets):

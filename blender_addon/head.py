@@ -107,6 +107,14 @@ def head_keys(face, model, poses, users, au_name, expression_name):
     return list(per_object.values())
 
 
+def change_coords(face, model, delta_coefficients, delta_residual, jaw, users):
+    """``[(object, coordinates)]`` of the user's objects under a change of the face's curves (an FDT key)."""
+    if not users:
+        return []
+    b, layout = binding(face, model, users)
+    return _split(layout, b.displacement(delta_coefficients, delta_residual, jaw=jaw))
+
+
 def pose_coords(face, model, weights, mixer, users):
     """``[(object, coordinates)]`` of the user's objects posed with AU ``weights`` (the mix key)."""
     if not users:

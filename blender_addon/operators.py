@@ -184,6 +184,43 @@ class PDEFACE_OT_apply_preset(_FaceOperator, Operator):
         return f"{self.preset} as AU weights, {mixer} mixer{note}"
 
 
+class PDEFACE_OT_load_fdt(_FaceOperator, Operator):
+    """Load a Facial Deformation Table (a .fdt.json file, or a bundled generic one by name) as one more shape
+key on the face and the objects it drives"""
+
+    bl_idname = "pdeface.load_fdt"
+    bl_label = "Load FDT as Shape Key"
+
+    filepath: StringProperty(name="FDT", subtype="FILE_PATH",
+                             description="An .fdt.json file, or a bundled FDT: an AU key (12, 12L), a basic "
+                                         "expression (happy, sad, ...) or paper-smile")
+    model: EnumProperty(name="Model", items=[("3d", "3-D", "x', y', z' quadratic in x, y, z"),
+                                             ("3d-surface", "3-D surface", "depth quadratic in x, y"),
+                                             ("2d", "2-D (paper)", "the paper's model: no depth")],
+                        default="3d", description="Model of a bundled FDT")
+
+    def invoke(self, context, event):
+        if not self.filepath:
+            context.window_manager.fileselect_add(self)
+            return {"RUNNING_MODAL"}
+        return self.execute(context)
+
+    def run(self, context):
+        from pdeface.assets import load_fdt
+        if not self.filepath.strip():
+            raise face.error("give an FDT file or a bundled FDT's name")
+        path = self.filepath.strip()
+        fdt = load_fdt(bpy.path.abspath(path) if path.startswith("//") else path, self.model)
+        obj = face.active_face(context)
+        if obj.data.shape_keys is None:
+            raise face.error(f"{obj.name} has no shape keys yet: Build Shape Keys first")
+        r = face.add_fdt_key(obj, fdt)
+        msg = f"{r['name']}: shape key on {r['objects']} object(s) ({r['made']} made, {r['updated']} updated)"
+        if not r["skipped"]:
+            return msg
+        self.report({"WARNING"}, msg + f"; {r['skipped']} left alone (your own keys share that name)")
+
+
 class PDEFACE_OT_reset_pose(_FaceOperator, Operator):
     """Set every PDE Face shape key to 0 (neutral)"""
 
@@ -324,7 +361,7 @@ class PDEFACE_OT_live_stop(_Operator, Operator):
 
 
 _classes = (PDEFACE_OT_add_default_face, PDEFACE_OT_add_ict_head, PDEFACE_OT_fit_to_selected,
-            PDEFACE_OT_build_shape_keys, PDEFACE_OT_apply_preset, PDEFACE_OT_reset_pose, PDEFACE_OT_keyframe_pose, PDEFACE_OT_animate_sequence,
+            PDEFACE_OT_build_shape_keys, PDEFACE_OT_apply_preset, PDEFACE_OT_load_fdt, PDEFACE_OT_reset_pose, PDEFACE_OT_keyframe_pose, PDEFACE_OT_animate_sequence,
             PDEFACE_OT_import_au, PDEFACE_OT_transfer_texture, PDEFACE_OT_live_start, PDEFACE_OT_live_stop)
 
 

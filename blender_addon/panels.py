@@ -87,6 +87,7 @@ class PDEFACE_PT_expressions(_FacePanel, bpy.types.Panel):
             op = grid.operator("pdeface.apply_preset", text=label)
             op.preset = name
         layout.operator("pdeface.reset_pose", icon="LOOP_BACK")
+        layout.operator("pdeface.load_fdt", icon="FILE")
         _sliders(layout, managed(key_owner(bpy.context), "EXPRESSION"), lambda e: e.name)
 
 

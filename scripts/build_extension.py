@@ -29,7 +29,8 @@ PLATFORMS = {
     "windows-x64": ["win_amd64"],
 }
 DEPENDENCIES = ["scipy==1.14.1", "xatlas==0.0.11"]
-BUNDLED_ASSETS = ["default_face.npz", "ict_neutral_face.npz", "ict_head.npz", "ICT-FaceKit-LICENSE.txt"]
+BUNDLED_ASSETS = ["default_face.npz", "ict_neutral_face.npz", "ict_head.npz", "ict_generic_fdts.json.gz",
+                  "ICT-FaceKit-LICENSE.txt"]
 
 
 def blender_ext_command():

@@ -96,6 +96,33 @@ def load_head_shapes() -> dict:
                 for n, o in zip(z["names"], z["offsets"])}
 
 
+GENERIC_FDTS = "ict_generic_fdts.json.gz"
+#: The paper's Table I (its generic smile FDT, 2-D), shipped with the package's data.
+PAPER_SMILE = "paper-smile"
+
+
+def load_generic_fdts(model: str = "3d") -> dict:
+    """The bundled generic FDTs of one model: name (AU key or basic expression) → FDT, and the paper's smile."""
+    from .fdt.table import read_fdt, read_fdts
+
+    out = {t.name: t for t in read_fdts(asset_path(GENERIC_FDTS)) if t.model == model}
+    if model == "2d":
+        out[PAPER_SMILE] = read_fdt(Path(__file__).resolve().parent / "data" / "paper_smile.fdt.json")
+    return out
+
+
+def load_fdt(arg, model: str = "3d"):
+    """An FDT from a file, or a bundled one by name (``happy``, ``12L``, ``paper-smile``)."""
+    from .fdt.table import read_fdt
+
+    if Path(str(arg)).suffix in (".json", ".gz") or os.sep in str(arg):
+        return read_fdt(arg)
+    tables = load_generic_fdts("2d" if arg == PAPER_SMILE else model)
+    if arg not in tables:
+        raise PdeFaceError(f"{arg!r} is neither an FDT file nor a bundled FDT ({model}: {', '.join(sorted(tables))})")
+    return tables[arg]
+
+
 def load_face(arg):
     """A face model from a path, or the bundled one for ``"default"``."""
     from .io.modelfile import load_model

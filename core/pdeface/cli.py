@@ -317,27 +317,16 @@ def cmd_pose(args):
     _log(f"wrote {args.output}: " + ", ".join(f"AU{k}={w:g}" for k, w in weights.items()) + f" ({mixer})")
 
 
-def _bind_head(model, mesh_arg, landmarks=None, parts=None):
-    """(mesh, binding) of the head ``mesh_arg`` that ``model`` was fitted on."""
-    from .assets import load_scan
-    from .head.bind import HeadBinding
-    from .head.parts import read_overrides
-
-    mesh, lm = load_scan(mesh_arg, landmarks)
-    overrides = read_overrides(parts) if parts else None
-    given = lm if (landmarks or model.landmarks is None) else None
-    return mesh, HeadBinding(model, mesh.vertices, mesh.triangles()[0], landmarks=given, overrides=overrides)
-
-
 def _pose_head(args, model, weights, mixer):
     from dataclasses import replace
 
     from .assets import DEFAULT, HEAD
+    from .head.bind import bind_file
     from .io.meshio import write_mesh, write_posed
 
     check_output(args.output, args.mesh, args.parts, args.landmarks)
     t0 = time.perf_counter()
-    mesh, binding = _bind_head(model, args.mesh, args.landmarks, args.parts)
+    mesh, binding = bind_file(model, args.mesh, args.landmarks, args.parts)
     V = mesh.vertices + binding.pose_displacement(weights, mixer)
     if args.mesh in (DEFAULT, HEAD):
         write_mesh(args.output, replace(mesh, vertices=V))
@@ -512,6 +501,9 @@ def build_parser():
     p.add_argument("--parts", help="overrides to apply (JSON, as written by this command)")
     output_option(p, ".json: part kind → vertex indices, editable and given back with --parts")
     p.set_defaults(func=cmd_parts)
+
+    from .fdt.cli import add_parser as add_fdt_parser
+    add_fdt_parser(sub, output_option, meshing_options)
 
     p = sub.add_parser("retarget", help="carry AU descriptors over to another face model")
     p.add_argument("target", help="the target face model (.npz)")

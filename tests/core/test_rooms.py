@@ -33,9 +33,13 @@ def test_the_core_never_imports_bpy():
 
 
 def test_only_the_entry_point_imports_the_cli():
+    """The command line's modules (``cli.py`` and a concern's own ``cli.py``, as ``fdt/cli.py``) import
+    each other; nothing else imports them."""
     offenders = []
     for folder in (CORE, ADDON, ROOT / "scripts"):
         for path in folder.rglob("*.py"):
+            if path.name == "cli.py" and folder == CORE:
+                continue
             absolute, relative = imports(path)
             if "pdeface.cli" in absolute or any(m == "cli" or m.endswith(".cli") for _, m in relative):
                 offenders.append(path.relative_to(ROOT))

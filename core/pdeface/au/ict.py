@@ -91,6 +91,15 @@ def au_offsets(key: str, shapes: dict) -> np.ndarray:
     return sum(w * shapes[name] for name, w in AU_SHAPES[key].items())
 
 
+def weights_offsets(weights: dict, shapes: dict) -> tuple[np.ndarray, list]:
+    """Offsets of AU ``weights`` (key → weight) summed from ICT shapes, and the keys ICT has no shapes for."""
+    missing = [k for k in weights if k not in AU_SHAPES]
+    total = sum(w * au_offsets(k, shapes) for k, w in weights.items() if k in AU_SHAPES and w)
+    if isinstance(total, int):
+        raise PdeFaceError(f"none of AU {', '.join(weights)} has ICT-FaceKit shapes")
+    return total, missing
+
+
 def face_region(mesh):
     """The ICT face region of a full-head ICT mesh: (vertices, quads, uvs, quad uv indices)."""
     if len(mesh.vertices) < FACE_VERTICES or len(mesh.face_counts) < FACE_POLYGONS:

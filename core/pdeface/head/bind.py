@@ -348,3 +348,15 @@ class HeadBinding:
                 gaze[a] = gaze.get(a, 0.0) + weights[k]
         jaw = any(a in JAW_AUS for a in numbers.values())
         return self.displacement(C - self.model.coefficients, R - self.model.residual, jaw=jaw, gaze=gaze or None)
+
+
+def bind_file(model, mesh_arg, landmarks=None, parts=None):
+    """``(mesh, binding)`` of the head ``mesh_arg`` (a file, ``head`` or ``default``) that ``model`` was
+    fitted on; ``landmarks`` and ``parts`` are JSON files (the CLI's ``--landmarks``, ``--parts``)."""
+    from ..assets import load_scan
+    from .parts import read_overrides
+
+    mesh, lm = load_scan(mesh_arg, landmarks)
+    overrides = read_overrides(parts) if parts else None
+    given = lm if (landmarks or model.landmarks is None) else None
+    return mesh, HeadBinding(model, mesh.vertices, mesh.triangles()[0], landmarks=given, overrides=overrides)

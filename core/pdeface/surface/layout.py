@@ -75,6 +75,9 @@ FEATURE_LINES = {
     "mouth_bottom": _MOUTH_LINE,
     "lip_lower": ([48], [59], [58], [57], [56], [55], [54]),
 }
+#: The anchors' names, top to bottom (:attr:`CurveLayout.anchors` and ``openings`` index them).
+ANCHOR_NAMES = ("forehead", "brow", "lid_top", "lid_bottom", "nose_tip", "nose_bottom", "lip_upper", "mouth_top",
+                "mouth_bottom", "lip_lower", "chin")
 #: Openings, as (top anchor, bottom anchor): a curve runs along each rim.
 #: Each maps to the knot ranges of its line where the rims are searched (the eye line
 #: crosses the nose between the eyes).
@@ -326,7 +329,8 @@ def place_curves(landmarks_face: np.ndarray, n_curves: int = DEFAULT_CURVES, n_p
     # Curves at equal steps of the density-weighted height.
     measure = np.concatenate([[0.0], np.cumsum(-np.diff(yd) * density)])
     heights = np.interp(np.linspace(0, measure[-1], n_curves), measure, yd)
-    names = list(anchors)
+    names = list(ANCHOR_NAMES)
+    assert names == list(anchors), "ANCHOR_NAMES is the anchors' order"
     openings = [names.index(top) for top, _ in OPENINGS] if follow_lips else []
     for a in openings:
         _snap_to_opening(heights, ys, yd, measure, a)

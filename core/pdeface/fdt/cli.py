@@ -1,0 +1,171 @@
+"""``pdeface fdt``: fit, average, apply and recognise Facial Deformation Tables."""
+from __future__ import annotations
+
+import json
+import sys
+import time
+
+from ..errors import PdeFaceError
+from ..io.files import check_output
+
+
+def _log(msg):
+    print(msg, file=sys.stderr, flush=True)
+
+
+def _pair(args):
+    """Neutral mesh, its landmarks, the posed vertices, and the posed mesh's own landmarks (or None)."""
+    from ..assets import load_scan
+    from ..io.meshio import read_mesh
+    from ..surface.frame import landmark_points, read_landmarks
+
+    neutral, lm = load_scan(args.neutral, args.landmarks)
+    if lm is None:
+        raise PdeFaceError(f"{args.neutral}: --landmarks is required (JSON with 'indices' or 'points')")
+    posed = read_mesh(args.posed)
+    posed_lm = None
+    if args.posed_landmarks:
+        posed_lm = landmark_points(posed.vertices, *read_landmarks(args.posed_landmarks))
+    return neutral, lm, posed.vertices, posed_lm
+
+
+def cmd_fit(args):
+    from .deform import fit_fdt
+    from .table import write_fdts
+
+    check_output(args.output, args.neutral, args.posed, args.landmarks, args.posed_landmarks)
+    neutral, lm, posed, posed_lm = _pair(args)
+    model = "2d" if args.two_d else args.model
+    name = args.name or args.posed.rsplit("/", 1)[-1].split(".")[0]
+    t0 = time.perf_counter()
+    fit = fit_fdt(neutral.vertices, posed, neutral.triangles()[0], lm, model, name, posed_lm, source=str(args.posed))
+    size = write_fdts(args.output, [fit.fdt])
+    _log(f"FDT {name!r} ({model}) of {args.posed} in {time.perf_counter() - t0:.2f} s: points per region "
+         + " ".join(str(len(m)) for m in fit.members.values()))
+    print(json.dumps({"output": str(args.output), "name": name, "model": model, "bytes": size}))
+
+
+def cmd_mean(args):
+    from .table import generic, read_fdts, write_fdts
+
+    check_output(args.output, *args.files)
+    tables = [t for f in args.files for t in read_fdts(f)]
+    names = {t.name for t in tables}
+    if len(names) > 1 and not args.name:
+        _log(f"averaging FDTs named {', '.join(sorted(names))}: give --name for the result")
+    g = generic(tables, args.name or tables[0].name, source=f"mean of {len(tables)} FDTs")
+    size = write_fdts(args.output, [g])
+    print(json.dumps({"output": str(args.output), "name": g.name, "subjects": g.subjects, "bytes": size}))
+
+
+def cmd_apply(args):
+    from dataclasses import replace
+
+    from ..assets import load_face, load_fdt
+    from ..io.meshio import write_mesh
+    from ..surface.fit import face_mesh
+    from .deform import fdt_aus, fdt_curves
+
+    check_output(args.output, args.face, args.fdt, args.mesh, args.parts, args.landmarks)
+    model = load_face(args.face)
+    fdt = load_fdt(args.fdt, args.model)
+    weight = float(args.weight)
+    if not 0 <= weight <= 1:
+        raise PdeFaceError(f"--weight {weight:g}: give a weight in [0, 1]")
+    dC, dR = fdt_curves(model, fdt, weight)
+    if args.mesh:
+        from ..assets import DEFAULT, HEAD
+        from ..head.bind import JAW_AUS, bind_file
+        from ..io.meshio import write_posed
+
+        mesh, binding = bind_file(model, args.mesh, args.landmarks, args.parts)
+        V = mesh.vertices + binding.displacement(dC, dR, jaw=bool(set(fdt_aus(fdt.name)) & set(JAW_AUS)))
+        if args.mesh in (DEFAULT, HEAD):
+            write_mesh(args.output, replace(mesh, vertices=V))
+        else:
+            write_posed(args.output, args.mesh, mesh, V)
+    else:
+        write_mesh(args.output, face_mesh(model, args.resolution, coefficients=model.coefficients + dC,
+                                          residual=model.residual + dR))
+    _log(f"wrote {args.output}: FDT {fdt.name!r} ({fdt.model}, {fdt.subjects} subject(s)) at weight {weight:g}")
+
+
+def cmd_classify(args):
+    from ..assets import load_fdt, load_generic_fdts
+    from ..au.expressions import BASIC_EXPRESSIONS
+    from .deform import NeutralFace, classify
+    from .table import read_fdts
+
+    neutral, lm, posed, posed_lm = _pair(args)
+    if args.against:
+        generics = [t for f in args.against for t in read_fdts(f)] if args.against != ["bundled-aus"] else \
+            list(load_generic_fdts(args.model).values())
+    else:
+        generics = [load_fdt(name, args.model) for name in BASIC_EXPRESSIONS]
+    models = {g.model for g in generics}
+    if len(models) != 1:
+        raise PdeFaceError(f"compare against FDTs of one model, got {', '.join(sorted(models))}")
+    face = NeutralFace(neutral.vertices, neutral.triangles()[0], lm)
+    ranking = classify(face.fit(posed, models.pop(), "observed", posed_lm), generics, args.sigmas)
+    if args.json:
+        print(json.dumps({"best": ranking[0]["name"], "ranking": ranking}))
+        return
+    for c in ranking[:args.top]:
+        inside = "-" if c["inside"] is None else f"{c['inside']:.0%}"
+        print(f"{c['name']:12s} distance {c['distance']:.3f}  intensity {c['intensity']:.2f}  inside ±{args.sigmas:g}σ "
+              f"{inside}")
+
+
+def add_parser(sub, output_option, meshing_options):
+    """The ``fdt`` command and its subcommands."""
+    from .quadratic import MODELS
+
+    p = sub.add_parser("fdt", help="Facial Deformation Tables: fit, mean, apply, classify")
+    fsub = p.add_subparsers(dest="fdt_command", required=True)
+    model_help = "quadratic model: 3d (x', y', z' quadratic in x, y, z; default), 3d-surface, or the paper's 2d"
+
+    def pair(q):
+        q.add_argument("neutral", help="neutral mesh (.obj/.ply) or 'default' (the bundled ICT neutral face)")
+        q.add_argument("posed", help="the same mesh (same vertices) showing the expression")
+        q.add_argument("--landmarks", help="the neutral's 68 landmarks (JSON; required unless NEUTRAL is 'default')")
+        q.add_argument("--posed-landmarks", help="the posed mesh's own landmarks: normalise it by its own pupils "
+                                                 "(as the paper does for two photographs)")
+
+    q = fsub.add_parser("fit", help="one face's FDT from a neutral and a posed mesh")
+    pair(q)
+    q.add_argument("--model", choices=MODELS, default="3d", help=model_help)
+    q.add_argument("--2d", dest="two_d", action="store_true", help="the paper's 2-D model (same as --model 2d)")
+    q.add_argument("--name", help="the expression's name or AU key (default: the posed file's name)")
+    output_option(q, ".fdt.json, or .csv (the paper's Table I layout)")
+    q.set_defaults(func=cmd_fit)
+
+    q = fsub.add_parser("mean", help="the generic FDT (mean ± σ) of several faces' FDTs of one expression")
+    q.add_argument("files", nargs="+", help="FDT files (.fdt.json)")
+    q.add_argument("--name", help="name of the result (default: the first table's)")
+    output_option(q, ".fdt.json or .csv")
+    q.set_defaults(func=cmd_mean)
+
+    q = fsub.add_parser("apply", help="deform a face model with an FDT and mesh it (or the head it was fitted on)")
+    q.add_argument("face", help="face model (.npz) or 'default'")
+    q.add_argument("fdt", help="FDT file, or a bundled generic FDT: an AU key (12, 12L), a basic expression "
+                               "(happy, sad, ...) or paper-smile")
+    q.add_argument("--model", choices=MODELS, default="3d", help="model of a bundled FDT")
+    q.add_argument("--weight", type=float, default=1.0, help="how much of the expression, in [0, 1]")
+    g = q.add_argument_group("the whole head (the mesh FACE was fitted on)")
+    g.add_argument("--mesh", help="pose this head mesh (.obj/.ply or 'head') instead of the PDE face")
+    g.add_argument("--parts", help="JSON of part kind → vertex indices (see 'pdeface parts')")
+    g.add_argument("--landmarks", help="the mesh's 68 landmarks (JSON), for a face model made by pdeface 0.1")
+    meshing_options(q)
+    output_option(q)
+    q.set_defaults(func=cmd_apply)
+
+    q = fsub.add_parser("classify", help="name a face's expression: the nearest generic FDT")
+    pair(q)
+    q.add_argument("--against", nargs="+", help="FDT files to compare with (default: the bundled six basic "
+                                                "expressions; 'bundled-aus': every bundled FDT)")
+    q.add_argument("--model", choices=MODELS, default="3d", help="model of the bundled FDTs")
+    q.add_argument("--sigmas", type=float, default=1.0, help="k of the mean ± kσ range")
+    q.add_argument("--top", type=int, default=3, help="candidates to print")
+    q.add_argument("--json", action="store_true", help="print one JSON object")
+    q.set_defaults(func=cmd_classify)
+    return p
