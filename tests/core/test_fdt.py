@@ -116,8 +116,8 @@ def test_region_weights_partition_blend_and_fade(scan):
     sides = opening_sides(xy, L).reshape(140, 120, -1)
     same = (sides[:, 1:] == sides[:, :-1]).all(-1)
     assert np.abs(grid[:, 1:] - grid[:, :-1]).max(-1)[same].max() < 0.6
-    hard = region_weights(xy, L, blend=0)  # one region each (but near an opening's corners, where two sides meet)
-    assert set(np.unique(hard.max(1)[near_face & (sides.reshape(-1, 2) == 0).all(1)])) == {1.0}
+    hard = region_weights(xy, L, blend=0)  # one region each
+    assert set(np.unique(hard.max(1)[near_face])) == {1.0}
 
 
 def test_lips_never_take_each_others_motion(scan):
@@ -174,6 +174,22 @@ def test_own_fdt_captures_most_of_an_au_and_is_a_linear_key(scan, fitted):
         fdt_descriptor(model, load_fdt("happy"))
 
 
+def test_blend_zero_is_the_papers_fit_region_by_region(scan):
+    mesh, T, idx = scan
+    shapes = load_ict_shapes()
+    V = mesh.vertices
+    face = NeutralFace(V, T, V[idx], blend=0)
+    fit = face.fit(V + au_offsets("12", shapes), "2d")
+    assert fit.fdt.blend == 0
+    for r, rows in fit.members.items():
+        np.testing.assert_allclose(fit.fdt.mean[r], quadratic.fit("2d", fit.neutral[rows], fit.posed[rows]),
+                                   atol=1e-9)
+    blended = NeutralFace(V, T, V[idx]).fit(V + au_offsets("12", shapes), "2d").fdt
+    assert blended.blend == 0.2 and not np.allclose(blended.mean, fit.fdt.mean, atol=1e-3)
+    with pytest.raises(PdeFaceError, match="blends"):
+        generic([fit.fdt, blended])
+
+
 def test_neutral_face_checks_its_input(scan):
     mesh, T, idx = scan
     face = NeutralFace(mesh.vertices, T, mesh.vertices[idx])
@@ -227,6 +243,8 @@ GOOD = {"format": "pdeface.fdt", "version": 1, "name": "x", "model": "2d", "mean
     ({"sigma": [[-1.0] * 12] * 16}, "negative"),
     ({"subjects": 0}, "positive integer"),
     ({"parameters": ["a1"]}, "parameters"),
+    ({"blend": -1}, "'blend'"),
+    ({"blend": "wide"}, "'blend'"),
 ])
 def test_malformed_fdt_files_get_clear_errors(tmp_path, change, message):
     p = tmp_path / "bad.fdt.json"

@@ -29,16 +29,23 @@ def _pair(args):
     return neutral, lm, posed.vertices, posed_lm
 
 
+def _check_blend(blend):
+    if blend is not None and not 0 <= blend <= 2:
+        raise PdeFaceError(f"--blend {blend:g}: give a width in [0, 2] pupil half-distances")
+
+
 def cmd_fit(args):
     from .deform import fit_fdt
     from .table import write_fdts
 
     check_output(args.output, args.neutral, args.posed, args.landmarks, args.posed_landmarks)
+    _check_blend(args.blend)
     neutral, lm, posed, posed_lm = _pair(args)
     model = "2d" if args.two_d else args.model
     name = args.name or args.posed.rsplit("/", 1)[-1].split(".")[0]
     t0 = time.perf_counter()
-    fit = fit_fdt(neutral.vertices, posed, neutral.triangles()[0], lm, model, name, posed_lm, source=str(args.posed))
+    fit = fit_fdt(neutral.vertices, posed, neutral.triangles()[0], lm, model, name, posed_lm, source=str(args.posed),
+                  blend=args.blend)
     size = write_fdts(args.output, [fit.fdt])
     _log(f"FDT {name!r} ({model}) of {args.posed} in {time.perf_counter() - t0:.2f} s: points per region "
          + " ".join(str(len(m)) for m in fit.members.values()))
@@ -67,12 +74,13 @@ def cmd_apply(args):
     from .deform import fdt_aus, fdt_curves
 
     check_output(args.output, args.face, args.fdt, args.mesh, args.parts, args.landmarks)
+    _check_blend(args.blend)
     model = load_face(args.face)
     fdt = load_fdt(args.fdt, args.model)
     weight = float(args.weight)
     if not 0 <= weight <= 1:
         raise PdeFaceError(f"--weight {weight:g}: give a weight in [0, 1]")
-    dC, dR = fdt_curves(model, fdt, weight)
+    dC, dR = fdt_curves(model, fdt, weight, args.blend)
     if args.mesh:
         from ..assets import DEFAULT, HEAD
         from ..head.bind import JAW_AUS, bind_file
@@ -119,6 +127,7 @@ def cmd_classify(args):
 def add_parser(sub, output_option, meshing_options):
     """The ``fdt`` command and its subcommands."""
     from .quadratic import MODELS
+    from .regions import BLEND
 
     p = sub.add_parser("fdt", help="Facial Deformation Tables: fit, mean, apply, classify")
     fsub = p.add_subparsers(dest="fdt_command", required=True)
@@ -136,6 +145,8 @@ def add_parser(sub, output_option, meshing_options):
     q.add_argument("--model", choices=MODELS, default="3d", help=model_help)
     q.add_argument("--2d", dest="two_d", action="store_true", help="the paper's 2-D model (same as --model 2d)")
     q.add_argument("--name", help="the expression's name or AU key (default: the posed file's name)")
+    q.add_argument("--blend", type=float, help="width of the regions' blended borders, in pupil half-distances "
+                                               f"(default {BLEND}); 0 fits each region alone, as the paper")
     output_option(q, ".fdt.json, or .csv (the paper's Table I layout)")
     q.set_defaults(func=cmd_fit)
 
@@ -151,6 +162,7 @@ def add_parser(sub, output_option, meshing_options):
                                "(happy, sad, ...) or paper-smile")
     q.add_argument("--model", choices=MODELS, default="3d", help="model of a bundled FDT")
     q.add_argument("--weight", type=float, default=1.0, help="how much of the expression, in [0, 1]")
+    q.add_argument("--blend", type=float, help="apply with this border width instead of the table's own")
     g = q.add_argument_group("the whole head (the mesh FACE was fitted on)")
     g.add_argument("--mesh", help="pose this head mesh (.obj/.ply or 'head') instead of the PDE face")
     g.add_argument("--parts", help="JSON of part kind → vertex indices (see 'pdeface parts')")

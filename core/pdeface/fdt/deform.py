@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import MeshError, PdeFaceError
-from . import quadratic
+from . import quadratic, regions
 from .regions import N_REGIONS, REGIONS, PupilFrame, assign_regions, opening_sides, region_weights
 from .table import FDT
 
@@ -69,10 +69,14 @@ class NeutralFace:
         Its landmarks (positions): they place the pupils and the regions.
     skin : (n,) bool array, optional
         The skin; default: the pieces under the landmarks. Skin not facing the front
-        (:data:`FACING_MIN`) is left out either way.
+        (:data:`FACING_MIN`) is left out either way, and so is skin beyond the regions'
+        reach (:data:`~pdeface.fdt.regions.REACH`: ears, neck).
+    blend : float, optional
+        Blend width of the regions' borders (:data:`~pdeface.fdt.regions.BLEND`); 0 fits each
+        region on its own points alone: the paper's 16 independent normal equations.
     """
 
-    def __init__(self, vertices, triangles=None, landmarks=None, skin=None, keep=None):
+    def __init__(self, vertices, triangles=None, landmarks=None, skin=None, keep=None, blend=None):
         from ..surface.fit import skin_vertices
 
         V = np.asarray(vertices, np.float64)
@@ -84,13 +88,16 @@ class NeutralFace:
             keep = skin_vertices(V, T, np.asarray(landmarks, np.float64)) if skin is None else np.asarray(skin, bool)
             keep = keep & _facing(V, T, self.frame)
         self.n_vertices = len(V)
-        self.keep = np.nonzero(keep)[0]
-        self.neutral = self.frame.normalise(V[self.keep])
         self.landmarks = self.frame.normalise(landmarks)
-        region = assign_regions(self.neutral, self.landmarks)
+        region = np.full(len(V), -1)
+        region[keep] = assign_regions(self.frame.normalise(V[keep]), self.landmarks)
+        self.keep = np.nonzero(region >= 0)[0]
+        self.neutral = self.frame.normalise(V[self.keep])
+        region = region[self.keep]
         self.members = {r: np.nonzero(region == r)[0] for r in range(N_REGIONS)}
         # The regions are fitted together as they are applied: blended at their borders.
-        self.weights = region_weights(self.neutral, self.landmarks)
+        self.blend = regions.BLEND if blend is None else float(blend)
+        self.weights = region_weights(self.neutral, self.landmarks, self.blend)
         for r, idx in self.members.items():
             if len(idx) < 10:  # a full quadratic in x, y, z has 10 terms a coordinate
                 raise PdeFaceError(f"region {REGIONS[r].number} ({REGIONS[r].name}) holds {len(idx)} of the face's "
@@ -121,14 +128,14 @@ class NeutralFace:
         if model not in self._equations:  # the normal matrix depends on the neutral only
             self._equations[model] = quadratic.BlendedEquations(
                 model, self.neutral, self.weights, [f"region {r.number} ({r.name})" for r in REGIONS])
-        fdt = FDT(name, model, self._equations[model].solve(P), source=source, notice=notice)
+        fdt = FDT(name, model, self._equations[model].solve(P), source=source, notice=notice, blend=self.blend)
         return FaceFit(fdt, self.neutral, P, self.landmarks, self.members)
 
 
 def fit_fdt(neutral_vertices, posed_vertices, triangles, landmarks, model="3d", name="", posed_landmarks=None,
-            skin=None, source="", notice="") -> FaceFit:
+            skin=None, source="", notice="", blend=None) -> FaceFit:
     """The FDT of one face's expression from its neutral and posed meshes (see :class:`NeutralFace`)."""
-    return NeutralFace(neutral_vertices, triangles, landmarks, skin).fit(
+    return NeutralFace(neutral_vertices, triangles, landmarks, skin, blend=blend).fit(
         posed_vertices, model, name, posed_landmarks, source, notice)
 
 
@@ -149,9 +156,10 @@ def fit_fdt_model(face, weights, model="3d", mixer="sum", name="", neutral=None)
 
 
 def fdt_displacement(fdt: FDT, points, landmarks, blend=None, sides=None) -> np.ndarray:
-    """Displacement (n, 3) an FDT gives normalised ``points``, regions blended (:func:`region_weights`)."""
+    """Displacement (n, 3) an FDT gives normalised ``points``, regions blended (:func:`region_weights`)
+    as the table was fitted (its ``blend``) unless ``blend`` says otherwise."""
     P = np.asarray(points, np.float64)
-    W = region_weights(P[:, :2], landmarks, blend, sides)
+    W = region_weights(P[:, :2], landmarks, fdt.blend if blend is None else blend, sides)
     D = np.zeros_like(P)
     for r in np.nonzero(W.max(axis=0) > 0)[0]:
         on = W[:, r] > 0

@@ -264,6 +264,8 @@ def region_weights(points_xy, normalised_landmarks, blend=None, sides=None) -> n
     W, Dmin = _soft(D, blend)
     W_apart, _ = _soft(_exclude(D, sides), blend)
     e = firm.max(axis=1, keepdims=True)
+    if blend == 0:  # one region a point, as :func:`assign_regions`
+        e = (e > 0).astype(np.float64)
     W = (1 - e) * W + e * W_apart
     t = np.clip((Dmin - REACH[0]) / (REACH[1] - REACH[0]), 0, 1)
     return W * (1 - t * t * (3 - 2 * t))[:, None]

@@ -9,7 +9,10 @@ File (JSON, ``.fdt.json``)::
 
     {"format": "pdeface.fdt", "version": 1, "name": "happy", "model": "3d",
      "parameters": ["a1", ..., "c10"], "mean": [[30 numbers] × 16],
-     "sigma": [[...] × 16] or null, "subjects": 20, "source": "...", "notice": "..."}
+     "sigma": [[...] × 16] or null, "subjects": 20, "source": "...", "notice": "...", "blend": 0.2}
+
+``blend`` (optional) is the width of the region borders the table was fitted with; it is applied
+with the same (absent: pdeface's default; 0: independent regions, as the paper).
 
 A bundle of several: ``{"format": "pdeface.fdts", "version": 1, "fdts": [objects as above]}``.
 CSV export: one row per region and one column per parameter, as the paper's Table I.
@@ -48,6 +51,9 @@ class FDT:
         How many faces the mean is over (1: one face's own table).
     source, notice : str
         Where it came from; the licence notice of its data.
+    blend : float or None
+        Blend width of the region borders it was fitted with, and is applied with
+        (:data:`pdeface.fdt.regions.BLEND` when None; 0: independent regions, as the paper).
     """
 
     name: str
@@ -57,6 +63,7 @@ class FDT:
     subjects: int = 1
     source: str = ""
     notice: str = ""
+    blend: float | None = None
 
     def __post_init__(self):
         if self.model not in MODELS:
@@ -76,7 +83,7 @@ class FDT:
         if self.model == "3d":
             raise PdeFaceError("a 3d table's x', y' depend on z: it has no 2-D part; fit a 2d one")
         return FDT(self.name, "2d", self.mean[:, :12], None if self.sigma is None else self.sigma[:, :12],
-                   self.subjects, self.source, self.notice)
+                   self.subjects, self.source, self.notice, self.blend)
 
     def to_json(self) -> dict:
         def rows(a):
@@ -84,7 +91,7 @@ class FDT:
         return {"format": FORMAT, "version": VERSION, "name": self.name, "model": self.model,
                 "parameters": list(PARAMETERS[self.model]), "mean": rows(self.mean),
                 "sigma": None if self.sigma is None else rows(self.sigma), "subjects": self.subjects,
-                "source": self.source, "notice": self.notice}
+                "source": self.source, "notice": self.notice, "blend": self.blend}
 
     def to_csv(self) -> str:
         """The mean as the paper's Table I (region rows, parameter columns); σ below it when present."""
@@ -105,12 +112,16 @@ def generic(tables, name=None, source="", notice="") -> FDT:
     models = {t.model for t in tables}
     if len(models) > 1:
         raise PdeFaceError(f"cannot average FDTs of models {', '.join(sorted(models))}")
+    blends = {t.blend for t in tables}
+    if len(blends) > 1:
+        raise PdeFaceError(f"cannot average FDTs fitted with region blends {', '.join(map(str, blends))}")
     A = np.stack([t.mean for t in tables])
     n = sum(t.subjects for t in tables)
     w = np.array([t.subjects for t in tables], np.float64)[:, None, None]
     mean = (A * w).sum(0) / w.sum()
     sigma = np.sqrt(((A - mean) ** 2 * w).sum(0) / w.sum())
-    return FDT(name or tables[0].name, tables[0].model, mean, sigma, n, source, notice or tables[0].notice)
+    return FDT(name or tables[0].name, tables[0].model, mean, sigma, n, source, notice or tables[0].notice,
+               tables[0].blend)
 
 
 def _number_rows(value, where):
@@ -154,8 +165,11 @@ def fdt_from_json(obj, where="FDT") -> FDT:
     texts = {k: obj.get(k, "") for k in ("source", "notice")}
     if not all(isinstance(v, str) for v in texts.values()):
         raise ModelFormatError(f"{where}: 'source' and 'notice' must be strings")
+    blend = obj.get("blend")
+    if blend is not None and (isinstance(blend, bool) or not isinstance(blend, (int, float)) or not 0 <= blend <= 2):
+        raise ModelFormatError(f"{where}: 'blend' must be a number in [0, 2] or null")
     try:
-        return FDT(name, model, mean, sigma, subjects, **texts)
+        return FDT(name, model, mean, sigma, subjects, **texts, blend=None if blend is None else float(blend))
     except PdeFaceError as exc:
         raise ModelFormatError(f"{where}: {exc}") from None
 
