@@ -27,11 +27,6 @@ from pdeface.io.meshio import read_obj, write_obj
 from pdeface.mesh import Mesh
 
 
-def rotation(rng):
-    Q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
-    return Q * np.sign(np.linalg.det(Q))
-
-
 @pytest.mark.parametrize("model", quadratic.MODELS)
 def test_known_quadratic_recovered_exactly(model, rng):
     P = rng.uniform(-2, 2, size=(200, 3))
@@ -85,14 +80,14 @@ def test_paper_normalisation_2d_is_invariant(rng):
         normalise_2d(pts, p1, p1)
 
 
-def test_pupil_frame_is_invariant_to_pose_scale_and_unit(scan, rng):
+def test_pupil_frame_is_invariant_to_pose_scale_and_unit(scan, rng, rotation):
     mesh, _, idx = scan
     V = mesh.vertices
     frame = PupilFrame.from_landmarks(V[idx])
     ref = frame.normalise(V)
     pupils = frame.normalise(np.stack([V[idx[36:42]].mean(0), V[idx[42:48]].mean(0)]))
     np.testing.assert_allclose(pupils, [[-1, 0, 0], [1, 0, 0]], atol=1e-12)
-    R, s, t = rotation(rng), 10.0, rng.normal(size=3) * 50  # cm → mm, turned and moved
+    R, s, t = rotation, 10.0, rng.normal(size=3) * 50  # cm → mm, turned and moved
     W = s * V @ R.T + t
     np.testing.assert_allclose(PupilFrame.from_landmarks(W[idx]).normalise(W), ref, atol=1e-9)
     np.testing.assert_allclose(frame.to_source(ref), V, atol=1e-9)
