@@ -33,11 +33,12 @@ from pdeface.au.expressions import BASIC_EXPRESSIONS, PRESETS, mix, resolve_pres
 from pdeface.au.facs import key_side  # noqa: E402
 from pdeface.au.retarget import retarget  # noqa: E402
 from pdeface.fdt import quadratic  # noqa: E402
-from pdeface.fdt.deform import NeutralFace, classify, fdt_curves, model_landmarks  # noqa: E402
+from pdeface.fdt.deform import NeutralFace, classify, fdt_curves  # noqa: E402
 from pdeface.fdt.generic import generic_fdts, ict_targets, identity_fits  # noqa: E402
 from pdeface.fdt.regions import PupilFrame, assign_regions, opening_sides  # noqa: E402
 from pdeface.io.descriptorfile import descriptor_to_bytes  # noqa: E402
 from pdeface.surface.fit import fit_face  # noqa: E402
+from pdeface.surface.model import model_landmarks  # noqa: E402
 
 MODELS = ("2d", "3d", "3d-surface")
 COLUMNS = ("pde", "2d", "3d", "3d-surface")

@@ -117,8 +117,9 @@ def faces_row(size):
     """Neutral, happy (PDE descriptors, 3-D FDT, 2-D FDT), the paper's smile and AU27 (3-D FDT), side by side."""
     from pdeface.assets import load_face, load_fdt
     from pdeface.au.expressions import PRESETS, pose_curves, resolve_preset
-    from pdeface.fdt.deform import fdt_curves, model_landmarks
+    from pdeface.fdt.deform import fdt_curves
     from pdeface.surface.fit import face_mesh
+    from pdeface.surface.model import model_landmarks
 
     face = load_face("default")
     happy, _ = resolve_preset(PRESETS["happy"], {d.key for d in face.descriptors})

@@ -187,3 +187,25 @@ def test_add_ict_head_is_a_rigged_character(bpy):
     assert {m.name for m in head.data.materials} >= {"PDE Skin", "PDE Sclera", "PDE Teeth"}
     jaw = addon().key_coords(key_blocks(head)["AU27 Mouth Stretch"]) - addon().key_coords(key_blocks(head)["Basis"])
     assert np.linalg.norm(jaw, axis=1).max() > 2  # cm: the jaw opens, teeth with it
+
+
+def test_fdt_key_on_the_users_head(bpy, ict_head):
+    """An FDT loaded as a key goes on the user's objects too: the head binding of the table's curve change."""
+    from pdeface.assets import load_fdt, load_head
+    from pdeface.fdt.deform import fdt_curves
+    from pdeface.head.bind import HeadBinding
+
+    head, eyes, head_idx, _ = ict_head
+    assert bpy.ops.pdeface.fit_to_selected() == {"FINISHED"}
+    assert bpy.ops.pdeface.load_fdt(filepath="27") == {"FINISHED"}  # the jaw's AU: the lower teeth turn too
+    name = "FDT 27 (3d)"
+    assert name in key_blocks(head) and name in key_blocks(eyes) and name in key_blocks(head.pdeface.rig_face)
+    mesh, _ = load_head()
+    model = addon().face_model(head.pdeface.rig_face)
+    want = mesh.vertices + HeadBinding(model, mesh.vertices, mesh.triangles()[0]).displacement(
+        *fdt_curves(model, load_fdt("27")), jaw=True)
+    np.testing.assert_allclose(addon().key_coords(key_blocks(head)[name]), want[head_idx], atol=1e-5)
+    moved = np.linalg.norm(want - mesh.vertices, axis=1)
+    assert moved.max() > 2  # cm: the chin drops
+    assert bpy.ops.pdeface.apply_preset(preset="happy", mode="KEY") == {"FINISHED"}
+    assert key_blocks(head)[name].value == 0.0  # an expression key: another expression's pose sets it to 0

@@ -12,7 +12,7 @@ from pdeface.au.ict import au_offsets
 from pdeface.cli import main
 from pdeface.errors import LandmarkError, ModelFormatError, PdeFaceError
 from pdeface.fdt import quadratic
-from pdeface.fdt.deform import NeutralFace, classify, fdt_curves, fdt_descriptor, model_landmarks
+from pdeface.fdt.deform import NeutralFace, classify, fdt_curves, fdt_descriptor
 from pdeface.fdt.regions import (
     N_REGIONS,
     REACH,
@@ -25,6 +25,7 @@ from pdeface.fdt.regions import (
 from pdeface.fdt.table import FDT, generic, parse_fdts, read_fdt, write_fdts
 from pdeface.io.meshio import read_obj, write_obj
 from pdeface.mesh import Mesh
+from pdeface.surface.model import model_landmarks
 
 
 @pytest.mark.parametrize("model", quadratic.MODELS)

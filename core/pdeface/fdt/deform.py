@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import MeshError, PdeFaceError
+from ..surface.model import model_landmarks
 from . import quadratic, regions
 from .regions import N_REGIONS, REGIONS, PupilFrame, assign_regions, opening_sides, region_weights
 from .table import FDT
@@ -26,18 +27,6 @@ FACING_MIN = 0.2
 CLASSIFY_POINTS = 300
 #: A parameter is inside a generic FDT's range when within this many σ of its mean (the paper: 1).
 RANGE_SIGMAS = 1.0
-
-
-def model_landmarks(model) -> np.ndarray:
-    """A face model's 68 landmarks (face frame): the kept ones, and the feature points' where missing."""
-    from ..surface.frame import FEATURE_NAMES, FEATURE_POINTS
-
-    L = np.full((68, 3), np.nan) if model.landmarks is None else np.array(model.landmarks, np.float64)
-    for name, F in zip(FEATURE_NAMES, model.features):
-        ids = FEATURE_POINTS[name]
-        if len(ids) == 1 and not np.isfinite(L[ids[0]]).all():
-            L[ids[0]] = F
-    return L
 
 
 def _facing(V, T, frame: PupilFrame) -> np.ndarray:

@@ -83,3 +83,16 @@ class FaceModel:
         c = self.coefficients if coefficients is None else coefficients
         r = self.residual if residual is None else residual
         return evaluate_fourier(c, self.layout.sample_params()) + r
+
+
+def model_landmarks(model) -> np.ndarray:
+    """A face model's 68 landmarks (face frame): the kept ones, and the feature points' where missing
+    (the brows' ends, the nose bridge, wings and tip are feature points of one landmark each)."""
+    from .frame import FEATURE_NAMES, FEATURE_POINTS
+
+    L = np.full((68, 3), np.nan) if model.landmarks is None else np.array(model.landmarks, np.float64)
+    for name, F in zip(FEATURE_NAMES, model.features):
+        ids = FEATURE_POINTS[name]
+        if len(ids) == 1 and not np.isfinite(L[ids[0]]).all():
+            L[ids[0]] = F
+    return L
