@@ -16,6 +16,8 @@ import numpy as np
 from . import bridge, compat
 
 MIX_KEY = "PDE Mix"
+#: The muscle panel's live pose.
+MUSCLE_KEY = "PDE Muscles"
 #: The scene's mixer choice that defers to each preset's own mixer.
 PRESET_MIXER = "PRESET"
 
@@ -29,6 +31,8 @@ def _pd():
     import pdeface.fdt.deform
     import pdeface.head.bind
     import pdeface.io.modelfile
+    import pdeface.muscles.aus
+    import pdeface.muscles.placement
     import pdeface.surface.fit
     import pdeface.surface.frame
     return pdeface
@@ -360,6 +364,28 @@ def fdt_key_name(fdt):
     return f"FDT {fdt.name} ({fdt.model})"
 
 
+def _write_change_keys(obj, model, delta, jaw, name, kind, au_key="", label=""):
+    """One key, ``name``, for a change ``delta`` = (dC, dR) of the face's curves: on the face and on
+    the user's objects it drives (bound as the head). Returns the :class:`KeyWriter` counts."""
+    pd = _pd()
+    from . import head
+    dC, dR = delta
+    coords = pd.surface.fit.face_mesh(model, obj.pdeface.resolution, coefficients=model.coefficients + dC,
+                                      residual=model.residual + dR).vertices
+    if len(coords) != len(obj.data.vertices):
+        raise error(f"{obj.name} has {len(obj.data.vertices)} vertices, its model meshes to {len(coords)}: "
+                    "the mesh was edited; add the face again")
+    targets = [(obj, coords)] + head.change_coords(obj, model, dC, dR, jaw, user_objects(obj))
+    counts = {"made": 0, "updated": 0, "skipped": 0, "objects": len(targets)}
+    for o, c in targets:
+        w = KeyWriter(o)
+        w.put(name, c, kind, au_key, label)
+        o.data.update()
+        for k in w.counts:
+            counts[k] += w.counts[k]
+    return counts
+
+
 def add_fdt_key(obj, fdt):
     """One shape key of a Facial Deformation Table on the face and on the user's objects it drives.
 
@@ -368,25 +394,12 @@ def add_fdt_key(obj, fdt):
     one. Returns ``{"name", "made", "updated", "skipped", "objects"}``.
     """
     pd = _pd()
-    from . import head
     model = bridge.face_model(obj)
-    dC, dR = pd.fdt.deform.fdt_curves(model, fdt)
-    coords = pd.surface.fit.face_mesh(model, obj.pdeface.resolution, coefficients=model.coefficients + dC,
-                                      residual=model.residual + dR).vertices
-    if len(coords) != len(obj.data.vertices):
-        raise error(f"{obj.name} has {len(obj.data.vertices)} vertices, its model meshes to {len(coords)}: "
-                    "the mesh was edited; add the face again")
     jaw = bool(set(pd.fdt.deform.fdt_aus(fdt.name)) & set(pd.head.bind.JAW_AUS))
-    targets = [(obj, coords)] + head.change_coords(obj, model, dC, dR, jaw, user_objects(obj))
-    name, label = fdt_key_name(fdt), f"FDT {fdt.name} ({fdt.model}, {fdt.subjects} subject(s))"
-    counts = {"made": 0, "updated": 0, "skipped": 0}
-    for o, c in targets:
-        w = KeyWriter(o)
-        w.put(name, c, "EXPRESSION", label=label)
-        o.data.update()
-        for k in counts:
-            counts[k] += w.counts[k]
-    return {"name": name, **counts, "objects": len(targets)}
+    name = fdt_key_name(fdt)
+    counts = _write_change_keys(obj, model, pd.fdt.deform.fdt_curves(model, fdt), jaw, name, "EXPRESSION",
+                                label=f"FDT {fdt.name} ({fdt.model}, {fdt.subjects} subject(s))")
+    return {"name": name, **counts}
 
 
 def preset_poses(model, presets):
@@ -459,6 +472,28 @@ def set_pose(obj, values, kinds=("AU", "EXPRESSION", "MIX")):
                 kb.value = values.get(e.name, 0.0)
 
 
+def _put_pose_key(targets, name, label, check=True):
+    """Write a pose into a key of its own (kind MIX) on each ``(object, coords)``; refused, before
+    anything is written, where a key of that name is the user's."""
+    for o, _ in targets:
+        kb = o.data.shape_keys.key_blocks.get(name) if o.data.shape_keys else None
+        entry = next((e for e in o.pdeface.keys if e.name == name), None)
+        if kb is not None and (entry is None or (check and not _is_ours(kb, entry))):
+            raise error(f"a shape key named {name!r} on {o.name} is yours; rename it to use this")
+    for o, coords in targets:
+        if o.data.shape_keys is None:
+            o.shape_key_add(name="Basis", from_mix=False)
+        kb = o.data.shape_keys.key_blocks.get(name)
+        entry = next((e for e in o.pdeface.keys if e.name == name), None)
+        if kb is None:
+            kb = o.shape_key_add(name=name, from_mix=False)
+            kb.value = 0.0
+        if entry is None:
+            entry = o.pdeface.keys.add()
+            entry.name, entry.kind, entry.label = name, "MIX", label
+        _write_key(kb, entry, coords)
+
+
 def write_mix_key(obj, model, weights, mixer, check=True):
     """Average and max are not linear: the mixed pose goes into one key of its own, set to 1.
 
@@ -473,22 +508,52 @@ def write_mix_key(obj, model, weights, mixer, check=True):
     targets = [(obj, pd.surface.fit.face_mesh(model, obj.pdeface.resolution, coefficients=C, residual=R).vertices)]
     targets += [(o, coords) for o, coords in head.pose_coords(obj, model, weights, mixer, user_objects(obj))
                 if o.pdeface.keys]
-    for o, _ in targets:
-        kb = o.data.shape_keys.key_blocks.get(MIX_KEY) if o.data.shape_keys else None
-        entry = next((e for e in o.pdeface.keys if e.name == MIX_KEY), None)
-        if kb is not None and (entry is None or (check and not _is_ours(kb, entry))):
-            raise error(f"a shape key named {MIX_KEY!r} on {o.name} is yours; rename it to use the {mixer} mixer")
-    for o, coords in targets:
-        kb = o.data.shape_keys.key_blocks.get(MIX_KEY)
-        entry = next((e for e in o.pdeface.keys if e.name == MIX_KEY), None)
-        if kb is None:
-            kb = o.shape_key_add(name=MIX_KEY, from_mix=False)
-            kb.value = 0.0
-        if entry is None:
-            entry = o.pdeface.keys.add()
-            entry.name, entry.kind, entry.label = MIX_KEY, "MIX", "mixed pose"
-        _write_key(kb, entry, coords)
+    _put_pose_key(targets, MIX_KEY, "mixed pose", check)
     set_pose(obj, {MIX_KEY: 1.0})
+
+
+# ------------------------------------------------------------------ muscles
+
+def muscle_delta(model, activations):
+    """Change of the model's curves for 24 muscle activations (the bundled table's muscles)."""
+    return _pd().muscles.aus.MuscleBasis(model).curves(np.asarray(activations, np.float64))
+
+
+def write_muscle_key(obj, activations, check=True):
+    """The face (and the user's objects it drives) posed by muscle activations, in the key
+    :data:`MUSCLE_KEY` of its own, set to 1 and the other keys to 0: the muscle panel's live view."""
+    pd = _pd()
+    from . import head
+    if obj.data.shape_keys is None:
+        raise error("build shape keys first")
+    model = bridge.face_model(obj)
+    dC, dR = muscle_delta(model, activations)
+    coords = pd.surface.fit.face_mesh(model, obj.pdeface.resolution, coefficients=model.coefficients + dC,
+                                      residual=model.residual + dR).vertices
+    jaw = activations[pd.muscles.placement.MUSCLE_NAMES.index("jaw")] > 0
+    targets = [(obj, coords)] + [(o, c) for o, c in head.change_coords(obj, model, dC, dR, jaw, user_objects(obj))
+                                 if o.pdeface.keys]
+    _put_pose_key(targets, MUSCLE_KEY, "muscles", check)
+    set_pose(obj, {MUSCLE_KEY: 1.0})
+
+
+def record_muscle_au(obj, activations, key, replace=False):
+    """Store muscle activations as AU ``key`` ("12", "12L"): a descriptor (source ``muscle``) in the
+    face's model and its AU key on the face and the user's objects. An AU the face has already is
+    replaced only when asked. Returns the descriptor."""
+    pd = _pd()
+    key = pd.au.facs.parse_au_key(key)
+    model = bridge.face_model(obj)
+    old = next((d for d in model.descriptors if d.key == key), None)
+    if old is not None and not replace:
+        raise error(f"{obj.name} has AU{key} already ({old.source or 'scan'}): tick Replace to record over it")
+    d = pd.muscles.aus.MuscleBasis(model).descriptor(key, activations)
+    d.extra["activations"] = [round(float(a), 4) for a in activations]
+    model.descriptors = [x for x in model.descriptors if x.key != key] + [d]
+    jaw = activations[pd.muscles.placement.MUSCLE_NAMES.index("jaw")] > 0
+    _write_change_keys(obj, model, d.dense(), jaw, au_key_name(d), "AU", d.key, d.label)
+    bridge.store_model(obj, model)
+    return d
 
 
 def pose_aus(obj, weights, mixer="sum", check=True):

@@ -9,7 +9,7 @@ import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, StringProperty
 from bpy.types import Operator
 
-from . import compat, face, live, texturing
+from . import bridge, compat, face, live, texturing
 
 
 class _Operator:
@@ -52,7 +52,7 @@ class _ObjectModeOperator(_Operator):
 
 
 class PDEFACE_OT_add_default_face(_ObjectModeOperator, Operator):
-    """Add the bundled PDE face (ICT-FaceKit neutral, 63 AU descriptors)"""
+    """Add the bundled PDE face (ICT-FaceKit neutral, 63 AU descriptors from its shapes, 9 from muscles)"""
 
     bl_idname = "pdeface.add_default_face"
     bl_label = "Add Default PDE Face"
@@ -221,6 +221,59 @@ key on the face and the objects it drives"""
         self.report({"WARNING"}, msg + f"; {r['skipped']} left alone (your own keys share that name)")
 
 
+class PDEFACE_OT_record_muscle_au(_FaceOperator, Operator):
+    """Store the muscle sliders as an AU: a descriptor (source muscle) in the face's model and its AU key,
+as the FAS let users calibrate their own AUs"""
+
+    bl_idname = "pdeface.record_muscle_au"
+    bl_label = "Record as AU"
+
+    au: StringProperty(name="AU", description="AU key: 13, 13L, 46R (default: the panel's)")
+    replace: BoolProperty(name="Replace", default=False, description="Record over an AU the face has already")
+
+    def run(self, context):
+        s = context.scene.pdeface
+        activations = list(s.muscles)
+        if not any(activations):
+            raise face.error("every muscle is at rest: contract some first")
+        d = face.record_muscle_au(face.active_face(context), activations, self.au or s.muscle_au,
+                                  self.replace or s.muscle_replace)
+        return f"{d.label} recorded from {sum(1 for a in activations if a)} muscles ({len(d.curves)} curves)"
+
+
+class PDEFACE_OT_load_muscle_au(_FaceOperator, Operator):
+    """Set the muscle sliders to an AU's activations: one the face recorded, else the bundled muscle table's"""
+
+    bl_idname = "pdeface.load_muscle_au"
+    bl_label = "Load AU's Muscles"
+
+    au: StringProperty(name="AU", description="AU key (default: the panel's)")
+
+    def run(self, context):
+        from pdeface.au.facs import parse_au_key
+        from pdeface.muscles.aus import load_table
+
+        s = context.scene.pdeface
+        key = parse_au_key(self.au or s.muscle_au)
+        own = next((d for d in bridge.face_model(face.active_face(context)).descriptors
+                    if d.key == key and "activations" in d.extra), None)
+        table = load_table().activations
+        if own is None and key not in table:
+            raise face.error(f"AU{key} has no muscle activations (recorded or in the muscle table)")
+        s.muscles = own.extra["activations"] if own is not None else [float(a) for a in table[key]]
+        return f"AU{key}: muscles from {'this face' if own is not None else 'the muscle table'}"
+
+
+class PDEFACE_OT_reset_muscles(_FaceOperator, Operator):
+    """Relax every muscle (the muscle key goes to 0)"""
+
+    bl_idname = "pdeface.reset_muscles"
+    bl_label = "Relax All"
+
+    def run(self, context):
+        context.scene.pdeface.muscles = [0.0] * 24
+
+
 class PDEFACE_OT_reset_pose(_FaceOperator, Operator):
     """Set every PDE Face shape key to 0 (neutral)"""
 
@@ -361,7 +414,8 @@ class PDEFACE_OT_live_stop(_Operator, Operator):
 
 
 _classes = (PDEFACE_OT_add_default_face, PDEFACE_OT_add_ict_head, PDEFACE_OT_fit_to_selected,
-            PDEFACE_OT_build_shape_keys, PDEFACE_OT_apply_preset, PDEFACE_OT_load_fdt, PDEFACE_OT_reset_pose, PDEFACE_OT_keyframe_pose, PDEFACE_OT_animate_sequence,
+            PDEFACE_OT_build_shape_keys, PDEFACE_OT_apply_preset, PDEFACE_OT_load_fdt, PDEFACE_OT_record_muscle_au,
+            PDEFACE_OT_load_muscle_au, PDEFACE_OT_reset_muscles, PDEFACE_OT_reset_pose, PDEFACE_OT_keyframe_pose, PDEFACE_OT_animate_sequence,
             PDEFACE_OT_import_au, PDEFACE_OT_transfer_texture, PDEFACE_OT_live_start, PDEFACE_OT_live_stop)
 
 

@@ -107,6 +107,26 @@ class PDEFACE_PT_animation(_FacePanel, bpy.types.Panel):
         layout.operator("pdeface.import_au", icon="IMPORT")
 
 
+class PDEFACE_PT_muscles(_FacePanel, bpy.types.Panel):
+    bl_label = "Muscles"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw_face(self, layout, s, obj):
+        from pdeface.muscles.placement import MUSCLE_NAMES
+        col = layout.column(align=True)
+        for i, name in enumerate(MUSCLE_NAMES):
+            col.prop(s, "muscles", index=i, text=name.replace("_", " "), slider=True)
+        if s.muscle_note:
+            layout.label(text=s.muscle_note, icon="ERROR")
+        layout.operator("pdeface.reset_muscles", icon="LOOP_BACK")
+        row = layout.row(align=True)
+        row.prop(s, "muscle_au")
+        row.prop(s, "muscle_replace")
+        row = layout.row(align=True)
+        row.operator("pdeface.load_muscle_au", icon="IMPORT")
+        row.operator("pdeface.record_muscle_au", icon="REC")
+
+
 class PDEFACE_PT_live(_FacePanel, bpy.types.Panel):
     bl_label = "Live Link"
     bl_options = {"DEFAULT_CLOSED"}
@@ -149,7 +169,7 @@ class PDEFACE_PT_texture(_FacePanel, bpy.types.Panel):
 
 
 _classes = (PDEFACE_PT_face, PDEFACE_PT_action_units, PDEFACE_PT_expressions, PDEFACE_PT_animation,
-            PDEFACE_PT_live, PDEFACE_PT_texture)
+            PDEFACE_PT_muscles, PDEFACE_PT_live, PDEFACE_PT_texture)
 
 
 def register():

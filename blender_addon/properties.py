@@ -5,6 +5,7 @@ from bpy.props import (
     CollectionProperty,
     EnumProperty,
     FloatProperty,
+    FloatVectorProperty,
     IntProperty,
     PointerProperty,
     StringProperty,
@@ -54,6 +55,40 @@ class PDEFACE_PG_face(bpy.types.PropertyGroup):
     keys: CollectionProperty(type=PDEFACE_PG_key)
 
 
+_muscles_shown = {}  # face name → the activations its PDE Muscles key shows
+
+
+#: How often (seconds) the muscle sliders are looked at.
+MUSCLES_POLL_S = 0.1
+
+
+def muscles_tick():
+    """The muscle sliders pose the active face live, in a key of their own: a timer that looks at
+    them, not the property's update callback (Blender 4.2 crashes at exit with that one, as with a
+    poll callback, below; and setting a property does not always tag the depsgraph for a handler).
+    A problem cannot be reported from here: it is shown in the panel instead."""
+    from pdeface.errors import PdeFaceError
+
+    from . import face
+    scene = bpy.context.scene
+    if scene is None:
+        return MUSCLES_POLL_S
+    settings = scene.pdeface
+    obj = face.active_face(bpy.context)
+    values = tuple(round(v, 6) for v in settings.muscles)
+    if obj is None or _muscles_shown.get(obj.name, (0.0,) * 24) == values:
+        return MUSCLES_POLL_S
+    _muscles_shown[obj.name] = values
+    try:
+        face.write_muscle_key(obj, list(values))
+        note = ""
+    except PdeFaceError as exc:
+        note = str(exc)
+    if settings.muscle_note != note:
+        settings.muscle_note = note
+    return MUSCLES_POLL_S
+
+
 class PDEFACE_PG_settings(bpy.types.PropertyGroup):
     """Per scene: the panel's settings."""
 
@@ -100,6 +135,12 @@ class PDEFACE_PG_settings(bpy.types.PropertyGroup):
     live_rules: BoolProperty(name="AU blender rules", default=False, description="Apply the co-occurrence rules")
     live_record: BoolProperty(name="Record keyframes", default=False)
     live_hz: FloatProperty(name="Rate", default=60.0, min=1.0, max=60.0, description="Pose updates per second")
+    muscles: FloatVectorProperty(name="Muscles", size=24, default=(0.0,) * 24, min=-1.0, max=2.0,
+                                 description="Contract (> 0) or relax (< 0) each muscle: the face follows live")
+    muscle_au: StringProperty(name="AU", default="13", description="The AU to record the muscles as: 13, 13L, 46R")
+    muscle_replace: BoolProperty(name="Replace", default=False,
+                                 description="Record over an AU the face has already (its scan descriptor too)")
+    muscle_note: StringProperty(description="Why the muscles cannot pose the face (shown in the panel)")
 
 
 _classes = (PDEFACE_PG_key, PDEFACE_PG_part, PDEFACE_PG_face, PDEFACE_PG_settings)
@@ -110,9 +151,13 @@ def register():
         bpy.utils.register_class(c)
     bpy.types.Object.pdeface = PointerProperty(type=PDEFACE_PG_face)
     bpy.types.Scene.pdeface = PointerProperty(type=PDEFACE_PG_settings)
+    bpy.app.timers.register(muscles_tick, first_interval=MUSCLES_POLL_S, persistent=True)
 
 
 def unregister():
+    if bpy.app.timers.is_registered(muscles_tick):
+        bpy.app.timers.unregister(muscles_tick)
+    _muscles_shown.clear()
     del bpy.types.Scene.pdeface
     del bpy.types.Object.pdeface
     for c in reversed(_classes):

@@ -31,6 +31,7 @@ from pdeface.au.aureport import MotionProbe  # noqa: E402
 from pdeface.au.capture import fit_descriptor  # noqa: E402
 from pdeface.au.expressions import BASIC_EXPRESSIONS, PRESETS, mix, resolve_preset  # noqa: E402
 from pdeface.au.facs import key_side  # noqa: E402
+from pdeface.au.ict import AU_SHAPES  # noqa: E402
 from pdeface.au.retarget import retarget  # noqa: E402
 from pdeface.fdt import quadratic  # noqa: E402
 from pdeface.fdt.deform import NeutralFace, classify, fdt_curves  # noqa: E402
@@ -46,7 +47,7 @@ COLUMNS = ("pde", "2d", "3d", "3d-surface")
 
 def pde_change(face, name):
     """Coefficient change of an AU key or a preset on a (retargeted) face."""
-    ds = {d.key: d for d in face.descriptors}
+    ds = {d.key: d for d in face.descriptors if d.key in AU_SHAPES}  # what the ICT truth is made of
     if name in PRESETS:
         w, _ = resolve_preset(PRESETS[name], ds)
         return mix(ds, w)
@@ -135,7 +136,7 @@ def main(argv=None):
     sizes = {"pde": {}, **{m: len(quadratic.PARAMETERS[m]) * 16 * 4 for m in MODELS}}
     for n in targets:
         if n in PRESETS:
-            w, _ = resolve_preset(PRESETS[n], {d.key for d in bundled.descriptors})
+            w, _ = resolve_preset(PRESETS[n], {d.key for d in bundled.descriptors if d.key in AU_SHAPES})
             sizes["pde"][n] = sum(len(descriptor_to_bytes(d)) for d in bundled.descriptors if d.key in w)
         else:
             sizes["pde"][n] = len(descriptor_to_bytes(next(d for d in bundled.descriptors if d.key == n)))

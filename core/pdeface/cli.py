@@ -503,7 +503,9 @@ def build_parser():
     p.set_defaults(func=cmd_parts)
 
     from .fdt.cli import add_parser as add_fdt_parser
+    from .muscles.cli import add_parser as add_muscles_parser
     add_fdt_parser(sub, output_option, meshing_options)
+    add_muscles_parser(sub, output_option, meshing_options)
 
     p = sub.add_parser("retarget", help="carry AU descriptors over to another face model")
     p.add_argument("target", help="the target face model (.npz)")

@@ -183,7 +183,8 @@ def test_add_ict_head_is_a_rigged_character(bpy):
     assert bpy.ops.pdeface.add_ict_head() == {"FINISHED"}
     head = bpy.context.active_object
     assert "ICT-FaceKit" in head["pdeface_notice"] and len(head.data.vertices) == 26719
-    assert head.pdeface.rig_face.hide_get() and len(key_blocks(head)) == 1 + 63 + 10
+    n_aus = len(addon().face_model(head.pdeface.rig_face).descriptors)  # 63 from ICT + 9 muscle AUs
+    assert n_aus == 72 and head.pdeface.rig_face.hide_get() and len(key_blocks(head)) == 1 + n_aus + 10
     assert {m.name for m in head.data.materials} >= {"PDE Skin", "PDE Sclera", "PDE Teeth"}
     jaw = addon().key_coords(key_blocks(head)["AU27 Mouth Stretch"]) - addon().key_coords(key_blocks(head)["Basis"])
     assert np.linalg.norm(jaw, axis=1).max() > 2  # cm: the jaw opens, teeth with it

@@ -60,6 +60,11 @@ def test_pose_command(tmp_path, capsys, files):
     code, _, err = run(capsys, "pose", "default", "--preset", "happy", "-o", tmp_path / "happy.obj")
     assert code == 0 and "AU12=1" in err
     code, _, err = run(capsys, "pose", "default", "--preset", "anger", "-o", tmp_path / "anger.obj")
+    assert code == 0 and "AU23=1" in err and "no descriptor" not in err  # AU23 from the muscles now
+    no_muscles = load_face("default")
+    no_muscles.descriptors = [d for d in no_muscles.descriptors if d.source != "muscle"]
+    save_model(tmp_path / "scan_only.npz", no_muscles)
+    code, _, err = run(capsys, "pose", tmp_path / "scan_only.npz", "--preset", "anger", "-o", tmp_path / "anger2.obj")
     assert code == 0 and "no descriptor for AU 23" in err
     code, _, _ = run(capsys, "pose", "default", "--au", "12=1", "--au", "6=C", "--mixer", "average",
                      "-o", tmp_path / "p.obj")
@@ -74,7 +79,7 @@ def test_pose_command(tmp_path, capsys, files):
     assert code == 0 and "AU45L=1" in err
     code, _, _ = run(capsys, "pose", "default", "--au", "12=1", "--descriptor", "nope.json", "-o", tmp_path / "x.obj")
     assert code == 2
-    for bad in (["--au", "12"], ["--au", "3=1"], ["--au", "23=1"], ["--preset", "grumpy"], []):
+    for bad in (["--au", "12"], ["--au", "3=1"], ["--au", "8=1"], ["--preset", "grumpy"], []):
         code, _, err = run(capsys, "pose", "default", *bad, "-o", tmp_path / "x.obj")
         assert code == 2 and "pdeface: error:" in err
 

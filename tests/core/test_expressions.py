@@ -72,13 +72,15 @@ def test_mixers(face):
     # weights are clamped
     np.testing.assert_allclose(mix(ds, {"12": 3.0}, "sum")[0], C12)
     with pytest.raises(PdeFaceError, match="no descriptor"):
-        mix(ds, {"23": 1.0})
+        mix(ds, {"8": 1.0})  # no scan and no muscle AU8 on the bundled face
     with pytest.raises(PdeFaceError, match="unknown mixer"):
         mix(ds, w, "median")
 
 
 def test_preset_resolution_reports_missing(face):
     weights, missing = resolve_preset(PRESETS["anger"], {d.key for d in face.descriptors})
+    assert not missing and weights["23"] == 1.0 and weights["24"] == 1.0  # AU23 from the muscles
+    weights, missing = resolve_preset(PRESETS["anger"], {d.key for d in face.descriptors if d.source != "muscle"})
     assert "23" in missing and "24" in weights
 
 

@@ -266,7 +266,9 @@ def test_broken_files(tmp_path):
 def test_bundled_generic_tables():
     tables = load_generic_fdts("3d")
     face = load_face("default")
-    for d in face.descriptors:  # every bundled AU, and the six basic expressions
+    for d in face.descriptors:  # every bundled AU ICT has truth for (not the muscle-made), and the six expressions
+        if d.source == "muscle":
+            continue
         assert d.key in tables and tables[d.key].subjects == 20 and tables[d.key].sigma is not None
     for name in ("happy", "sad", "disgust", "surprise", "anger", "fear"):
         assert name in tables and name in load_generic_fdts("2d")

@@ -122,7 +122,7 @@ def test_au_keys_weights_and_mixers_have_one_rule():
     mine = Preset("mine", {"1": 1.0}, "average")
     assert choose_mixer(None, mine) == "average" and choose_mixer("max", mine) == "max"
     assert choose_mixer(None, PRESETS["happy"]) == "sum" and choose_mixer() == "sum"
-    assert list(MIXERS) == ["sum", "average", "max"]
+    assert list(MIXERS) == ["sum", "average", "max", "muscle-average", "muscle-max"]
     with pytest.raises(PdeFaceError, match="unknown mixer"):
         choose_mixer("median")
 

@@ -32,7 +32,9 @@ from .facs import clamp_weight, clamp_weights, letter_to_weight, parse_au_key, s
 #: How AUs that move the same curves combine (the FAS's mixers); only ``sum`` is linear, i.e. plain shape keys.
 MIXERS = {"sum": "Linear: the AUs' changes add up (shape keys)",
           "average": "Each coefficient averaged over the AUs acting on its curve",
-          "max": "Each coefficient from the AU moving it most"}
+          "max": "Each coefficient from the AU moving it most",
+          "muscle-average": "The FAS's: each muscle's activation averaged over the AUs using it (muscle table)",
+          "muscle-max": "The FAS's: each muscle's largest activation over the AUs (muscle table)"}
 SUPPLEMENTARY_WEIGHT = 0.3
 
 #: The method's Table 5-3: (main AUs, supplementary AUs).
@@ -111,6 +113,8 @@ def mix(descriptors: dict, weights: dict, mixer: str = "sum") -> tuple[np.ndarra
     """
     if mixer not in MIXERS:
         raise PdeFaceError(f"unknown mixer {mixer!r}; use one of {', '.join(MIXERS)}")
+    if mixer.startswith("muscle-"):
+        raise PdeFaceError(f"the {mixer} mixer mixes muscle activations: pose the face with pose_curves")
     if not descriptors:
         raise PdeFaceError("this face carries no AU descriptors")
     layout = next(iter(descriptors.values())).layout
@@ -158,7 +162,15 @@ def choose_mixer(requested=None, preset: Preset | None = None) -> str:
 
 
 def pose_curves(model, weights: dict, mixer: str = "sum"):
-    """Coefficients and residual of ``model`` posed with AU ``weights``."""
+    """Coefficients and residual of ``model`` posed with AU ``weights``.
+
+    The ``muscle-*`` mixers combine the AUs' muscle activations (the bundled muscle table's,
+    :mod:`pdeface.muscles.aus`) instead of their descriptors.
+    """
+    if mixer in ("muscle-average", "muscle-max"):
+        from ..muscles.aus import muscle_pose
+        dC, dR = muscle_pose(model, normalise_weights(weights), mixer)
+        return model.coefficients + dC, model.residual + dR
     descriptors = {d.key: d for d in model.descriptors}
     dC, dR = mix(descriptors, normalise_weights(weights), mixer)
     return model.coefficients + dC, model.residual + dR

@@ -24,6 +24,7 @@ smallest exact form. Rounding: ≤ point_step / 2 = 0.025 mm per point.
 from __future__ import annotations
 
 import json
+import math
 import struct
 import zlib
 
@@ -96,6 +97,12 @@ def _check_meta(obj, where):
         raise ModelFormatError(f"{where}: field 'layout' needs integer curves, points, modes") from None
     check_sizes(*layout, f"{where}: field 'layout'", ModelFormatError)
     extra = {k: v for k, v in obj.items() if k in ("approximation",)}
+    acts = obj.get("activations")  # a muscle AU's 24 activations (pdeface.muscles), kept to edit it again
+    if acts is not None:
+        if not (isinstance(acts, list) and len(acts) == 24 and all(
+                isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in acts)):
+            raise ModelFormatError(f"{where}: field 'activations' must be 24 finite numbers")
+        extra["activations"] = acts
     return au, side, layout, extra
 
 

@@ -1,0 +1,1 @@
+"""Waters muscles on the PDE face: model, placement, AUs from activations (the FAS)."""

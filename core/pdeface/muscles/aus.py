@@ -1,0 +1,206 @@
+"""AUs from muscles: activations → curve changes (a PDE descriptor), the FAS table and its mixers.
+
+An AU is 24 activation values (:data:`~pdeface.muscles.placement.MUSCLE_NAMES`),
+as the FAS records it. On a face model, the muscles (placed from its landmarks)
+move its curve points; the change of their Fourier fit is the AU's descriptor
+(source ``muscle``). The bundled table (``data/muscle_aus.json``, built by
+``scripts/build_muscles.py``) holds the muscles' shapes fitted to ICT-FaceKit and, per AU,
+activations calibrated against it (:meth:`MuscleBasis.calibrate`), or authored from FACS's
+muscles for the AUs it has no shape for (:data:`AUTHORED`).
+
+Table file::
+
+    {"format": "pdeface.muscle-aus", "version": 1, "muscles": [24 names],
+     "geometry": {"zygomatic_major": {"zone": 20, ...}, ...},
+     "aus": {"12": {"activations": [24 numbers], "how": "calibrated"}, ...}, "notice": "..."}
+
+Mixers (the FAS's, on activations): ``muscle-average`` — per muscle, the sum of the
+weighted activations over the AUs that activate it, divided by how many do;
+``muscle-max`` — per muscle, the largest weighted activation (the one of largest
+magnitude, for the muscles that also relax).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import ModelFormatError, PdeFaceError
+from .placement import BOUNDS, DEFAULT_GEOMETRY, MUSCLE_NAMES, place_muscles
+
+FORMAT, VERSION = "pdeface.muscle-aus", 1
+TABLE = Path(__file__).resolve().parent.parent / "data" / "muscle_aus.json"
+MUSCLE_MIXERS = ("muscle-average", "muscle-max")
+#: AUs no ICT shape covers, authored from the muscles FACS names for them (activation vectors
+#: given by muscle name; the rest 0).
+AUTHORED = {
+    "13": {"levator_anguli_oris_R": 1.0, "levator_anguli_oris_L": 1.0},
+    "13R": {"levator_anguli_oris_R": 1.0},
+    "13L": {"levator_anguli_oris_L": 1.0},
+    "23": {"orbicularis_oris": 0.8},
+    "38": {"nasalis": -1.0, "levator_labii_alaeque_R": 0.2, "levator_labii_alaeque_L": 0.2},
+    "39": {"nasalis": 1.0},
+    "46R": {"orbicularis_oculi_R": 2.0, "zygomatic_major_R": 0.3},
+    "46L": {"orbicularis_oculi_L": 2.0, "zygomatic_major_L": 0.3},
+}
+AUTHORED["46"] = AUTHORED["46R"]  # a wink is one eye's: the subject's right unless 46L is asked for
+
+
+def activation_vector(named: dict) -> np.ndarray:
+    """``{"zygomatic_major_L": 0.6}`` → a (24,) activation vector; unknown names are an error."""
+    a = np.zeros(len(MUSCLE_NAMES))
+    for name, value in named.items():
+        if name not in MUSCLE_NAMES:
+            raise PdeFaceError(f"no muscle {name!r}; the muscles are {', '.join(MUSCLE_NAMES)}")
+        v = float(value)
+        lo, hi = BOUNDS[name]
+        if not (math.isfinite(v) and lo <= v <= hi):
+            raise PdeFaceError(f"muscle {name}: activation {value!r} outside [{lo:g}, {hi:g}]")
+        a[MUSCLE_NAMES.index(name)] = v
+    return a
+
+
+@dataclass
+class MuscleTable:
+    """AU key → (24,) activations, how each was made, and the muscles' shapes they go with."""
+
+    activations: dict
+    hows: dict = field(default_factory=dict)
+    geometry: dict = field(default_factory=dict)
+    notice: str = ""
+
+
+class MuscleBasis:
+    """A face model's muscles and the curve-point displacement of each at activation 1.
+
+    ``geometry`` (see :data:`~pdeface.muscles.placement.DEFAULT_GEOMETRY`): the bundled table's
+    when None.
+    """
+
+    def __init__(self, face, geometry=None):
+        from ..surface.model import model_landmarks
+
+        self.face = face
+        self.geometry = load_table().geometry if geometry is None else geometry
+        self.muscles = place_muscles(model_landmarks(face), self.geometry)
+        X = face.curve_points()
+        self.shape = X.shape
+        self.fields = np.stack([m.displacement(X.reshape(-1, 3)).reshape(X.shape) for m in self.muscles])
+
+    def displacement(self, activations) -> np.ndarray:
+        """Curve-point displacement (K, J, 3) of an activation vector (linear)."""
+        return np.tensordot(np.asarray(activations, np.float64), self.fields, axes=1)
+
+    def curves(self, activations) -> tuple[np.ndarray, np.ndarray]:
+        """Change of the curves' coefficients and residual for an activation vector."""
+        from ..surface.fourier import fit_fourier
+
+        return fit_fourier(self.displacement(activations), self.face.n_modes)
+
+    def descriptor(self, key: str, activations, notice=""):
+        """The AU ``key``'s descriptor (source ``muscle``) from its activations."""
+        from ..au.descriptor import descriptor_from_points
+        from ..au.facs import key_side
+
+        au, side = key_side(key)
+        X = self.face.curve_points()
+        return descriptor_from_points(X, X + self.displacement(activations), au, side, self.face.n_modes,
+                                      source="muscle", notice=notice)
+
+    def calibrate(self, target_points) -> np.ndarray:
+        """Activations (within :data:`BOUNDS`) whose displacement best matches ``target_points`` (K, J, 3)."""
+        from scipy.optimize import lsq_linear
+
+        A = self.fields.reshape(len(self.fields), -1).T
+        lo, hi = np.array([BOUNDS[n] for n in MUSCLE_NAMES]).T
+        return lsq_linear(A, np.asarray(target_points, np.float64).ravel(), bounds=(lo, hi)).x
+
+
+def table_to_json(table: dict, hows: dict, notice="", geometry=None) -> dict:
+    return {"format": FORMAT, "version": VERSION, "muscles": list(MUSCLE_NAMES),
+            "geometry": {n: {k: round(float(v), 4) for k, v in g.items()} for n, g in (geometry or {}).items()},
+            "aus": {k: {"activations": [round(float(v), 4) for v in a], "how": hows[k]} for k, a in table.items()},
+            "notice": notice}
+
+
+def parse_table(data, where="muscle table") -> MuscleTable:
+    """A :class:`MuscleTable` from a parsed file (every field checked)."""
+    from ..au.facs import parse_au_key
+
+    if not isinstance(data, dict) or data.get("format") != FORMAT:
+        raise ModelFormatError(f"{where}: not a pdeface muscle table (format {FORMAT!r})")
+    if data.get("version") != VERSION:
+        raise ModelFormatError(f"{where}: version {data.get('version')!r} is not supported (reads {VERSION})")
+    if data.get("muscles") != list(MUSCLE_NAMES):
+        raise ModelFormatError(f"{where}: 'muscles' must list the 24 muscles in order: {', '.join(MUSCLE_NAMES)}")
+    aus = data.get("aus")
+    if not isinstance(aus, dict) or not aus:
+        raise ModelFormatError(f"{where}: 'aus' must be a non-empty object of AU key → activations")
+    table, hows = {}, {}
+    for key, entry in aus.items():
+        try:
+            k = parse_au_key(key)
+        except PdeFaceError as exc:
+            raise ModelFormatError(f"{where}: {exc}") from None
+        values = entry.get("activations") if isinstance(entry, dict) else None
+        if (not isinstance(values, list) or len(values) != len(MUSCLE_NAMES)
+                or not all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+                           for v in values)):
+            raise ModelFormatError(f"{where}: AU{key}: 'activations' must be 24 finite numbers")
+        for name, v in zip(MUSCLE_NAMES, values):
+            lo, hi = BOUNDS[name]
+            if not lo <= v <= hi:
+                raise ModelFormatError(f"{where}: AU{key}: {name} = {v} outside [{lo:g}, {hi:g}]")
+        table[k] = np.array(values, np.float64)
+        hows[k] = str(entry.get("how", ""))
+    geometry = data.get("geometry", {})
+    if not isinstance(geometry, dict):
+        raise ModelFormatError(f"{where}: 'geometry' must be an object")
+    for name, g in geometry.items():
+        known = DEFAULT_GEOMETRY.get(name)
+        if known is None or not isinstance(g, dict) or not set(g) <= set(known) or not all(
+                isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in g.values()):
+            raise ModelFormatError(f"{where}: geometry of {name!r} must hold numbers for {', '.join(known or [])}")
+    return MuscleTable(table, hows, geometry, str(data.get("notice", "")))
+
+
+_bundled = {}
+
+
+def load_table(path=None) -> MuscleTable:
+    """An activation table file (see the module docstring); the bundled one by default."""
+    from ..io.files import load_json
+
+    path = TABLE if path is None else Path(path)
+    if path == TABLE and "table" in _bundled:
+        return _bundled["table"]
+    table = parse_table(load_json(path, ModelFormatError), str(path))
+    if path == TABLE:
+        _bundled["table"] = table
+    return table
+
+
+def mix_activations(table: dict, weights: dict, mixer: str) -> np.ndarray:
+    """``table``: AU key → (24,) activations (:attr:`MuscleTable.activations`)."""
+    # The FAS's mixers on activations: ``muscle-average`` or ``muscle-max`` of weighted AUs.
+    if mixer not in MUSCLE_MIXERS:
+        raise PdeFaceError(f"unknown muscle mixer {mixer!r}; use one of {', '.join(MUSCLE_MIXERS)}")
+    missing = [k for k in weights if k not in table]
+    if missing:
+        raise PdeFaceError(f"the muscle table has no AU {', '.join(missing)} (has: {', '.join(sorted(table))})")
+    rows = np.array([w * table[k] for k, w in weights.items() if w]) if weights else np.zeros((0, len(MUSCLE_NAMES)))
+    if not len(rows):
+        return np.zeros(len(MUSCLE_NAMES))
+    if mixer == "muscle-max":
+        return rows[np.abs(rows).argmax(axis=0), np.arange(rows.shape[1])]
+    used = (rows != 0).sum(axis=0)
+    return rows.sum(axis=0) / np.maximum(used, 1)
+
+
+def muscle_pose(face, weights: dict, mixer: str, table: MuscleTable | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Change of ``face``'s curves for AU ``weights`` mixed on muscle activations (the bundled table's
+    by default)."""
+    table = load_table() if table is None else table
+    return MuscleBasis(face, table.geometry).curves(mix_activations(table.activations, weights, mixer))

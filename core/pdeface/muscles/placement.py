@@ -1,0 +1,151 @@
+"""The FAS's 24 muscle values placed on any face from its landmarks (face frame, mm).
+
+Eighteen linear muscles in nine pairs, three sphincters, two sheets and the jaw,
+as the FAS records an AU (24 activation values). Waters' own nine pairs were
+chosen for his face; these nine are the muscles FACS names for the AUs pdeface
+animates (Ekman and Friesen's muscle list, thesis tables 2-1..2-3), so that the
+AUs no scan covers (13, 23, 38, 39, 46) can be authored from their muscles.
+Insertions lie on the skin at landmarks; heads lie on the skull, towards each
+muscle's bone and :data:`HEAD_DEPTH` eye distances behind the skin. Sizes are in
+eye distances (e = distance between the eye centres), so the set scales with the face.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import LandmarkError
+from ..head.rigid import JAW_BONE_GAIN, jaw_hinge
+from .model import Jaw, LinearMuscle, Sheet, Sphincter
+
+#: How far behind the skin (eye distances) a linear muscle's bony head lies.
+HEAD_DEPTH = 0.12
+#: The jawOpen turn of the bone (degrees) measured on ICT (pdeface.head.rigid), for the skin.
+JAW_DEGREES = 25.3
+_MIRROR = {17: 26, 21: 22, 31: 35, 36: 45, 37: 44, 38: 43, 39: 42, 40: 47, 41: 46, 48: 54, 5: 11}
+
+#: (name, FACS muscle, AUs it serves), in the table's order; "_R"/"_L" are the subject's sides.
+_PAIRS = (
+    ("frontalis_inner", "frontalis, pars medialis", "1"),
+    ("frontalis_outer", "frontalis, pars lateralis", "2"),
+    ("corrugator", "corrugator supercilii, depressor supercilii", "4"),
+    ("levator_labii_alaeque", "levator labii superioris alaeque nasi", "9, 38"),
+    ("levator_labii", "levator labii superioris", "10, 11"),
+    ("zygomatic_major", "zygomaticus major", "12, 6"),
+    ("levator_anguli_oris", "levator anguli oris (caninus)", "13"),
+    ("depressor_anguli_oris", "depressor anguli oris (triangularis)", "15, 20"),
+    ("depressor_labii", "depressor labii inferioris", "16"),
+)
+_OTHERS = (
+    ("orbicularis_oris", "orbicularis oris (sphincter)", "23, 24, 18, 22, 28"),
+    ("orbicularis_oculi_R", "orbicularis oculi (sphincter), subject's right", "6, 7, 45, 46"),
+    ("orbicularis_oculi_L", "orbicularis oculi (sphincter), subject's left", "6, 7, 45, 46"),
+    ("mentalis", "mentalis (sheet)", "17"),
+    ("nasalis", "nasalis (sheet: contracted, pars transversa compresses; relaxed below 0, pars alaris dilates)",
+     "39, 38"),
+    ("jaw", "masseter, temporalis, pterygoids: the jaw's turn", "26, 27"),
+)
+MUSCLES = tuple((f"{n}_{s}", m, a) for n, m, a in _PAIRS for s in "RL") + _OTHERS
+#: The 24 muscle names, in the order of an activation vector.
+MUSCLE_NAMES = tuple(n for n, _, _ in MUSCLES)
+#: Activation bounds: muscles pull (≥ 0); sphincters and the nasalis also relax below 0 (the lids
+#: open wider, AU5; the nostrils flare, AU38).
+BOUNDS = {n: ((-1.0, 2.0) if n.startswith(("orbicularis", "nasalis")) else (0.0, 2.0)) for n in MUSCLE_NAMES}
+
+
+def _side(L, side):
+    """The landmarks of one side: the subject's right as given, the left mirrored in index."""
+    if side == "R":
+        return lambda i: L[i]
+    return lambda i: L[_MIRROR.get(i, i)]
+
+
+#: Shape of each muscle pair beyond what the landmarks give, in eye distances e and degrees; the
+#: bundled table's own (``geometry``, fitted to ICT-FaceKit by ``scripts/build_muscles.py``)
+#: replaces these defaults. Linear: head moved (lateral, up, back), zone, Rs and Rf as fractions
+#: of the head-insertion length, bulge (mm). Sphincters: semi-axes' scale, pull, push (mm).
+#: Sheets: length and width scale, pull (mm).
+DEFAULT_GEOMETRY = {
+    **{n: {"lateral": 0.0, "up": 0.0, "back": 0.0, "zone": z, "rs": 0.9, "rf": 1.5, "bulge": 0.0}
+       for n, z in (("frontalis_inner", 25), ("frontalis_outer", 25), ("corrugator", 35),
+                    ("levator_labii_alaeque", 22), ("levator_labii", 22), ("zygomatic_major", 20),
+                    ("levator_anguli_oris", 20), ("depressor_anguli_oris", 25), ("depressor_labii", 25))},
+    "orbicularis_oris": {"scale_x": 1.0, "scale_y": 1.0, "pull": 0.35, "push": 0.0},
+    "orbicularis_oculi": {"scale_x": 1.0, "scale_y": 1.0, "pull": 0.6, "push": 0.0},
+    "mentalis": {"length": 1.0, "width": 1.0, "pull": 5.0},
+    "nasalis": {"length": 1.0, "width": 1.0, "pull": 3.0},
+}
+
+
+def _linear(name, side, L, e, g):
+    p = _side(L, side)
+    out = -1.0 if side == "R" else 1.0  # +x is the subject's left
+    up, back = np.array([0, 1.0, 0]), np.array([0, 0, -1.0])
+    lateral = np.array([out, 0, 0])
+    mid = lambda a, b, t=0.5: p(a) + t * (p(b) - p(a))  # noqa: E731
+    if name == "frontalis_inner":
+        i, h, pull = p(21) + 0.05 * e * up, p(21) + 0.8 * e * up, 7.0
+    elif name == "frontalis_outer":
+        i, h, pull = p(17) + 0.05 * e * up, p(17) + 0.8 * e * up - 0.1 * e * lateral, 7.0
+    elif name == "corrugator":
+        i, h, pull = mid(21, 17, 0.45), p(21) - 0.1 * e * lateral - 0.08 * e * up, 6.0
+    elif name == "levator_labii_alaeque":
+        i, h, pull = p(31) - 0.04 * e * up, p(39) - 0.05 * e * lateral - 0.05 * e * up, 6.0
+    elif name == "levator_labii":
+        i = mid(51, 48, 0.55) + 0.03 * e * up
+        h, pull = mid(40, 41) - 0.22 * e * up, 6.0
+    elif name == "zygomatic_major":
+        i, h, pull = p(48), p(36) + 0.12 * e * lateral - 0.42 * e * up, 10.0
+    elif name == "levator_anguli_oris":
+        i = p(48) + 0.04 * e * up
+        h = np.array([p(48)[0] - 0.02 * e * out, 0.5 * (p(31)[1] + mid(40, 41)[1]), mid(40, 41)[2]])
+        pull = 7.0
+    elif name == "depressor_anguli_oris":
+        i, h, pull = p(48), mid(48, 5, 0.6) - 0.1 * e * up, 8.0
+    elif name == "depressor_labii":
+        i = mid(57, 48, 0.4)
+        h, pull = p(57) + 0.7 * (L[8] - p(57)) + 0.15 * e * lateral, 7.0
+    else:
+        raise KeyError(name)
+    h = h + e * (g["lateral"] * lateral + g["up"] * up + (HEAD_DEPTH + g["back"]) * back)
+    length = np.linalg.norm(i - h)
+    return LinearMuscle(f"{name}_{side}", h, i, float(np.clip(g["zone"], 5, 85)), g["rs"] * length,
+                        max(g["rf"], g["rs"] + 0.05) * length, pull, g["bulge"])
+
+
+def place_muscles(landmarks_face, geometry=None) -> list:
+    """The 24 muscles (:data:`MUSCLE_NAMES` order) of a face from its landmarks in the face frame (mm).
+
+    Reads landmarks 0/5/8/11/16, 17/21/22/26, 27/30/31/35, 36-47, 48/51/54/57/62/66: those
+    a saved face model keeps (:func:`pdeface.surface.model.model_landmarks`). ``geometry``
+    overrides :data:`DEFAULT_GEOMETRY` (per pair or muscle, the keys given).
+    """
+    g = {k: dict(v) for k, v in DEFAULT_GEOMETRY.items()}
+    for k, v in (geometry or {}).items():
+        g[k].update(v)
+    L = np.asarray(landmarks_face, np.float64)
+    need = [0, 5, 8, 11, 16, 17, 21, 22, 26, 27, 30, 31, 35, *range(36, 48), 48, 51, 54, 57, 62, 66]
+    if L.shape != (68, 3) or not np.isfinite(L[need]).all():
+        raise LandmarkError(f"placing the muscles needs landmarks {', '.join(map(str, need))}")
+    e = float(np.linalg.norm(L[42:48].mean(0) - L[36:42].mean(0)))
+    out = [_linear(n, s, L, e, g[n]) for n, _, _ in _PAIRS for s in "RL"]
+    mouth = 0.5 * (L[62] + L[66])
+    m = g["orbicularis_oris"]
+    out.append(Sphincter("orbicularis_oris", mouth, (0.75 * m["scale_x"] * (L[54, 0] - L[48, 0]),
+                                                     1.2 * m["scale_y"] * (L[51, 1] - L[57, 1])), m["pull"],
+                         push_mm=m["push"]))
+    o = g["orbicularis_oculi"]
+    for side, eye in (("R", range(36, 42)), ("L", range(42, 48))):
+        c = L[list(eye)].mean(0)
+        half = 0.5 * abs(L[eye[3], 0] - L[eye[0], 0])
+        out.append(Sphincter(f"orbicularis_oculi_{side}", c, (1.5 * o["scale_x"] * half, 0.9 * o["scale_y"] * half),
+                             o["pull"], to_axis=True, push_mm=o["push"]))
+    below_lip = L[57] + 0.25 * (L[8] - L[57])
+    s = g["mentalis"]
+    out.append(Sheet("mentalis", below_lip, np.array([0, -1.0, 0]), 0.8 * s["length"] * np.linalg.norm(L[8] - L[57]),
+                     0.3 * s["width"] * e, s["pull"]))
+    s = g["nasalis"]
+    nose = np.array([0.0, L[31, 1] + 0.05 * e, L[30, 2]])
+    out.append(Sheet("nasalis", nose, np.array([1.0, 0, 0]), 1.1 * s["length"] * 0.5 * (L[35, 0] - L[31, 0]),
+                     0.2 * s["width"] * e, s["pull"], mirrored=True))
+    out.append(Jaw("jaw", jaw_hinge(L, e), JAW_DEGREES / JAW_BONE_GAIN, L[57, 1], mouth[1]))
+    return out

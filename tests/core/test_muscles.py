@@ -1,0 +1,179 @@
+"""Waters muscles: each type moves points as its equation says; placement, calibration, the table, the FAS mixers."""
+import json
+
+import numpy as np
+import pytest
+from pdeface.assets import load_face
+from pdeface.errors import LandmarkError, ModelFormatError, PdeFaceError
+from pdeface.muscles.aus import MuscleBasis, activation_vector, mix_activations, parse_table, table_to_json
+from pdeface.muscles.model import Jaw, LinearMuscle, Sheet, Sphincter
+from pdeface.muscles.placement import MUSCLE_NAMES, place_muscles
+from pdeface.surface.model import model_landmarks
+
+
+def test_linear_muscle_pulls_along_its_line_towards_the_head_and_stops_at_its_fall_off():
+    m = LinearMuscle("m", head=np.zeros(3), insertion=np.array([0, -40.0, 0]), zone_deg=30, fall_start=40,
+                     fall_end=60, pull_mm=5.0)
+    P = np.array([[0, -40.0, 0], [0, -20.0, 0], [0, -70.0, 0], [30, -40.0, 0], [0, 10.0, 0], [0, 0, 0]])
+    D = m.displacement(P)
+    np.testing.assert_allclose(D[0], [0, 5.0, 0], atol=1e-12)  # at Rs on the line: the full pull, towards the head
+    assert 0 < D[1, 1] < 5 and D[1, 0] == 0  # nearer the head: less (cos ramp), same direction
+    np.testing.assert_allclose(D[2:], 0, atol=1e-12)  # beyond Rf, outside the zone, behind the head, at the head
+    off = m.displacement(np.array([[10.0, -40, 0]]))[0]  # inside the zone, off the line: less, still towards the head
+    assert 0 < np.linalg.norm(off) < 5 and np.dot(off, -np.array([10.0, -40, 0])) > 0
+
+
+def test_sphincters_close_on_their_centre_or_axis():
+    mouth = Sphincter("o", np.zeros(3), (20.0, 10.0), 0.5)
+    D = mouth.displacement(np.array([[10.0, 0, 0], [0, 5.0, 0], [0, 0, 0], [30.0, 0, 0]]))
+    assert D[0, 0] < 0 and D[1, 1] < 0 and abs(D[0, 1]) < 1e-12  # towards the centre
+    np.testing.assert_allclose(D[2:], 0, atol=1e-12)  # the centre and beyond the ellipse stay
+    eye = Sphincter("e", np.zeros(3), (20.0, 10.0), 0.5, to_axis=True)
+    D = eye.displacement(np.array([[10.0, 5.0, 0], [10.0, -5.0, 0]]))
+    assert D[0, 1] < 0 < D[1, 1] and np.all(D[:, 0] == 0)  # lids close on the horizontal axis: a squint
+
+
+def test_sheet_pulls_its_fibres_towards_its_edge():
+    s = Sheet("s", np.zeros(3), np.array([0, -1.0, 0]), 20.0, 10.0, 4.0)
+    D = s.displacement(np.array([[0, -20.0, 0], [0, -10.0, 0], [0, 5.0, 0], [15.0, -20, 0], [0, -40.0, 0]]))
+    np.testing.assert_allclose(D[0], [0, 4.0, 0], atol=1e-12)
+    assert 0 < D[1, 1] < 4
+    np.testing.assert_allclose(D[2:], 0, atol=1e-12)  # behind the edge, beyond the width, past the fibres
+    nose = Sheet("n", np.zeros(3), np.array([1.0, 0, 0]), 10.0, 5.0, 2.0, mirrored=True)
+    D = nose.displacement(np.array([[10.0, 0, 0], [-10.0, 0, 0]]))
+    np.testing.assert_allclose(D, [[-2, 0, 0], [2, 0, 0]], atol=1e-12)  # both wings towards the midline
+
+
+def test_jaw_turns_the_chin_down_and_back_and_leaves_the_upper_face():
+    jaw = Jaw("jaw", np.array([0, 0, -80.0]), 20.0, lip_lower_y=-50, mouth_y=-40)
+    D = jaw.displacement(np.array([[0, -80.0, 10], [0, 20.0, 10]]))
+    assert D[0, 1] < 0 and D[0, 2] < 0
+    np.testing.assert_allclose(D[1], 0)
+
+
+def test_the_24_muscles_placed_on_the_default_face():
+    face = load_face("default")
+    muscles = place_muscles(model_landmarks(face))
+    assert [m.name for m in muscles] == list(MUSCLE_NAMES) and len(MUSCLE_NAMES) == 24
+    kinds = [m.kind for m in muscles]
+    assert kinds.count("linear") == 18 and kinds.count("sphincter") == 3 and kinds.count("sheet") == 2
+    right, left = muscles[MUSCLE_NAMES.index("zygomatic_major_R")], muscles[MUSCLE_NAMES.index("zygomatic_major_L")]
+    assert right.insertion[0] < 0 < left.insertion[0]  # the subject's right is −x
+    np.testing.assert_allclose(right.head * [-1, 1, 1], left.head, atol=3.0)  # a near-symmetric face
+    from pdeface.surface.fit import surface_grid
+    skin = surface_grid(face, 2, 2).reshape(-1, 3)
+    for m in muscles:
+        if m.kind == "linear" and m.head[1] < skin[:, 1].max() - 10:  # (the frontalis' are above the face)
+            front = skin[np.argmin(np.linalg.norm(skin[:, :2] - m.head[:2], axis=1))]
+            assert m.head[2] < front[2] - 3, m.name
+    L = model_landmarks(face)
+    L[48] = np.nan
+    with pytest.raises(LandmarkError, match="48"):
+        place_muscles(L)
+
+
+def test_calibration_recovers_known_activations():
+    face = load_face("default")
+    basis = MuscleBasis(face, {})
+    truth = np.zeros(24)
+    truth[[MUSCLE_NAMES.index(n) for n in ("zygomatic_major_R", "zygomatic_major_L", "orbicularis_oris")]] = \
+        [0.8, 0.7, -0.3]
+    np.testing.assert_allclose(basis.calibrate(basis.displacement(truth)), truth, atol=1e-6)
+    d = basis.descriptor("12", truth)
+    assert d.key == "12" and d.source == "muscle" and len(d.curves) > 0
+
+
+def test_fas_mixers_on_the_papers_worked_example():
+    """The FAS paper's Tables 2 and 3: three AUs' activations of three muscles, averaged and maximised."""
+    names = ["zygomatic_major_L", "depressor_anguli_oris_L", "frontalis_inner_L"]
+    rows = {"a": [1.2, 0.8, 0.0], "b": [0.0, 0.2, 0.0], "c": [0.6, 1.4, 0.9]}
+    table = {k: activation_vector(dict(zip(names, v))) for k, v in rows.items()}
+    idx = [MUSCLE_NAMES.index(n) for n in names]
+    avg = mix_activations(table, {"a": 1, "b": 1, "c": 1}, "muscle-average")[idx]
+    mx = mix_activations(table, {"a": 1, "b": 1, "c": 1}, "muscle-max")[idx]
+    np.testing.assert_allclose(avg, [0.9, 0.8, 0.9])  # zygomatic: (1.2 + 0.6) / 2 AUs that use it
+    np.testing.assert_allclose(mx, [1.2, 1.4, 0.9])
+    half = mix_activations(table, {"a": 0.5}, "muscle-max")[idx]
+    np.testing.assert_allclose(half, [0.6, 0.4, 0.0])  # AU weights scale the activations first
+    with pytest.raises(PdeFaceError, match="no AU"):
+        mix_activations(table, {"d": 1}, "muscle-max")
+    with pytest.raises(PdeFaceError, match="no muscle"):
+        activation_vector({"bicep": 1})
+    with pytest.raises(PdeFaceError, match="outside"):
+        activation_vector({"jaw": -1})
+
+
+def test_table_file_is_validated():
+    table = {"12": np.linspace(0, 1, 24) * 0 + 0.5}
+    good = table_to_json(table, {"12": "calibrated"})
+    back = parse_table(json.loads(json.dumps(good)))
+    np.testing.assert_allclose(back.activations["12"], 0.5)
+    assert back.hows["12"] == "calibrated"
+    for change, message in (({"format": "x"}, "not a pdeface muscle table"), ({"version": 2}, "version"),
+                            ({"muscles": ["a"]}, "24 muscles"), ({"aus": {}}, "non-empty"),
+                            ({"aus": {"12": {"activations": [0.5] * 23}}}, "24 finite"),
+                            ({"aus": {"12": {"activations": [5.0] * 24}}}, "outside"),
+                            ({"aus": {"foo": {"activations": [0.0] * 24}}}, "not an AU key"),
+                            ({"geometry": {"zygomatic_major": {"zone": "wide"}}}, "geometry"),
+                            ({"geometry": {"biceps": {}}}, "geometry")):
+        with pytest.raises(ModelFormatError, match=message):
+            parse_table({**good, **change})
+
+
+def run(capsys, *args):
+    from pdeface.cli import main
+    code = main([str(a) for a in args])
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+def test_bundled_table_and_the_muscle_aus_of_the_default_face():
+    from pdeface.au.expressions import PRESETS, resolve_preset
+    from pdeface.muscles.aus import AUTHORED, load_table
+
+    table = load_table()
+    face = load_face("default")
+    scan_keys = {d.key for d in face.descriptors if d.source != "muscle"}
+    assert scan_keys <= set(table.activations) and set(AUTHORED) <= set(table.activations)
+    muscle = {d.key: d for d in face.descriptors if d.source == "muscle"}
+    assert set(muscle) == set(AUTHORED)  # the AUs no scan covers; the scan's stay the default elsewhere
+    weights, missing = resolve_preset(PRESETS["anger"], {d.key for d in face.descriptors})
+    assert "23" in weights and "23" not in missing  # anger's main AUs 23 + 24
+    basis = MuscleBasis(face)
+    np.testing.assert_allclose(muscle["13"].dense()[0], basis.descriptor("13", table.activations["13"]).dense()[0],
+                               atol=0.05)  # mm: the model file stores coefficients to 0.01 mm steps
+
+
+def test_muscle_mixers_pose_a_face_through_pose_curves():
+    from pdeface.au.expressions import mix, pose_curves
+    from pdeface.muscles.aus import load_table
+
+    face = load_face("default")
+    table = load_table()
+    w = {"12": 1.0, "6": 0.5}
+    C, R = pose_curves(face, w, "muscle-max")
+    dC, dR = MuscleBasis(face).curves(mix_activations(table.activations, w, "muscle-max"))
+    np.testing.assert_allclose(C - face.coefficients, dC, atol=1e-12)
+    C2, _ = pose_curves(face, w, "muscle-average")
+    assert not np.allclose(C, C2)
+    with pytest.raises(PdeFaceError, match="pose_curves"):
+        mix({d.key: d for d in face.descriptors}, w, "muscle-max")
+
+
+def test_cli_muscles(tmp_path, capsys):
+    from pdeface.io.meshio import read_obj
+
+    code, _, err = run(capsys, "muscles", "default", "--au", "23=1", "-o", tmp_path / "a.obj")
+    assert code == 0, err
+    code, _, err = run(capsys, "muscles", "default", "--activation", "zygomatic_major_L=0.6", "--activation",
+                       "jaw=0.5", "-o", tmp_path / "b.obj")
+    assert code == 0, err
+    assert run(capsys, "muscles", "default", "--au", "12=1", "--au", "6=1", "--mixer", "muscle-max",
+               "-o", tmp_path / "c.obj")[0] == 0
+    a, b = read_obj(tmp_path / "a.obj"), read_obj(tmp_path / "b.obj")
+    assert len(a.vertices) == len(b.vertices) and not np.allclose(a.vertices, b.vertices)
+    for args, message in ((["--activation", "bicep=1"], "no muscle"), (["--activation", "jaw=9"], "outside"),
+                          (["--activation", "jaw"], "MUSCLE=VALUE"), (["--au", "8=1"], "no AU"), ([], "give AU")):
+        code, _, err = run(capsys, "muscles", "default", *args, "-o", tmp_path / "x.obj")
+        assert code == 2 and message in err, err
+    assert not (tmp_path / "x.obj").exists()
