@@ -20,11 +20,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "core"))
 
-from pdeface.assets import (  # noqa: E402
-    load_face,  # noqa: E402
-    load_ict_shapes,
-    load_neutral_scan,
-)
+from benchlib import bundled_ict  # noqa: E402
 from pdeface.au.aureport import au_report  # noqa: E402
 from pdeface.au.expressions import ShapeBasis, mix  # noqa: E402
 from pdeface.au.facs import au_number  # noqa: E402
@@ -45,17 +41,15 @@ def main(argv=None):
     ap.add_argument("--identities", type=int, default=20)
     ap.add_argument("--json")
     args = ap.parse_args(argv)
-    face = load_face("default")
-    mesh, idx = load_neutral_scan()
-    T, _ = mesh.triangles()
-    V = mesh.vertices
-    shapes = load_ict_shapes()
+    face, V, T, idx, shapes = bundled_ict()
     report = au_report(face, V, T, shapes)
     out = {"aus": {}}
     print("== bundled descriptors (ICT-FaceKit generic neutral)")
     print(f"  {'AU':5s} {'captured':>8s} {'target':>6s} {'p95 mm':>7s} {'bytes':>6s} (target <= 2560)  curves")
     misses = []
     for d in face.descriptors:
+        if d.key not in report:  # made from muscles: no ICT truth to measure against (bench_muscles.py)
+            continue
         r = report[d.key]
         size = r.pop("bytes")
         t = target_of(d.key)

@@ -25,8 +25,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "core"))
 
-from benchlib import median_time  # noqa: E402
-from pdeface.assets import load_face, load_ict_shapes, load_neutral_scan  # noqa: E402
+from benchlib import bundled_ict, median_time  # noqa: E402
 from pdeface.au.aureport import MotionProbe  # noqa: E402
 from pdeface.au.capture import fit_descriptor  # noqa: E402
 from pdeface.au.expressions import BASIC_EXPRESSIONS, PRESETS, mix, resolve_preset  # noqa: E402
@@ -88,11 +87,7 @@ def main(argv=None):
     ap.add_argument("--folds", type=int, default=4)
     ap.add_argument("--json")
     args = ap.parse_args(argv)
-    bundled = load_face("default")
-    mesh, idx = load_neutral_scan()
-    T, _ = mesh.triangles()
-    V = mesh.vertices
-    shapes = load_ict_shapes()
+    bundled, V, T, idx, shapes = bundled_ict()
     targets = ict_targets(shapes)
     ids = [f"identity{i:03d}" for i in range(20)]
     t0 = time.perf_counter()

@@ -21,8 +21,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "core"))
 
-from benchlib import median_time  # noqa: E402
-from pdeface.assets import load_face, load_ict_shapes, load_neutral_scan  # noqa: E402
+from benchlib import bundled_ict, median_time  # noqa: E402
 from pdeface.au.aureport import MotionProbe  # noqa: E402
 from pdeface.au.ict import AU_SHAPES, au_offsets  # noqa: E402
 from pdeface.muscles.aus import AUTHORED, MuscleBasis, load_table  # noqa: E402
@@ -42,11 +41,7 @@ def main(argv=None):
     ap.add_argument("--identities", type=int, default=20)
     ap.add_argument("--json")
     args = ap.parse_args(argv)
-    face = load_face("default")
-    mesh, idx = load_neutral_scan()
-    T, _ = mesh.triangles()
-    V = mesh.vertices
-    shapes = load_ict_shapes()
+    face, V, T, idx, shapes = bundled_ict()
     table = load_table()
     keys = [k for k in table.activations if k in AU_SHAPES]
     mine = captured(face, V, T, shapes, table, keys)
