@@ -32,7 +32,6 @@ def _pd():
     import pdeface.head.bind
     import pdeface.io.modelfile
     import pdeface.muscles.aus
-    import pdeface.muscles.placement
     import pdeface.surface.fit
     import pdeface.surface.frame
     return pdeface
@@ -364,9 +363,9 @@ def fdt_key_name(fdt):
     return f"FDT {fdt.name} ({fdt.model})"
 
 
-def _write_change_keys(obj, model, delta, jaw, name, kind, au_key="", label=""):
-    """One key, ``name``, for a change ``delta`` = (dC, dR) of the face's curves: on the face and on
-    the user's objects it drives (bound as the head). Returns the :class:`KeyWriter` counts."""
+def _change_targets(obj, model, delta, jaw):
+    """``[(object, coords)]``: the face and the user's objects it drives (bound as the head) under a
+    change ``delta`` = (dC, dR) of the face's curves."""
     pd = _pd()
     from . import head
     dC, dR = delta
@@ -375,7 +374,13 @@ def _write_change_keys(obj, model, delta, jaw, name, kind, au_key="", label=""):
     if len(coords) != len(obj.data.vertices):
         raise error(f"{obj.name} has {len(obj.data.vertices)} vertices, its model meshes to {len(coords)}: "
                     "the mesh was edited; add the face again")
-    targets = [(obj, coords)] + head.change_coords(obj, model, dC, dR, jaw, user_objects(obj))
+    return [(obj, coords)] + head.change_coords(obj, model, dC, dR, jaw, user_objects(obj))
+
+
+def _write_change_keys(obj, model, delta, jaw, name, kind, au_key="", label=""):
+    """One key, ``name``, for a change ``delta`` of the face's curves on the face and the user's objects
+    (:func:`_change_targets`). Returns the :class:`KeyWriter` counts."""
+    targets = _change_targets(obj, model, delta, jaw)
     counts = {"made": 0, "updated": 0, "skipped": 0, "objects": len(targets)}
     for o, c in targets:
         w = KeyWriter(o)
@@ -514,27 +519,32 @@ def write_mix_key(obj, model, weights, mixer, check=True):
 
 # ------------------------------------------------------------------ muscles
 
-def muscle_delta(model, activations):
-    """Change of the model's curves for 24 muscle activations (the bundled table's muscles)."""
-    return _pd().muscles.aus.MuscleBasis(model).curves(np.asarray(activations, np.float64))
-
-
-def write_muscle_key(obj, activations, check=True):
+def write_muscle_key(obj, activations):
     """The face (and the user's objects it drives) posed by muscle activations, in the key
     :data:`MUSCLE_KEY` of its own, set to 1 and the other keys to 0: the muscle panel's live view."""
-    pd = _pd()
-    from . import head
+    aus = _pd().muscles.aus
     if obj.data.shape_keys is None:
         raise error("build shape keys first")
     model = bridge.face_model(obj)
-    dC, dR = muscle_delta(model, activations)
-    coords = pd.surface.fit.face_mesh(model, obj.pdeface.resolution, coefficients=model.coefficients + dC,
-                                      residual=model.residual + dR).vertices
-    jaw = activations[pd.muscles.placement.MUSCLE_NAMES.index("jaw")] > 0
-    targets = [(obj, coords)] + [(o, c) for o, c in head.change_coords(obj, model, dC, dR, jaw, user_objects(obj))
-                                 if o.pdeface.keys]
-    _put_pose_key(targets, MUSCLE_KEY, "muscles", check)
+    delta = aus.MuscleBasis(model).curves(np.asarray(activations, np.float64))
+    targets = [(o, c) for o, c in _change_targets(obj, model, delta, aus.turns_jaw(activations))
+               if o is obj or o.pdeface.keys]
+    _put_pose_key(targets, MUSCLE_KEY, "muscles")
     set_pose(obj, {MUSCLE_KEY: 1.0})
+
+
+def muscle_activations(obj, key):
+    """``(activations, where)`` of AU ``key``: recorded on the face (its muscle descriptor keeps them),
+    else the bundled muscle table's."""
+    pd = _pd()
+    key = pd.au.facs.parse_au_key(key)
+    own = next((d for d in bridge.face_model(obj).descriptors if d.key == key and "activations" in d.extra), None)
+    if own is not None:
+        return [float(a) for a in own.extra["activations"]], "this face"
+    table = pd.muscles.aus.load_table().activations
+    if key not in table:
+        raise error(f"AU{key} has no muscle activations (recorded or in the muscle table)")
+    return [float(a) for a in table[key]], "the muscle table"
 
 
 def record_muscle_au(obj, activations, key, replace=False):
@@ -550,8 +560,8 @@ def record_muscle_au(obj, activations, key, replace=False):
     d = pd.muscles.aus.MuscleBasis(model).descriptor(key, activations)
     d.extra["activations"] = [round(float(a), 4) for a in activations]
     model.descriptors = [x for x in model.descriptors if x.key != key] + [d]
-    jaw = activations[pd.muscles.placement.MUSCLE_NAMES.index("jaw")] > 0
-    _write_change_keys(obj, model, d.dense(), jaw, au_key_name(d), "AU", d.key, d.label)
+    _write_change_keys(obj, model, d.dense(), pd.muscles.aus.turns_jaw(activations), au_key_name(d), "AU", d.key,
+                       d.label)
     bridge.store_model(obj, model)
     return d
 

@@ -8,8 +8,9 @@ nothing written by then.
 import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, StringProperty
 from bpy.types import Operator
+from pdeface.fdt.quadratic import MODELS as FDT_MODELS
 
-from . import bridge, compat, face, live, texturing
+from . import compat, face, live, texturing
 
 
 class _Operator:
@@ -194,10 +195,9 @@ key on the face and the objects it drives"""
     filepath: StringProperty(name="FDT", subtype="FILE_PATH",
                              description="An .fdt.json file, or a bundled FDT: an AU key (12, 12L), a basic "
                                          "expression (happy, sad, ...) or paper-smile")
-    model: EnumProperty(name="Model", items=[("3d", "3-D", "x', y', z' quadratic in x, y, z"),
-                                             ("3d-surface", "3-D surface", "depth quadratic in x, y"),
-                                             ("2d", "2-D (paper)", "the paper's model: no depth")],
-                        default="3d", description="Model of a bundled FDT")
+    model: EnumProperty(name="Model", items=[(m, m, "") for m in FDT_MODELS], default="3d",
+                        description="Model of a bundled FDT: 3d (x', y', z' quadratic in x, y, z), 3d-surface, "
+                                    "or the paper's 2d (no depth)")
 
     def invoke(self, context, event):
         if not self.filepath:
@@ -250,18 +250,10 @@ class PDEFACE_OT_load_muscle_au(_FaceOperator, Operator):
     au: StringProperty(name="AU", description="AU key (default: the panel's)")
 
     def run(self, context):
-        from pdeface.au.facs import parse_au_key
-        from pdeface.muscles.aus import load_table
-
         s = context.scene.pdeface
-        key = parse_au_key(self.au or s.muscle_au)
-        own = next((d for d in bridge.face_model(face.active_face(context)).descriptors
-                    if d.key == key and "activations" in d.extra), None)
-        table = load_table().activations
-        if own is None and key not in table:
-            raise face.error(f"AU{key} has no muscle activations (recorded or in the muscle table)")
-        s.muscles = own.extra["activations"] if own is not None else [float(a) for a in table[key]]
-        return f"AU{key}: muscles from {'this face' if own is not None else 'the muscle table'}"
+        key = self.au or s.muscle_au
+        s.muscles, where = face.muscle_activations(face.active_face(context), key)
+        return f"AU{key}: muscles from {where}"
 
 
 class PDEFACE_OT_reset_muscles(_FaceOperator, Operator):

@@ -37,7 +37,7 @@ from pdeface.fdt.deform import NeutralFace, classify, fdt_curves  # noqa: E402
 from pdeface.fdt.generic import generic_fdts, ict_targets, identity_fits  # noqa: E402
 from pdeface.fdt.regions import PupilFrame, assign_regions, opening_sides  # noqa: E402
 from pdeface.io.descriptorfile import descriptor_to_bytes  # noqa: E402
-from pdeface.surface.fit import fit_face  # noqa: E402
+from pdeface.surface.fit import fit_face, surface_grid  # noqa: E402
 from pdeface.surface.model import model_landmarks  # noqa: E402
 
 MODELS = ("2d", "3d", "3d-surface")
@@ -55,12 +55,12 @@ def pde_change(face, name):
 
 def largest_jumps(face, tables):
     """Largest displacement difference (mm) across the grid edges where regions meet, blended and hard."""
-    from pdeface.fdt.deform import _grid, fdt_displacement
+    from pdeface.fdt.deform import fdt_displacement
     from pdeface.surface.report import REPORT_RESOLUTION
 
     L = model_landmarks(face)
     frame = PupilFrame.from_landmarks(L)
-    X = _grid(face)
+    X = surface_grid(face, *REPORT_RESOLUTION).reshape(-1, 3)
     N, Ln = frame.normalise(X), frame.normalise(L)
     nu = (face.layout.n_curves - 1) * REPORT_RESOLUTION[0] + 1
     grid = np.arange(len(X)).reshape(nu, -1)

@@ -336,3 +336,19 @@ def test_bundle_is_gzip_json():
     from pdeface.assets import GENERIC_FDTS, asset_path
     data = json.loads(gzip.decompress(asset_path(GENERIC_FDTS).read_bytes()))
     assert data["format"] == "pdeface.fdts" and {t["model"] for t in data["fdts"]} == {"2d", "3d"}
+
+
+def test_fdt_of_a_posed_face_model_reproduces_its_pose():
+    """From a face model and AU weights (its PDE surface neutral against posed), applied back to the model."""
+    from pdeface.fdt.deform import fdt_curve_displacement, fit_fdt_model
+
+    face = load_face("default")
+    fit = fit_fdt_model(face, {"12": 1.0}, name="12")
+    assert fit.fdt.name == "12" and fit.fdt.model == "3d"
+    d = next(d for d in face.descriptors if d.key == "12")
+    C, R = d.dense()
+    truth = face.curve_points(face.coefficients + C, face.residual + R) - face.curve_points()
+    moved = np.linalg.norm(truth, axis=-1) > 0.5
+    got = fdt_curve_displacement(face, fit.fdt)
+    err = np.linalg.norm(got - truth, axis=-1)[moved]
+    assert 1 - np.sqrt((err ** 2).mean()) / np.sqrt((np.linalg.norm(truth, axis=-1)[moved] ** 2).mean()) > 0.7

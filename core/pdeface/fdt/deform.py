@@ -42,7 +42,6 @@ class FaceFit:
     fdt: FDT
     neutral: np.ndarray
     posed: np.ndarray
-    landmarks: np.ndarray
     members: dict
 
 
@@ -118,7 +117,7 @@ class NeutralFace:
             self._equations[model] = quadratic.BlendedEquations(
                 model, self.neutral, self.weights, [f"region {r.number} ({r.name})" for r in REGIONS])
         fdt = FDT(name, model, self._equations[model].solve(P), source=source, notice=notice, blend=self.blend)
-        return FaceFit(fdt, self.neutral, P, self.landmarks, self.members)
+        return FaceFit(fdt, self.neutral, P, self.members)
 
 
 def fit_fdt(neutral_vertices, posed_vertices, triangles, landmarks, model="3d", name="", posed_landmarks=None,

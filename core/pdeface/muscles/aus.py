@@ -33,6 +33,8 @@ from .placement import BOUNDS, DEFAULT_GEOMETRY, MUSCLE_NAMES, place_muscles
 FORMAT, VERSION = "pdeface.muscle-aus", 1
 TABLE = Path(__file__).resolve().parent.parent / "data" / "muscle_aus.json"
 MUSCLE_MIXERS = ("muscle-average", "muscle-max")
+#: How a set of AUs' activations combine: summed (linear, as the descriptors' keys), or the FAS's mixers.
+ACTIVATION_MIXERS = ("sum",) + MUSCLE_MIXERS
 #: AUs no ICT shape covers, authored from the muscles FACS names for them (activation vectors
 #: given by muscle name; the rest 0).
 AUTHORED = {
@@ -70,6 +72,11 @@ class MuscleTable:
     hows: dict = field(default_factory=dict)
     geometry: dict = field(default_factory=dict)
     notice: str = ""
+
+
+def turns_jaw(activations) -> bool:
+    """Whether activations open the jaw (a head binding then turns the lower teeth and tongue)."""
+    return float(np.asarray(activations)[MUSCLE_NAMES.index("jaw")]) > 0
 
 
 class MuscleBasis:
@@ -183,16 +190,18 @@ def load_table(path=None) -> MuscleTable:
 
 
 def mix_activations(table: dict, weights: dict, mixer: str) -> np.ndarray:
-    """``table``: AU key → (24,) activations (:attr:`MuscleTable.activations`)."""
-    # The FAS's mixers on activations: ``muscle-average`` or ``muscle-max`` of weighted AUs.
-    if mixer not in MUSCLE_MIXERS:
-        raise PdeFaceError(f"unknown muscle mixer {mixer!r}; use one of {', '.join(MUSCLE_MIXERS)}")
+    """The activations of weighted AUs combined by ``mixer`` (:data:`ACTIVATION_MIXERS`): ``sum``, or the
+    FAS's ``muscle-average`` / ``muscle-max``. ``table``: AU key → (24,) activations."""
+    if mixer not in ACTIVATION_MIXERS:
+        raise PdeFaceError(f"unknown muscle mixer {mixer!r}; use one of {', '.join(ACTIVATION_MIXERS)}")
     missing = [k for k in weights if k not in table]
     if missing:
         raise PdeFaceError(f"the muscle table has no AU {', '.join(missing)} (has: {', '.join(sorted(table))})")
     rows = np.array([w * table[k] for k, w in weights.items() if w]) if weights else np.zeros((0, len(MUSCLE_NAMES)))
     if not len(rows):
         return np.zeros(len(MUSCLE_NAMES))
+    if mixer == "sum":
+        return rows.sum(axis=0)
     if mixer == "muscle-max":
         return rows[np.abs(rows).argmax(axis=0), np.arange(rows.shape[1])]
     used = (rows != 0).sum(axis=0)

@@ -22,14 +22,7 @@ def cmd_muscles(args):
         from ..cli import parse_au_weights
 
         weights = parse_au_weights(args.au)
-        if args.mixer == "sum":
-            missing = [k for k in weights if k not in table.activations]
-            if missing:
-                raise PdeFaceError(f"the muscle table has no AU {', '.join(missing)}")
-            import numpy as np
-            a = np.sum([w * table.activations[k] for k, w in weights.items()], axis=0)
-        else:
-            a = mix_activations(table.activations, weights, args.mixer)
+        a = mix_activations(table.activations, weights, args.mixer)
         what = ", ".join(f"AU{k}={w:g}" for k, w in weights.items()) + f" ({args.mixer})"
     else:
         named = {}
@@ -51,7 +44,7 @@ def cmd_muscles(args):
 
 def add_parser(sub, output_option, meshing_options):
     """The ``muscles`` command."""
-    from .aus import MUSCLE_MIXERS
+    from .aus import ACTIVATION_MIXERS
     from .placement import MUSCLE_NAMES
 
     p = sub.add_parser("muscles", help="pose a face with Waters muscles: AUs from the muscle table, or activations")
@@ -59,7 +52,7 @@ def add_parser(sub, output_option, meshing_options):
     p.add_argument("--au", action="append", metavar="AU=W", help="AU weight from the muscle table (repeatable)")
     p.add_argument("--activation", action="append", metavar="MUSCLE=A",
                    help=f"a muscle's activation (repeatable); muscles: {', '.join(MUSCLE_NAMES)}")
-    p.add_argument("--mixer", choices=("sum",) + MUSCLE_MIXERS, default="sum",
+    p.add_argument("--mixer", choices=ACTIVATION_MIXERS, default="sum",
                    help="how AUs' activations combine: sum, or the FAS's average / maximum per muscle")
     p.add_argument("--table", help="a muscle table file (default: the bundled one)")
     meshing_options(p)

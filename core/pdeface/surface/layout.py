@@ -311,12 +311,10 @@ def place_curves(landmarks_face: np.ndarray, n_curves: int = DEFAULT_CURVES, n_p
     # Lids barely apart (a blink, a squint) still get their band of curves.
     gap = max(lid_top - lid_bottom, 0.25 * (brow - eye))
     chin, lip_lower, mouth = L[8, 1], L[57, 1], L[[62, 66], 1].mean()
-    anchors = {
-        "forehead": brow + forehead * (brow - eye), "brow": brow, "lid_top": eye + 0.5 * OPENING_GAP,
-        "lid_bottom": eye - 0.5 * OPENING_GAP, "nose_tip": L[30, 1],
-        "nose_bottom": L[33, 1], "lip_upper": L[51, 1], "mouth_top": mouth + 0.5 * OPENING_GAP,
-        "mouth_bottom": mouth - 0.5 * OPENING_GAP, "lip_lower": lip_lower, "chin": chin + 0.08 * (lip_lower - chin),
-    }
+    anchors = dict(zip(ANCHOR_NAMES, (
+        brow + forehead * (brow - eye), brow, eye + 0.5 * OPENING_GAP, eye - 0.5 * OPENING_GAP, L[30, 1],
+        L[33, 1], L[51, 1], mouth + 0.5 * OPENING_GAP, mouth - 0.5 * OPENING_GAP, lip_lower,
+        chin + 0.08 * (lip_lower - chin))))
     ys = np.array(list(anchors.values()))
     # Density breakpoints: the anchors and the lids' heights, in SEGMENT_DENSITY's order.
     levels = {**anchors, "eye_top": eye + 0.5 * gap, "eye_bottom": eye - 0.5 * gap}
@@ -330,7 +328,6 @@ def place_curves(landmarks_face: np.ndarray, n_curves: int = DEFAULT_CURVES, n_p
     measure = np.concatenate([[0.0], np.cumsum(-np.diff(yd) * density)])
     heights = np.interp(np.linspace(0, measure[-1], n_curves), measure, yd)
     names = list(ANCHOR_NAMES)
-    assert names == list(anchors), "ANCHOR_NAMES is the anchors' order"
     openings = [names.index(top) for top, _ in OPENINGS] if follow_lips else []
     for a in openings:
         _snap_to_opening(heights, ys, yd, measure, a)
