@@ -19,12 +19,13 @@ def _ensure_core():
 
 _ensure_core()
 
-from . import operators, panels, properties  # noqa: E402
+from . import landmarks, operators, panels, properties  # noqa: E402
 
 _modules = (properties, operators, panels)
 
 
 def register():
+    landmarks.add_site()
     for m in _modules:
         m.register()
 

@@ -188,9 +188,28 @@ def add_ict_head(context, retarget=True):
 
 
 def read_landmarks(settings, obj):
-    """68 landmark positions (object space) from the scene's chosen source (group, selection or file)."""
+    """68 landmark positions (object space) from the scene's chosen source, and a note on where they came from.
+
+    ``AUTO``: the mesh's landmark empties (found before, maybe nudged), else its
+    vertex group of 68, else found now (and shown as empties).
+    """
     pd = _pd()
     from pdeface.errors import LandmarkError
+
+    from . import landmarks
+    if settings.landmark_source == "AUTO":
+        points = landmarks.empty_points(obj)
+        if points is not None:
+            return points, f"landmarks from the empties of {obj.name}"
+        group = obj.vertex_groups.get(settings.landmark_group)
+        if group is None:
+            unit = None if settings.unit == "AUTO" else settings.unit
+            points, found, seconds = landmarks.find(bpy.context, obj, unit)
+            return points, landmarks.summary(obj, found, seconds)
+    return _listed_landmarks(settings, obj, pd, LandmarkError), None
+
+
+def _listed_landmarks(settings, obj, pd, LandmarkError):
     V = bridge.vertices(obj.data)
     if settings.landmark_source == "FILE":
         path = bpy.path.abspath(settings.landmark_file)
@@ -198,7 +217,7 @@ def read_landmarks(settings, obj):
             raise LandmarkError("choose a landmarks JSON file")
         idx, pts = pd.surface.frame.read_landmarks(path)
         return pd.surface.frame.landmark_points(V, idx, pts)
-    if settings.landmark_source == "GROUP":
+    if settings.landmark_source in ("GROUP", "AUTO"):
         group = obj.vertex_groups.get(settings.landmark_group)
         if group is None:
             raise LandmarkError(f"{obj.name} has no vertex group {settings.landmark_group!r}")

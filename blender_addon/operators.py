@@ -52,6 +52,22 @@ class _ObjectModeOperator(_Operator):
         return True
 
 
+class _UserMeshOperator(_ObjectModeOperator):
+    """An operator on the user's active mesh (not a PDE face); ``select_message`` says what to select."""
+
+    select_message = "Select a mesh (not a PDE face)"
+
+    @classmethod
+    def poll(cls, context):
+        obj = context.active_object
+        if not super().poll(context):
+            return False
+        if obj is None or obj.type != "MESH" or obj.pdeface.is_face:
+            cls.poll_message_set(cls.select_message)
+            return False
+        return True
+
+
 class PDEFACE_OT_add_default_face(_ObjectModeOperator, Operator):
     """Add the bundled PDE face (ICT-FaceKit neutral, 63 AU descriptors from its shapes, 9 from muscles)"""
 
@@ -82,7 +98,7 @@ class PDEFACE_OT_add_ict_head(_ObjectModeOperator, Operator):
         return f"Added {obj.name}: {len(obj.data.shape_keys.key_blocks) - 1} keys on its {len(obj.data.vertices)} vertices"
 
 
-class PDEFACE_OT_fit_to_selected(_ObjectModeOperator, Operator):
+class PDEFACE_OT_fit_to_selected(_UserMeshOperator, Operator):
     """Fit a PDE face to the selected mesh, beside it, with the bundled AU descriptors retargeted to it"""
 
     bl_idname = "pdeface.fit_to_selected"
@@ -95,15 +111,7 @@ class PDEFACE_OT_fit_to_selected(_ObjectModeOperator, Operator):
                                            "the active one's skin and the other selected objects of the head "
                                            "(eyes, teeth). The PDE face stays hidden as their reference")
 
-    @classmethod
-    def poll(cls, context):
-        obj = context.active_object
-        if not super().poll(context):
-            return False
-        if obj is None or obj.type != "MESH" or obj.pdeface.is_face:
-            cls.poll_message_set("Select the neutral face mesh to fit (not a PDE face)")
-            return False
-        return True
+    select_message = "Select the neutral face mesh to fit (not a PDE face)"
 
     def run(self, context):
         s = context.scene.pdeface
@@ -116,7 +124,9 @@ class PDEFACE_OT_fit_to_selected(_ObjectModeOperator, Operator):
         wm.progress_begin(0, 4)
         try:
             compat.set_status(context, "PDE Face: reading landmarks")
-            landmarks = face.read_landmarks(s, context.active_object)
+            landmarks, note = face.read_landmarks(s, context.active_object)
+            if note:
+                self.report({"INFO"}, note)
             src = context.active_object
             parts = [o for o in context.view_layer.objects.selected if o is not src and o.type == "MESH"]
             obj, model, sampler = face.fit_face_object(context, src, landmarks,
@@ -138,6 +148,45 @@ class PDEFACE_OT_fit_to_selected(_ObjectModeOperator, Operator):
         if self.keys_on_mesh and model.descriptors:
             msg += f"; {r['aus']} AU and {r['expressions']} expression keys on {r['objects'] - 1} object(s) of yours"
         return msg
+
+
+class PDEFACE_OT_find_landmarks(_UserMeshOperator, Operator):
+    """Find the 68 landmarks on the selected mesh (any pose and unit) and show them as empties you can nudge;
+Fit then uses them"""
+
+    bl_idname = "pdeface.find_landmarks"
+    bl_label = "Find Landmarks"
+
+    select_message = "Select the head or body mesh to find the face on"
+
+    def run(self, context):
+        from . import landmarks
+        s = context.scene.pdeface
+        obj = context.active_object
+        compat.set_status(context, "PDE Face: finding landmarks")
+        try:
+            _, found, seconds = landmarks.find(context, obj, None if s.unit == "AUTO" else s.unit)
+        finally:
+            compat.set_status(context, None)
+        return landmarks.summary(obj, found, seconds)
+
+
+class PDEFACE_OT_install_landmark_model(_Operator, Operator):
+    """Download and install the face-landmark model (MediaPipe 0.10, Apache-2.0, about 100 MB) into this
+extension's user folder, for Find Landmarks"""
+
+    bl_idname = "pdeface.install_landmark_model"
+    bl_label = "Install Landmark Model"
+    bl_options = {"REGISTER"}
+
+    def run(self, context):
+        from . import landmarks
+        if not bpy.app.online_access:
+            from pdeface.errors import PdeFaceError
+            raise PdeFaceError("Blender is offline: allow online access (Preferences > System) to install the "
+                               "landmark model, or install mediapipe 0.10.21 yourself")
+        landmarks.install()
+        return "Installed the landmark model: Find Landmarks is ready"
 
 
 class PDEFACE_OT_build_shape_keys(_FaceOperator, Operator):
@@ -406,6 +455,7 @@ class PDEFACE_OT_live_stop(_Operator, Operator):
 
 
 _classes = (PDEFACE_OT_add_default_face, PDEFACE_OT_add_ict_head, PDEFACE_OT_fit_to_selected,
+            PDEFACE_OT_find_landmarks, PDEFACE_OT_install_landmark_model,
             PDEFACE_OT_build_shape_keys, PDEFACE_OT_apply_preset, PDEFACE_OT_load_fdt, PDEFACE_OT_record_muscle_au,
             PDEFACE_OT_load_muscle_au, PDEFACE_OT_reset_muscles, PDEFACE_OT_reset_pose, PDEFACE_OT_keyframe_pose, PDEFACE_OT_animate_sequence,
             PDEFACE_OT_import_au, PDEFACE_OT_transfer_texture, PDEFACE_OT_live_start, PDEFACE_OT_live_stop)

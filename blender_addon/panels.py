@@ -1,7 +1,7 @@
 """The PDE Face tab of the 3D View sidebar."""
 import bpy
 
-from . import live
+from . import landmarks, live
 from .face import active_face, key_owner, managed, preset_items
 
 
@@ -44,7 +44,13 @@ class PDEFACE_PT_face(_Panel, bpy.types.Panel):
         box = layout.box()
         box.label(text="Fit to selected mesh")
         box.prop(s, "landmark_source")
-        if s.landmark_source == "GROUP":
+        if s.landmark_source == "AUTO":
+            if landmarks.model_available():
+                box.operator("pdeface.find_landmarks", icon="EMPTY_DATA")
+            else:
+                box.label(text="Finding landmarks needs MediaPipe", icon="INFO")
+                box.operator("pdeface.install_landmark_model", icon="IMPORT")
+        if s.landmark_source in ("GROUP", "AUTO"):
             box.prop(s, "landmark_group")
         elif s.landmark_source == "FILE":
             box.prop(s, "landmark_file")

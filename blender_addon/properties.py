@@ -100,8 +100,10 @@ class PDEFACE_PG_settings(bpy.types.PropertyGroup):
     au_filter: StringProperty(name="Filter", description="Show AUs whose label contains this text",
                               options={"TEXTEDIT_UPDATE"})
     landmark_source: EnumProperty(
-        name="Landmarks", default="GROUP",
-        items=[("GROUP", "Vertex group", "68 vertices of a vertex group, ordered by weight ((i+1)/68)"),
+        name="Landmarks", default="AUTO",
+        items=[("AUTO", "Automatic", "The mesh's landmark empties (Find Landmarks, nudged or not), else its "
+                                     "vertex group 'landmarks', else found now (needs the landmark model)"),
+               ("GROUP", "Vertex group", "68 vertices of a vertex group, ordered by weight ((i+1)/68)"),
                ("SELECTED", "Selected vertices", "68 vertices selected in Multi-PIE order"),
                ("FILE", "JSON file", "{\"indices\": [...]} or {\"points\": [...]}")])
     landmark_group: StringProperty(name="Group", default="landmarks")

@@ -9,12 +9,13 @@ The core is numpy/scipy only and never imports bpy. Its rooms, in data-flow orde
 - :mod:`pdeface.io` — files: meshes, model and descriptor files, tracker CSVs, timelines,
   codecs, PNG and profile writers
 - :mod:`pdeface.stream` — the live AU stream: wire formats, player, sender, AU blender rules
+- :mod:`pdeface.landmarks` — the 68 landmarks found automatically: render, detector, facemap, pipeline
 - shared at the top: :mod:`~pdeface.errors`, :mod:`~pdeface.geometry`, :mod:`~pdeface.mesh`,
   :mod:`~pdeface.assets` (the bundled data) and :mod:`~pdeface.cli` (the command line)
 
 Main entry points, also importable from ``pdeface`` itself: :func:`fit_face`, :func:`face_mesh`,
 :func:`accuracy_report`, :func:`save_model` / :func:`load_model`, :func:`read_mesh` /
-:func:`write_mesh`, :func:`read_landmarks` / :func:`landmark_points`.
+:func:`write_mesh`, :func:`read_landmarks` / :func:`landmark_points`, :func:`detect_landmarks`.
 
 The module names of pdeface 0.1 (``pdeface.fit``, ``pdeface.model``, ``pdeface.meshio`` ...)
 still import: each is an alias of the module(s) its contents moved to (:data:`MOVED`).
@@ -36,8 +37,10 @@ _API = {
     "read_mesh": "io.meshio", "write_mesh": "io.meshio",
     "read_landmarks": "surface.frame", "landmark_points": "surface.frame",
 }
+#: Public names that are another module's name for the same thing.
+_ALIASES = {"detect_landmarks": ("landmarks.pipeline", "detect")}
 __all__ = ["PdeFaceError", "MeshError", "LandmarkError", "LayoutError", "ModelFormatError", "__version__",
-           *_API]
+           *_API, *_ALIASES]
 
 #: pdeface 0.1 module → the modules its names now live in (looked up in order).
 MOVED = {
@@ -56,6 +59,9 @@ MOVED = {
 def __getattr__(name):
     if name in _API:
         return getattr(importlib.import_module(f"{__name__}.{_API[name]}"), name)
+    if name in _ALIASES:
+        module, attr = _ALIASES[name]
+        return getattr(importlib.import_module(f"{__name__}.{module}"), attr)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 

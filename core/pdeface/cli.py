@@ -31,7 +31,10 @@ def cmd_fit(args):
 
     mesh, lm = load_scan(args.mesh, args.landmarks)
     if lm is None:
-        raise PdeFaceError(f"{args.mesh}: --landmarks is required (JSON with 'indices' or 'points')")
+        from .landmarks.cli import find_on_mesh
+
+        _log(f"{args.mesh}: no --landmarks given: finding them (pdeface landmarks)")
+        lm = find_on_mesh(mesh, args.unit).points
     T, _ = mesh.triangles()
     skin = None
     if args.parts:
@@ -432,8 +435,8 @@ def build_parser():
     p = sub.add_parser("fit", help="fit a PDE face model to a neutral mesh")
     p.add_argument("mesh", help="neutral face, head or body mesh (.obj/.ply), 'default' (the bundled ICT neutral "
                                 "face) or 'head' (the bundled ICT whole head)")
-    p.add_argument_group("required for a mesh file (the bundled ones have their own)").add_argument(
-        "--landmarks", help="JSON with the 68 Multi-PIE landmarks as 'indices' or 'points'")
+    p.add_argument("--landmarks", help="JSON with the 68 Multi-PIE landmarks as 'indices' or 'points' (default: the "
+                                       "bundled meshes' own; for a file, found automatically with pdeface[landmarks])")
     p.add_argument("--parts", help="JSON of part kind → vertex indices; its 'skin' list is the skin to fit "
                                    "(default: the parts under the landmarks; see 'pdeface parts')")
     p.add_argument("--unit", choices=list(UNITS_MM), help="mesh unit (default: guessed from the eyes)")
@@ -503,9 +506,11 @@ def build_parser():
     p.set_defaults(func=cmd_parts)
 
     from .fdt.cli import add_parser as add_fdt_parser
+    from .landmarks.cli import add_parser as add_landmarks_parser
     from .muscles.cli import add_parser as add_muscles_parser
     add_fdt_parser(sub, output_option, meshing_options)
     add_muscles_parser(sub, output_option, meshing_options)
+    add_landmarks_parser(sub, output_option)
 
     p = sub.add_parser("retarget", help="carry AU descriptors over to another face model")
     p.add_argument("target", help="the target face model (.npz)")

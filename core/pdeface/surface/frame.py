@@ -15,6 +15,9 @@ from ..errors import LandmarkError
 #: Millimetres per mesh unit.
 UNITS_MM = {"mm": 1.0, "cm": 10.0, "m": 1000.0, "in": 25.4}
 
+#: Rotation taking ICT-FaceKit's axes (+z front, +y up) to Blender's (-y front, +z up): ``V @ BLENDER_FROM_ICT.T``.
+BLENDER_FROM_ICT = np.array([[1.0, 0, 0], [0, 0, -1], [0, 1, 0]])
+
 #: Typical adult distance between the eye centres (mm), used to guess the unit.
 EYE_DISTANCE_MM = 63.0
 #: Eye-centre distances a face may have (a small child's to a giant caricature's), in mm.
@@ -36,7 +39,7 @@ def read_landmarks(path):
     """Read a landmarks JSON file.
 
     The file holds ``{"indices": [68 ints]}`` (vertex indices, 0-based) or
-    ``{"points": [[x, y, z], ... 68]}``.
+    ``{"points": [[x, y, z], ... 68]}``; with both, the points are used.
 
     Returns
     -------
@@ -52,6 +55,10 @@ def parse_landmarks(data, name="landmarks"):
     """Validate landmark data given as a dict (see :func:`read_landmarks`)."""
     if not isinstance(data, dict) or not ({"indices", "points"} & set(data)):
         raise LandmarkError(f"{name}: expected an object with 'indices' or 'points'")
+    if "indices" in data and "points" in data:
+        # Both (as ``pdeface landmarks`` writes): the exact points win; the indices must still be valid.
+        parse_landmarks({"indices": data["indices"]}, name)
+        return parse_landmarks({"points": data["points"]}, name)
     if "indices" in data:
         idx = data["indices"]
         if not isinstance(idx, list) or not all(isinstance(i, int) and not isinstance(i, bool) for i in idx):

@@ -1,0 +1,101 @@
+"""MediaPipe's face detector and 478-point face mesh, run offline on grey renders.
+
+``mediapipe`` is an optional extra (``pip install "pdeface[landmarks]"``):
+0.10.x carries both models inside its wheel (Apache-2.0); 1.x dropped the
+``solutions`` API used here.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import LandmarkError
+
+#: The versions whose wheels carry ``mediapipe.solutions.face_mesh`` and its models.
+MEDIAPIPE_REQUIREMENT = "mediapipe>=0.10.14,<0.10.22"
+#: What ``mediapipe.solutions`` imports at run time, for an install beside another numpy (Blender's): each is
+#: installed without its dependencies (numpy is the host's; jax, sounddevice and sentencepiece are unused here).
+RUNTIME_PACKAGES = ("mediapipe==0.10.21", "absl-py", "attrs", "flatbuffers", "protobuf>=4.25.3,<5",
+                    "opencv-python-headless", "matplotlib", "contourpy", "cycler", "fonttools", "kiwisolver",
+                    "packaging", "pillow", "pyparsing", "python-dateutil", "six")
+#: How to get them, said wherever they are missing.
+INSTALL_HINT = (f'automatic landmarks need {MEDIAPIPE_REQUIREMENT}: pip install "pdeface[landmarks]" '
+                "(or give the 68 landmarks by hand: --landmarks L.json)")
+#: Face-mesh points that are the mesh proper (468); 468-477 are the irises, which sit on the eyeballs.
+MESH_POINTS = 468
+
+
+class MissingDependencyError(LandmarkError, ImportError):
+    """The optional face-landmark model (mediapipe) is not installed."""
+
+
+@dataclass
+class Detection:
+    """A face the detector found: score, box (x0, y0, x1, y1) in pixels."""
+
+    score: float
+    box: np.ndarray
+
+
+def _mediapipe():
+    try:
+        from mediapipe.python.solutions import face_detection, face_mesh
+    except ImportError:
+        raise MissingDependencyError(INSTALL_HINT) from None
+    return face_detection, face_mesh
+
+
+def available() -> bool:
+    """Whether the face-landmark model can be loaded."""
+    try:
+        _mediapipe()
+    except MissingDependencyError:
+        return False
+    return True
+
+
+class Detector:
+    """The two MediaPipe models, loaded once; use as a context manager or call :meth:`close`."""
+
+    def __init__(self, min_score: float = 0.5):
+        face_detection, face_mesh = _mediapipe()
+        self.min_score = min_score
+        # Full range (model 1): it also finds the small face of a whole body seen from afar.
+        self._faces = face_detection.FaceDetection(model_selection=1, min_detection_confidence=0.2)
+        self._mesh = face_mesh.FaceMesh(static_image_mode=True, max_num_faces=1, refine_landmarks=False,
+                                        min_detection_confidence=min_score)
+
+    def close(self):
+        self._faces.close()
+        self._mesh.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    @staticmethod
+    def _rgb(gray):
+        return np.ascontiguousarray(np.repeat(np.asarray(gray, np.uint8)[..., None], 3, axis=2))
+
+    def faces(self, gray) -> list[Detection]:
+        """Faces in a grey image, best first (any score; compare with ``min_score``)."""
+        h, w = gray.shape
+        res = self._faces.process(self._rgb(gray))
+        out = []
+        for d in res.detections or []:
+            b = d.location_data.relative_bounding_box
+            out.append(Detection(float(d.score[0]), np.array([b.xmin * w, b.ymin * h, (b.xmin + b.width) * w,
+                                                              (b.ymin + b.height) * h])))
+        return sorted(out, key=lambda d: -d.score)
+
+    def mesh_points(self, gray):
+        """The 468 face-mesh points of the face in a grey image as pixel (x, y), or None when none is found."""
+        h, w = gray.shape
+        res = self._mesh.process(self._rgb(gray))
+        if not res.multi_face_landmarks:
+            return None
+        lm = res.multi_face_landmarks[0].landmark
+        return np.array([[lm[i].x * w - 0.5, lm[i].y * h - 0.5] for i in range(MESH_POINTS)])

@@ -1,0 +1,351 @@
+"""Find the 68 landmarks on a head mesh: render, detect, back-project, map.
+
+1. **Search.** The mesh is rendered from the six axis directions; each image
+   is read in four rolls (0, 90, 180, 270°) by the face detector, so heads in
+   any axis convention, turned or lying, and whole bodies are found.
+2. **Zoom.** The best face is rendered again, filling the image; the face
+   mesh's 468 points are cast back onto the mesh.
+   Each roll of the zoom is read, and the reading that best fits the map's
+   template (a similarity fit) gives the face's pose.
+3. **Frontal.** The face is rendered straight on and turned a little
+   (:data:`FRONTAL_TURNS`); each render's 468 points are cast onto the skin
+   (the parts most of them hit: lashes, eyeballs and helper geometry in front
+   of the skin are looked through) and averaged.
+4. **Map.** The shipped affine map turns 468 points into the 68 Multi-PIE
+   landmarks, snapped onto the skin. Confidence per landmark group falls with
+   the group's spread over the frontal renders and with rays that missed skin.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import LandmarkError, MeshError
+from ..head.rigid import rotation_vector_matrix
+from ..surface.frame import UNITS_MM
+from .detector import Detector
+from .facemap import GROUPS, LandmarkMap, read_map, robust_similarity
+from .render import Raster, View, back_project, rasterise, shade
+
+#: The search's view directions (towards the viewer) with an up vector each.
+SEARCH_AXES = {"+z": ((0, 0, 1), (0, 1, 0)), "-y": ((0, -1, 0), (0, 0, 1)), "+x": ((1, 0, 0), (0, 1, 0)),
+               "-x": ((-1, 0, 0), (0, 1, 0)), "-z": ((0, 0, -1), (0, 1, 0)), "+y": ((0, 1, 0), (0, 0, 1))}
+#: Pixels of the search renders and of the zoomed and frontal face renders.
+SEARCH_SIZE, FACE_SIZE = 512, 384
+#: Half-width of the frontal render in the template's mm (the face about half the image across).
+FRONTAL_HALF_MM = 130.0
+#: A search can stop early at a face this sure.
+SURE = 0.6
+#: How far (mm) behind what a ray hits first it may still find the skin (lashes and eyeballs are in front).
+SKIN_REACH_MM = 12.0
+#: The frontal renders' turns from straight on (rotation vector, degrees: pitch, yaw, roll).
+FRONTAL_TURNS = ((0, 0, 0), (0, 10, 0), (0, -10, 0), (8, 0, 0))
+#: A group's median spread (mm) over the frontal renders, where the map records none for it: the spread at
+#: which its confidence is 1/√2 (and 1/2 at twice it).
+SPREAD_MM = 1.0
+#: Candidates (surest first) whose zoomed face mesh is checked against the template, and the residual that
+#: ends the check early.
+MAX_CANDIDATES, GOOD_RESIDUAL_MM = 4, 6.0
+#: Residual (mm RMS) of the 468 points against the template beyond which they are not a face.
+MAX_RESIDUAL_MM = 12.0
+
+
+@dataclass
+class FoundLandmarks:
+    """Landmarks found on a mesh.
+
+    ``points`` (68, 3) are exact surface points, ``indices`` (68,) the nearest
+    skin vertices; ``confidence`` per group in [0, 1], from ``spread_mm``, the
+    group's median spread over the frontal renders; ``score`` the face
+    detector's; ``view`` the search direction and roll the face was found in;
+    ``mesh_points`` (468, 3) the face mesh's points on the skin, averaged over
+    the frontal renders (``view_points``, one row each); ``residual_mm`` the
+    face-mesh points' RMS distance from the template after a similarity fit;
+    ``mm_per_unit`` the scale found (or the given unit's).
+    """
+
+    points: np.ndarray
+    indices: np.ndarray
+    confidence: dict
+    spread_mm: dict
+    score: float
+    view: str
+    residual_mm: float
+    mm_per_unit: float
+    skin: np.ndarray = field(repr=False, default=None)
+    mesh_points: np.ndarray = field(repr=False, default=None)
+    view_points: np.ndarray = field(repr=False, default=None)
+    images: dict = field(repr=False, default_factory=dict)
+
+    def to_json(self) -> dict:
+        """The landmarks file (``indices`` and ``points``, with how sure each group is)."""
+        return {"indices": self.indices.tolist(), "points": np.round(self.points, 6).tolist(),
+                "confidence": {k: round(v, 3) for k, v in self.confidence.items()},
+                "spread_mm": {k: round(v, 3) for k, v in self.spread_mm.items()},
+                "detector_score": round(self.score, 3), "view": self.view,
+                "residual_mm": round(self.residual_mm, 2), "mm_per_unit": round(self.mm_per_unit, 6),
+                "source": "pdeface landmarks (MediaPipe face mesh, Apache-2.0; map fitted on ICT-FaceKit, MIT)"}
+
+
+def _framing(V, forward, up, size, margin=1.05):
+    view = View.looking(forward, up, np.zeros(3), 1.0, size)
+    q = V @ view.rotation.T
+    lo, hi = q.min(0), q.max(0)
+    centre = ((lo + hi) / 2) @ view.rotation
+    return View(view.rotation, centre, float(max(hi[:2] - lo[:2]) / 2 * margin), size)
+
+
+def search(V, T, detector: Detector, size=SEARCH_SIZE):
+    """Views (rolled upright) of the faces the detector is sure of, surest first, and what was tried.
+
+    Every roll of a direction is read; the search stops after a direction with
+    a face scoring :data:`SURE`. A detector may also score a face upside down,
+    so the caller checks candidates with the face mesh (:func:`detect`).
+
+    Raises
+    ------
+    LandmarkError
+        When no view shows a face, or the best view shows two.
+    """
+    tried, found = [], []
+    for name, (forward, up) in SEARCH_AXES.items():
+        base = _framing(V, forward, up, size)
+        img = shade(V, T, rasterise(V, T, base))
+        for k in range(4):
+            faces = detector.faces(np.rot90(img, k))
+            label = f"{name} roll {90 * k}"
+            tried.append((label, faces[0].score if faces else 0.0))
+            if faces and faces[0].score >= detector.min_score:
+                found.append((base.rolled(k), label, faces))
+        if found and max(f[2][0].score for f in found) >= SURE:
+            break
+    if not found:
+        top = max(tried, key=lambda t: t[1])
+        raise LandmarkError(f"no face found: rendered from {len(tried) // 4} directions in 4 rolls each "
+                            f"({len(tried)} images); best detector score {top[1]:.2f} ({top[0]}) < "
+                            f"{detector.min_score}. Is the face part of this mesh and open to view? "
+                            "Give the landmarks by hand instead.")
+    found.sort(key=lambda f: -f[2][0].score)
+    view, name, faces = found[0]
+    sure = [d for d in faces if d.score >= detector.min_score]
+    if len(sure) > 1 and not _overlap(sure[0].box, sure[1].box):
+        raise LandmarkError(f"two faces found in view {name} (scores {sure[0].score:.2f}, {sure[1].score:.2f}): "
+                            "landmarks are found on one head at a time; select or export one head")
+    return [(v, n, f[0]) for v, n, f in found], tried
+
+
+def _overlap(a, b):
+    w = min(a[2], b[2]) - max(a[0], b[0])
+    h = min(a[3], b[3]) - max(a[1], b[1])
+    return w > 0 and h > 0
+
+
+def zoom(view: View, box, size=FACE_SIZE, fill=0.5) -> View:
+    """A view of the same direction centred on a detected box, the box ``fill`` of the image across."""
+    cx, cy = (box[0] + box[2]) / 2, (box[1] + box[3]) / 2
+    s = view.size / 2
+    a, b = (cx + 0.5) / s - 1, 1 - (cy + 0.5) / s
+    centre = view.centre + view.half * (a * view.rotation[0] + b * view.rotation[1])
+    half = view.half * max(box[2] - box[0], box[3] - box[1]) / view.size / fill
+    return View(view.rotation, centre, half, size)
+
+
+def frontal(template, s, R, t, turn=np.eye(3), size=FACE_SIZE) -> View:
+    """A frontal view of the face whose template pose is ``(s, R, t)`` (mesh = s · template · Rᵀ + t), or one
+    turned by ``turn`` (a rotation in the template's frame) about the face's middle."""
+    centre = s * template.mean(0) @ R.T + t
+    Rt = R @ turn
+    return View.looking(Rt[:, 2], Rt[:, 1], centre, s * FRONTAL_HALF_MM, size)
+
+
+def face_points(V, T, detector: Detector, view: View | Raster, img=None):
+    """The face mesh's 468 points in one view, cast onto the mesh.
+
+    Returns points (468, 3), their triangles, their pixels (468, 2) and the
+    image; points, triangles and pixels are None when the face mesh finds no face.
+    """
+    raster = view if isinstance(view, Raster) else rasterise(V, T, view)
+    img = shade(V, T, raster) if img is None else img
+    px = detector.mesh_points(img)
+    if px is None:
+        return None, None, None, img
+    P, tri, _ = back_project(V, T, raster, px[:, 0], px[:, 1])
+    return P, tri, px, img
+
+
+def first_pass(V, T, detector: Detector, template, candidates):
+    """The face's pose from the zoomed face mesh of the first candidate that fits the template within
+    :data:`GOOD_RESIDUAL_MM`, or else of the best fitting one: ``(name, score, (s, R, t), residual)``,
+    or None when the face mesh finds no face.
+
+    Each zoomed render is read in its four rolls: the detector may have found the face upside down, and the
+    face mesh is only right the right way up.
+    """
+    best = None
+    for view, name, found in candidates[:MAX_CANDIDATES]:
+        raster = rasterise(V, T, zoom(view, found.box))
+        img = shade(V, T, raster)
+        for k in range(4):
+            P, _, _, _ = face_points(V, T, detector, raster.rolled(k), np.rot90(img, k))
+            if P is None:
+                continue
+            s, R, t, residual = robust_similarity(template, P)
+            if best is None or residual < best[3]:
+                best = (name, found.score, (s, R, t), residual)
+        if best is not None and best[3] <= GOOD_RESIDUAL_MM:
+            break
+    return best
+
+
+def skin_triangles(V, T, tri, share=0.05):
+    """Triangles of the connected parts that at least ``share`` of the cast points hit (the face's skin)."""
+    from ..mesh import connected_components
+
+    labels = connected_components(len(V), T)
+    hit = labels[T[tri[tri >= 0], 0]]
+    parts, counts = np.unique(hit, return_counts=True)
+    skin_parts = parts[counts >= share * max(len(tri), 1)]
+    return np.isin(labels[T[:, 0]], skin_parts)
+
+
+def on_skin(V, Ts, skin_raster: Raster, px, P_any, reach, closest):
+    """Cast the pixels again onto the skin triangles ``Ts`` only (``skin_raster`` shows them alone).
+
+    A ray may pass lashes or an eyeball in front of the skin, but not go on
+    more than ``reach`` (mesh units) behind what it hit first: a ray between
+    closed lips would otherwise find the inside of the back of the head. Rays
+    without such a skin hit take the skin point nearest their first hit
+    (``closest``, a :class:`~pdeface.geometry.ClosestPoint` on the skin).
+    Returns points (468, 3) and which rays hit skin directly.
+    """
+    P, tri, _ = back_project(V, Ts, skin_raster, px[:, 0], px[:, 1])
+    behind = np.einsum("ij,j->i", P_any - P, skin_raster.view.rotation[2])
+    P[~(behind <= reach)] = np.nan
+    miss = ~np.isfinite(P).all(1) & np.isfinite(P_any).all(1)
+    if miss.any():
+        P[miss] = closest.query(P_any[miss])[3]
+    return P, np.isfinite(P).all(1) & ~miss
+
+
+def frontal_readings(V, T, skin, detector: Detector, m: LandmarkMap, pose, first=None):
+    """The face mesh's points on the skin from each frontal render (:data:`FRONTAL_TURNS`), each read as it
+    is and mirrored (the mirrored reading's points renumbered by ``m.mirror``, which cancels any left-right
+    bias of the face mesh). ``first``: a straight-on render's raster, image and pixels, already read.
+    Returns points (readings, 468, 3) and which rays hit skin directly (readings, 468)."""
+    from ..geometry import ClosestPoint
+
+    Ts = T[skin]
+    closest = ClosestPoint(V, Ts)
+    reach = SKIN_REACH_MM * pose[0]
+    Ps, direct = [], []
+    for k, turn in enumerate(FRONTAL_TURNS):
+        view = frontal(m.template, *pose, rotation_vector_matrix(np.radians(turn)))
+        raster, img, px = first if (k == 0 and first is not None) else (rasterise(V, T, view), None, None)
+        img = shade(V, T, raster) if img is None else img
+        skin_raster = rasterise(V, Ts, raster.view)
+        for mirrored in (False, True) if m.mirror is not None else (False,):
+            r, sr = (raster.flipped(), skin_raster.flipped()) if mirrored else (raster, skin_raster)
+            if px is None or mirrored:
+                px_ = detector.mesh_points(np.fliplr(img) if mirrored else img)
+            else:
+                px_ = px
+            if px_ is None:
+                continue
+            P_any, _, _ = back_project(V, T, r, px_[:, 0], px_[:, 1])
+            P, hit = on_skin(V, Ts, sr, px_, P_any, reach, closest)
+            if mirrored:
+                P, hit = P[m.mirror], hit[m.mirror]
+            Ps.append(P)
+            direct.append(hit)
+    return np.stack(Ps), np.stack(direct)
+
+
+def detect(V, T, unit=None, landmark_map: LandmarkMap | None = None, detector: Detector | None = None,
+           keep_images=False) -> FoundLandmarks:
+    """Find the 68 Multi-PIE landmarks on a mesh.
+
+    Parameters
+    ----------
+    V : (n, 3) array
+        Vertices, any unit, any orientation; a whole body is fine.
+    T : (m, 3) int array
+        Triangles.
+    unit : {'mm', 'cm', 'm', 'in'} or None
+        The mesh unit, for the mm figures; estimated from the face's size when None.
+    landmark_map : LandmarkMap, optional
+        The shipped map by default.
+    detector : Detector, optional
+        A loaded detector to reuse (its models take ~0.1 s to load).
+
+    Raises
+    ------
+    MissingDependencyError
+        Without ``mediapipe`` 0.10.x.
+    LandmarkError
+        No face, two faces, or points that are not a face.
+    """
+    V, T = np.asarray(V, np.float64), np.asarray(T, np.int64)
+    if V.ndim != 2 or V.shape[1] != 3 or len(V) < 3 or not np.isfinite(V).all():
+        raise MeshError("vertices must be (n, 3) finite numbers")
+    if T.ndim != 2 or T.shape[1] != 3 or len(T) == 0 or T.min() < 0 or T.max() >= len(V):
+        raise MeshError("triangles must be (m, 3) vertex indices")
+    m = landmark_map or read_map()
+    own = detector is None
+    detector = detector or Detector()
+    try:
+        candidates, tried = search(V, T, detector)
+        first = first_pass(V, T, detector, m.template, candidates)
+        if first is None:
+            raise LandmarkError(f"no face found: the detector saw one in {len(candidates[:MAX_CANDIDATES])} view(s) "
+                                f"(best {candidates[0][1]}, score {candidates[0][2].score:.2f}) but the face mesh "
+                                "found none there. Is the face part of this mesh and open to view? Give the "
+                                "landmarks by hand instead.")
+        name, score, pose, _ = first
+        # Frontal renders: straight on (which also finds the skin and refines the pose), then turned a little;
+        # their landmarks are averaged and their spread gives the confidence.
+        fview = frontal(m.template, *pose)
+        raster = rasterise(V, T, fview)
+        P_any, tri, px, img = face_points(V, T, detector, raster)
+        if P_any is None:
+            raise LandmarkError(f"the face found in view {name} was lost in its frontal render")
+        s, R, t, residual = robust_similarity(m.template, P_any)
+        if residual > MAX_RESIDUAL_MM:
+            raise LandmarkError(f"the points found in view {name} do not make a face (RMS {residual:.1f} mm from "
+                                f"the template, over {MAX_RESIDUAL_MM} mm): give the landmarks by hand")
+        skin = skin_triangles(V, T, tri)
+        Ps, direct = frontal_readings(V, T, skin, detector, m, (s, R, t), first=(raster, img, px))
+        P2 = np.nanmean(Ps, axis=0)
+        points, indices = snap(V, T[skin], m.apply(P2))
+        mm = UNITS_MM[unit] if unit else 1.0 / s
+        spread = group_spread(m, Ps, mm)
+        direct = direct.mean(0)
+        # A group as steady as on the training heads scores 1/√2 of its rays' skin hits; twice as unsteady, 1/2.
+        confidence = {g: float(np.mean(direct[np.unique(m.indices[list(rows)])])
+                               * 0.5 ** (spread[g] / (2 * m.spread_mm.get(g, SPREAD_MM))))
+                      for g, rows in GROUPS.items()}
+        images = {"frontal": img, "view": fview} if keep_images else {}
+        return FoundLandmarks(points, indices, confidence, spread, score, name, residual, float(mm), skin=skin,
+                              mesh_points=P2, view_points=Ps, images=images)
+    finally:
+        if own:
+            detector.close()
+
+
+def group_spread(m: LandmarkMap, view_points, mm=1.0) -> dict:
+    """Each landmark group's median spread (mm): how far its landmarks from single frontal renders
+    (``view_points (views, 468, 3)``) lie at most from their mean."""
+    L = np.stack([m.apply(P) for P in view_points])
+    d = np.linalg.norm(L - L.mean(0), axis=2).max(0) * mm
+    return {g: float(np.median(d[list(rows)])) for g, rows in GROUPS.items()}
+
+
+def snap(V, T, L):
+    """Landmarks moved onto the surface ``(V, T)`` and the nearest vertex of it to each."""
+    from scipy.spatial import cKDTree
+
+    from ..geometry import ClosestPoint
+
+    points = ClosestPoint(V, T).query(L)[3]
+    used = np.unique(T)
+    return points, used[cKDTree(V[used]).query(points)[1]]
