@@ -9,6 +9,7 @@ Blender's convention (-y front, +z up) with 25° of yaw, in metres:
   median and p95, jawline (0-16) median; time per mesh;
 - fitting with the found landmarks (from either pose) against ICT's own: the neutral
   fit's mean error (accuracy_report) and the median captured of the retargeted bundled AUs;
+- one held-out head turned 45° about each axis, in ICT's axes (mm) and Blender's (m);
 - a whole-body character in metres of another topology: found, fitted, its errors.
 Needs ``pdeface[landmarks]``.
 """
@@ -39,6 +40,9 @@ from pdeface.surface.report import accuracy_report  # noqa: E402
 #: The two ways each held-out head is seen: (name, matrix from ICT cm, unit, mm per unit).
 POSES = [("ict-cm", np.eye(3), "cm", 10.0),
          ("blender-yaw25-m", BLENDER_FROM_ICT @ rotation_vector_matrix([0, np.radians(25), 0]) * 0.01, "m", 1000.0)]
+#: Turns (rotation vectors, degrees) a held-out head is also found in.
+TURNS = {"yaw 45": (0, 45, 0), "yaw -45": (0, -45, 0), "pitch 45": (45, 0, 0), "pitch -45": (-45, 0, 0),
+         "roll 45": (0, 0, 45), "yaw+pitch 30": (30, 30, 0)}
 TARGETS = {"inner_median": 1.5, "inner_p95": 4.0, "jaw_median": 5.0, "seconds": 5.0}
 
 
@@ -108,6 +112,18 @@ def main(argv=None):
         print(f"  worst neutral ratio {acc_ratio:.3f} (target <= 1.10); worst captured drop {cap_drop:.3f} "
               "(target <= 0.02)")
         out["worst"], out["fit_ratio"], out["captured_drop"] = worst, acc_ratio, cap_drop
+        print(f"== {held[1]} turned 45° about each axis (and 30° + 30°), in ICT's axes in mm and Blender's in m")
+        V = mesh.vertices + shapes[held[1]]
+        out["turned"] = {}
+        for turn, rv in TURNS.items():
+            for conv, B, scale, mm in (("ict-mm", np.eye(3), 10.0, 1.0), ("blender-m", BLENDER_FROM_ICT, 0.01, 1000.0)):
+                M = B @ rotation_vector_matrix(np.radians(rv)) * scale
+                t = time.perf_counter()
+                found = detect(V @ M.T, T, detector=det)
+                e = {**errors(found.points, V[lm] @ M.T, mm), "seconds": time.perf_counter() - t, "view": found.view}
+                out["turned"][f"{turn} {conv}"] = e
+                print(f"  {turn:13s} {conv:10s} view {found.view:12s} inner median {e['inner_median']:.2f} mm, "
+                      f"p95 {e['inner_p95']:.2f}, jaw median {e['jaw_median']:.2f}, {e['seconds']:.2f} s", flush=True)
         print("== a whole body in metres, Blender's axes, another topology (head clustered at 3 mm)")
         Vb, Tb, M, shift = body_character(mesh.vertices + shapes[held[0]], T)
         t = time.perf_counter()

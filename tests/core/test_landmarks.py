@@ -210,6 +210,17 @@ def test_a_turned_head_in_metres_is_found(heads):
 
 
 @needs_mediapipe
+def test_a_head_lying_face_up_in_mm_is_found(heads):
+    # Pitched back 45° and more: the face is found from above (+y), upside down in that image.
+    mesh, T, lm, shapes = heads
+    M = rotation_vector_matrix([np.radians(-45), 0, 0]) * 10
+    V = (mesh.vertices + shapes["identity018"]) @ M.T
+    found = detect(V, T)
+    err = np.linalg.norm(found.points - V[lm], axis=1)
+    assert np.median(err[17:]) < 2.0 and np.median(err[:17]) < 6.0 and 0.8 < found.mm_per_unit < 1.2
+
+
+@needs_mediapipe
 def test_no_face_and_two_faces_are_clear_errors(heads):
     mesh, T, _, _ = heads
     u, v = np.meshgrid(np.linspace(0, np.pi, 20), np.linspace(0, 2 * np.pi, 40), indexing="ij")
