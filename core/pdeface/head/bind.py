@@ -35,6 +35,10 @@ from ..surface.model import KEPT_LANDMARKS
 from .parts import classify_parts, eye_distance_mm, mouth_line
 from .rigid import JAW_BONE_GAIN, gaze_matrix, jaw_hinge, jaw_motion, rigid_displacement, rotation_vector_matrix
 
+#: The PDE face as the binding reads it: between an opening's rims the runs carry their own motion into the
+#: strip (the break piece at their full slope), so skin hidden behind a lip or lid follows its rim, while the
+#: mesh :func:`~pdeface.surface.fit.face_mesh` shows links the rims flat (pdeface.surface.pde.BREAK_SLOPE).
+READ_BREAK_SLOPE = 1.0
 #: PDE grid the binding reads (rows per curve interval, columns per point interval).
 RESOLUTION = (4, 4)
 #: Skin within this many eye distances of the PDE surface, facing its way, is covered by it.
@@ -93,7 +97,7 @@ def _read_pde(model, P, N, s, resolution):
 
     from ..geometry import ClosestPoint, triangle_cross, unit_rows
 
-    X0 = surface_grid(model, *resolution)
+    X0 = surface_grid(model, *resolution, break_slope=READ_BREAK_SLOPE)
     nu, nv, _ = X0.shape
     X0 = X0.reshape(-1, 3)
     Q = grid_faces(nu, nv)
@@ -285,7 +289,8 @@ class HeadBinding:
             Gaze AU weights ``{61: w, ...}``: turn the eyeballs.
         """
         m = self.model
-        D = surface_grid(m, *self.resolution, coefficients=delta_coefficients, residual=delta_residual).reshape(-1, 3)
+        D = surface_grid(m, *self.resolution, coefficients=delta_coefficients, residual=delta_residual,
+                         break_slope=READ_BREAK_SLOPE).reshape(-1, 3)
         out = np.zeros((len(self.V), 3))
         jaw = jaw and self.chin is not None
         d = self.skin_displacement(D, jaw)

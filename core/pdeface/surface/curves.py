@@ -17,7 +17,7 @@ from scipy.sparse.linalg import splu
 
 from ..errors import LayoutError
 from ..geometry import ClosestPoint, cast_cylinder_rays
-from .layout import CurveLayout
+from .layout import OPENING_GAP, CurveLayout
 
 #: Status codes of curve points.
 HIT, MISS, BACKFACING, CAVITY, GRAZING = 0, 1, 2, 3, 4
@@ -41,13 +41,17 @@ class CurveSampler:
     matrix: sp.csr_matrix
     status: np.ndarray
     shape: tuple
+    #: The matrix before :func:`join_rims` (the points as cast on the skin), or None.
+    cast: sp.csr_matrix | None = None
 
-    def sample(self, V: np.ndarray) -> np.ndarray:
-        """Curve points ``(K, J, 3)`` read off vertices ``V`` of the same topology."""
+    def sample(self, V: np.ndarray, cast=False) -> np.ndarray:
+        """Curve points ``(K, J, 3)`` read off vertices ``V`` of the same topology (``cast``: as cast on the
+        skin, before the rims were joined)."""
         V = np.asarray(V, dtype=np.float64)
         if V.ndim != 2 or V.shape[1] != 3 or len(V) != self.matrix.shape[1]:
             raise LayoutError(f"mesh has {len(V)} vertices; the curves were placed on one with {self.matrix.shape[1]}")
-        return np.asarray(self.matrix @ V).reshape(*self.shape, 3)
+        M = self.cast if cast and self.cast is not None else self.matrix
+        return np.asarray(M @ V).reshape(*self.shape, 3)
 
     def summary(self) -> dict:
         """Count of points per status name."""
@@ -158,6 +162,42 @@ def place_samples(V_face: np.ndarray, T: np.ndarray, layout: CurveLayout,
     S.eliminate_zeros()
     S = _fill_weights(valid) @ S
     return CurveSampler(sp.csr_matrix(S), status, (K, J))
+
+
+def joined_rims(layout: CurveLayout, b: int) -> np.ndarray:
+    """Columns (J,) beyond the corners of the opening at break ``b``: its rims' rays are
+    :data:`~pdeface.surface.layout.OPENING_GAP` apart."""
+    H = layout.ray_heights()
+    return np.abs(H[b] - H[b + 1]) < 1.5 * OPENING_GAP  # (the bent lines vary it by a few µm)
+
+
+def join_rims(sampler: CurveSampler, layout: CurveLayout, V_face: np.ndarray) -> CurveSampler:
+    """The sampler with each opening's two rims made one smooth line beyond the opening's corners.
+
+    There the rims' rays lie :data:`~pdeface.surface.layout.OPENING_GAP` apart in
+    height, and on steep skin (the eye's outer corner) the lower one lands
+    deeper, so the strip between them would stand up from the face and crease
+    it. Instead both rims sit at their mean, stepped apart along the line from
+    the curve above to the curve below (its length at rest scaled to the gap):
+    a fixed linear combination of the rows, so every pose sampled through it
+    gets the same treatment.
+    """
+    P = sampler.sample(V_face)
+    M = sampler.matrix.tolil()
+    K, J = sampler.shape
+    for b in layout.breaks():
+        if b < 1 or b + 2 >= K:
+            continue
+        for j in np.nonzero(joined_rims(layout, b))[0]:
+            row = lambda k: sampler.matrix[k * J + j]  # noqa: E731
+            span = np.linalg.norm(P[b + 2, j] - P[b - 1, j])
+            if span <= 0:
+                continue
+            mean = 0.5 * (row(b) + row(b + 1))
+            step = (OPENING_GAP / span) * (row(b + 2) - row(b - 1))
+            M[b * J + j] = mean - 0.5 * step
+            M[(b + 1) * J + j] = mean + 0.5 * step
+    return CurveSampler(sp.csr_matrix(M), sampler.status, sampler.shape, sampler.matrix)
 
 
 def project_samples(points: np.ndarray, V: np.ndarray, T: np.ndarray, status=None) -> CurveSampler:

@@ -14,7 +14,7 @@ from .fourier import fit_fourier
 from .frame import face_frame, feature_points
 from .layout import DEFAULT_CURVES, place_curves
 from .model import FaceModel
-from .pde import output_grid, solve_surface
+from .pde import BREAK_SLOPE, output_grid, solve_surface
 
 #: Named output resolutions: (rows per curve interval, columns per point interval).
 RESOLUTIONS = {"default": (4, 4), "original": (10, 1), "fine": (8, 8)}
@@ -126,7 +126,7 @@ def fit_face(vertices, triangles, landmarks, unit=None, n_curves=DEFAULT_CURVES,
     sampler : pdeface.surface.curves.CurveSampler
         The curve points as material points of this mesh.
     """
-    from .curves import place_samples
+    from .curves import join_rims, place_samples
     from .rims import follow_rims
     V = np.asarray(vertices, dtype=np.float64)
     T = np.asarray(triangles, dtype=np.int64)
@@ -149,7 +149,7 @@ def fit_face(vertices, triangles, landmarks, unit=None, n_curves=DEFAULT_CURVES,
         if len(skin) == 0:
             raise MeshError("the skin given has no triangles")
     layout = follow_rims(layout, Vf, skin)
-    sampler = place_samples(Vf, skin, layout)
+    sampler = join_rims(place_samples(Vf, skin, layout), layout, Vf)
     points = sampler.sample(Vf)
     coef, res = fit_fourier(points, n_modes)
     model = FaceModel(layout, chord_knots(points), coef, res, frame, feature_points(Lf), a=a,
@@ -157,12 +157,13 @@ def fit_face(vertices, triangles, landmarks, unit=None, n_curves=DEFAULT_CURVES,
     return model, sampler
 
 
-def surface_grid(model: FaceModel, sub_u=4, sub_v=4, assembly=None, coefficients=None, residual=None, deriv=(0, 0)):
+def surface_grid(model: FaceModel, sub_u=4, sub_v=4, assembly=None, coefficients=None, residual=None, deriv=(0, 0),
+                 break_slope=BREAK_SLOPE):
     """PDE surface (or a derivative) on the output grid, in the face frame (mm)."""
     return solve_surface(model.coefficients if coefficients is None else coefficients,
                          model.residual if residual is None else residual,
                          model.knots, model.a, model.remainder_w, sub_u, sub_v,
-                         assembly or model.assembly, deriv, model.layout.breaks())
+                         assembly or model.assembly, deriv, model.layout.breaks(), break_slope)
 
 
 def grid_faces(n_u: int, n_v: int) -> np.ndarray:

@@ -139,6 +139,10 @@ def _check(knots, assembly):
         raise LayoutError(f"the patches assembly needs 3m+1 curves (4, 7, ..., 31, 34), got {len(knots)}")
 
 
+#: A break piece's u-slope at its rims as a share of the adjoining run's. Beyond an opening's corners the
+#: rims lie a tenth of a millimetre apart while the runs travel millimetres per interval: with the runs'
+#: full slope the piece would loop back between them and fold the mesh; this share keeps it monotone.
+BREAK_SLOPE = 0.04
 #: Curve intervals each run between breaks needs (its two not-a-knot conditions must differ).
 MIN_RUN = 3
 
@@ -156,7 +160,7 @@ def _check_breaks(K: int, breaks: tuple):
 
 
 @lru_cache(maxsize=512)
-def _smooth_coefficients(knots: tuple, k: float, breaks: tuple = ()) -> np.ndarray:
+def _smooth_coefficients(knots: tuple, k: float, breaks: tuple = (), break_slope: float = BREAK_SLOPE) -> np.ndarray:
     """Per-interval basis coefficients (4(K-1), K) of the C2 interpolant.
 
     At a break ``b`` (the interval between curves b and b+1) C2 is released
@@ -176,10 +180,15 @@ def _smooth_coefficients(knots: tuple, k: float, breaks: tuple = ()) -> np.ndarr
     for i in range(K - 1):
         A[r, 4 * i:4 * i + 4] = phi[i][0][0]; B[r, i] = 1; r += 1
         A[r, 4 * i:4 * i + 4] = phi[i][0][1]; B[r, i + 1] = 1; r += 1
+    starts = set(breaks)
     for i in range(1, K - 1):
         for d in ((1,) if i in ends else (1, 2)):
-            A[r, 4 * (i - 1):4 * i] = phi[i - 1][d][1]
-            A[r, 4 * i:4 * i + 4] = -phi[i][d][0]
+            # Into and out of a break piece the u-slope shrinks to break_slope of the run's: the same tangent
+            # direction (so no crease), but the piece no longer overshoots where its rims nearly meet.
+            above = break_slope if i in starts else 1.0
+            below = break_slope if i - 1 in starts else 1.0
+            A[r, 4 * (i - 1):4 * i] = phi[i - 1][d][1] * above
+            A[r, 4 * i:4 * i + 4] = -phi[i][d][0] * below
             r += 1
     if K >= 4:  # not-a-knot: third derivative continuous at the second and last-but-one curves of each run
         bounds = [0, *sorted(ends), K - 1]
@@ -207,7 +216,7 @@ def _patch_coefficients(knots: tuple, k: float) -> list:
     return out
 
 
-def _pieces(knots: tuple, k: float, assembly: str, breaks: tuple) -> list:
+def _pieces(knots: tuple, k: float, assembly: str, breaks: tuple, break_slope: float = BREAK_SLOPE) -> list:
     """The assembly's pieces: (first curve, height H, its curves' local u in [0, 1], basis coefficients, columns).
 
     ``smooth``: one piece per curve interval, whose coefficients (4, K) read all
@@ -215,7 +224,7 @@ def _pieces(knots: tuple, k: float, assembly: str, breaks: tuple) -> list:
     """
     u = np.array(knots)
     if assembly == "smooth":
-        C = _smooth_coefficients(knots, k, breaks)
+        C = _smooth_coefficients(knots, k, breaks, break_slope)
         h = np.diff(u)
         ends = np.array([0.0, 1.0])
         return [(i, h[i], ends, C[4 * i:4 * i + 4], slice(None)) for i in range(len(u) - 1)]
@@ -229,7 +238,7 @@ def _pieces(knots: tuple, k: float, assembly: str, breaks: tuple) -> list:
 
 @lru_cache(maxsize=512)
 def mode_operator(knots: tuple, k: float, sub_u: int, assembly: str = "smooth", deriv: int = 0,
-                  breaks: tuple = ()) -> np.ndarray:
+                  breaks: tuple = (), break_slope: float = BREAK_SLOPE) -> np.ndarray:
     """Matrix (n_u, K) taking the K curve values of one mode to its values on the output rows.
 
     ``deriv=1`` gives d/du instead. At a curve shared by two pieces, the row
@@ -240,7 +249,7 @@ def mode_operator(knots: tuple, k: float, sub_u: int, assembly: str = "smooth", 
     K = len(knots)
     s = np.arange(sub_u) / sub_u
     rows = []
-    for a, H, tk, C, cols in _pieces(knots, k, assembly, breaks):
+    for a, H, tk, C, cols in _pieces(knots, k, assembly, breaks, break_slope):
         t = np.concatenate([tk[j] + (tk[j + 1] - tk[j]) * s for j in range(len(tk) - 1)])
         if a + len(tk) - 1 == K - 1:
             t = np.append(t, 1.0)
@@ -338,20 +347,21 @@ class SurfaceOperator:
 
 @lru_cache(maxsize=64)
 def surface_operator(knots: tuple, n_points: int, n_modes: int, a: float, w: float, sub_u: int, sub_v: int,
-                     assembly: str = "smooth", deriv: tuple = (0, 0), breaks: tuple = ()) -> SurfaceOperator:
+                     assembly: str = "smooth", deriv: tuple = (0, 0), breaks: tuple = (),
+                     break_slope: float = BREAK_SLOPE) -> SurfaceOperator:
     """Cached :class:`SurfaceOperator` (see :func:`solve_surface` for the arguments)."""
     du, dv = deriv
     v = np.linspace(0.0, np.pi, (n_points - 1) * sub_v + 1)
     n = np.arange(n_modes + 1)
     # d^dv/dv^dv of cos(n v): cos for dv = 0, -n sin for dv = 1.
     cos_nv = np.cos(np.outer(v, n)) if dv == 0 else -np.sin(np.outer(v, n)) * n
-    modes = np.stack([mode_operator(knots, a * m, sub_u, assembly, du, breaks) for m in n])
-    return SurfaceOperator(modes, cos_nv, mode_operator(knots, w, sub_u, assembly, du, breaks),
+    modes = np.stack([mode_operator(knots, a * m, sub_u, assembly, du, breaks, break_slope) for m in n])
+    return SurfaceOperator(modes, cos_nv, mode_operator(knots, w, sub_u, assembly, du, breaks, break_slope),
                            residual_v_operator(n_points, sub_v, dv))
 
 
 def solve_surface(coefficients, residual, knots, a=1.0, w=None, sub_u=4, sub_v=4,
-                  assembly="smooth", deriv=(0, 0), breaks=()):
+                  assembly="smooth", deriv=(0, 0), breaks=(), break_slope=BREAK_SLOPE):
     """Evaluate the PDE surface (or a derivative) on the output grid.
 
     Parameters
@@ -375,6 +385,8 @@ def solve_surface(coefficients, residual, knots, a=1.0, w=None, sub_u=4, sub_v=4
     breaks : tuple of int
         Curve intervals the ``smooth`` assembly solves apart (see the module
         notes); from :meth:`pdeface.surface.layout.CurveLayout.breaks`.
+    break_slope : float
+        A break piece's u-slope at its rims as a share of the runs' (:data:`BREAK_SLOPE`).
 
     Returns
     -------
@@ -390,5 +402,5 @@ def solve_surface(coefficients, residual, knots, a=1.0, w=None, sub_u=4, sub_v=4
         raise LayoutError(f"{K} curves of coefficients but {len(kn)} curve parameters and {residual.shape[0]} residual rows")
     w = a * N1 if w is None else w
     op = surface_operator(kn, residual.shape[1], N1 - 1, float(a), float(w), int(sub_u), int(sub_v), assembly,
-                          tuple(deriv), tuple(int(b) for b in breaks))
+                          tuple(deriv), tuple(int(b) for b in breaks), float(break_slope))
     return op.apply(coefficients, residual)
