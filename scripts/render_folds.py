@@ -21,6 +21,7 @@ from pdeface.assets import load_face, load_neutral_scan  # noqa: E402
 from pdeface.au.expressions import PRESETS, pose_curves, resolve_preset  # noqa: E402
 from pdeface.au.retarget import retarget  # noqa: E402
 from pdeface.io.png import draw_text, write_png  # noqa: E402
+from pdeface.landmarks.render import marked  # noqa: E402
 from pdeface.surface.fit import face_mesh, fit_face  # noqa: E402
 from pdeface.surface.folds import fold_edges  # noqa: E402
 
@@ -31,9 +32,7 @@ def panel(P, T, size, title, folds=None):
     grey = 40 + 200 * shade(P, T)
     img = rasterise(P, T, np.repeat(grey[:, None], 3, axis=1), size, BOX)
     if folds is not None and len(folds):
-        x, y = to_pixel(folds[:, :2], size, BOX)
-        for a, b in zip(x.astype(int), y.astype(int)):
-            img[max(b - 1, 0):b + 2, max(a - 1, 0):a + 2] = (230, 30, 30)
+        img = marked(img, np.stack(to_pixel(folds[:, :2], size, BOX), 1), 1)
     draw_text(img, 6, 6, title, (0, 0, 0), 1)
     return img
 

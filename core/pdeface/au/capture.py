@@ -86,11 +86,8 @@ def fit_descriptor(model, sampler, neutral_vertices, au_vertices, au, side="both
     else:
         if au_landmarks is None:
             raise LandmarkError("an AU mesh of another topology needs its own 68 landmarks for the alignment")
-        from ..surface.curves import join_rims, project_samples
+        from ..surface.curves import project_samples
 
         Vf = align_to_neutral(model, au_vertices, au_landmarks, au)
-        # Project the points as they were cast on the neutral's skin, then join the rims as the neutral's were.
-        cast = sampler.sample(model.frame.to_face(neutral_vertices), cast=True)
-        projected = project_samples(cast, Vf, np.asarray(au_triangles), sampler.status)
-        au_points = join_rims(projected, model.layout, Vf).sample(Vf)
+        au_points = project_samples(neutral_points, Vf, np.asarray(au_triangles), sampler.status).sample(Vf)
     return descriptor_from_points(neutral_points, au_points, au, side, model.n_modes, source, notice)

@@ -126,7 +126,7 @@ def fit_face(vertices, triangles, landmarks, unit=None, n_curves=DEFAULT_CURVES,
     sampler : pdeface.surface.curves.CurveSampler
         The curve points as material points of this mesh.
     """
-    from .curves import join_rims, place_samples
+    from .curves import cavity_depths, place_samples
     from .rims import follow_rims
     V = np.asarray(vertices, dtype=np.float64)
     T = np.asarray(triangles, dtype=np.int64)
@@ -149,7 +149,7 @@ def fit_face(vertices, triangles, landmarks, unit=None, n_curves=DEFAULT_CURVES,
         if len(skin) == 0:
             raise MeshError("the skin given has no triangles")
     layout = follow_rims(layout, Vf, skin)
-    sampler = join_rims(place_samples(Vf, skin, layout), layout, Vf)
+    sampler = place_samples(Vf, skin, layout, cavity_depths(layout, Lf))
     points = sampler.sample(Vf)
     coef, res = fit_fourier(points, n_modes)
     model = FaceModel(layout, chord_knots(points), coef, res, frame, feature_points(Lf), a=a,
