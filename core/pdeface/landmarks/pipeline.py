@@ -294,7 +294,7 @@ def detect(V, T, unit=None, landmark_map: LandmarkMap | None = None, detector: D
     own = detector is None
     detector = detector or Detector()
     try:
-        candidates, tried = search(V, T, detector)
+        candidates, _ = search(V, T, detector)
         first = first_pass(V, T, detector, m.template, candidates)
         if first is None:
             raise LandmarkError(f"no face found: the detector saw one in {len(candidates[:MAX_CANDIDATES])} view(s) "
