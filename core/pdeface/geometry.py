@@ -140,6 +140,20 @@ def cast_cylinder_rays(V, T, axis_z, theta, height, batch=200_000):
     return radius, tri, bary, facing
 
 
+def similarity(A, B, scale=True):
+    """Scale ``s``, rotation ``R`` and shift ``t`` with ``B ≈ s A Rᵀ + t`` (Umeyama; ``s = 1`` when not
+    ``scale``: the rigid fit), least squares over the rows finite in both."""
+    ok = np.isfinite(A).all(1) & np.isfinite(B).all(1)
+    A, B = A[ok], B[ok]
+    ca, cb = A.mean(0), B.mean(0)
+    a, b = A - ca, B - cb
+    U, S, Vt = np.linalg.svd(b.T @ a)
+    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))])
+    R = U @ D @ Vt
+    s = float((S * np.diag(D)).sum() / (a ** 2).sum()) if scale else 1.0
+    return s, R, cb - s * ca @ R.T
+
+
 def closest_point_on_triangles(P, A, B, C):
     """Closest point to each ``P[i]`` on triangle ``(A[i], B[i], C[i])``.
 

@@ -6,6 +6,7 @@ import pytest
 from pdeface.assets import load_head, load_head_shapes
 from pdeface.cli import main
 from pdeface.errors import LandmarkError, MeshError
+from pdeface.geometry import similarity
 from pdeface.head.rigid import rotation_vector_matrix
 from pdeface.io.meshio import read_mesh, write_mesh
 from pdeface.landmarks import MissingDependencyError, available, detect
@@ -17,7 +18,6 @@ from pdeface.landmarks.facemap import (
     parse_map,
     read_map,
     robust_similarity,
-    similarity,
 )
 from pdeface.landmarks.render import View, back_project, rasterise, shade
 from pdeface.mesh import Mesh
@@ -113,6 +113,8 @@ def test_similarity_recovers_a_pose(rng, rotation):
     B = 2.5 * A @ rotation.T + [1, 2, 3]
     s, R, t = similarity(A, B)
     assert s == pytest.approx(2.5) and np.allclose(R, rotation) and np.allclose(t, [1, 2, 3])
+    s, R, t = similarity(A, A @ rotation.T + [1, 2, 3], scale=False)  # the rigid fit
+    assert s == 1.0 and np.allclose(R, rotation) and np.allclose(t, [1, 2, 3])
     B[:5] += 10  # a few rays hit the wrong surface
     s, R, t, residual = robust_similarity(A, B)
     assert s == pytest.approx(2.5) and np.allclose(R, rotation) and residual < 1e-9

@@ -30,11 +30,9 @@ def moved_features(au: int) -> list:
 
 def rigid_align(src: np.ndarray, dst: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
     """Rotation R and translation t minimising |R src + t - dst|; and the RMS residual."""
-    cs, cd = src.mean(0), dst.mean(0)
-    U, _, Vt = np.linalg.svd((src - cs).T @ (dst - cd))
-    D = np.diag([1, 1, np.sign(np.linalg.det(Vt.T @ U.T))])
-    R = Vt.T @ D @ U.T
-    t = cd - R @ cs
+    from ..geometry import similarity
+
+    _, R, t = similarity(src, dst, scale=False)
     rms = float(np.sqrt(((src @ R.T + t - dst) ** 2).sum(1).mean()))
     return R, t, rms
 

@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import LandmarkError
+from ..geometry import similarity
 
 MAP_FORMAT = "pdeface.landmark-map"
 MAP_VERSION = 1
@@ -147,21 +148,8 @@ def mirror_pairs(template) -> np.ndarray:
     return np.where(pairs[pairs] == np.arange(len(T)), pairs, np.arange(len(T)))
 
 
-def similarity(A, B):
-    """Scale ``s``, rotation ``R`` and shift ``t`` with ``B ≈ s A Rᵀ + t`` (Umeyama), over rows finite in both."""
-    ok = np.isfinite(A).all(1) & np.isfinite(B).all(1)
-    A, B = A[ok], B[ok]
-    ca, cb = A.mean(0), B.mean(0)
-    a, b = A - ca, B - cb
-    U, S, Vt = np.linalg.svd(b.T @ a)
-    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))])
-    R = U @ D @ Vt
-    s = float((S * np.diag(D)).sum() / (a ** 2).sum())
-    return s, R, cb - s * ca @ R.T
-
-
 def robust_similarity(A, B, keep=0.85, rounds=3):
-    """:func:`similarity` refitted on the best-matching ``keep`` share of rows (a few points may hit the wrong
+    """:func:`pdeface.geometry.similarity` refitted on the best-matching ``keep`` share of rows (a few points may hit the wrong
     surface). Returns ``s, R, t`` and the RMS residual of the kept rows, in the units of ``A``."""
     ok = np.isfinite(A).all(1) & np.isfinite(B).all(1)
     use = ok.copy()

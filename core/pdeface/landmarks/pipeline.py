@@ -97,7 +97,7 @@ def _framing(V, forward, up, size, margin=1.05):
 
 
 def search(V, T, detector: Detector, size=SEARCH_SIZE):
-    """Views (rolled upright) of the faces the detector is sure of, surest first, and what was tried.
+    """Views (rolled upright) of the faces the detector is sure of, surest first: (view, name, detection).
 
     Every roll of a direction is read; the search stops after a direction with
     a face scoring :data:`SURE`. A detector may also score a face upside down,
@@ -132,7 +132,7 @@ def search(V, T, detector: Detector, size=SEARCH_SIZE):
     if len(sure) > 1 and not _overlap(sure[0].box, sure[1].box):
         raise LandmarkError(f"two faces found in view {name} (scores {sure[0].score:.2f}, {sure[1].score:.2f}): "
                             "landmarks are found on one head at a time; select or export one head")
-    return [(v, n, f[0]) for v, n, f in found], tried
+    return [(v, n, f[0]) for v, n, f in found]
 
 
 def _overlap(a, b):
@@ -294,7 +294,7 @@ def detect(V, T, unit=None, landmark_map: LandmarkMap | None = None, detector: D
     own = detector is None
     detector = detector or Detector()
     try:
-        candidates, _ = search(V, T, detector)
+        candidates = search(V, T, detector)
         first = first_pass(V, T, detector, m.template, candidates)
         if first is None:
             raise LandmarkError(f"no face found: the detector saw one in {len(candidates[:MAX_CANDIDATES])} view(s) "

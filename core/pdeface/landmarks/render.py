@@ -112,7 +112,6 @@ def rasterise(V, T, view: View) -> Raster:
     x1, y1 = np.clip(x1, 0, n - 1), np.clip(y1, 0, n - 1)
     span = np.maximum(x1 - x0, y1 - y0) + 1
     group = np.ceil(np.log2(np.maximum(span, 1))).astype(np.int64)
-    best_key = np.full(n * n, -np.inf)
     tri = np.full(n * n, -1, np.int64)
     bary = np.zeros((n * n, 3))
     pieces = []
@@ -146,7 +145,6 @@ def rasterise(V, T, view: View) -> Raster:
         first = np.ones(len(order), bool)
         first[1:] = pix[order][1:] != pix[order][:-1]
         keep = order[first]
-        best_key[pix[keep]] = z[keep]
         tri[pix[keep]] = tt[keep]
         bary[pix[keep]] = w[keep]
     return Raster(view, tri.reshape(n, n), bary.reshape(n, n, 3))
