@@ -540,16 +540,19 @@ def write_mix_key(obj, model, weights, mixer, check=True):
 
 def write_muscle_key(obj, activations):
     """The face (and the user's objects it drives) posed by muscle activations, in the key
-    :data:`MUSCLE_KEY` of its own, set to 1 and the other keys to 0: the muscle panel's live view."""
+    :data:`MUSCLE_KEY` of its own, set to 1 and the other keys to 0: the muscle panel's live view.
+    Returns a note for the panel: empty, or why the muscles' learned fields are not used."""
     aus = _pd().muscles.aus
     if obj.data.shape_keys is None:
         raise error("build shape keys first")
     model = bridge.face_model(obj)
-    delta = aus.MuscleBasis(model).curves(np.asarray(activations, np.float64))
+    basis = aus.MuscleBasis(model)
+    delta = basis.curves(np.asarray(activations, np.float64))
     targets = [(o, c) for o, c in _change_targets(obj, model, delta, aus.turns_jaw(activations))
                if o is obj or o.pdeface.keys]
     _put_pose_key(targets, MUSCLE_KEY, "muscles")
     set_pose(obj, {MUSCLE_KEY: 1.0})
+    return "" if basis.learned else "Waters' fields alone: the learned ones were made for another curve layout"
 
 
 def muscle_activations(obj, key):

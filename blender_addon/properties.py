@@ -80,8 +80,7 @@ def muscles_tick():
         return MUSCLES_POLL_S
     _muscles_shown[obj.name] = values
     try:
-        face.write_muscle_key(obj, list(values))
-        note = ""
+        note = face.write_muscle_key(obj, list(values))
     except PdeFaceError as exc:
         note = str(exc)
     if settings.muscle_note != note:
@@ -142,7 +141,8 @@ class PDEFACE_PG_settings(bpy.types.PropertyGroup):
     muscle_au: StringProperty(name="AU", default="13", description="The AU to record the muscles as: 13, 13L, 46R")
     muscle_replace: BoolProperty(name="Replace", default=False,
                                  description="Record over an AU the face has already (its scan descriptor too)")
-    muscle_note: StringProperty(description="Why the muscles cannot pose the face (shown in the panel)")
+    muscle_note: StringProperty(description="Why the muscles cannot pose the face, or pose it with Waters' "
+                                            "fields alone (shown in the panel)")
 
 
 _classes = (PDEFACE_PG_key, PDEFACE_PG_part, PDEFACE_PG_face, PDEFACE_PG_settings)

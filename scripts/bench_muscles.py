@@ -4,7 +4,8 @@ Usage: python scripts/bench_muscles.py [--identities 20] [--json OUT]
 
 Prints, measured in this run:
 - per AU key ICT covers: captured (as in au-report) of the muscle table's AU on the bundled face,
-  beside the scan descriptor's; the median against the target 0.75;
+  beside the scan descriptor's; the median against the target 0.75; and, for comparison, Waters'
+  fields alone (no learned corrections), each AU's activations calibrated on them in this run;
 - the same table on identity000-019 (each fitted, its muscles placed from its own landmarks, no
   recalibration): median captured per identity, against the target 0.70;
 - what the muscle-only AUs (13, 23, 38, 39, 46) move on the default face;
@@ -24,16 +25,26 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "core"))
 from benchlib import bundled_ict, median_time  # noqa: E402
 from pdeface.au.aureport import MotionProbe  # noqa: E402
 from pdeface.au.ict import AU_SHAPES, au_offsets  # noqa: E402
-from pdeface.muscles.aus import AUTHORED, MuscleBasis, load_table  # noqa: E402
+from pdeface.muscles.aus import AUTHORED, MuscleBasis, MuscleTable, load_table  # noqa: E402
 from pdeface.surface.fit import fit_face, surface_grid  # noqa: E402
 from pdeface.surface.model import model_landmarks  # noqa: E402
 
 
 def captured(face, V, T, shapes, table, keys):
-    basis = MuscleBasis(face, table.geometry)
+    basis = MuscleBasis(face, table)
+    assert basis.learned == (table.fields is not None)
     probe = MotionProbe(face, V, T)
     return {k: probe.measure(*basis.descriptor(k, table.activations[k]).dense(), au_offsets(k, shapes))["captured"]
             for k in keys}
+
+
+def waters_alone(face, table):
+    """The table's muscle shapes without learned fields, each AU calibrated on them (as before #19's fields)."""
+    from build_muscles import curve_motion
+
+    basis = MuscleBasis(face, MuscleTable({}, geometry=table.geometry))
+    acts = {d.key: basis.calibrate(curve_motion(face, d)) for d in face.descriptors if d.source != "muscle"}
+    return MuscleTable(acts, geometry=table.geometry)
 
 
 def main(argv=None):
@@ -48,13 +59,17 @@ def main(argv=None):
     probe = MotionProbe(face, V, T)
     scan = {d.key: probe.measure(*d.dense(), au_offsets(d.key, shapes))["captured"] for d in face.descriptors
             if d.key in AU_SHAPES}
-    print("== muscle AUs (the table) on the bundled face, against ICT truth; the scan descriptor beside")
+    plain = captured(face, V, T, shapes, waters_alone(face, table), keys)
+    print("== muscle AUs (the table, learned fields) on the bundled face, against ICT truth; Waters' fields "
+          "alone and the scan descriptor beside")
     both = [k for k in keys if not k.endswith(("L", "R"))]
-    print("  " + "  ".join(f"AU{k} {mine[k]:.2f} ({scan[k]:.2f})" for k in both))
+    print("  " + "  ".join(f"AU{k} {mine[k]:.2f} ({plain[k]:.2f}, {scan[k]:.2f})" for k in both))
     med = float(np.median([v for v in mine.values() if v is not None]))
-    print(f"  median over {len(keys)} AU keys: {med:.3f} (target >= 0.75); scan descriptors "
-          f"{np.median([scan[k] for k in keys]):.3f}")
-    out = {"bundled": mine, "median": med}
+    print(f"  median over {len(keys)} AU keys: {med:.3f} (target >= 0.75); Waters' fields alone "
+          f"{np.median(list(plain.values())):.3f}; scan descriptors {np.median([scan[k] for k in keys]):.3f}")
+    worst = sorted(keys, key=mine.get)[:8]
+    print("  worst: " + ", ".join(f"AU{k} {mine[k]:.2f}" for k in worst))
+    out = {"bundled": mine, "median": med, "waters_alone": plain}
     if args.identities:
         medians = []
         for i in range(args.identities):
@@ -83,9 +98,9 @@ def main(argv=None):
               f"{np.linalg.norm(D, axis=1).max():.1f} mm; " + "; ".join(
                   f"{n} ({v[0]:+.1f}, {v[1]:+.1f}, {v[2]:+.1f}) mm" for n, v in top))
     out["motion"] = motion
-    basis = MuscleBasis(face, table.geometry)
+    basis = MuscleBasis(face, table)
     t_desc = median_time(lambda: basis.descriptor("12", table.activations["12"]), 21)
-    t_place = median_time(lambda: MuscleBasis(face, table.geometry), 5)
+    t_place = median_time(lambda: MuscleBasis(face, table), 5)
     print(f"== one muscle AU → descriptor {t_desc * 1e3:.2f} ms (target <= 5 ms, ratio {t_desc / 5e-3:.2f}); "
           f"placing the face's 24 muscles once {t_place * 1e3:.1f} ms")
     out["descriptor_ms"], out["place_ms"] = t_desc * 1e3, t_place * 1e3

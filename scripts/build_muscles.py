@@ -1,19 +1,24 @@
 """Calibrate the muscles against ICT-FaceKit and write the muscle AU table; add the muscle-only AUs to the default face.
 
-Usage: python scripts/build_muscles.py [--evaluations 40] [--start GEOMETRY.json | --from-defaults]
-                                      [--table core/pdeface/data/muscle_aus.json]
+Usage: python scripts/build_muscles.py [--evaluations 0] [--start GEOMETRY.json | --from-defaults]
+                                      [--rounds 60] [--table core/pdeface/data/muscle_aus.json]
 
 1. Geometry: the muscles' shapes (:data:`pdeface.muscles.placement.DEFAULT_GEOMETRY`: heads, zones,
    fall-offs, bulges, the sphincters' and sheets' sizes), shared by every AU, fitted by nonlinear
    least squares so that each bundled AU (both sides) is best matched by some activations of them
    on the default face's curve points (each AU's error relative to its own motion). It starts from
-   the current table's geometry (a rebuild refines it), ``--start`` a geometry JSON, or
-   ``--from-defaults``; ``--evaluations 0`` keeps the start as it is.
-2. Activations: for every AU key of the default face, the 24 activations (within their bounds) that
-   best match its descriptor's curve motion; the AUs ICT has no shape for are authored
-   (:data:`pdeface.muscles.aus.AUTHORED`).
-3. The table (geometry + activations) goes to ``core/pdeface/data/muscle_aus.json``; the authored
-   AUs become descriptors (source ``muscle``) of ``assets/default_face.npz``.
+   the current table's geometry, ``--start`` a geometry JSON, or ``--from-defaults``;
+   ``--evaluations 0`` (the default) keeps the start as it is, ``--evaluations 80`` refits it
+   (about 8 minutes; the shipped geometry is ``--from-defaults --evaluations 80``).
+2. Learned fields (:mod:`pdeface.muscles.fields`): each muscle's correction within its reach and
+   every AU's activations, learned together by alternating least squares (``--rounds``, about
+   1.5 minutes for 60). The muscles only the authored AUs use keep Waters' fields alone.
+3. Activations: for every AU key of the default face, the 24 activations (within their bounds) that
+   best match its descriptor's curve motion with the learned fields; the AUs ICT has no shape for
+   are authored (:data:`pdeface.muscles.aus.AUTHORED`).
+4. The table (geometry + activations) goes to ``core/pdeface/data/muscle_aus.json`` and the fields
+   beside it (``muscle_fields.npz``); the authored AUs become descriptors (source ``muscle``) of
+   ``assets/default_face.npz``.
 Needs only the assets (no ../shared).
 """
 from __future__ import annotations
@@ -29,8 +34,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "core"))
 
 from pdeface.assets import ICT_NOTICE, asset_path, load_face  # noqa: E402
 from pdeface.au.ict import NOTICE_SHORT  # noqa: E402
-from pdeface.muscles.aus import AUTHORED, TABLE, MuscleBasis, activation_vector, load_table, table_to_json  # noqa: E402
-from pdeface.muscles.placement import BOUNDS, DEFAULT_GEOMETRY, MUSCLE_NAMES, place_muscles  # noqa: E402
+from pdeface.au.retarget import face_size  # noqa: E402
+from pdeface.muscles.aus import AUTHORED, TABLE, MuscleBasis, MuscleTable, activation_vector, load_table, table_to_json  # noqa: E402
+from pdeface.muscles.fields import REACH, LearnedFields, learn_corrections, load_fields, reach_mask, save_fields  # noqa: E402
+from pdeface.muscles.placement import BOUNDS, DEFAULT_GEOMETRY, MUSCLE_NAMES, eye_distance, place_muscles  # noqa: E402
 from pdeface.surface.model import model_landmarks  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -44,7 +51,8 @@ LIMITS = {"lateral": (-0.15, 0.15), "up": (-0.15, 0.15), "back": (-0.05, 0.15), 
 
 
 #: Muscles only the authored AUs rely on (13: levator anguli oris; 38, 39: nasalis) keep their anatomical
-#: shape: fitted to the other AUs they became broad bumps (AU13 lifted the lower lip 7 mm more than the corners).
+#: shape and get no learned correction: fitted to the other AUs they became broad bumps (AU13 lifted the
+#: lower lip 7 mm more than the corners).
 AUTHORED_ONLY = ("levator_anguli_oris", "nasalis")
 
 
@@ -90,9 +98,31 @@ def fit_geometry(face, evaluations, start):
     return geometry(res.x)
 
 
+def learn_fields(face, geometry, targets, rounds):
+    """The muscles' corrections (:func:`pdeface.muscles.fields.learn_corrections`) on the default face."""
+    waters = MuscleBasis(face, MuscleTable({}, geometry=geometry))
+    X = face.curve_points().reshape(-1, 3)
+    W = waters.fields.reshape(len(MUSCLE_NAMES), -1, 3)
+    mask = reach_mask(X, W, REACH * eye_distance(model_landmarks(face)))
+    mask[[i for i, n in enumerate(MUSCLE_NAMES) if n.startswith(AUTHORED_ONLY)]] = False
+    T = np.stack([t.ravel() for t in targets])
+    A0 = np.stack([waters.calibrate(t) for t in targets])
+
+    def log(r, err):
+        if r % 10 == 9 or r == 0:
+            print(f"  round {r + 1}: median relative RMS error {err:.3f}", flush=True)
+
+    print(f"fields: {mask.sum(1).mean():.0f} of {len(X)} curve points in a muscle's reach on average; "
+          f"Waters alone: median relative RMS error "
+          f"{np.median(np.sqrt(((A0 @ W.reshape(24, -1) - T) ** 2).mean(1) / (T ** 2).mean(1))):.3f}")
+    C, _ = learn_corrections(W.reshape(len(W), -1), T, A0, np.repeat(mask, 3, axis=1), rounds=rounds, log=log)
+    return LearnedFields(C.reshape(waters.fields.shape), face_size(face), ICT_NOTICE)
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--evaluations", type=int, default=40, help="geometry fit: most function evaluations")
+    ap.add_argument("--evaluations", type=int, default=0, help="geometry fit: most function evaluations (0: keep)")
+    ap.add_argument("--rounds", type=int, default=60, help="learned fields: rounds of alternating least squares")
     ap.add_argument("--start", type=Path, help="geometry JSON to start from")
     ap.add_argument("--from-defaults", action="store_true", help="start from the placement's defaults")
     ap.add_argument("--table", type=Path, default=ROOT / "core" / "pdeface" / "data" / "muscle_aus.json")
@@ -106,15 +136,19 @@ def main(argv=None):
     else:
         start = load_table().geometry if TABLE.exists() else {}
     geometry = fit_geometry(face, args.evaluations, start)
-    basis = MuscleBasis(face, geometry)
+    targets = [curve_motion(face, d) for d in face.descriptors]
+    fields_path = args.table.parent / "muscle_fields.npz"
+    save_fields(fields_path, learn_fields(face, geometry, targets, args.rounds))
+    print(f"{fields_path}: {fields_path.stat().st_size} bytes")
+    basis = MuscleBasis(face, MuscleTable({}, geometry=geometry, fields=load_fields(fields_path)))  # as stored
     table, hows = {}, {}
-    for d in face.descriptors:
-        table[d.key] = basis.calibrate(curve_motion(face, d))
+    for d, t in zip(face.descriptors, targets):
+        table[d.key] = basis.calibrate(t)
         hows[d.key] = "calibrated on ICT-FaceKit"
     for key, named in AUTHORED.items():
         table[key] = activation_vector(named)
         hows[key] = "authored from FACS's muscles"
-    data = table_to_json(table, hows, ICT_NOTICE, geometry)
+    data = table_to_json(table, hows, ICT_NOTICE, geometry, fields_path.name)
     args.table.write_text(json.dumps(data, indent=1) + "\n")
     print(f"{args.table}: {len(table)} AUs x {len(MUSCLE_NAMES)} muscles")
     from pdeface.io.modelfile import save_model

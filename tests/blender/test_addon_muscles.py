@@ -34,8 +34,9 @@ def test_muscle_sliders_pose_the_face_live_and_record_an_au(bpy, face):
     assert name in kb and kb[name].slider_max == 1.0
     d = next(d for d in addon().face_model(face).descriptors if d.key == "8")
     assert d.source == "muscle" and np.allclose(d.extra["activations"], s.muscles, atol=1e-4)
-    # the key is that pose at weight 1, but for the curves moving under 0.5 mm, which a descriptor leaves out
-    np.testing.assert_allclose(addon().key_coords(kb[name]), want, atol=0.01)
+    # the key is that pose at weight 1, but for the curves moving under 0.5 mm (0.05 in this face's cm),
+    # which a descriptor leaves out
+    np.testing.assert_allclose(addon().key_coords(kb[name]), want, atol=0.05)
     with pytest.raises(RuntimeError, match="already"):
         bpy.ops.pdeface.record_muscle_au(au="12")  # the scan's AU12 is not overwritten unasked
     s.muscles = [0.0] * 24

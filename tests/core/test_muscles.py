@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from pdeface.assets import load_face
 from pdeface.errors import LandmarkError, ModelFormatError, PdeFaceError
-from pdeface.muscles.aus import MuscleBasis, activation_vector, mix_activations, parse_table, table_to_json
+from pdeface.muscles.aus import MuscleBasis, MuscleTable, activation_vector, mix_activations, parse_table, table_to_json
 from pdeface.muscles.model import Jaw, LinearMuscle, Sheet, Sphincter
 from pdeface.muscles.placement import MUSCLE_NAMES, place_muscles
 from pdeface.surface.model import model_landmarks
@@ -74,7 +74,8 @@ def test_the_24_muscles_placed_on_the_default_face():
 
 def test_calibration_recovers_known_activations():
     face = load_face("default")
-    basis = MuscleBasis(face, {})
+    basis = MuscleBasis(face, MuscleTable({}))  # Waters' fields, default shapes
+    assert not basis.learned and basis.fields is basis.waters
     truth = np.zeros(24)
     truth[[MUSCLE_NAMES.index(n) for n in ("zygomatic_major_R", "zygomatic_major_L", "orbicularis_oris")]] = \
         [0.8, 0.7, -0.3]
@@ -109,15 +110,75 @@ def test_table_file_is_validated():
     back = parse_table(json.loads(json.dumps(good)))
     np.testing.assert_allclose(back.activations["12"], 0.5)
     assert back.hows["12"] == "calibrated"
-    for change, message in (({"format": "x"}, "not a pdeface muscle table"), ({"version": 2}, "version"),
+    for change, message in (({"format": "x"}, "not a pdeface muscle table"), ({"version": 3}, "version"),
                             ({"muscles": ["a"]}, "24 muscles"), ({"aus": {}}, "non-empty"),
                             ({"aus": {"12": {"activations": [0.5] * 23}}}, "24 finite"),
                             ({"aus": {"12": {"activations": [5.0] * 24}}}, "outside"),
                             ({"aus": {"foo": {"activations": [0.0] * 24}}}, "not an AU key"),
                             ({"geometry": {"zygomatic_major": {"zone": "wide"}}}, "geometry"),
-                            ({"geometry": {"biceps": {}}}, "geometry")):
+                            ({"geometry": {"biceps": {}}}, "geometry"), ({"fields": "../x.npz"}, "beside"),
+                            ({"fields": 3}, "beside"), ({"fields": "none.npz"}, "not found")):
         with pytest.raises(ModelFormatError, match=message):
             parse_table({**good, **change})
+    assert parse_table({**good, "version": 1}).fields is None  # the first format: Waters' fields alone
+
+
+def test_learned_fields_file_round_trip_and_checks(tmp_path):
+    from pdeface.muscles.fields import LearnedFields, load_fields, save_fields
+
+    C = np.zeros((24, 4, 5, 3))
+    C[3, 1, 2] = [0.5, -1.25, 2.0]
+    save_fields(tmp_path / "f.npz", LearnedFields(C, np.array([90.0, 110, 100]), "notice"))
+    back = load_fields(tmp_path / "f.npz")
+    np.testing.assert_allclose(back.corrections, C, atol=1e-3)
+    assert back.layout == (4, 5) and back.notice == "notice"
+    good = table_to_json({"12": np.full(24, 0.5)}, {"12": ""}, fields="f.npz")
+    assert parse_table(good, folder=tmp_path).fields.layout == (4, 5)
+    np.savez(tmp_path / "bad.npz", format="pdeface.muscle-fields", muscles=np.array(MUSCLE_NAMES),
+             corrections=np.full((24, 4, 5, 3), np.nan), face_size=[1.0, 1, 1])
+    (tmp_path / "junk.npz").write_bytes(b"not a zip")
+    for name, message in (("bad.npz", "finite"), ("junk.npz", "not a muscle fields file")):
+        with pytest.raises(ModelFormatError, match=message):
+            load_fields(tmp_path / name)
+
+
+def test_learning_recovers_known_fields_within_each_muscles_reach():
+    """Targets made by known corrections (inside the reach) and activations: the learned pair matches them
+    far better than Waters' fields alone, and corrects nothing outside the reach."""
+    from pdeface.muscles.fields import learn_corrections
+
+    rng = np.random.default_rng(1)
+    n_muscles, n = 24, 60
+    W = rng.normal(size=(n_muscles, n))
+    mask = rng.random((n_muscles, n)) < 0.3
+    C_true = np.where(mask, rng.normal(size=(n_muscles, n)), 0.0)
+    A_true = np.clip(rng.random((40, n_muscles)) - 0.5, 0, 2)  # sparse, within every muscle's bounds
+    T = A_true @ (W + C_true)
+    A0 = np.full_like(A_true, 0.2)
+    C, A = learn_corrections(W, T, A0, mask, ridge=1e-6, rounds=80)
+    assert np.all(C[~mask] == 0)
+    rel = lambda P: np.sqrt(((P - T) ** 2).mean()) / np.sqrt((T ** 2).mean())  # noqa: E731
+    from pdeface.muscles.placement import BOUNDS
+    from scipy.optimize import lsq_linear
+    lo, hi = np.array([BOUNDS[m] for m in MUSCLE_NAMES]).T
+    waters_only = np.stack([lsq_linear(W.T, t, bounds=(lo, hi)).x for t in T]) @ W
+    assert rel(A @ (W + C)) < 0.05 < 0.3 < rel(waters_only)
+
+
+def test_reach_and_carrying_fields_to_another_face():
+    from pdeface.muscles.fields import LearnedFields, reach_mask
+
+    X = np.array([[0.0, 0, 0], [10, 0, 0], [30, 0, 0], [100, 0, 0]])
+    W = np.zeros((24, 4, 3))
+    W[0, 0] = [1.0, 0, 0]  # muscle 0 moves only the first point; the rest move nothing
+    mask = reach_mask(X, W, 15.0)
+    assert mask[0].tolist() == [True, True, False, False] and not mask[1:].any()
+    face = load_face("default")
+    from pdeface.au.retarget import face_size
+    K, J = face.curve_points().shape[:2]
+    learned = LearnedFields(np.ones((24, K, J, 3)), face_size(face) * [2, 1, 0.5])
+    np.testing.assert_allclose(learned.on(face)[0, 0, 0], [0.5, 1, 2])  # scaled per axis by face size
+    assert LearnedFields(np.ones((24, K + 1, J, 3)), face_size(face)).on(face) is None  # another layout
 
 
 def run(capsys, *args):
@@ -140,6 +201,9 @@ def test_bundled_table_and_the_muscle_aus_of_the_default_face():
     weights, missing = resolve_preset(PRESETS["anger"], {d.key for d in face.descriptors})
     assert "23" in weights and "23" not in missing  # anger's main AUs 23 + 24
     basis = MuscleBasis(face)
+    assert basis.learned and table.fields is not None
+    for name in ("levator_anguli_oris_R", "levator_anguli_oris_L", "nasalis"):
+        assert not table.fields.corrections[MUSCLE_NAMES.index(name)].any(), name
     np.testing.assert_allclose(muscle["13"].dense()[0], basis.descriptor("13", table.activations["13"]).dense()[0],
                                atol=0.05)  # mm: the model file stores coefficients to 0.01 mm steps
 

@@ -10,9 +10,14 @@ muscles for the AUs it has no shape for (:data:`AUTHORED`).
 
 Table file::
 
-    {"format": "pdeface.muscle-aus", "version": 1, "muscles": [24 names],
+    {"format": "pdeface.muscle-aus", "version": 2, "muscles": [24 names],
      "geometry": {"zygomatic_major": {"zone": 20, ...}, ...},
+     "fields": "muscle_fields.npz",
      "aus": {"12": {"activations": [24 numbers], "how": "calibrated"}, ...}, "notice": "..."}
+
+``fields`` (optional; a file beside the table) names the muscles' corrections learned from scans
+(:mod:`pdeface.muscles.fields`); without it the muscles are Waters' alone. Version 1 files (no
+``fields``) are read too.
 
 Mixers (the FAS's, on activations): ``muscle-average`` — per muscle, the sum of the
 weighted activations over the AUs that activate it, divided by how many do;
@@ -28,24 +33,29 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ModelFormatError, PdeFaceError
+from .fields import LearnedFields, load_fields
 from .placement import BOUNDS, DEFAULT_GEOMETRY, MUSCLE_NAMES, place_muscles
 
-FORMAT, VERSION = "pdeface.muscle-aus", 1
+FORMAT, VERSION = "pdeface.muscle-aus", 2
+#: Versions read: 1 had no learned fields.
+READS = (1, 2)
 TABLE = Path(__file__).resolve().parent.parent / "data" / "muscle_aus.json"
 MUSCLE_MIXERS = ("muscle-average", "muscle-max")
 #: How a set of AUs' activations combine: summed (linear, as the descriptors' keys), or the FAS's mixers.
 ACTIVATION_MIXERS = ("sum",) + MUSCLE_MIXERS
 #: AUs no ICT shape covers, authored from the muscles FACS names for them (activation vectors
-#: given by muscle name; the rest 0).
+#: given by muscle name; the rest 0). Their strengths are set on the learned fields: AU23 presses
+#: the lips about as far as the scans' AU24 does; a wink closes one eye's lids as far as the
+#: calibrated blink (AU45: orbicularis oculi 1.6).
 AUTHORED = {
     "13": {"levator_anguli_oris_R": 1.0, "levator_anguli_oris_L": 1.0},
     "13R": {"levator_anguli_oris_R": 1.0},
     "13L": {"levator_anguli_oris_L": 1.0},
-    "23": {"orbicularis_oris": 0.8},
+    "23": {"orbicularis_oris": 0.5},
     "38": {"nasalis": -1.0, "levator_labii_alaeque_R": 0.2, "levator_labii_alaeque_L": 0.2},
     "39": {"nasalis": 1.0},
-    "46R": {"orbicularis_oculi_R": 2.0, "zygomatic_major_R": 0.3},
-    "46L": {"orbicularis_oculi_L": 2.0, "zygomatic_major_L": 0.3},
+    "46R": {"orbicularis_oculi_R": 1.6, "zygomatic_major_R": 0.3},
+    "46L": {"orbicularis_oculi_L": 1.6, "zygomatic_major_L": 0.3},
 }
 AUTHORED["46"] = AUTHORED["46R"]  # a wink is one eye's: the subject's right unless 46L is asked for
 
@@ -66,12 +76,15 @@ def activation_vector(named: dict) -> np.ndarray:
 
 @dataclass
 class MuscleTable:
-    """AU key → (24,) activations, how each was made, and the muscles' shapes they go with."""
+    """AU key → (24,) activations, how each was made, and the muscles they go with: their shapes
+    (``geometry``) and corrections learned from scans (``fields``, a
+    :class:`~pdeface.muscles.fields.LearnedFields`, or None for Waters' fields alone)."""
 
     activations: dict
     hows: dict = field(default_factory=dict)
     geometry: dict = field(default_factory=dict)
     notice: str = ""
+    fields: LearnedFields | None = None
 
 
 def turns_jaw(activations) -> bool:
@@ -82,19 +95,25 @@ def turns_jaw(activations) -> bool:
 class MuscleBasis:
     """A face model's muscles and the curve-point displacement of each at activation 1.
 
-    ``geometry`` (see :data:`~pdeface.muscles.placement.DEFAULT_GEOMETRY`): the bundled table's
-    when None.
+    ``table``: a :class:`MuscleTable` whose muscle shapes (``geometry``) and learned corrections
+    (``fields``) to use; the bundled table's when None. ``waters`` holds the Waters fields alone,
+    ``fields`` with the corrections; ``learned`` says whether they were applied (not where the
+    face's curve layout is not the one they were learned on).
     """
 
-    def __init__(self, face, geometry=None):
+    def __init__(self, face, table: MuscleTable | None = None):
         from ..surface.model import model_landmarks
 
+        table = load_table() if table is None else table
         self.face = face
-        self.geometry = load_table().geometry if geometry is None else geometry
+        self.geometry = table.geometry
         self.muscles = place_muscles(model_landmarks(face), self.geometry)
         X = face.curve_points()
         self.shape = X.shape
-        self.fields = np.stack([m.displacement(X.reshape(-1, 3)).reshape(X.shape) for m in self.muscles])
+        self.waters = np.stack([m.displacement(X.reshape(-1, 3)).reshape(X.shape) for m in self.muscles])
+        corrections = None if table.fields is None else table.fields.on(face)
+        self.learned = corrections is not None
+        self.fields = self.waters + corrections if self.learned else self.waters
 
     def displacement(self, activations) -> np.ndarray:
         """Curve-point displacement (K, J, 3) of an activation vector (linear)."""
@@ -125,21 +144,27 @@ class MuscleBasis:
         return lsq_linear(A, np.asarray(target_points, np.float64).ravel(), bounds=(lo, hi)).x
 
 
-def table_to_json(table: dict, hows: dict, notice="", geometry=None) -> dict:
-    return {"format": FORMAT, "version": VERSION, "muscles": list(MUSCLE_NAMES),
-            "geometry": {n: {k: round(float(v), 4) for k, v in g.items()} for n, g in (geometry or {}).items()},
-            "aus": {k: {"activations": [round(float(v), 4) for v in a], "how": hows[k]} for k, a in table.items()},
-            "notice": notice}
+def table_to_json(table: dict, hows: dict, notice="", geometry=None, fields=None) -> dict:
+    """A table file's content; ``fields``: the learned fields' file name (beside the table), if any."""
+    out = {"format": FORMAT, "version": VERSION, "muscles": list(MUSCLE_NAMES),
+           "geometry": {n: {k: round(float(v), 4) for k, v in g.items()} for n, g in (geometry or {}).items()}}
+    if fields:
+        out["fields"] = str(fields)
+    out.update({"aus": {k: {"activations": [round(float(v), 4) for v in a], "how": hows[k]}
+                        for k, a in table.items()}, "notice": notice})
+    return out
 
 
-def parse_table(data, where="muscle table") -> MuscleTable:
-    """A :class:`MuscleTable` from a parsed file (every field checked)."""
+def parse_table(data, where="muscle table", folder=None) -> MuscleTable:
+    """A :class:`MuscleTable` from a parsed file (every field checked); ``folder``: where a
+    ``fields`` file it names lies (the table's own folder)."""
     from ..au.facs import parse_au_key
 
     if not isinstance(data, dict) or data.get("format") != FORMAT:
         raise ModelFormatError(f"{where}: not a pdeface muscle table (format {FORMAT!r})")
-    if data.get("version") != VERSION:
-        raise ModelFormatError(f"{where}: version {data.get('version')!r} is not supported (reads {VERSION})")
+    if data.get("version") not in READS:
+        raise ModelFormatError(f"{where}: version {data.get('version')!r} is not supported "
+                               f"(reads {', '.join(map(str, READS))})")
     if data.get("muscles") != list(MUSCLE_NAMES):
         raise ModelFormatError(f"{where}: 'muscles' must list the 24 muscles in order: {', '.join(MUSCLE_NAMES)}")
     aus = data.get("aus")
@@ -170,7 +195,12 @@ def parse_table(data, where="muscle table") -> MuscleTable:
         if known is None or not isinstance(g, dict) or not set(g) <= set(known) or not all(
                 isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in g.values()):
             raise ModelFormatError(f"{where}: geometry of {name!r} must hold numbers for {', '.join(known or [])}")
-    return MuscleTable(table, hows, geometry, str(data.get("notice", "")))
+    fields = data.get("fields")
+    if fields is not None:
+        if not isinstance(fields, str) or not fields or Path(fields).name != fields:
+            raise ModelFormatError(f"{where}: 'fields' must name a file beside the table")
+        fields = load_fields(Path(folder or ".") / fields)
+    return MuscleTable(table, hows, geometry, str(data.get("notice", "")), fields)
 
 
 _bundled = {}
@@ -183,7 +213,7 @@ def load_table(path=None) -> MuscleTable:
     path = TABLE if path is None else Path(path)
     if path == TABLE and "table" in _bundled:
         return _bundled["table"]
-    table = parse_table(load_json(path, ModelFormatError), str(path))
+    table = parse_table(load_json(path, ModelFormatError), str(path), path.parent)
     if path == TABLE:
         _bundled["table"] = table
     return table
@@ -212,4 +242,4 @@ def muscle_pose(face, weights: dict, mixer: str, table: MuscleTable | None = Non
     """Change of ``face``'s curves for AU ``weights`` mixed on muscle activations (the bundled table's
     by default)."""
     table = load_table() if table is None else table
-    return MuscleBasis(face, table.geometry).curves(mix_activations(table.activations, weights, mixer))
+    return MuscleBasis(face, table).curves(mix_activations(table.activations, weights, mixer))

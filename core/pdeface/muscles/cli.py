@@ -36,7 +36,11 @@ def cmd_muscles(args):
                 raise PdeFaceError(f"--activation {item!r}: {value!r} is not a number") from None
         a = activation_vector(named)
         what = ", ".join(args.activation)
-    C, R = MuscleBasis(face, table.geometry).curves(a)
+    basis = MuscleBasis(face, table)
+    if table.fields is not None and not basis.learned:
+        print("note: the table's learned muscle fields were made for another curve layout; "
+              "this face uses Waters' fields alone", file=sys.stderr)
+    C, R = basis.curves(a)
     write_mesh(args.output, face_mesh(face, args.resolution, coefficients=face.coefficients + C,
                                       residual=face.residual + R))
     print(f"wrote {args.output}: {what}", file=sys.stderr)

@@ -112,6 +112,12 @@ def _linear(name, side, L, e, g):
                         max(g["rf"], g["rs"] + 0.05) * length, pull, g["bulge"])
 
 
+def eye_distance(landmarks_face) -> float:
+    """e: the distance between the eye centres (mm), the unit of the muscles' sizes."""
+    L = np.asarray(landmarks_face, np.float64)
+    return float(np.linalg.norm(L[42:48].mean(0) - L[36:42].mean(0)))
+
+
 def place_muscles(landmarks_face, geometry=None) -> list:
     """The 24 muscles (:data:`MUSCLE_NAMES` order) of a face from its landmarks in the face frame (mm).
 
@@ -126,7 +132,7 @@ def place_muscles(landmarks_face, geometry=None) -> list:
     need = [0, 5, 8, 11, 16, 17, 21, 22, 26, 27, 30, 31, 35, *range(36, 48), 48, 51, 54, 57, 62, 66]
     if L.shape != (68, 3) or not np.isfinite(L[need]).all():
         raise LandmarkError(f"placing the muscles needs landmarks {', '.join(map(str, need))}")
-    e = float(np.linalg.norm(L[42:48].mean(0) - L[36:42].mean(0)))
+    e = eye_distance(L)
     out = [_linear(n, s, L, e, g[n]) for n, _, _ in _PAIRS for s in "RL"]
     mouth = 0.5 * (L[62] + L[66])
     m = g["orbicularis_oris"]
