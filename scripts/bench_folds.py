@@ -6,7 +6,10 @@ A fold is a mesh edge of ``pdeface mesh``'s output whose two faces turn by more 
 outside the eye, mouth and nostril openings (landmark polygons grown by a third;
 :mod:`pdeface.surface.folds`). Target (issue #16): 0 everywhere. Printed for the face fitted
 on the bundled neutral and on identities 000-(N-1), each with the bundled descriptors
-(retargeted): the count and the largest turn at rest, and the worst AU or preset.
+(retargeted): the count and the largest turn at rest, and the worst AU or preset. Then the same
+for the low-poly face (MediaPipe's 468-point mesh on the ICT neutral, ``assets/low_poly_face.npz``),
+with its accuracy against the full-resolution scan beside the low-poly mesh's own (its
+tessellation error), over the area the low-poly mesh covers.
 """
 from __future__ import annotations
 
@@ -19,7 +22,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "core"))
 
-from pdeface.assets import load_face, load_ict_shapes, load_neutral_scan  # noqa: E402
+from pdeface.assets import load_face, load_ict_shapes, load_low_poly_face, load_neutral_scan  # noqa: E402
+from pdeface.geometry import ClosestPoint  # noqa: E402
 from pdeface.au.expressions import PRESETS, pose_curves, resolve_preset  # noqa: E402
 from pdeface.au.retarget import retarget  # noqa: E402
 from pdeface.surface.fit import face_mesh, fit_face  # noqa: E402
@@ -61,6 +65,30 @@ def main(argv=None):
               f"{folds[worst][0]} folds; median over {len(folds)} poses {np.median([v[0] for v in folds.values()]):.0f} "
               f"(target 0)")
         report[label] = folds
+    low, L = load_low_poly_face()
+    Tl, _ = low.triangles()
+    model, sampler = fit_face(low.vertices, Tl, L, unit="cm")
+    folds = folds_of(retarget(source, model), args.resolution)
+    rest, worst = folds["neutral"], max(folds, key=lambda k: folds[k][0])
+    print(f"low-poly face ({len(low.vertices)} vertices, {len(Tl)} triangles; points {sampler.summary()}): "
+          f"{rest[0]} folds at rest (largest turn {rest[1]:.0f}°); worst pose {worst} {folds[worst][0]} folds; "
+          f"median over {len(folds)} poses {np.median([v[0] for v in folds.values()]):.0f} (target 0)")
+    report["low-poly"] = folds
+    truth = ClosestPoint(mesh.vertices, T)
+    b = np.stack(np.meshgrid(np.linspace(0, 1, 7), np.linspace(0, 1, 7)), -1).reshape(-1, 2)
+    b = b[b.sum(1) <= 1]
+    on_low = np.einsum("pk,tkc->tpc", np.c_[1 - b.sum(1), b], low.vertices[Tl]).reshape(-1, 3)
+    own = truth.query(on_low)[0] * 10  # cm → mm
+    pde = face_mesh(model, args.resolution).vertices
+    over = ClosestPoint(low.vertices, Tl).query(pde)[0] * 10 < 1.0  # the PDE face where the low-poly mesh is
+    err = truth.query(pde[over])[0] * 10
+    print(f"  against the full-resolution scan, over the low-poly mesh's area: the PDE face median "
+          f"{np.median(err):.2f} mm, p95 {np.percentile(err, 95):.2f}, max {err.max():.2f}; the low-poly mesh "
+          f"itself (its tessellation error) median {np.median(own):.2f}, p95 {np.percentile(own, 95):.2f}, "
+          f"max {own.max():.2f}")
+    report["low-poly accuracy mm"] = {"pde": [float(np.median(err)), float(np.percentile(err, 95)), float(err.max())],
+                                      "tessellation": [float(np.median(own)), float(np.percentile(own, 95)),
+                                                       float(own.max())]}
     if args.json:
         Path(args.json).write_text(json.dumps(report, indent=1))
 

@@ -52,6 +52,18 @@ def load_neutral_scan() -> tuple[Mesh, np.ndarray]:
         return mesh, z["landmarks"].astype(np.int64)
 
 
+LOW_POLY_FACE = "low_poly_face.npz"
+
+
+def load_low_poly_face() -> tuple[Mesh, np.ndarray]:
+    """A game-density face of another topology on a known surface: MediaPipe's 468-point face mesh
+    laid on the ICT neutral scan (cm, ICT frame; ``scripts/build_low_poly.py``), and its 68
+    landmark points (68, 3). Its notice names ICT-FaceKit (MIT) and MediaPipe (Apache-2.0)."""
+    with np.load(asset_path(LOW_POLY_FACE), allow_pickle=False) as z:
+        mesh = Mesh.from_faces(z["vertices"].astype(np.float64), z["triangles"].astype(np.int64))
+        return mesh, z["landmarks"].astype(np.float64)
+
+
 ICT_SHAPES = "ict_shapes.npz"
 
 

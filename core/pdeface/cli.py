@@ -52,6 +52,13 @@ def cmd_fit(args):
     size = save_model(args.output, model)
     _log(f"fitted {model.layout.n_curves} curves x {model.layout.n_points} points in "
          f"{time.perf_counter() - t0:.2f} s (unit {model.frame.unit}); points: {sampler.summary()}")
+    beyond = sampler.summary()["beyond the edge"]
+    if beyond:
+        from .surface.curves import BEYOND
+        curves = np.nonzero((sampler.status == BEYOND).mean(axis=1) > 0.5)[0]
+        _log(f"note: {beyond} curve points lie beyond the mesh's edge and were extrapolated from the rest"
+             + (f" (mostly on curves {', '.join(map(str, curves))}; 0 is the forehead's top)" if len(curves) else "")
+             + ": the mesh does not reach the face's band there")
     print(json.dumps({"output": str(args.output), "model_bytes": size, "unit": model.frame.unit,
                       "points": sampler.summary()}))
 

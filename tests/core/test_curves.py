@@ -222,3 +222,23 @@ def test_deep_set_eye_corners_are_skin_not_pockets(scan):
     assert (eyes.status[rims] == CAVITY).sum() >= 4  # the old 12 mm rule filled the corners over
     assert (model.status[rims] == CAVITY).sum() == 0
     assert accuracy_report(model, V, T)["max_mm"] < 3.0  # 3.9 mm when they were filled
+
+
+def test_points_beyond_the_mesh_edge_carry_on_its_slope():
+    """A ramp (value = row) known on rows 3-9 and at all but one point: the hole inside is filled
+    harmonically (exact for a ramp); the rows beyond the edge carry on falling instead of staying flat."""
+    from pdeface.surface.curves import _fill_weights, beyond_edge
+
+    K, J = 10, 8
+    valid = np.ones((K, J), bool)
+    valid[:3] = False
+    valid[6, 3] = False
+    ramp = np.repeat(np.arange(K, dtype=float)[:, None], J, 1)
+    beyond = beyond_edge(~valid)
+    assert beyond[:3].all() and not beyond[3:].any()  # the hole inside is not beyond the edge
+    flat = (_fill_weights(valid) @ np.where(valid, ramp, 0).ravel()).reshape(K, J)
+    out = (_fill_weights(valid, beyond) @ np.where(valid, ramp, 0).ravel()).reshape(K, J)
+    np.testing.assert_allclose(flat[:3], 3.0)  # harmonic: a ledge
+    assert np.all(np.diff(out[:4, 0]) > 0.2) and out[0, 0] < 2  # extrapolated: still falling towards row 0
+    np.testing.assert_allclose(out[6, 3], 6.0)
+    np.testing.assert_allclose(out[3:], np.where(valid, ramp, out)[3:])  # known points stay

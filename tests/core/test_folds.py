@@ -75,3 +75,22 @@ def test_the_nose_band_has_no_folds(fitted):
     L = model.landmarks
     w = fold_edges(face_mesh(model), model.frame, L)["where"]
     assert ((w[:, 1] < L[30, 1] + 2) & (w[:, 1] > L[51, 1])).sum() == 0
+
+
+def test_a_low_poly_face_keeps_a_clean_outer_edge():
+    """MediaPipe's 468-point face ends below the band's top. The curve points beyond its edge are extrapolated
+    (biharmonically) and reported; filled harmonically instead, flat, they folded the surface along the top and
+    sides (251 folds beyond the brows, the jaw's sides and the chin; 614 in all). Now none lies there."""
+    from pdeface.assets import load_low_poly_face
+    from pdeface.surface.curves import BEYOND
+    from pdeface.surface.fit import fit_face
+
+    mesh, L = load_low_poly_face()
+    model, sampler = fit_face(mesh.vertices, mesh.triangles()[0], L, unit="cm")
+    assert sampler.summary()["beyond the edge"] == (sampler.status == BEYOND).sum() > 0
+    assert (sampler.status[0] == BEYOND).all()  # the forehead's top curve is off this mesh
+    r = fold_edges(face_mesh(model), model.frame, model.landmarks)
+    w, Lf = r["where"], model.landmarks
+    outer = (w[:, 1] > Lf[17:27, 1].max() + 5) | (np.abs(w[:, 0]) > np.abs(Lf[0:17, 0]).max() - 5) \
+        | (w[:, 1] < Lf[8, 1] + 5)
+    assert not outer.any(), w[outer][:5]

@@ -2,8 +2,8 @@
 
 Every curve point is a fixed linear combination of mesh vertices: a ray hit is
 a triangle with barycentric weights; a point whose ray misses the skin (eye
-opening, mouth slit, nostril, beyond the mesh edge) is filled smoothly from its
-neighbours on the curve grid. The whole sampler is one sparse matrix ``S`` and
+opening, mouth slit, nostril) is filled smoothly from its neighbours on the
+curve grid, and one beyond the mesh's edge is extrapolated from them. The whole sampler is one sparse matrix ``S`` and
 ``curves = S @ V``, so it reads the same points off any mesh of the same
 topology, exactly and linearly.
 """
@@ -19,9 +19,11 @@ from ..errors import LayoutError
 from ..geometry import ClosestPoint, cast_cylinder_rays
 from .layout import CurveLayout
 
-#: Status codes of curve points.
-HIT, MISS, BACKFACING, CAVITY, GRAZING = 0, 1, 2, 3, 4
-STATUS_NAMES = {HIT: "hit", MISS: "miss", BACKFACING: "back-facing", CAVITY: "cavity", GRAZING: "grazing"}
+#: Status codes of curve points. BEYOND: a miss beyond the mesh's edge (its run of filled points
+#: reaches the curve grid's border), where the scan cannot support the curve.
+HIT, MISS, BACKFACING, CAVITY, GRAZING, BEYOND = 0, 1, 2, 3, 4, 5
+STATUS_NAMES = {HIT: "hit", MISS: "miss", BACKFACING: "back-facing", CAVITY: "cavity", GRAZING: "grazing",
+                BEYOND: "beyond the edge"}
 
 
 @dataclass
@@ -34,7 +36,7 @@ class CurveSampler:
         ``matrix @ V`` gives the curve points, curve after curve.
     status : (K, J) int array
         :data:`HIT`, or why the point was filled (:data:`MISS`,
-        :data:`BACKFACING`, :data:`CAVITY`, :data:`GRAZING`).
+        :data:`BACKFACING`, :data:`CAVITY`, :data:`GRAZING`) or extrapolated (:data:`BEYOND`).
     shape : (K, J)
     """
 
@@ -88,8 +90,23 @@ def _cavities(radius: np.ndarray, valid: np.ndarray, depth, window: int) -> np.n
     return both[0] & both[1] & valid
 
 
-def _fill_weights(valid: np.ndarray) -> sp.csr_matrix:
-    """Harmonic fill: each invalid grid node as a weighted mean of valid ones.
+def beyond_edge(filled: np.ndarray) -> np.ndarray:
+    """Filled grid points whose run of filled points (4-connected) reaches the grid's border."""
+    from scipy import ndimage
+
+    labels, _ = ndimage.label(filled)
+    rim = np.unique(np.concatenate([labels[0], labels[-1], labels[:, 0], labels[:, -1]]))
+    return np.isin(labels, rim[rim > 0])
+
+
+def _fill_weights(valid: np.ndarray, beyond=None) -> sp.csr_matrix:
+    """Fill: each invalid grid node as a weighted mean of valid ones.
+
+    Holes inside the scan (an eye, the mouth) are filled harmonically, a membrane across
+    the opening; nodes ``beyond`` the mesh's edge biharmonically, so the surface carries
+    on with its slope instead of flattening into a ledge (on the 468-point MediaPipe face,
+    whose forehead ends below the band's top, the harmonic fill made 441 of its 614
+    folds, along the top and sides; extrapolated, none).
 
     Returns ``W`` of shape (K*J, K*J) with identity rows for valid nodes.
     """
@@ -101,12 +118,15 @@ def _fill_weights(valid: np.ndarray) -> sp.csr_matrix:
         rows += [a.ravel(), b.ravel()]
         cols += [b.ravel(), a.ravel()]
     A = sp.csr_matrix((np.ones(sum(len(r) for r in rows)), (np.concatenate(rows), np.concatenate(cols))), shape=(n, n))
-    L = sp.diags(np.asarray(A.sum(1)).ravel()) - A  # graph Laplacian of the curve grid
+    L = (sp.diags(np.asarray(A.sum(1)).ravel()) - A).tocsr()  # graph Laplacian of the curve grid
     v, h = valid.ravel(), ~valid.ravel()
     if not h.any():
         return sp.identity(n, format="csr")
+    if beyond is not None and np.any(beyond):
+        out = np.asarray(beyond, bool).ravel().astype(np.float64)
+        L = (sp.diags(1 - out) @ L + sp.diags(out) @ (L.T @ L)).tocsr()  # L x = 0 inside, L² x = 0 beyond
     vi, hi = np.nonzero(v)[0], np.nonzero(h)[0]
-    # L_hh x_h = -L_hv x_v  →  x_h = -L_hh^{-1} L_hv x_v
+    # M_hh x_h = -M_hv x_v  →  x_h = -M_hh^{-1} M_hv x_v
     sol = -splu(L[h][:, h].tocsc()).solve(L[h][:, v].toarray())
     r, c = np.nonzero(np.abs(sol) >= 1e-9)
     return sp.csr_matrix((np.r_[np.ones(len(vi)), sol[r, c]], (np.r_[vi, hi[r]], np.r_[vi, vi[c]])), shape=(n, n))
@@ -170,6 +190,7 @@ def place_samples(V_face: np.ndarray, T: np.ndarray, layout: CurveLayout,
     status = status.reshape(K, J)
     cav = _cavities(radius.reshape(K, J), status == HIT, cavity_depth, cavity_window)
     status[cav] = CAVITY
+    status[beyond_edge(status == MISS)] = BEYOND
     valid = status == HIT
     frac = valid.mean()
     if frac < min_hit_fraction:
@@ -181,7 +202,7 @@ def place_samples(V_face: np.ndarray, T: np.ndarray, layout: CurveLayout,
     hit_tri = np.where(tri >= 0, tri, 0)
     S = sp.csr_matrix((np.where(valid.ravel()[:, None], bary, 0).ravel(), (rows, T[hit_tri].ravel())), shape=(K * J, n))
     S.eliminate_zeros()
-    S = _fill_weights(valid) @ S
+    S = _fill_weights(valid, status == BEYOND) @ S
     return CurveSampler(sp.csr_matrix(S), status, (K, J))
 
 
@@ -204,4 +225,4 @@ def project_samples(points: np.ndarray, V: np.ndarray, T: np.ndarray, status=Non
     rows = np.repeat(np.arange(K * J), 3)
     S = sp.csr_matrix((np.where(valid.ravel()[:, None], bary, 0).ravel(), (rows, T[tri].ravel())), shape=(K * J, len(V)))
     S.eliminate_zeros()
-    return CurveSampler(sp.csr_matrix(_fill_weights(valid) @ S), status.copy(), (K, J))
+    return CurveSampler(sp.csr_matrix(_fill_weights(valid, status == BEYOND) @ S), status.copy(), (K, J))
