@@ -23,9 +23,9 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "core"))
 
 from pdeface.assets import load_face, load_ict_shapes, load_low_poly_face, load_neutral_scan  # noqa: E402
-from pdeface.geometry import ClosestPoint  # noqa: E402
 from pdeface.au.expressions import PRESETS, pose_curves, resolve_preset  # noqa: E402
 from pdeface.au.retarget import retarget  # noqa: E402
+from pdeface.geometry import ClosestPoint  # noqa: E402
 from pdeface.surface.fit import face_mesh, fit_face  # noqa: E402
 from pdeface.surface.folds import fold_edges  # noqa: E402
 
