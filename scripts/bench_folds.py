@@ -3,7 +3,8 @@
 Usage: python scripts/bench_folds.py [--identities N] [--resolution default] [--json OUT]
 
 A fold is a mesh edge of ``pdeface mesh``'s output whose two faces turn by more than 30°
-outside the eye, mouth and nostril openings (landmark polygons grown by a third;
+outside the eye, mouth and nostril openings (landmark polygons grown by a third, at rest and where
+a pose moves them;
 :mod:`pdeface.surface.folds`). Target (issue #16): 0 everywhere. Printed for the face fitted
 on the bundled neutral and on identities 000-(N-1), each with the bundled descriptors
 (retargeted): the count and the largest turn at rest, and the worst AU or preset. Then the same
@@ -37,9 +38,11 @@ def folds_of(model, resolution):
     for name, preset in PRESETS.items():
         poses[name] = resolve_preset(preset, keys)[0]
     out = {}
+    rest = face_mesh(model, resolution)
     for name, weights in poses.items():
         C, R = pose_curves(model, weights) if weights else (None, None)
-        r = fold_edges(face_mesh(model, resolution, coefficients=C, residual=R), model.frame, model.landmarks)
+        r = fold_edges(face_mesh(model, resolution, coefficients=C, residual=R), model.frame, model.landmarks,
+                       rest=rest)
         out[name] = (r["count"], r["max_deg"])
     return out
 

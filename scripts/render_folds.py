@@ -52,7 +52,7 @@ def main(argv=None):
     for name, weights in poses.items():
         C, R = pose_curves(rig, weights) if weights else (None, None)
         mesh = face_mesh(rig, coefficients=C, residual=R)
-        r = fold_edges(mesh, rig.frame, rig.landmarks)
+        r = fold_edges(mesh, rig.frame, rig.landmarks, rest=face_mesh(rig))
         panels.append(panel(rig.frame.to_face(mesh.vertices), mesh.triangles()[0], args.size,
                             f"PDE {name}: {r['count']} folds", r["where"]))
     write_png(args.out, np.concatenate(panels, axis=1).astype(np.uint8))

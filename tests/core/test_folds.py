@@ -42,6 +42,26 @@ def test_folds_inside_an_opening_are_allowed():
     assert r["count"] == 0 and r["inside"] == 20
 
 
+def test_a_posed_opening_is_where_its_landmarks_moved():
+    """At rest the "eye" lies around x = 0, clear of the crease; the pose moves the sheet 8 mm to the right and
+    bends it at x = 8, where the eye now is: its crease is the opening's, not a fold."""
+    from pdeface.surface.folds import posed_landmarks
+
+    L = far_landmarks()
+    eye = OPENINGS["eye_right"]
+    ring = np.linspace(0, 2 * np.pi, len(eye), endpoint=False)
+    L[eye] = np.stack([4 * np.cos(ring), 12 * np.sin(ring), 0 * ring], 1)
+    rest = grid()
+    posed = grid(fold_x=0.0, angle_deg=45)
+    posed.vertices = posed.vertices + [8.0, 0, 0]
+    moved = posed_landmarks(rest.vertices, posed.vertices, L)[eye] - L[eye]
+    assert np.allclose(moved[:, 0], 8.0) and np.all(moved[:, 2] >= 0)  # each moves as its nearest rest vertex
+    np.testing.assert_array_equal(posed_landmarks(rest.vertices, rest.vertices, L), L)  # at rest: unmoved
+    assert fold_edges(posed, FRAME, L)["count"] == 20  # the rest polygon alone: the crease is outside it
+    r = fold_edges(posed, FRAME, L, rest=rest)
+    assert r["count"] == 0 and r["inside"] == 20
+
+
 def test_the_bundled_face_is_measured(fitted):
     model, _ = fitted
     r = fold_edges(face_mesh(model), model.frame, model.landmarks)
@@ -64,7 +84,7 @@ def test_the_rims_beyond_the_corners_fold_less(fitted):
     rig = retarget(load_face("default"), model)
     for au in ("27", "12"):
         C, R = pose_curves(rig, {au: 1.0})
-        r = fold_edges(face_mesh(rig, coefficients=C, residual=R), rig.frame, L)
+        r = fold_edges(face_mesh(rig, coefficients=C, residual=R), rig.frame, L)  # rest openings only
         assert (np.abs(r["where"][:, 1] - mouth_y) < 6).sum() == 0, au
 
 

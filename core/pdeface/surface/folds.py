@@ -3,7 +3,8 @@
 A mesh edge is a **fold** when the two faces meeting there turn by more than a
 given angle (30° by default) and it lies outside the eye, mouth and nostril
 openings (their landmark polygons in the frontal view, grown by a third about
-their centres), where the lids and lips are meant to part. Distance and seam
+their centres, at rest and, for a posed face, where its lids and lips have
+moved), where the lids and lips are meant to part. Distance and seam
 figures do not see folds; a render shows them first.
 """
 from __future__ import annotations
@@ -31,6 +32,19 @@ def _inside(points, polygon) -> np.ndarray:
     return inside
 
 
+def posed_landmarks(rest_vertices, posed_vertices, landmarks_face) -> np.ndarray:
+    """Landmarks carried into a pose of the same mesh: each moves as its nearest rest vertex does.
+
+    ``rest_vertices``, ``posed_vertices`` (n, 3) and ``landmarks_face`` (68, 3) in one frame. A posed
+    face's openings are where its posed lids and lips are (AU27's lower lip drops past its rest polygon).
+    """
+    from scipy.spatial import cKDTree
+
+    rest = np.asarray(rest_vertices, np.float64)
+    nearest = cKDTree(rest).query(np.asarray(landmarks_face, np.float64))[1]
+    return landmarks_face + (np.asarray(posed_vertices, np.float64)[nearest] - rest[nearest])
+
+
 def opening_mask(points_face, landmarks_face, grow=GROW) -> np.ndarray:
     """Which face-frame points lie inside an opening's grown landmark polygon (frontal view)."""
     mask = np.zeros(len(points_face), bool)
@@ -41,7 +55,7 @@ def opening_mask(points_face, landmarks_face, grow=GROW) -> np.ndarray:
     return mask
 
 
-def fold_edges(mesh, frame, landmarks_face, angle_deg=30.0) -> dict:
+def fold_edges(mesh, frame, landmarks_face, angle_deg=30.0, rest=None) -> dict:
     """Edges of a polygon mesh whose two faces turn by more than ``angle_deg``, outside the openings.
 
     Parameters
@@ -52,6 +66,10 @@ def fold_edges(mesh, frame, landmarks_face, angle_deg=30.0) -> dict:
         The face's frame (the openings are tested in its frontal view).
     landmarks_face : (68, 3) array
         Landmarks in the face frame (the model's).
+    rest : Mesh, optional
+        The same mesh at rest, when ``mesh`` is a pose of it: the openings are then those at
+        rest and those of the posed lids and lips (:func:`posed_landmarks`), so an open jaw's
+        lower lip or a closed eye's lids part where they are.
 
     Returns
     -------
@@ -83,6 +101,8 @@ def fold_edges(mesh, frame, landmarks_face, angle_deg=30.0) -> dict:
     mid = 0.5 * (V[lo[pair]] + V[hi[pair]])
     folded = turn > angle_deg
     opening = opening_mask(mid, landmarks_face)
+    if rest is not None:
+        opening |= opening_mask(mid, posed_landmarks(frame.to_face(rest.vertices), V, landmarks_face))
     outside = folded & ~opening
     return {"count": int(outside.sum()), "max_deg": float(turn[~opening].max()) if (~opening).any() else 0.0,
             "inside": int((folded & opening).sum()), "where": mid[outside]}
