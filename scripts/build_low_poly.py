@@ -31,7 +31,7 @@ MEDIAPIPE_NOTICE = ("Tessellation and 468-point layout: MediaPipe face mesh, Cop
                     "Apache License 2.0 (https://github.com/google-ai-edge/mediapipe)")
 
 
-def tessellation_triangles(edges, n):
+def tessellation_triangles(edges):
     """Triangles of a mesh given only its edges: the 3-cycles, less any whose edges all have two other faces."""
     adj = defaultdict(set)
     for a, b in edges:
@@ -83,7 +83,7 @@ def main(argv=None):
     scan, _ = load_neutral_scan()
     found = detect(scan.vertices, scan.triangles()[0], unit="cm")
     V = found.mesh_points
-    T = orient(V, tessellation_triangles(sorted(FACEMESH_TESSELATION), len(V)))
+    T = orient(V, tessellation_triangles(sorted(FACEMESH_TESSELATION)))
     L = read_map().apply(V)
     np.savez_compressed(args.output, vertices=V.astype(np.float32), triangles=T.astype(np.int16),
                         landmarks=L.astype(np.float32), notice=np.array(ICT_NOTICE + "\n" + MEDIAPIPE_NOTICE))

@@ -205,3 +205,69 @@ def seam_welds(V: np.ndarray, T: np.ndarray, tol: float | None = None, min_piece
     first = np.full(lab.max() + 1, n)
     np.minimum.at(first, lab, np.arange(n))
     return first[lab]
+
+
+def butterfly_step(n_vertices: int, T: np.ndarray):
+    """One step of butterfly subdivision (Dyn, Levin and Gregory 1990) as a sparse matrix.
+
+    Interpolating: the old vertices stay where they are, each edge gets a new vertex
+    ``½(a + b) + ⅛(c + d) − 1/16 (e + f + g + h)`` (c, d opposite the edge; e–h the
+    wings beyond them), or the midpoint where the stencil is incomplete (near a border).
+    Being linear in the vertices, a curve point read off the finer mesh is still a fixed
+    combination of the original vertices.
+
+    Parameters
+    ----------
+    n_vertices : int
+    T : (t, 3) int array
+
+    Returns
+    -------
+    S : scipy.sparse.csr_matrix, shape (n_vertices + edges, n_vertices)
+        New vertices are ``S @ V``; the first ``n_vertices`` rows are the identity.
+    T_fine : (4 t, 3) int array
+        Each triangle split in four, wound as it was.
+    """
+    import scipy.sparse as sp
+
+    T = np.asarray(T, np.int64)
+    n = int(n_vertices)
+    a, b, c = (np.concatenate([T[:, i], T[:, (i + 1) % 3], T[:, (i + 2) % 3]]) for i in range(3))
+    key = np.minimum(a, b) * n + np.maximum(a, b)  # half-edge (a, b) with c opposite
+    order = np.argsort(key, kind="stable")
+    keys, first, count = np.unique(key[order], return_index=True, return_counts=True)
+    edge_of = np.empty(len(key), np.int64)
+    edge_of[order] = np.repeat(np.arange(len(keys)), count)
+    opp = np.full((len(keys), 2), -1)
+    opp[:, 0] = c[order][first]
+    two = count == 2
+    opp[two, 1] = c[order][first[two] + 1]
+    ea, eb = keys // n, keys % n
+
+    def wing(x, y, other):
+        """The vertex across edge (x, y) from ``other``; -1 where the edge is a border or missing."""
+        k = np.minimum(x, y) * n + np.maximum(x, y)
+        i = np.clip(np.searchsorted(keys, k), 0, len(keys) - 1)
+        found = (keys[i] == k) & two[i]
+        o = np.where(opp[i, 0] == other, opp[i, 1], opp[i, 0])
+        return np.where(found & (x >= 0) & (y >= 0), o, -1)
+
+    cc, dd = opp[:, 0], opp[:, 1]
+    wings = np.stack([wing(ea, cc, eb), wing(eb, cc, ea), wing(ea, dd, eb), wing(eb, dd, ea)], axis=1)
+    full = two & (wings >= 0).all(axis=1)
+    rows = [np.arange(n), n + np.arange(len(keys)), n + np.arange(len(keys))]
+    cols = [np.arange(n), ea, eb]
+    vals = [np.ones(n), np.full(len(keys), 0.5), np.full(len(keys), 0.5)]
+    f = np.nonzero(full)[0]
+    for col, w in ((cc[f], 1 / 8), (dd[f], 1 / 8), *((wings[f, j], -1 / 16) for j in range(4))):
+        rows.append(n + f)
+        cols.append(col)
+        vals.append(np.full(len(f), w))
+    S = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                      shape=(n + len(keys), n))
+    m = n + edge_of.reshape(3, -1).T  # per triangle: edges (t0 t1), (t1 t2), (t2 t0)
+    t0, t1, t2 = T[:, 0], T[:, 1], T[:, 2]
+    ab, bc, ca = m[:, 0], m[:, 1], m[:, 2]
+    T_fine = np.concatenate([np.stack([t0, ab, ca], 1), np.stack([ab, t1, bc], 1), np.stack([ca, bc, t2], 1),
+                             np.stack([ab, bc, ca], 1)])
+    return S, T_fine
