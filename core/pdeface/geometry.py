@@ -123,8 +123,11 @@ def cast_cylinder_rays(V, T, axis_z, theta, height, batch=200_000):
         o = np.stack([np.zeros(len(qid)), height[qid], np.full(len(qid), axis_z)], 1)
         hit, u, v, t = ray_triangle(o, _ray_directions(theta[qid]), V[T[t_, 0]], V[T[t_, 1]], V[T[t_, 2]])
         qid, t_, u, v, t = qid[hit], t_[hit], u[hit], v[hit], t[hit]
-        # Keep the farthest hit per ray: sort by (ray, -t) and take each ray's first.
-        order = np.lexsort((-t, qid))
+        # Keep the farthest hit per ray: sort by (ray, -t) and take each ray's first. Where two hits tie
+        # (twin triangles on the same three vertices wound both ways, as vertex clustering and some
+        # exports leave them), the one facing outwards wins: the other's inside would stop the ray.
+        front = np.einsum("ij,ij->i", triangle_cross(V, T[t_]), _ray_directions(theta[qid])) > 0
+        order = np.lexsort((~front, -np.round(t, 6), qid))
         qid, t_, u, v, t = qid[order], t_[order], u[order], v[order], t[order]
         first = np.ones(len(qid), bool)
         first[1:] = qid[1:] != qid[:-1]

@@ -242,3 +242,16 @@ def test_points_beyond_the_mesh_edge_carry_on_its_slope():
     assert np.all(np.diff(out[:4, 0]) > 0.2) and out[0, 0] < 2  # extrapolated: still falling towards row 0
     np.testing.assert_allclose(out[6, 3], 6.0)
     np.testing.assert_allclose(out[3:], np.where(valid, ramp, out)[3:])  # known points stay
+
+
+def test_twin_triangles_give_the_outward_hit():
+    """A wall in front of the axis, each triangle doubled on the same vertices wound the other way (as vertex
+    clustering leaves them): the ray takes the outward-facing twin, whichever comes first in the list."""
+    from pdeface.geometry import cast_cylinder_rays
+
+    V = np.array([[-5.0, -5, 10], [5, -5, 10], [5, 5, 10], [-5, 5, 10]])
+    out = np.array([[0, 1, 2], [0, 2, 3]])  # facing +z, away from the axis at z = 0
+    for T in (np.concatenate([out, out[:, ::-1]]), np.concatenate([out[:, ::-1], out])):
+        r, tri, _, facing = cast_cylinder_rays(V, T, 0.0, np.zeros(3), np.array([-2.0, 0.5, 3.0]))
+        np.testing.assert_allclose(r, 10.0)
+        assert np.all(facing > 0)  # the reversed twin would face the axis (facing < 0)
