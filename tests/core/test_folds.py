@@ -70,8 +70,9 @@ def test_the_bundled_face_is_measured(fitted):
 
 
 def test_the_rims_beyond_the_corners_fold_less(fitted):
-    """The break piece keeps the runs' tangents at BREAK_SLOPE. Measured with it at the runs' full slope:
-    92 folds along the eyes' line at rest, 79 along the mouth's in AU27 and 12 in AU12; now 35, 0 and 0."""
+    """The break piece keeps the runs' tangents at BREAK_SLOPE, and the rims beyond the corners sit OPENING_GAP
+    (0.6 mm) apart. With the break piece at the runs' full slope and 0.1 mm: 92 folds along the eyes' line at
+    rest, 79 along the mouth's in AU27 and 12 in AU12; with the break slope alone 35, 0 and 0; now 8, 0, 0."""
     from pdeface.assets import load_face
     from pdeface.au.expressions import pose_curves
     from pdeface.au.retarget import retarget
@@ -80,7 +81,7 @@ def test_the_rims_beyond_the_corners_fold_less(fitted):
     L = model.landmarks
     eye_y, mouth_y = L[[36, 39, 42, 45], 1].mean(), L[[48, 54], 1].mean()
     r = fold_edges(face_mesh(model), model.frame, L)
-    assert (np.abs(r["where"][:, 1] - eye_y) < 4).sum() <= 40  # not yet none: see the README's Folds
+    assert (np.abs(r["where"][:, 1] - eye_y) < 4).sum() <= 10  # not yet none: see the README's Folds
     rig = retarget(load_face("default"), model)
     for au in ("27", "12"):
         C, R = pose_curves(rig, {au: 1.0})
