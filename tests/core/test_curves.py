@@ -43,14 +43,14 @@ def test_curves_follow_the_lips(face_space):
     """A curve on each side of the mouth line and of the eye line; every other curve keeps clear of
     the mouth line."""
     from pdeface.geometry import cylinder_coords
-    from pdeface.surface.layout import OPENING_GAP
+    from pdeface.surface.layout import OPENING_GAPS
 
     _, _, Lf = face_space
     lay = place_curves(Lf)
     mouth, eye = Lf[[62, 66], 1].mean(), Lf[36:48, 1].mean()
-    g = 0.5 * OPENING_GAP
+    g, ge = 0.5 * OPENING_GAPS["mouth_top"], 0.5 * OPENING_GAPS["lid_top"]
     assert [lay.anchors[ln.anchor] for ln in lay.lines] == [
-        eye + g, eye - g, Lf[33, 1], Lf[51, 1], mouth + g, mouth - g, Lf[57, 1]]
+        eye + ge, eye - ge, Lf[33, 1], Lf[51, 1], mouth + g, mouth - g, Lf[57, 1]]
     assert len(lay.openings) == 2 and len(lay.breaks()) == 2
     for a, k in lay.opening_curves():
         assert lay.heights[k] == lay.anchors[a] and lay.heights[k + 1] == lay.anchors[a + 1]
@@ -62,7 +62,7 @@ def test_curves_follow_the_lips(face_space):
     others = np.ones(lay.n_curves, bool)
     others[[k, k + 1]] = False
     assert gap[others][inner[others]].min() > 0.3
-    assert gap[[k, k + 1]][inner[[k, k + 1]]].max() < OPENING_GAP  # the pair sits on it
+    assert gap[[k, k + 1]][inner[[k, k + 1]]].max() < 2 * g  # the pair sits on it
     # the level inverts the bend, and straight layouts have none
     np.testing.assert_allclose(lay.level(th, H).reshape(H.shape), np.broadcast_to(lay.heights[:, None], H.shape), atol=1e-9)
     flat = place_curves(Lf, follow_lips=False)

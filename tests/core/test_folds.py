@@ -70,8 +70,8 @@ def test_the_bundled_face_is_measured(fitted):
 
 
 def test_the_rims_beyond_the_corners_fold_less(fitted):
-    """The break piece keeps the runs' tangents at BREAK_SLOPE, and the rims beyond the corners sit OPENING_GAP
-    (0.6 mm) apart. With the break piece at the runs' full slope and 0.1 mm: 92 folds along the eyes' line at
+    """The break piece keeps the runs' tangents at BREAK_SLOPE, and the eyes' rims beyond their corners sit
+    OPENING_GAPS["lid_top"] (0.6 mm) apart. With the break piece at the runs' full slope and 0.1 mm: 92 folds along the eyes' line at
     rest, 79 along the mouth's in AU27 and 12 in AU12; with the break slope alone 35, 0 and 0; now 8, 0, 0."""
     from pdeface.assets import load_face
     from pdeface.au.expressions import pose_curves

@@ -82,12 +82,14 @@ ANCHOR_NAMES = ("forehead", "brow", "lid_top", "lid_bottom", "nose_tip", "nose_b
 #: Each maps to the knot ranges of its line where the rims are searched (the eye line
 #: crosses the nose between the eyes).
 OPENINGS = {("lid_top", "lid_bottom"): ((0, 3), (4, 7)), ("mouth_top", "mouth_bottom"): ((0, 6),)}
-#: Height gap (mm) between an opening's two anchors, and between its rims where they meet. Beyond the
-#: eyes' corners the two rims' curves bend differently between samples; 0.1 mm apart they crossed and the
-#: strip between them folded over (35 folds at rest on the generic face, 20 and 22 on identity001/002).
-#: Measured on those faces at 0.1 / 0.3 / 0.6 / 1.0 mm: 35 / 10 / 8 / 1, 20 / 7 / 6 / 0, 22 / 4 / 5 / 0;
-#: at 1.0 the retargeted descriptors' capture fell 0.959 → 0.950 and the worst normal p95 reached 7.9°.
-OPENING_GAP = 0.6
+#: Height gap (mm) between an opening's two anchors, and between its rims where they meet, per opening
+#: (its top anchor). Beyond the eyes' corners the two rims' curves bend differently between samples;
+#: 0.1 mm apart they crossed and the strip between them folded over (35 folds at rest on the generic
+#: face, 20 and 22 on identity001/002). Measured on those faces at 0.1 / 0.3 / 0.6 / 1.0 mm (both
+#: openings): 35 / 10 / 8 / 1, 20 / 7 / 6 / 0, 22 / 4 / 5 / 0; at 1.0 the retargeted descriptors'
+#: capture fell 0.959 → 0.950 and the worst normal p95 reached 7.9°. The lips keep 0.1: their line had
+#: no folds, and 0.6 there cost the whole head's mouth AUs 1-3 points (bench_head: AU12 0.86 → 0.84).
+OPENING_GAPS = {"lid_top": 0.6, "mouth_top": 0.1}
 #: Beyond its ends a line's pull fades out over this fraction of its angular width.
 LINE_TAPER = 0.4
 #: Bent anchors keep at least this fraction of their level gap between them.
@@ -316,8 +318,9 @@ def place_curves(landmarks_face: np.ndarray, n_curves: int = DEFAULT_CURVES, n_p
     gap = max(lid_top - lid_bottom, 0.25 * (brow - eye))
     chin, lip_lower, mouth = L[8, 1], L[57, 1], L[[62, 66], 1].mean()
     anchors = dict(zip(ANCHOR_NAMES, (
-        brow + forehead * (brow - eye), brow, eye + 0.5 * OPENING_GAP, eye - 0.5 * OPENING_GAP, L[30, 1],
-        L[33, 1], L[51, 1], mouth + 0.5 * OPENING_GAP, mouth - 0.5 * OPENING_GAP, lip_lower,
+        brow + forehead * (brow - eye), brow, eye + 0.5 * OPENING_GAPS["lid_top"], eye - 0.5 * OPENING_GAPS["lid_top"],
+        L[30, 1], L[33, 1], L[51, 1], mouth + 0.5 * OPENING_GAPS["mouth_top"], mouth - 0.5 * OPENING_GAPS["mouth_top"],
+        lip_lower,
         chin + 0.08 * (lip_lower - chin))))
     ys = np.array(list(anchors.values()))
     # Density breakpoints: the anchors and the lids' heights, in SEGMENT_DENSITY's order.
@@ -347,7 +350,8 @@ def place_curves(landmarks_face: np.ndarray, n_curves: int = DEFAULT_CURVES, n_p
     layout = CurveLayout(heights, half, float(axis_z), int(n_points))
     if follow_lips:
         layout.anchors, layout.openings = ys, openings
-        offset = {top: 0.5 * OPENING_GAP for top, _ in OPENINGS} | {bottom: -0.5 * OPENING_GAP for _, bottom in OPENINGS}
+        offset = ({top: 0.5 * OPENING_GAPS[top] for top, _ in OPENINGS}
+                  | {bottom: -0.5 * OPENING_GAPS[top] for top, bottom in OPENINGS})
         for name, groups in FEATURE_LINES.items():
             t, yy, _ = cylinder_coords(np.array([L[g].mean(axis=0) for g in groups]), axis_z)
             o = np.argsort(t)

@@ -16,7 +16,7 @@ import numpy as np
 
 from ..errors import LayoutError
 from ..geometry import cast_cylinder_rays
-from .layout import OPENING_GAP, OPENINGS, CurveLayout, FeatureLine
+from .layout import ANCHOR_NAMES, OPENING_GAPS, OPENINGS, CurveLayout, FeatureLine
 
 #: Skin seen more obliquely than this (cosine between normal and ray, ~72°) faces away.
 FACING_MIN_COS = 0.3
@@ -33,8 +33,8 @@ def follow_rims(layout: CurveLayout, V_face: np.ndarray, T: np.ndarray) -> Curve
     mouth corners; between each eye's corners) rays walk down from halfway to
     the anchor above until the next ray would meet skin facing away, no skin,
     or another surface; the bottom rim likewise walking up. Where the two rims
-    meet (towards the corners) they sit :data:`pdeface.surface.layout.OPENING_GAP`
-    apart around their middle. The lines' knots outside the spans (the
+    meet (towards the corners) they sit the opening's
+    :data:`pdeface.surface.layout.OPENING_GAPS` apart around their middle. The lines' knots outside the spans (the
     corners) stay at the landmarks.
 
     Parameters
@@ -70,7 +70,8 @@ def follow_rims(layout: CurveLayout, V_face: np.ndarray, T: np.ndarray) -> Curve
             keep[s0 + 1:s1] = False
             th = th_k[(th_k > line.theta[s0]) & (th_k < line.theta[s1])]
             Y = layout.anchor_heights(th)
-            rims = _rims(V_face, T, layout.axis_z, th, Y[a - 1], Y[a], Y[a + 1], Y[a + 2])
+            rims = _rims(V_face, T, layout.axis_z, th, Y[a - 1], Y[a], Y[a + 1], Y[a + 2],
+                         OPENING_GAPS[ANCHOR_NAMES[a]])
             theta.append(th), up.append(rims[0]), lo.append(rims[1])
         t = np.concatenate([line.theta[keep], *theta])
         o = np.argsort(t)
@@ -79,10 +80,10 @@ def follow_rims(layout: CurveLayout, V_face: np.ndarray, T: np.ndarray) -> Curve
     return out
 
 
-def _rims(V, T, axis_z, th, y_above, y_top, y_bottom, y_below):
-    """Heights of the upper and lower rim at angles ``th``."""
+def _rims(V, T, axis_z, th, y_above, y_top, y_bottom, y_below, gap):
+    """Heights of the upper and lower rim at angles ``th``; ``gap`` apart where they meet."""
     mid = 0.5 * (y_top + y_bottom)
-    up, lo = mid + 0.5 * OPENING_GAP, mid - 0.5 * OPENING_GAP
+    up, lo = mid + 0.5 * gap, mid - 0.5 * gap
     for c in range(len(th)):
         ys = np.arange(mid[c] + 0.5 * (y_above[c] - mid[c]), mid[c] - 0.5 * (mid[c] - y_below[c]), -RIM_STEP_MM)
         r, _, _, facing = cast_cylinder_rays(V, T, axis_z, np.full(len(ys), th[c]), ys)
@@ -96,9 +97,9 @@ def _rims(V, T, axis_z, th, y_above, y_top, y_bottom, y_below):
         j = len(ys) - 1
         while j > 0 and ok[j - 1] and step_ok[j - 1]:
             j -= 1
-        if ys[i] - ys[j] >= OPENING_GAP:
+        if ys[i] - ys[j] >= gap:
             up[c], lo[c] = ys[i], ys[j]
         else:  # no slit here: the lips meet
             m = 0.5 * (ys[i] + ys[j])
-            up[c], lo[c] = m + 0.5 * OPENING_GAP, m - 0.5 * OPENING_GAP
+            up[c], lo[c] = m + 0.5 * gap, m - 0.5 * gap
     return up, lo
