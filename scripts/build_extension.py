@@ -4,7 +4,7 @@ Usage: python scripts/build_extension.py [--platforms linux-x64,macos-arm64,maco
                                          [--out dist] [--wheel-cache DIR]
 
 Stages blender_addon/, builds a pdeface wheel carrying the default face assets
-(default_face.npz, the ICT neutral scan and whole head, ICT-FaceKit's licence), downloads
+(default_face.npz, the ICT neutral scan and whole head with its head prior, ICT-FaceKit's licence), downloads
 CPython 3.11 wheels of scipy and xatlas for each platform (Blender 4.2-5.0 run
 Python 3.11 and ship numpy), lists them in the manifest, then builds one zip
 per platform with Blender's own extension tool and validates them. The tool
@@ -29,8 +29,8 @@ PLATFORMS = {
     "windows-x64": ["win_amd64"],
 }
 DEPENDENCIES = ["scipy==1.14.1", "xatlas==0.0.11"]
-BUNDLED_ASSETS = ["default_face.npz", "ict_neutral_face.npz", "ict_head.npz", "ict_generic_fdts.json.gz",
-                  "ICT-FaceKit-LICENSE.txt"]
+BUNDLED_ASSETS = ["default_face.npz", "ict_neutral_face.npz", "ict_head.npz", "ict_head_prior.npz",
+                  "ict_generic_fdts.json.gz", "ICT-FaceKit-LICENSE.txt"]
 
 
 def blender_ext_command():

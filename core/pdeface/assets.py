@@ -7,6 +7,7 @@ from ICT-FaceKit (MIT); its notice travels with them.
 """
 from __future__ import annotations
 
+import functools
 import os
 from pathlib import Path
 
@@ -106,6 +107,19 @@ def load_head_shapes() -> dict:
         step = float(z["step_cm"])
         return {str(n): np.concatenate([face[str(n)], o.astype(np.float64) * step])
                 for n, o in zip(z["names"], z["offsets"])}
+
+
+ICT_HEAD_PRIOR = "ict_head_prior.npz"
+
+
+@functools.lru_cache(maxsize=1)
+def load_head_prior():
+    """The whole-head motion learned from ICT-FaceKit's head (:class:`pdeface.head.prior.HeadPrior`;
+    ``scripts/build_head_prior.py``). Shared: do not modify it."""
+    from .head.prior import load_prior
+
+    head, _ = load_head()
+    return load_prior(asset_path(ICT_HEAD_PRIOR), head.vertices, head.triangles()[0])
 
 
 GENERIC_FDTS = "ict_generic_fdts.json.gz"

@@ -50,6 +50,8 @@ REST_IOD = 1.1
 BELOW_CHIN_IOD = 0.75
 #: Skin inside the mouth this far (eye distances) behind the lips does not move (but with the jaw).
 MOUTH_DEPTH_IOD = 0.8
+#: The head prior fades out over this share of the way from the covered skin to the rest region.
+PRIOR_FADE = 0.3
 #: AUs that move the jaw, and the gaze AUs.
 JAW_AUS = frozenset({25, 26, 27, 29, 30})
 GAZE_AUS = frozenset({61, 62, 63, 64})
@@ -120,14 +122,31 @@ def _read_pde(model, P, N, s, resolution):
 
 def _rest_region(P, Ts, covered, Lf, s):
     """Skin that never moves: far from the covered skin, well below the chin, or in a piece it misses."""
-    from scipy.spatial import cKDTree
-
     from ..mesh import connected_components
 
-    far = cKDTree(P[covered]).query(P)[0] > REST_IOD * s
-    below = P[:, 1] < Lf[8, 1] - BELOW_CHIN_IOD * s
+    far = _from_covered(P, P[covered]) > REST_IOD * s
     lab = connected_components(len(P), Ts)
-    return ((far | below) & ~covered) | ~np.isin(lab, np.unique(lab[covered]))
+    return ((far | _below_chin(P, Lf, s)) & ~covered) | ~np.isin(lab, np.unique(lab[covered]))
+
+
+def _from_covered(X, covered_points):
+    from scipy.spatial import cKDTree
+
+    return cKDTree(covered_points).query(X)[0]
+
+
+def _below_chin(X, Lf, s):
+    return X[:, 1] < Lf[8, 1] - BELOW_CHIN_IOD * s
+
+
+def _prior_reach(Vf, skin, covered, rest, Lf, s):
+    """How much of the head prior each vertex takes: none in the rest region nor below the chin's rest
+    line, fading in over the last PRIOR_FADE of the way to the rest region (no step where it starts)."""
+    reach = np.clip((REST_IOD * s - _from_covered(Vf, Vf[skin[covered]])) / (PRIOR_FADE * REST_IOD * s), 0, 1)
+    reach = reach * reach * (3 - 2 * reach)
+    reach[skin[rest]] = 0.0
+    reach[_below_chin(Vf, Lf, s)] = 0.0
+    return reach
 
 
 def _depths(P, covered, Lf, s, eyes):
@@ -157,9 +176,13 @@ class HeadBinding:
         The landmarks (user space) for a model file that does not carry them (pdeface 0.1).
     overrides : dict, optional
         Part kind → vertex indices (see :func:`pdeface.head.parts.classify_parts`).
+    prior : HeadPrior, ``"bundled"`` or None
+        Motion learned from scans beyond the harmonic extension (:mod:`pdeface.head.prior`):
+        ICT-FaceKit's by default; None for the PDE face and its extension alone.
     """
 
-    def __init__(self, model, vertices, triangles, landmarks=None, overrides=None, resolution=RESOLUTION):
+    def __init__(self, model, vertices, triangles, landmarks=None, overrides=None, resolution=RESOLUTION,
+                 prior="bundled"):
         from ..mesh import connected_components, cotan_laplacian, seam_welds, vertex_normals
 
         V = np.asarray(vertices, np.float64)
@@ -241,6 +264,25 @@ class HeadBinding:
             guard = (rho >= radius) & (rho < radius + 0.15 * s) & (P[:, 2] > centre[2])
             self.eyes[name] = (centre, radius, idx, np.nonzero(guard)[0])
 
+        # What the PDE face and its extension miss, learned from scans; nothing in the rest region.
+        self.prior = None
+        if prior is not None:
+            if isinstance(prior, str):
+                from ..assets import load_head_prior
+                from ..errors import PdeFaceError
+
+                try:
+                    prior = load_head_prior()
+                except PdeFaceError as exc:  # an install without it: the binding still works, and says so
+                    prior = None
+                    self.notes.append(f"no head prior ({exc}): the skin beyond the PDE face follows its harmonic "
+                                      "extension alone")
+            reach = _prior_reach(Vf, si, covered, rest, Lf, s) * original
+            self.prior = prior.on(model, Vf, parts.kind, reach, eye_mm=s) if prior is not None else None
+            if prior is not None and self.prior is None:
+                self.notes.append("the face's curve layout is not the head prior's: the skin beyond the PDE face "
+                                  "follows its harmonic extension alone")
+
     def _anchors(self, X, labels, P):
         """Skin anchor of each attached vertex: the skin vertex nearest its part's root.
 
@@ -276,17 +318,11 @@ class HeadBinding:
             self._ext_jaw = _Extension(self._L, self._jaw_fixed)
         return self._ext_jaw
 
-    def displacement(self, delta_coefficients, delta_residual, jaw=False, gaze=None) -> np.ndarray:
-        """Displacement of every vertex (user space and unit) for a change of the PDE curves.
+    def face_motion(self, delta_coefficients, delta_residual, jaw=False, gaze=None, with_prior=True) -> np.ndarray:
+        """Displacement of every vertex in the face frame (mm), before the lids' guard and the seam copies.
 
-        Parameters
-        ----------
-        delta_coefficients, delta_residual : arrays
-            Change of the model's coefficients and residual (a descriptor's, or a pose's).
-        jaw : bool
-            Move the jaw's parts with the rotation the chin's motion shows (jaw AUs).
-        gaze : dict, optional
-            Gaze AU weights ``{61: w, ...}``: turn the eyeballs.
+        ``with_prior=False``: the PDE face, its harmonic extension and the rigid parts alone (what a
+        :class:`~pdeface.head.prior.HeadPrior` learns the residual of).
         """
         m = self.model
         D = surface_grid(m, *self.resolution, coefficients=delta_coefficients, residual=delta_residual,
@@ -302,9 +338,27 @@ class HeadBinding:
             out[self.jaw_parts] = rigid_displacement(self.Vf[self.jaw_parts], self.hinge, bone, t)
         if len(self.follow):
             out[self.follow] = self._follow(d)
-        for name, (centre, radius, idx, guard) in self.eyes.items():
-            if gaze:
+        if gaze:
+            for _, (centre, _, idx, _) in self.eyes.items():
                 out[idx] = rigid_displacement(self.Vf[idx], centre, gaze_matrix(gaze))
+        if with_prior and self.prior is not None:
+            out[self.prior.vertices] += self.prior(m.curve_points(delta_coefficients, delta_residual))
+        return out
+
+    def displacement(self, delta_coefficients, delta_residual, jaw=False, gaze=None) -> np.ndarray:
+        """Displacement of every vertex (user space and unit) for a change of the PDE curves.
+
+        Parameters
+        ----------
+        delta_coefficients, delta_residual : arrays
+            Change of the model's coefficients and residual (a descriptor's, or a pose's).
+        jaw : bool
+            Move the jaw's parts with the rotation the chin's motion shows (jaw AUs).
+        gaze : dict, optional
+            Gaze AU weights ``{61: w, ...}``: turn the eyeballs.
+        """
+        out = self.face_motion(delta_coefficients, delta_residual, jaw, gaze)
+        for centre, radius, _, guard in self.eyes.values():
             if len(guard):
                 p = self.Vf[self.skin[guard]] + out[self.skin[guard]]
                 rho = np.linalg.norm(p - centre, axis=1)
@@ -333,11 +387,7 @@ class HeadBinding:
 
     def descriptor_displacement(self, descriptor) -> np.ndarray:
         """One descriptor's shape key on the head (user space): its displacement at weight 1."""
-        from ..au.facs import au_number
-
-        au = au_number(descriptor.key)
-        gaze = {au: 1.0} if au in GAZE_AUS else None
-        return self.displacement(*descriptor.dense(), jaw=au in JAW_AUS, gaze=gaze)
+        return self.displacement(*descriptor_motion_args(descriptor))
 
     def pose_displacement(self, weights: dict, mixer: str = "sum") -> np.ndarray:
         """The head's displacement for AU ``weights`` mixed by ``mixer`` (user space)."""
@@ -353,6 +403,14 @@ class HeadBinding:
                 gaze[a] = gaze.get(a, 0.0) + weights[k]
         jaw = any(a in JAW_AUS for a in numbers.values())
         return self.displacement(C - self.model.coefficients, R - self.model.residual, jaw=jaw, gaze=gaze or None)
+
+
+def descriptor_motion_args(descriptor) -> tuple:
+    """``(delta_coefficients, delta_residual, jaw, gaze)`` of one descriptor at weight 1."""
+    from ..au.facs import au_number
+
+    au = au_number(descriptor.key)
+    return (*descriptor.dense(), au in JAW_AUS, {au: 1.0} if au in GAZE_AUS else None)
 
 
 def bind_file(model, mesh_arg, landmarks=None, parts=None):

@@ -1,0 +1,263 @@
+"""Whole-head motion learned from scans: what the PDE face and its harmonic extension miss.
+
+The harmonic extension (:mod:`pdeface.head.bind`) predicts skin beyond the PDE face from the
+face's own motion alone. A scanned head moves more than that: ICT-FaceKit's mouth lining rolls
+with the lips 5 cm deep, its lashes follow the lid's margin, its cheek squint pulls the whole
+scalp down. :class:`HeadPrior` keeps, for each scanned AU, the **residual** (truth minus the
+binding without the prior) at every vertex of the scanned head, and the AU's curve-point motion;
+a PDE motion ``x`` then gets the residual of kernel ridge regression on those samples,
+
+    r(x) = Rᵀ (G + λ·mean(diag G)·I)⁻¹ X x,   G = X Xᵀ,
+
+linear in ``x``, so every key is still one linear shape key and mixes still add. An AU the
+prior was learned from gets (nearly) its scanned residual; a new AU (a muscle AU, the user's own
+scan) gets the residual of the samples it resembles, none where it resembles none.
+
+On the user's head (:meth:`HeadPrior.on`) each vertex takes the residual of the prior head's
+closest point of the same part kind, after a thin-plate warp taking the user's curve points to
+the prior face's (so the lips meet the lips), scaled per axis by face size as descriptors are
+(:mod:`pdeface.au.retarget`); in full within :data:`NEAR_IOD` eye distances of the prior head,
+fading to none at :data:`FAR_IOD` (a body, a helmet, hair far from the head: nothing).
+
+File (``assets/ict_head_prior.npz``, built by ``scripts/build_head_prior.py``): ``format``,
+``keys`` (S,), ``features`` (S, K, J, 3) float16 mm, ``residuals`` (S, m, 3) int16 in steps of
+``step_mm`` at the vertices ``carried`` (m,) of the prior head, ``kind`` (n,) part codes,
+``frame`` (4, 4) from the head asset named ``head`` to the face frame (mm), ``curve_points``
+(K, J, 3), ``face_size`` (3,), ``notice``.
+"""
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import ModelFormatError
+
+FORMAT = "pdeface.head-prior"
+#: Ridge weight λ relative to the mean squared norm of the samples' features. Measured on ICT's
+#: generic head, face-region median captured by ridge, an AU left out of the samples (in them):
+#: 0.001 0.898 (0.996), 0.01 0.899 (0.982), 0.1 0.892 (0.951), 1 0.886 (0.922).
+RIDGE = 0.01
+#: A user vertex takes the prior's residual in full within this many eye distances of the warped
+#: prior head, fading to none at FAR_IOD.
+NEAR_IOD, FAR_IOD = 0.05, 0.15
+#: Part kinds that take a residual: the soft ones. The jaw's parts turn rigidly, the skull's stay, the
+#: eyeballs turn about their centres (ICT's do not move).
+CARRIED_KINDS = ("skin", "follow")
+#: Storage step of the residuals (mm).
+STEP_MM = 0.01
+#: Curve points the warp is anchored on: every WARP_STRIDE-th curve and point.
+WARP_STRIDE = 2
+
+
+@dataclass
+class HeadPrior:
+    """Residual motion of a scanned head per scanned AU, and the AUs' curve-point motion.
+
+    Attributes
+    ----------
+    keys : list of str
+        AU keys of the samples.
+    features : (S, K, J, 3) array
+        Each sample's curve-point motion (face frame of the prior face, mm).
+    residuals : (S, n, 3) array
+        Truth minus the prior-free binding at every vertex of the prior head (mm).
+    vertices : (n, 3) array
+        The prior head in its face frame (mm), with ``triangles`` (t, 3) and part ``kind`` (n,).
+    curve_points : (K, J, 3) array
+        The prior face's curve points; ``face_size`` (3,) mm.
+    """
+
+    keys: list
+    features: np.ndarray
+    residuals: np.ndarray
+    vertices: np.ndarray
+    triangles: np.ndarray
+    kind: np.ndarray
+    curve_points: np.ndarray
+    face_size: np.ndarray
+    ridge: float = RIDGE
+    notice: str = ""
+
+    @property
+    def layout(self) -> tuple:
+        return self.curve_points.shape[:2]
+
+    def without(self, keys) -> "HeadPrior":
+        """The prior without the samples ``keys`` (to measure AUs it never saw)."""
+        keep = np.array([k not in set(keys) for k in self.keys])
+        return replace(self, keys=[k for k, m in zip(self.keys, keep) if m], features=self.features[keep],
+                       residuals=self.residuals[keep])
+
+    def solver(self) -> np.ndarray:
+        """(S, K·J·3): a motion's sample weights ``α = solver @ x`` (kernel ridge)."""
+        X = self.features.reshape(len(self.features), -1)
+        G = X @ X.T
+        lam = self.ridge * np.trace(G) / max(len(G), 1)
+        return np.linalg.solve(G + lam * np.eye(len(G)), X)
+
+    def on(self, model, vertices, kind, reach=None, eye_mm=None):
+        """The prior carried to a user's head; None when its face has another curve layout.
+
+        Parameters
+        ----------
+        model : FaceModel
+            The user's face (fitted on the head).
+        vertices : (p, 3) array
+            The head's vertices in the user's face frame (mm).
+        kind : (p,) int array
+            Their part codes (:data:`pdeface.head.parts.KINDS`).
+        reach : (p,) array in [0, 1], optional
+            How much of the residual each vertex may take (0: a vertex that never moves).
+        eye_mm : float, optional
+            The user's eye distance (mm), for the fade; the face frame's 65 mm by default.
+
+        Returns
+        -------
+        PriorOnHead or None
+        """
+        from ..au.retarget import face_size
+        from ..geometry import ClosestPoint
+        from .parts import CODE
+
+        X_user = model.curve_points()
+        if X_user.shape[:2] != self.layout:
+            return None
+        ratio = face_size(model) / self.face_size
+        eye_mm = 65.0 if eye_mm is None else float(eye_mm)
+        near, far = NEAR_IOD * eye_mm, FAR_IOD * eye_mm
+        s = WARP_STRIDE
+        src, dst = X_user[::s, ::s].reshape(-1, 3), self.curve_points[::s, ::s].reshape(-1, 3)
+        warp = _warp(src, dst)
+        V = np.asarray(vertices, np.float64)
+        candidate = np.isin(kind, [CODE[k] for k in CARRIED_KINDS])
+        if reach is not None:
+            candidate &= np.asarray(reach) > 0
+        # Only vertices near the prior head (scaled to the user's face) can take anything.
+        lo, hi = self.vertices.min(0) * ratio - far, self.vertices.max(0) * ratio + far
+        candidate &= ((V > np.minimum(lo, hi)) & (V < np.maximum(lo, hi))).all(axis=1)
+        idx = np.nonzero(candidate)[0]
+        W = V[idx] + warp(V[idx]) if len(idx) else np.zeros((0, 3))
+        S = len(self.keys)
+        per_vertex = self.per_vertex
+        fields = np.zeros((len(idx), S * 3))
+        weight = np.zeros(len(idx))
+        for name in CARRIED_KINDS:
+            mine = np.nonzero(kind[idx] == CODE[name])[0]
+            tri = self.triangles[(self.kind[self.triangles] == CODE[name]).all(axis=1)]
+            if not len(mine) or not len(tri):
+                continue
+            dist, t, bary, _ = ClosestPoint(self.vertices, tri).query(W[mine])
+            fields[mine] = sum(bary[:, [c]] * per_vertex[tri[t, c]] for c in range(3))
+            weight[mine] = np.clip((far - dist) / (far - near), 0.0, 1.0)
+        weight = weight * weight * (3 - 2 * weight)  # smoothstep: no crease where the fade starts
+        if reach is not None:
+            weight = weight * np.asarray(reach, np.float64)[idx]
+        keep = weight > 0
+        fields = fields[keep].reshape(-1, S, 3) * (weight[keep, None, None] * ratio)
+        return PriorOnHead(idx[keep], np.ascontiguousarray(fields.transpose(0, 2, 1).reshape(-1, S)),
+                           self.solver(), ratio)
+
+    @functools.cached_property
+    def per_vertex(self) -> np.ndarray:
+        """(n, S·3): the residuals laid out per vertex."""
+        return self.residuals.transpose(1, 0, 2).reshape(len(self.vertices), -1)
+
+
+def _warp(src, dst, smoothing=1.0):
+    """Polyharmonic spline (kernel r, 3-D biharmonic, with an affine part) taking ``src`` to ``dst``:
+    a function adding the offset at any points."""
+    from scipy.spatial.distance import cdist
+
+    n = len(src)
+    A = np.zeros((n + 4, n + 4))
+    A[:n, :n] = cdist(src, src) + smoothing * np.eye(n)
+    A[:n, n:] = np.c_[np.ones(n), src]
+    A[n:, :n] = A[:n, n:].T
+    coef = np.linalg.solve(A, np.r_[dst - src, np.zeros((4, 3))])
+    return lambda P: cdist(P, src) @ coef[:n] + np.c_[np.ones(len(P)), P] @ coef[n:]
+
+
+@dataclass
+class PriorOnHead:
+    """A :class:`HeadPrior` on one user's head: ``vertices`` (q,) take ``fields`` (q·3, S) mm
+    (user face frame, x y z per vertex) mixed by the sample weights of a curve-point motion."""
+
+    vertices: np.ndarray
+    fields: np.ndarray
+    solver: np.ndarray
+    ratio: np.ndarray
+
+    def leaving_out(self, prior: HeadPrior, keys) -> "PriorOnHead":
+        """The same transfer with the samples ``keys`` left out of ``prior`` (to measure AUs it never saw)."""
+        keep = np.array([k not in set(keys) for k in prior.keys])
+        return replace(self, fields=np.ascontiguousarray(self.fields[:, keep]),
+                       solver=prior.without(keys).solver())
+
+    def __call__(self, curve_motion) -> np.ndarray:
+        """(q, 3) residual motion for a curve-point motion (K, J, 3) of the user's face (mm)."""
+        alpha = self.solver @ (np.asarray(curve_motion, np.float64) / self.ratio).ravel()
+        return (self.fields @ alpha).reshape(-1, 3)
+
+
+def save_prior(path, prior: HeadPrior, frame: np.ndarray, head: str, step_mm: float = STEP_MM):
+    """Write a prior of the head asset ``head`` (``frame``: its 4×4 map to the face frame)."""
+    carried = np.nonzero(np.abs(prior.residuals).max(axis=(0, 2)) >= step_mm)[0]
+    q = np.round(prior.residuals[:, carried] / step_mm)
+    if np.abs(q).max(initial=0) > np.iinfo(np.int16).max:
+        raise ModelFormatError(f"residuals too large for steps of {step_mm} mm")
+    np.savez_compressed(path, format=np.array(FORMAT), keys=np.array(prior.keys),
+                        features=prior.features.astype(np.float16), residuals=q.astype(np.int16),
+                        step_mm=np.array(step_mm), carried=carried.astype(np.int32), kind=prior.kind.astype(np.int8),
+                        frame=np.asarray(frame, np.float64), head=np.array(head),
+                        curve_points=prior.curve_points.astype(np.float32), face_size=np.asarray(prior.face_size),
+                        ridge=np.array(prior.ridge), notice=np.array(prior.notice))
+
+
+def load_prior(path, head_vertices, head_triangles) -> HeadPrior:
+    """Read and check a prior file; ``head_vertices`` / ``head_triangles``: the head asset it names."""
+    path = Path(path)
+    try:
+        with np.load(path, allow_pickle=False) as f:
+            data = {k: f[k] for k in f.files}
+    except FileNotFoundError:
+        raise ModelFormatError(f"{path}: head prior file not found") from None
+    except (OSError, ValueError) as exc:
+        raise ModelFormatError(f"{path}: not a head prior file ({exc})") from None
+    if str(data.get("format", "")) != FORMAT:
+        raise ModelFormatError(f"{path}: not a pdeface head prior file (format {FORMAT!r})")
+    try:
+        keys = [str(k) for k in data["keys"]]
+        F = np.asarray(data["features"], np.float64)
+        Q = np.asarray(data["residuals"])
+        carried = np.asarray(data["carried"], np.int64)
+        kind = np.asarray(data["kind"], np.int64)
+        M = np.asarray(data["frame"], np.float64)
+        C = np.asarray(data["curve_points"], np.float64)
+        size = np.asarray(data["face_size"], np.float64)
+        step = float(data["step_mm"])
+    except KeyError as exc:
+        raise ModelFormatError(f"{path}: head prior file lacks {exc}") from None
+    S, n = len(keys), len(head_vertices)
+    problems = []
+    if F.ndim != 4 or F.shape[0] != S or F.shape[1:3] != C.shape[:2] or F.shape[3] != 3 or not np.isfinite(F).all():
+        problems.append(f"'features' must be finite, shaped ({S}, curves, points, 3); got {F.shape}")
+    if Q.ndim != 3 or Q.shape != (S, len(carried), 3) or Q.dtype != np.int16:
+        problems.append(f"'residuals' must be int16 shaped ({S}, {len(carried)}, 3); got {Q.shape} {Q.dtype}")
+    if len(carried) and (carried.min() < 0 or carried.max() >= n):
+        problems.append("'carried' indexes vertices the head does not have")
+    if kind.shape != (n,):
+        problems.append(f"'kind' must give one part code per head vertex ({n}); got {kind.shape}")
+    if M.shape != (4, 4) or not np.isfinite(M).all():
+        problems.append("'frame' must be a finite 4×4 matrix")
+    if size.shape != (3,) or not (np.isfinite(size).all() and (size > 0).all()) or not step > 0:
+        problems.append("'face_size' must be 3 positive numbers (mm) and 'step_mm' positive")
+    if problems:
+        raise ModelFormatError(f"{path}: " + "; ".join(problems))
+    residuals = np.zeros((S, n, 3))
+    residuals[:, carried] = Q * step
+    V = np.asarray(head_vertices, np.float64) @ M[:3, :3].T + M[:3, 3]
+    return HeadPrior(keys, F, residuals, V, np.asarray(head_triangles, np.int64), kind, C, size,
+                     float(data.get("ridge", RIDGE)), str(data.get("notice", "")))

@@ -1,0 +1,71 @@
+"""Build the whole-head prior: what the PDE face and its harmonic extension miss on ICT-FaceKit's head.
+
+Usage: python scripts/build_head_prior.py [-o assets/ict_head_prior.npz]
+
+Fits the PDE face on the bundled generic head, gives it the bundled descriptors (retargeted, as
+``pdeface retarget`` does), binds the head without a prior, and keeps for every AU key ICT-FaceKit
+has shapes for: its curve-point motion and the residual, truth (ICT expression − neutral) minus
+the binding, at every vertex of the head (eyeballs excluded: ICT's do not move, gaze turns them).
+See :mod:`pdeface.head.prior`. Needs the assets only; about 10 s.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "core"))
+
+from pdeface.assets import ICT_HEAD, ICT_HEAD_PRIOR, ICT_NOTICE, assets_dir, load_face, load_head, load_head_shapes  # noqa: E402,E501
+from pdeface.au.ict import AU_SHAPES, au_offsets  # noqa: E402
+from pdeface.au.retarget import face_size, retarget  # noqa: E402
+from pdeface.head.bind import HeadBinding, descriptor_motion_args  # noqa: E402
+from pdeface.head.prior import HeadPrior, save_prior  # noqa: E402
+from pdeface.surface.fit import fit_face  # noqa: E402
+
+
+def head_samples(V, T, lm, shapes, source, unit="cm"):
+    """``(binding, keys, features, residuals)`` of a head: the prior-free binding's residual per AU key (mm)."""
+    model, _ = fit_face(V, T, V[lm], unit=unit)
+    model = retarget(source, model)
+    b = HeadBinding(model, V, T, prior=None)
+    eyes = b.parts.mask("eye_L", "eye_R")
+    keys, features, residuals = [], [], []
+    for d in model.descriptors:
+        if d.key not in AU_SHAPES:
+            continue
+        dC, dR, jaw, gaze = descriptor_motion_args(d)
+        truth = b.frame.scale * au_offsets(d.key, shapes) @ b.frame.rotation.T
+        r = truth - b.face_motion(dC, dR, jaw, gaze, with_prior=False)
+        r[eyes] = 0.0
+        keys.append(d.key)
+        features.append(model.curve_points(dC, dR))
+        residuals.append(r)
+    return b, keys, np.array(features), np.array(residuals)
+
+
+def build(source=None):
+    """The prior of the bundled generic head, and the frame taking the head asset to its face frame."""
+    source = load_face("default") if source is None else source
+    head, lm = load_head()
+    T, _ = head.triangles()
+    b, keys, X, Y = head_samples(head.vertices, T, lm, load_head_shapes(), source)
+    prior = HeadPrior(keys, X, Y, b.Vf, T, b.parts.kind, b.model.curve_points(), face_size(b.model),
+                      notice=ICT_NOTICE)
+    return prior, b.frame.matrix()
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("-o", "--out", default=str(assets_dir() / ICT_HEAD_PRIOR))
+    args = ap.parse_args(argv)
+    prior, frame = build()
+    save_prior(args.out, prior, frame, ICT_HEAD)
+    size = Path(args.out).stat().st_size
+    print(f"wrote {args.out}: {len(prior.keys)} AU keys, {size / 1e6:.2f} MB")
+
+
+if __name__ == "__main__":
+    main()
