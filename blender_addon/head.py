@@ -98,11 +98,12 @@ def head_keys(face, model, poses, users, au_name, expression_name):
     b, layout = binding(face, model, users)
     rests = [rest_coords(obj) for obj, *_ in layout]
     per_object = {obj.name: (obj, []) for obj, *_ in layout}
-    for d in model.descriptors:
-        for obj, coords in _split(layout, b.descriptor_displacement(d), rests):
+    for d, D in zip(model.descriptors, b.descriptor_displacements(model.descriptors)):
+        for obj, coords in _split(layout, D, rests):
             per_object[obj.name][1].append((au_name(d), coords, "AU", d.key, d.label))
-    for name, label, weights, mixer in poses:
-        for obj, coords in _split(layout, b.pose_displacement(weights, mixer), rests):
+    moved = b.pose_displacements([(weights, mixer) for _, _, weights, mixer in poses])
+    for (name, label, _, _), D in zip(poses, moved):
+        for obj, coords in _split(layout, D, rests):
             per_object[obj.name][1].append((expression_name(name), coords, "EXPRESSION", "", label))
     return list(per_object.values())
 

@@ -55,7 +55,7 @@ def measure(V, T, lm, truth, face, source):
     model = retarget(source, model)
     t = time.perf_counter()
     b = HeadBinding(model, V, T)
-    keys = [b.descriptor_displacement(d) for d in model.descriptors]
+    keys = b.descriptor_displacements(model.descriptors)
     t_bind = time.perf_counter() - t
     covered = np.zeros(len(V), bool)
     covered[b.skin[b.covered]] = True
@@ -148,14 +148,22 @@ def main(argv=None):
             rows.append({w: summary(r) for w, r in reps_i.items()})
             print(f"  identity{i:03d} (bind + keys {t_b:.2f} s)")
             print_summaries(reps_i, "    ")
-        for way in WAYS:
-            for r in REGIONS:
-                med = [x[way][r]["median"] for x in rows]
-                print(f"  {way:9s} {r:8s} median of medians {np.median(med):.3f} (min-max {min(med):.3f}-"
-                      f"{max(med):.3f}); worst AU anywhere {min(x[way][r]['min'] for x in rows):.3f}")
-            sp = [x[way]["spill"]["median"] for x in rows]
-            print(f"  {way:9s} spill    median of medians {np.median(sp):.2f} mm, largest anywhere "
-                  f"{max(x[way]['spill']['max'] for x in rows):.2f} mm")
+        learned = set(load_head_prior().identities)
+        groups = {"all": list(range(len(rows))), "unseen": [i for i in range(len(rows)) if i not in learned],
+                  "learned": [i for i in range(len(rows)) if i in learned]}
+        print(f"  (the prior learned from the generic head and identities {sorted(learned)}: 'unseen' are the others)")
+        for label, members in groups.items():
+            if not members:
+                continue
+            print(f"  -- {label} identities ({len(members)})")
+            for way in WAYS:
+                for r in REGIONS:
+                    med = [rows[i][way][r]["median"] for i in members]
+                    print(f"  {way:9s} {r:8s} median of medians {np.median(med):.3f} (min-max {min(med):.3f}-"
+                          f"{max(med):.3f}); worst AU anywhere {min(rows[i][way][r]['min'] for i in members):.3f}")
+                sp = [rows[i][way]["spill"]["median"] for i in members]
+                print(f"  {way:9s} spill    median of medians {np.median(sp):.2f} mm, largest anywhere "
+                      f"{max(rows[i][way]['spill']['max'] for i in members):.2f} mm")
         out["identities"] = rows
     if args.cell:
         Vc, Tc, cluster = per_part_clustered(head.vertices, T, args.cell / 10.0)

@@ -65,6 +65,13 @@ def test_keys_are_one_pose_each_and_linear_on_the_skin(generic):
     by_key = {d.key: d for d in model.descriptors}
     for key in ("12", "27", "45L", "63"):
         np.testing.assert_allclose(b.pose_displacement({key: 1.0}), b.descriptor_displacement(by_key[key]), atol=1e-9)
+    # all at once (what the add-on does) is the same as one by one, jaw, gaze and mixes included
+    chosen = [by_key[k] for k in ("12", "27", "45L", "63")]
+    for one, many in zip([b.descriptor_displacement(d) for d in chosen], b.descriptor_displacements(chosen)):
+        np.testing.assert_allclose(many, one, atol=1e-9)
+    poses = [({"12": 0.5, "26": 1.0}, "sum"), ({"1": 1.0, "61": 0.5}, "max")]
+    for (w, mixer), many in zip(poses, b.pose_displacements(poses)):
+        np.testing.assert_allclose(many, b.pose_displacement(w, mixer), atol=1e-9)
     skin = b.skin[np.setdiff1d(np.arange(len(b.skin)), np.concatenate([g for *_, g in b.eyes.values()]))]
     half = b.pose_displacement({"12": 0.5, "4": 1.0})[skin]
     both = 0.5 * b.descriptor_displacement(by_key["12"]) + b.descriptor_displacement(by_key["4"])

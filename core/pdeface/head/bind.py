@@ -120,31 +120,27 @@ def _read_pde(model, P, N, s, resolution):
     return covered, _barycentric_matrix(Tp[tri[covered]], bary[covered], len(X0))
 
 
-def _rest_region(P, Ts, covered, Lf, s):
-    """Skin that never moves: far from the covered skin, well below the chin, or in a piece it misses."""
+def _rest_region(P, Ts, covered, from_covered, Lf, s):
+    """Skin that never moves: far from the covered skin (``from_covered``: distances to it), well below the
+    chin, or in a piece it misses."""
     from ..mesh import connected_components
 
-    far = _from_covered(P, P[covered]) > REST_IOD * s
+    far = from_covered > REST_IOD * s
     lab = connected_components(len(P), Ts)
     return ((far | _below_chin(P, Lf, s)) & ~covered) | ~np.isin(lab, np.unique(lab[covered]))
-
-
-def _from_covered(X, covered_points):
-    from scipy.spatial import cKDTree
-
-    return cKDTree(covered_points).query(X)[0]
 
 
 def _below_chin(X, Lf, s):
     return X[:, 1] < Lf[8, 1] - BELOW_CHIN_IOD * s
 
 
-def _prior_reach(Vf, skin, covered, rest, Lf, s):
-    """How much of the head prior each vertex takes: none in the rest region nor below the chin's rest
-    line, fading in over the last PRIOR_FADE of the way to the rest region (no step where it starts)."""
-    reach = np.clip((REST_IOD * s - _from_covered(Vf, Vf[skin[covered]])) / (PRIOR_FADE * REST_IOD * s), 0, 1)
+def _prior_reach(Vf, from_covered, skin_rest, Lf, s):
+    """How much of the head prior each vertex takes: none in the rest region (``skin_rest``: its vertex
+    indices) nor below the chin's rest line, fading in over the last PRIOR_FADE of the way to the rest
+    region (no step where it starts)."""
+    reach = np.clip((REST_IOD * s - from_covered) / (PRIOR_FADE * REST_IOD * s), 0, 1)
     reach = reach * reach * (3 - 2 * reach)
-    reach[skin[rest]] = 0.0
+    reach[skin_rest] = 0.0
     reach[_below_chin(Vf, Lf, s)] = 0.0
     return reach
 
@@ -183,6 +179,8 @@ class HeadBinding:
 
     def __init__(self, model, vertices, triangles, landmarks=None, overrides=None, resolution=RESOLUTION,
                  prior="bundled"):
+        from scipy.spatial import cKDTree
+
         from ..mesh import connected_components, cotan_laplacian, seam_welds, vertex_normals
 
         V = np.asarray(vertices, np.float64)
@@ -234,7 +232,8 @@ class HeadBinding:
         self.skin_normals = vertex_normals(P, Ts)
         covered, self.read_grid = _read_pde(model, P, self.skin_normals, s, resolution)
         self.covered = covered
-        self.rest = rest = _rest_region(P, Ts, covered, Lf, s)
+        from_covered = cKDTree(P[covered]).query(Vf)[0]  # every vertex's distance to the covered skin
+        self.rest = rest = _rest_region(P, Ts, covered, from_covered[si], Lf, s)
         depths = _depths(P, covered, Lf, s, parts.eyes)
         self._L = L = cotan_laplacian(P, Ts)
         self._ext = _Extension(L, covered | rest | depths)
@@ -277,7 +276,7 @@ class HeadBinding:
                     prior = None
                     self.notes.append(f"no head prior ({exc}): the skin beyond the PDE face follows its harmonic "
                                       "extension alone")
-            reach = _prior_reach(Vf, si, covered, rest, Lf, s) * original
+            reach = _prior_reach(Vf, from_covered, si[rest], Lf, s) * original
             self.prior = prior.on(model, Vf, parts.kind, reach, eye_mm=s) if prior is not None else None
             if prior is not None and self.prior is None:
                 self.notes.append("the face's curve layout is not the head prior's: the skin beyond the PDE face "
@@ -307,11 +306,13 @@ class HeadBinding:
     # ---------------------------------------------------------------- motion
 
     def skin_displacement(self, grid_displacement, jaw=False):
-        """Skin displacement (face frame, mm) from the PDE grid's; ``jaw``: the lower depths of the mouth move."""
-        values = np.zeros((len(self.skin), 3))
-        values[self.covered] = self.read_grid @ grid_displacement
+        """Skin displacement (face frame, mm) from the PDE grid's (g, 3) — or several side by side, (g, 3k);
+        ``jaw``: the lower depths of the mouth move."""
+        G = np.asarray(grid_displacement)
+        values = np.zeros((len(self.skin), G.shape[1]))
+        values[self.covered] = self.read_grid @ G
         ext = self._jaw_extension() if jaw else self._ext
-        return ext.solve(np.zeros((len(self.skin), 3)), values[ext.fixed])
+        return ext.solve(np.zeros_like(values), values[ext.fixed])
 
     def _jaw_extension(self):
         if self._ext_jaw is None:
@@ -324,26 +325,42 @@ class HeadBinding:
         ``with_prior=False``: the PDE face, its harmonic extension and the rigid parts alone (what a
         :class:`~pdeface.head.prior.HeadPrior` learns the residual of).
         """
+        return self.face_motions([(delta_coefficients, delta_residual, jaw, gaze)], with_prior)[0]
+
+    def face_motions(self, motions, with_prior=True) -> list:
+        """:meth:`face_motion` of several ``(delta_coefficients, delta_residual, jaw, gaze)`` at once (one
+        harmonic solve and one prior product for them all)."""
         m = self.model
-        D = surface_grid(m, *self.resolution, coefficients=delta_coefficients, residual=delta_residual,
-                         break_slope=READ_BREAK_SLOPE).reshape(-1, 3)
-        out = np.zeros((len(self.V), 3))
-        jaw = jaw and self.chin is not None
-        d = self.skin_displacement(D, jaw)
-        out[self.skin] = d
-        if jaw and len(self.jaw_parts):
-            d_chin = self.read_grid[np.nonzero(self.chin[self.covered])[0]] @ D
-            rv, t = jaw_motion(self.Vf[self.skin[self.chin]], d_chin, self.hinge)
-            bone = rotation_vector_matrix(JAW_BONE_GAIN * rv)  # the bone turns further than the chin's skin
-            out[self.jaw_parts] = rigid_displacement(self.Vf[self.jaw_parts], self.hinge, bone, t)
-        if len(self.follow):
-            out[self.follow] = self._follow(d)
-        if gaze:
-            for _, (centre, _, idx, _) in self.eyes.items():
-                out[idx] = rigid_displacement(self.Vf[idx], centre, gaze_matrix(gaze))
+        grids = [surface_grid(m, *self.resolution, coefficients=C, residual=R, break_slope=READ_BREAK_SLOPE)
+                 .reshape(-1, 3) for C, R, _, _ in motions]
+        jaws = [bool(jaw) and self.chin is not None for _, _, jaw, _ in motions]
+        skin = [None] * len(motions)
+        for flag in (False, True):
+            members = [k for k, j in enumerate(jaws) if j == flag]
+            if members:
+                d = self.skin_displacement(np.hstack([grids[k] for k in members]), flag)
+                for n, k in enumerate(members):
+                    skin[k] = d[:, 3 * n:3 * n + 3]
         if with_prior and self.prior is not None:
-            out[self.prior.vertices] += self.prior(m.curve_points(delta_coefficients, delta_residual))
-        return out
+            residual = self.prior.many([m.curve_points(C, R) for C, R, _, _ in motions])
+        outs = []
+        for k, (_, _, _, gaze) in enumerate(motions):
+            out = np.zeros((len(self.V), 3))
+            out[self.skin] = skin[k]
+            if jaws[k] and len(self.jaw_parts):
+                d_chin = self.read_grid[np.nonzero(self.chin[self.covered])[0]] @ grids[k]
+                rv, t = jaw_motion(self.Vf[self.skin[self.chin]], d_chin, self.hinge)
+                bone = rotation_vector_matrix(JAW_BONE_GAIN * rv)  # the bone turns further than the chin's skin
+                out[self.jaw_parts] = rigid_displacement(self.Vf[self.jaw_parts], self.hinge, bone, t)
+            if len(self.follow):
+                out[self.follow] = self._follow(skin[k])
+            if gaze:
+                for _, (centre, _, idx, _) in self.eyes.items():
+                    out[idx] = rigid_displacement(self.Vf[idx], centre, gaze_matrix(gaze))
+            if with_prior and self.prior is not None:
+                out[self.prior.vertices] += residual[k]
+            outs.append(out)
+        return outs
 
     def displacement(self, delta_coefficients, delta_residual, jaw=False, gaze=None) -> np.ndarray:
         """Displacement of every vertex (user space and unit) for a change of the PDE curves.
@@ -357,17 +374,22 @@ class HeadBinding:
         gaze : dict, optional
             Gaze AU weights ``{61: w, ...}``: turn the eyeballs.
         """
-        out = self.face_motion(delta_coefficients, delta_residual, jaw, gaze)
-        for centre, radius, _, guard in self.eyes.values():
-            if len(guard):
-                p = self.Vf[self.skin[guard]] + out[self.skin[guard]]
-                rho = np.linalg.norm(p - centre, axis=1)
-                inside = rho < radius
-                if inside.any():
-                    k = self.skin[guard[inside]]
-                    out[k] = centre + (p[inside] - centre) * (radius / rho[inside])[:, None] - self.Vf[k]
-        out[self._copies] = out[self._copy_of]
-        return self.frame.to_user_vectors(out)
+        return self.displacements([(delta_coefficients, delta_residual, jaw, gaze)])[0]
+
+    def displacements(self, motions) -> list:
+        """:meth:`displacement` of several ``(delta_coefficients, delta_residual, jaw, gaze)`` at once."""
+        outs = self.face_motions(motions)
+        for out in outs:
+            for centre, radius, _, guard in self.eyes.values():
+                if len(guard):
+                    p = self.Vf[self.skin[guard]] + out[self.skin[guard]]
+                    rho = np.linalg.norm(p - centre, axis=1)
+                    inside = rho < radius
+                    if inside.any():
+                        k = self.skin[guard[inside]]
+                        out[k] = centre + (p[inside] - centre) * (radius / rho[inside])[:, None] - self.Vf[k]
+            out[self._copies] = out[self._copy_of]
+        return [self.frame.to_user_vectors(out) for out in outs]
 
     def _follow(self, d_skin):
         """Attached vertices: their anchor's motion, their offset turned as the anchor's normal turns."""
@@ -389,8 +411,19 @@ class HeadBinding:
         """One descriptor's shape key on the head (user space): its displacement at weight 1."""
         return self.displacement(*descriptor_motion_args(descriptor))
 
+    def descriptor_displacements(self, descriptors) -> list:
+        """:meth:`descriptor_displacement` of several descriptors at once (faster than one by one)."""
+        return self.displacements([descriptor_motion_args(d) for d in descriptors])
+
     def pose_displacement(self, weights: dict, mixer: str = "sum") -> np.ndarray:
         """The head's displacement for AU ``weights`` mixed by ``mixer`` (user space)."""
+        return self.displacements([self._pose_motion_args(weights, mixer)])[0]
+
+    def pose_displacements(self, poses) -> list:
+        """:meth:`pose_displacement` of several ``(weights, mixer)`` at once."""
+        return self.displacements([self._pose_motion_args(w, m) for w, m in poses])
+
+    def _pose_motion_args(self, weights, mixer):
         from ..au.expressions import normalise_weights, pose_curves
         from ..au.facs import au_number
 
@@ -402,7 +435,7 @@ class HeadBinding:
             if a in GAZE_AUS:
                 gaze[a] = gaze.get(a, 0.0) + weights[k]
         jaw = any(a in JAW_AUS for a in numbers.values())
-        return self.displacement(C - self.model.coefficients, R - self.model.residual, jaw=jaw, gaze=gaze or None)
+        return C - self.model.coefficients, R - self.model.residual, jaw, gaze or None
 
 
 def descriptor_motion_args(descriptor) -> tuple:
