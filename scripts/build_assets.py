@@ -1,6 +1,7 @@
 """Build the bundled assets from an ICT-FaceKit folder.
 
 Usage: python scripts/build_assets.py ICT_DIR [--out assets]
+       python scripts/build_assets.py --refit-face [--out assets]
 
 Writes, all derived from ICT-FaceKit (MIT, notice copied alongside):
   ict_neutral_face.npz   the neutral face region (vertices 0-9408, cm) with UVs and landmarks
@@ -13,6 +14,10 @@ Writes, all derived from ICT-FaceKit (MIT, notice copied alongside):
   default_face.npz       the PDE face model fitted to the neutral (default layout), carrying a
                          descriptor for every AU ICT-FaceKit maps (pdeface.au.ict.AU_SHAPES)
   ICT-FaceKit-LICENSE.txt
+
+``--refit-face`` refits default_face.npz alone from the bundled neutral and shapes (the same
+float32 vertices and int16 offsets the full build fits on), after a change to the fit; then run
+``build_muscles.py`` (its muscle AUs), ``build_fdts.py`` and ``build_head_prior.py`` again.
 """
 from __future__ import annotations
 
@@ -38,11 +43,40 @@ from pdeface.surface.fit import fit_face  # noqa: E402
 OFFSET_STEP = 2e-4  # cm per int16 step of stored offsets (2 µm; range ±6.5 cm)
 
 
+def write_default_face(V32, T, landmarks, shapes, out):
+    """Fit the PDE face on the neutral (triangles ``T``) and give it a descriptor per AU ICT-FaceKit maps;
+    write default_face.npz."""
+    model, sampler = fit_face(V32, T, V32[landmarks], unit="cm", source="ICT-FaceKit generic neutral (face region)")
+    model.notice = ICT_NOTICE
+    for key in AU_SHAPES:
+        au, side = key_side(key)
+        d = fit_descriptor(model, sampler, V32, V32 + au_offsets(key, shapes), au, side,
+                           source="ICT-FaceKit: " + " + ".join(f"{w:g} {n}" for n, w in AU_SHAPES[key].items()),
+                           notice=NOTICE_SHORT)
+        if key in APPROXIMATIONS:
+            d.extra["approximation"] = APPROXIMATIONS[key]
+        model.descriptors.append(d)
+        print(f"  AU{key:4s} curves {d.curves.min() if len(d.curves) else '-'}-{d.curves.max() if len(d.curves) else '-'}"
+              f" ({len(d.curves)}), {len(descriptor_to_bytes(d))} bytes")
+    size = save_model(out / "default_face.npz", model)
+    print(f"default_face.npz: {size} bytes ({model_nbytes(model)} face model + {len(model.descriptors)} descriptors); "
+          f"curve points {sampler.summary()}")
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("ict_dir", type=Path)
+    ap.add_argument("ict_dir", type=Path, nargs="?")
+    ap.add_argument("--refit-face", action="store_true", help="refit default_face.npz alone from the bundled assets")
     ap.add_argument("--out", type=Path, default=Path(__file__).resolve().parent.parent / "assets")
     args = ap.parse_args(argv)
+    if args.refit_face:
+        from pdeface.assets import load_ict_shapes, load_neutral_scan
+
+        mesh, landmarks = load_neutral_scan()
+        write_default_face(mesh.vertices, mesh.triangles()[0], landmarks, load_ict_shapes(), args.out)
+        return
+    if args.ict_dir is None:
+        ap.error("give ICT_DIR, or --refit-face")
     ict = IctFolder(args.ict_dir)
     out = args.out
     out.mkdir(parents=True, exist_ok=True)
@@ -65,22 +99,7 @@ def main(argv=None):
     # Fit on exactly what the package ships (float32 vertices, int16 offsets).
     V32 = V.astype(np.float32).astype(np.float64)
     shapes = {n: offsets[k].astype(np.float64) * OFFSET_STEP for k, n in enumerate(names)}
-    T, _ = Mesh.from_faces(V32, ict.faces).triangles()
-    model, sampler = fit_face(V32, T, V32[ict.landmarks], unit="cm", source="ICT-FaceKit generic neutral (face region)")
-    model.notice = ICT_NOTICE
-    for key in AU_SHAPES:
-        au, side = key_side(key)
-        d = fit_descriptor(model, sampler, V32, V32 + au_offsets(key, shapes), au, side,
-                           source="ICT-FaceKit: " + " + ".join(f"{w:g} {n}" for n, w in AU_SHAPES[key].items()),
-                           notice=NOTICE_SHORT)
-        if key in APPROXIMATIONS:
-            d.extra["approximation"] = APPROXIMATIONS[key]
-        model.descriptors.append(d)
-        print(f"  AU{key:4s} curves {d.curves.min() if len(d.curves) else '-'}-{d.curves.max() if len(d.curves) else '-'}"
-              f" ({len(d.curves)}), {len(descriptor_to_bytes(d))} bytes")
-    size = save_model(out / "default_face.npz", model)
-    print(f"default_face.npz: {size} bytes ({model_nbytes(model)} face model + {len(model.descriptors)} descriptors); "
-          f"curve points {sampler.summary()}")
+    write_default_face(V32, Mesh.from_faces(V32, ict.faces).triangles()[0], ict.landmarks, shapes, out)
     for p in sorted(out.iterdir()):
         print(f"{p.name}: {p.stat().st_size} bytes")
 

@@ -115,3 +115,22 @@ def test_a_low_poly_face_keeps_a_clean_outer_edge():
     outer = (w[:, 1] > Lf[17:27, 1].max() + 5) | (np.abs(w[:, 0]) > np.abs(Lf[0:17, 0]).max() - 5) \
         | (w[:, 1] < Lf[8, 1] + 5)
     assert not outer.any(), w[outer][:5]
+
+
+def test_the_bundled_default_face_is_the_current_fit(fitted, scan):
+    """default_face.npz is refitted with the fit's changes (build_assets.py --refit-face): the same curves as a
+    fresh fit of the bundled neutral, so its folds are the fit's (79 at rest, up to 161°, before the refit)."""
+    from pdeface.assets import load_face
+    from pdeface.surface.folds import posed_landmarks
+
+    model, _ = fitted
+    bundled = load_face("default")
+    # the file stores coefficients in 0.001 mm steps and residuals in 0.01 mm steps
+    np.testing.assert_allclose(bundled.curve_points(), model.curve_points(), atol=0.01)
+    mesh, _, idx = scan
+    L = bundled.frame.to_face(mesh.vertices[idx])  # the file keeps some landmarks only; the scan has all 68
+    r = fold_edges(face_mesh(bundled), bundled.frame, L)
+    assert r["count"] <= 10 and r["max_deg"] < 60  # measured 8, 58°
+    kept = bundled.landmarks  # NaN rows for the landmarks a model file does not keep: they stay unknown
+    moved = posed_landmarks(face_mesh(bundled).vertices, face_mesh(bundled).vertices, kept)
+    np.testing.assert_array_equal(np.isnan(moved), np.isnan(kept))

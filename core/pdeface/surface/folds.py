@@ -41,8 +41,11 @@ def posed_landmarks(rest_vertices, posed_vertices, landmarks_face) -> np.ndarray
     from scipy.spatial import cKDTree
 
     rest = np.asarray(rest_vertices, np.float64)
-    nearest = cKDTree(rest).query(np.asarray(landmarks_face, np.float64))[1]
-    return landmarks_face + (np.asarray(posed_vertices, np.float64)[nearest] - rest[nearest])
+    L = np.array(landmarks_face, np.float64)
+    known = np.isfinite(L).all(axis=1)  # a model keeps some landmarks only: the others stay unknown
+    nearest = cKDTree(rest).query(L[known])[1]
+    L[known] += np.asarray(posed_vertices, np.float64)[nearest] - rest[nearest]
+    return L
 
 
 def opening_mask(points_face, landmarks_face, grow=GROW) -> np.ndarray:
