@@ -128,6 +128,7 @@ class HeadPrior:
         -------
         PriorOnHead or None
         """
+        from scipy.sparse import csr_matrix
         from scipy.spatial import cKDTree
 
         from ..au.retarget import face_size
@@ -151,9 +152,7 @@ class HeadPrior:
         candidate &= ((V > np.minimum(lo, hi)) & (V < np.maximum(lo, hi))).all(axis=1)
         idx = np.nonzero(candidate)[0]
         W = V[idx] + warp(V[idx]) if len(idx) else np.zeros((0, 3))
-        S = len(self.keys)
-        per_vertex = self.per_vertex
-        fields = np.zeros((len(idx), S * 3))
+        rows, cols, vals = [], [], []
         weight = np.zeros(len(idx))
         for name in CARRIED_KINDS:
             mine = np.nonzero(kind[idx] == CODE[name])[0]
@@ -165,21 +164,30 @@ class HeadPrior:
             verts = np.unique(tri)
             dist, near_k = cKDTree(self.vertices[verts]).query(W[mine], k=NEAREST)
             w = 1.0 / np.maximum(dist, 1e-3) ** 2
-            w /= w.sum(axis=1, keepdims=True)
-            fields[mine] = sum(w[:, [c]] * per_vertex[verts[near_k[:, c]]] for c in range(NEAREST))
-            dist = dist[:, 0]
-            weight[mine] = np.clip((far - dist) / (far - near), 0.0, 1.0)
+            rows.append(np.repeat(mine, NEAREST))
+            cols.append(verts[near_k].ravel())
+            vals.append((w / w.sum(axis=1, keepdims=True)).ravel())
+            weight[mine] = np.clip((far - dist[:, 0]) / (far - near), 0.0, 1.0)
         weight = weight * weight * (3 - 2 * weight)  # smoothstep: no crease where the fade starts
         if reach is not None:
             weight = weight * np.asarray(reach, np.float64)[idx]
-        keep = weight > 0
-        fields = fields[keep].reshape(-1, 3, S) * (weight[keep, None, None] * ratio[:, None])
-        return PriorOnHead(idx[keep], fields.reshape(-1, S), self.solver(), ratio)
+        keep = np.nonzero(weight > 0)[0]
+        rows, cols, vals = (np.concatenate(a) if a else np.zeros(0) for a in (rows, cols, vals))
+        pos = np.full(len(idx), -1)
+        pos[keep] = np.arange(len(keep))
+        taken = pos[rows.astype(np.int64)] >= 0 if len(rows) else np.zeros(0, bool)
+        rows = pos[rows[taken].astype(np.int64)]
+        # Only the prior head's vertices someone reads, scaled to the user's face once for all keys.
+        used, cols = np.unique(cols[taken].astype(np.int64), return_inverse=True)
+        mix = csr_matrix((vals[taken] * weight[keep][rows], (rows, cols.ravel())), shape=(len(keep), len(used)))
+        S = len(self.keys)
+        residuals = (self.per_vertex.reshape(-1, 3, S)[used] * ratio[:, None]).reshape(-1, S)
+        return PriorOnHead(idx[keep], mix, residuals, self.solver(), ratio)
 
     @functools.cached_property
     def per_vertex(self) -> np.ndarray:
-        """(n, 3·S): the residuals laid out per vertex, x y z, each over the samples."""
-        return np.ascontiguousarray(self.residuals.transpose(1, 2, 0)).reshape(len(self.vertices), -1)
+        """(n·3, S): the residuals laid out per vertex and axis (x y z), each over the samples."""
+        return np.ascontiguousarray(self.residuals.transpose(1, 2, 0)).reshape(-1, len(self.keys))
 
 
 def _warp(src, dst, smoothing=1.0):
@@ -198,18 +206,21 @@ def _warp(src, dst, smoothing=1.0):
 
 @dataclass
 class PriorOnHead:
-    """A :class:`HeadPrior` on one user's head: ``vertices`` (q,) take ``fields`` (q·3, S) mm
-    (user face frame, x y z per vertex) mixed by the sample weights of a curve-point motion."""
+    """A :class:`HeadPrior` on one user's head: ``vertices`` (q,) take the residuals of the prior head's
+    vertices mixed by ``mix`` (sparse q × u: nearest vertices, fade), the samples' residuals at those u
+    vertices (``residuals`` (u·3, S) mm, scaled per axis by ``ratio`` to the user's face) weighted by a
+    curve-point motion's sample weights (``solver``)."""
 
     vertices: np.ndarray
-    fields: np.ndarray
+    mix: object
+    residuals: np.ndarray
     solver: np.ndarray
     ratio: np.ndarray
 
     def leaving_out(self, prior: HeadPrior, keys) -> "PriorOnHead":
         """The same transfer with the samples ``keys`` left out of ``prior`` (to measure AUs it never saw)."""
         keep = np.array([k not in set(keys) for k in prior.keys])
-        return replace(self, fields=np.ascontiguousarray(self.fields[:, keep]),
+        return replace(self, residuals=np.ascontiguousarray(self.residuals[:, keep]),
                        solver=prior.without(keys).solver())
 
     def __call__(self, curve_motion) -> np.ndarray:
@@ -217,10 +228,11 @@ class PriorOnHead:
         return self.many([curve_motion])[0]
 
     def many(self, curve_motions) -> list:
-        """:meth:`__call__` of several curve-point motions (one matrix product)."""
+        """:meth:`__call__` of several curve-point motions (two matrix products and a sparse one)."""
         X = np.stack([(np.asarray(x, np.float64) / self.ratio).ravel() for x in curve_motions], axis=1)
-        out = self.fields @ (self.solver @ X)
-        return [out[:, k].reshape(-1, 3) for k in range(out.shape[1])]
+        K = X.shape[1]
+        out = self.mix @ (self.residuals @ (self.solver @ X)).reshape(-1, 3 * K)  # rows: x y z of each key
+        return [out[:, k::K] for k in range(K)]
 
 
 def save_prior(path, prior: HeadPrior, frame: np.ndarray, head: str, step_mm: float = STEP_MM, identities=None):
