@@ -38,6 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ModelFormatError
+from ..io.files import load_npz
 
 FORMAT = "pdeface.head-prior"
 #: Ridge weight λ relative to the mean squared norm of the samples' features. Measured on ICT's
@@ -254,15 +255,7 @@ def save_prior(path, prior: HeadPrior, frame: np.ndarray, head: str, step_mm: fl
 def load_prior(path, head_vertices, head_triangles) -> HeadPrior:
     """Read and check a prior file; ``head_vertices`` / ``head_triangles``: the head asset it names."""
     path = Path(path)
-    try:
-        with np.load(path, allow_pickle=False) as f:
-            data = {k: f[k] for k in f.files}
-    except FileNotFoundError:
-        raise ModelFormatError(f"{path}: head prior file not found") from None
-    except (OSError, ValueError) as exc:
-        raise ModelFormatError(f"{path}: not a head prior file ({exc})") from None
-    if str(data.get("format", "")) != FORMAT:
-        raise ModelFormatError(f"{path}: not a pdeface head prior file (format {FORMAT!r})")
+    data = load_npz(path, FORMAT, "head prior")
     try:
         keys = [str(k) for k in data["keys"]]
         F = np.asarray(data["features"], np.float64)

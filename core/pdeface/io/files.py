@@ -56,6 +56,23 @@ def load_json(path, error=ModelFormatError):
     return parse_json(read_bytes(path, error), str(path), error)
 
 
+def load_npz(path, fmt: str, what: str) -> dict:
+    """The arrays of a pdeface ``.npz`` file whose ``format`` member is ``fmt`` (``what`` names the kind
+    of file in the errors), read without pickles."""
+    import numpy as np
+
+    try:
+        with np.load(path, allow_pickle=False) as f:
+            data = {k: f[k] for k in f.files}
+    except FileNotFoundError:
+        raise ModelFormatError(f"{path}: {what} file not found") from None
+    except (OSError, ValueError) as exc:
+        raise ModelFormatError(f"{path}: not a {what} file ({exc})") from None
+    if str(data.get("format", "")) != fmt:
+        raise ModelFormatError(f"{path}: not a pdeface {what} file (format {fmt!r})")
+    return data
+
+
 @contextlib.contextmanager
 def atomic_open(path, mode="w", **kwargs):
     """Write ``path`` through a temporary file beside it, renamed over it on success.

@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ModelFormatError
+from ..io.files import load_npz
 from .placement import BOUNDS, MUSCLE_NAMES
 
 FORMAT = "pdeface.muscle-fields"
@@ -144,15 +145,7 @@ def save_fields(path, learned: LearnedFields):
 def load_fields(path) -> LearnedFields:
     """Read and check a muscle-fields file."""
     path = Path(path)
-    try:
-        with np.load(path, allow_pickle=False) as f:
-            data = {k: f[k] for k in f.files}
-    except FileNotFoundError:
-        raise ModelFormatError(f"{path}: muscle fields file not found") from None
-    except (OSError, ValueError) as exc:
-        raise ModelFormatError(f"{path}: not a muscle fields file ({exc})") from None
-    if str(data.get("format", "")) != FORMAT:
-        raise ModelFormatError(f"{path}: not a pdeface muscle fields file (format {FORMAT!r})")
+    data = load_npz(path, FORMAT, "muscle fields")
     if [str(n) for n in data.get("muscles", [])] != list(MUSCLE_NAMES):
         raise ModelFormatError(f"{path}: 'muscles' must list the 24 muscles in order")
     C = np.asarray(data.get("corrections", np.zeros(0)), np.float64)
