@@ -253,7 +253,16 @@ class HeadBinding:
         if len(follow):
             self.anchor = self._anchors(Vf[follow], connected_components(len(V), T)[follow], P)
             self.follow_offset = Vf[follow] - P[self.anchor]
-            self._ring = Ts[np.isin(Ts, np.unique(self.anchor)).any(axis=1)]
+            # The anchors' normals, read off the skin triangles around them alone (each key turns them).
+            anchors, self._anchor_of = np.unique(self.anchor, return_inverse=True)
+            ring = Ts[np.isin(Ts, anchors).any(axis=1)]
+            slot = np.full(len(si), -1)
+            slot[anchors] = np.arange(len(anchors))
+            r, c = np.nonzero(slot[ring] >= 0)
+            from scipy.sparse import csr_matrix
+
+            self._ring = ring
+            self._ring_sum = csr_matrix((np.ones(len(r)), (slot[ring[r, c]], r)), shape=(len(anchors), len(ring)))
 
         # Lids stay outside the eyeballs.
         self.eyes = {}
@@ -393,11 +402,10 @@ class HeadBinding:
 
     def _follow(self, d_skin):
         """Attached vertices: their anchor's motion, their offset turned as the anchor's normal turns."""
-        from ..mesh import vertex_normals
+        from ..geometry import triangle_cross, unit_rows
 
-        P = self.Vf[self.skin]
         n0 = self.skin_normals[self.anchor]
-        n1 = vertex_normals(P + d_skin, self._ring)[self.anchor]
+        n1 = unit_rows(self._ring_sum @ triangle_cross(self.Vf[self.skin] + d_skin, self._ring))[self._anchor_of]
         v = np.cross(n0, n1)
         c = (n0 * n1).sum(1, keepdims=True)
         o = self.follow_offset
