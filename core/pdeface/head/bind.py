@@ -179,6 +179,7 @@ class HeadBinding:
 
     def __init__(self, model, vertices, triangles, landmarks=None, overrides=None, resolution=RESOLUTION,
                  prior="bundled"):
+        from scipy.sparse import csr_matrix
         from scipy.spatial import cKDTree
 
         from ..mesh import connected_components, cotan_laplacian, seam_welds, vertex_normals
@@ -259,8 +260,6 @@ class HeadBinding:
             slot = np.full(len(si), -1)
             slot[anchors] = np.arange(len(anchors))
             r, c = np.nonzero(slot[ring] >= 0)
-            from scipy.sparse import csr_matrix
-
             self._ring = ring
             self._ring_sum = csr_matrix((np.ones(len(r)), (slot[ring[r, c]], r)), shape=(len(anchors), len(ring)))
 

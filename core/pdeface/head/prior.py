@@ -172,15 +172,13 @@ class HeadPrior:
         weight = weight * weight * (3 - 2 * weight)  # smoothstep: no crease where the fade starts
         if reach is not None:
             weight = weight * np.asarray(reach, np.float64)[idx]
+        rows, cols, vals = (np.concatenate(a) if a else np.zeros(0, t) for a, t in
+                            ((rows, np.int64), (cols, np.int64), (vals, np.float64)))
         keep = np.nonzero(weight > 0)[0]
-        rows, cols, vals = (np.concatenate(a) if a else np.zeros(0) for a in (rows, cols, vals))
-        pos = np.full(len(idx), -1)
-        pos[keep] = np.arange(len(keep))
-        taken = pos[rows.astype(np.int64)] >= 0 if len(rows) else np.zeros(0, bool)
-        rows = pos[rows[taken].astype(np.int64)]
+        mix = csr_matrix((vals * weight[rows], (rows, cols)), shape=(len(idx), len(self.vertices)))[keep]
         # Only the prior head's vertices someone reads, scaled to the user's face once for all keys.
-        used, cols = np.unique(cols[taken].astype(np.int64), return_inverse=True)
-        mix = csr_matrix((vals[taken] * weight[keep][rows], (rows, cols.ravel())), shape=(len(keep), len(used)))
+        used = np.unique(mix.indices)
+        mix = mix[:, used]
         S = len(self.keys)
         residuals = (self.per_vertex.reshape(-1, 3, S)[used] * ratio[:, None]).reshape(-1, S)
         return PriorOnHead(idx[keep], mix, residuals, self.solver(), ratio)
