@@ -119,7 +119,9 @@ def test_version_2_files_still_load_as_one_sheet(tmp_path, fitted):
     assert len(back.layout.lines) == len(model.layout.lines)
     one_sheet = surface_grid(back, 2, 2)
     assert np.abs(one_sheet - surface_grid(now, 2, 2)).max() > 0.01  # the break changes the mouth
-    np.testing.assert_allclose(one_sheet[::2, ::2], surface_grid(now, 2, 2)[::2, ::2], atol=0.005)  # same curves
+    # same curves (read with the breaks across the whole width: confined, rows beyond the corners pass through
+    # the rims' mean curve instead)
+    np.testing.assert_allclose(one_sheet[::2, ::2], surface_grid(now, 2, 2, confine=False)[::2, ::2], atol=0.005)
 
 
 def test_byte_planes_and_coefficient_codes_round_trip(rng):

@@ -6,7 +6,9 @@ from pdeface.surface.pde import (
     BREAK_SLOPE,
     _taylor_table,
     knot_slopes,
+    merged_operator,
     mode_operator,
+    mode_values,
     ode_basis,
     output_grid,
     solve_surface,
@@ -84,6 +86,37 @@ def test_a_break_keeps_its_tangents_and_parts_the_two_sides(k):
         np.testing.assert_allclose((M @ moved)[4 * (b + 1):], u[4 * (b + 1):], atol=1e-12)
     with pytest.raises(LayoutError, match="at least 3 curve intervals"):
         mode_operator(kn, k, 4, "smooth", 0, (1,))
+
+
+@pytest.mark.parametrize("deriv", [0, 1])
+def test_mode_values_anywhere_match_the_output_rows(deriv):
+    kn = tuple(np.cumsum(np.r_[0, 1, 1, 1, 1, 1, 0.05, 1, 1, 1, 1]) / 9.05)
+    u = output_grid(np.array(kn), 5, 4, 1).u
+    for breaks in ((), (6,)):
+        np.testing.assert_allclose(mode_values(kn, 2.0, u, deriv, breaks), mode_operator(kn, 2.0, 4, "smooth", deriv,
+                                                                                        breaks), atol=1e-9)
+
+
+def test_a_confined_break_applies_only_where_its_weight_is_one():
+    """Where the weight is 0 the surface is the one with the rim pair merged into their mean curve: C2 across,
+    no break piece (beyond an opening's corners); where it is 1, the break's; linear in the curves either way."""
+    kn = tuple(np.cumsum(np.r_[0, 1, 1, 1, 1, 1, 0.05, 1, 1, 1, 1]) / 9.05)
+    rng = np.random.default_rng(3)
+    K, J, N = 11, 9, 3
+    C, R = rng.normal(size=(K, N + 1, 3)), np.zeros((K, J, 3))
+    n_v = (J - 1) * 2 + 1
+    weight = np.r_[np.ones(8), np.zeros(n_v - 8)]
+    confine = ((6, weight, np.zeros(n_v)),)
+    X = solve_surface(C, R, kn, 1.0, None, 4, 2, "smooth", (0, 0), (6,))
+    Y = solve_surface(C, R, kn, 1.0, None, 4, 2, "smooth", (0, 0), (6,), BREAK_SLOPE, confine)
+    M = merged_operator(kn, J, N, 1.0, 4.0, 4, 2, (0, 0), (6,), 6).apply(C, R)
+    np.testing.assert_allclose(Y[:, :8], X[:, :8], atol=1e-12)
+    np.testing.assert_allclose(Y[:, 8:], M[:, 8:], atol=1e-12)
+    merged_knot = 0.5 * (kn[6] + kn[7])
+    mean_curve = mode_values((*kn[:6], merged_knot, *kn[8:]), 0.0, np.array([merged_knot]))  # passes the mean
+    assert mean_curve.shape == (1, 10) and abs(mean_curve[0, 6] - 1) < 1e-9
+    Y2 = solve_surface(2 * C, R, kn, 1.0, None, 4, 2, "smooth", (0, 0), (6,), BREAK_SLOPE, confine)
+    np.testing.assert_allclose(Y2, 2 * Y, atol=1e-9)
 
 
 def test_smooth_has_no_creases_and_patches_do():

@@ -99,7 +99,7 @@ def _read_pde(model, P, N, s, resolution):
 
     from ..geometry import ClosestPoint, triangle_cross, unit_rows
 
-    X0 = surface_grid(model, *resolution, break_slope=READ_BREAK_SLOPE)
+    X0 = surface_grid(model, *resolution, break_slope=READ_BREAK_SLOPE, confine=False)
     nu, nv, _ = X0.shape
     X0 = X0.reshape(-1, 3)
     Q = grid_faces(nu, nv)
@@ -339,7 +339,8 @@ class HeadBinding:
         """:meth:`face_motion` of several ``(delta_coefficients, delta_residual, jaw, gaze)`` at once (one
         harmonic solve and one prior product for them all)."""
         m = self.model
-        grids = [surface_grid(m, *self.resolution, coefficients=C, residual=R, break_slope=READ_BREAK_SLOPE)
+        grids = [surface_grid(m, *self.resolution, coefficients=C, residual=R, break_slope=READ_BREAK_SLOPE,
+                              confine=False)
                  .reshape(-1, 3) for C, R, _, _ in motions]
         jaws = [bool(jaw) and self.chin is not None for _, _, jaw, _ in motions]
         skin = [None] * len(motions)

@@ -203,13 +203,55 @@ def fit_face(vertices, triangles, landmarks, unit=None, n_curves=DEFAULT_CURVES,
     return model, sampler
 
 
+#: A break applies between its opening's corners, fading in over this many mm (along x) inside them; beyond
+#: them the rims are one line (:func:`break_weights`).
+CONFINE_RAMP_MM = 3.0
+#: Landmarks at the corners of each opening a break can span: the eyes (one break for both), the mouth.
+OPENING_CORNERS = ({"spans": ((36, 39), (42, 45))}, {"spans": ((48, 54),)})
+
+
+def break_weights(model: FaceModel, sub_v: int) -> tuple:
+    """``(break, weight, d weight/dv)`` per break on the output columns: 1 between its opening's corner
+    landmarks (the eyes' or the mouth's, whichever lies at its rims' height), fading to 0 at the corners over
+    :data:`CONFINE_RAMP_MM`, 0 beyond, where the rims are one line
+    (:func:`pdeface.surface.pde.solve_surface`). From the neutral face, so the same for every pose: keys stay
+    linear. None without the corners' landmarks."""
+    from .model import model_landmarks
+
+    L = model_landmarks(model)
+    X = model.curve_points()
+    J = X.shape[1]
+    vs = model.layout.sample_params()
+    v = np.linspace(0.0, np.pi, (J - 1) * sub_v + 1)
+    out = []
+    for b in model.layout.breaks():
+        rim = 0.5 * (X[b] + X[b + 1])
+        x = np.interp(v, vs, rim[:, 0])  # across the face along the rims
+        opening = min(OPENING_CORNERS, key=lambda o: abs(np.mean([L[i, 1] for s in o["spans"] for i in s])
+                                                         - rim[J // 2, 1]))
+        weight = np.zeros(len(v))
+        for a, c in opening["spans"]:
+            if not np.isfinite(L[[a, c]]).all():
+                return ()
+            lo, hi = sorted((L[a, 0], L[c, 0]))
+            t = np.clip(np.minimum(x - lo, hi - x) / CONFINE_RAMP_MM, 0.0, 1.0)
+            weight = np.maximum(weight, t * t * (3 - 2 * t))
+        out.append((b, weight, np.gradient(weight, v)))
+    return tuple(out)
+
+
 def surface_grid(model: FaceModel, sub_u=4, sub_v=4, assembly=None, coefficients=None, residual=None, deriv=(0, 0),
-                 break_slope=BREAK_SLOPE):
-    """PDE surface (or a derivative) on the output grid, in the face frame (mm)."""
+                 break_slope=BREAK_SLOPE, confine=True):
+    """PDE surface (or a derivative) on the output grid, in the face frame (mm).
+
+    ``confine``: each break only within its opening's span (:func:`break_weights`); the head binding
+    reads the breaks across the whole width instead, so skin hidden behind a lip follows its rim.
+    """
     return solve_surface(model.coefficients if coefficients is None else coefficients,
                          model.residual if residual is None else residual,
                          model.knots, model.a, model.remainder_w, sub_u, sub_v,
-                         assembly or model.assembly, deriv, model.layout.breaks(), break_slope)
+                         assembly or model.assembly, deriv, model.layout.breaks(), break_slope,
+                         break_weights(model, sub_v) if confine else ())
 
 
 def grid_faces(n_u: int, n_v: int) -> np.ndarray:

@@ -360,8 +360,41 @@ def surface_operator(knots: tuple, n_points: int, n_modes: int, a: float, w: flo
                            residual_v_operator(n_points, sub_v, dv))
 
 
+def mode_values(knots: tuple, k: float, u: np.ndarray, deriv: int = 0, breaks: tuple = (),
+                break_slope: float = BREAK_SLOPE) -> np.ndarray:
+    """Matrix (len(u), K): one mode of the smooth assembly on the curves ``knots``, at any parameters ``u``."""
+    kn = np.array(knots)
+    h = np.diff(kn)
+    C = _smooth_coefficients(tuple(knots), k, tuple(breaks), break_slope)
+    i = np.clip(np.searchsorted(kn, u, side="right") - 1, 0, len(kn) - 2)
+    t = (u - kn[i]) / h[i]
+    M = np.zeros((len(u), len(kn)))
+    for p in np.unique(i):
+        rows = i == p
+        M[rows] = ode_basis(k * h[p], t[rows], deriv) / h[p] ** deriv @ C[4 * p:4 * p + 4]
+    return M
+
+
+@lru_cache(maxsize=64)
+def merged_operator(knots: tuple, n_points: int, n_modes: int, a: float, w: float, sub_u: int, sub_v: int,
+                    deriv: tuple, breaks: tuple, merged: int, break_slope: float = BREAK_SLOPE) -> SurfaceOperator:
+    """The smooth surface with break ``merged``'s two rim curves made one (their mean, at their mean
+    parameter): no break piece there. On the rows and columns of the surface with the break, so the two
+    can be blended (:func:`solve_surface`'s ``confine``)."""
+    K, b = len(knots), merged
+    km = (*knots[:b], 0.5 * (knots[b] + knots[b + 1]), *knots[b + 2:])
+    bm = tuple(x - 1 if x > b else x for x in breaks if x != b)
+    P = np.delete(np.eye(K), b + 1, axis=0)  # curves → merged curves
+    P[b, b] = P[b, b + 1] = 0.5
+    u = output_grid(np.array(knots), n_points, sub_u, sub_v).u
+    base = surface_operator(knots, n_points, n_modes, a, w, sub_u, sub_v, "smooth", deriv, breaks, break_slope)
+    modes = np.stack([mode_values(km, a * m, u, deriv[0], bm, break_slope) @ P for m in range(n_modes + 1)])
+    return SurfaceOperator(modes, base.cos_nv, mode_values(km, w, u, deriv[0], bm, break_slope) @ P,
+                           base.remainder_v)
+
+
 def solve_surface(coefficients, residual, knots, a=1.0, w=None, sub_u=4, sub_v=4,
-                  assembly="smooth", deriv=(0, 0), breaks=(), break_slope=BREAK_SLOPE):
+                  assembly="smooth", deriv=(0, 0), breaks=(), break_slope=BREAK_SLOPE, confine=()):
     """Evaluate the PDE surface (or a derivative) on the output grid.
 
     Parameters
@@ -387,6 +420,10 @@ def solve_surface(coefficients, residual, knots, a=1.0, w=None, sub_u=4, sub_v=4
         notes); from :meth:`pdeface.surface.layout.CurveLayout.breaks`.
     break_slope : float
         A break piece's u-slope at its rims as a share of the runs' (:data:`BREAK_SLOPE`).
+    confine : tuple of (int, array, array)
+        ``(break, weight, d weight/dv)`` on the output columns: the break applies where the weight is 1;
+        where it is 0 (beyond an opening's corners) the surface is the one with that break's rims merged
+        (:func:`merged_operator`), C2 across them, blended in between. Fixed weights: still linear.
 
     Returns
     -------
@@ -401,6 +438,19 @@ def solve_surface(coefficients, residual, knots, a=1.0, w=None, sub_u=4, sub_v=4
     if len(kn) != K or residual.shape[0] != K:
         raise LayoutError(f"{K} curves of coefficients but {len(kn)} curve parameters and {residual.shape[0]} residual rows")
     w = a * N1 if w is None else w
-    op = surface_operator(kn, residual.shape[1], N1 - 1, float(a), float(w), int(sub_u), int(sub_v), assembly,
-                          tuple(deriv), tuple(int(b) for b in breaks), float(break_slope))
-    return op.apply(coefficients, residual)
+    args = (kn, residual.shape[1], N1 - 1, float(a), float(w), int(sub_u), int(sub_v))
+    br = tuple(int(b) for b in breaks)
+    op = surface_operator(*args, assembly, tuple(deriv), br, float(break_slope))
+    X = op.apply(coefficients, residual)
+    if assembly != "smooth" or not confine:
+        return X
+    out = X.copy()
+    du, dv = deriv
+    for b, weight, slope in confine:
+        D = merged_operator(*args, tuple(deriv), br, int(b), float(break_slope)).apply(coefficients, residual) - X
+        out += (1.0 - np.asarray(weight))[None, :, None] * D
+        if dv:  # d/dv of (1 - weight) times the difference of the two surfaces
+            D0 = (merged_operator(*args, (du, 0), br, int(b), float(break_slope)).apply(coefficients, residual)
+                  - surface_operator(*args, assembly, (du, 0), br, float(break_slope)).apply(coefficients, residual))
+            out -= np.asarray(slope)[None, :, None] * D0
+    return out
