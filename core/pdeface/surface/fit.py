@@ -206,8 +206,8 @@ def fit_face(vertices, triangles, landmarks, unit=None, n_curves=DEFAULT_CURVES,
 #: A break applies between its opening's corners, fading in over this many mm (along x) inside them; beyond
 #: them the rims are one line (:func:`break_weights`).
 CONFINE_RAMP_MM = 3.0
-#: Landmarks at the corners of each opening a break can span: the eyes (one break for both), the mouth.
-OPENING_CORNERS = ({"spans": ((36, 39), (42, 45))}, {"spans": ((48, 54),)})
+#: The corner landmarks of the openings a break can span: the eyes' (one break for both eyes), the mouth's.
+OPENING_CORNERS = (((36, 39), (42, 45)), ((48, 54),))
 
 
 def break_weights(model: FaceModel, sub_v: int) -> tuple:
@@ -215,7 +215,7 @@ def break_weights(model: FaceModel, sub_v: int) -> tuple:
     landmarks (the eyes' or the mouth's, whichever lies at its rims' height), fading to 0 at the corners over
     :data:`CONFINE_RAMP_MM`, 0 beyond, where the rims are one line
     (:func:`pdeface.surface.pde.solve_surface`). From the neutral face, so the same for every pose: keys stay
-    linear. None without the corners' landmarks."""
+    linear. Empty (breaks across the whole width) without the corners' landmarks."""
     from .model import model_landmarks
 
     L = model_landmarks(model)
@@ -227,10 +227,9 @@ def break_weights(model: FaceModel, sub_v: int) -> tuple:
     for b in model.layout.breaks():
         rim = 0.5 * (X[b] + X[b + 1])
         x = np.interp(v, vs, rim[:, 0])  # across the face along the rims
-        opening = min(OPENING_CORNERS, key=lambda o: abs(np.mean([L[i, 1] for s in o["spans"] for i in s])
-                                                         - rim[J // 2, 1]))
+        spans = min(OPENING_CORNERS, key=lambda o: abs(L[np.ravel(o), 1].mean() - rim[J // 2, 1]))
         weight = np.zeros(len(v))
-        for a, c in opening["spans"]:
+        for a, c in spans:
             if not np.isfinite(L[[a, c]]).all():
                 return ()
             lo, hi = sorted((L[a, 0], L[c, 0]))
