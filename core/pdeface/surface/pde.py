@@ -159,6 +159,13 @@ def _check_breaks(K: int, breaks: tuple):
                           f"each break ({K} curves)")
 
 
+@lru_cache(maxsize=4096)
+def _end_values(kh: float, deriv: int) -> np.ndarray:
+    """The basis (its ``deriv``-th derivative) at both ends of an interval of scaled wavenumber ``kh``: shared by
+    the solves of curve sets that have the interval in common (a break's surface and its merged one)."""
+    return ode_basis(kh, np.array([0.0, 1.0]), deriv)
+
+
 @lru_cache(maxsize=512)
 def _smooth_coefficients(knots: tuple, k: float, breaks: tuple = (), break_slope: float = BREAK_SLOPE) -> np.ndarray:
     """Per-interval basis coefficients (4(K-1), K) of the C2 interpolant.
@@ -175,7 +182,7 @@ def _smooth_coefficients(knots: tuple, k: float, breaks: tuple = (), break_slope
     n = 4 * (K - 1)
     A = np.zeros((n, n))
     B = np.zeros((n, K))
-    phi = [[ode_basis(k * h[i], np.array([0.0, 1.0]), d) / h[i] ** d for d in range(4)] for i in range(K - 1)]
+    phi = [[_end_values(float(k * h[i]), d) / h[i] ** d for d in range(4)] for i in range(K - 1)]
     r = 0
     for i in range(K - 1):
         A[r, 4 * i:4 * i + 4] = phi[i][0][0]; B[r, i] = 1; r += 1
