@@ -163,9 +163,7 @@ def _check_breaks(K: int, breaks: tuple):
 def _end_values(kh: float, deriv: int) -> np.ndarray:
     """The basis (its ``deriv``-th derivative) at both ends of an interval of scaled wavenumber ``kh``: shared by
     the solves of curve sets that have the interval in common (a break's surface and its merged one)."""
-    out = ode_basis(kh, np.array([0.0, 1.0]), deriv)
-    out.setflags(write=False)  # shared by every caller
-    return out
+    return ode_basis(kh, np.array([0.0, 1.0]), deriv)
 
 
 @lru_cache(maxsize=512)
@@ -255,8 +253,6 @@ def mode_operator(knots: tuple, k: float, sub_u: int, assembly: str = "smooth", 
     only affect the ``smooth`` assembly.
     """
     _check(np.array(knots), assembly)
-    if assembly == "smooth":
-        return mode_values(knots, k, output_grid(np.array(knots), 2, sub_u, 1).u, deriv, breaks, break_slope)
     K = len(knots)
     s = np.arange(sub_u) / sub_u
     rows = []
