@@ -134,8 +134,8 @@ def fingerprint(*parts) -> str:
             h.update(p.encode())
         else:
             a = np.asarray(p)
-            a = a.astype(np.int32 if np.issubdtype(a.dtype, np.integer) else np.float32)
-            h.update(np.ascontiguousarray(a).tobytes())
+            a = a.astype(np.int32 if np.issubdtype(a.dtype, np.integer) else np.float32, copy=False)
+            h.update(memoryview(np.ascontiguousarray(a)))  # no copy: keys are hashed on every write
     return h.hexdigest()
 
 

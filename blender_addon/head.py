@@ -95,16 +95,18 @@ def head_keys(face, model, poses, users, au_name, expression_name):
     ``poses`` are ``(preset, label, weights, mixer)``; ``au_name(descriptor)`` and
     ``expression_name(preset)`` name the keys. Nothing is written here.
     """
+    from pdeface.head.bind import descriptor_motion_args
+
     b, layout = binding(face, model, users)
     rests = [rest_coords(obj) for obj, *_ in layout]
     per_object = {obj.name: (obj, []) for obj, *_ in layout}
-    for d, D in zip(model.descriptors, b.descriptor_displacements(model.descriptors)):
+    keys = [(au_name(d), "AU", d.key, d.label) for d in model.descriptors]
+    keys += [(expression_name(name), "EXPRESSION", "", label) for name, label, _, _ in poses]
+    moved = b.displacements([descriptor_motion_args(d) for d in model.descriptors]
+                            + [b.pose_motion_args(weights, mixer) for _, _, weights, mixer in poses])  # one batch
+    for (name, kind, au_key, label), D in zip(keys, moved):
         for obj, coords in _split(layout, D, rests):
-            per_object[obj.name][1].append((au_name(d), coords, "AU", d.key, d.label))
-    moved = b.pose_displacements([(weights, mixer) for _, _, weights, mixer in poses])
-    for (name, label, _, _), D in zip(poses, moved):
-        for obj, coords in _split(layout, D, rests):
-            per_object[obj.name][1].append((expression_name(name), coords, "EXPRESSION", "", label))
+            per_object[obj.name][1].append((name, coords, kind, au_key, label))
     return list(per_object.values())
 
 

@@ -119,6 +119,29 @@ def test_a_confined_break_applies_only_where_its_weight_is_one():
     np.testing.assert_allclose(Y2, 2 * Y, atol=1e-9)
 
 
+def test_a_confined_surface_is_one_operator_with_the_blend_and_its_v_derivative():
+    """The blend X + (1 - w)(M - X) is built into one operator; its v-derivative carries the product rule,
+    so it matches a finite difference of the blended surface along v (residual included)."""
+    kn = tuple(np.cumsum(np.r_[0, 1, 1, 1, 1, 1, 0.05, 1, 1, 1, 1]) / 9.05)
+    rng = np.random.default_rng(5)
+    K, J, N = 11, 9, 3
+    C, R = rng.normal(size=(K, N + 1, 3)), 0.1 * rng.normal(size=(K, J, 3))
+    n_v = (J - 1) * 8 + 1
+    v = np.linspace(0, np.pi, n_v)
+    weight = 0.5 + 0.5 * np.tanh(3 * (v - 1.5))
+    confine = ((6, weight, np.gradient(weight, v)),)
+    args = (C, R, kn, 1.0, None, 4, 8, "smooth")
+    X = solve_surface(*args, (0, 0), (6,))
+    M = merged_operator(kn, J, N, 1.0, 4.0, 4, 8, (0, 0), (6,), 6).apply(C, R)
+    Y = solve_surface(*args, (0, 0), (6,), BREAK_SLOPE, confine)
+    np.testing.assert_allclose(Y, X + (1 - weight)[None, :, None] * (M - X), atol=1e-12)
+    Yv = solve_surface(*args, (0, 1), (6,), BREAK_SLOPE, confine)
+    fd = np.gradient(Y, v, axis=1)
+    inner = slice(2, -2)  # one-sided differences at the ends
+    assert np.abs(Yv[:, inner] - fd[:, inner]).max() < 2e-2 * np.abs(Yv).max()
+    assert np.abs((1 - weight)[None, inner, None] * (M - X)[:, inner]).max() > 0.1  # the blend matters
+
+
 def test_smooth_has_no_creases_and_patches_do():
     kn = tuple(np.linspace(0, 1, 10))
     above, below = knot_slopes(kn, 3.0, "smooth")

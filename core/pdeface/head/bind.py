@@ -335,41 +335,37 @@ class HeadBinding:
         """
         return self.face_motions([(delta_coefficients, delta_residual, jaw, gaze)], with_prior)[0]
 
-    def face_motions(self, motions, with_prior=True) -> list:
-        """:meth:`face_motion` of several ``(delta_coefficients, delta_residual, jaw, gaze)`` at once (one
-        harmonic solve and one prior product for them all)."""
-        m = self.model
-        grids = [surface_grid(m, *self.resolution, coefficients=C, residual=R, break_slope=READ_BREAK_SLOPE,
-                              confine=False)
-                 .reshape(-1, 3) for C, R, _, _ in motions]
-        jaws = [bool(jaw) and self.chin is not None for _, _, jaw, _ in motions]
-        skin = [None] * len(motions)
+    def face_motions(self, motions, with_prior=True) -> np.ndarray:
+        """:meth:`face_motion` of several ``(delta_coefficients, delta_residual, jaw, gaze)`` at once, (k, n, 3)
+        (one PDE solve, one harmonic solve per kind and one prior product for them all)."""
+        m, k = self.model, len(motions)
+        # The solve is linear: all motions side by side along the last axis, as ShapeBasis does.
+        C = np.concatenate([np.asarray(c, np.float64) for c, _, _, _ in motions], axis=2)
+        R = np.concatenate([np.asarray(r, np.float64) for _, r, _, _ in motions], axis=2)
+        G = surface_grid(m, *self.resolution, coefficients=C, residual=R, break_slope=READ_BREAK_SLOPE,
+                         confine=False).reshape(-1, 3 * k)
+        jaws = np.array([bool(jaw) and self.chin is not None for _, _, jaw, _ in motions])
+        skin = np.zeros((len(self.skin), k, 3))
         for flag in (False, True):
-            members = [k for k, j in enumerate(jaws) if j == flag]
-            if members:
-                d = self.skin_displacement(np.hstack([grids[k] for k in members]), flag)
-                for n, k in enumerate(members):
-                    skin[k] = d[:, 3 * n:3 * n + 3]
+            members = np.nonzero(jaws == flag)[0]
+            if len(members):
+                cols = (3 * members[:, None] + np.arange(3)).ravel()
+                skin[:, members] = self.skin_displacement(G[:, cols], flag).reshape(len(self.skin), -1, 3)
+        out = np.zeros((len(self.V), k, 3))  # vertex-major: the parts below are row blocks
+        out[self.skin] = skin
+        if len(self.follow):
+            out[self.follow] = self._follow(skin)
+        for i in np.nonzero(jaws)[0] if len(self.jaw_parts) else ():
+            d_chin = self.read_grid[np.nonzero(self.chin[self.covered])[0]] @ G[:, 3 * i:3 * i + 3]
+            rv, t = jaw_motion(self.Vf[self.skin[self.chin]], d_chin, self.hinge)
+            bone = rotation_vector_matrix(JAW_BONE_GAIN * rv)  # the bone turns further than the chin's skin
+            out[self.jaw_parts, i] = rigid_displacement(self.Vf[self.jaw_parts], self.hinge, bone, t)
+        for i, (_, _, _, gaze) in enumerate(motions):
+            for _, (centre, _, idx, _) in self.eyes.items() if gaze else ():
+                out[idx, i] = rigid_displacement(self.Vf[idx], centre, gaze_matrix(gaze))
         if with_prior and self.prior is not None:
-            residual = self.prior.many([m.curve_points(C, R) for C, R, _, _ in motions])
-        outs = []
-        for k, (_, _, _, gaze) in enumerate(motions):
-            out = np.zeros((len(self.V), 3))
-            out[self.skin] = skin[k]
-            if jaws[k] and len(self.jaw_parts):
-                d_chin = self.read_grid[np.nonzero(self.chin[self.covered])[0]] @ grids[k]
-                rv, t = jaw_motion(self.Vf[self.skin[self.chin]], d_chin, self.hinge)
-                bone = rotation_vector_matrix(JAW_BONE_GAIN * rv)  # the bone turns further than the chin's skin
-                out[self.jaw_parts] = rigid_displacement(self.Vf[self.jaw_parts], self.hinge, bone, t)
-            if len(self.follow):
-                out[self.follow] = self._follow(skin[k])
-            if gaze:
-                for _, (centre, _, idx, _) in self.eyes.items():
-                    out[idx] = rigid_displacement(self.Vf[idx], centre, gaze_matrix(gaze))
-            if with_prior and self.prior is not None:
-                out[self.prior.vertices] += residual[k]
-            outs.append(out)
-        return outs
+            out[self.prior.vertices] += self.prior.many([m.curve_points(c, r) for c, r, _, _ in motions])
+        return out.transpose(1, 0, 2)
 
     def displacement(self, delta_coefficients, delta_residual, jaw=False, gaze=None) -> np.ndarray:
         """Displacement of every vertex (user space and unit) for a change of the PDE curves.
@@ -385,30 +381,33 @@ class HeadBinding:
         """
         return self.displacements([(delta_coefficients, delta_residual, jaw, gaze)])[0]
 
-    def displacements(self, motions) -> list:
-        """:meth:`displacement` of several ``(delta_coefficients, delta_residual, jaw, gaze)`` at once."""
-        outs = self.face_motions(motions)
-        for out in outs:
-            for centre, radius, _, guard in self.eyes.values():
-                if len(guard):
-                    p = self.Vf[self.skin[guard]] + out[self.skin[guard]]
-                    rho = np.linalg.norm(p - centre, axis=1)
-                    inside = rho < radius
-                    if inside.any():
-                        k = self.skin[guard[inside]]
-                        out[k] = centre + (p[inside] - centre) * (radius / rho[inside])[:, None] - self.Vf[k]
-            out[self._copies] = out[self._copy_of]
-        return [self.frame.to_user_vectors(out) for out in outs]
+    def displacements(self, motions) -> np.ndarray:
+        """:meth:`displacement` of several ``(delta_coefficients, delta_residual, jaw, gaze)`` at once, (k, n, 3)."""
+        out = self.face_motions(motions).transpose(1, 0, 2)  # (n, k, 3)
+        for centre, radius, _, guard in self.eyes.values():
+            if len(guard):
+                g = self.skin[guard]
+                p = self.Vf[g, None] + out[g]  # (guard, motions, 3)
+                rho = np.linalg.norm(p - centre, axis=-1, keepdims=True)
+                pushed = centre + (p - centre) * (radius / np.maximum(rho, 1e-12)) - self.Vf[g, None]
+                out[g] = np.where(rho < radius, pushed, out[g])
+        out[self._copies] = out[self._copy_of]
+        return self.frame.to_user_vectors(out.transpose(1, 0, 2))  # key-major: each key's rows contiguous
 
     def _follow(self, d_skin):
-        """Attached vertices: their anchor's motion, their offset turned as the anchor's normal turns."""
+        """Attached vertices: their anchor's motion, their offset turned as the anchor's normal turns.
+
+        ``d_skin`` (skin, k, 3): k motions at once → (attached, k, 3).
+        """
         from ..geometry import triangle_cross, unit_rows
 
-        n0 = self.skin_normals[self.anchor]
-        n1 = unit_rows(self._ring_sum @ triangle_cross(self.Vf[self.skin] + d_skin, self._ring))[self._anchor_of]
+        k = d_skin.shape[1]
+        moved = triangle_cross(self.Vf[self.skin][:, None] + d_skin, self._ring)  # (ring, k, 3)
+        n1 = unit_rows((self._ring_sum @ moved.reshape(len(moved), -1)).reshape(-1, k, 3))[self._anchor_of]
+        n0 = self.skin_normals[self.anchor][:, None]
         v = np.cross(n0, n1)
-        c = (n0 * n1).sum(1, keepdims=True)
-        o = self.follow_offset
+        c = (n0 * n1).sum(-1, keepdims=True)
+        o = self.follow_offset[:, None]
         vo = np.cross(v, o)
         turned = o + vo + np.cross(v, vo) / np.maximum(1 + c, 1e-6)
         return d_skin[self.anchor] + turned - o
@@ -425,13 +424,14 @@ class HeadBinding:
 
     def pose_displacement(self, weights: dict, mixer: str = "sum") -> np.ndarray:
         """The head's displacement for AU ``weights`` mixed by ``mixer`` (user space)."""
-        return self.displacements([self._pose_motion_args(weights, mixer)])[0]
+        return self.displacements([self.pose_motion_args(weights, mixer)])[0]
 
     def pose_displacements(self, poses) -> list:
         """:meth:`pose_displacement` of several ``(weights, mixer)`` at once."""
-        return self.displacements([self._pose_motion_args(w, m) for w, m in poses])
+        return self.displacements([self.pose_motion_args(w, m) for w, m in poses])
 
-    def _pose_motion_args(self, weights, mixer):
+    def pose_motion_args(self, weights, mixer) -> tuple:
+        """``(delta_coefficients, delta_residual, jaw, gaze)`` of AU ``weights`` mixed by ``mixer``."""
         from ..au.expressions import normalise_weights, pose_curves
         from ..au.facs import au_number
 

@@ -176,12 +176,12 @@ class HeadPrior:
                             ((rows, np.int64), (cols, np.int64), (vals, np.float64)))
         keep = np.nonzero(weight > 0)[0]
         mix = csr_matrix((vals * weight[rows], (rows, cols)), shape=(len(idx), len(self.vertices)))[keep]
-        # Only the prior head's vertices someone reads, scaled to the user's face once for all keys.
-        used = np.unique(mix.indices)
-        mix = mix[:, used]
+        # Mixed and scaled to the user's face once for all keys: a key is then one dense product.
         S = len(self.keys)
-        residuals = (self.per_vertex.reshape(-1, 3, S)[used] * ratio[:, None]).reshape(-1, S)
-        return PriorOnHead(idx[keep], mix, residuals, self.solver(), ratio)
+        used = np.unique(mix.indices)
+        residuals = (self.per_vertex.reshape(-1, 3, S)[used] * ratio[:, None]).reshape(len(used), 3 * S)
+        residuals = np.asarray(mix[:, used] @ residuals).reshape(-1, S)
+        return PriorOnHead(idx[keep], residuals, self.solver(), ratio)
 
     @functools.cached_property
     def per_vertex(self) -> np.ndarray:
@@ -192,26 +192,24 @@ class HeadPrior:
 def _warp(src, dst, smoothing=1.0):
     """Polyharmonic spline (kernel r, 3-D biharmonic, with an affine part) taking ``src`` to ``dst``:
     a function adding the offset at any points."""
-    from scipy.spatial.distance import cdist
+    from ..geometry import distances
 
     n = len(src)
     A = np.zeros((n + 4, n + 4))
-    A[:n, :n] = cdist(src, src) + smoothing * np.eye(n)
+    A[:n, :n] = distances(src, src) + smoothing * np.eye(n)
     A[:n, n:] = np.c_[np.ones(n), src]
     A[n:, :n] = A[:n, n:].T
     coef = np.linalg.solve(A, np.r_[dst - src, np.zeros((4, 3))])
-    return lambda P: cdist(P, src) @ coef[:n] + np.c_[np.ones(len(P)), P] @ coef[n:]
+    return lambda P: distances(P, src) @ coef[:n] + np.c_[np.ones(len(P)), P] @ coef[n:]
 
 
 @dataclass
 class PriorOnHead:
-    """A :class:`HeadPrior` on one user's head: ``vertices`` (q,) take the residuals of the prior head's
-    vertices mixed by ``mix`` (sparse q × u: nearest vertices, fade), the samples' residuals at those u
-    vertices (``residuals`` (u·3, S) mm, scaled per axis by ``ratio`` to the user's face) weighted by a
-    curve-point motion's sample weights (``solver``)."""
+    """A :class:`HeadPrior` on one user's head: ``vertices`` (q,) take the samples' residuals
+    (``residuals`` (q·3, S) mm: the prior head's nearest vertices mixed, faded, scaled per axis by
+    ``ratio`` to the user's face) weighted by a curve-point motion's sample weights (``solver``)."""
 
     vertices: np.ndarray
-    mix: object
     residuals: np.ndarray
     solver: np.ndarray
     ratio: np.ndarray
@@ -224,14 +222,12 @@ class PriorOnHead:
 
     def __call__(self, curve_motion) -> np.ndarray:
         """(q, 3) residual motion for a curve-point motion (K, J, 3) of the user's face (mm)."""
-        return self.many([curve_motion])[0]
+        return self.many([curve_motion])[:, 0]
 
-    def many(self, curve_motions) -> list:
-        """:meth:`__call__` of several curve-point motions (two matrix products and a sparse one)."""
+    def many(self, curve_motions) -> np.ndarray:
+        """:meth:`__call__` of several curve-point motions, (q, k, 3): two matrix products."""
         X = np.stack([(np.asarray(x, np.float64) / self.ratio).ravel() for x in curve_motions], axis=1)
-        K = X.shape[1]
-        out = self.mix @ (self.residuals @ (self.solver @ X)).reshape(-1, 3 * K)  # rows: x y z of each key
-        return [out[:, k::K] for k in range(K)]
+        return (self.residuals @ (self.solver @ X)).reshape(len(self.vertices), 3, -1).transpose(0, 2, 1)
 
 
 def save_prior(path, prior: HeadPrior, frame: np.ndarray, head: str, step_mm: float = STEP_MM, identities=None):

@@ -330,13 +330,15 @@ def residual_v_operator(n_points: int, sub_v: int, deriv: int = 0) -> np.ndarray
 class SurfaceOperator:
     """The PDE solve for one layout and grid as precomputed matrices.
 
-    ``apply(coefficients, residual)`` is then three small matrix products.
+    ``apply(coefficients, residual)`` is then three small matrix products. A
+    blend of B surfaces with v-dependent weights (:func:`confined_operator`) is
+    one operator too: B blocks of modes, their weights folded into the v factors.
     """
 
-    modes: np.ndarray  # (N+1, n_u, K): curve values of mode n → rows
-    cos_nv: np.ndarray  # (n_v, N+1): cos(n v) or its v-derivative
-    remainder_u: np.ndarray  # (n_u, K)
-    remainder_v: np.ndarray  # (n_v, J)
+    modes: np.ndarray  # (N+1, n_u, K), or (B, N+1, n_u, K): curve values of mode n → rows
+    cos_nv: np.ndarray  # (n_v, B·(N+1)): cos(n v) or its v-derivative (times each block's weight)
+    remainder_u: np.ndarray  # (n_u, K), or (B, n_u, K)
+    remainder_v: np.ndarray  # (n_v, B·J)
 
     def apply(self, coefficients: np.ndarray, residual: np.ndarray) -> np.ndarray:
         """(K, N+1, c) coefficients and (K, J, c) residual → (n_u, n_v, c) surface.
@@ -344,10 +346,12 @@ class SurfaceOperator:
         ``c`` is 3 for one face; stacking several along it solves them all at once.
         """
         K, J, c = residual.shape
-        n1, n_u, _ = self.modes.shape
+        modes = self.modes if self.modes.ndim == 4 else self.modes[None]
+        b, n1, n_u, _ = modes.shape
         # Work in (v, u·c) layout so each part is one matrix product.
-        F = np.matmul(self.modes, np.transpose(coefficients, (1, 0, 2))).reshape(n1, n_u * c)
-        Ru = (self.remainder_u @ residual.reshape(K, J * c)).reshape(n_u, J, c).transpose(1, 0, 2).reshape(J, n_u * c)
+        F = np.matmul(modes, np.transpose(coefficients, (1, 0, 2))).reshape(b * n1, n_u * c)
+        Ru = (self.remainder_u.reshape(b * n_u, K) @ residual.reshape(K, J * c)).reshape(b, n_u, J, c)
+        Ru = Ru.transpose(0, 2, 1, 3).reshape(b * J, n_u * c)
         X = self.cos_nv @ F + self.remainder_v @ Ru  # (n_v, n_u * c)
         return np.ascontiguousarray(X.reshape(-1, n_u, c).transpose(1, 0, 2))
 
@@ -447,17 +451,28 @@ def solve_surface(coefficients, residual, knots, a=1.0, w=None, sub_u=4, sub_v=4
     w = a * N1 if w is None else w
     args = (kn, residual.shape[1], N1 - 1, float(a), float(w), int(sub_u), int(sub_v))
     br = tuple(int(b) for b in breaks)
-    op = surface_operator(*args, assembly, tuple(deriv), br, float(break_slope))
-    X = op.apply(coefficients, residual)
     if assembly != "smooth" or not confine:
-        return X
-    out = X.copy()
+        return surface_operator(*args, assembly, tuple(deriv), br, float(break_slope)).apply(coefficients, residual)
+    key = tuple((int(b), tuple(np.asarray(wt, float)), tuple(np.asarray(sl, float))) for b, wt, sl in confine)
+    return confined_operator(*args, tuple(deriv), br, float(break_slope), key).apply(coefficients, residual)
+
+
+@lru_cache(maxsize=16)
+def confined_operator(knots: tuple, n_points: int, n_modes: int, a: float, w: float, sub_u: int, sub_v: int,
+                      deriv: tuple, breaks: tuple, break_slope: float, confine: tuple) -> SurfaceOperator:
+    """The smooth surface with each break of ``confine`` (``(break, weights, d weights/dv)``, tuples on the
+    output columns) blended into its merged surface where its weight is below 1, as one operator:
+    ``X + Σ (1 - w_b) (M_b - X)``, with ``- w_b' (M_b - X)`` at v-derivative order 0 added for d/dv."""
     du, dv = deriv
+    args = (knots, n_points, n_modes, a, w, sub_u, sub_v)
+    base = surface_operator(*args, "smooth", deriv, breaks, break_slope)
+    flat = surface_operator(*args, "smooth", (du, 0), breaks, break_slope)  # the v factors at dv = 0
+    modes, cos_nv, rem_u, rem_v = [base.modes], [base.cos_nv], [base.remainder_u], [base.remainder_v]
     for b, weight, slope in confine:
-        D = merged_operator(*args, tuple(deriv), br, int(b), float(break_slope)).apply(coefficients, residual) - X
-        out += (1.0 - np.asarray(weight))[None, :, None] * D
-        if dv:  # d/dv of (1 - weight) times the difference of the two surfaces
-            D0 = (merged_operator(*args, (du, 0), br, int(b), float(break_slope)).apply(coefficients, residual)
-                  - surface_operator(*args, assembly, (du, 0), br, float(break_slope)).apply(coefficients, residual))
-            out -= np.asarray(slope)[None, :, None] * D0
-    return out
+        merged = merged_operator(*args, deriv, breaks, b, break_slope)
+        keep, slope = 1.0 - np.array(weight)[:, None], np.array(slope)[:, None]
+        modes.append(merged.modes - base.modes)
+        rem_u.append(merged.remainder_u - base.remainder_u)
+        cos_nv.append(keep * base.cos_nv - (slope * flat.cos_nv if dv else 0.0))
+        rem_v.append(keep * base.remainder_v - (slope * flat.remainder_v if dv else 0.0))
+    return SurfaceOperator(np.stack(modes), np.hstack(cos_nv), np.stack(rem_u), np.hstack(rem_v))
