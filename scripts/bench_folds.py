@@ -11,12 +11,20 @@ on the bundled neutral and on identities 000-(N-1), each with the bundled descri
 for the low-poly face (MediaPipe's 468-point mesh on the ICT neutral, ``assets/low_poly_face.npz``),
 with its accuracy against the full-resolution scan beside the low-poly mesh's own (its
 tessellation error), over the area the low-poly mesh covers.
+
+Beside each count, the scan's own creases: the same metric on ICT-FaceKit's mesh (the one the
+face was fitted to), at rest and posed by ICT's shapes for the same AU or preset, over the PDE
+face's area. A PDE fold within ``--crease-mm`` of an edge where the scan itself turns by more
+than 30° in that pose (or at rest, for poses ICT has no shapes for) lies on a crease the face
+truly has (the nose wings' grooves, the lower lids' margins); the others are **off the scan's
+creases**: what the PDE surface adds.
 """
 from __future__ import annotations
 
 import argparse
 import json
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -25,32 +33,76 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "core"))
 
 from pdeface.assets import load_face, load_ict_shapes, load_low_poly_face, load_neutral_scan  # noqa: E402
 from pdeface.au.expressions import PRESETS, pose_curves, resolve_preset  # noqa: E402
+from pdeface.au.ict import AU_SHAPES, weights_offsets  # noqa: E402
 from pdeface.au.retarget import retarget  # noqa: E402
 from pdeface.geometry import ClosestPoint  # noqa: E402
 from pdeface.surface.fit import face_mesh, fit_face  # noqa: E402
 from pdeface.surface.folds import fold_edges  # noqa: E402
 
 
-def folds_of(model, resolution):
-    """{pose name: (count, max_deg)} at rest, every AU at 1 and every preset."""
+def poses_of(model):
+    """{pose name: AU weights}: rest, every AU at 1 and every preset."""
     poses = {"neutral": {}} | {f"AU{d.key}": {d.key: 1.0} for d in model.descriptors}
     keys = {d.key for d in model.descriptors}
     for name, preset in PRESETS.items():
         poses[name] = resolve_preset(preset, keys)[0]
+    return poses
+
+
+def folds_of(model, resolution, scan=None, shapes=None, crease_mm=3.0):
+    """{pose name: (count, max_deg, off the scan's creases or None)} at rest, every AU at 1 and every preset.
+
+    ``scan`` (the fitted mesh, same unit) and ``shapes`` (ICT offsets of its vertices): count the PDE folds
+    farther than ``crease_mm`` from the scan's own folds in the same pose (at rest where ICT has no shapes).
+    """
+    from scipy.spatial import cKDTree
+
     out = {}
     rest = face_mesh(model, resolution)
-    for name, weights in poses.items():
+    scan_rest = fold_edges(scan, model.frame, model.landmarks)["where"] if scan is not None else None
+    for name, weights in poses_of(model).items():
         C, R = pose_curves(model, weights) if weights else (None, None)
         r = fold_edges(face_mesh(model, resolution, coefficients=C, residual=R), model.frame, model.landmarks,
                        rest=rest)
-        out[name] = (r["count"], r["max_deg"])
+        off = None
+        if scan is not None:
+            creases = scan_rest
+            if weights and all(k in AU_SHAPES for k in weights):
+                posed = replace(scan, vertices=scan.vertices + weights_offsets(weights, shapes)[0])
+                creases = np.r_[creases, fold_edges(posed, model.frame, model.landmarks, rest=scan)["where"]]
+            gap = cKDTree(creases).query(r["where"])[0] if len(creases) else np.full(r["count"], np.inf)
+            off = int((gap > crease_mm).sum())
+        out[name] = (r["count"], r["max_deg"], off)
     return out
+
+
+def scan_creases(model, scan, resolution, near_mm=2.0):
+    """The scan's own folds at rest (same metric) over the PDE face's area (within ``near_mm`` of it)."""
+    pde = face_mesh(model, resolution)
+    Tp, _ = pde.triangles()
+    where = fold_edges(scan, model.frame, model.landmarks)["where"]
+    return int((ClosestPoint(model.frame.to_face(pde.vertices), Tp).query(where)[0] < near_mm).sum())
+
+
+def print_folds(label, folds, extra=""):
+    rest, worst = folds["neutral"], max(folds, key=lambda k: folds[k][0])
+    print(f"{label}{extra}: {rest[0]} folds at rest (largest turn {rest[1]:.0f}°); worst pose {worst} "
+          f"{folds[worst][0]} folds; median over {len(folds)} poses {np.median([v[0] for v in folds.values()]):.0f} "
+          f"(target 0)")
+    if rest[2] is not None:
+        off = {k: v[2] for k, v in folds.items()}
+        worst_off = max(off, key=off.get)
+        print(f"  off the scan's own creases: {off['neutral']} at rest; worst pose {worst_off} {off[worst_off]}; "
+              f"median {np.median(list(off.values())):.0f}; poses with any {sum(v > 0 for v in off.values())} of "
+              f"{len(off)}")
 
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--identities", type=int, default=3)
     ap.add_argument("--resolution", default="default")
+    ap.add_argument("--crease-mm", type=float, default=3.0,
+                    help="a PDE fold this near a fold of the scan itself (same pose) lies on the scan's crease")
     ap.add_argument("--json")
     args = ap.parse_args(argv)
     mesh, idx = load_neutral_scan()
@@ -62,20 +114,18 @@ def main(argv=None):
     report = {}
     for label, V in faces:
         model, _ = fit_face(V, T, V[idx], unit="cm")  # in memory: all 68 landmarks
-        folds = folds_of(retarget(source, model), args.resolution)
-        rest, worst = folds["neutral"], max(folds, key=lambda k: folds[k][0])
-        print(f"{label}: {rest[0]} folds at rest (largest turn {rest[1]:.0f}°); worst pose {worst} "
-              f"{folds[worst][0]} folds; median over {len(folds)} poses {np.median([v[0] for v in folds.values()]):.0f} "
-              f"(target 0)")
+        scan = replace(mesh, vertices=V)
+        model = retarget(source, model)
+        folds = folds_of(model, args.resolution, scan, shapes, args.crease_mm)
+        print_folds(label, folds, f" (the scan itself: {scan_creases(model, scan, args.resolution)} over the same "
+                                  "area at rest)")
         report[label] = folds
     low, L = load_low_poly_face()
     Tl, _ = low.triangles()
     model, sampler = fit_face(low.vertices, Tl, L, unit="cm")
     folds = folds_of(retarget(source, model), args.resolution)
-    rest, worst = folds["neutral"], max(folds, key=lambda k: folds[k][0])
-    print(f"low-poly face ({len(low.vertices)} vertices, {len(Tl)} triangles; points {sampler.summary()}): "
-          f"{rest[0]} folds at rest (largest turn {rest[1]:.0f}°); worst pose {worst} {folds[worst][0]} folds; "
-          f"median over {len(folds)} poses {np.median([v[0] for v in folds.values()]):.0f} (target 0)")
+    print_folds(f"low-poly face ({len(low.vertices)} vertices, {len(Tl)} triangles; points {sampler.summary()})",
+                folds)
     report["low-poly"] = folds
     truth = ClosestPoint(mesh.vertices, T)
     b = np.stack(np.meshgrid(np.linspace(0, 1, 7), np.linspace(0, 1, 7)), -1).reshape(-1, 2)

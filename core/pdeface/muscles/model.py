@@ -24,9 +24,9 @@ calibrated by linear least squares.
   lids close and the eye squints. The mouth's also pushes the lips out, Δz = a · b · F (pucker).
 - :class:`Sheet` (parallel fibres): an attachment edge through o, fibres along d (in the
   face's plane) of length L, half-width W. With s = (p − o)·d and w = |(p − o)·e|, e ⟂ d,
-  Δp = −a · k · sin(min(s/L, 1) · π/2) · T(s) · cos(w/W · π/2) · d for 0 ≤ s ≤ 1.3 L, w ≤ W, T
-  fading from 1 at L to 0 at 1.3 L. ``mirrored`` fibres run outwards on both sides of o
-  (d → sign(x − ox) d), as the nasalis across the nose.
+  Δp = −a · k · sin(min(s/L, 1) · π/2) · T(s) · cos(w/W · π/2) · d for 0 ≤ s ≤ (1 + f) L, w ≤ W, T
+  fading smoothly from 1 at L to 0 at (1 + f) L (``fade`` f, 0.3 by default). ``mirrored`` fibres run
+  outwards on both sides of o (d → sign(x − ox) d), as the nasalis across the nose.
 - :class:`Jaw`: a turn about the left-right axis through the hinge, linearised
   (Δp = a · θ · w(p) · x̂ × (p − hinge)), w = 1 below the lower lip, 0 above the
   mouth line, smooth between.
@@ -107,6 +107,7 @@ class Sheet:
     half_width: float
     pull_mm: float
     mirrored: bool = False
+    fade: float = 0.3  # share of the length beyond it over which the pull fades
 
     kind = "sheet"
 
@@ -119,7 +120,7 @@ class Sheet:
         e = np.stack([-d[:, 1], d[:, 0], np.zeros(len(P))], axis=1)
         s = (v * d).sum(1)
         w = np.abs((v * e).sum(1))
-        along = np.sin(np.clip(s / self.length, 0, 1) * np.pi / 2) * (1 - _smooth((s - self.length) / (0.3 * self.length)))
+        along = np.sin(np.clip(s / self.length, 0, 1) * np.pi / 2) * (1 - _smooth((s - self.length) / (self.fade * self.length)))
         across = np.where(w <= self.half_width, np.cos(np.clip(w / self.half_width, 0, 1) * np.pi / 2), 0.0)
         mag = np.where(s >= 0, self.pull_mm * along * across, 0.0)
         return -mag[:, None] * d

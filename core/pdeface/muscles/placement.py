@@ -47,6 +47,10 @@ _OTHERS = (
 MUSCLES = tuple((f"{n}_{s}", m, a) for n, m, a in _PAIRS for s in "RL") + _OTHERS
 #: The 24 muscle names, in the order of an activation vector.
 MUSCLE_NAMES = tuple(n for n, _, _ in MUSCLES)
+#: The nasalis' pull fades over this share of its length beyond the nose wing: AU38 pushes the wing 3 mm
+#: outwards, and over the sheets' usual 0.3 (4 mm) that squeezed the cheek beside it into a fold (20 edges
+#: over 30° off the scan's creases); over a whole length, none.
+NASALIS_FADE = 1.0
 #: Activation bounds: muscles pull (≥ 0); sphincters and the nasalis also relax below 0 (the lids
 #: open wider, AU5; the nostrils flare, AU38).
 BOUNDS = {n: ((-1.0, 2.0) if n.startswith(("orbicularis", "nasalis")) else (0.0, 2.0)) for n in MUSCLE_NAMES}
@@ -152,6 +156,6 @@ def place_muscles(landmarks_face, geometry=None) -> list:
     s = g["nasalis"]
     nose = np.array([0.0, L[31, 1] + 0.05 * e, L[30, 2]])
     out.append(Sheet("nasalis", nose, np.array([1.0, 0, 0]), 1.1 * s["length"] * 0.5 * (L[35, 0] - L[31, 0]),
-                     0.2 * s["width"] * e, s["pull"], mirrored=True))
+                     0.2 * s["width"] * e, s["pull"], mirrored=True, fade=NASALIS_FADE))
     out.append(Jaw("jaw", jaw_hinge(L, e), JAW_DEGREES / JAW_BONE_GAIN, L[57, 1], mouth[1]))
     return out
