@@ -47,10 +47,9 @@ def head_report(binding, truth: dict, regions: dict) -> dict:
     mm = binding.frame.scale
     eyes = binding.parts.mask("eye_L", "eye_R")
     out = {}
-    for d in binding.model.descriptors:
-        if d.key not in truth:
-            continue
-        pred = binding.descriptor_displacement(d) * mm
+    measured = [d for d in binding.model.descriptors if d.key in truth]
+    for d, D in zip(measured, binding.descriptor_displacements(measured) if measured else ()):
+        pred = D * mm
         true = np.asarray(truth[d.key]) * mm
         row = {}
         for name, mask in regions.items():
