@@ -418,16 +418,16 @@ class HeadBinding:
         """One descriptor's shape key on the head (user space): its displacement at weight 1."""
         return self.displacement(*descriptor_motion_args(descriptor))
 
-    def descriptor_displacements(self, descriptors) -> list:
-        """:meth:`descriptor_displacement` of several descriptors at once (faster than one by one)."""
+    def descriptor_displacements(self, descriptors) -> np.ndarray:
+        """:meth:`descriptor_displacement` of several descriptors at once, (k, n, 3) (faster than one by one)."""
         return self.displacements([descriptor_motion_args(d) for d in descriptors])
 
     def pose_displacement(self, weights: dict, mixer: str = "sum") -> np.ndarray:
         """The head's displacement for AU ``weights`` mixed by ``mixer`` (user space)."""
         return self.displacements([self.pose_motion_args(weights, mixer)])[0]
 
-    def pose_displacements(self, poses) -> list:
-        """:meth:`pose_displacement` of several ``(weights, mixer)`` at once."""
+    def pose_displacements(self, poses) -> np.ndarray:
+        """:meth:`pose_displacement` of several ``(weights, mixer)`` at once, (k, n, 3)."""
         return self.displacements([self.pose_motion_args(w, m) for w, m in poses])
 
     def pose_motion_args(self, weights, mixer) -> tuple:
