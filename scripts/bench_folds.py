@@ -37,7 +37,7 @@ from pdeface.au.ict import AU_SHAPES, weights_offsets  # noqa: E402
 from pdeface.au.retarget import retarget  # noqa: E402
 from pdeface.geometry import ClosestPoint  # noqa: E402
 from pdeface.surface.fit import face_mesh, fit_face  # noqa: E402
-from pdeface.surface.folds import fold_edges  # noqa: E402
+from pdeface.surface.folds import CREASE_MM, fold_edges, off_creases  # noqa: E402
 
 
 def poses_of(model):
@@ -49,14 +49,12 @@ def poses_of(model):
     return poses
 
 
-def folds_of(model, resolution, scan=None, shapes=None, crease_mm=3.0):
+def folds_of(model, resolution, scan=None, shapes=None, crease_mm=CREASE_MM):
     """{pose name: (count, max_deg, off the scan's creases or None)} at rest, every AU at 1 and every preset.
 
     ``scan`` (the fitted mesh, same unit) and ``shapes`` (ICT offsets of its vertices): count the PDE folds
     farther than ``crease_mm`` from the scan's own folds in the same pose (at rest where ICT has no shapes).
     """
-    from scipy.spatial import cKDTree
-
     out = {}
     rest = face_mesh(model, resolution)
     scan_rest = fold_edges(scan, model.frame, model.landmarks)["where"] if scan is not None else None
@@ -70,8 +68,7 @@ def folds_of(model, resolution, scan=None, shapes=None, crease_mm=3.0):
             if weights and all(k in AU_SHAPES for k in weights):
                 posed = replace(scan, vertices=scan.vertices + weights_offsets(weights, shapes)[0])
                 creases = np.r_[creases, fold_edges(posed, model.frame, model.landmarks, rest=scan)["where"]]
-            gap = cKDTree(creases).query(r["where"])[0] if len(creases) else np.full(r["count"], np.inf)
-            off = int((gap > crease_mm).sum())
+            off = int(off_creases(r["where"], creases, crease_mm).sum())
         out[name] = (r["count"], r["max_deg"], off)
     return out
 
@@ -101,7 +98,7 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--identities", type=int, default=3)
     ap.add_argument("--resolution", default="default")
-    ap.add_argument("--crease-mm", type=float, default=3.0,
+    ap.add_argument("--crease-mm", type=float, default=CREASE_MM,
                     help="a PDE fold this near a fold of the scan itself (same pose) lies on the scan's crease")
     ap.add_argument("--json")
     args = ap.parse_args(argv)

@@ -2,7 +2,7 @@
 import numpy as np
 from pdeface.mesh import Mesh
 from pdeface.surface.fit import face_mesh
-from pdeface.surface.folds import OPENINGS, fold_edges
+from pdeface.surface.folds import OPENINGS, fold_edges, off_creases
 from pdeface.surface.frame import FaceFrame
 
 
@@ -135,3 +135,30 @@ def test_the_bundled_default_face_is_the_current_fit(fitted, scan):
     kept = bundled.landmarks  # NaN rows for the landmarks a model file does not keep: they stay unknown
     moved = posed_landmarks(face_mesh(bundled).vertices, face_mesh(bundled).vertices, kept)
     np.testing.assert_array_equal(np.isnan(moved), np.isnan(kept))
+
+
+def test_folds_off_the_scans_creases_are_told_apart():
+    where = np.array([[0.0, 0, 0], [10.0, 0, 0]])
+    np.testing.assert_array_equal(off_creases(where, np.array([[1.0, 0, 0]])), [False, True])
+    np.testing.assert_array_equal(off_creases(where, np.zeros((0, 3))), [True, True])
+
+
+def test_the_muscle_nostril_aus_add_no_folds(scan):
+    """AU38 (the nasalis relaxed: the nose wings pushed 3 mm outwards) and AU39 on the default face add no fold
+    off the scan's own creases; with the nasalis fading over 0.3 of its length (the other sheet's) AU38 squeezed
+    the cheek beside the wing into 20 (53°); over NASALIS_FADE, 0 (4 edges over 30° in all, 31°, on the
+    scan's creases)."""
+    from pdeface.assets import load_face
+    from pdeface.au.expressions import pose_curves
+
+    face = load_face("default")
+    mesh, _, idx = scan
+    L = face.frame.to_face(mesh.vertices[idx])  # the file keeps some landmarks only; the scan has all 68
+    creases = fold_edges(mesh, face.frame, L)["where"]
+    assert len(creases) > 0  # the scan has creases of its own (the nose wings' grooves, the lids' margins)
+    rest = face_mesh(face)
+    for au in ("38", "39"):
+        C, R = pose_curves(face, {au: 1.0})
+        r = fold_edges(face_mesh(face, coefficients=C, residual=R), face.frame, L, rest=rest)
+        assert off_creases(r["where"], creases).sum() == 0, au
+        assert r["max_deg"] < 40, au

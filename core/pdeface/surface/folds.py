@@ -18,6 +18,8 @@ OPENINGS = {"eye_right": list(range(36, 42)), "eye_left": list(range(42, 48)), "
             "nostrils": [30, 31, 32, 33, 34, 35]}
 #: Openings are grown by this fraction about their centres.
 GROW = 1 / 3
+#: A fold this near (mm) a fold of the fitted scan itself, in the same pose, lies on a crease the face has.
+CREASE_MM = 3.0
 
 
 def _inside(points, polygon) -> np.ndarray:
@@ -109,3 +111,15 @@ def fold_edges(mesh, frame, landmarks_face, angle_deg=30.0, rest=None) -> dict:
     outside = folded & ~opening
     return {"count": int(outside.sum()), "max_deg": float(turn[~opening].max()) if (~opening).any() else 0.0,
             "inside": int((folded & opening).sum()), "where": mid[outside]}
+
+
+def off_creases(where, creases, radius=CREASE_MM) -> np.ndarray:
+    """Which folds (``where``: :func:`fold_edges`' midpoints, face frame) lie farther than ``radius`` mm from
+    every fold of the scan the face was fitted to (``creases``: the same on the scan, in the same pose): the
+    folds the PDE surface adds, not the nose wings' grooves or the lids' margins the scan has too."""
+    from scipy.spatial import cKDTree
+
+    where = np.asarray(where, np.float64).reshape(-1, 3)
+    if len(creases) == 0:
+        return np.ones(len(where), bool)
+    return cKDTree(np.asarray(creases, np.float64).reshape(-1, 3)).query(where)[0] > radius
