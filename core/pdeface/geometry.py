@@ -27,12 +27,6 @@ def unit_rows(X: np.ndarray) -> np.ndarray:
     return X / np.maximum(np.linalg.norm(X, axis=-1, keepdims=True), 1e-300)
 
 
-def distances(A: np.ndarray, B: np.ndarray) -> np.ndarray:
-    """(len(A), len(B)) Euclidean distances, by one matrix product (scipy's cdist loops: several times slower)."""
-    d2 = (A * A).sum(1)[:, None] + (B * B).sum(1)[None] - 2.0 * (A @ B.T)
-    return np.sqrt(np.maximum(d2, 0.0, out=d2), out=d2)
-
-
 def cylinder_ray_candidates(V, T, axis_z, theta, height) -> tuple[np.ndarray, np.ndarray]:
     """(ray, triangle) pairs worth a hit test for rays cast from a vertical axis.
 

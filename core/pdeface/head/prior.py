@@ -192,15 +192,15 @@ class HeadPrior:
 def _warp(src, dst, smoothing=1.0):
     """Polyharmonic spline (kernel r, 3-D biharmonic, with an affine part) taking ``src`` to ``dst``:
     a function adding the offset at any points."""
-    from ..geometry import distances
+    from scipy.spatial.distance import cdist
 
     n = len(src)
     A = np.zeros((n + 4, n + 4))
-    A[:n, :n] = distances(src, src) + smoothing * np.eye(n)
+    A[:n, :n] = cdist(src, src) + smoothing * np.eye(n)
     A[:n, n:] = np.c_[np.ones(n), src]
     A[n:, :n] = A[:n, n:].T
     coef = np.linalg.solve(A, np.r_[dst - src, np.zeros((4, 3))])
-    return lambda P: distances(P, src) @ coef[:n] + np.c_[np.ones(len(P)), P] @ coef[n:]
+    return lambda P: cdist(P, src) @ coef[:n] + np.c_[np.ones(len(P)), P] @ coef[n:]
 
 
 @dataclass
