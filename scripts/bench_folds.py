@@ -17,7 +17,8 @@ face was fitted to), at rest and posed by ICT's shapes for the same AU or preset
 face's area. A PDE fold within ``--crease-mm`` of an edge where the scan itself turns by more
 than 30° in that pose (or at rest, for poses ICT has no shapes for) lies on a crease the face
 truly has (the nose wings' grooves, the lower lids' margins); the others are **off the scan's
-creases**: what the PDE surface adds.
+creases**: what the PDE surface adds. The low-poly face lies on the ICT neutral: its creases are the full
+scan's.
 """
 from __future__ import annotations
 
@@ -120,7 +121,8 @@ def main(argv=None):
     low, L = load_low_poly_face()
     Tl, _ = low.triangles()
     model, sampler = fit_face(low.vertices, Tl, L, unit="cm")
-    folds = folds_of(retarget(source, model), args.resolution)
+    # The low-poly mesh lies on the ICT neutral: its creases are the full-resolution scan's.
+    folds = folds_of(retarget(source, model), args.resolution, mesh, shapes, args.crease_mm)
     print_folds(f"low-poly face ({len(low.vertices)} vertices, {len(Tl)} triangles; points {sampler.summary()})",
                 folds)
     report["low-poly"] = folds
