@@ -65,21 +65,21 @@ def _barycentric_matrix(tri_vertices, bary, n_columns):
 
 
 class _Extension:
-    """Harmonic extension over the skin with a fixed set of Dirichlet vertices (factorised once)."""
+    """Harmonic extension over the skin of the PDE grid's motion: Dirichlet values read off the grid on the
+    fixed vertices (covered skin; zero on the others), harmonic on the free ones (factorised once)."""
 
-    def __init__(self, L, fixed):
+    def __init__(self, L, fixed, read):
         from scipy.sparse.linalg import splu
 
         self.fixed, self.free = np.nonzero(fixed)[0], np.nonzero(~fixed)[0]
         self.lu = splu(L[self.free][:, self.free].tocsc()) if len(self.free) else None
-        self.coupling = L[self.free][:, self.fixed].tocsr()
+        self.read = read[self.fixed].tocsr()  # grid → fixed values
+        self.load = (-(L[self.free][:, self.fixed] @ self.read)).tocsr()  # grid → the free rows' right-hand side
 
-    def solve(self, d, values):
-        """``d`` (n, k) with the fixed rows set to ``values``, the free rows harmonic."""
-        d[self.fixed] = values
-        if self.lu is not None:
-            d[self.free] = self.lu.solve(-(self.coupling @ values))
-        return d
+    def solve(self, G):
+        """(fixed values, free values) for grid motions ``G`` (g, c)."""
+        free = self.lu.solve(self.load @ G) if self.lu is not None else np.zeros((0, G.shape[1]))
+        return self.read @ G, free
 
 
 def _check_on_skin(Lf, skin_points, s):
@@ -237,7 +237,10 @@ class HeadBinding:
         self.rest = rest = _rest_region(P, Ts, covered, from_covered[si], Lf, s)
         depths = _depths(P, covered, Lf, s, parts.eyes)
         self._L = L = cotan_laplacian(P, Ts)
-        self._ext = _Extension(L, covered | rest | depths)
+        cov = np.nonzero(covered)[0]  # the grid read at every skin vertex (rows of the covered ones)
+        self._read_skin = csr_matrix((np.ones(len(cov)), (cov, np.arange(len(cov)))),
+                                     shape=(len(P), len(cov))) @ self.read_grid
+        self._ext = _Extension(L, covered | rest | depths, self._read_skin)
         self._jaw_fixed = covered | rest | (depths & (P[:, 1] > mouth_line(Lf)))  # the jaw moves the lower depths
         self._ext_jaw = None  # factorised on first use
 
@@ -260,7 +263,8 @@ class HeadBinding:
             slot = np.full(len(si), -1)
             slot[anchors] = np.arange(len(anchors))
             r, c = np.nonzero(slot[ring] >= 0)
-            self._ring = ring
+            self._ring_vertices, ring_local = np.unique(si[ring], return_inverse=True)  # head indices
+            self._ring = ring_local.reshape(ring.shape)
             self._ring_sum = csr_matrix((np.ones(len(r)), (slot[ring[r, c]], r)), shape=(len(anchors), len(ring)))
 
         # Lids stay outside the eyeballs.
@@ -317,14 +321,16 @@ class HeadBinding:
         """Skin displacement (face frame, mm) from the PDE grid's (g, 3) — or several side by side, (g, 3k);
         ``jaw``: the lower depths of the mouth move."""
         G = np.asarray(grid_displacement)
-        values = np.zeros((len(self.skin), G.shape[1]))
-        values[self.covered] = self.read_grid @ G
-        ext = self._jaw_extension() if jaw else self._ext
-        return ext.solve(np.zeros_like(values), values[ext.fixed])
+        ext = self._extension(jaw)
+        d = np.empty((len(self.skin), G.shape[1]))
+        d[ext.fixed], d[ext.free] = ext.solve(G)
+        return d
 
-    def _jaw_extension(self):
-        if self._ext_jaw is None:
-            self._ext_jaw = _Extension(self._L, self._jaw_fixed)
+    def _extension(self, jaw):
+        if not jaw:
+            return self._ext
+        if self._ext_jaw is None:  # factorised on first use
+            self._ext_jaw = _Extension(self._L, self._jaw_fixed, self._read_skin)
         return self._ext_jaw
 
     def face_motion(self, delta_coefficients, delta_residual, jaw=False, gaze=None, with_prior=True) -> np.ndarray:
@@ -345,16 +351,21 @@ class HeadBinding:
         G = surface_grid(m, *self.resolution, coefficients=C, residual=R, break_slope=READ_BREAK_SLOPE,
                          confine=False).reshape(-1, 3 * k)
         jaws = np.array([bool(jaw) and self.chin is not None for _, _, jaw, _ in motions])
-        skin = np.zeros((len(self.skin), k, 3))
+        out = np.zeros((len(self.V), k, 3))  # vertex-major: the parts below are row blocks
+        flat = out.reshape(len(self.V), 3 * k)
         for flag in (False, True):
             members = np.nonzero(jaws == flag)[0]
-            if len(members):
+            if len(members) == k:  # all alike: whole rows, no column gather
+                ext = self._extension(flag)
+                flat[self.skin[ext.fixed]], flat[self.skin[ext.free]] = ext.solve(G)
+            elif len(members):
                 cols = (3 * members[:, None] + np.arange(3)).ravel()
-                skin[:, members] = self.skin_displacement(G[:, cols], flag).reshape(len(self.skin), -1, 3)
-        out = np.zeros((len(self.V), k, 3))  # vertex-major: the parts below are row blocks
-        out[self.skin] = skin
+                ext = self._extension(flag)
+                fixed, free = ext.solve(G[:, cols])
+                flat[np.ix_(self.skin[ext.fixed], cols)] = fixed
+                flat[np.ix_(self.skin[ext.free], cols)] = free
         if len(self.follow):
-            out[self.follow] = self._follow(skin)
+            out[self.follow] = self._follow(out)
         for i in np.nonzero(jaws)[0] if len(self.jaw_parts) else ():
             d_chin = self.read_grid[np.nonzero(self.chin[self.covered])[0]] @ G[:, 3 * i:3 * i + 3]
             rv, t = jaw_motion(self.Vf[self.skin[self.chin]], d_chin, self.hinge)
@@ -394,15 +405,16 @@ class HeadBinding:
         out[self._copies] = out[self._copy_of]
         return self.frame.to_user_vectors(out.transpose(1, 0, 2))  # key-major: each key's rows contiguous
 
-    def _follow(self, d_skin):
+    def _follow(self, out):
         """Attached vertices: their anchor's motion, their offset turned as the anchor's normal turns.
 
-        ``d_skin`` (skin, k, 3): k motions at once → (attached, k, 3).
+        ``out`` (n, k, 3): k motions of the head, the skin's set → (attached, k, 3).
         """
         from ..geometry import triangle_cross, unit_rows
 
-        k = d_skin.shape[1]
-        moved = triangle_cross(self.Vf[self.skin][:, None] + d_skin, self._ring)  # (ring, k, 3)
+        k = out.shape[1]
+        ring = self._ring_vertices
+        moved = triangle_cross(self.Vf[ring][:, None] + out[ring], self._ring)  # (ring triangles, k, 3)
         n1 = unit_rows((self._ring_sum @ moved.reshape(len(moved), -1)).reshape(-1, k, 3))[self._anchor_of]
         n0 = self.skin_normals[self.anchor][:, None]
         v = np.cross(n0, n1)
@@ -410,7 +422,7 @@ class HeadBinding:
         o = self.follow_offset[:, None]
         vo = np.cross(v, o)
         turned = o + vo + np.cross(v, vo) / np.maximum(1 + c, 1e-6)
-        return d_skin[self.anchor] + turned - o
+        return out[self.skin[self.anchor]] + turned - o
 
     # ---------------------------------------------------------------- keys and poses
 
