@@ -11,7 +11,8 @@ motion to all of the user's mesh, once per fit:
   Dirichlet values on the covered skin), falling to exactly zero in the
   **rest region**: skin farther than ``REST_IOD`` eye distances from the
   covered skin, more than ``BELOW_CHIN_IOD`` below the chin, or deeper in the
-  mouth than ``MOUTH_DEPTH_IOD`` behind the lips (in jaw AUs only its upper half).
+  mouth than ``MOUTH_DEPTH_IOD`` behind the lips (in jaw AUs only its upper half), or the upper lining's
+  top deeper than ``UPPER_LINING_IOD``.
   The README lists what else was tried and measured;
 - **jaw AUs** (25, 26, 27, 29, 30) turn the jaw's parts (lower teeth, gums,
   tongue) about the hinge with the rotation recovered from the chin's own PDE
@@ -48,8 +49,12 @@ COVER_COS = 0.3
 REST_IOD = 1.1
 #: nor skin this far below the chin.
 BELOW_CHIN_IOD = 0.75
-#: Skin inside the mouth this far (eye distances) behind the lips does not move (but with the jaw).
+#: Skin inside the mouth this far (eye distances) behind the lips does not move (but with the jaw),
 MOUTH_DEPTH_IOD = 0.8
+#: nor the upper lining this far behind them, above the mouth line by UPPER_LINING_RISE_IOD: the vestibule's
+#: top, bound to the upper jaw (ICT's stays put; free, the lips' motion spread into it: spill 0.3-0.5 mm).
+UPPER_LINING_IOD = 0.5
+UPPER_LINING_RISE_IOD = 0.15
 #: The head prior fades out over this share of the way from the covered skin to the rest region.
 PRIOR_FADE = 0.3
 #: AUs that move the jaw, and the gaze AUs.
@@ -151,8 +156,10 @@ def _depths(P, covered, Lf, s, eyes):
     The lips' motion would otherwise spread through the whole mouth (ICT-FaceKit's truth fades).
     """
     lips_z = Lf[[51, 57, 62, 66], 2].max()
-    depths = (~covered & (P[:, 2] < lips_z - MOUTH_DEPTH_IOD * s) & (np.abs(P[:, 0]) < 0.6 * s)
-              & (P[:, 1] < Lf[33, 1]) & (P[:, 1] > Lf[8, 1]))
+    inside = ~covered & (np.abs(P[:, 0]) < 0.6 * s) & (P[:, 1] < Lf[33, 1])
+    depths = inside & (P[:, 2] < lips_z - MOUTH_DEPTH_IOD * s) & (P[:, 1] > Lf[8, 1])
+    depths |= (inside & (P[:, 2] < lips_z - UPPER_LINING_IOD * s)
+               & (P[:, 1] > mouth_line(Lf) + UPPER_LINING_RISE_IOD * s))
     for centre, radius in eyes.values():
         depths |= ~covered & (np.linalg.norm(P - centre, axis=1) < radius + 0.1 * s) & (P[:, 2] < centre[2])
     return depths
