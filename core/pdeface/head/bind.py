@@ -324,15 +324,6 @@ class HeadBinding:
 
     # ---------------------------------------------------------------- motion
 
-    def skin_displacement(self, grid_displacement, jaw=False):
-        """Skin displacement (face frame, mm) from the PDE grid's (g, 3) — or several side by side, (g, 3k);
-        ``jaw``: the lower depths of the mouth move."""
-        G = np.asarray(grid_displacement)
-        ext = self._extension(jaw)
-        d = np.empty((len(self.skin), G.shape[1]))
-        d[ext.fixed], d[ext.free] = ext.solve(G)
-        return d
-
     def _extension(self, jaw):
         if not jaw:
             return self._ext
