@@ -466,7 +466,8 @@ def confined_operator(knots: tuple, n_points: int, n_modes: int, a: float, w: fl
     du, dv = deriv
     args = (knots, n_points, n_modes, a, w, sub_u, sub_v)
     base = surface_operator(*args, "smooth", deriv, breaks, break_slope)
-    flat = surface_operator(*args, "smooth", (du, 0), breaks, break_slope)  # the v factors at dv = 0
+    # d/dv: the product rule's - w' (M - X) takes the v factors at dv = 0 (the modes are the same).
+    flat = surface_operator(*args, "smooth", (du, 0), breaks, break_slope) if dv else None
     modes, cos_nv, rem_u, rem_v = [base.modes], [base.cos_nv], [base.remainder_u], [base.remainder_v]
     for b, weight, slope in confine:
         merged = merged_operator(*args, deriv, breaks, b, break_slope)
