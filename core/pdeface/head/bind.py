@@ -4,7 +4,9 @@ The PDE face covers the front of the face. :class:`HeadBinding` carries its
 motion to all of the user's mesh, once per fit:
 
 - **covered skin** (within ``COVER_IOD`` of the PDE surface and facing the same
-  way) reads the PDE displacement at its closest (u, v);
+  way) reads the PDE displacement at its closest (u, v); skin whose closest point
+  lies on the strip between an opening's two rims is not covered (the strip is
+  no skin: it blends both lips' motion);
 - **the rest of the skin** (cheeks to the ears, forehead to the hairline, under
   the chin, inner lips, lid margins, nostrils, the mouth's lining) is the
   harmonic extension of that motion over the mesh (cotangent Laplacian,
@@ -117,6 +119,9 @@ def _read_pde(model, P, N, s, resolution):
         dist[near], tri[near], bary[near], _ = ClosestPoint(X0, Tp).query(P[near])
     r, c = Tp[tri] // nv, Tp[tri] % nv
     inside = (r.min(1) > 0) & (r.max(1) < nu - 1) & (c.min(1) > 0) & (c.max(1) < nv - 1)
+    sub_u = resolution[0]  # curve k is grid row k * sub_u
+    for k in model.layout.breaks():  # the strip between the rims is no skin: what lies under it follows its rim
+        inside &= ~((r.min(1) >= k * sub_u) & (r.max(1) <= (k + 1) * sub_u))
     n_pde = unit_rows(triangle_cross(X0, Tp[tri]))
     covered = inside & (dist < COVER_IOD * s) & ((N * n_pde).sum(1) > COVER_COS)
     if covered.sum() < 100:
