@@ -140,13 +140,15 @@ def fingerprint(*parts) -> str:
 
 
 def set_key_coords(key_block, V):
-    key_block.data.foreach_set("co", np.asarray(V, np.float32).ravel())
+    # ``points`` (Blender 4.1+, meshes' keys) copies the whole array at once; ``data`` goes point by point,
+    # 80 times slower (0.16 s for 82 keys of a 27k-vertex head).
+    key_block.points.foreach_set("co", np.asarray(V, np.float32).ravel())
 
 
 def key_coords(key_block) -> np.ndarray:
     """A shape key's coordinates, float32 (n, 3), as Blender stores them."""
-    co = np.empty(len(key_block.data) * 3, dtype=np.float32)
-    key_block.data.foreach_get("co", co)
+    co = np.empty(len(key_block.points) * 3, dtype=np.float32)
+    key_block.points.foreach_get("co", co)
     return co.reshape(-1, 3)
 
 

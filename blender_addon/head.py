@@ -84,9 +84,11 @@ def binding(face, model, users):
 
 
 def _split(layout, displacement, rests=None):
-    """Per object: its rest coordinates plus its share of ``displacement`` (source space → object space)."""
+    """Per object: its rest coordinates plus its share of ``displacement`` (source space → object space),
+    float32 as Blender keeps them (a whole head's 82 keys are held until written: half the memory)."""
     rests = rests or [rest_coords(obj) for obj, *_ in layout]
-    return [(obj, rest + displacement[s:s + n] @ back.T) for (obj, s, n, back), rest in zip(layout, rests)]
+    return [(obj, (rest + displacement[s:s + n] @ back.T).astype(np.float32))
+            for (obj, s, n, back), rest in zip(layout, rests)]
 
 
 def head_keys(face, model, poses, users, au_name, expression_name):

@@ -61,7 +61,7 @@ def main(argv=None):
             bpy.context.collection.objects.link(o)
             o.shape_key_add(name="Basis", from_mix=False)
             for k in range(n_keys - 1):
-                o.shape_key_add(name=f"k{k}", from_mix=False).data.foreach_set("co", V.ravel())
+                o.shape_key_add(name=f"k{k}", from_mix=False).points.foreach_set("co", V.ravel())
         t_base = median_time(bare_blender)
         print(f"import bpy {t_import:.2f} s; enable add-on {t_enable * 1e3:.0f} ms")
         print(f"full rig ({len(obj.data.vertices)} vertices, {n_keys - 1} shape keys): first {t_first:.3f} s "
@@ -140,7 +140,7 @@ def bench_head(bpy, updates):
         bpy.context.collection.objects.link(o)
         o.shape_key_add(name="Basis", from_mix=False)
         for k in range(2 * n_keys):  # the head's keys and the hidden PDE face's
-            o.shape_key_add(name=f"k{k}", from_mix=False).data.foreach_set("co", V.ravel())
+            o.shape_key_add(name=f"k{k}", from_mix=False).points.foreach_set("co", V.ravel())
     t_base = median_time(bare_blender, repeat=3)
     print(f"whole head ({len(V)} vertices, {n_keys} keys on the user's mesh): fit to selected with keys "
           f"{t_fit:.2f} s; binding and all keys (head and hidden face) {t_first:.2f} s (target <= 1 s, ratio "

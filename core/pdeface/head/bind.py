@@ -364,14 +364,18 @@ class HeadBinding:
             elif len(members):
                 cols = (3 * members[:, None] + np.arange(3)).ravel()
                 ext = self._extension(flag)
-                fixed, free = ext.solve(G[:, cols])
+                fixed, free = ext.solve(G.take(cols, axis=1))  # C-ordered (G[:, cols] is not: sparse @ copies it)
                 flat[np.ix_(self.skin[ext.fixed], cols)] = fixed
                 flat[np.ix_(self.skin[ext.free], cols)] = free
         if len(self.follow):
             out[self.follow] = self._follow(out)
-        for i in np.nonzero(jaws)[0] if len(self.jaw_parts) else ():
-            d_chin = self.read_grid[np.nonzero(self.chin[self.covered])[0]] @ G[:, 3 * i:3 * i + 3]
-            rv, t = jaw_motion(self.Vf[self.skin[self.chin]], d_chin, self.hinge)
+        jaw_keys = np.nonzero(jaws)[0] if len(self.jaw_parts) else ()
+        if len(jaw_keys):  # the chin's PDE motion in every jaw key at once
+            chin = self.read_grid[np.nonzero(self.chin[self.covered])[0]]
+            cols = (3 * jaw_keys[:, None] + np.arange(3)).ravel()
+            d_chins = (chin @ G.take(cols, axis=1)).reshape(chin.shape[0], -1, 3)
+        for j, i in enumerate(jaw_keys):
+            rv, t = jaw_motion(self.Vf[self.skin[self.chin]], d_chins[:, j], self.hinge)
             bone = rotation_vector_matrix(JAW_BONE_GAIN * rv)  # the bone turns further than the chin's skin
             out[self.jaw_parts, i] = rigid_displacement(self.Vf[self.jaw_parts], self.hinge, bone, t)
         for i, (_, _, _, gaze) in enumerate(motions):
