@@ -15,7 +15,8 @@ tessellation error), over the area the low-poly mesh covers.
 Beside each count, the scan's own creases: the same metric on ICT-FaceKit's mesh (the one the
 face was fitted to), at rest and posed by ICT's shapes for the same AU or preset, over the PDE
 face's area. A PDE fold within ``--crease-mm`` of an edge where the scan itself turns by more
-than 30° in that pose (or at rest, for poses ICT has no shapes for) lies on a crease the face
+than 30° in that pose, or at rest carried by the pose (each crease point moving as the PDE face's
+nearest vertex does; the only creases for poses ICT has no shapes for), lies on a crease the face
 truly has (the nose wings' grooves, the lower lids' margins); the others are **off the scan's
 creases**: what the PDE surface adds. The low-poly face lies on the ICT neutral: its creases are the full
 scan's.
@@ -38,7 +39,7 @@ from pdeface.au.ict import AU_SHAPES, weights_offsets  # noqa: E402
 from pdeface.au.retarget import retarget  # noqa: E402
 from pdeface.geometry import ClosestPoint  # noqa: E402
 from pdeface.surface.fit import face_mesh, fit_face  # noqa: E402
-from pdeface.surface.folds import CREASE_MM, fold_edges, off_creases  # noqa: E402
+from pdeface.surface.folds import CREASE_MM, carried, fold_edges, off_creases  # noqa: E402
 
 
 def poses_of(model):
@@ -54,21 +55,24 @@ def folds_of(model, resolution, scan=None, shapes=None, crease_mm=CREASE_MM):
     """{pose name: (count, max_deg, off the scan's creases or None)} at rest, every AU at 1 and every preset.
 
     ``scan`` (the fitted mesh, same unit) and ``shapes`` (ICT offsets of its vertices): count the PDE folds
-    farther than ``crease_mm`` from the scan's own folds in the same pose (at rest where ICT has no shapes).
+    farther than ``crease_mm`` from the scan's own folds in the same pose and from its folds at rest carried by
+    the pose.
     """
     out = {}
     rest = face_mesh(model, resolution)
     scan_rest = fold_edges(scan, model.frame, model.landmarks)["where"] if scan is not None else None
+    rest_face = model.frame.to_face(rest.vertices)
     for name, weights in poses_of(model).items():
         C, R = pose_curves(model, weights) if weights else (None, None)
-        r = fold_edges(face_mesh(model, resolution, coefficients=C, residual=R), model.frame, model.landmarks,
-                       rest=rest)
+        posed = face_mesh(model, resolution, coefficients=C, residual=R)
+        r = fold_edges(posed, model.frame, model.landmarks, rest=rest)
         off = None
         if scan is not None:
-            creases = scan_rest
+            # the scan's creases at rest go where the pose takes their skin (a flared wing carries its groove)
+            creases = carried(rest_face, model.frame.to_face(posed.vertices), scan_rest)
             if weights and all(k in AU_SHAPES for k in weights):
-                posed = replace(scan, vertices=scan.vertices + weights_offsets(weights, shapes)[0])
-                creases = np.r_[creases, fold_edges(posed, model.frame, model.landmarks, rest=scan)["where"]]
+                scan_posed = replace(scan, vertices=scan.vertices + weights_offsets(weights, shapes)[0])
+                creases = np.r_[creases, fold_edges(scan_posed, model.frame, model.landmarks, rest=scan)["where"]]
             off = int(off_creases(r["where"], creases, crease_mm).sum())
         out[name] = (r["count"], r["max_deg"], off)
     return out

@@ -45,7 +45,7 @@ def test_folds_inside_an_opening_are_allowed():
 def test_a_posed_opening_is_where_its_landmarks_moved():
     """At rest the "eye" lies around x = 0, clear of the crease; the pose moves the sheet 8 mm to the right and
     bends it at x = 8, where the eye now is: its crease is the opening's, not a fold."""
-    from pdeface.surface.folds import posed_landmarks
+    from pdeface.surface.folds import carried
 
     L = far_landmarks()
     eye = OPENINGS["eye_right"]
@@ -54,9 +54,9 @@ def test_a_posed_opening_is_where_its_landmarks_moved():
     rest = grid()
     posed = grid(fold_x=0.0, angle_deg=45)
     posed.vertices = posed.vertices + [8.0, 0, 0]
-    moved = posed_landmarks(rest.vertices, posed.vertices, L)[eye] - L[eye]
+    moved = carried(rest.vertices, posed.vertices, L)[eye] - L[eye]
     assert np.allclose(moved[:, 0], 8.0) and np.all(moved[:, 2] >= 0)  # each moves as its nearest rest vertex
-    np.testing.assert_array_equal(posed_landmarks(rest.vertices, rest.vertices, L), L)  # at rest: unmoved
+    np.testing.assert_array_equal(carried(rest.vertices, rest.vertices, L), L)  # at rest: unmoved
     assert fold_edges(posed, FRAME, L)["count"] == 20  # the rest polygon alone: the crease is outside it
     r = fold_edges(posed, FRAME, L, rest=rest)
     assert r["count"] == 0 and r["inside"] == 20
@@ -122,7 +122,7 @@ def test_the_bundled_default_face_is_the_current_fit(fitted, scan):
     """default_face.npz is refitted with the fit's changes (build_assets.py --refit-face): the same curves as a
     fresh fit of the bundled neutral, so its folds are the fit's (79 at rest, up to 161°, before the refit)."""
     from pdeface.assets import load_face
-    from pdeface.surface.folds import posed_landmarks
+    from pdeface.surface.folds import carried
 
     model, _ = fitted
     bundled = load_face("default")
@@ -133,7 +133,7 @@ def test_the_bundled_default_face_is_the_current_fit(fitted, scan):
     r = fold_edges(face_mesh(bundled), bundled.frame, L)
     assert r["count"] == 0 and r["max_deg"] < 35  # measured 0, 29° (8 and 58° before the breaks were confined)
     kept = bundled.landmarks  # NaN rows for the landmarks a model file does not keep: they stay unknown
-    moved = posed_landmarks(face_mesh(bundled).vertices, face_mesh(bundled).vertices, kept)
+    moved = carried(face_mesh(bundled).vertices, face_mesh(bundled).vertices, kept)
     np.testing.assert_array_equal(np.isnan(moved), np.isnan(kept))
 
 
@@ -162,3 +162,33 @@ def test_the_muscle_nostril_aus_add_no_folds(scan):
         r = fold_edges(face_mesh(face, coefficients=C, residual=R), face.frame, L, rest=rest)
         assert off_creases(r["where"], creases).sum() == 0, au
         assert r["max_deg"] < 40, au
+
+
+def test_a_flared_nose_wing_carries_its_groove(scan):
+    """AU38 retargeted to identity000 flares its nose wings 2–3 mm: the folds there lie on the scan's alar grooves
+    carried with the wings (none off them), 3–5 mm from where the grooves are at rest (31 folds off the rest
+    creases: the count before the creases were carried)."""
+    from dataclasses import replace
+
+    from pdeface.assets import load_face, load_ict_shapes
+    from pdeface.au.expressions import pose_curves
+    from pdeface.au.retarget import retarget
+    from pdeface.surface.fit import fit_face
+    from pdeface.surface.folds import carried
+
+    mesh, T, idx = scan
+    V = mesh.vertices + load_ict_shapes()["identity000"]
+    model, _ = fit_face(V, T, V[idx], unit="cm")
+    rig = retarget(load_face("default"), model)
+    creases = fold_edges(replace(mesh, vertices=V), model.frame, model.landmarks)["where"]
+    rest = face_mesh(rig)
+    C, R = pose_curves(rig, {"38": 1.0})
+    posed = face_mesh(rig, coefficients=C, residual=R)
+    r = fold_edges(posed, rig.frame, rig.landmarks, rest=rest)
+    at_rest = off_creases(r["where"], creases)
+    assert at_rest.sum() > 10  # measured 31
+    nose = rig.landmarks[[31, 35], 0]
+    assert np.all(np.abs(r["where"][at_rest, 0]) < np.abs(nose).max() + 12)  # beside the wings, not elsewhere
+    moved = carried(rig.frame.to_face(rest.vertices), rig.frame.to_face(posed.vertices), creases)
+    assert np.linalg.norm(moved - creases, axis=1).max() > 1.5  # the wings' grooves go with them
+    assert off_creases(r["where"], moved).sum() == 0

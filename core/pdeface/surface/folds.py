@@ -34,20 +34,23 @@ def _inside(points, polygon) -> np.ndarray:
     return inside
 
 
-def posed_landmarks(rest_vertices, posed_vertices, landmarks_face) -> np.ndarray:
-    """Landmarks carried into a pose of the same mesh: each moves as its nearest rest vertex does.
+def carried(rest_vertices, posed_vertices, points) -> np.ndarray:
+    """Points carried into a pose of a mesh: each moves as its nearest rest vertex does.
 
-    ``rest_vertices``, ``posed_vertices`` (n, 3) and ``landmarks_face`` (68, 3) in one frame. A posed
-    face's openings are where its posed lids and lips are (AU27's lower lip drops past its rest polygon).
+    ``rest_vertices``, ``posed_vertices`` (n, 3) and ``points`` (p, 3) in one frame; rows with a NaN (the
+    landmarks a model does not keep) stay unknown. A posed face's openings are where its posed lids and
+    lips are (AU27's lower lip drops past its rest polygon); the scan's creases go where the pose takes
+    the skin they lie on (AU38's flared nose wings carry their grooves 2–3 mm outwards).
     """
     from scipy.spatial import cKDTree
 
     rest = np.asarray(rest_vertices, np.float64)
-    L = np.array(landmarks_face, np.float64)
-    known = np.isfinite(L).all(axis=1)  # a model keeps some landmarks only: the others stay unknown
-    nearest = cKDTree(rest).query(L[known])[1]
-    L[known] += np.asarray(posed_vertices, np.float64)[nearest] - rest[nearest]
-    return L
+    P = np.array(points, np.float64).reshape(-1, 3)
+    known = np.isfinite(P).all(axis=1)
+    if known.any():
+        nearest = cKDTree(rest).query(P[known])[1]
+        P[known] += np.asarray(posed_vertices, np.float64)[nearest] - rest[nearest]
+    return P
 
 
 def opening_mask(points_face, landmarks_face, grow=GROW) -> np.ndarray:
@@ -73,7 +76,7 @@ def fold_edges(mesh, frame, landmarks_face, angle_deg=30.0, rest=None) -> dict:
         Landmarks in the face frame (the model's).
     rest : Mesh, optional
         The same mesh at rest, when ``mesh`` is a pose of it: the openings are then those at
-        rest and those of the posed lids and lips (:func:`posed_landmarks`), so an open jaw's
+        rest and those of the posed lids and lips (:func:`carried`), so an open jaw's
         lower lip or a closed eye's lids part where they are.
 
     Returns
@@ -107,7 +110,7 @@ def fold_edges(mesh, frame, landmarks_face, angle_deg=30.0, rest=None) -> dict:
     folded = turn > angle_deg
     opening = opening_mask(mid, landmarks_face)
     if rest is not None:
-        opening |= opening_mask(mid, posed_landmarks(frame.to_face(rest.vertices), V, landmarks_face))
+        opening |= opening_mask(mid, carried(frame.to_face(rest.vertices), V, landmarks_face))
     outside = folded & ~opening
     return {"count": int(outside.sum()), "max_deg": float(turn[~opening].max()) if (~opening).any() else 0.0,
             "inside": int((folded & opening).sum()), "where": mid[outside]}
@@ -115,8 +118,9 @@ def fold_edges(mesh, frame, landmarks_face, angle_deg=30.0, rest=None) -> dict:
 
 def off_creases(where, creases, radius=CREASE_MM) -> np.ndarray:
     """Which folds (``where``: :func:`fold_edges`' midpoints, face frame) lie farther than ``radius`` mm from
-    every fold of the scan the face was fitted to (``creases``: the same on the scan, in the same pose): the
-    folds the PDE surface adds, not the nose wings' grooves or the lids' margins the scan has too."""
+    every fold of the scan the face was fitted to (``creases``: the same on the scan in the same pose, or
+    its folds at rest :func:`carried` by the pose where the scan has no such pose): the folds the PDE surface
+    adds, not the nose wings' grooves or the lids' margins the scan has too."""
     from scipy.spatial import cKDTree
 
     where = np.asarray(where, np.float64).reshape(-1, 3)
