@@ -1,10 +1,14 @@
-"""Close-ups of the PDE face's eyes, nose and mouth with its folds marked (README picture, issue #16).
+"""Close-ups of the PDE face's eyes, nose and mouth with its folds marked (README pictures, issue #16).
 
 Usage: python scripts/render_folds.py [-o docs/folds_closeup.png] [--size 420]
+       python scripts/render_folds.py --identity 7 --au 28 -o docs/folds_retarget.png
 
 Panels: the bundled ICT neutral scan; the PDE face fitted to it at rest; the same with the bundled
-descriptors retargeted, in AU27 and in happy. Front views in the face frame, grey-shaded; every fold
-(:func:`pdeface.surface.folds.fold_edges`: an edge over 30° outside the openings) is a red dot.
+descriptors retargeted, in AU27 and in happy. With ``--identity``: that ICT identity posed by ICT's
+own shape for ``--au`` (the truth), then the PDE face fitted to it with the bundled descriptors
+retargeted by curve index alone and with the gap rule (:mod:`pdeface.au.retarget`), in that AU.
+Front views in the face frame, grey-shaded; every fold (:func:`pdeface.surface.folds.fold_edges`: an
+edge over 30° outside the openings) is a red dot.
 """
 from __future__ import annotations
 
@@ -17,8 +21,9 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "core"))
 
 from drawlib import rasterise, shade, to_pixel  # noqa: E402
-from pdeface.assets import load_face, load_neutral_scan  # noqa: E402
+from pdeface.assets import load_face, load_ict_shapes, load_neutral_scan  # noqa: E402
 from pdeface.au.expressions import PRESETS, pose_curves, resolve_preset  # noqa: E402
+from pdeface.au.ict import au_offsets  # noqa: E402
 from pdeface.au.retarget import retarget  # noqa: E402
 from pdeface.io.png import draw_text, write_png  # noqa: E402
 from pdeface.landmarks.render import marked  # noqa: E402
@@ -26,35 +31,53 @@ from pdeface.surface.fit import face_mesh, fit_face  # noqa: E402
 from pdeface.surface.folds import fold_edges  # noqa: E402
 
 BOX = ((-75.0, 75.0), (-65.0, 45.0))
+MOUTH_BOX = ((-45.0, 45.0), (-75.0, 15.0))  # --identity: the mouth and the cheeks beside its corners
 
 
-def panel(P, T, size, title, folds=None):
+def panel(P, T, size, title, folds=None, box=BOX):
     grey = 40 + 200 * shade(P, T)
-    img = rasterise(P, T, np.repeat(grey[:, None], 3, axis=1), size, BOX)
+    img = rasterise(P, T, np.repeat(grey[:, None], 3, axis=1), size, box)
     if folds is not None and len(folds):
-        img = marked(img, np.stack(to_pixel(folds[:, :2], size, BOX), 1), 1)
+        img = marked(img, np.stack(to_pixel(folds[:, :2], size, box), 1), 1)
     draw_text(img, 6, 6, title, (0, 0, 0), 1)
     return img
+
+
+def posed_panel(rig, weights, size, title, box=BOX):
+    """``rig`` posed by ``weights``, its folds (outside the openings at rest and posed) marked."""
+    C, R = pose_curves(rig, weights) if weights else (None, None)
+    mesh = face_mesh(rig, coefficients=C, residual=R)
+    r = fold_edges(mesh, rig.frame, rig.landmarks, rest=face_mesh(rig))
+    return panel(rig.frame.to_face(mesh.vertices), mesh.triangles()[0], size, f"{title}: {r['count']} folds",
+                 r["where"], box)
 
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("-o", "--out", default=str(Path(__file__).resolve().parent.parent / "docs" / "folds_closeup.png"))
     ap.add_argument("--size", type=int, default=420)
+    ap.add_argument("--identity", type=int, help="an ICT identity (0-19): compare retargeting with and without "
+                                                 "the gap rule on it")
+    ap.add_argument("--au", default="28", help="with --identity: the AU key to pose")
     args = ap.parse_args(argv)
     scan, idx = load_neutral_scan()
     T, _ = scan.triangles()
-    model, _ = fit_face(scan.vertices, T, scan.vertices[idx], unit="cm")
-    rig = retarget(load_face("default"), model)
-    panels = [panel(model.frame.to_face(scan.vertices), T, args.size, "ICT scan")]
-    poses = {"rest": {}, "AU27": {"27": 1.0},
-             "happy": resolve_preset(PRESETS["happy"], {d.key for d in rig.descriptors})[0]}
-    for name, weights in poses.items():
-        C, R = pose_curves(rig, weights) if weights else (None, None)
-        mesh = face_mesh(rig, coefficients=C, residual=R)
-        r = fold_edges(mesh, rig.frame, rig.landmarks, rest=face_mesh(rig))
-        panels.append(panel(rig.frame.to_face(mesh.vertices), mesh.triangles()[0], args.size,
-                            f"PDE {name}: {r['count']} folds", r["where"]))
+    if args.identity is None:
+        model, _ = fit_face(scan.vertices, T, scan.vertices[idx], unit="cm")
+        rig = retarget(load_face("default"), model)
+        panels = [panel(model.frame.to_face(scan.vertices), T, args.size, "ICT scan")]
+        poses = {"rest": {}, "AU27": {"27": 1.0},
+                 "happy": resolve_preset(PRESETS["happy"], {d.key for d in rig.descriptors})[0]}
+        panels += [posed_panel(rig, weights, args.size, f"PDE {name}") for name, weights in poses.items()]
+    else:
+        shapes = load_ict_shapes()
+        V = scan.vertices + shapes[f"identity{args.identity:03d}"]
+        model, _ = fit_face(V, T, V[idx], unit="cm")
+        truth = model.frame.to_face(V + au_offsets(args.au, shapes))
+        panels = [panel(truth, T, args.size, f"ICT identity{args.identity:03d} AU{args.au}", box=MOUTH_BOX)]
+        for spacing, name in ((False, "by curve index"), (True, "gap rule")):
+            rig = retarget(load_face("default"), model, spacing=spacing)
+            panels.append(posed_panel(rig, {args.au: 1.0}, args.size, f"PDE AU{args.au}, {name}", MOUTH_BOX))
     write_png(args.out, np.concatenate(panels, axis=1).astype(np.uint8))
     print(f"wrote {args.out}")
 

@@ -374,7 +374,7 @@ def cmd_retarget(args):
 
     target = load_face(args.target)
     source = load_face(args.descriptors)
-    out = retarget(source, target, scaling=args.scaling)
+    out = retarget(source, target, scaling=args.scaling, spacing=args.spacing)
     size = save_model(args.output, out)
     print(json.dumps({"output": str(args.output), "descriptors": len(out.descriptors), "bytes": size}))
 
@@ -523,6 +523,9 @@ def build_parser():
     p.add_argument("target", help="the target face model (.npz)")
     p.add_argument("--descriptors", default="default", help="face model whose descriptors to use (default: bundled)")
     p.add_argument("--scaling", choices=SCALINGS, default="face", help="scale the descriptors by the faces' sizes")
+    p.add_argument("--no-spacing", dest="spacing", action="store_false",
+                   help="move every curve as the source's curve of the same index moved, even where the target's "
+                        "curves lie much closer together (by default their relative motion is shrunk there)")
     output_option(p)
     p.set_defaults(func=cmd_retarget)
 

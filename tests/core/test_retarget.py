@@ -3,7 +3,7 @@ import pytest
 from pdeface.assets import load_face, load_ict_shapes
 from pdeface.au.aureport import MotionProbe
 from pdeface.au.ict import au_offsets
-from pdeface.au.retarget import face_size, retarget
+from pdeface.au.retarget import face_size, gap_factors, narrowed, retarget
 from pdeface.errors import PdeFaceError
 from pdeface.surface.fit import fit_face
 
@@ -16,7 +16,7 @@ def test_retarget_to_an_ict_identity(scan):
     out = retarget(source, target)
     assert len(out.descriptors) == len(source.descriptors)
     s = face_size(target) / face_size(source)
-    d0, d1 = source.descriptors[0], out.descriptors[0]
+    d0, d1 = source.descriptors[0], retarget(source, target, spacing=False).descriptors[0]
     np.testing.assert_allclose(d1.coefficients, d0.coefficients * s)
     # ground truth: identity neutral + (ICT expression − ICT neutral)
     probe = MotionProbe(out, Vi, T)
@@ -36,3 +36,79 @@ def test_retarget_checks_layouts(scan):
         retarget(source, small)
     with pytest.raises(PdeFaceError, match="scaling"):
         retarget(source, source, scaling="huge")
+
+
+def test_a_face_retargeted_to_itself_is_unchanged():
+    face = load_face("default")
+    assert np.all(gap_factors(face, face) == 1.0)
+    out = retarget(face, face)
+    for a, b in zip(face.descriptors, out.descriptors):
+        np.testing.assert_array_equal(a.curves, b.curves)
+        np.testing.assert_array_equal(a.coefficients, b.coefficients)
+
+
+def test_a_narrow_gap_shrinks_the_relative_motion_across_it():
+    """Curves 0-4 moving 1 mm forward and 5-9 3 mm: with the gap 4-5 at factor 0.25 the 2 mm jump across it
+    becomes about a quarter, in every column; the curves on either side meet halfway, the mean motion kept."""
+    from pdeface.au.descriptor import Descriptor
+
+    K, J, N = 10, 9, 3
+    C = np.zeros((K, N + 1, 3))
+    C[:5, 0, 2], C[5:, 0, 2] = 1.0, 3.0
+    d = Descriptor(12, "both", np.arange(K), C, np.zeros((K, J, 3)), (K, J, N))
+    f = np.ones((K - 1, J))
+    f[4] = 0.25
+    (out,) = narrowed([d], f)
+    P = np.zeros((K, J, 3))
+    P[out.curves] = out.points()
+    jump = P[5, :, 2] - P[4, :, 2]
+    np.testing.assert_allclose(jump, jump[0])
+    assert 0.5 < jump[0] < 0.8  # the source weight keeps a little more than a quarter
+    np.testing.assert_allclose(P[..., 2].mean(axis=0), 2.0)
+    np.testing.assert_allclose(P[..., :2], 0.0, atol=1e-12)
+    assert P[0, 0, 2] > 1.0 and P[9, 0, 2] < 3.0
+    assert narrowed([d], np.ones((K - 1, J)))[0] is d
+
+
+def test_retargeting_keeps_curves_apart_where_the_target_converges(scan, tmp_path):
+    """Identity012's curves above the upper lip converge to half the default face's spacing: AU28 retargeted by
+    curve index moved them past each other (26 folds), the gap rule leaves none and captures as much."""
+    from pdeface.au.expressions import pose_curves
+    from pdeface.surface.fit import face_mesh
+    from pdeface.surface.folds import fold_edges
+
+    mesh, T, idx = scan
+    shapes = load_ict_shapes()
+    V = mesh.vertices + shapes["identity012"]
+    target, _ = fit_face(V, T, V[idx], unit="cm")
+    source = load_face("default")
+    f = gap_factors(source, target, face_size(target) / face_size(source))
+    assert f.min() < 0.6
+    assert np.all(f[list(target.layout.breaks())] == 1.0)  # the lips and lids still part
+    folds, captured = [], []
+    for spacing in (False, True):
+        rig = retarget(source, target, spacing=spacing)
+        C, R = pose_curves(rig, {"28": 1.0})
+        folds.append(fold_edges(face_mesh(rig, coefficients=C, residual=R), rig.frame, rig.landmarks,
+                                rest=face_mesh(rig))["count"])
+        d = next(x for x in rig.descriptors if x.key == "28")
+        captured.append(MotionProbe(rig, V, T).measure(*d.dense(), au_offsets("28", shapes))["captured"])
+    assert folds[0] > 15 and folds[1] == 0  # measured 26 -> 0
+    assert captured[1] >= captured[0] - 0.005
+    # the command line does the same, and --no-spacing the plain retarget
+    from pdeface.cli import main
+    from pdeface.io.modelfile import save_model
+
+    save_model(tmp_path / "t.npz", target)
+    def motion(model):  # AU28's curve point motion (K, J, 3)
+        d = next(x for x in model.descriptors if x.key == "28")
+        P = np.zeros((d.layout[0], d.layout[1], 3))
+        P[d.curves] = d.points()
+        return P
+
+    got = []
+    for flags, spacing in (([], True), (["--no-spacing"], False)):
+        assert main(["retarget", str(tmp_path / "t.npz"), *flags, "-o", str(tmp_path / "rt.npz")]) == 0
+        got.append(motion(load_face(tmp_path / "rt.npz")))
+        np.testing.assert_allclose(got[-1], motion(retarget(source, target, spacing=spacing)), atol=0.05)
+    assert np.abs(got[0] - got[1]).max() > 0.2
