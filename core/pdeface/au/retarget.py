@@ -20,7 +20,6 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
-from scipy.linalg import solve_banded
 
 from ..errors import PdeFaceError
 from ..surface.fourier import fit_fourier
@@ -87,15 +86,13 @@ def narrowed(descriptors, factors) -> list:
     for i, d in enumerate(descriptors):
         D0[d.curves, i] = d.points()
     excess = np.diff(D0, axis=0) * (factors - 1.0)[:, None, :, None]
-    # normal equations of the correction E = D - D0: (w I + ∇ᵀ∇) E = ∇ᵀ excess, tridiagonal in k
+    # normal equations of the correction E = D - D0: (w I + ∇ᵀ∇) E = ∇ᵀ excess; K×K, solved densely
+    # (a few dozen curves; numpy's solver spares the add-on importing scipy.linalg)
     rhs = np.zeros_like(D0)
     rhs[:-1] -= excess
     rhs[1:] += excess
-    bands = np.zeros((3, K))
-    bands[0, 1:] = bands[2, :-1] = -1.0
-    bands[1] = SOURCE_WEIGHT + 2.0
-    bands[1, [0, -1]] = SOURCE_WEIGHT + 1.0
-    E = solve_banded((1, 1), bands, rhs.reshape(K, -1)).reshape(D0.shape)
+    grad = np.diff(np.eye(K), axis=0)
+    E = np.linalg.solve(SOURCE_WEIGHT * np.eye(K) + grad.T @ grad, rhs.reshape(K, -1)).reshape(D0.shape)
     moved = np.abs(E).max(axis=(2, 3)) > NEGLIGIBLE_MM  # (K, n)
     C, R = fit_fourier((D0 + E).reshape(K * len(descriptors), J, 3), N)  # one product for all
     C, R = C.reshape(K, len(descriptors), N + 1, 3), R.reshape(K, len(descriptors), J, 3)
