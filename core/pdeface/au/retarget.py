@@ -29,11 +29,11 @@ SCALINGS = ("face", "none")
 
 #: Gap ratio (target / scaled source) at and below which neighbouring curves'
 #: relative motion is scaled by the ratio itself ...
-NARROW_FULL = 0.5
+NARROW_FULL = 0.6
 #: ... and at and above which it is left as it is; smooth in between. Shrinking
 #: every gap (no threshold) also shrinks the lids' closing where their curves
 #: converge at the eye corners (AU45 capture 0.905 -> 0.892 on identity007).
-NARROW_NONE = 0.8
+NARROW_NONE = 0.9
 #: Weight of staying at the scaled source motion against matching the shrunk
 #: differences: small, so a shrunk gap's motion is taken up by the curves beside it.
 SOURCE_WEIGHT = 0.05
