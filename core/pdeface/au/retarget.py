@@ -53,11 +53,11 @@ def face_size(model) -> np.ndarray:
     return np.array([width, height, 0.5 * (width + height)])
 
 
-def gap_factors(source, target, scale=np.ones(3)) -> np.ndarray:
+def gap_factors(source, target, scale=1.0) -> np.ndarray:
     """(K-1, J) factors on neighbouring curves' relative motion, in (0, 1].
 
     The ratio ρ of the target's gap between curves k and k+1 at point j to the
-    source's (its points scaled by ``scale``), passed through a smooth step:
+    source's (its points scaled by ``scale``, a scalar or per axis), passed through a smooth step:
     ρ itself at and below :data:`NARROW_FULL`, 1 at and above
     :data:`NARROW_NONE`. Gaps across an opening (``layout.breaks()``) get 1.
     """
