@@ -22,6 +22,12 @@ def triangle_cross(V: np.ndarray, T: np.ndarray) -> np.ndarray:
     return np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
 
 
+def smoothstep(t) -> np.ndarray:
+    """0 at t ≤ 0, 1 at t ≥ 1, 3t² − 2t³ between (C1 at both ends): the project's fades and ramps."""
+    t = np.clip(t, 0.0, 1.0)
+    return t * t * (3 - 2 * t)
+
+
 def unit_rows(X: np.ndarray) -> np.ndarray:
     """Rows (vectors along the last axis) scaled to unit length (zero rows stay zero)."""
     return X / np.maximum(np.linalg.norm(X, axis=-1, keepdims=True), 1e-300)

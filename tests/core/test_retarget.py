@@ -36,6 +36,9 @@ def test_retarget_checks_layouts(scan):
         retarget(source, small)
     with pytest.raises(PdeFaceError, match="scaling"):
         retarget(source, source, scaling="huge")
+    with pytest.raises(PdeFaceError, match="source face's layout"):  # the gap rule compares both faces' curves
+        retarget(small, source, descriptors=source.descriptors)
+    assert len(retarget(small, source, descriptors=source.descriptors, spacing=False).descriptors) > 0
 
 
 def test_a_face_retargeted_to_itself_is_unchanged():

@@ -22,6 +22,7 @@ from dataclasses import replace
 import numpy as np
 
 from ..errors import PdeFaceError
+from ..geometry import smoothstep
 from ..surface.fourier import fit_fourier
 from ..surface.frame import FEATURE_NAMES
 
@@ -64,8 +65,7 @@ def gap_factors(source, target, scale=1.0) -> np.ndarray:
     gap_s = np.linalg.norm(np.diff(source.curve_points() * scale, axis=0), axis=-1)
     gap_t = np.linalg.norm(np.diff(target.curve_points(), axis=0), axis=-1)
     rho = np.clip(gap_t / np.maximum(gap_s, 1e-9), 0.0, 1.0)
-    t = np.clip((NARROW_NONE - rho) / (NARROW_NONE - NARROW_FULL), 0.0, 1.0)
-    factor = 1.0 - (1.0 - rho) * t * t * (3.0 - 2.0 * t)
+    factor = 1.0 - (1.0 - rho) * smoothstep((NARROW_NONE - rho) / (NARROW_NONE - NARROW_FULL))
     factor[list(target.layout.breaks())] = 1.0
     return factor
 

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import LandmarkError
+from ..geometry import smoothstep
 
 
 @dataclass(frozen=True)
@@ -196,8 +197,8 @@ def _openings(points_xy, normalised_landmarks):
             inside = (P[:, 0] > knots[0, 0]) & (P[:, 0] < knots[-1, 0])
             line = np.interp(P[:, 0], knots[:, 0], knots[:, 1])
             sides[inside, c] = np.where(P[inside, 1] >= line[inside], 1, -1)
-            t = np.clip(np.minimum(P[inside, 0] - knots[0, 0], knots[-1, 0] - P[inside, 0]) / OPENING_TAPER, 0, 1)
-            firm[inside, c] = t * t * (3 - 2 * t)
+            firm[inside, c] = smoothstep(np.minimum(P[inside, 0] - knots[0, 0], knots[-1, 0] - P[inside, 0])
+                                         / OPENING_TAPER)
     return sides, firm
 
 
@@ -267,5 +268,4 @@ def region_weights(points_xy, normalised_landmarks, blend=None, sides=None) -> n
     if blend == 0:  # one region a point, as :func:`assign_regions`
         e = (e > 0).astype(np.float64)
     W = (1 - e) * W + e * W_apart
-    t = np.clip((Dmin - REACH[0]) / (REACH[1] - REACH[0]), 0, 1)
-    return W * (1 - t * t * (3 - 2 * t))[:, None]
+    return W * (1 - smoothstep((Dmin - REACH[0]) / (REACH[1] - REACH[0])))[:, None]

@@ -37,10 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-
-def _smooth(t):
-    t = np.clip(t, 0.0, 1.0)
-    return t * t * (3 - 2 * t)
+from ..geometry import smoothstep
 
 
 @dataclass(frozen=True)
@@ -120,7 +117,7 @@ class Sheet:
         e = np.stack([-d[:, 1], d[:, 0], np.zeros(len(P))], axis=1)
         s = (v * d).sum(1)
         w = np.abs((v * e).sum(1))
-        along = np.sin(np.clip(s / self.length, 0, 1) * np.pi / 2) * (1 - _smooth((s - self.length) / (self.fade * self.length)))
+        along = np.sin(np.clip(s / self.length, 0, 1) * np.pi / 2) * (1 - smoothstep((s - self.length) / (self.fade * self.length)))
         across = np.where(w <= self.half_width, np.cos(np.clip(w / self.half_width, 0, 1) * np.pi / 2), 0.0)
         mag = np.where(s >= 0, self.pull_mm * along * across, 0.0)
         return -mag[:, None] * d
@@ -138,7 +135,7 @@ class Jaw:
 
     def displacement(self, P) -> np.ndarray:
         P = np.asarray(P, np.float64)
-        w = _smooth((self.mouth_y - P[:, 1]) / (self.mouth_y - self.lip_lower_y))
+        w = smoothstep((self.mouth_y - P[:, 1]) / (self.mouth_y - self.lip_lower_y))
         r = P - self.hinge
         turn = np.stack([np.zeros(len(P)), -r[:, 2], r[:, 1]], axis=1)  # x̂ × r
         return np.radians(self.degrees) * w[:, None] * turn

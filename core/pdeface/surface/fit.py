@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import MeshError
+from ..geometry import smoothstep
 from ..mesh import Mesh
 from .fourier import fit_fourier
 from .frame import face_frame, feature_points
@@ -233,8 +234,7 @@ def break_weights(model: FaceModel, sub_v: int) -> tuple:
             if not np.isfinite(L[[a, c]]).all():
                 return ()
             lo, hi = sorted((L[a, 0], L[c, 0]))
-            t = np.clip(np.minimum(x - lo, hi - x) / CONFINE_RAMP_MM, 0.0, 1.0)
-            weight = np.maximum(weight, t * t * (3 - 2 * t))
+            weight = np.maximum(weight, smoothstep(np.minimum(x - lo, hi - x) / CONFINE_RAMP_MM))
         out.append((b, weight, np.gradient(weight, v)))
     return tuple(out)
 
