@@ -226,7 +226,8 @@ def test_deep_set_eye_corners_are_skin_not_pockets(scan):
 
 def test_points_beyond_the_mesh_edge_carry_on_its_slope():
     """A ramp (value = row) known on rows 3-9 and at all but one point: the hole inside is filled
-    harmonically (exact for a ramp); the rows beyond the edge carry on falling instead of staying flat."""
+    harmonically (exact for a ramp); the rows beyond the edge carry on falling, evenly, instead of staying
+    flat (the harmonic fill) or bunching up at the border (the graph Laplacian squared)."""
     from pdeface.surface.curves import _fill_weights, beyond_edge
 
     K, J = 10, 8
@@ -239,7 +240,7 @@ def test_points_beyond_the_mesh_edge_carry_on_its_slope():
     flat = (_fill_weights(valid) @ np.where(valid, ramp, 0).ravel()).reshape(K, J)
     out = (_fill_weights(valid, beyond) @ np.where(valid, ramp, 0).ravel()).reshape(K, J)
     np.testing.assert_allclose(flat[:3], 3.0)  # harmonic: a ledge
-    assert np.all(np.diff(out[:4, 0]) > 0.2) and out[0, 0] < 2  # extrapolated: still falling towards row 0
+    np.testing.assert_allclose(out[:3], ramp[:3], atol=1e-9)  # extrapolated: the ramp itself, step for step
     np.testing.assert_allclose(out[6, 3], 6.0)
     np.testing.assert_allclose(out[3:], np.where(valid, ramp, out)[3:])  # known points stay
 
@@ -255,3 +256,21 @@ def test_twin_triangles_give_the_outward_hit():
         r, tri, _, facing = cast_cylinder_rays(V, T, 0.0, np.zeros(3), np.array([-2.0, 0.5, 3.0]))
         np.testing.assert_allclose(r, 10.0)
         assert np.all(facing > 0)  # the reversed twin would face the axis (facing < 0)
+
+
+def test_a_corner_beyond_the_edge_carries_on_a_tilted_plane():
+    """Known on a ragged region (a corner and a side missing, as the MediaPipe face's temples): the points
+    beyond the edge continue any plane exactly, in both grid directions, with their spacing."""
+    from pdeface.surface.curves import _fill_weights, beyond_edge
+
+    K, J = 9, 11
+    rows, cols = np.mgrid[0:K, 0:J].astype(float)
+    plane = 2.0 * rows - 0.7 * cols + 3.0
+    valid = np.ones((K, J), bool)
+    valid[:2, :4] = False  # a corner
+    valid[:, -1] = False  # the last column, as beyond the cheek
+    valid[0] = False  # the top row
+    beyond = beyond_edge(~valid)
+    assert beyond.sum() == (~valid).sum()
+    out = (_fill_weights(valid, beyond) @ np.where(valid, plane, 0).ravel()).reshape(K, J)
+    np.testing.assert_allclose(out, plane, atol=1e-9)

@@ -75,9 +75,10 @@ def fold_edges(mesh, frame, landmarks_face, angle_deg=30.0, rest=None) -> dict:
     landmarks_face : (68, 3) array
         Landmarks in the face frame (the model's).
     rest : Mesh, optional
-        The same mesh at rest, when ``mesh`` is a pose of it: the openings are then those at
-        rest and those of the posed lids and lips (:func:`carried`), so an open jaw's
-        lower lip or a closed eye's lids part where they are.
+        The same mesh at rest (same vertices, other positions), when ``mesh`` is a pose of it: the
+        openings are then those at rest, those of the posed lids and lips (:func:`carried`), and
+        the edges whose rest position lies in an opening, so an open jaw's lower lip or a closed
+        eye's lid margins part where they are.
 
     Returns
     -------
@@ -110,7 +111,11 @@ def fold_edges(mesh, frame, landmarks_face, angle_deg=30.0, rest=None) -> dict:
     folded = turn > angle_deg
     opening = opening_mask(mid, landmarks_face)
     if rest is not None:
-        opening |= opening_mask(mid, carried(frame.to_face(rest.vertices), V, landmarks_face))
+        rest_V = frame.to_face(rest.vertices)
+        opening |= opening_mask(mid, carried(rest_V, V, landmarks_face))
+        # and the edges whose own skin lies in an opening at rest: a closed lid's margin stays the
+        # opening's edge though the lids' landmark polygon has flattened to a line
+        opening |= opening_mask(0.5 * (rest_V[lo[pair]] + rest_V[hi[pair]]), landmarks_face)
     outside = folded & ~opening
     return {"count": int(outside.sum()), "max_deg": float(turn[~opening].max()) if (~opening).any() else 0.0,
             "inside": int((folded & opening).sum()), "where": mid[outside]}
