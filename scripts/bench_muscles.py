@@ -25,7 +25,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "core"))
 from benchlib import bundled_ict, median_time  # noqa: E402
 from pdeface.au.aureport import MotionProbe  # noqa: E402
 from pdeface.au.ict import AU_SHAPES, au_offsets  # noqa: E402
-from pdeface.muscles.aus import AUTHORED, MuscleBasis, MuscleTable, load_table  # noqa: E402
+from pdeface.muscles.aus import AUTHORED, MuscleBasis, MuscleTable, load_table, recipe_text  # noqa: E402
 from pdeface.surface.fit import fit_face, surface_grid  # noqa: E402
 from pdeface.surface.model import model_landmarks  # noqa: E402
 
@@ -94,7 +94,7 @@ def main(argv=None):
         at = {name: D[np.argmin(np.linalg.norm(X0 - L[i], axis=1))] for i, name in named.items()}
         top = sorted(at.items(), key=lambda kv: -np.linalg.norm(kv[1]))[:3]
         motion[k] = {n: [round(float(x), 2) for x in v] for n, v in top}
-        print(f"  AU{k} ({', '.join(f'{n} {v}' for n, v in AUTHORED[k].items())}): max "
+        print(f"  AU{k} ({recipe_text(AUTHORED[k])}): max "
               f"{np.linalg.norm(D, axis=1).max():.1f} mm; " + "; ".join(
                   f"{n} ({v[0]:+.1f}, {v[1]:+.1f}, {v[2]:+.1f}) mm" for n, v in top))
     out["motion"] = motion

@@ -15,7 +15,7 @@ Usage: python scripts/build_muscles.py [--evaluations 0] [--start GEOMETRY.json 
    1.5 minutes for 60). The muscles only the authored AUs use keep Waters' fields alone.
 3. Activations: for every AU key of the default face, the 24 activations (within their bounds) that
    best match its descriptor's curve motion with the learned fields; the AUs ICT has no shape for
-   are authored (:data:`pdeface.muscles.aus.AUTHORED`).
+   are authored (:data:`pdeface.muscles.aus.AUTHORED`: named muscles, or calibrated AUs combined).
 4. The table (geometry + activations) goes to ``core/pdeface/data/muscle_aus.json`` and the fields
    beside it (``muscle_fields.npz``); the authored AUs become descriptors (source ``muscle``) of
    ``assets/default_face.npz``.
@@ -35,7 +35,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "core"))
 from pdeface.assets import ICT_NOTICE, asset_path, load_face  # noqa: E402
 from pdeface.au.ict import NOTICE_SHORT  # noqa: E402
 from pdeface.au.retarget import face_size  # noqa: E402
-from pdeface.muscles.aus import AUTHORED, TABLE, MuscleBasis, MuscleTable, activation_vector, load_table, table_to_json  # noqa: E402
+from pdeface.muscles.aus import (AUTHORED, TABLE, MuscleBasis, MuscleTable, authored_activations, load_table,  # noqa: E402
+                                 recipe_text, table_to_json)
 from pdeface.muscles.fields import REACH, LearnedFields, learn_corrections, load_fields, reach_mask, save_fields  # noqa: E402
 from pdeface.muscles.placement import BOUNDS, DEFAULT_GEOMETRY, MUSCLE_NAMES, eye_distance, place_muscles  # noqa: E402
 from pdeface.surface.model import model_landmarks  # noqa: E402
@@ -145,9 +146,9 @@ def main(argv=None):
     for d, t in zip(face.descriptors, targets):
         table[d.key] = basis.calibrate(t)
         hows[d.key] = "calibrated on ICT-FaceKit"
-    for key, named in AUTHORED.items():
-        table[key] = activation_vector(named)
-        hows[key] = "authored from FACS's muscles"
+    for key, recipe in AUTHORED.items():
+        table[key] = authored_activations(recipe, table)
+        hows[key] = f"authored: {recipe_text(recipe)}"
     data = table_to_json(table, hows, ICT_NOTICE, geometry, fields_path.name)
     args.table.write_text(json.dumps(data, indent=1) + "\n")
     print(f"{args.table}: {len(table)} AUs x {len(MUSCLE_NAMES)} muscles")

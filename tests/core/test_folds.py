@@ -209,10 +209,11 @@ def test_a_flared_nose_wing_carries_its_groove(scan):
 
 
 def test_a_closed_lids_margin_stays_in_the_opening(scan):
-    """identity003 winking (AU46R, retargeted): the closed lids meet along a crease at the lower lid's margin,
-    which the wink also lowers. The posed eye's landmark polygon has flattened to a line, so that crease lay
-    outside it and outside the rest polygon (7 folds of 70°). It is the opening's own edge: at rest those
-    edges lie inside the eye's polygon, and the metric now asks where an edge's skin was at rest."""
+    """identity012 blinking (ICT's AU45, retargeted): the closed lids meet along a crease at the lower lid's
+    margin. The posed eye's landmark polygon has flattened to a line, so that crease lay outside it and
+    outside the rest polygon (3 folds of 47°; the muscle wink, before it was authored from the calibrated
+    blink, had 6-9 of 70-77° there). It is the opening's own edge: at rest those edges lie inside the eye's
+    polygon, and the metric also asks where an edge's skin was at rest."""
     from pdeface.assets import load_face, load_ict_shapes
     from pdeface.au.expressions import pose_curves
     from pdeface.au.retarget import retarget
@@ -220,18 +221,20 @@ def test_a_closed_lids_margin_stays_in_the_opening(scan):
     from pdeface.surface.folds import carried, opening_mask
 
     mesh, T, idx = scan
-    V = mesh.vertices + load_ict_shapes()["identity003"]
+    V = mesh.vertices + load_ict_shapes()["identity012"]
     model, _ = fit_face(V, T, V[idx], unit="cm")
     rig = retarget(load_face("default"), model)
     rest = face_mesh(rig)
-    C, R = pose_curves(rig, {"46R": 1.0})
+    C, R = pose_curves(rig, {"45": 1.0})
     posed = face_mesh(rig, coefficients=C, residual=R)
     every = fold_edges(posed, rig.frame, np.full((68, 3), np.nan))["where"]  # no openings: every edge over 30°
-    eye = rig.landmarks[36:42]
-    at_eye = every[(np.abs(every[:, 0] - eye[:, 0].mean()) < 15) & (np.abs(every[:, 1] - eye[:, 1].mean()) < 10)]
-    by_landmarks = opening_mask(at_eye, rig.landmarks) | opening_mask(
-        at_eye, carried(rig.frame.to_face(rest.vertices), rig.frame.to_face(posed.vertices), rig.landmarks))
-    assert (~by_landmarks).sum() >= 3  # measured 7: the lid margin's crease, below both polygons
+    near = np.zeros(len(every), bool)
+    for eye in (rig.landmarks[36:42], rig.landmarks[42:48]):
+        near |= (np.abs(every[:, 0] - eye[:, 0].mean()) < 15) & (np.abs(every[:, 1] - eye[:, 1].mean()) < 10)
+    at_eyes = every[near]
+    by_landmarks = opening_mask(at_eyes, rig.landmarks) | opening_mask(
+        at_eyes, carried(rig.frame.to_face(rest.vertices), rig.frame.to_face(posed.vertices), rig.landmarks))
+    assert (~by_landmarks).sum() >= 2  # measured 3: the lid margin's crease, below both polygons
     r = fold_edges(posed, rig.frame, rig.landmarks, rest=rest)
     assert r["count"] == 0 and r["inside"] >= (~by_landmarks).sum()
 

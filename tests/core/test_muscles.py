@@ -208,6 +208,32 @@ def test_bundled_table_and_the_muscle_aus_of_the_default_face():
                                atol=0.05)  # mm: the model file stores coefficients to 0.01 mm steps
 
 
+def test_the_wink_is_one_eyes_blink_with_its_lids_tightened():
+    """AU46R is authored from the calibrated AU45R and AU7R. Authored as the orbicularis oculi alone (1.6, with
+    the zygomatic at 0.3), its learned correction pulled the lower lid 1.5 mm down while the upper lid closed."""
+    from pdeface.muscles.aus import AUTHORED, authored_activations, load_table
+
+    table = load_table()
+    face = load_face("default")
+    X = face.curve_points()
+    wink = {d.key: d for d in face.descriptors}["46R"]
+    D = np.zeros_like(X)
+    D[wink.curves] = wink.points()
+    upper = face.layout.breaks()[0]  # the eyes' upper rim; the lower rim is the next curve
+    lower = upper + 1
+    eye = (X[upper, :, 1] - X[lower, :, 1]) > 3  # the points where the right eye is open at rest ...
+    eye &= X[upper, :, 0] < 0  # ... on the subject's right
+    assert D[upper, eye, 1].min() < -6  # the upper lid closes (the scans' blink: 7.5 mm at the landmark)
+    assert D[lower, eye, 1].min() > -0.3 and D[lower + 1, eye, 1].max() > 0.3  # the lower lid and skin rise
+    assert np.abs(D[:, X[0, :, 0] > 10]).max() < 0.3  # the other side stays
+    np.testing.assert_allclose(table.activations["46R"], authored_activations(AUTHORED["46R"], table.activations),
+                               atol=1e-4)
+    with pytest.raises(PdeFaceError, match="AU99"):
+        authored_activations({"AU99": 1.0}, table.activations)
+    with pytest.raises(PdeFaceError, match="orbicularis_oculi_R outside"):
+        authored_activations({"AU45R": 1.0, "AU7R": 1.0}, table.activations)
+
+
 def test_muscle_mixers_pose_a_face_through_pose_curves():
     from pdeface.au.expressions import mix, pose_curves
     from pdeface.muscles.aus import load_table

@@ -44,9 +44,12 @@ MUSCLE_MIXERS = ("muscle-average", "muscle-max")
 #: How a set of AUs' activations combine: summed (linear, as the descriptors' keys), or the FAS's mixers.
 ACTIVATION_MIXERS = ("sum",) + MUSCLE_MIXERS
 #: AUs no ICT shape covers, authored from the muscles FACS names for them (activation vectors
-#: given by muscle name; the rest 0). Their strengths are set on the learned fields: AU23 presses
-#: the lips about as far as the scans' AU24 does; a wink closes one eye's lids as far as the
-#: calibrated blink (AU45: orbicularis oculi 1.6).
+#: given by muscle name, or ``"AU<key>"`` for a calibrated AU's activations; the rest 0). Their
+#: strengths are set on the learned fields: AU23 presses the lips about as far as the scans' AU24
+#: does. A wink is one eye's calibrated blink with its lids tightened (AU7 at a third: the
+#: orbicularis oculi at its bound, 2.0). Authored as that muscle alone at 1.6 with the zygomatic at
+#: 0.3, the orbicularis' learned correction (learned on blinks, which leave the lower lid) pulled
+#: the lower lid 1.5 mm down, where a wink squeezes it up.
 AUTHORED = {
     "13": {"levator_anguli_oris_R": 1.0, "levator_anguli_oris_L": 1.0},
     "13R": {"levator_anguli_oris_R": 1.0},
@@ -54,8 +57,8 @@ AUTHORED = {
     "23": {"orbicularis_oris": 0.5},
     "38": {"nasalis": -1.0, "levator_labii_alaeque_R": 0.2, "levator_labii_alaeque_L": 0.2},
     "39": {"nasalis": 1.0},
-    "46R": {"orbicularis_oculi_R": 1.6, "zygomatic_major_R": 0.3},
-    "46L": {"orbicularis_oculi_L": 1.6, "zygomatic_major_L": 0.3},
+    "46R": {"AU45R": 1.0, "AU7R": 0.33},
+    "46L": {"AU45L": 1.0, "AU7L": 0.33},
 }
 AUTHORED["46"] = AUTHORED["46R"]  # a wink is one eye's: the subject's right unless 46L is asked for
 
@@ -72,6 +75,28 @@ def activation_vector(named: dict) -> np.ndarray:
             raise PdeFaceError(f"muscle {name}: activation {value!r} outside [{lo:g}, {hi:g}]")
         a[MUSCLE_NAMES.index(name)] = v
     return a
+
+
+def authored_activations(recipe: dict, calibrated: dict) -> np.ndarray:
+    """An :data:`AUTHORED` recipe's (24,) activations: named muscles, plus ``"AU<key>"`` entries, each
+    that calibrated AU's activations (``calibrated[key]``) times its weight; the sum must keep within
+    :data:`BOUNDS`."""
+    a = activation_vector({n: v for n, v in recipe.items() if not n.startswith("AU")})
+    for name, weight in recipe.items():
+        if name.startswith("AU"):
+            if name[2:] not in calibrated:
+                raise PdeFaceError(f"authored from {name}, which has no calibrated activations")
+            a = a + float(weight) * np.asarray(calibrated[name[2:]], np.float64)
+    lo, hi = np.array([BOUNDS[n] for n in MUSCLE_NAMES]).T
+    out = [n for n, v, l, h in zip(MUSCLE_NAMES, a, lo, hi) if not l <= v <= h]
+    if out:
+        raise PdeFaceError(f"{recipe}: {', '.join(out)} outside their bounds")
+    return a
+
+
+def recipe_text(recipe: dict) -> str:
+    """``{"AU45R": 1.0, "AU7R": 0.33}`` → ``"AU45R 1.0, AU7R 0.33"`` (tables, reports)."""
+    return ", ".join(f"{n} {v:g}" for n, v in recipe.items())
 
 
 @dataclass
