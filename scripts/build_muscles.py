@@ -35,8 +35,16 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "core"))
 from pdeface.assets import ICT_NOTICE, asset_path, load_face  # noqa: E402
 from pdeface.au.ict import NOTICE_SHORT  # noqa: E402
 from pdeface.au.retarget import face_size  # noqa: E402
-from pdeface.muscles.aus import (AUTHORED, TABLE, MuscleBasis, MuscleTable, authored_activations, load_table,  # noqa: E402
-                                 recipe_text, table_to_json)
+from pdeface.muscles.aus import (  # noqa: E402
+    AUTHORED,
+    TABLE,
+    MuscleBasis,
+    MuscleTable,
+    authored_activations,
+    load_table,
+    recipe_text,
+    table_to_json,
+)
 from pdeface.muscles.fields import REACH, LearnedFields, learn_corrections, load_fields, reach_mask, save_fields  # noqa: E402
 from pdeface.muscles.placement import BOUNDS, DEFAULT_GEOMETRY, MUSCLE_NAMES, eye_distance, place_muscles  # noqa: E402
 from pdeface.surface.model import model_landmarks  # noqa: E402
