@@ -5,8 +5,8 @@ as the FAS records it. On a face model, the muscles (placed from its landmarks)
 move its curve points; the change of their Fourier fit is the AU's descriptor
 (source ``muscle``). The bundled table (``data/muscle_aus.json``, built by
 ``scripts/build_muscles.py``) holds the muscles' shapes fitted to ICT-FaceKit and, per AU,
-activations calibrated against it (:meth:`MuscleBasis.calibrate`), or authored from FACS's
-muscles for the AUs it has no shape for (:data:`AUTHORED`).
+activations calibrated against it (:meth:`MuscleBasis.calibrate`), or, for the AUs it has no shape
+for, authored from FACS's muscles or from calibrated AUs (:data:`AUTHORED`).
 
 Table file::
 

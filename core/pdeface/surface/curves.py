@@ -103,9 +103,10 @@ def _bending(K: int, J: int, touches) -> sp.csr_matrix:
     """Second-difference stencils of a K×J grid (along rows, along columns, and the twist) that
     include a node of ``touches`` (flat bool): ``|B x|²`` is the grid's thin-plate energy there."""
     idx = np.arange(K * J).reshape(K, J)
+    twist = 2 ** 0.5  # the mixed term counts twice in the thin-plate energy
     stencils = [((idx[:, :-2], idx[:, 1:-1], idx[:, 2:]), (1.0, -2.0, 1.0)),
                 ((idx[:-2], idx[1:-1], idx[2:]), (1.0, -2.0, 1.0)),
-                ((idx[:-1, :-1], idx[:-1, 1:], idx[1:, :-1], idx[1:, 1:]), (2 ** 0.5, -(2 ** 0.5), -(2 ** 0.5), 2 ** 0.5))]
+                ((idx[:-1, :-1], idx[:-1, 1:], idx[1:, :-1], idx[1:, 1:]), (twist, -twist, -twist, twist))]
     rows, cols, vals, n = [], [], [], 0
     for nodes, weights in stencils:
         nodes = [a.ravel() for a in nodes]
