@@ -274,3 +274,28 @@ def test_a_corner_beyond_the_edge_carries_on_a_tilted_plane():
     assert beyond.sum() == (~valid).sum()
     out = (_fill_weights(valid, beyond) @ np.where(valid, plane, 0).ravel()).reshape(K, J)
     np.testing.assert_allclose(out, plane, atol=1e-9)
+
+
+def test_a_groove_narrower_than_the_points_is_drawn_to_its_neighbours_chord(face_space, rng):
+    """The nose band's alar grooves: a hit 4-5 mm below the chord of its neighbours on the curve made a V the
+    surface turned through by 30-40°. With ``groove_depth`` such a hit (between two hits) is drawn to that depth
+    below the chord, as a fixed mix of the three points (still read exactly and linearly off any pose), and
+    only there."""
+    from pdeface.surface.curves import NOSE_GROOVE_MM, groove_depths, nose_band
+
+    V, T, Lf = face_space
+    lay = place_curves(Lf)
+    free = place_samples(V, T, lay)
+    limited = place_samples(V, T, lay, groove_depth=groove_depths(lay, Lf))
+    radius = lambda P: np.hypot(P[..., 0], P[..., 2] - lay.axis_z)  # noqa: E731
+    r0, r1 = radius(free.sample(V)), radius(limited.sample(V))
+    below = lambda r: 0.5 * (r[:, :-2] + r[:, 2:]) - r[:, 1:-1]  # noqa: E731
+    band = nose_band(lay, Lf)[:, 1:-1]
+    hits = free.status == HIT
+    deep = band & (below(r0) > NOSE_GROOVE_MM) & hits[:, 1:-1] & hits[:, :-2] & hits[:, 2:]
+    assert deep.sum() >= 4  # measured 6: the alar grooves, both sides (beside a nostril's pocket it is left)
+    assert below(r1)[deep].max() < NOSE_GROOVE_MM + 0.3  # now at the limit (the neighbours may move too)
+    moved = np.linalg.norm(limited.sample(V) - free.sample(V), axis=-1) > 1e-9
+    assert moved.sum() == deep.sum() and nose_band(lay, Lf)[moved].all()
+    D = rng.normal(size=V.shape)
+    np.testing.assert_allclose(limited.sample(V + 0.3 * D), limited.sample(V) + 0.3 * limited.sample(D), atol=1e-9)

@@ -87,5 +87,6 @@ def fit_descriptor(model, sampler, neutral_vertices, au_vertices, au, side="both
         from ..surface.curves import project_samples
 
         Vf = align_to_neutral(model, au_vertices, au_landmarks, au)
-        au_points = project_samples(neutral_points, Vf, np.asarray(au_triangles), sampler.status).sample(Vf)
+        au_points = project_samples(neutral_points, Vf, np.asarray(au_triangles), sampler.status,
+                                    sampler.groove_mix).sample(Vf)
     return descriptor_from_points(neutral_points, au_points, au, side, model.n_modes, source, notice)

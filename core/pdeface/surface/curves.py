@@ -38,11 +38,15 @@ class CurveSampler:
         :data:`HIT`, or why the point was filled (:data:`MISS`,
         :data:`BACKFACING`, :data:`CAVITY`, :data:`GRAZING`) or extrapolated (:data:`BEYOND`).
     shape : (K, J)
+    groove_mix : scipy.sparse.csr_matrix, shape (K*J, K*J), optional
+        How the points in too narrow a groove were drawn towards their neighbours' chord
+        (``matrix = groove_mix @ matrix on the skin``, :func:`place_samples`); None where none was.
     """
 
     matrix: sp.csr_matrix
     status: np.ndarray
     shape: tuple
+    groove_mix: sp.csr_matrix | None = None
 
     def sample(self, V: np.ndarray) -> np.ndarray:
         """Curve points ``(K, J, 3)`` read off vertices ``V`` of the same topology."""
@@ -166,23 +170,61 @@ CAVITY_MM = 16.0
 NOSE_CAVITY_MM = 6.0
 #: The nose band's half-width in nose-wing half-widths (the wings are landmarks 31 and 35).
 NOSE_BAND_WIDTHS = 2.5
+#: In the nose band a hit lies at most this far (mm) below the chord of its two neighbours on the curve;
+#: deeper, it is drawn towards that chord. The alar groove is narrower than the points' spacing (3-4 mm):
+#: a point landing in it, 4-5 mm below its neighbours, made a V that the surface turned through by 30-40°
+#: (identity000: 34 folds at rest) while the scan spreads the groove over several edges. At 2.5 mm, 6-8 points
+#: a face, the mean distance to the scan grows 0.3-1.5 %; at 3 mm it is unchanged (the V also overshot between
+#: the points) but AU9 still folds on identity012; at 2 mm it is 2-4 % larger.
+NOSE_GROOVE_MM = 2.5
 
 
-def cavity_depths(layout: CurveLayout, landmarks_face: np.ndarray) -> np.ndarray:
-    """(K, J) cavity depths: :data:`NOSE_CAVITY_MM` in the nose band (from the upper lip to the nose tip,
-    :data:`NOSE_BAND_WIDTHS` wide), :data:`CAVITY_MM` elsewhere."""
+def nose_band(layout: CurveLayout, landmarks_face: np.ndarray) -> np.ndarray:
+    """(K, J) bool: the curve points beside and under the nose (from the upper lip to the nose tip,
+    :data:`NOSE_BAND_WIDTHS` nose-wing half-widths either side of the midline)."""
     from ..geometry import cylinder_coords
 
     L = landmarks_face
     wing = np.abs(cylinder_coords(L[[31, 35]], layout.axis_z)[0]).max()
     H = layout.ray_heights()
-    band = (H > L[51, 1] + 1.0) & (H < L[30, 1] + 1.0) & (np.abs(layout.angles()) < NOSE_BAND_WIDTHS * wing)
-    return np.where(band, NOSE_CAVITY_MM, CAVITY_MM)
+    return (H > L[51, 1] + 1.0) & (H < L[30, 1] + 1.0) & (np.abs(layout.angles()) < NOSE_BAND_WIDTHS * wing)
+
+
+def cavity_depths(layout: CurveLayout, landmarks_face: np.ndarray) -> np.ndarray:
+    """(K, J) cavity depths: :data:`NOSE_CAVITY_MM` in the :func:`nose_band`, :data:`CAVITY_MM` elsewhere."""
+    return np.where(nose_band(layout, landmarks_face), NOSE_CAVITY_MM, CAVITY_MM)
+
+
+def groove_depths(layout: CurveLayout, landmarks_face: np.ndarray) -> np.ndarray:
+    """(K, J) groove depths: :data:`NOSE_GROOVE_MM` in the :func:`nose_band`, no limit elsewhere."""
+    return np.where(nose_band(layout, landmarks_face), NOSE_GROOVE_MM, np.inf)
+
+
+def _groove_limit(S: sp.csr_matrix, V_face: np.ndarray, hit: np.ndarray, axis_z: float, depth) -> sp.csr_matrix:
+    """``A`` (K*J × K*J) such that ``A @ S`` draws each hit lying more than ``depth`` (mm, per point) below the
+    chord of its two neighbours on the curve (hits too) towards that chord, to ``depth`` below it: the point
+    becomes a fixed mix of the three, so the sampler stays linear in the mesh's vertices."""
+    K, J = hit.shape
+    n = K * J
+    P = np.asarray(S @ V_face).reshape(K, J, 3)
+    r = np.hypot(P[..., 0], P[..., 2] - axis_z)
+    depth = np.broadcast_to(np.asarray(depth, np.float64), (K, J))[:, 1:-1]
+    below = 0.5 * (r[:, :-2] + r[:, 2:]) - r[:, 1:-1]
+    deep = hit[:, 1:-1] & hit[:, :-2] & hit[:, 2:] & (below > depth)
+    k, j = np.nonzero(deep)
+    j = j + 1
+    pull = 1.0 - depth[k, j - 1] / below[k, j - 1]  # share of the way to the chord
+    i = k * J + j
+    keep = np.setdiff1d(np.arange(n), i)
+    rows = np.r_[keep, i, i, i]
+    cols = np.r_[keep, i, i - 1, i + 1]
+    vals = np.r_[np.ones(len(keep)), 1.0 - pull, 0.5 * pull, 0.5 * pull]
+    return sp.csr_matrix((vals, (rows, cols)), shape=(n, n))
 
 
 def place_samples(V_face: np.ndarray, T: np.ndarray, layout: CurveLayout,
                   cavity_depth=CAVITY_MM, cavity_window: int = 6, min_facing: float = 0.25,
-                  min_hit_fraction: float = 0.75) -> CurveSampler:
+                  min_hit_fraction: float = 0.75, groove_depth=np.inf) -> CurveSampler:
     """Cast the layout's rays on a mesh and build its curve sampler.
 
     Parameters
@@ -198,6 +240,10 @@ def place_samples(V_face: np.ndarray, T: np.ndarray, layout: CurveLayout,
         eyes put the inner eye corners' skin 12-16 mm below it: at 12 mm
         they were filled over and missed by up to 3.9 mm. :func:`cavity_depths`
         gives the nose band less (:data:`NOSE_CAVITY_MM`).
+    groove_depth : float or (K, J) array
+        A hit more than this far (mm) below the chord of its neighbours on the
+        curve is drawn towards it (:func:`groove_depths`: the nose band's
+        alar grooves, :data:`NOSE_GROOVE_MM`); no limit by default.
     min_facing : float
         A hit on skin seen more obliquely than this (cosine between its normal
         and the ray) is filled too: it is a nostril or lip wall seen edge-on,
@@ -229,10 +275,14 @@ def place_samples(V_face: np.ndarray, T: np.ndarray, layout: CurveLayout,
     S = sp.csr_matrix((np.where(valid.ravel()[:, None], bary, 0).ravel(), (rows, T[hit_tri].ravel())), shape=(K * J, n))
     S.eliminate_zeros()
     S = _fill_weights(valid, status == BEYOND) @ S
-    return CurveSampler(sp.csr_matrix(S), status, (K, J))
+    mix = None
+    if np.isfinite(groove_depth).any():
+        mix = _groove_limit(sp.csr_matrix(S), V_face, valid, layout.axis_z, groove_depth)
+        S = mix @ S
+    return CurveSampler(sp.csr_matrix(S), status, (K, J), mix)
 
 
-def project_samples(points: np.ndarray, V: np.ndarray, T: np.ndarray, status=None) -> CurveSampler:
+def project_samples(points: np.ndarray, V: np.ndarray, T: np.ndarray, status=None, groove_mix=None) -> CurveSampler:
     """A sampler for a mesh of another topology: closest points to ``points``.
 
     Parameters
@@ -243,12 +293,21 @@ def project_samples(points: np.ndarray, V: np.ndarray, T: np.ndarray, status=Non
         The other mesh (same frame as ``points``).
     status : (K, J) array, optional
         Status to carry over (filled points are re-filled on the new mesh).
+    groove_mix : sparse (K*J, K*J), optional
+        The sampler's :attr:`CurveSampler.groove_mix`: the points it drew off the skin
+        are projected where they were on it, and drawn off it again the same way.
     """
+    from scipy.sparse.linalg import spsolve
+
     K, J, _ = points.shape
     status = np.full((K, J), HIT) if status is None else np.asarray(status)
     valid = status == HIT
-    _, tri, bary, _ = ClosestPoint(V, T).query(points.reshape(-1, 3))
+    on_skin = points.reshape(-1, 3) if groove_mix is None else spsolve(sp.csc_matrix(groove_mix), points.reshape(-1, 3))
+    _, tri, bary, _ = ClosestPoint(V, T).query(np.asarray(on_skin).reshape(-1, 3))
     rows = np.repeat(np.arange(K * J), 3)
     S = sp.csr_matrix((np.where(valid.ravel()[:, None], bary, 0).ravel(), (rows, T[tri].ravel())), shape=(K * J, len(V)))
     S.eliminate_zeros()
-    return CurveSampler(sp.csr_matrix(_fill_weights(valid, status == BEYOND) @ S), status.copy(), (K, J))
+    S = _fill_weights(valid, status == BEYOND) @ S
+    if groove_mix is not None:
+        S = groove_mix @ S
+    return CurveSampler(sp.csr_matrix(S), status.copy(), (K, J), groove_mix)

@@ -170,7 +170,7 @@ def fit_face(vertices, triangles, landmarks, unit=None, n_curves=DEFAULT_CURVES,
     """
     import scipy.sparse as sp
 
-    from .curves import CurveSampler, cavity_depths, place_samples
+    from .curves import CurveSampler, cavity_depths, groove_depths, place_samples
     from .rims import follow_rims
     V = np.asarray(vertices, dtype=np.float64)
     T = np.asarray(triangles, dtype=np.int64)
@@ -194,9 +194,9 @@ def fit_face(vertices, triangles, landmarks, unit=None, n_curves=DEFAULT_CURVES,
             raise MeshError("the skin given has no triangles")
     refine, Vs, skin = refined_skin(Vf, skin, layout)
     layout = follow_rims(layout, Vs, skin)
-    sampler = place_samples(Vs, skin, layout, cavity_depths(layout, Lf))
+    sampler = place_samples(Vs, skin, layout, cavity_depths(layout, Lf), groove_depth=groove_depths(layout, Lf))
     if refine is not None:
-        sampler = CurveSampler(sp.csr_matrix(sampler.matrix @ refine), sampler.status, sampler.shape)
+        sampler = CurveSampler(sp.csr_matrix(sampler.matrix @ refine), sampler.status, sampler.shape, sampler.groove_mix)
     points = sampler.sample(Vf)
     coef, res = fit_fourier(points, n_modes)
     model = FaceModel(layout, chord_knots(points), coef, res, frame, feature_points(Lf), a=a,
