@@ -281,13 +281,14 @@ def test_a_groove_narrower_than_the_points_is_drawn_to_its_neighbours_chord(face
     surface turned through by 30-40°. With ``groove_depth`` such a hit (between two hits) is drawn to that depth
     below the chord, as a fixed mix of the three points (still read exactly and linearly off any pose), and
     only there."""
+    from pdeface.geometry import cylinder_coords
     from pdeface.surface.curves import NOSE_GROOVE_MM, groove_depths, nose_band
 
     V, T, Lf = face_space
     lay = place_curves(Lf)
     free = place_samples(V, T, lay)
     limited = place_samples(V, T, lay, groove_depth=groove_depths(lay, Lf))
-    radius = lambda P: np.hypot(P[..., 0], P[..., 2] - lay.axis_z)  # noqa: E731
+    radius = lambda P: cylinder_coords(P.reshape(-1, 3), lay.axis_z)[2].reshape(P.shape[:2])  # noqa: E731
     r0, r1 = radius(free.sample(V)), radius(limited.sample(V))
     below = lambda r: 0.5 * (r[:, :-2] + r[:, 2:]) - r[:, 1:-1]  # noqa: E731
     band = nose_band(lay, Lf)[:, 1:-1]

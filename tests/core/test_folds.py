@@ -1,5 +1,7 @@
 """Folds of a PDE face mesh: counted where a viewer sees them, not inside the openings."""
 import numpy as np
+import pytest
+from pdeface.errors import MeshError
 from pdeface.mesh import Mesh
 from pdeface.surface.fit import face_mesh
 from pdeface.surface.folds import OPENINGS, fold_edges, off_creases
@@ -237,6 +239,8 @@ def test_a_closed_lids_margin_stays_in_the_opening(scan):
     assert (~by_landmarks).sum() >= 2  # measured 3: the lid margin's crease, below both polygons
     r = fold_edges(posed, rig.frame, rig.landmarks, rest=rest)
     assert r["count"] == 0 and r["inside"] >= (~by_landmarks).sum()
+    with pytest.raises(MeshError, match="rest mesh has"):  # a rest of another topology cannot say where skin was
+        fold_edges(posed, rig.frame, rig.landmarks, rest=face_mesh(rig, "fine"))
 
 
 def test_every_pose_adds_no_fold_off_the_scans_creases(scan):

@@ -13,10 +13,10 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.linalg import splu
+from scipy.sparse.linalg import splu, spsolve
 
 from ..errors import LayoutError
-from ..geometry import ClosestPoint, cast_cylinder_rays
+from ..geometry import ClosestPoint, cast_cylinder_rays, cylinder_coords
 from .layout import CurveLayout
 
 #: Status codes of curve points. BEYOND: a miss beyond the mesh's edge (its run of filled points
@@ -182,8 +182,6 @@ NOSE_GROOVE_MM = 2.5
 def nose_band(layout: CurveLayout, landmarks_face: np.ndarray) -> np.ndarray:
     """(K, J) bool: the curve points beside and under the nose (from the upper lip to the nose tip,
     :data:`NOSE_BAND_WIDTHS` nose-wing half-widths either side of the midline)."""
-    from ..geometry import cylinder_coords
-
     L = landmarks_face
     wing = np.abs(cylinder_coords(L[[31, 35]], layout.axis_z)[0]).max()
     H = layout.ray_heights()
@@ -206,8 +204,7 @@ def _groove_limit(S: sp.csr_matrix, V_face: np.ndarray, hit: np.ndarray, axis_z:
     becomes a fixed mix of the three, so the sampler stays linear in the mesh's vertices."""
     K, J = hit.shape
     n = K * J
-    P = np.asarray(S @ V_face).reshape(K, J, 3)
-    r = np.hypot(P[..., 0], P[..., 2] - axis_z)
+    r = cylinder_coords(np.asarray(S @ V_face), axis_z)[2].reshape(K, J)
     depth = np.broadcast_to(np.asarray(depth, np.float64), (K, J))[:, 1:-1]
     below = 0.5 * (r[:, :-2] + r[:, 2:]) - r[:, 1:-1]
     deep = hit[:, 1:-1] & hit[:, :-2] & hit[:, 2:] & (below > depth)
@@ -297,8 +294,6 @@ def project_samples(points: np.ndarray, V: np.ndarray, T: np.ndarray, status=Non
         The sampler's :attr:`CurveSampler.groove_mix`: the points it drew off the skin
         are projected where they were on it, and drawn off it again the same way.
     """
-    from scipy.sparse.linalg import spsolve
-
     K, J, _ = points.shape
     status = np.full((K, J), HIT) if status is None else np.asarray(status)
     valid = status == HIT

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..errors import MeshError
 from ..geometry import unit_rows
 
 #: Landmark polygons of the openings (Multi-PIE, 0-based): eyes, outer lips, the nose's underside.
@@ -88,6 +89,9 @@ def fold_edges(mesh, frame, landmarks_face, angle_deg=30.0, rest=None) -> dict:
         ``where`` ((count, 3) edge midpoints, face frame) for pictures.
     """
     V = frame.to_face(mesh.vertices)
+    if rest is not None and len(rest.vertices) != len(V):
+        raise MeshError(f"the rest mesh has {len(rest.vertices)} vertices, the posed one {len(V)}: a pose is "
+                        "measured against the same mesh at rest")
     starts, counts, idx = mesh.face_starts, mesh.face_counts, mesh.face_indices
     # Face normals by Newell's method (planar or not), from each polygon's corners.
     normals = np.zeros((len(counts), 3))
