@@ -34,6 +34,7 @@ def _pd():
     import pdeface.muscles.aus
     import pdeface.surface.fit
     import pdeface.surface.frame
+    import pdeface.surface.sampling
     return pdeface
 
 
@@ -101,16 +102,28 @@ def expression_key_names(obj, preset_names):
     return {p: expression_key_name(p) for p in preset_names if expression_key_name(p) in ours}
 
 
+#: Faces made before the default resolution adapted to the face (issue #16) stored ``"default"`` for its
+#: then 4 rows and columns per interval; their meshes keep them.
+LEGACY_DEFAULT = "4,4"
+
+
+def face_resolution(obj):
+    """The steps ``obj``'s mesh was built with, as :func:`new_face_object` stored them: keys added later
+    land on the same vertices though the model's default would now choose others."""
+    return LEGACY_DEFAULT if obj.pdeface.resolution == "default" else obj.pdeface.resolution
+
+
 def new_face_object(context, name, model, resolution, matrix=None, source=None, data=None):
     """A PDE face object for ``model`` (linked, selected and active); ``data``: the model file's bytes."""
     pd = _pd()
-    mesh = bridge.new_mesh(name, pd.surface.fit.face_mesh(model, resolution))
+    steps = pd.surface.sampling.mesh_resolution(model, resolution)
+    mesh = bridge.new_mesh(name, pd.surface.fit.face_mesh(model, steps))
     obj = bpy.data.objects.new(name, mesh)
     context.collection.objects.link(obj)
     if matrix is not None:
         obj.matrix_world = matrix
     obj.pdeface.is_face = True
-    obj.pdeface.resolution = resolution
+    obj.pdeface.resolution = pd.surface.sampling.resolution_text(*steps)
     obj.pdeface.source = source
     bridge.store_model(obj, model, data)
     mesh.materials.append(bridge.skin_material())
@@ -126,7 +139,7 @@ def add_face(context, model_path="", resolution="default"):
     from pdeface.io.files import read_bytes
 
     pd = _pd()
-    pd.surface.fit.parse_resolution(resolution)
+    pd.surface.sampling.parse_resolution(resolution)
     path = bpy.path.abspath(model_path) if model_path else pd.assets.asset_path(pd.assets.DEFAULT_FACE)
     data = read_bytes(path)
     model = pd.io.modelfile.model_from_bytes(data, str(path))
@@ -388,7 +401,7 @@ def _change_targets(obj, model, delta, jaw):
     pd = _pd()
     from . import head
     dC, dR = delta
-    coords = pd.surface.fit.face_mesh(model, obj.pdeface.resolution, coefficients=model.coefficients + dC,
+    coords = pd.surface.fit.face_mesh(model, face_resolution(obj), coefficients=model.coefficients + dC,
                                       residual=model.residual + dR).vertices
     if len(coords) != len(obj.data.vertices):
         raise error(f"{obj.name} has {len(obj.data.vertices)} vertices, its model meshes to {len(coords)}: "
@@ -449,7 +462,7 @@ def build_keys(obj, presets):
     model = bridge.face_model(obj)
     if not model.descriptors:
         raise error(f"{obj.name}'s model carries no AU descriptors")
-    basis = pd.au.expressions.ShapeBasis(model, obj.pdeface.resolution, dtype=np.float64)
+    basis = pd.au.expressions.ShapeBasis(model, face_resolution(obj), dtype=np.float64)
     if len(basis.neutral) != len(obj.data.vertices):
         raise error(f"{obj.name} has {len(obj.data.vertices)} vertices, its model meshes to {len(basis.neutral)}: "
                     "the mesh was edited; add the face again")
@@ -460,7 +473,7 @@ def build_keys(obj, presets):
             coords = basis.vertices(basis.weights_matrix(weights))[0]
         else:
             C, R = pd.au.expressions.pose_curves(model, weights, mixer)
-            coords = pd.surface.fit.face_mesh(model, obj.pdeface.resolution, coefficients=C, residual=R).vertices
+            coords = pd.surface.fit.face_mesh(model, face_resolution(obj), coefficients=C, residual=R).vertices
         expressions.append((name, label, coords))
     from . import head
     users = user_objects(obj)
@@ -529,7 +542,7 @@ def write_mix_key(obj, model, weights, mixer, check=True):
     if obj.data.shape_keys is None:
         raise error("build shape keys first")
     C, R = pd.au.expressions.pose_curves(model, weights, mixer)
-    targets = [(obj, pd.surface.fit.face_mesh(model, obj.pdeface.resolution, coefficients=C, residual=R).vertices)]
+    targets = [(obj, pd.surface.fit.face_mesh(model, face_resolution(obj), coefficients=C, residual=R).vertices)]
     targets += [(o, coords) for o, coords in head.pose_coords(obj, model, weights, mixer, user_objects(obj))
                 if o.pdeface.keys]
     _put_pose_key(targets, MIX_KEY, "mixed pose", check)

@@ -2,6 +2,9 @@
 
 Usage: python scripts/bench_folds.py [--identities N] [--resolution default] [--json OUT]
 
+``--resolution 4,4`` measures the even 4-step mesh the default was before it adapted to each face
+(:mod:`pdeface.surface.sampling`).
+
 A fold is a mesh edge of ``pdeface mesh``'s output whose two faces turn by more than 30°
 outside the eye, mouth and nostril openings (landmark polygons grown by a third, at rest and where
 a pose moves them;
@@ -34,21 +37,12 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "core"))
 
 from pdeface.assets import load_face, load_ict_shapes, load_low_poly_face, load_neutral_scan  # noqa: E402
-from pdeface.au.expressions import PRESETS, pose_curves, resolve_preset  # noqa: E402
+from pdeface.au.expressions import every_pose, pose_curves  # noqa: E402
 from pdeface.au.ict import AU_SHAPES, weights_offsets  # noqa: E402
 from pdeface.au.retarget import retarget  # noqa: E402
 from pdeface.geometry import ClosestPoint  # noqa: E402
 from pdeface.surface.fit import face_mesh, fit_face  # noqa: E402
 from pdeface.surface.folds import CREASE_MM, carried, fold_edges, off_creases  # noqa: E402
-
-
-def poses_of(model):
-    """{pose name: AU weights}: rest, every AU at 1 and every preset."""
-    poses = {"neutral": {}} | {f"AU{d.key}": {d.key: 1.0} for d in model.descriptors}
-    keys = {d.key for d in model.descriptors}
-    for name, preset in PRESETS.items():
-        poses[name] = resolve_preset(preset, keys)[0]
-    return poses
 
 
 def folds_of(model, resolution, scan=None, shapes=None, crease_mm=CREASE_MM):
@@ -62,7 +56,7 @@ def folds_of(model, resolution, scan=None, shapes=None, crease_mm=CREASE_MM):
     rest = face_mesh(model, resolution)
     scan_rest = fold_edges(scan, model.frame, model.landmarks)["where"] if scan is not None else None
     rest_face = model.frame.to_face(rest.vertices)
-    for name, weights in poses_of(model).items():
+    for name, weights in every_pose(model).items():
         C, R = pose_curves(model, weights) if weights else (None, None)
         posed = face_mesh(model, resolution, coefficients=C, residual=R)
         r = fold_edges(posed, model.frame, model.landmarks, rest=rest)
@@ -88,9 +82,10 @@ def scan_creases(model, scan, resolution, near_mm=2.0):
 
 def print_folds(label, folds, extra=""):
     rest, worst = folds["neutral"], max(folds, key=lambda k: folds[k][0])
+    steepest = max(folds, key=lambda k: folds[k][1])
     print(f"{label}{extra}: {rest[0]} folds at rest (largest turn {rest[1]:.0f}°); worst pose {worst} "
           f"{folds[worst][0]} folds; median over {len(folds)} poses {np.median([v[0] for v in folds.values()]):.0f} "
-          f"(target 0)")
+          f"(target 0); largest turn in any pose {folds[steepest][1]:.1f}° ({steepest})")
     if rest[2] is not None:
         off = {k: v[2] for k, v in folds.items()}
         worst_off = max(off, key=off.get)
@@ -119,16 +114,17 @@ def main(argv=None):
         scan = replace(mesh, vertices=V)
         model = retarget(source, model)
         folds = folds_of(model, args.resolution, scan, shapes, args.crease_mm)
-        print_folds(label, folds, f" (the scan itself: {scan_creases(model, scan, args.resolution)} over the same "
-                                  "area at rest)")
+        print_folds(label, folds, f" ({len(face_mesh(model, args.resolution).vertices)} vertices; the scan itself: "
+                                  f"{scan_creases(model, scan, args.resolution)} over the same area at rest)")
         report[label] = folds
     low, L = load_low_poly_face()
     Tl, _ = low.triangles()
     model, sampler = fit_face(low.vertices, Tl, L, unit="cm")
     # The low-poly mesh lies on the ICT neutral: its creases are the full-resolution scan's.
-    folds = folds_of(retarget(source, model), args.resolution, mesh, shapes, args.crease_mm)
-    print_folds(f"low-poly face ({len(low.vertices)} vertices, {len(Tl)} triangles; points {sampler.summary()})",
-                folds)
+    rig = retarget(source, model)
+    folds = folds_of(rig, args.resolution, mesh, shapes, args.crease_mm)
+    print_folds(f"low-poly face ({len(low.vertices)} vertices, {len(Tl)} triangles; points {sampler.summary()}; "
+                f"PDE mesh {len(face_mesh(rig, args.resolution).vertices)} vertices)", folds)
     report["low-poly"] = folds
     truth = ClosestPoint(mesh.vertices, T)
     b = np.stack(np.meshgrid(np.linspace(0, 1, 7), np.linspace(0, 1, 7)), -1).reshape(-1, 2)

@@ -36,11 +36,21 @@ from pdeface.au.capture import fit_descriptor  # noqa: E402
 from pdeface.au.facs import key_side  # noqa: E402
 from pdeface.au.ict import APPROXIMATIONS, AU_SHAPES, FACE_VERTICES, NOTICE_SHORT, IctFolder, au_offsets  # noqa: E402
 from pdeface.io.descriptorfile import descriptor_to_bytes  # noqa: E402
-from pdeface.io.modelfile import model_nbytes, save_model  # noqa: E402
+from pdeface.io.modelfile import load_model, model_nbytes, save_model  # noqa: E402
 from pdeface.mesh import Mesh  # noqa: E402
 from pdeface.surface.fit import fit_face  # noqa: E402
+from pdeface.surface.sampling import adaptive_resolution  # noqa: E402
 
 OFFSET_STEP = 2e-4  # cm per int16 step of stored offsets (2 µm; range ±6.5 cm)
+
+
+def keep_mesh_steps(path):
+    """Choose the default resolution of the model file at ``path`` as it reads back (its curves in the file's
+    steps, its kept landmarks) and write it into the file, so meshing it does not choose again; the size."""
+    model = load_model(path)
+    rows, cols = adaptive_resolution(model)
+    print(f"  mesh steps: {sum(rows) + 1} rows × {sum(cols) + 1} columns")
+    return save_model(path, model)
 
 
 def write_default_face(V32, T, landmarks, shapes, out):
@@ -58,7 +68,8 @@ def write_default_face(V32, T, landmarks, shapes, out):
         model.descriptors.append(d)
         print(f"  AU{key:4s} curves {d.curves.min() if len(d.curves) else '-'}-{d.curves.max() if len(d.curves) else '-'}"
               f" ({len(d.curves)}), {len(descriptor_to_bytes(d))} bytes")
-    size = save_model(out / "default_face.npz", model)
+    save_model(out / "default_face.npz", model)
+    size = keep_mesh_steps(out / "default_face.npz")
     print(f"default_face.npz: {size} bytes ({model_nbytes(model)} face model + {len(model.descriptors)} descriptors); "
           f"curve points {sampler.summary()}")
 

@@ -1,12 +1,15 @@
 """Close-ups of the PDE face's eyes, nose and mouth with its folds marked (README pictures, issue #16).
 
 Usage: python scripts/render_folds.py [-o docs/folds_closeup.png] [--size 420]
-       python scripts/render_folds.py --identity 7 --au 28 -o docs/folds_retarget.png
+       python scripts/render_folds.py --identity 7 --au 28 --resolution 4,4 -o docs/folds_retarget.png
+       python scripts/render_folds.py --identity 0 --au 18 --compare-steps -o docs/folds_steps.png
 
 Panels: the bundled ICT neutral scan; the PDE face fitted to it at rest; the same with the bundled
 descriptors retargeted, in AU27 and in happy. With ``--identity``: that ICT identity posed by ICT's
 own shape for ``--au`` (the truth), then the PDE face fitted to it with the bundled descriptors
-retargeted by curve index alone and with the gap rule (:mod:`pdeface.au.retarget`), in that AU.
+retargeted by curve index alone and with the gap rule (:mod:`pdeface.au.retarget`), in that AU; with
+``--compare-steps``, the retargeted face on an even 4-step mesh and at the default resolution's steps
+(:mod:`pdeface.surface.sampling`).
 Front views in the face frame, grey-shaded; every fold (:func:`pdeface.surface.folds.fold_edges`: an
 edge over 30° outside the openings) is a red dot.
 """
@@ -43,11 +46,11 @@ def panel(P, T, size, title, folds=None, box=BOX):
     return img
 
 
-def posed_panel(rig, weights, size, title, box=BOX):
+def posed_panel(rig, weights, size, title, box=BOX, resolution="default"):
     """``rig`` posed by ``weights``, its folds (outside the openings at rest and posed) marked."""
     C, R = pose_curves(rig, weights) if weights else (None, None)
-    mesh = face_mesh(rig, coefficients=C, residual=R)
-    r = fold_edges(mesh, rig.frame, rig.landmarks, rest=face_mesh(rig))
+    mesh = face_mesh(rig, resolution, coefficients=C, residual=R)
+    r = fold_edges(mesh, rig.frame, rig.landmarks, rest=face_mesh(rig, resolution))
     return panel(rig.frame.to_face(mesh.vertices), mesh.triangles()[0], size, f"{title}: {r['count']} folds",
                  r["where"], box)
 
@@ -59,6 +62,9 @@ def main(argv=None):
     ap.add_argument("--identity", type=int, help="an ICT identity (0-19): compare retargeting with and without "
                                                  "the gap rule on it")
     ap.add_argument("--au", default="28", help="with --identity: the AU key to pose")
+    ap.add_argument("--resolution", default="default", help="the PDE face's mesh resolution (pdeface mesh's)")
+    ap.add_argument("--compare-steps", action="store_true",
+                    help="with --identity: the retargeted face on an even 4-step mesh and at the default's steps")
     args = ap.parse_args(argv)
     scan, idx = load_neutral_scan()
     T, _ = scan.triangles()
@@ -68,16 +74,24 @@ def main(argv=None):
         panels = [panel(model.frame.to_face(scan.vertices), T, args.size, "ICT scan")]
         poses = {"rest": {}, "AU27": {"27": 1.0},
                  "happy": resolve_preset(PRESETS["happy"], {d.key for d in rig.descriptors})[0]}
-        panels += [posed_panel(rig, weights, args.size, f"PDE {name}") for name, weights in poses.items()]
+        panels += [posed_panel(rig, weights, args.size, f"PDE {name}", resolution=args.resolution)
+                   for name, weights in poses.items()]
     else:
         shapes = load_ict_shapes()
         V = scan.vertices + shapes[f"identity{args.identity:03d}"]
         model, _ = fit_face(V, T, V[idx], unit="cm")
         truth = model.frame.to_face(V + au_offsets(args.au, shapes))
         panels = [panel(truth, T, args.size, f"ICT identity{args.identity:03d} AU{args.au}", box=MOUTH_BOX)]
-        for spacing, name in ((False, "by curve index"), (True, "gap rule")):
-            rig = retarget(load_face("default"), model, spacing=spacing)
-            panels.append(posed_panel(rig, {args.au: 1.0}, args.size, f"PDE AU{args.au}, {name}", MOUTH_BOX))
+        if args.compare_steps:
+            rig = retarget(load_face("default"), model)
+            for resolution, name in (("4,4", "even 4 steps"), ("default", "default steps")):
+                panels.append(posed_panel(rig, {args.au: 1.0}, args.size, f"PDE AU{args.au}, {name}", MOUTH_BOX,
+                                          resolution))
+        else:
+            for spacing, name in ((False, "by curve index"), (True, "gap rule")):
+                rig = retarget(load_face("default"), model, spacing=spacing)
+                panels.append(posed_panel(rig, {args.au: 1.0}, args.size, f"PDE AU{args.au}, {name}", MOUTH_BOX,
+                                          args.resolution))
     write_png(args.out, np.concatenate(panels, axis=1).astype(np.uint8))
     print(f"wrote {args.out}")
 

@@ -63,6 +63,15 @@ def cmd_fit(args):
                       "points": sampler.summary()}))
 
 
+def _turns(model, mesh, rest=None) -> str:
+    """The mesh's largest turn between neighbouring faces outside the openings (issue #16's fold figure)."""
+    from .surface.folds import fold_edges
+    from .surface.model import model_landmarks
+
+    r = fold_edges(mesh, model.frame, model_landmarks(model), rest=rest)
+    return f"largest turn outside the eyes, mouth and nostrils {r['max_deg']:.0f}°, {r['count']} edges over 30°"
+
+
 def cmd_mesh(args):
     from .assets import load_face
     from .io.meshio import write_mesh
@@ -73,7 +82,7 @@ def cmd_mesh(args):
     model = load_face(args.face)
     mesh = face_mesh(model, args.resolution, args.assembly)
     write_mesh(args.output, mesh)
-    _log(f"wrote {args.output}: {len(mesh.vertices)} vertices, {len(mesh.face_counts)} quads")
+    _log(f"wrote {args.output}: {len(mesh.vertices)} vertices, {len(mesh.face_counts)} quads; {_turns(model, mesh)}")
 
 
 def cmd_report(args):
@@ -324,7 +333,9 @@ def cmd_pose(args):
     C, R = pose_curves(model, weights, mixer)
     mesh = face_mesh(model, args.resolution, args.assembly, coefficients=C, residual=R)
     write_mesh(args.output, mesh)
-    _log(f"wrote {args.output}: " + ", ".join(f"AU{k}={w:g}" for k, w in weights.items()) + f" ({mixer})")
+    rest = face_mesh(model, args.resolution, args.assembly)
+    _log(f"wrote {args.output}: " + ", ".join(f"AU{k}={w:g}" for k, w in weights.items()) + f" ({mixer}); "
+         + _turns(model, mesh, rest))
 
 
 def _pose_head(args, model, weights, mixer):
@@ -429,7 +440,9 @@ def build_parser():
     ASSEMBLY_HELP = "assembly to mesh with (default: the model's own)"
 
     def meshing_options(p):
-        p.add_argument("--resolution", default="default", help="default, original, fine, or ROWS,COLS subdivisions")
+        p.add_argument("--resolution", default="default",
+                       help="default (steps per interval chosen for the face: more where it creases), original, "
+                            "fine, or ROWS,COLS subdivisions")
         p.add_argument("--assembly", choices=ASSEMBLIES, help=ASSEMBLY_HELP)
 
     def output_option(p, help="file to write"):

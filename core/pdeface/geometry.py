@@ -28,6 +28,12 @@ def smoothstep(t) -> np.ndarray:
     return t * t * (3 - 2 * t)
 
 
+def degrees_from_cos(cos) -> np.ndarray:
+    """Angles (degrees) from their cosines, clipped to [-1, 1] first: a dot product of unit vectors can round
+    past 1."""
+    return np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
+
+
 def unit_rows(X: np.ndarray) -> np.ndarray:
     """Rows (vectors along the last axis) scaled to unit length (zero rows stay zero)."""
     return X / np.maximum(np.linalg.norm(X, axis=-1, keepdims=True), 1e-300)

@@ -34,8 +34,11 @@ def test_manifest_validates():
 
 def test_default_face_and_its_shape_keys(bpy, face):
     from pdeface.assets import load_face
+    from pdeface.surface.sampling import mesh_resolution, parse_resolution
     model = load_face("default")
-    assert face.pdeface.is_face and len(face.data.vertices) == ((model.layout.n_curves - 1) * 4 + 1) * 145
+    rows, cols = mesh_resolution(model)  # the default's steps, chosen for this face, kept on the object
+    assert parse_resolution(face.pdeface.resolution) == (rows, cols)
+    assert face.pdeface.is_face and len(face.data.vertices) == (sum(rows) + 1) * (sum(cols) + 1)
     assert all(p.use_smooth for p in face.data.polygons[:50])
     assert face.data.materials[0].name.startswith("PDE Skin")
     kb = key_blocks(face)
@@ -350,3 +353,23 @@ def test_a_user_key_under_one_of_our_old_names_is_theirs(bpy, face):
     assert theirs.value == pytest.approx(2.5)
     # our own keys are still rebuilt in place
     assert key_blocks(face)["Expr happy"].slider_max == 1.0
+
+
+def test_a_face_keeps_the_steps_it_was_built_with(bpy, face):
+    """A capture changes the model's descriptors, and with them the steps the default would choose now: the
+    object's keys still land on its own vertices. A face saved before the default adapted (resolution
+    "default", 4 steps per interval) keeps its 4 steps."""
+    from pdeface.assets import load_face
+    from pdeface.surface.fit import face_mesh
+    fm = face_module()
+    model = load_face("default")
+    stored = face.pdeface.resolution
+    model.descriptors = model.descriptors[:10]  # another set of keys: another choice
+    assert len(face_mesh(model).vertices) != len(face.data.vertices)
+    assert len(face_mesh(model, fm.face_resolution(face)).vertices) == len(face.data.vertices)
+    legacy = fm.add_face(bpy.context, resolution="4,4")
+    legacy.pdeface.resolution = "default"  # as a face made by an older pdeface stored it
+    assert fm.face_resolution(legacy) == "4,4" and len(legacy.data.vertices) == 19285
+    result = fm.build_keys(legacy, fm.all_presets(bpy.context.scene))
+    assert result["made"] == len(load_face("default").descriptors) + 10
+    assert face.pdeface.resolution == stored

@@ -1,6 +1,6 @@
 import numpy as np
 import pytest
-from pdeface.assets import load_neutral_scan
+from pdeface.assets import load_face, load_neutral_scan
 from pdeface.surface.fit import fit_face
 
 
@@ -17,6 +17,12 @@ def fitted(scan):
     """(model, sampler) fitted to the bundled scan with the default layout."""
     mesh, T, idx = scan
     return fit_face(mesh.vertices, T, mesh.vertices[idx], unit="cm")
+
+
+@pytest.fixture(scope="module")
+def default_face():
+    """The bundled default face model (read once per test module: a test may change its descriptors)."""
+    return load_face("default")
 
 
 @pytest.fixture

@@ -2,7 +2,6 @@ import json
 
 import numpy as np
 import pytest
-from pdeface.assets import load_face
 from pdeface.au.expressions import (
     BASIC_EXPRESSIONS,
     PRESETS,
@@ -22,8 +21,8 @@ from pdeface.surface.fit import face_mesh
 
 
 @pytest.fixture(scope="module")
-def face():
-    return load_face("default")
+def face(default_face):
+    return default_face
 
 
 def test_catalogue():

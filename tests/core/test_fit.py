@@ -2,8 +2,9 @@ import numpy as np
 import pytest
 from pdeface.errors import LandmarkError, MeshError
 from pdeface.geometry import ClosestPoint
-from pdeface.surface.fit import face_mesh, fit_face, parse_resolution, surface_grid
+from pdeface.surface.fit import face_mesh, fit_face, surface_grid
 from pdeface.surface.report import accuracy_report
+from pdeface.surface.sampling import mesh_resolution, parse_resolution
 
 
 def test_fit_is_accurate_on_the_ict_scan(scan, fitted):
@@ -27,8 +28,11 @@ def test_mesh_drops_onto_the_scan_in_its_own_frame(scan, fitted):
     # in ICT's frame and unit (cm): every PDE vertex lies near the scan surface
     d = ClosestPoint(mesh.vertices, T).query(pde.vertices)[0]
     assert np.median(d) < 0.01  # cm
-    n_u, n_v = (model.layout.n_curves - 1) * 4 + 1, 36 * 4 + 1
-    assert pde.vertices.shape == (n_u * n_v, 3) and (pde.face_counts == 4).all()
+    rows, cols = mesh_resolution(model)  # steps per curve and per point interval, chosen for this face
+    assert len(rows) == model.layout.n_curves - 1 and len(cols) == 36
+    assert pde.vertices.shape == ((sum(rows) + 1) * (sum(cols) + 1), 3) and (pde.face_counts == 4).all()
+    uniform = face_mesh(model, "4,4")
+    assert uniform.vertices.shape == (((model.layout.n_curves - 1) * 4 + 1) * (36 * 4 + 1), 3)
     assert len(np.unique(pde.vertices.round(9), axis=0)) == len(pde.vertices)  # no duplicated seam vertices
     uv = pde.uvs[pde.face_uv_indices]
     assert uv.min() >= 0 and uv.max() <= 1

@@ -161,6 +161,18 @@ def choose_mixer(requested=None, preset: Preset | None = None) -> str:
     return mixer
 
 
+def every_pose(model) -> dict:
+    """``{name: AU weights}``: rest (``neutral``), each descriptor at weight 1 (``AU<key>``) and each built-in
+    preset this face has AUs for, as a sum: the poses a face's folds are measured in (issue #16)."""
+    keys = {d.key for d in model.descriptors}
+    poses = {"neutral": {}} | {f"AU{d.key}": {d.key: 1.0} for d in model.descriptors}
+    for name, preset in PRESETS.items():
+        weights = resolve_preset(preset, keys)[0]
+        if weights:
+            poses[name] = weights
+    return poses
+
+
 def pose_curves(model, weights: dict, mixer: str = "sum"):
     """Coefficients and residual of ``model`` posed with AU ``weights``.
 
@@ -185,9 +197,10 @@ class ShapeBasis:
     """
 
     def __init__(self, model, resolution="default", assembly=None, dtype=np.float32):
-        from ..surface.fit import face_mesh, parse_resolution, surface_grid
+        from ..surface.fit import face_mesh, surface_grid
+        from ..surface.sampling import mesh_resolution
 
-        su, sv = parse_resolution(resolution)
+        su, sv = mesh_resolution(model, resolution)
         self.keys = [d.key for d in model.descriptors]
         self.neutral = face_mesh(model, (su, sv), assembly).vertices
         n = len(model.descriptors)

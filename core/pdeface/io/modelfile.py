@@ -10,7 +10,11 @@ with ``allow_pickle=False``. Members:
     pdeface 0.2, optionally ``landmarks``: ``{"indices": [...], "step_mm":
     0.1, "codes": [[x, y, z], ...]}``, the landmarks binding a whole head
     reads (:data:`pdeface.surface.model.KEPT_LANDMARKS`), face frame, in
-    integer steps.
+    integer steps; optionally ``mesh_steps``: ``[[rows per curve
+    interval...], [columns per point interval...]]``, the default resolution
+    chosen for this model and its descriptors
+    (:func:`pdeface.surface.sampling.adaptive_resolution`), so it is not chosen
+    again when read back.
 ``layout`` (float32)
     :meth:`pdeface.surface.layout.CurveLayout.as_array`: axis z, points per curve,
     centre density, the K curve heights and the K half angles (face frame);
@@ -96,6 +100,11 @@ def model_to_bytes(model: FaceModel, descriptors: bool = True) -> bytes:
             "residual_step": step, "coefficient_step": cstep,
             "a": model.a, "w": model.w, "assembly": model.assembly, "feature_names": FEATURE_NAMES,
             "source": model.source, "notice": model.notice}
+    if descriptors:
+        from ..surface.sampling import known_resolution
+        steps = known_resolution(model)
+        if steps is not None:
+            meta["mesh_steps"] = [list(steps[0]), list(steps[1])]
     if model.landmarks is not None:
         kept = list(KEPT_LANDMARKS)
         meta["landmarks"] = {"indices": kept, "step_mm": LANDMARK_STEP_MM,
@@ -255,4 +264,10 @@ def _read_model(fileobj, path) -> FaceModel:
         if "descriptors" in z.files:
             from .descriptorfile import unpack_descriptors
             model.descriptors = unpack_descriptors(z, path)
+        if "mesh_steps" in meta:
+            from ..surface.sampling import remember_resolution
+            try:
+                remember_resolution(model, *meta["mesh_steps"])
+            except (TypeError, ValueError, PdeFaceError) as exc:
+                raise ModelFormatError(f"{path}: meta 'mesh_steps': {exc}") from None
     return model

@@ -15,26 +15,8 @@ from .fourier import fit_fourier
 from .frame import face_frame, feature_points
 from .layout import DEFAULT_CURVES, place_curves
 from .model import FaceModel
-from .pde import BREAK_SLOPE, output_grid, solve_surface
-
-#: Named output resolutions: (rows per curve interval, columns per point interval).
-RESOLUTIONS = {"default": (4, 4), "original": (10, 1), "fine": (8, 8)}
-
-
-def parse_resolution(value) -> tuple[int, int]:
-    """``"default"``/``"original"``/``"fine"``, ``"SU,SV"`` or a pair → (SU, SV)."""
-    if isinstance(value, str):
-        if value in RESOLUTIONS:
-            return RESOLUTIONS[value]
-        try:
-            su, sv = (int(p) for p in value.split(","))
-        except ValueError:
-            raise MeshError(f"resolution {value!r}: use {', '.join(RESOLUTIONS)} or 'ROWS,COLS' subdivisions") from None
-        value = (su, sv)
-    su, sv = value
-    if su < 1 or sv < 1 or su > 64 or sv > 64:
-        raise MeshError(f"resolution subdivisions must be in 1..64, got {su},{sv}")
-    return int(su), int(sv)
+from .pde import BREAK_SLOPE, output_grid, sample_v, solve_surface
+from .sampling import mesh_resolution
 
 
 def skin_vertices(V: np.ndarray, T: np.ndarray, points: np.ndarray) -> np.ndarray:
@@ -211,7 +193,7 @@ CONFINE_RAMP_MM = 3.0
 OPENING_CORNERS = (((36, 39), (42, 45)), ((48, 54),))
 
 
-def break_weights(model: FaceModel, sub_v: int) -> tuple:
+def break_weights(model: FaceModel, sub_v) -> tuple:
     """``(break, weight, d weight/dv)`` per break on the output columns: 1 between its opening's corner
     landmarks (the eyes' or the mouth's, whichever lies at its rims' height), fading to 0 at the corners over
     :data:`CONFINE_RAMP_MM`, 0 beyond, where the rims are one line
@@ -223,7 +205,7 @@ def break_weights(model: FaceModel, sub_v: int) -> tuple:
     X = model.curve_points()
     J = X.shape[1]
     vs = model.layout.sample_params()
-    v = np.linspace(0.0, np.pi, (J - 1) * sub_v + 1)
+    v = sample_v(J, sub_v)
     out = []
     for b in model.layout.breaks():
         rim = 0.5 * (X[b] + X[b + 1])
@@ -264,11 +246,12 @@ def face_mesh(model: FaceModel, resolution="default", assembly=None, coefficient
     """The PDE face as a quad mesh in the source mesh's space and unit.
 
     Vertices are row-major over (u, v): row 0 is the top curve, column 0 the
-    subject's right edge. The order depends only on the layout and
-    resolution, so meshes of the same model line up as shape keys. UVs are
-    the parameters: ``U = v / π``, ``V = 1 - u``.
+    subject's right edge. The order depends only on the layout and the
+    resolution's steps (:func:`pdeface.surface.sampling.mesh_resolution`: the
+    default's are chosen once per model), so meshes of the same model line up
+    as shape keys. UVs are the parameters: ``U = v / π``, ``V = 1 - u``.
     """
-    su, sv = parse_resolution(resolution)
+    su, sv = mesh_resolution(model, resolution)
     X = surface_grid(model, su, sv, assembly, coefficients, residual)
     n_u, n_v, _ = X.shape
     grid = output_grid(model.knots, model.layout.n_points, su, sv)

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import MeshError
-from ..geometry import unit_rows
+from ..geometry import degrees_from_cos, unit_rows
 
 #: Landmark polygons of the openings (Multi-PIE, 0-based): eyes, outer lips, the nose's underside.
 OPENINGS = {"eye_right": list(range(36, 42)), "eye_left": list(range(42, 48)), "mouth": list(range(48, 60)),
@@ -35,32 +35,56 @@ def _inside(points, polygon) -> np.ndarray:
     return inside
 
 
-def carried(rest_vertices, posed_vertices, points) -> np.ndarray:
+def nearest_vertices(rest_vertices, points) -> np.ndarray:
+    """Index of each point's nearest rest vertex (-1 for rows with a NaN: landmarks a model does not keep)."""
+    P = np.asarray(points, np.float64).reshape(-1, 3)
+    V = np.asarray(rest_vertices, np.float64)
+    known = np.isfinite(P).all(axis=1)
+    nearest = np.full(len(P), -1)
+    if not known.any():
+        return nearest
+    if known.sum() <= 100:  # landmarks: a brute-force search (|v|² - 2 v·p per pair) is cheaper than a tree
+        nearest[known] = np.argmin((V ** 2).sum(axis=1)[:, None] - 2 * V @ P[known].T, axis=0)
+    else:
+        from scipy.spatial import cKDTree
+        nearest[known] = cKDTree(V).query(P[known])[1]
+    return nearest
+
+
+def carried(rest_vertices, posed_vertices, points, nearest=None) -> np.ndarray:
     """Points carried into a pose of a mesh: each moves as its nearest rest vertex does.
 
     ``rest_vertices``, ``posed_vertices`` (n, 3) and ``points`` (p, 3) in one frame; rows with a NaN (the
-    landmarks a model does not keep) stay unknown. A posed face's openings are where its posed lids and
+    landmarks a model does not keep) stay unknown. ``nearest``: :func:`nearest_vertices`, when carrying the
+    same points into many poses. A posed face's openings are where its posed lids and
     lips are (AU27's lower lip drops past its rest polygon); the scan's creases go where the pose takes
     the skin they lie on (AU38's flared nose wings carry their grooves 2–3 mm outwards).
     """
-    from scipy.spatial import cKDTree
-
-    rest = np.asarray(rest_vertices, np.float64)
     P = np.array(points, np.float64).reshape(-1, 3)
-    known = np.isfinite(P).all(axis=1)
-    if known.any():
-        nearest = cKDTree(rest).query(P[known])[1]
-        P[known] += np.asarray(posed_vertices, np.float64)[nearest] - rest[nearest]
+    nearest = nearest_vertices(rest_vertices, P) if nearest is None else nearest
+    known = nearest >= 0
+    moved = np.asarray(posed_vertices, np.float64) - np.asarray(rest_vertices, np.float64)
+    P[known] += moved[nearest[known]]
     return P
 
 
 def opening_mask(points_face, landmarks_face, grow=GROW) -> np.ndarray:
-    """Which face-frame points lie inside an opening's grown landmark polygon (frontal view)."""
+    """Which face-frame points lie inside an opening's grown landmark polygon (frontal view).
+
+    A polygon is made of the landmarks that are known (a model file keeps some only: the mouth's
+    corners and midpoints); an opening with fewer than 3 known is left out.
+    """
     mask = np.zeros(len(points_face), bool)
     for idx in OPENINGS.values():
         poly = landmarks_face[idx, :2]
+        poly = poly[np.isfinite(poly).all(axis=1)]
+        if len(poly) < 3:
+            continue
         centre = poly.mean(axis=0)
-        mask |= _inside(points_face[:, :2], centre + (1 + grow) * (poly - centre))
+        grown = centre + (1 + grow) * (poly - centre)
+        near = np.nonzero(((points_face[:, :2] >= grown.min(axis=0)) & (points_face[:, :2] <= grown.max(axis=0)))
+                          .all(axis=1))[0]  # only points in its bounding box can be inside
+        mask[near] |= _inside(points_face[near, :2], grown)
     return mask
 
 
@@ -110,7 +134,7 @@ def fold_edges(mesh, frame, landmarks_face, angle_deg=30.0, rest=None) -> dict:
     key, face_of, lo, hi = key[order], face_of[order], lo[order], hi[order]
     pair = np.nonzero(key[1:] == key[:-1])[0]
     f0, f1 = face_of[pair], face_of[pair + 1]
-    turn = np.degrees(np.arccos(np.clip((normals[f0] * normals[f1]).sum(1), -1.0, 1.0)))
+    turn = degrees_from_cos((normals[f0] * normals[f1]).sum(1))
     mid = 0.5 * (V[lo[pair]] + V[hi[pair]])
     folded = turn > angle_deg
     opening = opening_mask(mid, landmarks_face)

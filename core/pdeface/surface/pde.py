@@ -103,31 +103,58 @@ def _taylor_table(kappa: float, deriv: int):
     return evaluate
 
 
+def interval_steps(sub, n_intervals: int) -> tuple:
+    """Steps per interval: ``sub`` (an int: every interval; or one int per interval) as a tuple of ``n_intervals``."""
+    steps = (int(sub),) * n_intervals if np.ndim(sub) == 0 else tuple(int(s) for s in sub)
+    if len(steps) != n_intervals:
+        raise LayoutError(f"{len(steps)} subdivisions given for {n_intervals} intervals")
+    if min(steps, default=1) < 1:
+        raise LayoutError(f"resolution subdivisions must be >= 1, got {min(steps)}")
+    return steps
+
+
+def sampling_key(sub):
+    """``sub`` (an int or one per interval) in a hashable form for the operator caches."""
+    return int(sub) if np.ndim(sub) == 0 else tuple(int(s) for s in sub)
+
+
+def subdivide(params, sub) -> np.ndarray:
+    """``params`` (increasing) with interval i cut into ``sub[i]`` equal steps (``sub`` an int: each the same)."""
+    params = np.asarray(params, dtype=np.float64)
+    steps = interval_steps(sub, len(params) - 1)
+    inner = [params[i] + (params[i + 1] - params[i]) * np.arange(s) / s for i, s in enumerate(steps)]
+    return np.append(np.concatenate(inner), params[-1])
+
+
+def sample_v(n_points: int, sub_v) -> np.ndarray:
+    """The output columns' curve parameters in [0, π]: ``sub_v`` steps per point interval (an int: each the
+    same, the points evenly spaced as :func:`numpy.linspace` places them; or one int per interval)."""
+    if np.ndim(sub_v) == 0:
+        interval_steps(sub_v, n_points - 1)
+        return np.linspace(0.0, np.pi, (n_points - 1) * int(sub_v) + 1)
+    return subdivide(np.linspace(0.0, np.pi, n_points), sub_v)
+
+
 @dataclass(frozen=True)
 class Grid:
     """Output sampling of the (u, v) domain.
 
     ``u`` has ``sub_u`` steps per curve interval and ``v`` has ``sub_v`` steps
-    per sample interval, so every curve point is a grid vertex:
-    ``u[i * sub_u] == knots[i]`` and ``v[j * sub_v] == v_j``.
+    per sample interval (each an int, or one int per interval), so every curve
+    point is a grid vertex: with int steps ``u[i * sub_u] == knots[i]`` and
+    ``v[j * sub_v] == v_j``.
     """
 
     u: np.ndarray
     v: np.ndarray
-    sub_u: int
-    sub_v: int
+    sub_u: int | tuple
+    sub_v: int | tuple
 
 
-def output_grid(knots: np.ndarray, n_points: int, sub_u: int, sub_v: int) -> Grid:
-    """Grid with ``sub_u`` rows per curve interval and ``sub_v`` columns per point interval."""
-    if sub_u < 1 or sub_v < 1:
-        raise LayoutError(f"resolution subdivisions must be >= 1, got ({sub_u}, {sub_v})")
-    knots = np.asarray(knots, dtype=np.float64)
-    s = np.arange(sub_u) / sub_u
-    u = np.concatenate([knots[:-1, None] + np.diff(knots)[:, None] * s[None, :]]).ravel()
-    u = np.append(u, knots[-1])
-    v = np.linspace(0.0, np.pi, (n_points - 1) * sub_v + 1)
-    return Grid(u, v, sub_u, sub_v)
+def output_grid(knots: np.ndarray, n_points: int, sub_u, sub_v) -> Grid:
+    """Grid with ``sub_u`` rows per curve interval and ``sub_v`` columns per point interval (ints, or one
+    int per interval: :func:`subdivide`)."""
+    return Grid(subdivide(knots, sub_u), sample_v(n_points, sub_v), sampling_key(sub_u), sampling_key(sub_v))
 
 
 def _check(knots, assembly):
@@ -244,7 +271,7 @@ def _pieces(knots: tuple, k: float, assembly: str, breaks: tuple, break_slope: f
 
 
 @lru_cache(maxsize=512)
-def mode_operator(knots: tuple, k: float, sub_u: int, assembly: str = "smooth", deriv: int = 0,
+def mode_operator(knots: tuple, k: float, sub_u, assembly: str = "smooth", deriv: int = 0,
                   breaks: tuple = (), break_slope: float = BREAK_SLOPE) -> np.ndarray:
     """Matrix (n_u, K) taking the K curve values of one mode to its values on the output rows.
 
@@ -254,10 +281,10 @@ def mode_operator(knots: tuple, k: float, sub_u: int, assembly: str = "smooth", 
     """
     _check(np.array(knots), assembly)
     K = len(knots)
-    s = np.arange(sub_u) / sub_u
+    steps = interval_steps(sub_u, K - 1)
     rows = []
     for a, H, tk, C, cols in _pieces(knots, k, assembly, breaks, break_slope):
-        t = np.concatenate([tk[j] + (tk[j + 1] - tk[j]) * s for j in range(len(tk) - 1)])
+        t = subdivide(tk, steps[a:a + len(tk) - 1])[:-1]
         if a + len(tk) - 1 == K - 1:
             t = np.append(t, 1.0)
         M = np.zeros((len(t), K))
@@ -319,11 +346,9 @@ def cubic_spline_operator(x: np.ndarray, xe: np.ndarray, deriv: int = 0) -> np.n
 
 
 @lru_cache(maxsize=64)
-def residual_v_operator(n_points: int, sub_v: int, deriv: int = 0) -> np.ndarray:
+def residual_v_operator(n_points: int, sub_v, deriv: int = 0) -> np.ndarray:
     """Matrix (n_v, J): cubic spline (not-a-knot) through the J samples in v."""
-    vs = np.linspace(0.0, np.pi, n_points)
-    v = np.linspace(0.0, np.pi, (n_points - 1) * sub_v + 1)
-    return cubic_spline_operator(vs, v, deriv)
+    return cubic_spline_operator(np.linspace(0.0, np.pi, n_points), sample_v(n_points, sub_v), deriv)
 
 
 @dataclass(frozen=True)
@@ -357,12 +382,12 @@ class SurfaceOperator:
 
 
 @lru_cache(maxsize=64)
-def surface_operator(knots: tuple, n_points: int, n_modes: int, a: float, w: float, sub_u: int, sub_v: int,
+def surface_operator(knots: tuple, n_points: int, n_modes: int, a: float, w: float, sub_u, sub_v,
                      assembly: str = "smooth", deriv: tuple = (0, 0), breaks: tuple = (),
                      break_slope: float = BREAK_SLOPE) -> SurfaceOperator:
     """Cached :class:`SurfaceOperator` (see :func:`solve_surface` for the arguments)."""
     du, dv = deriv
-    v = np.linspace(0.0, np.pi, (n_points - 1) * sub_v + 1)
+    v = sample_v(n_points, sub_v)
     n = np.arange(n_modes + 1)
     # d^dv/dv^dv of cos(n v): cos for dv = 0, -n sin for dv = 1.
     cos_nv = np.cos(np.outer(v, n)) if dv == 0 else -np.sin(np.outer(v, n)) * n
@@ -387,7 +412,7 @@ def mode_values(knots: tuple, k: float, u: np.ndarray, deriv: int = 0, breaks: t
 
 
 @lru_cache(maxsize=64)
-def merged_operator(knots: tuple, n_points: int, n_modes: int, a: float, w: float, sub_u: int, sub_v: int,
+def merged_operator(knots: tuple, n_points: int, n_modes: int, a: float, w: float, sub_u, sub_v,
                     deriv: tuple, breaks: tuple, merged: int, break_slope: float = BREAK_SLOPE) -> SurfaceOperator:
     """The smooth surface with break ``merged``'s two rim curves made one (their mean, at their mean
     parameter): no break piece there. On the rows and columns of the surface with the break, so the two
@@ -421,8 +446,9 @@ def solve_surface(coefficients, residual, knots, a=1.0, w=None, sub_u=4, sub_v=4
         Smoothing parameter of the PDE (> 0).
     w : float, optional
         Wavenumber of the remainder term; default ``a (N + 1)``.
-    sub_u, sub_v : int
-        Output rows per curve interval and columns per sample interval.
+    sub_u, sub_v : int or sequence of int
+        Output rows per curve interval and columns per sample interval: one
+        count for all, or one per interval (:func:`subdivide`).
     assembly : {'smooth', 'patches'}
     deriv : (int, int)
         Derivative order in u and in v (each 0 or 1).
@@ -449,7 +475,7 @@ def solve_surface(coefficients, residual, knots, a=1.0, w=None, sub_u=4, sub_v=4
     if len(kn) != K or residual.shape[0] != K:
         raise LayoutError(f"{K} curves of coefficients but {len(kn)} curve parameters and {residual.shape[0]} residual rows")
     w = a * N1 if w is None else w
-    args = (kn, residual.shape[1], N1 - 1, float(a), float(w), int(sub_u), int(sub_v))
+    args = (kn, residual.shape[1], N1 - 1, float(a), float(w), sampling_key(sub_u), sampling_key(sub_v))
     br = tuple(int(b) for b in breaks)
     if assembly != "smooth" or not confine:
         return surface_operator(*args, assembly, tuple(deriv), br, float(break_slope)).apply(coefficients, residual)
@@ -458,7 +484,7 @@ def solve_surface(coefficients, residual, knots, a=1.0, w=None, sub_u=4, sub_v=4
 
 
 @lru_cache(maxsize=16)
-def confined_operator(knots: tuple, n_points: int, n_modes: int, a: float, w: float, sub_u: int, sub_v: int,
+def confined_operator(knots: tuple, n_points: int, n_modes: int, a: float, w: float, sub_u, sub_v,
                       deriv: tuple, breaks: tuple, break_slope: float, confine: tuple) -> SurfaceOperator:
     """The smooth surface with each break of ``confine`` (``(break, weights, d weights/dv)``, tuples on the
     output columns) blended into its merged surface where its weight is below 1, as one operator:

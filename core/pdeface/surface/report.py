@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..geometry import ClosestPoint, cast_cylinder_rays, cylinder_coords, triangle_cross, unit_rows
+from ..geometry import ClosestPoint, cast_cylinder_rays, cylinder_coords, degrees_from_cos, triangle_cross, unit_rows
 from ..mesh import vertex_normals
 from .fit import grid_faces, skin_triangles, surface_grid
 from .model import FaceModel
@@ -125,8 +125,8 @@ def seam_jump_deg(model: FaceModel, assembly=None, sub_v=4) -> float:
                              plain.cos_nv, knot_slopes(kn, model.remainder_w, assembly, br)[side], plain.remainder_v)
         n = np.cross(op.apply(model.coefficients, model.residual), Xv)
         sides.append(n / np.maximum(np.linalg.norm(n, axis=2, keepdims=True), 1e-300))
-    cosang = np.clip(np.einsum("kvc,kvc->kv", sides[0], sides[1])[1:-1], -1, 1)
-    return float(np.degrees(np.arccos(cosang)).max()) if cosang.size else 0.0
+    cosang = np.einsum("kvc,kvc->kv", sides[0], sides[1])[1:-1]
+    return float(degrees_from_cos(cosang).max()) if cosang.size else 0.0
 
 
 def _normal_deviation(nearest, normals, npde, Tp):
@@ -139,7 +139,7 @@ def _normal_deviation(nearest, normals, npde, Tp):
     # The grid's orientation is fixed by the layout, so align it with the scan's once.
     if np.median(cos) < 0:
         cos = -cos
-    return np.degrees(np.arccos(np.clip(cos, -1, 1)))
+    return degrees_from_cos(cos)
 
 
 def weighted_percentile(x, weights, q) -> float:

@@ -1,0 +1,267 @@
+"""How finely a PDE face is meshed: named and explicit resolutions, and the default's adaptive one.
+
+The PDE surface is smooth, but a mesh of it turns at each edge by about the surface's curvature
+times the edge's length. Where a face creases tightly (the base of the nose wings, the lip corners,
+a puckered chin), 4 rows and columns per interval turn edges by 30–45°, and a render shows folds
+there (issue #16); twice as many steps halve the turn, four times as many quarter it. So the
+default resolution chooses the steps per curve interval and per point interval: enough that no
+edge outside the openings (where lips and lids part) turns by more than :data:`MAX_TURN_DEG` at
+rest, at weight 1 of each of the model's keys or in any preset, judged on a probe mesh of
+:data:`PROBE` steps; fewer where the face is flat, so the mesh stays about as large as before.
+
+The choice depends on the model's rest shape and its descriptors; it is made once per model (a model
+file carries it). A face object keeps the steps it was built with (:func:`resolution_text`), so keys
+added later land on the same vertices.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+
+import numpy as np
+
+from ..errors import MeshError
+from ..geometry import degrees_from_cos
+
+#: Named uniform resolutions: (rows per curve interval, columns per point interval). ``default`` is adaptive.
+RESOLUTIONS = {"original": (10, 1), "fine": (8, 8)}
+#: The adaptive resolution's name.
+ADAPTIVE = "default"
+#: Largest turn (degrees) the adaptive resolution aims for at an edge outside the openings, in each pose.
+#: A third under the 30° at which a render shows a fold: the probe's estimate is not exact.
+MAX_TURN_DEG = 20.0
+#: Steps per interval of the probe mesh the turns are measured on (the old uniform default).
+PROBE = 4
+#: Fewest and most steps the adaptive resolution gives an interval.
+STEPS_RANGE = (2, 16)
+#: After the probe's choice, an interval whose edges still turn by more than this many times the aim gets
+#: more steps, measured on the chosen mesh, at most this many rounds.
+VERIFY_FACTOR = 1.25
+VERIFY_ROUNDS = 2
+#: Skin a pose moves less than this (mm) turns its edges as at rest (by under 0.3° on 1 mm edges).
+MOVED_MM = 0.005
+#: Largest explicit steps per interval.
+MAX_STEPS = 64
+
+
+def _checked(steps, what):
+    steps = tuple(int(s) for s in np.atleast_1d(steps))
+    if not steps or min(steps) < 1 or max(steps) > MAX_STEPS:
+        raise MeshError(f"resolution {what} subdivisions must be in 1..{MAX_STEPS}, got {steps}")
+    return steps[0] if len(steps) == 1 else steps
+
+
+def parse_resolution(value):
+    """A resolution as given → ``(rows, cols)``, or :data:`ADAPTIVE` (decided per model: :func:`mesh_resolution`).
+
+    ``value``: ``"default"``, ``"original"``, ``"fine"``, ``"ROWS,COLS"`` (steps per curve interval and per
+    point interval), a pair of ints, or :func:`resolution_text`'s steps per interval (rows and cols are then
+    tuples).
+    """
+    if isinstance(value, str):
+        text = value.strip()
+        if text == ADAPTIVE:
+            return ADAPTIVE
+        if text in RESOLUTIONS:
+            return RESOLUTIONS[text]
+        try:
+            value = json.loads(text) if text.startswith("[") else tuple(int(p) for p in text.split(","))
+        except ValueError:
+            raise MeshError(f"resolution {value!r}: use {ADAPTIVE}, {', '.join(RESOLUTIONS)} or 'ROWS,COLS' "
+                            "subdivisions") from None
+    try:
+        rows, cols = value
+    except (TypeError, ValueError):
+        raise MeshError(f"resolution {value!r}: give rows and columns") from None
+    return _checked(rows, "row"), _checked(cols, "column")
+
+
+def resolution_text(rows, cols) -> str:
+    """Steps as text :func:`parse_resolution` reads back: ``"ROWS,COLS"``, or ``[[rows...],[cols...]]`` per
+    interval."""
+    if np.ndim(rows) == 0 and np.ndim(cols) == 0:
+        return f"{int(rows)},{int(cols)}"
+    return json.dumps([np.atleast_1d(rows).astype(int).tolist(), np.atleast_1d(cols).astype(int).tolist()],
+                      separators=(",", ":"))
+
+
+def mesh_resolution(model, resolution=ADAPTIVE):
+    """``(rows, cols)`` steps the surface of ``model`` is meshed with: ints, or one per interval."""
+    parsed = parse_resolution(resolution)
+    if parsed == ADAPTIVE:
+        return adaptive_resolution(model)
+    rows, cols = parsed
+    if np.ndim(rows) or np.ndim(cols):
+        K, J = len(model.knots), model.layout.n_points
+        _check_steps(model, np.broadcast_to(rows, K - 1) if np.ndim(rows) == 0 else rows,
+                     np.broadcast_to(cols, J - 1) if np.ndim(cols) == 0 else cols)
+    return rows, cols
+
+
+def quad_turns(X):
+    """Turns (degrees) across a grid mesh's inner edges: ``(across rows, across columns)``.
+
+    ``X`` (n_u, n_v, 3). Quad normals are their diagonals' cross product (Newell's for a quad);
+    across rows: (n_u - 2, n_v - 1), the edge on row r + 1; across columns: (n_u - 1, n_v - 2).
+    Worked on one coordinate plane at a time: reductions over an axis of 3 are slow in numpy.
+    """
+    x, y, z = (np.ascontiguousarray(X[..., i]) for i in range(3))
+    d1 = [p[1:, 1:] - p[:-1, :-1] for p in (x, y, z)]
+    d2 = [p[:-1, 1:] - p[1:, :-1] for p in (x, y, z)]
+    N = [d2[1] * d1[2] - d2[2] * d1[1], d2[2] * d1[0] - d2[0] * d1[2], d2[0] * d1[1] - d2[1] * d1[0]]
+    length = np.sqrt(N[0] ** 2 + N[1] ** 2 + N[2] ** 2)
+    length[length == 0] = 1.0
+    N = [c / length for c in N]
+    across_rows = sum(c[:-1] * c[1:] for c in N)
+    across_cols = sum(c[:, :-1] * c[:, 1:] for c in N)
+    return degrees_from_cos(across_rows), degrees_from_cos(across_cols)
+
+
+#: The steps chosen for the models met so far, by :func:`model_fingerprint` (and aim): a model is meshed many
+#: times (each pose, each key), chosen for once; a model file carries them (:func:`remember_resolution`).
+_CHOSEN = {}
+_CHOSEN_MAX = 32
+
+
+def model_fingerprint(model) -> bytes:
+    """A digest of everything the adaptive resolution reads: the curves, layout, landmarks and descriptors."""
+    h = hashlib.blake2b(digest_size=16)
+    for a in (model.knots, model.coefficients, model.residual, model.layout.as_array(), model.features,
+              model.landmarks if model.landmarks is not None else np.zeros(0), [model.a, model.remainder_w]):
+        h.update(np.ascontiguousarray(a, np.float64).tobytes())
+    h.update(model.assembly.encode())
+    for d in model.descriptors:
+        h.update(d.key.encode())
+        for a in d.dense():
+            h.update(np.ascontiguousarray(a, np.float64).tobytes())
+    return h.digest()
+
+
+def _check_steps(model, rows, cols):
+    for steps, n, what in ((rows, len(model.knots) - 1, "curve"), (cols, model.layout.n_points - 1, "point")):
+        if len(steps) != n or not all(1 <= int(s) <= MAX_STEPS for s in steps):
+            raise MeshError(f"{len(steps)} steps for this face's {n} {what} intervals, each 1..{MAX_STEPS}, "
+                            f"expected: got {list(steps)}")
+
+
+def remember_resolution(model, rows, cols, max_turn=MAX_TURN_DEG):
+    """Record ``rows``, ``cols`` (steps per interval) as ``model``'s adaptive resolution: what a model file
+    read back carries (:mod:`pdeface.io.modelfile`), so it is not chosen again."""
+    _check_steps(model, rows, cols)
+    while len(_CHOSEN) >= _CHOSEN_MAX:
+        del _CHOSEN[next(iter(_CHOSEN))]
+    _CHOSEN[model_fingerprint(model), max_turn] = (tuple(int(s) for s in rows), tuple(int(s) for s in cols))
+
+
+def known_resolution(model, max_turn=MAX_TURN_DEG):
+    """``model``'s adaptive steps if they were chosen or read already, else None."""
+    return _CHOSEN.get((model_fingerprint(model), max_turn))
+
+
+def pose_weights(model) -> np.ndarray:
+    """(poses, descriptors) weights of :func:`pdeface.au.expressions.every_pose`, in the descriptors' order."""
+    from ..au.expressions import every_pose
+
+    keys = [d.key for d in model.descriptors]
+    W = [[weights.get(k, 0.0) for k in keys] for weights in every_pose(model).values()]
+    return np.array(W, dtype=np.float64).reshape(len(W), len(keys))
+
+
+def interval_turns(model, rows, cols, W, floor=0.0):
+    """Largest turn (degrees) of the edges in each curve interval and each point interval, outside the
+    openings, over the poses ``W`` (:func:`pose_weights`), on the mesh of ``rows``, ``cols`` steps.
+
+    An edge across rows belongs to the curve intervals of the quads on both its sides, one across columns
+    to their point intervals. Turns under ``floor`` are not looked at. The openings are those
+    :func:`pdeface.surface.folds.fold_edges` allows: the landmark polygons at rest, where the pose carries
+    them, and the edges that lie in them at rest.
+    """
+    from .fit import surface_grid
+    from .folds import carried, nearest_vertices, opening_mask
+    from .model import model_landmarks
+
+    X0 = surface_grid(model, rows, cols)
+    n_u, n_v, _ = X0.shape
+    n = W.shape[1]
+    poses = np.broadcast_to(X0, (len(W), n_u, n_v, 3))
+    rows_moved, cols_moved = np.zeros((n, n_u), bool), np.zeros((n, n_v), bool)
+    if n:
+        dense = [d.dense() for d in model.descriptors]
+        C, R = (np.concatenate(parts, axis=2) for parts in zip(*dense))
+        D = surface_grid(model, rows, cols, coefficients=C, residual=R).reshape(n_u, n_v, n, 3)
+        D = np.ascontiguousarray(np.moveaxis(D, 2, 0)).reshape(n, -1)  # (keys, n_u · n_v · 3)
+        poses = X0 + (W @ D).reshape(len(W), n_u, n_v, 3)  # every pose: one matrix product
+        # a pose turns edges as the rest does where it does not move the skin: only its moved block is measured
+        moves = (np.abs(D) > MOVED_MM).reshape(n, n_u, n_v * 3)
+        rows_moved, cols_moved = moves.any(axis=2), moves.any(axis=1).reshape(n, n_v, 3).any(axis=2)
+    K, J = len(model.knots), model.layout.n_points
+    interval = [np.repeat(np.arange(K - 1), rows), np.repeat(np.arange(J - 1), cols)]  # of each quad row, column
+    L = model_landmarks(model)
+    nearest = nearest_vertices(X0.reshape(-1, 3), L)
+    # each inner edge's ends, across rows (on row r + 1) and across columns (on column c + 1), as flat indices
+    grid = np.arange(n_u * n_v).reshape(n_u, n_v)
+    ends = [(grid[1:-1, :-1], grid[1:-1, 1:]), (grid[:-1, 1:-1], grid[1:, 1:-1])]
+    flat0 = X0.reshape(-1, 3)
+    open_at_rest = [opening_mask(0.5 * (flat0[a] + flat0[b]).reshape(-1, 3), L).reshape(a.shape) for a, b in ends]
+    need = [np.zeros(K - 1), np.zeros(J - 1)]
+    for w, X in zip(W, poses):
+        if w.any():
+            r_moved, c_moved = (np.nonzero(m[w != 0].any(axis=0))[0] for m in (rows_moved, cols_moved))
+        else:
+            r_moved, c_moved = np.arange(n_u), np.arange(n_v)
+        if not len(r_moved):
+            continue
+        r0, c0 = max(r_moved[0] - 2, 0), max(c_moved[0] - 2, 0)
+        block = np.s_[r0:r_moved[-1] + 3, c0:c_moved[-1] + 3]
+        flat = X.reshape(-1, 3)
+        edges = []  # (interval before, interval after, turn, midpoint) per axis, of edges that raise a need
+        for axis, turns in enumerate(quad_turns(X[block])):
+            opened = open_at_rest[axis][r0:r0 + turns.shape[0], c0:c0 + turns.shape[1]]
+            r, c = np.nonzero((turns > floor) & ~opened)
+            t = turns[r, c]
+            r, c = r + r0, c + c0
+            first = (r, c)[axis]  # the quad before the edge; the one after is first + 1
+            before, after = interval[axis][first], interval[axis][first + 1]
+            keep = (t > need[axis][before]) | (t > need[axis][after])
+            a, b = (e[r[keep], c[keep]] for e in ends[axis])
+            edges.append((before[keep], after[keep], t[keep], 0.5 * (flat[a] + flat[b])))
+        if not sum(len(e[2]) for e in edges):
+            continue
+        mid = np.concatenate([e[3] for e in edges])
+        posed_L = carried(flat0, flat, L, nearest=nearest)
+        shut = ~(opening_mask(mid, L) | opening_mask(mid, posed_L))
+        for axis, (before, after, t, _) in enumerate(edges):
+            s, shut = shut[:len(t)], shut[len(t):]
+            np.maximum.at(need[axis], before[s], t[s])
+            np.maximum.at(need[axis], after[s], t[s])
+    return need
+
+
+def adaptive_resolution(model, max_turn=MAX_TURN_DEG):
+    """Steps per curve interval and per point interval (two tuples) keeping each edge's turn outside the
+    openings under about ``max_turn`` at rest, at weight 1 of each descriptor and in each built-in preset.
+
+    Each interval's largest turn ``t`` on the probe mesh (:data:`PROBE` steps; :func:`interval_turns`)
+    gives it ``ceil(PROBE * t / max_turn)`` steps within :data:`STEPS_RANGE`. Then the mesh so chosen is
+    measured the same way: where a bend is narrower than the probe's steps its turn does not shrink in
+    proportion, and an interval still over :data:`VERIFY_FACTOR` × ``max_turn`` gets steps in proportion
+    to its measured turn (up to :data:`VERIFY_ROUNDS` times).
+    """
+    known = known_resolution(model, max_turn)
+    if known is not None:
+        return known
+    K, J = len(model.knots), model.layout.n_points
+    W = pose_weights(model)
+    lo, hi = STEPS_RANGE
+    floor = max_turn * lo / PROBE  # turns below this leave an interval at the fewest steps
+    steps = [np.clip(np.ceil(PROBE * t / max_turn), lo, hi).astype(int)
+             for t in interval_turns(model, (PROBE,) * (K - 1), (PROBE,) * (J - 1), W, floor)]
+    for _ in range(VERIFY_ROUNDS):
+        turns = interval_turns(model, *steps, W, VERIFY_FACTOR * max_turn)
+        over = [(t > VERIFY_FACTOR * max_turn) & (s < hi) for s, t in zip(steps, turns)]
+        if not any(o.any() for o in over):
+            break
+        steps = [np.where(o, np.minimum(np.ceil(s * t / max_turn), hi), s).astype(int)
+                 for s, t, o in zip(steps, turns, over)]
+    remember_resolution(model, *steps, max_turn=max_turn)
+    return known_resolution(model, max_turn)

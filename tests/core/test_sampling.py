@@ -1,0 +1,126 @@
+"""The mesh's resolution: steps per interval, and the default's choice of them for each face (issue #16)."""
+import numpy as np
+import pytest
+from pdeface.errors import MeshError, ModelFormatError
+from pdeface.surface import sampling
+from pdeface.surface.fit import face_mesh, surface_grid
+from pdeface.surface.folds import fold_edges
+from pdeface.surface.sampling import (
+    known_resolution,
+    mesh_resolution,
+    parse_resolution,
+    remember_resolution,
+    resolution_text,
+)
+
+
+@pytest.fixture(scope="module")
+def model(default_face):
+    return default_face
+
+
+def test_steps_per_interval_sample_the_same_surface(model):
+    """Uneven steps (the break blends included) put the same surface through the rows and columns they share
+    with an even mesh: more steps add points on it, they do not change it."""
+    K, J = len(model.knots), model.layout.n_points
+    even = surface_grid(model, 4, 4)
+    np.testing.assert_allclose(surface_grid(model, (4,) * (K - 1), (4,) * (J - 1)), even, atol=1e-9)
+    rows = np.where(np.arange(K - 1) % 3 == 0, 8, 4)  # every third interval twice as fine
+    cols = np.where(np.arange(J - 1) % 2 == 0, 8, 4)
+    fine = surface_grid(model, rows, cols)
+    assert fine.shape == (rows.sum() + 1, cols.sum() + 1, 3)
+
+    def shared(steps):  # the finer mesh's rows (or columns) that the even 4-step mesh has too
+        return np.concatenate([start + np.arange(0, s, s // 4) for start, s in zip(np.r_[0, np.cumsum(steps)[:-1]],
+                                                                                      steps)] + [[steps.sum()]])
+    np.testing.assert_allclose(fine[np.ix_(shared(rows), shared(cols))], even, atol=1e-9)
+
+
+def test_the_default_adds_steps_where_the_face_creases(model):
+    """On even 4 steps, AU18 (lip pucker) turns 12 edges beside the nose wings and lips by more than 30°: the
+    surface is smooth there, its mesh is not fine enough (8 steps halve the turn). The default gives those
+    intervals more steps and the flat forehead fewer: none over 30°, in fewer vertices than the even mesh."""
+    from pdeface.au.expressions import pose_curves
+    from pdeface.surface.model import model_landmarks
+
+    rows, cols = mesh_resolution(model)
+    assert min(rows[:3]) == 2 and max(rows) >= 6 and max(cols) >= 6  # forehead top 2; nose, lips more
+    C, R = pose_curves(model, {"18": 1.0})
+
+    def folds(resolution):
+        rest = face_mesh(model, resolution)
+        return fold_edges(face_mesh(model, resolution, coefficients=C, residual=R), model.frame,
+                          model_landmarks(model), rest=rest)  # a model file keeps some landmarks: the nostrils' are
+        # its feature points
+
+    even, finer, default = folds("4,4"), folds("8,8"), folds("default")
+    assert even["count"] > 5 and finer["max_deg"] < 0.75 * even["max_deg"]  # measured 12 edges, 33° → 19°
+    assert default["count"] == 0 and default["max_deg"] < 25
+    assert len(face_mesh(model).vertices) < len(face_mesh(model, "4,4").vertices)  # 17,802 against 19,285
+
+
+def test_a_model_file_keeps_its_steps(model, tmp_path, monkeypatch):
+    """The bundled face carries its steps (build_assets.py); a model saved after they were chosen carries them
+    too and reads back without choosing again; other descriptors are another model, chosen for afresh."""
+    from pdeface.io.modelfile import load_model, save_model
+
+    steps = known_resolution(model)
+    assert steps is not None  # read from the file
+    monkeypatch.setattr(sampling, "interval_turns", lambda *a, **k: pytest.fail("chose again"))
+    save_model(tmp_path / "m.npz", model)
+    assert known_resolution(load_model(tmp_path / "m.npz")) == steps
+    monkeypatch.undo()
+    fewer = load_model(tmp_path / "m.npz")
+    fewer.descriptors = fewer.descriptors[:5]
+    assert known_resolution(fewer) is None
+    assert mesh_resolution(fewer) != steps  # fewer keys to keep smooth: another choice
+
+
+def test_the_bundled_steps_are_the_current_choice(model):
+    """default_face.npz's steps are what the choice gives now (build_assets.py keeps them current)."""
+    sampling._CHOSEN.clear()
+    assert sampling.adaptive_resolution(model) == mesh_resolution(model)
+    from pdeface.assets import load_face
+    assert known_resolution(load_face("default")) == mesh_resolution(model)
+
+
+def test_resolutions_as_text_and_their_errors(model, tmp_path):
+    rows, cols = mesh_resolution(model)
+    assert parse_resolution(resolution_text(rows, cols)) == (rows, cols)
+    assert resolution_text(4, 4) == "4,4" and parse_resolution("4,4") == (4, 4)
+    assert parse_resolution("default") == "default" and parse_resolution("fine") == (8, 8)
+    for bad, match in (("[[1,2],[3", "resolution"), ("4", "rows and columns"), ("[[0],[4]]", "1..64")):
+        with pytest.raises(MeshError, match=match):
+            parse_resolution(bad)
+    with pytest.raises(MeshError, match="curve intervals"):
+        mesh_resolution(model, resolution_text(rows[:-1], cols))
+    with pytest.raises(MeshError, match="point intervals"):
+        remember_resolution(model, rows, cols + (4,))
+    import io
+    import json
+
+    from pdeface.io.modelfile import model_from_bytes, model_to_bytes
+    data = dict(np.load(io.BytesIO(model_to_bytes(model))))
+    meta = json.loads(bytes(data["meta"]))
+    meta["mesh_steps"] = [[4], [4]]
+    data["meta"] = np.frombuffer(json.dumps(meta).encode(), np.uint8)
+    buf = io.BytesIO()
+    np.savez(buf, **data)
+    with pytest.raises(ModelFormatError, match="mesh_steps"):
+        model_from_bytes(buf.getvalue(), "broken.npz")
+
+
+def test_the_bundled_face_has_no_fold_in_any_pose(model):
+    """What *Add Default Face* and ``pdeface pose default`` mesh: no edge over 30° outside the openings at rest, in
+    any AU at weight 1 or any preset (83 poses; largest turn measured 22.7°, AU11)."""
+    from pdeface.au.expressions import every_pose, pose_curves
+    from pdeface.surface.model import model_landmarks
+
+    rest, L = face_mesh(model), model_landmarks(model)
+    turns = {}
+    for name, weights in every_pose(model).items():
+        C, R = pose_curves(model, weights) if weights else (None, None)
+        r = fold_edges(face_mesh(model, coefficients=C, residual=R), model.frame, L, rest=rest)
+        turns[name] = (r["count"], r["max_deg"])
+    assert len(turns) == 83 and {k: n for k, (n, _) in turns.items() if n} == {}
+    assert max(t for _, t in turns.values()) < 25
