@@ -167,6 +167,14 @@ def pose_weights(model) -> np.ndarray:
     return np.array(W, dtype=np.float64).reshape(len(W), len(keys))
 
 
+def _poses(X0, D, W, chunk=16):
+    """``(weights, surface)`` of each pose: rest ``X0`` (n_u, n_v, 3) plus keys ``D`` (keys, n_u · n_v · 3) by
+    the weights ``W``; a matrix product per ``chunk`` of poses (one each would read ``D`` each time)."""
+    for start in range(0, len(W), chunk):
+        Wc = W[start:start + chunk]
+        yield from zip(Wc, X0 + (Wc @ D).reshape((len(Wc),) + X0.shape))
+
+
 def interval_turns(model, rows, cols, W, floor=0.0):
     """Largest turn (degrees) of the edges in each curve interval and each point interval, outside the
     openings, over the poses ``W`` (:func:`pose_weights`), on the mesh of ``rows``, ``cols`` steps.
@@ -183,14 +191,13 @@ def interval_turns(model, rows, cols, W, floor=0.0):
     X0 = surface_grid(model, rows, cols)
     n_u, n_v, _ = X0.shape
     n = W.shape[1]
-    poses = np.broadcast_to(X0, (len(W), n_u, n_v, 3))
+    D = np.zeros((n, n_u * n_v * 3))
     rows_moved, cols_moved = np.zeros((n, n_u), bool), np.zeros((n, n_v), bool)
     if n:
         dense = [d.dense() for d in model.descriptors]
         C, R = (np.concatenate(parts, axis=2) for parts in zip(*dense))
         D = surface_grid(model, rows, cols, coefficients=C, residual=R).reshape(n_u, n_v, n, 3)
         D = np.ascontiguousarray(np.moveaxis(D, 2, 0)).reshape(n, -1)  # (keys, n_u · n_v · 3)
-        poses = X0 + (W @ D).reshape(len(W), n_u, n_v, 3)  # every pose: one matrix product
         # a pose turns edges as the rest does where it does not move the skin: only its moved block is measured
         moves = (np.abs(D) > MOVED_MM).reshape(n, n_u, n_v * 3)
         rows_moved, cols_moved = moves.any(axis=2), moves.any(axis=1).reshape(n, n_v, 3).any(axis=2)
@@ -204,7 +211,7 @@ def interval_turns(model, rows, cols, W, floor=0.0):
     flat0 = X0.reshape(-1, 3)
     open_at_rest = [opening_mask(0.5 * (flat0[a] + flat0[b]).reshape(-1, 3), L).reshape(a.shape) for a, b in ends]
     need = [np.zeros(K - 1), np.zeros(J - 1)]
-    for w, X in zip(W, poses):
+    for w, X in _poses(X0, D, W):
         if w.any():
             r_moved, c_moved = (np.nonzero(m[w != 0].any(axis=0))[0] for m in (rows_moved, cols_moved))
         else:
