@@ -307,3 +307,21 @@ def test_the_alar_grooves_no_longer_fold(scan, monkeypatch):
 
     assert folds("identity016", {}, curves.NOSE_GROOVE_MM) == 0 and folds("identity002", {"9": 1.0}, 2.5) == 0
     assert folds("identity016", {}, np.inf) >= 6 and folds("identity002", {"9": 1.0}, np.inf) >= 15  # measured 12, 28
+
+
+def test_an_opening_is_made_of_the_landmarks_a_model_keeps():
+    """A model file keeps the mouth's corners and midpoints only (48, 51, 54, 57): the polygon is those four,
+    not a broken ring through the NaN rows (which left the whole mouth outside it)."""
+    from pdeface.surface.folds import opening_mask
+
+    L = far_landmarks()
+    mouth = OPENINGS["mouth"]
+    ring = np.linspace(0, 2 * np.pi, len(mouth), endpoint=False)
+    L[mouth] = np.stack([20 * np.cos(ring), 8 * np.sin(ring), 0 * ring], 1)
+    kept = np.full_like(L, np.nan)
+    kept[[48, 51, 54, 57]] = L[[48, 51, 54, 57]]
+    P = np.array([[0.0, 0.0, 0.0], [5.0, 2.0, 0.0], [40.0, 0.0, 0.0]])
+    np.testing.assert_array_equal(opening_mask(P, L), [True, True, False])
+    np.testing.assert_array_equal(opening_mask(P, kept), [True, True, False])
+    kept[[51, 57]] = np.nan  # two left: no polygon
+    np.testing.assert_array_equal(opening_mask(P, kept), [False, False, False])

@@ -140,8 +140,8 @@ def model_fingerprint(model) -> bytes:
 def _check_steps(model, rows, cols):
     for steps, n, what in ((rows, len(model.knots) - 1, "curve"), (cols, model.layout.n_points - 1, "point")):
         if len(steps) != n or not all(1 <= int(s) <= MAX_STEPS for s in steps):
-            raise MeshError(f"{len(steps)} steps for this face's {n} {what} intervals, each 1..{MAX_STEPS}, "
-                            f"expected: got {list(steps)}")
+            raise MeshError(f"this face has {n} {what} intervals: give {n} steps, each 1..{MAX_STEPS}; got "
+                            f"{len(steps)}: {list(steps)}")
 
 
 def remember_resolution(model, rows, cols, max_turn=MAX_TURN_DEG):
