@@ -1,17 +1,23 @@
 """pdeface: FACS Action Units as PDE-surface descriptors.
 
-The core is numpy/scipy only and never imports bpy. Its rooms, in data-flow order:
+The core is numpy/scipy only and never imports bpy. Its rooms, each using only those listed
+before it (``tests/core/test_rooms.py`` holds the order):
 
+- ground: :mod:`~pdeface.errors`, :mod:`~pdeface.geometry`, :mod:`~pdeface.landmark_scheme` (the 68
+  landmarks' names), :mod:`~pdeface.facs` (AU keys, weights, intensity letters), :mod:`~pdeface.rigid`
+  (jaw hinge, gaze), :mod:`~pdeface.mesh`, :mod:`~pdeface.assets` (the bundled data's paths and meshes)
+- :mod:`pdeface.io` — plain files: atomic writes, meshes (OBJ/PLY), PNG, numeric codecs
+- :mod:`pdeface.presets` — named AU weight sets, the mixers' names, preset files
 - :mod:`pdeface.surface` — a neutral face as PDE boundary curves: frame, layout, rims, curves,
-  fourier, pde, fit, model, report, texture
-- :mod:`pdeface.au` — Action Units on that face: facs, descriptor, capture, expressions,
-  retarget, ict, aureport, sequence
-- :mod:`pdeface.io` — files: meshes, model and descriptor files, tracker CSVs, timelines,
-  codecs, PNG and profile writers
-- :mod:`pdeface.stream` — the live AU stream: wire formats, player, sender, AU blender rules
-- :mod:`pdeface.landmarks` — the 68 landmarks found automatically: render, detector, facemap, pipeline
-- shared at the top: :mod:`~pdeface.errors`, :mod:`~pdeface.geometry`, :mod:`~pdeface.mesh`,
-  :mod:`~pdeface.assets` (the bundled data) and :mod:`~pdeface.cli` (the command line)
+  fourier, pde, fit, sampling, model, report, profiles, scan
+- :mod:`pdeface.au` — Action Units on that face: descriptor, capture, expressions (mixing, the shape
+  basis), retarget, ict, aureport, descriptor and model files
+- :mod:`pdeface.muscles` — the Waters muscles; :mod:`pdeface.posing` — weights + mixer → posed curves
+- :mod:`pdeface.stream` — the live AU stream; :mod:`pdeface.animation` — timelines, the method's
+  sequence, AU data from trackers
+- :mod:`pdeface.head` — the user's whole head; :mod:`pdeface.fdt` — Facial Deformation Tables;
+  :mod:`pdeface.landmarks` — the 68 landmarks found automatically
+- on top: :mod:`~pdeface.cli` (the command line)
 
 Main entry points, also importable from ``pdeface`` itself: :func:`fit_face`, :func:`face_mesh`,
 :func:`accuracy_report`, :func:`save_model` / :func:`load_model`, :func:`read_mesh` /
@@ -33,7 +39,7 @@ __version__ = "0.1.0"
 #: Public names importable from ``pdeface`` → the module that defines them.
 _API = {
     "fit_face": "surface.fit", "face_mesh": "surface.fit", "accuracy_report": "surface.report",
-    "FaceModel": "surface.model", "save_model": "io.modelfile", "load_model": "io.modelfile",
+    "FaceModel": "surface.model", "save_model": "au.modelfile", "load_model": "au.modelfile",
     "read_mesh": "io.meshio", "write_mesh": "io.meshio",
     "read_landmarks": "surface.frame", "landmark_points": "surface.frame",
 }
@@ -45,14 +51,14 @@ __all__ = ["PdeFaceError", "MeshError", "LandmarkError", "LayoutError", "ModelFo
 #: pdeface 0.1 module → the modules its names now live in (looked up in order).
 MOVED = {
     "files": ("io.files",), "meshio": ("io.meshio",), "codec": ("io.codec",), "png": ("io.png",),
-    "audata": ("io.trackers",), "timeline": ("io.timeline",),
+    "audata": ("animation.trackers",), "timeline": ("animation.timeline",),
     "frame": ("surface.frame",), "layout": ("surface.layout",), "rims": ("surface.rims",),
     "curves": ("surface.curves",), "fourier": ("surface.fourier",), "pde": ("surface.pde",),
-    "fit": ("surface.fit",), "model": ("surface.model", "io.modelfile", "assets"),
-    "report": ("surface.report", "io.profiles"), "texture": ("surface.texture",),
-    "facs": ("au.facs",), "descriptor": ("au.descriptor", "au.capture", "io.descriptorfile"),
-    "expressions": ("au.expressions",), "retarget": ("au.retarget",), "ict": ("au.ict",),
-    "aureport": ("au.aureport",), "sequence": ("au.sequence",),
+    "fit": ("surface.fit",), "model": ("surface.model", "au.modelfile", "assets"),
+    "report": ("surface.report", "surface.profiles"), "texture": ("surface.texture",),
+    "descriptor": ("au.descriptor", "au.capture", "au.descriptorfile"),
+    "expressions": ("au.expressions", "presets", "posing", "facs"), "retarget": ("au.retarget",),
+    "ict": ("au.ict",), "aureport": ("au.aureport",), "sequence": ("animation.sequence",),
 }
 
 

@@ -7,7 +7,6 @@ from ICT-FaceKit (MIT); its notice travels with them.
 """
 from __future__ import annotations
 
-import functools
 import os
 from pathlib import Path
 
@@ -112,67 +111,4 @@ def load_head_shapes() -> dict:
 ICT_HEAD_PRIOR = "ict_head_prior.npz"
 
 
-@functools.lru_cache(maxsize=1)
-def load_head_prior():
-    """The whole-head motion learned from ICT-FaceKit's head (:class:`pdeface.head.prior.HeadPrior`;
-    ``scripts/build_head_prior.py``). Shared: do not modify it."""
-    from .head.prior import load_prior
-
-    head, _ = load_head()
-    return load_prior(asset_path(ICT_HEAD_PRIOR), head.vertices, head.triangles()[0])
-
-
 GENERIC_FDTS = "ict_generic_fdts.json.gz"
-#: The paper's Table I (its generic smile FDT, 2-D), shipped with the package's data.
-PAPER_SMILE = "paper-smile"
-
-
-def load_generic_fdts(model: str = "3d") -> dict:
-    """The bundled generic FDTs of one model: name (AU key or basic expression) → FDT, and the paper's smile."""
-    from .fdt.table import read_fdt, read_fdts
-
-    out = {t.name: t for t in read_fdts(asset_path(GENERIC_FDTS)) if t.model == model}
-    if model == "2d":
-        out[PAPER_SMILE] = read_fdt(Path(__file__).resolve().parent / "data" / "paper_smile.fdt.json")
-    return out
-
-
-def load_fdt(arg, model: str = "3d"):
-    """An FDT from a file, or a bundled one by name (``happy``, ``12L``, ``paper-smile``)."""
-    from .fdt.table import read_fdt
-
-    if Path(str(arg)).suffix in (".json", ".gz") or os.sep in str(arg):
-        return read_fdt(arg)
-    tables = load_generic_fdts("2d" if arg == PAPER_SMILE else model)
-    if arg not in tables:
-        raise PdeFaceError(f"{arg!r} is neither an FDT file nor a bundled FDT ({model}: {', '.join(sorted(tables))})")
-    return tables[arg]
-
-
-def load_face(arg):
-    """A face model from a path, or the bundled one for ``"default"``."""
-    from .io.modelfile import load_model
-
-    return load_model(asset_path(DEFAULT_FACE) if arg == DEFAULT else arg)
-
-
-def load_scan(arg, landmarks=None) -> tuple[Mesh, np.ndarray | None]:
-    """A scan and its 68 landmark positions from a path, ``"default"`` (the bundled ICT neutral face
-    region) or ``"head"`` (the bundled ICT whole head).
-
-    ``landmarks`` is a landmarks JSON file; without one, a path's landmarks are
-    None and the bundled scans' are their own.
-    """
-    from .io.meshio import read_mesh
-    from .surface.frame import landmark_points, read_landmarks
-
-    if arg in (DEFAULT, HEAD):
-        mesh, idx = load_neutral_scan() if arg == DEFAULT else load_head()
-        lm = mesh.vertices[idx]
-    else:
-        mesh, lm = read_mesh(arg), None
-    mesh.validate(str(arg))
-    if landmarks:
-        idx, pts = read_landmarks(landmarks)
-        lm = landmark_points(mesh.vertices, idx, pts)
-    return mesh, lm

@@ -4,10 +4,11 @@ import numpy as np
 import pytest
 from pdeface.au.capture import fit_descriptor
 from pdeface.au.descriptor import Descriptor
+from pdeface.au.descriptorfile import descriptor_from_bytes, descriptor_to_bytes, load_descriptor, save_descriptor
 from pdeface.au.ict import AU_SHAPES, au_offsets
 from pdeface.errors import LandmarkError, ModelFormatError, PdeFaceError
-from pdeface.io.descriptorfile import descriptor_from_bytes, descriptor_to_bytes, load_descriptor, save_descriptor
-from pdeface.surface.fit import face_mesh, surface_grid
+from pdeface.surface.fit import face_mesh
+from pdeface.surface.grid import surface_grid
 
 
 @pytest.fixture(scope="module")
@@ -78,7 +79,7 @@ def test_files_roundtrip(tmp_path, au12, suffix):
 
 
 def test_malformed_descriptor_files(tmp_path, au12):
-    from pdeface.io.descriptorfile import descriptor_to_json
+    from pdeface.au.descriptorfile import descriptor_to_json
     good = descriptor_to_json(au12)
     cases = [
         ({**good, "format": "x"}, "'format'"),
@@ -151,7 +152,7 @@ def test_other_topology_is_aligned_and_projected(scan, fitted, shapes):
 
 
 def test_bundled_face_has_every_ict_au(scan):
-    from pdeface.assets import load_face
+    from pdeface.au.modelfile import load_face
     model = load_face("default")
     keys = {d.key for d in model.descriptors}
     assert set(AU_SHAPES) <= keys

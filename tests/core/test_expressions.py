@@ -2,21 +2,19 @@ import json
 
 import numpy as np
 import pytest
-from pdeface.au.expressions import (
+from pdeface.au.expressions import ShapeBasis, mix
+from pdeface.errors import ModelFormatError, PdeFaceError
+from pdeface.facs import action_unit, catalogue, letter_to_weight, normalise_weights, parse_au_key, weight_to_letter
+from pdeface.posing import pose_curves
+from pdeface.presets import (
     BASIC_EXPRESSIONS,
     PRESETS,
     SUPPLEMENTARY_WEIGHT,
     Preset,
-    ShapeBasis,
     load_presets,
-    mix,
-    normalise_weights,
-    pose_curves,
     resolve_preset,
     save_presets,
 )
-from pdeface.au.facs import action_unit, catalogue, letter_to_weight, parse_au_key, weight_to_letter
-from pdeface.errors import ModelFormatError, PdeFaceError
 from pdeface.surface.fit import face_mesh
 
 

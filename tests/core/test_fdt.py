@@ -5,10 +5,11 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from pdeface.assets import load_face, load_fdt, load_generic_fdts, load_ict_shapes
+from pdeface.assets import load_ict_shapes
 from pdeface.au.aureport import MotionProbe
 from pdeface.au.expressions import mix
 from pdeface.au.ict import au_offsets
+from pdeface.au.modelfile import load_face
 from pdeface.cli import main
 from pdeface.errors import LandmarkError, ModelFormatError, PdeFaceError
 from pdeface.fdt import quadratic
@@ -22,7 +23,7 @@ from pdeface.fdt.regions import (
     region_weights,
     seed_distances,
 )
-from pdeface.fdt.table import FDT, generic, parse_fdts, read_fdt, write_fdts
+from pdeface.fdt.table import FDT, generic, load_fdt, load_generic_fdts, parse_fdts, read_fdt, write_fdts
 from pdeface.io.meshio import read_obj, write_obj
 from pdeface.mesh import Mesh
 from pdeface.surface.model import model_landmarks

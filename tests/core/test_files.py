@@ -6,10 +6,10 @@ import subprocess
 import sys
 
 import pytest
+from pdeface.animation.timeline import load_timeline
 from pdeface.cli import main
 from pdeface.errors import FileError
 from pdeface.io.files import atomic_open
-from pdeface.io.timeline import load_timeline
 
 
 def test_a_failed_write_leaves_the_old_file_and_no_part(tmp_path):

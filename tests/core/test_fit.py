@@ -2,7 +2,8 @@ import numpy as np
 import pytest
 from pdeface.errors import LandmarkError, MeshError
 from pdeface.geometry import ClosestPoint
-from pdeface.surface.fit import face_mesh, fit_face, surface_grid
+from pdeface.surface.fit import face_mesh, fit_face
+from pdeface.surface.grid import surface_grid
 from pdeface.surface.report import accuracy_report
 from pdeface.surface.sampling import mesh_resolution, parse_resolution
 

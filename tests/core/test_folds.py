@@ -76,9 +76,9 @@ def test_the_rims_beyond_the_corners_fold_less(fitted):
     OPENING_GAPS["lid_top"] (0.6 mm) apart. With the break piece at the runs' full slope and 0.1 mm: 92 folds along the eyes' line at
     rest, 79 along the mouth's in AU27 and 12 in AU12; with the break slope alone 35, 0 and 0; with the gap 8, 0, 0;
     with each break confined to its opening's span (pdeface.surface.fit.break_weights) 0, 0, 0."""
-    from pdeface.assets import load_face
-    from pdeface.au.expressions import pose_curves
+    from pdeface.au.modelfile import load_face
     from pdeface.au.retarget import retarget
+    from pdeface.posing import pose_curves
 
     model, _ = fitted
     L = model.landmarks
@@ -106,11 +106,14 @@ def test_a_low_poly_face_keeps_a_clean_outer_edge():
     (by least bending) and reported; filled harmonically instead, flat, they folded the surface along the top and
     sides (251 folds beyond the brows, the jaw's sides and the chin; 614 in all). Now none lies there, at rest
     or with the brows raised."""
-    from pdeface.assets import load_face, load_low_poly_face
-    from pdeface.au.expressions import PRESETS, pose_curves, resolve_preset
+    from pdeface.assets import load_low_poly_face
+    from pdeface.au.modelfile import load_face
     from pdeface.au.retarget import retarget
+    from pdeface.posing import pose_curves
+    from pdeface.presets import PRESETS, resolve_preset
     from pdeface.surface.curves import BEYOND
-    from pdeface.surface.fit import fit_face, surface_grid
+    from pdeface.surface.fit import fit_face
+    from pdeface.surface.grid import surface_grid
 
     mesh, L = load_low_poly_face()
     model, sampler = fit_face(mesh.vertices, mesh.triangles()[0], L, unit="cm")
@@ -137,7 +140,7 @@ def test_a_low_poly_face_keeps_a_clean_outer_edge():
 def test_the_bundled_default_face_is_the_current_fit(fitted, scan):
     """default_face.npz is refitted with the fit's changes (build_assets.py --refit-face): the same curves as a
     fresh fit of the bundled neutral, so its folds are the fit's (79 at rest, up to 161°, before the refit)."""
-    from pdeface.assets import load_face
+    from pdeface.au.modelfile import load_face
     from pdeface.surface.folds import carried
 
     model, _ = fitted
@@ -164,8 +167,8 @@ def test_the_muscle_nostril_aus_add_no_folds(scan):
     off the scan's own creases; with the nasalis fading over 0.3 of its length (the other sheet's) AU38 squeezed
     the cheek beside the wing into 20 (53°); over NASALIS_FADE, 0 (4 edges over 30° in all, 31°, on the
     scan's creases)."""
-    from pdeface.assets import load_face
-    from pdeface.au.expressions import pose_curves
+    from pdeface.au.modelfile import load_face
+    from pdeface.posing import pose_curves
 
     face = load_face("default")
     mesh, _, idx = scan
@@ -187,9 +190,10 @@ def test_a_flared_nose_wing_carries_its_groove(scan):
     creases were carried)."""
     from dataclasses import replace
 
-    from pdeface.assets import load_face, load_ict_shapes
-    from pdeface.au.expressions import pose_curves
+    from pdeface.assets import load_ict_shapes
+    from pdeface.au.modelfile import load_face
     from pdeface.au.retarget import retarget
+    from pdeface.posing import pose_curves
     from pdeface.surface.fit import fit_face
     from pdeface.surface.folds import carried
 
@@ -218,9 +222,10 @@ def test_a_closed_lids_margin_stays_in_the_opening(scan):
     blink, had 6-9 of 70-77° there). It is the opening's own edge: at rest those edges lie inside the eye's
     polygon, and the metric also asks where an edge's skin was at rest. (On an even 4-step mesh: the default
     adds no steps inside the openings either.)"""
-    from pdeface.assets import load_face, load_ict_shapes
-    from pdeface.au.expressions import pose_curves
+    from pdeface.assets import load_ict_shapes
+    from pdeface.au.modelfile import load_face
     from pdeface.au.retarget import retarget
+    from pdeface.posing import pose_curves
     from pdeface.surface.fit import fit_face
     from pdeface.surface.folds import carried, opening_mask
 
@@ -257,7 +262,8 @@ def test_every_pose_has_no_fold(scan):
     from dataclasses import replace
     from pathlib import Path
 
-    from pdeface.assets import load_face, load_ict_shapes, load_low_poly_face
+    from pdeface.assets import load_ict_shapes, load_low_poly_face
+    from pdeface.au.modelfile import load_face
     from pdeface.au.retarget import retarget
     from pdeface.surface.fit import fit_face
 
@@ -286,9 +292,10 @@ def test_the_alar_grooves_no_longer_fold(scan, monkeypatch):
     points' spacing) made a V the surface turned through by more than 30°: identity016 had 12 such edges at
     rest, identity002 32 in AU9 (retargeted). In the nose band a hit now lies at most NOSE_GROOVE_MM below its
     neighbours' chord on the curve: none."""
-    from pdeface.assets import load_face, load_ict_shapes
-    from pdeface.au.expressions import pose_curves
+    from pdeface.assets import load_ict_shapes
+    from pdeface.au.modelfile import load_face
     from pdeface.au.retarget import retarget
+    from pdeface.posing import pose_curves
     from pdeface.surface import curves
     from pdeface.surface.fit import fit_face
 

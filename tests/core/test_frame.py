@@ -3,15 +3,8 @@ import json
 import numpy as np
 import pytest
 from pdeface.errors import LandmarkError
-from pdeface.surface.frame import (
-    FEATURE_NAMES,
-    UNITS_MM,
-    face_frame,
-    feature_points,
-    guess_unit,
-    landmark_points,
-    read_landmarks,
-)
+from pdeface.landmark_scheme import FEATURE_NAMES
+from pdeface.surface.frame import UNITS_MM, face_frame, feature_points, guess_unit, landmark_points, read_landmarks
 
 
 def test_frame_puts_nose_at_origin_eyes_on_x_face_forward(scan):

@@ -34,8 +34,8 @@ def refused_fast(call, error, match):
 
 
 def test_bombs_and_absurd_sizes_are_refused_before_allocating(tmp_path, fitted, scan):
-    from pdeface.io.descriptorfile import MAGIC, load_descriptor
-    from pdeface.io.modelfile import load_model, model_to_bytes
+    from pdeface.au.descriptorfile import MAGIC, load_descriptor
+    from pdeface.au.modelfile import load_model, model_to_bytes
     from pdeface.surface.fit import fit_face
     # a .pdd whose body inflates to 64 MiB of zeros
     (tmp_path / "bomb.pdd").write_bytes(MAGIC + zlib.compress(b"\0" * 64 * 2**20, 9))
@@ -66,7 +66,7 @@ def test_bombs_and_absurd_sizes_are_refused_before_allocating(tmp_path, fitted, 
 
 
 def test_a_field_past_the_csv_limit_is_named(tmp_path):
-    from pdeface.io.trackers import import_au
+    from pdeface.animation.trackers import import_au
     big = tmp_path / "big.csv"
     big.write_text("frame, timestamp, AU12_r\n1, 0.0, " + "1" * 200_000 + "\n")
     with pytest.raises(ModelFormatError, match="big.csv:2: field larger than field limit"):

@@ -3,16 +3,17 @@ import json
 
 import numpy as np
 import pytest
-from pdeface.assets import HEAD_PARTS, load_face, load_head, load_head_shapes
+from pdeface.assets import HEAD_PARTS, load_head, load_head_shapes
 from pdeface.au.ict import FACE_VERTICES, au_offsets
+from pdeface.au.modelfile import load_face
 from pdeface.au.retarget import retarget
 from pdeface.cli import main
 from pdeface.errors import MeshError, PdeFaceError
 from pdeface.head.bind import HeadBinding
 from pdeface.head.parts import CODE, parse_overrides
 from pdeface.head.report import head_report
-from pdeface.head.rigid import jaw_motion, rigid_displacement, rotation_vector, rotation_vector_matrix
 from pdeface.io.meshio import read_obj
+from pdeface.rigid import jaw_motion, rigid_displacement, rotation_vector, rotation_vector_matrix
 from pdeface.surface.fit import fit_face
 
 
@@ -197,7 +198,7 @@ def test_pose_mesh_keeps_the_file_but_its_positions(tmp_path, head, capsys):
     posed = read_obj(out)
     assert np.array_equal(posed.face_indices, mesh.face_indices) and np.allclose(posed.uvs, mesh.uvs, atol=1e-6)
     # the key at weight 1 (what the add-on writes) is this pose to the file's 6 decimals
-    from pdeface.assets import load_face as lf
+    from pdeface.au.modelfile import load_face as lf
     model = lf(str(tmp_path / "rig.npz"))
     b = HeadBinding(model, read_obj(src).vertices, T)
     key = b.descriptor_displacement(next(d for d in model.descriptors if d.key == "12"))

@@ -5,13 +5,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from pdeface.assets import load_face, load_head, load_head_prior, load_head_shapes
-from pdeface.au.facs import au_number
+from pdeface.assets import load_head, load_head_shapes
 from pdeface.au.ict import FACE_VERTICES, au_offsets
+from pdeface.au.modelfile import load_face
 from pdeface.au.retarget import retarget
 from pdeface.errors import ModelFormatError
+from pdeface.facs import au_number
 from pdeface.head.bind import HeadBinding
-from pdeface.head.prior import HeadPrior, load_prior, save_prior
+from pdeface.head.prior import HeadPrior, load_head_prior, load_prior, save_prior
 from pdeface.head.report import head_report
 from pdeface.surface.fit import fit_face
 

@@ -7,7 +7,6 @@ from pdeface.assets import load_head, load_head_shapes
 from pdeface.cli import main
 from pdeface.errors import LandmarkError, MeshError
 from pdeface.geometry import similarity
-from pdeface.head.rigid import rotation_vector_matrix
 from pdeface.io.meshio import read_mesh, write_mesh
 from pdeface.landmarks import MissingDependencyError, available, detect
 from pdeface.landmarks import detector as detector_module
@@ -21,6 +20,7 @@ from pdeface.landmarks.facemap import (
 )
 from pdeface.landmarks.render import View, back_project, rasterise, shade
 from pdeface.mesh import Mesh
+from pdeface.rigid import rotation_vector_matrix
 from pdeface.surface.frame import BLENDER_FROM_ICT
 
 needs_mediapipe = pytest.mark.skipif(not available(), reason='needs pip install "pdeface[landmarks]"')

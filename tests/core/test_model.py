@@ -4,8 +4,8 @@ import zipfile
 
 import numpy as np
 import pytest
+from pdeface.au.modelfile import load_model, save_model
 from pdeface.errors import ModelFormatError
-from pdeface.io.modelfile import load_model, save_model
 
 
 def test_roundtrip_and_size(tmp_path, fitted):
@@ -104,7 +104,7 @@ def test_version_2_files_still_load_as_one_sheet(tmp_path, fitted):
     """Version 2: bent curves but no openings, so the smooth assembly has no break."""
     import copy
 
-    from pdeface.surface.fit import surface_grid
+    from pdeface.surface.grid import surface_grid
 
     model, _ = fitted
     assert model.layout.breaks()  # the default layout has the mouth's break

@@ -3,7 +3,7 @@ import json
 
 import numpy as np
 import pytest
-from pdeface.assets import load_face
+from pdeface.au.modelfile import load_face
 from pdeface.errors import LandmarkError, ModelFormatError, PdeFaceError
 from pdeface.muscles.aus import MuscleBasis, MuscleTable, activation_vector, mix_activations, parse_table, table_to_json
 from pdeface.muscles.model import Jaw, LinearMuscle, Sheet, Sphincter
@@ -60,7 +60,7 @@ def test_the_24_muscles_placed_on_the_default_face():
     right, left = muscles[MUSCLE_NAMES.index("zygomatic_major_R")], muscles[MUSCLE_NAMES.index("zygomatic_major_L")]
     assert right.insertion[0] < 0 < left.insertion[0]  # the subject's right is −x
     np.testing.assert_allclose(right.head * [-1, 1, 1], left.head, atol=3.0)  # a near-symmetric face
-    from pdeface.surface.fit import surface_grid
+    from pdeface.surface.grid import surface_grid
     skin = surface_grid(face, 2, 2).reshape(-1, 3)
     for m in muscles:
         if m.kind == "linear" and m.head[1] < skin[:, 1].max() - 10:  # (the frontalis' are above the face)
@@ -189,8 +189,8 @@ def run(capsys, *args):
 
 
 def test_bundled_table_and_the_muscle_aus_of_the_default_face():
-    from pdeface.au.expressions import PRESETS, resolve_preset
     from pdeface.muscles.aus import AUTHORED, load_table
+    from pdeface.presets import PRESETS, resolve_preset
 
     table = load_table()
     face = load_face("default")
@@ -235,8 +235,9 @@ def test_the_wink_is_one_eyes_blink_with_its_lids_tightened():
 
 
 def test_muscle_mixers_pose_a_face_through_pose_curves():
-    from pdeface.au.expressions import mix, pose_curves
+    from pdeface.au.expressions import mix
     from pdeface.muscles.aus import load_table
+    from pdeface.posing import pose_curves
 
     face = load_face("default")
     table = load_table()

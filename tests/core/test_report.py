@@ -1,5 +1,5 @@
 import numpy as np
-from pdeface.surface.fit import grid_faces
+from pdeface.surface.grid import grid_faces
 from pdeface.surface.report import PIT_DEPTH_MM, _in_pit, weighted_percentile
 
 AXIS_Z = -100.0
@@ -45,9 +45,9 @@ def test_api_and_cli_measure_the_same_skin_on_a_head_with_separate_parts(tmp_pat
     # skin behind it, as it would from a camera), and agree.
     import json
 
+    from pdeface.au.modelfile import load_model, save_model
     from pdeface.cli import main
     from pdeface.io.meshio import read_mesh, write_obj
-    from pdeface.io.modelfile import load_model, save_model
     from pdeface.mesh import Mesh
     from pdeface.surface.report import accuracy_report
     mesh, T, idx = scan

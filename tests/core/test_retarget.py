@@ -1,8 +1,9 @@
 import numpy as np
 import pytest
-from pdeface.assets import load_face, load_ict_shapes
+from pdeface.assets import load_ict_shapes
 from pdeface.au.aureport import MotionProbe
 from pdeface.au.ict import au_offsets
+from pdeface.au.modelfile import load_face
 from pdeface.au.retarget import face_size, gap_factors, narrowed, retarget
 from pdeface.errors import PdeFaceError
 from pdeface.surface.fit import fit_face
@@ -76,7 +77,7 @@ def test_a_narrow_gap_shrinks_the_relative_motion_across_it():
 def test_retargeting_keeps_curves_apart_where_the_target_converges(scan, tmp_path):
     """Identity012's curves above the upper lip converge to half the default face's spacing: AU28 retargeted by
     curve index moved them past each other (26 folds), the gap rule leaves none and captures as much."""
-    from pdeface.au.expressions import pose_curves
+    from pdeface.posing import pose_curves
     from pdeface.surface.fit import face_mesh
     from pdeface.surface.folds import fold_edges
 
@@ -100,8 +101,8 @@ def test_retargeting_keeps_curves_apart_where_the_target_converges(scan, tmp_pat
     assert folds[0] > 15 and folds[1] == 0  # measured 26 -> 0
     assert captured[1] >= captured[0] - 0.005
     # the command line does the same, and --no-spacing the plain retarget
+    from pdeface.au.modelfile import save_model
     from pdeface.cli import main
-    from pdeface.io.modelfile import save_model
 
     save_model(tmp_path / "t.npz", target)
     def motion(model):  # AU28's curve point motion (K, J, 3)

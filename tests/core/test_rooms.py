@@ -164,3 +164,62 @@ def test_every_package_is_in_the_distribution():
     found = {".".join(p.parent.relative_to(ROOT / "core").parts) for p in CORE.rglob("__init__.py")}
     assert found <= listed, f"add {sorted(found - listed)} to pyproject.toml's packages"
     assert {"pdeface.bundled", "pdeface_blender"} <= listed  # the assets and the add-on travel too
+
+
+#: The core's rooms (packages and top-level modules), stacked: a room may import only rooms on floors
+#: below its own. The package docstring (``pdeface/__init__.py``) describes the same order.
+FLOORS = [
+    ["errors"],
+    ["geometry", "landmark_scheme", "facs", "rigid"],
+    ["mesh"],
+    ["assets", "io"],
+    ["presets"],
+    ["surface"],
+    ["au"],
+    ["muscles"],
+    ["posing"],
+    ["stream"],
+    ["animation"],
+    ["head"],
+    ["fdt"],
+    ["landmarks"],
+    ["cli"],
+]
+
+
+def room_imports():
+    """``{room: {imported room: [file:line, ...]}}`` over every import in the core, inside functions too."""
+    rooms = {}
+    for path in sorted(CORE.rglob("*.py")):
+        rel = path.relative_to(CORE)
+        if rel == Path("__init__.py"):
+            continue  # the package's face: it imports its rooms lazily, by name
+        room = rel.parts[0].removesuffix(".py")
+        package = ["pdeface", *rel.parts[:-1]]
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Import):
+                targets = [a.name for a in node.names]
+            elif isinstance(node, ast.ImportFrom):
+                base = package[:len(package) - node.level + 1] if node.level else []
+                module = ".".join(base + ([node.module] if node.module else []))
+                targets = [module] if node.module else [f"{module}.{a.name}" for a in node.names]
+            else:
+                continue
+            for target in targets:
+                parts = target.split(".")
+                if parts[0] != "pdeface" or len(parts) < 2 or parts[1] == "__version__":
+                    continue
+                if parts[1] != room:
+                    rooms.setdefault(room, {}).setdefault(parts[1], []).append(f"{rel}:{node.lineno}")
+    return rooms
+
+
+def test_the_rooms_stack_with_no_arrow_back_up_and_no_circle():
+    floor = {room: i for i, names in enumerate(FLOORS) for room in names}
+    found = {p.name.removesuffix(".py") for p in CORE.iterdir() if p.name != "__init__.py" and
+             (p.suffix == ".py" or (p / "__init__.py").exists())}
+    assert found == set(floor), f"place every room on a floor: {sorted(found ^ set(floor))}"
+    back_up = [f"{room} -> {target} ({', '.join(where)})" for room, targets in room_imports().items()
+               for target, where in targets.items() if floor[target] >= floor[room]]
+    # an arrow to the same floor or up would be the start of a circle: none
+    assert back_up == []

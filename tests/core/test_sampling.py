@@ -3,8 +3,9 @@ import numpy as np
 import pytest
 from pdeface.errors import MeshError, ModelFormatError
 from pdeface.surface import sampling
-from pdeface.surface.fit import face_mesh, surface_grid
+from pdeface.surface.fit import face_mesh
 from pdeface.surface.folds import fold_edges
+from pdeface.surface.grid import surface_grid
 from pdeface.surface.sampling import (
     known_resolution,
     mesh_resolution,
@@ -40,7 +41,7 @@ def test_the_default_adds_steps_where_the_face_creases(model):
     """On even 4 steps, AU18 (lip pucker) turns 12 edges beside the nose wings and lips by more than 30°: the
     surface is smooth there, its mesh is not fine enough (8 steps halve the turn). The default gives those
     intervals more steps and the flat forehead fewer: none over 30°, in fewer vertices than the even mesh."""
-    from pdeface.au.expressions import pose_curves
+    from pdeface.posing import pose_curves
     from pdeface.surface.model import model_landmarks
 
     rows, cols = mesh_resolution(model)
@@ -62,7 +63,7 @@ def test_the_default_adds_steps_where_the_face_creases(model):
 def test_a_model_file_keeps_its_steps(model, tmp_path, monkeypatch):
     """The bundled face carries its steps (build_assets.py); a model saved after they were chosen carries them
     too and reads back without choosing again; other descriptors are another model, chosen for afresh."""
-    from pdeface.io.modelfile import load_model, save_model
+    from pdeface.au.modelfile import load_model, save_model
 
     steps = known_resolution(model)
     assert steps is not None  # read from the file
@@ -80,7 +81,7 @@ def test_the_bundled_steps_are_the_current_choice(model):
     """default_face.npz's steps are what the choice gives now (build_assets.py keeps them current)."""
     sampling._CHOSEN.clear()
     assert sampling.adaptive_resolution(model) == mesh_resolution(model)
-    from pdeface.assets import load_face
+    from pdeface.au.modelfile import load_face
     assert known_resolution(load_face("default")) == mesh_resolution(model)
 
 
@@ -99,7 +100,7 @@ def test_resolutions_as_text_and_their_errors(model, tmp_path):
     import io
     import json
 
-    from pdeface.io.modelfile import model_from_bytes, model_to_bytes
+    from pdeface.au.modelfile import model_from_bytes, model_to_bytes
     data = dict(np.load(io.BytesIO(model_to_bytes(model))))
     meta = json.loads(bytes(data["meta"]))
     meta["mesh_steps"] = [[4], [4]]
@@ -113,7 +114,8 @@ def test_resolutions_as_text_and_their_errors(model, tmp_path):
 def test_the_bundled_face_has_no_fold_in_any_pose(model):
     """What *Add Default Face* and ``pdeface pose default`` mesh: no edge over 30° outside the openings at rest, in
     any AU at weight 1 or any preset (83 poses; largest turn measured 22.7°, AU11)."""
-    from pdeface.au.expressions import every_pose, pose_curves
+    from pdeface.posing import pose_curves
+    from pdeface.presets import every_pose
     from pdeface.surface.model import model_landmarks
 
     rest, L = face_mesh(model), model_landmarks(model)

@@ -2,10 +2,10 @@ import json
 
 import numpy as np
 import pytest
+from pdeface.animation.timeline import load_timeline, save_timeline, sequence_timeline, timeline_from_json
+from pdeface.animation.trackers import ARKIT_TO_AU, detect_format, import_au, reduce_keys, smooth
 from pdeface.cli import main
 from pdeface.errors import ModelFormatError
-from pdeface.io.timeline import load_timeline, save_timeline, sequence_timeline, timeline_from_json
-from pdeface.io.trackers import ARKIT_TO_AU, detect_format, import_au, reduce_keys, smooth
 
 GOOD = {"format": "pdeface.timeline", "version": 1, "fps": 10, "frame_start": 1,
         "keys": [{"time": 0, "aus": {}}, {"time": 0.5, "aus": {"AU12": 0.8, "6": "C"}, "interpolation": "linear"},

@@ -12,8 +12,10 @@ from __future__ import annotations
 import numpy as np
 
 from ..geometry import ClosestPoint
-from ..surface.fit import grid_faces, surface_grid
+from ..surface.grid import grid_faces, surface_grid
 from ..surface.report import REPORT_RESOLUTION, band_vertices
+from .descriptorfile import descriptor_to_bytes
+from .ict import AU_SHAPES, au_offsets
 
 #: Only vertices moving more than this (mm) are measured.
 MOTION_MM = 0.5
@@ -86,8 +88,6 @@ def au_report(model, scan_vertices, scan_triangles, shapes) -> dict:
         :meth:`MotionProbe.measure`) and ``bytes`` (binary descriptor size), for
         every descriptor whose AU ICT-FaceKit has shapes for.
     """
-    from ..io.descriptorfile import descriptor_to_bytes
-    from .ict import AU_SHAPES, au_offsets
 
     probe = MotionProbe(model, scan_vertices, scan_triangles)
     result = {}

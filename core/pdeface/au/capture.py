@@ -10,6 +10,10 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import LandmarkError, PdeFaceError
+from ..geometry import similarity
+from ..landmark_scheme import FEATURE_NAMES
+from ..surface.curves import project_samples
+from ..surface.frame import feature_points
 from .descriptor import Descriptor, descriptor_from_points
 
 #: Feature points each AU group moves (the method's Table 5-6 idea); the others anchor the alignment.
@@ -30,7 +34,6 @@ def moved_features(au: int) -> list:
 
 def rigid_align(src: np.ndarray, dst: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
     """Rotation R and translation t minimising |R src + t - dst|; and the RMS residual."""
-    from ..geometry import similarity
 
     _, R, t = similarity(src, dst, scale=False)
     rms = float(np.sqrt(((src @ R.T + t - dst) ** 2).sum(1).mean()))
@@ -49,7 +52,6 @@ def align_to_neutral(model, au_vertices, au_landmarks, au: int, max_rms_mm: floa
         When the alignment residual exceeds ``max_rms_mm``: not the same
         person, or landmarks in another order.
     """
-    from ..surface.frame import FEATURE_NAMES, feature_points
 
     F_au = model.frame.to_face(feature_points(au_landmarks))
     moved = set(moved_features(au))
@@ -84,7 +86,6 @@ def fit_descriptor(model, sampler, neutral_vertices, au_vertices, au, side="both
     else:
         if au_landmarks is None:
             raise LandmarkError("an AU mesh of another topology needs its own 68 landmarks for the alignment")
-        from ..surface.curves import project_samples
 
         Vf = align_to_neutral(model, au_vertices, au_landmarks, au)
         au_points = project_samples(neutral_points, Vf, np.asarray(au_triangles), sampler.status,

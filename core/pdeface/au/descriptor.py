@@ -6,7 +6,7 @@ mm). Curves it does not move hold nothing. The face with AUs is
 ``solve(neutral + Σ wᵢ Dᵢ)``; the solve is linear, so a descriptor is exactly a
 linear shape key.
 
-File formats: :mod:`pdeface.io.descriptorfile`; descriptors from scans:
+File formats: :mod:`pdeface.au.descriptorfile`; descriptors from scans:
 :mod:`pdeface.au.capture`.
 """
 from __future__ import annotations
@@ -16,8 +16,8 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..errors import PdeFaceError
-from ..surface.fourier import fit_fourier
-from .facs import SIDES, action_unit
+from ..facs import SIDES, action_unit
+from ..surface.fourier import evaluate_fourier, fit_fourier
 
 #: A curve is affected when one of its points moves more than this (mm); the
 #: same 0.5 mm below which the AU report does not count a vertex as moving.
@@ -79,7 +79,6 @@ class Descriptor:
 
     def points(self) -> np.ndarray:
         """Change of the affected curves' points (m, J, 3): series plus residual."""
-        from ..surface.fourier import evaluate_fourier
 
         pts = evaluate_fourier(self.coefficients, np.linspace(0, np.pi, self.layout[1]))
         return pts if self.residual is None else pts + self.residual

@@ -12,7 +12,10 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import PdeFaceError
-from .facs import split_au_key
+from ..facs import split_au_key
+from ..io.files import load_json
+from ..io.meshio import read_obj
+from ..mesh import Mesh
 
 FACE_VERTICES = 9409  # ICT "Face" region: vertices 0-9408
 FACE_POLYGONS = 9230  # and polygons 0-9229
@@ -119,7 +122,6 @@ class IctFolder:
     """An ICT-FaceKit folder: the neutral face region, landmarks, shapes as offsets (cm)."""
 
     def __init__(self, path):
-        from ..io.meshio import read_obj
 
         self.path = Path(path)
         if not (self.path / "generic_neutral_mesh.obj").exists():
@@ -127,7 +129,6 @@ class IctFolder:
         self._read_obj = read_obj
         head = read_obj(self.path / "generic_neutral_mesh.obj")
         self.vertices, self.faces, self.uvs, self.face_uvs = face_region(head)
-        from ..io.files import load_json
 
         data = load_json(self.path / "vertex_indices.json", PdeFaceError)
         try:
@@ -147,7 +148,6 @@ class IctFolder:
 
     def triangles(self) -> np.ndarray:
         """The face region's triangles."""
-        from ..mesh import Mesh
 
         return Mesh.from_faces(self.vertices, self.faces).triangles()[0]
 

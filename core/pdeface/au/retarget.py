@@ -23,8 +23,8 @@ import numpy as np
 
 from ..errors import PdeFaceError
 from ..geometry import smoothstep
+from ..landmark_scheme import FEATURE_NAMES
 from ..surface.fourier import fit_fourier
-from ..surface.frame import FEATURE_NAMES
 
 SCALINGS = ("face", "none")
 

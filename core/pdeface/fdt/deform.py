@@ -13,8 +13,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..au.descriptor import descriptor_from_points
 from ..errors import MeshError, PdeFaceError
+from ..facs import au_number, key_side, normalise_weights, parse_au_key
+from ..mesh import vertex_normals
+from ..posing import pose_curves
+from ..presets import PRESETS
+from ..surface.fit import skin_vertices
+from ..surface.fourier import fit_fourier
+from ..surface.grid import surface_grid
+from ..surface.layout import ANCHOR_NAMES
 from ..surface.model import model_landmarks
+from ..surface.report import REPORT_RESOLUTION
 from . import quadratic, regions
 from .regions import N_REGIONS, REGIONS, PupilFrame, assign_regions, opening_sides, region_weights
 from .table import FDT
@@ -30,7 +40,6 @@ RANGE_SIGMAS = 1.0
 
 
 def _facing(V, T, frame: PupilFrame) -> np.ndarray:
-    from ..mesh import vertex_normals
 
     return (vertex_normals(V, T) @ frame.rotation[2]) >= FACING_MIN
 
@@ -65,7 +74,6 @@ class NeutralFace:
     """
 
     def __init__(self, vertices, triangles=None, landmarks=None, skin=None, keep=None, blend=None):
-        from ..surface.fit import skin_vertices
 
         V = np.asarray(vertices, np.float64)
         if V.ndim != 2 or V.shape[1] != 3 or not np.isfinite(V).all():
@@ -128,15 +136,12 @@ def fit_fdt(neutral_vertices, posed_vertices, triangles, landmarks, model="3d", 
 
 
 def _grid(model, coefficients=None, residual=None):
-    from ..surface.fit import surface_grid
-    from ..surface.report import REPORT_RESOLUTION
 
     return surface_grid(model, *REPORT_RESOLUTION, coefficients=coefficients, residual=residual).reshape(-1, 3)
 
 
 def fit_fdt_model(face, weights, model="3d", mixer="sum", name="", neutral=None) -> FaceFit:
     """The FDT of a face model posed with AU ``weights``: its PDE surface, neutral against posed."""
-    from ..au.expressions import pose_curves
 
     neutral = NeutralFace.of_model(face) if neutral is None else neutral
     C, R = pose_curves(face, weights, mixer)
@@ -159,7 +164,6 @@ def curve_sides(layout, sides) -> np.ndarray:
     """Opening sides (n, 2) of a layout's curve points, read off the curves: the rim curves of a
     closed eye or mouth lie 0.1 mm apart, too close to tell by height. ``sides`` (from
     :func:`~pdeface.fdt.regions.opening_sides`) says which points lie within an opening's span."""
-    from ..surface.layout import ANCHOR_NAMES
 
     K, J = layout.n_curves, layout.n_points
     out = np.asarray(sides).reshape(K, J, -1).copy()
@@ -190,15 +194,12 @@ def fdt_curve_displacement(face, fdt: FDT, weight=1.0, blend=None) -> np.ndarray
 def fdt_curves(face, fdt: FDT, weight=1.0, blend=None) -> tuple[np.ndarray, np.ndarray]:
     """Change of ``face``'s curve coefficients and residual (K, N+1, 3), (K, J, 3) an FDT causes:
     the Fourier fit of :func:`fdt_curve_displacement` (linear, so a shape key)."""
-    from ..surface.fourier import fit_fourier
 
     return fit_fourier(fdt_curve_displacement(face, fdt, weight, blend), face.n_modes)
 
 
 def fdt_descriptor(face, fdt: FDT):
     """An AU's FDT (named by its AU key, ``"12"``, ``"12L"``) on ``face`` as a descriptor (source ``fdt``)."""
-    from ..au.descriptor import descriptor_from_points
-    from ..au.facs import key_side
 
     try:
         au, side = key_side(fdt.name)
@@ -211,8 +212,6 @@ def fdt_descriptor(face, fdt: FDT):
 
 def fdt_aus(name) -> list:
     """AU numbers an FDT's name stands for: its AU key's, or a basic expression's AUs."""
-    from ..au.expressions import PRESETS, normalise_weights
-    from ..au.facs import au_number, parse_au_key
 
     if name in PRESETS:
         return [au_number(k) for k in normalise_weights(PRESETS[name].weights)]

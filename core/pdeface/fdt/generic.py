@@ -8,8 +8,9 @@ assets; ``scripts/bench_fdt.py`` measures them on identities left out.
 """
 from __future__ import annotations
 
-from ..au.expressions import BASIC_EXPRESSIONS, PRESETS, normalise_weights
 from ..au.ict import AU_SHAPES, NOTICE_SHORT, au_offsets, weights_offsets
+from ..facs import normalise_weights
+from ..presets import BASIC_EXPRESSIONS, PRESETS
 from .deform import NeutralFace
 from .table import generic
 

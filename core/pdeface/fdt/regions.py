@@ -25,6 +25,7 @@ import numpy as np
 
 from ..errors import LandmarkError
 from ..geometry import smoothstep
+from ..landmark_scheme import CHIN, NOSE_BRIDGE_TOP, eye_centres
 
 
 @dataclass(frozen=True)
@@ -138,13 +139,13 @@ class PupilFrame:
         need = [8, 27, *range(36, 48)]
         if L.shape != (68, 3) or not np.isfinite(L[need]).all():
             raise LandmarkError("the pupil frame needs 68 landmarks (x, y, z) with the eyes, nose bridge and chin")
-        p1, p2 = L[36:42].mean(0), L[42:48].mean(0)
+        p1, p2 = eye_centres(L)
         x = p2 - p1
         half = np.linalg.norm(x) / 2
         if not half > 0:
             raise LandmarkError("the two pupils coincide: cannot normalise")
         x /= 2 * half
-        up = L[27] - L[8]
+        up = L[NOSE_BRIDGE_TOP] - L[CHIN]
         y = up - x * (up @ x)
         if not np.linalg.norm(y) > 1e-9 * np.linalg.norm(up):
             raise LandmarkError("the chin-to-nose-bridge line is parallel to the eye line")

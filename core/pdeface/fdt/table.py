@@ -21,11 +21,15 @@ from __future__ import annotations
 
 import json
 import math
+import os
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
+from ..assets import GENERIC_FDTS, asset_path
 from ..errors import ModelFormatError, PdeFaceError
+from ..io.files import parse_json, read_bytes, write_bytes
 from .quadratic import MODELS, PARAMETERS
 from .regions import N_REGIONS
 
@@ -190,7 +194,6 @@ def read_fdts(path) -> list:
     """Every FDT in a ``.fdt.json`` file or bundle (``.gz``: gzip-compressed)."""
     import gzip
 
-    from ..io.files import parse_json, read_bytes
 
     data = read_bytes(path)
     if str(path).endswith(".gz"):
@@ -213,7 +216,6 @@ def read_fdt(path) -> FDT:
 def write_fdts(path, tables) -> int:
     """Write one FDT or a bundle (atomically); returns the bytes written. ``.csv`` writes Table I,
     ``.gz`` compresses."""
-    from ..io.files import write_bytes
 
     tables = list(tables)
     if str(path).lower().endswith(".csv"):
@@ -227,3 +229,25 @@ def write_fdts(path, tables) -> int:
         import gzip
         data = gzip.compress(data, mtime=0)
     return write_bytes(path, data)
+
+
+#: The paper's Table I (its generic smile FDT, 2-D), shipped with the package's data.
+PAPER_SMILE = "paper-smile"
+
+
+def load_generic_fdts(model: str = "3d") -> dict:
+    """The bundled generic FDTs of one model: name (AU key or basic expression) → FDT, and the paper's smile."""
+    out = {t.name: t for t in read_fdts(asset_path(GENERIC_FDTS)) if t.model == model}
+    if model == "2d":
+        out[PAPER_SMILE] = read_fdt(Path(__file__).resolve().parent.parent / "data" / "paper_smile.fdt.json")
+    return out
+
+
+def load_fdt(arg, model: str = "3d"):
+    """An FDT from a file, or a bundled one by name (``happy``, ``12L``, ``paper-smile``)."""
+    if Path(str(arg)).suffix in (".json", ".gz") or os.sep in str(arg):
+        return read_fdt(arg)
+    tables = load_generic_fdts("2d" if arg == PAPER_SMILE else model)
+    if arg not in tables:
+        raise PdeFaceError(f"{arg!r} is neither an FDT file nor a bundled FDT ({model}: {', '.join(sorted(tables))})")
+    return tables[arg]

@@ -18,7 +18,7 @@ motion to all of the user's mesh, once per fit:
   The README lists what else was tried and measured;
 - **jaw AUs** (25, 26, 27, 29, 30) turn the jaw's parts (lower teeth, gums,
   tongue) about the hinge with the rotation recovered from the chin's own PDE
-  motion (:mod:`pdeface.head.rigid`);
+  motion (:mod:`pdeface.rigid`);
 - **gaze AUs** (61-64) turn the eyeballs about their fitted centres;
 - **attached parts** (lashes, brows, hair cards, lacrimal meshes) ride on their
   nearest skin vertex, turning with its normal;
@@ -32,11 +32,19 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import MeshError
-from ..surface.fit import grid_faces, surface_grid
+from .. import landmark_scheme
+from ..errors import MeshError, PdeFaceError
+from ..facs import au_number, normalise_weights
+from ..geometry import ClosestPoint, triangle_cross, unit_rows
+from ..landmark_scheme import CHIN, JAW_LEFT_ANGLE, JAW_RIGHT_ANGLE, LIP_LOWER_BOTTOM, LIP_MIDDLES, NOSE_BOTTOM
+from ..mesh import connected_components, cotan_laplacian, seam_welds, vertex_normals
+from ..posing import pose_curves
+from ..rigid import JAW_BONE_GAIN, gaze_matrix, jaw_hinge, jaw_motion, rigid_displacement, rotation_vector_matrix
+from ..surface.grid import grid_faces, surface_grid
 from ..surface.model import KEPT_LANDMARKS
-from .parts import classify_parts, eye_distance_mm, mouth_line
-from .rigid import JAW_BONE_GAIN, gaze_matrix, jaw_hinge, jaw_motion, rigid_displacement, rotation_vector_matrix
+from ..surface.scan import load_scan
+from .parts import TOUCH_IOD, classify_parts, mouth_line, read_overrides
+from .prior import load_head_prior
 
 #: The PDE face as the binding reads it: between an opening's rims the runs carry their own motion into the
 #: strip (the break piece at their full slope), so skin hidden behind a lip or lid follows its rim, while the
@@ -89,22 +97,21 @@ class _Extension:
         return self.read @ G, free
 
 
-def _check_on_skin(Lf, skin_points, s):
+def _check_on_skin(Lf, skin_points, eye_distance):
     """Refuse landmarks off the skin (a model fitted on another mesh, landmarks inside the head)."""
     from scipy.spatial import cKDTree
 
     off = cKDTree(skin_points).query(Lf[np.isfinite(Lf).all(axis=1)])[0]
-    if np.median(off) > 0.05 * s or off.max() > 0.3 * s:
+    if np.median(off) > 0.05 * eye_distance or off.max() > 0.3 * eye_distance:
         raise MeshError(f"the landmarks do not lie on skin (median {np.median(off):.3g} mm off it, the worst "
                         f"{off.max():.3g} mm): was the face fitted on this head, in this unit, with landmarks "
                         "on its face (not inside it)?")
 
 
-def _read_pde(model, P, N, s, resolution):
+def _read_pde(model, P, N, eye_distance, resolution):
     """Which skin points the PDE face covers, and the sparse map reading its grid at their closest points."""
     from scipy.spatial import cKDTree
 
-    from ..geometry import ClosestPoint, triangle_cross, unit_rows
 
     X0 = surface_grid(model, *resolution, break_slope=READ_BREAK_SLOPE, confine=False)
     nu, nv, _ = X0.shape
@@ -113,7 +120,7 @@ def _read_pde(model, P, N, s, resolution):
     Tp = np.concatenate([Q[:, [0, 1, 2]], Q[:, [0, 2, 3]]])
     # Only skin near the grid can be under it (the back of a head, a body: skip the exact query).
     edge = np.linalg.norm(X0[Tp[:, 0]] - X0[Tp[:, 1]], axis=1).max()
-    near = cKDTree(X0).query(P, distance_upper_bound=COVER_IOD * s + edge)[0] < np.inf
+    near = cKDTree(X0).query(P, distance_upper_bound=COVER_IOD * eye_distance + edge)[0] < np.inf
     dist, tri, bary = np.full(len(P), np.inf), np.zeros(len(P), np.int64), np.zeros((len(P), 3))
     if near.any():
         dist[near], tri[near], bary[near], _ = ClosestPoint(X0, Tp).query(P[near])
@@ -123,50 +130,49 @@ def _read_pde(model, P, N, s, resolution):
     for k in model.layout.breaks():  # the strip between the rims is no skin: what lies under it follows its rim
         inside &= ~((r.min(1) >= k * sub_u) & (r.max(1) <= (k + 1) * sub_u))
     n_pde = unit_rows(triangle_cross(X0, Tp[tri]))
-    covered = inside & (dist < COVER_IOD * s) & ((N * n_pde).sum(1) > COVER_COS)
+    covered = inside & (dist < COVER_IOD * eye_distance) & ((N * n_pde).sum(1) > COVER_COS)
     if covered.sum() < 100:
         raise MeshError(f"only {int(covered.sum())} skin vertices lie under the PDE face: "
                         "was the model fitted on this mesh, in this unit?")
     return covered, _barycentric_matrix(Tp[tri[covered]], bary[covered], len(X0))
 
 
-def _rest_region(P, Ts, covered, from_covered, Lf, s):
+def _rest_region(P, Ts, covered, from_covered, Lf, eye_distance):
     """Skin that never moves: far from the covered skin (``from_covered``: distances to it), well below the
     chin, or in a piece it misses."""
-    from ..mesh import connected_components
 
-    far = from_covered > REST_IOD * s
+    far = from_covered > REST_IOD * eye_distance
     lab = connected_components(len(P), Ts)
-    return ((far | _below_chin(P, Lf, s)) & ~covered) | ~np.isin(lab, np.unique(lab[covered]))
+    return ((far | _below_chin(P, Lf, eye_distance)) & ~covered) | ~np.isin(lab, np.unique(lab[covered]))
 
 
-def _below_chin(X, Lf, s):
-    return X[:, 1] < Lf[8, 1] - BELOW_CHIN_IOD * s
+def _below_chin(X, Lf, eye_distance):
+    return X[:, 1] < Lf[CHIN, 1] - BELOW_CHIN_IOD * eye_distance
 
 
-def _prior_reach(Vf, from_covered, skin_rest, Lf, s):
+def _prior_reach(Vf, from_covered, skin_rest, Lf, eye_distance):
     """How much of the head prior each vertex takes: none in the rest region (``skin_rest``: its vertex
     indices) nor below the chin's rest line, fading in over the last PRIOR_FADE of the way to the rest
     region (no step where it starts)."""
-    reach = np.clip((REST_IOD * s - from_covered) / (PRIOR_FADE * REST_IOD * s), 0, 1)
+    reach = np.clip((REST_IOD * eye_distance - from_covered) / (PRIOR_FADE * REST_IOD * eye_distance), 0, 1)
     reach = reach * reach * (3 - 2 * reach)
     reach[skin_rest] = 0.0
-    reach[_below_chin(Vf, Lf, s)] = 0.0
+    reach[_below_chin(Vf, Lf, eye_distance)] = 0.0
     return reach
 
 
-def _depths(P, covered, Lf, s, eyes):
+def _depths(P, covered, Lf, eye_distance, eyes):
     """The mouth's depths (lining, throat) and the orbits behind the eyeballs: left at rest.
 
     The lips' motion would otherwise spread through the whole mouth (ICT-FaceKit's truth fades).
     """
-    lips_z = Lf[[51, 57, 62, 66], 2].max()
-    inside = ~covered & (np.abs(P[:, 0]) < 0.6 * s) & (P[:, 1] < Lf[33, 1])
-    depths = inside & (P[:, 2] < lips_z - MOUTH_DEPTH_IOD * s) & (P[:, 1] > Lf[8, 1])
-    depths |= (inside & (P[:, 2] < lips_z - UPPER_LINING_IOD * s)
-               & (P[:, 1] > mouth_line(Lf) + UPPER_LINING_RISE_IOD * s))
+    lips_z = Lf[LIP_MIDDLES, 2].max()
+    inside = ~covered & (np.abs(P[:, 0]) < 0.6 * eye_distance) & (P[:, 1] < Lf[NOSE_BOTTOM, 1])
+    depths = inside & (P[:, 2] < lips_z - MOUTH_DEPTH_IOD * eye_distance) & (P[:, 1] > Lf[CHIN, 1])
+    depths |= (inside & (P[:, 2] < lips_z - UPPER_LINING_IOD * eye_distance)
+               & (P[:, 1] > mouth_line(Lf) + UPPER_LINING_RISE_IOD * eye_distance))
     for centre, radius in eyes.values():
-        depths |= ~covered & (np.linalg.norm(P - centre, axis=1) < radius + 0.1 * s) & (P[:, 2] < centre[2])
+        depths |= ~covered & (np.linalg.norm(P - centre, axis=1) < radius + 0.1 * eye_distance) & (P[:, 2] < centre[2])
     return depths
 
 
@@ -194,7 +200,6 @@ class HeadBinding:
         from scipy.sparse import csr_matrix
         from scipy.spatial import cKDTree
 
-        from ..mesh import connected_components, cotan_laplacian, seam_welds, vertex_normals
 
         V = np.asarray(vertices, np.float64)
         T = np.asarray(triangles, np.int64)
@@ -219,8 +224,8 @@ class HeadBinding:
         else:
             raise MeshError("this face model carries no landmarks (made by pdeface 0.1): give the head's landmarks "
                             "or refit the face")
-        self.s = s = eye_distance_mm(Lf)
-        self.hinge = jaw_hinge(Lf, s)
+        self.eye_distance = eye_distance = landmark_scheme.eye_distance(Lf)
+        self.hinge = jaw_hinge(Lf, eye_distance)
         self.parts = parts = classify_parts(Vf, T, Lf, self.hinge, overrides)
         # Seam copies take their vertex's kind and, in the end, its motion; nothing else counts them.
         self._copies = np.nonzero(rep != np.arange(len(V)))[0]
@@ -235,7 +240,7 @@ class HeadBinding:
         self.skin = si = np.nonzero(skin)[0]
         if len(si) == 0:
             raise MeshError("no skin: the landmarks lie on no part of this mesh")
-        _check_on_skin(Lf, Vf[si], s)
+        _check_on_skin(Lf, Vf[si], eye_distance)
         local = np.full(len(V), -1)
         local[si] = np.arange(len(si))
         Ts = local[T[skin[T].all(axis=1)]]
@@ -243,11 +248,11 @@ class HeadBinding:
             raise MeshError("the skin has no triangles")
         P = Vf[si]
         self.skin_normals = vertex_normals(P, Ts)
-        covered, self.read_grid = _read_pde(model, P, self.skin_normals, s, resolution)
+        covered, self.read_grid = _read_pde(model, P, self.skin_normals, eye_distance, resolution)
         self.covered = covered
         from_covered = cKDTree(P[covered]).query(Vf)[0]  # every vertex's distance to the covered skin
-        self.rest = rest = _rest_region(P, Ts, covered, from_covered[si], Lf, s)
-        depths = _depths(P, covered, Lf, s, parts.eyes)
+        self.rest = rest = _rest_region(P, Ts, covered, from_covered[si], Lf, eye_distance)
+        depths = _depths(P, covered, Lf, eye_distance, parts.eyes)
         self._L = L = cotan_laplacian(P, Ts)
         cov = np.nonzero(covered)[0]  # the grid read at every skin vertex (rows of the covered ones)
         self._read_skin = csr_matrix((np.ones(len(cov)), (cov, np.arange(len(cov)))),
@@ -257,8 +262,8 @@ class HeadBinding:
         self._ext_jaw = None  # factorised on first use
 
         # Jaw: the chin that drives it, and the parts it turns.
-        chin = covered & (P[:, 1] < Lf[57, 1] - 0.08 * s) & (np.abs(P[:, 0]) < abs(Lf[5, 0] - Lf[11, 0]) / 2) \
-            & (P[:, 2] > min(Lf[5, 2], Lf[11, 2]))
+        chin = covered & (P[:, 1] < Lf[LIP_LOWER_BOTTOM, 1] - 0.08 * eye_distance) & (np.abs(P[:, 0]) < abs(Lf[JAW_RIGHT_ANGLE, 0] - Lf[JAW_LEFT_ANGLE, 0]) / 2) \
+            & (P[:, 2] > min(Lf[JAW_RIGHT_ANGLE, 2], Lf[JAW_LEFT_ANGLE, 2]))
         self.chin = chin if chin.sum() >= 10 else None
         if self.chin is None:
             self.notes.append("too little chin under the PDE face: jaw AUs move the skin only")
@@ -284,15 +289,13 @@ class HeadBinding:
         for name, (centre, radius) in parts.eyes.items():
             idx = np.nonzero(parts.mask(name) & original)[0]
             rho = np.linalg.norm(P - centre, axis=1)
-            guard = (rho >= radius) & (rho < radius + 0.15 * s) & (P[:, 2] > centre[2])
+            guard = (rho >= radius) & (rho < radius + 0.15 * eye_distance) & (P[:, 2] > centre[2])
             self.eyes[name] = (centre, radius, idx, np.nonzero(guard)[0])
 
         # What the PDE face and its extension miss, learned from scans; nothing in the rest region.
         self.prior = None
         if prior is not None:
             if isinstance(prior, str):
-                from ..assets import load_head_prior
-                from ..errors import PdeFaceError
 
                 try:
                     prior = load_head_prior()
@@ -300,8 +303,8 @@ class HeadBinding:
                     prior = None
                     self.notes.append(f"no head prior ({exc}): the skin beyond the PDE face follows its harmonic "
                                       "extension alone")
-            reach = _prior_reach(Vf, from_covered, si[rest], Lf, s) * original
-            self.prior = prior.on(model, Vf, parts.kind, reach, eye_mm=s) if prior is not None else None
+            reach = _prior_reach(Vf, from_covered, si[rest], Lf, eye_distance) * original
+            self.prior = prior.on(model, Vf, parts.kind, reach, eye_distance=eye_distance) if prior is not None else None
             if prior is not None and self.prior is None:
                 self.notes.append("the face's curve layout is not the head prior's: the skin beyond the PDE face "
                                   "follows its harmonic extension alone")
@@ -315,10 +318,9 @@ class HeadBinding:
         """
         from scipy.spatial import cKDTree
 
-        from .parts import TOUCH_IOD
 
         gap, nearest_skin = cKDTree(P).query(X)
-        roots = gap < TOUCH_IOD * self.s
+        roots = gap < TOUCH_IOD * self.eye_distance
         floating = ~np.isin(labels, np.unique(labels[roots]))
         roots |= floating
         # Parts far apart along a fourth axis: the nearest root is one of the same part.
@@ -417,7 +419,6 @@ class HeadBinding:
 
         ``out`` (n, k, 3): k motions of the head, the skin's set → (attached, k, 3).
         """
-        from ..geometry import triangle_cross, unit_rows
 
         k = out.shape[1]
         ring = self._ring_vertices
@@ -451,8 +452,6 @@ class HeadBinding:
 
     def pose_motion_args(self, weights, mixer) -> tuple:
         """``(delta_coefficients, delta_residual, jaw, gaze)`` of AU ``weights`` mixed by ``mixer``."""
-        from ..au.expressions import normalise_weights, pose_curves
-        from ..au.facs import au_number
 
         weights = normalise_weights(weights)
         C, R = pose_curves(self.model, weights, mixer)
@@ -467,7 +466,6 @@ class HeadBinding:
 
 def descriptor_motion_args(descriptor) -> tuple:
     """``(delta_coefficients, delta_residual, jaw, gaze)`` of one descriptor at weight 1."""
-    from ..au.facs import au_number
 
     au = au_number(descriptor.key)
     return (*descriptor.dense(), au in JAW_AUS, {au: 1.0} if au in GAZE_AUS else None)
@@ -476,8 +474,6 @@ def descriptor_motion_args(descriptor) -> tuple:
 def bind_file(model, mesh_arg, landmarks=None, parts=None):
     """``(mesh, binding)`` of the head ``mesh_arg`` (a file, ``head`` or ``default``) that ``model`` was
     fitted on; ``landmarks`` and ``parts`` are JSON files (the CLI's ``--landmarks``, ``--parts``)."""
-    from ..assets import load_scan
-    from .parts import read_overrides
 
     mesh, lm = load_scan(mesh_arg, landmarks)
     overrides = read_overrides(parts) if parts else None

@@ -34,6 +34,22 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import MeshError
+from ..io.files import load_json
+from ..landmark_scheme import (
+    CHIN,
+    LIP_LOWER_INNER,
+    LIP_MIDDLES,
+    LIP_UPPER_INNER,
+    MOUTH_CORNER_LEFT,
+    MOUTH_CORNER_RIGHT,
+    MOUTH_CORNERS,
+    NOSE_BOTTOM,
+    eye_distance,
+)
+from ..mesh import connected_components
+from ..rigid import jaw_hinge
+from ..surface.fit import skin_vertices
+from ..surface.frame import face_frame
 
 #: Part kinds, in the order of their integer codes.
 KINDS = ("skin", "follow", "eye_L", "eye_R", "jaw", "skull", "rest")
@@ -74,11 +90,7 @@ class Parts:
 
 def mouth_line(Lf) -> float:
     """Height (face frame) of the line between the lips: mouth corners and inner lip centres."""
-    return float(Lf[[48, 54, 62, 66], 1].mean())
-
-
-def eye_distance_mm(Lf) -> float:
-    return float(np.linalg.norm(Lf[42:48].mean(0) - Lf[36:42].mean(0)))
+    return float(Lf[[*MOUTH_CORNERS, LIP_UPPER_INNER, LIP_LOWER_INNER], 1].mean())
 
 
 def fit_sphere(P):
@@ -102,18 +114,16 @@ def classify_parts(Vf, T, Lf, hinge, overrides=None) -> Parts:
     Lf : (68, 3) array
         Landmarks in the face frame.
     hinge : (3,) array
-        The jaw hinge (see :func:`pdeface.head.rigid.jaw_hinge`).
+        The jaw hinge (see :func:`pdeface.rigid.jaw_hinge`).
     overrides : dict, optional
         Kind → vertex indices, applied last (see :func:`apply_overrides`).
     """
     from scipy.spatial import cKDTree
 
-    from ..mesh import connected_components
-    from ..surface.fit import skin_vertices
 
     n = len(Vf)
     lab = connected_components(n, T)
-    s = eye_distance_mm(Lf)
+    s = eye_distance(Lf)
     kind = np.full(n, CODE["rest"], np.int8)
 
     skin = skin_vertices(Vf, T, Lf[np.isfinite(Lf).all(axis=1)])  # a model file keeps some landmarks
@@ -147,7 +157,7 @@ def classify_parts(Vf, T, Lf, hinge, overrides=None) -> Parts:
     balls = {best_c for best_c in (int(lab[np.nonzero(kind == CODE[e])[0][0]]) for e in eyes)}
 
     ymouth = mouth_line(Lf)
-    lips_z = Lf[[51, 57, 62, 66], 2].max()
+    lips_z = Lf[LIP_MIDDLES, 2].max()
     half_width = 0.75 * s
     zcut = hinge[2] + JAW_CUT_IOD * s
     for c, m in members.items():
@@ -155,11 +165,11 @@ def classify_parts(Vf, T, Lf, hinge, overrides=None) -> Parts:
             continue
         P = Vf[m]
         ctr = P.mean(0)
-        in_mouth = (abs(ctr[0] - Lf[[48, 54], 0].mean()) < half_width and Lf[8, 1] < ctr[1] < Lf[33, 1]
+        in_mouth = (abs(ctr[0] - Lf[MOUTH_CORNERS, 0].mean()) < half_width and Lf[CHIN, 1] < ctr[1] < Lf[NOSE_BOTTOM, 1]
                     and lips_z - 2 * s < ctr[2] < lips_z)
         if in_mouth:
             spans = P[:, 1].min() < ymouth - 0.05 * s and P[:, 1].max() > ymouth + 0.05 * s
-            if spans and np.ptp(P[:, 0]) > 0.5 * abs(Lf[54, 0] - Lf[48, 0]):
+            if spans and np.ptp(P[:, 0]) > 0.5 * abs(Lf[MOUTH_CORNER_LEFT, 0] - Lf[MOUTH_CORNER_RIGHT, 0]):
                 lower = (P[:, 1] < ymouth) & (P[:, 2] > zcut)  # gums and tongue in one piece: per vertex
             else:
                 lower = np.full(len(m), ctr[1] < ymouth and ctr[2] > zcut)
@@ -205,12 +215,10 @@ def apply_overrides(parts: Parts, overrides: dict) -> None:
 
 def classify_mesh(vertices, triangles, landmarks, unit=None, overrides=None) -> Parts:
     """:func:`classify_parts` of a mesh in the user's space, from its 68 landmarks (no fitted face needed)."""
-    from ..surface.frame import face_frame
-    from .rigid import jaw_hinge
 
     frame = face_frame(landmarks, unit)
     Lf = frame.to_face(landmarks)
-    return classify_parts(frame.to_face(vertices), triangles, Lf, jaw_hinge(Lf, eye_distance_mm(Lf)), overrides)
+    return classify_parts(frame.to_face(vertices), triangles, Lf, jaw_hinge(Lf, eye_distance(Lf)), overrides)
 
 
 def overrides_of(parts: Parts) -> dict:
@@ -220,7 +228,6 @@ def overrides_of(parts: Parts) -> dict:
 
 def read_overrides(path) -> dict:
     """Part overrides from a JSON file (see :func:`parse_overrides`)."""
-    from ..io.files import load_json
 
     return parse_overrides(load_json(path, MeshError), str(path))
 

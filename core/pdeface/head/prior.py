@@ -37,8 +37,11 @@ from pathlib import Path
 
 import numpy as np
 
+from ..assets import ICT_HEAD_PRIOR, asset_path, load_head
+from ..au.retarget import face_size
 from ..errors import ModelFormatError
 from ..io.files import load_npz
+from .parts import CODE
 
 FORMAT = "pdeface.head-prior"
 #: Ridge weight λ relative to the mean squared norm of the samples' features. Measured on ICT's
@@ -109,7 +112,7 @@ class HeadPrior:
         lam = self.ridge * np.trace(G) / max(len(G), 1)
         return np.linalg.solve(G + lam * np.eye(len(G)), X)
 
-    def on(self, model, vertices, kind, reach=None, eye_mm=None):
+    def on(self, model, vertices, kind, reach=None, eye_distance=None):
         """The prior carried to a user's head; None when its face has another curve layout.
 
         Parameters
@@ -132,15 +135,13 @@ class HeadPrior:
         from scipy.sparse import csr_matrix
         from scipy.spatial import cKDTree
 
-        from ..au.retarget import face_size
-        from .parts import CODE
 
         X_user = model.curve_points()
         if X_user.shape[:2] != self.layout:
             return None
         ratio = face_size(model) / self.face_size
-        eye_mm = 65.0 if eye_mm is None else float(eye_mm)
-        near, far = NEAR_IOD * eye_mm, FAR_IOD * eye_mm
+        eye_distance = 65.0 if eye_distance is None else float(eye_distance)
+        near, far = NEAR_IOD * eye_distance, FAR_IOD * eye_distance
         s = WARP_STRIDE
         src, dst = X_user[::s, ::s].reshape(-1, 3), self.curve_points[::s, ::s].reshape(-1, 3)
         warp = _warp(src, dst)
@@ -284,3 +285,11 @@ def load_prior(path, head_vertices, head_triangles) -> HeadPrior:
     return HeadPrior(keys, F, residuals, V, np.asarray(head_triangles, np.int64), kind, C, size,
                      float(data.get("ridge", RIDGE)), str(data.get("notice", "")),
                      tuple(int(i) for i in data.get("identities", [])))
+
+
+@functools.lru_cache(maxsize=1)
+def load_head_prior():
+    """The bundled whole-head motion learned from ICT-FaceKit's head (:class:`HeadPrior`;
+    ``scripts/build_head_prior.py``). Shared: do not modify it."""
+    head, _ = load_head()
+    return load_prior(asset_path(ICT_HEAD_PRIOR), head.vertices, head.triangles()[0])

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..au.aureport import MOTION_MM, captured
-from ..au.facs import au_number
+from ..facs import au_number
 from .bind import GAZE_AUS
 
 #: Vertices moving less than this (mm) in the truth count as still, for the spill.

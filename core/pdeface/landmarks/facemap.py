@@ -27,6 +27,7 @@ import numpy as np
 
 from ..errors import LandmarkError
 from ..geometry import similarity
+from ..io.files import load_json, write_bytes
 
 MAP_FORMAT = "pdeface.landmark-map"
 MAP_VERSION = 1
@@ -120,7 +121,6 @@ def parse_map(data, name="landmark map") -> LandmarkMap:
 
 def read_map(path=None) -> LandmarkMap:
     """A landmark map file; the shipped one by default."""
-    from ..io.files import load_json
 
     path = DEFAULT_MAP if path is None else path
     return parse_map(load_json(path, LandmarkError), str(path))
@@ -130,7 +130,6 @@ def write_map(path, m: LandmarkMap) -> int:
     """Write a landmark map file; returns its size in bytes."""
     import json
 
-    from ..io.files import write_bytes
 
     return write_bytes(path, json.dumps(m.to_json(), separators=(",", ":")).encode())
 

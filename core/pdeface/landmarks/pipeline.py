@@ -22,7 +22,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import LandmarkError, MeshError
-from ..head.rigid import rotation_vector_matrix
+from ..geometry import ClosestPoint
+from ..mesh import connected_components
+from ..rigid import rotation_vector_matrix
 from ..surface.frame import UNITS_MM
 from .detector import Detector
 from .facemap import GROUPS, LandmarkMap, read_map, robust_similarity
@@ -200,7 +202,6 @@ def first_pass(V, T, detector: Detector, template, candidates):
 
 def skin_triangles(V, T, tri, share=0.05):
     """Triangles of the connected parts that at least ``share`` of the cast points hit (the face's skin)."""
-    from ..mesh import connected_components
 
     labels = connected_components(len(V), T)
     hit = labels[T[tri[tri >= 0], 0]]
@@ -233,7 +234,6 @@ def frontal_readings(V, T, skin, detector: Detector, m: LandmarkMap, pose, first
     is and mirrored (the mirrored reading's points renumbered by ``m.mirror``, which cancels any left-right
     bias of the face mesh). ``first``: a straight-on render's raster, image and pixels, already read.
     Returns points (readings, 468, 3) and which rays hit skin directly (readings, 468)."""
-    from ..geometry import ClosestPoint
 
     Ts = T[skin]
     closest = ClosestPoint(V, Ts)
@@ -344,7 +344,6 @@ def snap(V, T, L):
     """Landmarks moved onto the surface ``(V, T)`` and the nearest vertex of it to each."""
     from scipy.spatial import cKDTree
 
-    from ..geometry import ClosestPoint
 
     points = ClosestPoint(V, T).query(L)[3]
     used = np.unique(T)

@@ -32,7 +32,12 @@ from pathlib import Path
 
 import numpy as np
 
+from ..au.descriptor import descriptor_from_points
 from ..errors import ModelFormatError, PdeFaceError
+from ..facs import key_side, parse_au_key
+from ..io.files import load_json
+from ..surface.fourier import fit_fourier
+from ..surface.model import model_landmarks
 from .fields import LearnedFields, load_fields
 from .placement import BOUNDS, DEFAULT_GEOMETRY, MUSCLE_NAMES, place_muscles
 
@@ -127,7 +132,6 @@ class MuscleBasis:
     """
 
     def __init__(self, face, table: MuscleTable | None = None):
-        from ..surface.model import model_landmarks
 
         table = load_table() if table is None else table
         self.face = face
@@ -146,14 +150,11 @@ class MuscleBasis:
 
     def curves(self, activations) -> tuple[np.ndarray, np.ndarray]:
         """Change of the curves' coefficients and residual for an activation vector."""
-        from ..surface.fourier import fit_fourier
 
         return fit_fourier(self.displacement(activations), self.face.n_modes)
 
     def descriptor(self, key: str, activations, notice=""):
         """The AU ``key``'s descriptor (source ``muscle``) from its activations."""
-        from ..au.descriptor import descriptor_from_points
-        from ..au.facs import key_side
 
         au, side = key_side(key)
         X = self.face.curve_points()
@@ -183,7 +184,6 @@ def table_to_json(table: dict, hows: dict, notice="", geometry=None, fields=None
 def parse_table(data, where="muscle table", folder=None) -> MuscleTable:
     """A :class:`MuscleTable` from a parsed file (every field checked); ``folder``: where a
     ``fields`` file it names lies (the table's own folder)."""
-    from ..au.facs import parse_au_key
 
     if not isinstance(data, dict) or data.get("format") != FORMAT:
         raise ModelFormatError(f"{where}: not a pdeface muscle table (format {FORMAT!r})")
@@ -233,7 +233,6 @@ _bundled = {}
 
 def load_table(path=None) -> MuscleTable:
     """An activation table file (see the module docstring); the bundled one by default."""
-    from ..io.files import load_json
 
     path = TABLE if path is None else Path(path)
     if path == TABLE and "table" in _bundled:

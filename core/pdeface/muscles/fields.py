@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..au.retarget import face_size
 from ..errors import ModelFormatError
 from ..io.files import load_npz
 from .placement import BOUNDS, MUSCLE_NAMES
@@ -54,7 +55,6 @@ class LearnedFields:
     def on(self, face) -> np.ndarray | None:
         """The corrections carried to ``face`` (scaled per axis by face size); None where its curve
         layout is not the one they were learned on."""
-        from ..au.retarget import face_size
 
         if face.curve_points().shape[:2] != self.layout:
             return None

@@ -14,12 +14,27 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import LandmarkError
-from ..head.rigid import JAW_BONE_GAIN, jaw_hinge
+from ..landmark_scheme import (
+    CHIN,
+    EYE_LEFT,
+    EYE_RIGHT,
+    LIP_LOWER_BOTTOM,
+    LIP_LOWER_INNER,
+    LIP_UPPER_INNER,
+    LIP_UPPER_TOP,
+    MOUTH_CORNER_LEFT,
+    MOUTH_CORNER_RIGHT,
+    NOSE_TIP,
+    NOSE_WING_LEFT,
+    NOSE_WING_RIGHT,
+    eye_distance,
+)
+from ..rigid import JAW_BONE_GAIN, jaw_hinge
 from .model import Jaw, LinearMuscle, Sheet, Sphincter
 
 #: How far behind the skin (eye distances) a linear muscle's bony head lies.
 HEAD_DEPTH = 0.12
-#: The jawOpen turn of the bone (degrees) measured on ICT (pdeface.head.rigid), for the skin.
+#: The jawOpen turn of the bone (degrees) measured on ICT (pdeface.rigid), for the skin.
 JAW_DEGREES = 25.3
 _MIRROR = {17: 26, 21: 22, 31: 35, 36: 45, 37: 44, 38: 43, 39: 42, 40: 47, 41: 46, 48: 54, 5: 11}
 
@@ -107,19 +122,13 @@ def _linear(name, side, L, e, g):
         i, h, pull = p(48), mid(48, 5, 0.6) - 0.1 * e * up, 8.0
     elif name == "depressor_labii":
         i = mid(57, 48, 0.4)
-        h, pull = p(57) + 0.7 * (L[8] - p(57)) + 0.15 * e * lateral, 7.0
+        h, pull = p(57) + 0.7 * (L[CHIN] - p(LIP_LOWER_BOTTOM)) + 0.15 * e * lateral, 7.0
     else:
         raise KeyError(name)
     h = h + e * (g["lateral"] * lateral + g["up"] * up + (HEAD_DEPTH + g["back"]) * back)
     length = np.linalg.norm(i - h)
     return LinearMuscle(f"{name}_{side}", h, i, float(np.clip(g["zone"], 5, 85)), g["rs"] * length,
                         max(g["rf"], g["rs"] + 0.05) * length, pull, g["bulge"])
-
-
-def eye_distance(landmarks_face) -> float:
-    """e: the distance between the eye centres (mm), the unit of the muscles' sizes."""
-    L = np.asarray(landmarks_face, np.float64)
-    return float(np.linalg.norm(L[42:48].mean(0) - L[36:42].mean(0)))
 
 
 def place_muscles(landmarks_face, geometry=None) -> list:
@@ -138,24 +147,24 @@ def place_muscles(landmarks_face, geometry=None) -> list:
         raise LandmarkError(f"placing the muscles needs landmarks {', '.join(map(str, need))}")
     e = eye_distance(L)
     out = [_linear(n, s, L, e, g[n]) for n, _, _ in _PAIRS for s in "RL"]
-    mouth = 0.5 * (L[62] + L[66])
+    mouth = 0.5 * (L[LIP_UPPER_INNER] + L[LIP_LOWER_INNER])
     m = g["orbicularis_oris"]
-    out.append(Sphincter("orbicularis_oris", mouth, (0.75 * m["scale_x"] * (L[54, 0] - L[48, 0]),
-                                                     1.2 * m["scale_y"] * (L[51, 1] - L[57, 1])), m["pull"],
+    out.append(Sphincter("orbicularis_oris", mouth, (0.75 * m["scale_x"] * (L[MOUTH_CORNER_LEFT, 0] - L[MOUTH_CORNER_RIGHT, 0]),
+                                                     1.2 * m["scale_y"] * (L[LIP_UPPER_TOP, 1] - L[LIP_LOWER_BOTTOM, 1])), m["pull"],
                          push_mm=m["push"]))
     o = g["orbicularis_oculi"]
-    for side, eye in (("R", range(36, 42)), ("L", range(42, 48))):
+    for side, eye in (("R", EYE_RIGHT), ("L", EYE_LEFT)):
         c = L[list(eye)].mean(0)
         half = 0.5 * abs(L[eye[3], 0] - L[eye[0], 0])
         out.append(Sphincter(f"orbicularis_oculi_{side}", c, (1.5 * o["scale_x"] * half, 0.9 * o["scale_y"] * half),
                              o["pull"], to_axis=True, push_mm=o["push"]))
-    below_lip = L[57] + 0.25 * (L[8] - L[57])
+    below_lip = L[LIP_LOWER_BOTTOM] + 0.25 * (L[CHIN] - L[LIP_LOWER_BOTTOM])
     s = g["mentalis"]
-    out.append(Sheet("mentalis", below_lip, np.array([0, -1.0, 0]), 0.8 * s["length"] * np.linalg.norm(L[8] - L[57]),
+    out.append(Sheet("mentalis", below_lip, np.array([0, -1.0, 0]), 0.8 * s["length"] * np.linalg.norm(L[CHIN] - L[LIP_LOWER_BOTTOM]),
                      0.3 * s["width"] * e, s["pull"]))
     s = g["nasalis"]
-    nose = np.array([0.0, L[31, 1] + 0.05 * e, L[30, 2]])
-    out.append(Sheet("nasalis", nose, np.array([1.0, 0, 0]), 1.1 * s["length"] * 0.5 * (L[35, 0] - L[31, 0]),
+    nose = np.array([0.0, L[NOSE_WING_RIGHT, 1] + 0.05 * e, L[NOSE_TIP, 2]])
+    out.append(Sheet("nasalis", nose, np.array([1.0, 0, 0]), 1.1 * s["length"] * 0.5 * (L[NOSE_WING_LEFT, 0] - L[NOSE_WING_RIGHT, 0]),
                      0.2 * s["width"] * e, s["pull"], mirrored=True, fade=NASALIS_FADE))
-    out.append(Jaw("jaw", jaw_hinge(L, e), JAW_DEGREES / JAW_BONE_GAIN, L[57, 1], mouth[1]))
+    out.append(Jaw("jaw", jaw_hinge(L, e), JAW_DEGREES / JAW_BONE_GAIN, L[LIP_LOWER_BOTTOM, 1], mouth[1]))
     return out

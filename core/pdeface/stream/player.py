@@ -25,7 +25,7 @@ import threading
 import time
 from dataclasses import dataclass, field
 
-from ..au.facs import split_au_key
+from ..facs import split_au_key
 from .wire import ACK, END, MAX_PACKET, PAUSE, RESUME, STOP, Control, Garbage, Packet, StreamParser
 
 MODES = ("queue", "live")

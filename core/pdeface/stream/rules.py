@@ -13,8 +13,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..au.facs import au_number
 from ..errors import ModelFormatError
+from ..facs import au_number
 from ..io.files import load_json
 
 DEFAULT_RULES = Path(__file__).resolve().parent.parent / "data" / "au_rules.json"

@@ -16,8 +16,8 @@ import math
 import re
 from dataclasses import dataclass, field
 
-from ..au.facs import INTENSITY, clamp_weight, parse_au_key
 from ..errors import PdeFaceError
+from ..facs import INTENSITY, clamp_weight, parse_au_key
 from ..io.files import parse_json
 
 ACK, PAUSE, END, RESUME, STOP = 1, -1, -2, -3, -4

@@ -17,6 +17,7 @@ from scipy.sparse.linalg import splu, spsolve
 
 from ..errors import LayoutError
 from ..geometry import ClosestPoint, cast_cylinder_rays, cylinder_coords
+from ..landmark_scheme import LIP_UPPER_TOP, NOSE_TIP, NOSE_WING_LEFT, NOSE_WING_RIGHT
 from .layout import CurveLayout
 
 #: Status codes of curve points. BEYOND: a miss beyond the mesh's edge (its run of filled points
@@ -183,9 +184,9 @@ def nose_band(layout: CurveLayout, landmarks_face: np.ndarray) -> np.ndarray:
     """(K, J) bool: the curve points beside and under the nose (from the upper lip to the nose tip,
     :data:`NOSE_BAND_WIDTHS` nose-wing half-widths either side of the midline)."""
     L = landmarks_face
-    wing = np.abs(cylinder_coords(L[[31, 35]], layout.axis_z)[0]).max()
+    wing = np.abs(cylinder_coords(L[[NOSE_WING_RIGHT, NOSE_WING_LEFT]], layout.axis_z)[0]).max()
     H = layout.ray_heights()
-    return (H > L[51, 1] + 1.0) & (H < L[30, 1] + 1.0) & (np.abs(layout.angles()) < NOSE_BAND_WIDTHS * wing)
+    return (H > L[LIP_UPPER_TOP, 1] + 1.0) & (H < L[NOSE_TIP, 1] + 1.0) & (np.abs(layout.angles()) < NOSE_BAND_WIDTHS * wing)
 
 
 def cavity_depths(layout: CurveLayout, landmarks_face: np.ndarray) -> np.ndarray:

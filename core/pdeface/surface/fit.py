@@ -8,14 +8,16 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import MeshError
-from ..geometry import smoothstep
-from ..mesh import Mesh
+from ..errors import LandmarkError, MeshError
+from ..mesh import Mesh, butterfly_step, connected_components, seam_welds
+from .curves import CurveSampler, cavity_depths, groove_depths, place_samples
 from .fourier import fit_fourier
 from .frame import face_frame, feature_points
+from .grid import grid_faces, surface_grid
 from .layout import DEFAULT_CURVES, place_curves
 from .model import FaceModel
-from .pde import BREAK_SLOPE, output_grid, sample_v, solve_surface
+from .pde import output_grid
+from .rims import follow_rims
 from .sampling import mesh_resolution
 
 
@@ -29,7 +31,6 @@ def skin_vertices(V: np.ndarray, T: np.ndarray, points: np.ndarray) -> np.ndarra
     """
     from scipy.spatial import cKDTree  # scipy is heavy: only fitting and reports need it
 
-    from ..mesh import connected_components, seam_welds
 
     rep = seam_welds(V, T)  # a face split along its UV seams is still one piece
     lab = connected_components(len(V), rep[T])[rep]
@@ -56,7 +57,6 @@ def check_landmarks_on_mesh(V_face, L_face, reach_mm=20.0):
     """
     from scipy.spatial import cKDTree
 
-    from ..errors import LandmarkError
 
     dist = cKDTree(V_face).query(L_face)[0]
     worst = int(np.argmax(dist))
@@ -85,7 +85,6 @@ def refined_skin(V_face, skin, layout):
     """
     import scipy.sparse as sp
 
-    from ..mesh import butterfly_step
 
     V_face = np.asarray(V_face, np.float64)
     spacing = float(np.median(-np.diff(layout.ray_heights(), axis=0)))
@@ -152,8 +151,6 @@ def fit_face(vertices, triangles, landmarks, unit=None, n_curves=DEFAULT_CURVES,
     """
     import scipy.sparse as sp
 
-    from .curves import CurveSampler, cavity_depths, groove_depths, place_samples
-    from .rims import follow_rims
     V = np.asarray(vertices, dtype=np.float64)
     T = np.asarray(triangles, dtype=np.int64)
     if V.ndim != 2 or V.shape[1] != 3 or not np.isfinite(V).all():
@@ -184,62 +181,6 @@ def fit_face(vertices, triangles, landmarks, unit=None, n_curves=DEFAULT_CURVES,
     model = FaceModel(layout, chord_knots(points), coef, res, frame, feature_points(Lf), a=a,
                       assembly=assembly, source=source, status=sampler.status.copy(), landmarks=Lf)
     return model, sampler
-
-
-#: A break applies between its opening's corners, fading in over this many mm (along x) inside them; beyond
-#: them the rims are one line (:func:`break_weights`).
-CONFINE_RAMP_MM = 3.0
-#: The corner landmarks of the openings a break can span: the eyes' (one break for both eyes), the mouth's.
-OPENING_CORNERS = (((36, 39), (42, 45)), ((48, 54),))
-
-
-def break_weights(model: FaceModel, sub_v) -> tuple:
-    """``(break, weight, d weight/dv)`` per break on the output columns: 1 between its opening's corner
-    landmarks (the eyes' or the mouth's, whichever lies at its rims' height), fading to 0 at the corners over
-    :data:`CONFINE_RAMP_MM`, 0 beyond, where the rims are one line
-    (:func:`pdeface.surface.pde.solve_surface`). From the neutral face, so the same for every pose: keys stay
-    linear. Empty (breaks across the whole width) without the corners' landmarks."""
-    from .model import model_landmarks
-
-    L = model_landmarks(model)
-    X = model.curve_points()
-    J = X.shape[1]
-    vs = model.layout.sample_params()
-    v = sample_v(J, sub_v)
-    out = []
-    for b in model.layout.breaks():
-        rim = 0.5 * (X[b] + X[b + 1])
-        x = np.interp(v, vs, rim[:, 0])  # across the face along the rims
-        spans = min(OPENING_CORNERS, key=lambda o: abs(L[np.ravel(o), 1].mean() - rim[J // 2, 1]))
-        weight = np.zeros(len(v))
-        for a, c in spans:
-            if not np.isfinite(L[[a, c]]).all():
-                return ()
-            lo, hi = sorted((L[a, 0], L[c, 0]))
-            weight = np.maximum(weight, smoothstep(np.minimum(x - lo, hi - x) / CONFINE_RAMP_MM))
-        out.append((b, weight, np.gradient(weight, v)))
-    return tuple(out)
-
-
-def surface_grid(model: FaceModel, sub_u=4, sub_v=4, assembly=None, coefficients=None, residual=None, deriv=(0, 0),
-                 break_slope=BREAK_SLOPE, confine=True):
-    """PDE surface (or a derivative) on the output grid, in the face frame (mm).
-
-    ``confine``: each break only within its opening's span (:func:`break_weights`); the head binding
-    reads the breaks across the whole width instead, so skin hidden behind a lip follows its rim.
-    """
-    return solve_surface(model.coefficients if coefficients is None else coefficients,
-                         model.residual if residual is None else residual,
-                         model.knots, model.a, model.remainder_w, sub_u, sub_v,
-                         assembly or model.assembly, deriv, model.layout.breaks(), break_slope,
-                         break_weights(model, sub_v) if confine else ())
-
-
-def grid_faces(n_u: int, n_v: int) -> np.ndarray:
-    """Quads ``(m, 4)`` of an n_u × n_v vertex grid (row-major), facing outwards."""
-    r, c = np.meshgrid(np.arange(n_u - 1), np.arange(n_v - 1), indexing="ij")
-    i = (r * n_v + c).ravel()
-    return np.stack([i, i + n_v, i + n_v + 1, i + 1], axis=1)
 
 
 def face_mesh(model: FaceModel, resolution="default", assembly=None, coefficients=None, residual=None) -> Mesh:

@@ -11,6 +11,17 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import LandmarkError
+from ..io.files import load_json
+from ..landmark_scheme import (
+    CHIN,
+    EYE_LEFT,
+    EYE_RIGHT,
+    FEATURE_POINTS,
+    NOSE_BRIDGE_TOP,
+    NOSE_TIP,
+    eye_centres,
+    eye_distance,
+)
 
 #: Millimetres per mesh unit.
 UNITS_MM = {"mm": 1.0, "cm": 10.0, "m": 1000.0, "in": 25.4}
@@ -23,16 +34,6 @@ EYE_DISTANCE_MM = 63.0
 #: Eye-centre distances a face may have (a small child's to a giant caricature's), in mm.
 EYE_DISTANCE_RANGE_MM = (20.0, 200.0)
 
-#: The 19 feature points of the method, from the Multi-PIE 68 (0-based) landmarks.
-#: Each is the mean of the listed landmarks. "right"/"left" are the subject's.
-FEATURE_POINTS = {
-    "brow_outer_right": [17], "brow_inner_right": [21], "brow_inner_left": [22], "brow_outer_left": [26],
-    "eye_outer_right": [36], "eye_inner_right": [39], "eye_inner_left": [42], "eye_outer_left": [45],
-    "nose_bridge": [27], "nose_wing_right": [31], "nose_tip": [30], "nose_wing_left": [35],
-    "nose_bottom": [33], "mouth_corner_right": [48], "lip_upper": [51], "mouth_corner_left": [54],
-    "lip_center": [62, 66], "lip_lower": [57], "chin": [8],
-}
-FEATURE_NAMES = list(FEATURE_POINTS)
 
 
 def read_landmarks(path):
@@ -46,7 +47,6 @@ def read_landmarks(path):
     indices : (68,) int array or None
     points : (68, 3) float array or None
     """
-    from ..io.files import load_json
 
     return parse_landmarks(load_json(path, LandmarkError), str(path))
 
@@ -101,12 +101,6 @@ def feature_points(landmarks68: np.ndarray) -> np.ndarray:
     """The 19 feature points (:data:`FEATURE_NAMES` order) from 68 landmarks."""
     L = np.asarray(landmarks68, dtype=np.float64)
     return np.array([L[ids].mean(axis=0) for ids in FEATURE_POINTS.values()])
-
-
-def eye_distance(landmarks68: np.ndarray) -> float:
-    """Distance between the eye centres (means of landmarks 36-41 and 42-47)."""
-    L = np.asarray(landmarks68)
-    return float(np.linalg.norm(L[42:48].mean(0) - L[36:42].mean(0)))
 
 
 def guess_unit(landmarks68: np.ndarray) -> str:
@@ -176,8 +170,9 @@ def face_frame(landmarks68: np.ndarray, unit: str | None = None) -> FaceFrame:
     if not EYE_DISTANCE_RANGE_MM[0] <= eyes_mm <= EYE_DISTANCE_RANGE_MM[1]:
         raise LandmarkError(f"the eyes are {eyes_mm:.3g} mm apart in unit {unit!r}; a face's are "
                             f"{EYE_DISTANCE_RANGE_MM[0]}-{EYE_DISTANCE_RANGE_MM[1]} mm: check the unit and the landmarks")
-    x = L[42:48].mean(0) - L[36:42].mean(0)  # right eye → left eye
-    up = L[27] - L[8]  # chin → nose bridge
+    right, left = eye_centres(L)
+    x = left - right  # right eye → left eye
+    up = L[NOSE_BRIDGE_TOP] - L[CHIN]  # chin → nose bridge
     nx = np.linalg.norm(x)
     if nx == 0 or np.linalg.norm(up) == 0:
         raise LandmarkError("landmarks are degenerate (eyes or chin/nose bridge coincide)")
@@ -188,8 +183,8 @@ def face_frame(landmarks68: np.ndarray, unit: str | None = None) -> FaceFrame:
         raise LandmarkError("landmarks are degenerate: the eye line is parallel to the face's vertical")
     y /= ny
     z = np.cross(x, y)
-    frame = FaceFrame(np.stack([x, y, z]), L[30].copy(), UNITS_MM[unit], unit)
+    frame = FaceFrame(np.stack([x, y, z]), L[NOSE_TIP].copy(), UNITS_MM[unit], unit)
     # A mirrored landmark order would put the nose tip behind the eyes.
-    if (frame.to_face(L[36:48]).mean(0)[2]) > 0:
+    if (frame.to_face(L[[*EYE_RIGHT, *EYE_LEFT]]).mean(0)[2]) > 0:
         raise LandmarkError("landmarks look mirrored or out of order: the eyes are in front of the nose tip")
     return frame

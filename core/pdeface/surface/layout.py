@@ -24,7 +24,20 @@ import numpy as np
 
 from ..errors import LayoutError
 from ..geometry import cylinder_coords
-from .frame import eye_distance
+from ..landmark_scheme import (
+    BROW_LEFT,
+    BROW_RIGHT,
+    CHIN,
+    EYE_LEFT,
+    EYE_RIGHT,
+    LIP_LOWER_BOTTOM,
+    LIP_LOWER_INNER,
+    LIP_UPPER_INNER,
+    LIP_UPPER_TOP,
+    NOSE_BOTTOM,
+    NOSE_TIP,
+    eye_distance,
+)
 from .pde import break_fits, cubic_spline_operator
 
 #: Curves in the default layout. The method used 31 (10 patches of 4); 34 (11
@@ -312,14 +325,14 @@ def place_curves(landmarks_face: np.ndarray, n_curves: int = DEFAULT_CURVES, n_p
     check_sizes(n_curves, n_points, 0)
     L = np.asarray(landmarks_face, dtype=np.float64)
     axis_z = -1.75 * eye_distance(L)
-    brow, eye = L[17:27, 1].mean(), L[36:48, 1].mean()
+    brow, eye = L[[*BROW_RIGHT, *BROW_LEFT], 1].mean(), L[[*EYE_RIGHT, *EYE_LEFT], 1].mean()
     lid_top, lid_bottom = L[[37, 38, 43, 44], 1].mean(), L[[40, 41, 46, 47], 1].mean()
     # Lids barely apart (a blink, a squint) still get their band of curves.
     gap = max(lid_top - lid_bottom, 0.25 * (brow - eye))
-    chin, lip_lower, mouth = L[8, 1], L[57, 1], L[[62, 66], 1].mean()
+    chin, lip_lower, mouth = L[CHIN, 1], L[LIP_LOWER_BOTTOM, 1], L[[LIP_UPPER_INNER, LIP_LOWER_INNER], 1].mean()
     anchors = dict(zip(ANCHOR_NAMES, (
         brow + forehead * (brow - eye), brow, eye + 0.5 * OPENING_GAPS["lid_top"], eye - 0.5 * OPENING_GAPS["lid_top"],
-        L[30, 1], L[33, 1], L[51, 1], mouth + 0.5 * OPENING_GAPS["mouth_top"], mouth - 0.5 * OPENING_GAPS["mouth_top"],
+        L[NOSE_TIP, 1], L[NOSE_BOTTOM, 1], L[LIP_UPPER_TOP, 1], mouth + 0.5 * OPENING_GAPS["mouth_top"], mouth - 0.5 * OPENING_GAPS["mouth_top"],
         lip_lower,
         chin + 0.08 * (lip_lower - chin))))
     ys = np.array(list(anchors.values()))

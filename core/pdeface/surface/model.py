@@ -1,7 +1,7 @@
 """The PDE face model: a neutral face as boundary curves in its face frame.
 
 The value that fitting makes and everything downstream reads; its file format
-lives in :mod:`pdeface.io.modelfile`.
+lives in :mod:`pdeface.au.modelfile`.
 """
 from __future__ import annotations
 
@@ -9,6 +9,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..landmark_scheme import FEATURE_NAMES, FEATURE_POINTS
+from .fourier import evaluate_fourier
 from .frame import FaceFrame
 from .layout import CurveLayout
 
@@ -78,7 +80,6 @@ class FaceModel:
 
     def curve_points(self, coefficients=None, residual=None) -> np.ndarray:
         """Curve points (K, J, 3) in the face frame (from the series and residual)."""
-        from .fourier import evaluate_fourier
 
         c = self.coefficients if coefficients is None else coefficients
         r = self.residual if residual is None else residual
@@ -88,7 +89,6 @@ class FaceModel:
 def model_landmarks(model) -> np.ndarray:
     """A face model's 68 landmarks (face frame): the kept ones, and the feature points' where missing
     (the brows' ends, the nose bridge, wings and tip are feature points of one landmark each)."""
-    from .frame import FEATURE_NAMES, FEATURE_POINTS
 
     L = np.full((68, 3), np.nan) if model.landmarks is None else np.array(model.landmarks, np.float64)
     for name, F in zip(FEATURE_NAMES, model.features):

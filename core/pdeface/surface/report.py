@@ -12,9 +12,11 @@ import numpy as np
 
 from ..geometry import ClosestPoint, cast_cylinder_rays, cylinder_coords, degrees_from_cos, triangle_cross, unit_rows
 from ..mesh import vertex_normals
-from .fit import grid_faces, skin_triangles, surface_grid
+from .fit import skin_triangles
+from .grid import grid_faces, surface_grid
 from .model import FaceModel
 from .pde import SurfaceOperator, knot_slopes, surface_operator
+from .profiles import write_profiles_csv, write_profiles_png
 from .rims import FACING_MIN_COS
 
 #: Resolution the report measures the surface at (rows, columns per interval).
@@ -242,7 +244,6 @@ def accuracy_report(model: FaceModel, scan_vertices, scan_triangles, assembly=No
         result[f"{k}_mean_mm"] = float(dk.mean()) if len(dk) else 0.0
         result[f"{k}_max_mm"] = float(dk.max()) if len(dk) else 0.0
     if profiles_png or profiles_csv:
-        from ..io.profiles import write_profiles_csv, write_profiles_png
 
         prof = _profiles(model, Vf, T, Vp, Tp)
         if profiles_csv:

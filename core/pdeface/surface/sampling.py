@@ -22,6 +22,10 @@ import numpy as np
 
 from ..errors import MeshError
 from ..geometry import degrees_from_cos
+from ..presets import every_pose
+from .folds import carried, nearest_vertices, opening_mask
+from .grid import surface_grid
+from .model import model_landmarks
 
 #: Named uniform resolutions: (rows per curve interval, columns per point interval). ``default`` is adaptive.
 RESOLUTIONS = {"original": (10, 1), "fine": (8, 8)}
@@ -146,7 +150,7 @@ def _check_steps(model, rows, cols):
 
 def remember_resolution(model, rows, cols, max_turn=MAX_TURN_DEG):
     """Record ``rows``, ``cols`` (steps per interval) as ``model``'s adaptive resolution: what a model file
-    read back carries (:mod:`pdeface.io.modelfile`), so it is not chosen again."""
+    read back carries (:mod:`pdeface.au.modelfile`), so it is not chosen again."""
     _check_steps(model, rows, cols)
     while len(_CHOSEN) >= _CHOSEN_MAX:
         del _CHOSEN[next(iter(_CHOSEN))]
@@ -159,8 +163,7 @@ def known_resolution(model, max_turn=MAX_TURN_DEG):
 
 
 def pose_weights(model) -> np.ndarray:
-    """(poses, descriptors) weights of :func:`pdeface.au.expressions.every_pose`, in the descriptors' order."""
-    from ..au.expressions import every_pose
+    """(poses, descriptors) weights of :func:`pdeface.presets.every_pose`, in the descriptors' order."""
 
     keys = [d.key for d in model.descriptors]
     W = [[weights.get(k, 0.0) for k in keys] for weights in every_pose(model).values()]
@@ -184,9 +187,6 @@ def interval_turns(model, rows, cols, W, floor=0.0):
     :func:`pdeface.surface.folds.fold_edges` allows: the landmark polygons at rest, where the pose carries
     them, and the edges that lie in them at rest.
     """
-    from .fit import surface_grid
-    from .folds import carried, nearest_vertices, opening_mask
-    from .model import model_landmarks
 
     X0 = surface_grid(model, rows, cols)
     n_u, n_v, _ = X0.shape

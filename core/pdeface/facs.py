@@ -16,7 +16,9 @@ from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 
-from ..errors import PdeFaceError
+import numpy as np
+
+from .errors import PdeFaceError
 
 INTENSITY = {"A": 0.2, "B": 0.4, "C": 0.6, "D": 0.8, "E": 1.0}
 REGIONS = {"upper": "Upper face", "lower": "Lower face", "eyes_head": "Eyes & head"}
@@ -39,7 +41,7 @@ class ActionUnit:
 @lru_cache(maxsize=1)
 def catalogue() -> dict:
     """All FACS AUs: ``{number: ActionUnit}``."""
-    data = json.loads((Path(__file__).resolve().parent.parent / "data" / "facs.json").read_text())
+    data = json.loads((Path(__file__).resolve().parent / "data" / "facs.json").read_text())
     return {d["au"]: ActionUnit(d["au"], d["name"], d["region"], tuple(d["muscles"])) for d in data["action_units"]}
 
 
@@ -105,3 +107,21 @@ def key_side(key: str) -> tuple[int, str]:
     """``"12L"`` → (12, 'left')."""
     au, side = split_au_key(parse_au_key(key))
     return au, {"L": "left", "R": "right"}.get(side, "both")
+
+
+def parse_weight(value, where="weight") -> float:
+    """A weight: number (clamped to [0, 1]) or FACS letter A-E."""
+    if isinstance(value, str):
+        return letter_to_weight(value)
+    try:
+        number = float(value) if isinstance(value, (int, float, np.integer, np.floating)) else math.nan
+    except OverflowError:  # an integer of hundreds of digits
+        number = math.nan
+    if isinstance(value, (bool, np.bool_)) or not math.isfinite(number):
+        raise PdeFaceError(f"{where}: {str(value)[:20]!r} is not a weight (a number in [0, 1] or a letter A-E)")
+    return clamp_weight(number)
+
+
+def normalise_weights(weights: dict) -> dict:
+    """``{"AU12": 0.8, 6: "C"}`` → ``{"12": 0.8, "6": 0.6}``."""
+    return {parse_au_key(k): parse_weight(v, f"AU{k}") for k, v in weights.items()}

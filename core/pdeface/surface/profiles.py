@@ -10,8 +10,8 @@ import csv
 
 import numpy as np
 
-from .files import atomic_open
-from .png import plot_panels
+from ..io.files import atomic_open
+from ..io.png import plot_panels
 
 SCAN, PDE, DIFFERENCE = (40, 40, 40), (220, 30, 30), (30, 60, 220)
 ZERO, MARKS = (150, 150, 150), (210, 210, 210)

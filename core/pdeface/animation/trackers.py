@@ -32,10 +32,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..au.facs import clamp_weight, clamp_weights, parse_au_key, split_au_key
 from ..au.ict import ARKIT_TO_AU
 from ..errors import ModelFormatError, PdeFaceError
-from .files import open_file, read_lines
+from ..facs import clamp_weight, clamp_weights, parse_au_key, split_au_key
+from ..io.files import open_file, read_lines
+from ..stream.wire import PacketError, parse_packet
 from .timeline import MAX_FPS, Key, Timeline
 
 FORMATS = ("openface", "pyfeat", "livelink", "fas")
@@ -263,7 +264,6 @@ def _frame(seconds, fps):
 
 
 def _keys_fas(path, fps, hold):
-    from ..stream.wire import PacketError, parse_packet
 
     if not hold > 0:
         raise ModelFormatError(f"hold must be > 0 seconds, got {hold}")

@@ -23,9 +23,10 @@ import json
 import math
 from dataclasses import dataclass, field
 
-from ..au.expressions import parse_weight
-from ..au.facs import parse_au_key, split_au_key
 from ..errors import ModelFormatError, PdeFaceError
+from ..facs import parse_au_key, parse_weight, split_au_key
+from ..io.files import atomic_open, load_json
+from .sequence import sequence_keys
 
 FORMAT = "pdeface.timeline"
 #: The highest frame rate a timeline may have.
@@ -129,14 +130,12 @@ def timeline_to_json(t: Timeline) -> dict:
 
 
 def load_timeline(path) -> Timeline:
-    from .files import load_json
 
     return timeline_from_json(load_json(path), str(path))
 
 
 def save_timeline(path, t: Timeline) -> None:
     """Write a timeline (atomically); one its own reader would refuse is refused here, naming why."""
-    from .files import atomic_open
 
     obj = timeline_to_json(t)
     timeline_from_json(obj, str(path))
@@ -145,8 +144,7 @@ def save_timeline(path, t: Timeline) -> None:
 
 
 def sequence_timeline(presets, fps=24, hold=0.5, blend=0.5, mode="via_neutral") -> Timeline:
-    """A timeline of presets, as :func:`pdeface.au.sequence.sequence_keys` times them."""
-    from ..au.sequence import sequence_keys
+    """A timeline of presets, as :func:`pdeface.animation.sequence.sequence_keys` times them."""
 
     frames = sequence_keys([{p: 1.0} for p in presets], 1, int(round(hold * fps)), max(1, int(round(blend * fps))), mode)
     return Timeline(fps, [Key(f, {}, {p: w for p, w in pose.items() if w > 0}) for f, pose in frames], 1)

@@ -62,11 +62,9 @@ import zipfile
 
 import numpy as np
 
+from ..assets import DEFAULT, DEFAULT_FACE, asset_path
 from ..errors import LayoutError, ModelFormatError, PdeFaceError
-from ..surface.frame import FEATURE_NAMES, UNITS_MM, FaceFrame
-from ..surface.layout import CurveLayout, check_sizes
-from ..surface.model import KEPT_LANDMARKS, FaceModel
-from .codec import (
+from ..io.codec import (
     decode_coefficients,
     decode_residual,
     encode_coefficients,
@@ -74,7 +72,13 @@ from .codec import (
     from_byte_planes,
     to_byte_planes,
 )
-from .files import parse_json, read_bytes, write_bytes
+from ..io.files import parse_json, read_bytes, write_bytes
+from ..landmark_scheme import FEATURE_NAMES
+from ..surface.frame import UNITS_MM, FaceFrame
+from ..surface.layout import CurveLayout, check_sizes
+from ..surface.model import KEPT_LANDMARKS, FaceModel
+from ..surface.sampling import known_resolution, remember_resolution
+from .descriptorfile import pack_descriptors, unpack_descriptors
 
 FORMAT = "pdeface.face"
 LANDMARK_STEP_MM = 0.1
@@ -101,7 +105,6 @@ def model_to_bytes(model: FaceModel, descriptors: bool = True) -> bytes:
             "a": model.a, "w": model.w, "assembly": model.assembly, "feature_names": FEATURE_NAMES,
             "source": model.source, "notice": model.notice}
     if descriptors:
-        from ..surface.sampling import known_resolution
         steps = known_resolution(model)
         if steps is not None:
             meta["mesh_steps"] = [list(steps[0]), list(steps[1])]
@@ -121,7 +124,6 @@ def model_to_bytes(model: FaceModel, descriptors: bool = True) -> bytes:
     if model.status is not None:
         arrays["status"] = np.asarray(model.status, np.uint8)
     if descriptors and model.descriptors:
-        from .descriptorfile import pack_descriptors
         arrays.update(pack_descriptors(model.descriptors))
     buf = io.BytesIO()
     np.savez_compressed(buf, **arrays)
@@ -262,12 +264,15 @@ def _read_model(fileobj, path) -> FaceModel:
         if "landmarks" in meta:
             model.landmarks = _landmarks(meta["landmarks"], path)
         if "descriptors" in z.files:
-            from .descriptorfile import unpack_descriptors
             model.descriptors = unpack_descriptors(z, path)
         if "mesh_steps" in meta:
-            from ..surface.sampling import remember_resolution
             try:
                 remember_resolution(model, *meta["mesh_steps"])
             except (TypeError, ValueError, PdeFaceError) as exc:
                 raise ModelFormatError(f"{path}: meta 'mesh_steps': {exc}") from None
     return model
+
+
+def load_face(arg):
+    """A face model from a path, or the bundled one for ``"default"``."""
+    return load_model(asset_path(DEFAULT_FACE) if arg == DEFAULT else arg)

@@ -14,6 +14,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .landmark_scheme import CHIN, JAW_LEFT_END, JAW_RIGHT_END
+
 HINGE_DOWN = 0.386
 HINGE_BACK_IOD = 0.26
 JAW_BONE_GAIN = 1.3
@@ -24,8 +26,8 @@ GAZE_DEGREES = {61: (0.0, 25.0), 62: (0.0, -25.0), 63: (-20.0, 0.0), 64: (20.0, 
 
 def jaw_hinge(Lf, eye_distance) -> np.ndarray:
     """The jaw hinge (face frame, mm) from the landmarks."""
-    mid = 0.5 * (Lf[0] + Lf[16])
-    return np.array([0.0, mid[1] + HINGE_DOWN * (Lf[8, 1] - mid[1]), mid[2] - HINGE_BACK_IOD * eye_distance])
+    mid = 0.5 * (Lf[JAW_RIGHT_END] + Lf[JAW_LEFT_END])
+    return np.array([0.0, mid[1] + HINGE_DOWN * (Lf[CHIN, 1] - mid[1]), mid[2] - HINGE_BACK_IOD * eye_distance])
 
 
 def rotation_vector_matrix(rv) -> np.ndarray:

@@ -30,13 +30,13 @@ import zlib
 
 import numpy as np
 
-from ..au.descriptor import Descriptor
-from ..au.facs import SIDES, action_unit
 from ..errors import ModelFormatError, PdeFaceError
+from ..facs import SIDES, action_unit
+from ..io.codec import decode_residual, encode_residual
+from ..io.files import parse_json, read_bytes, write_bytes
 from ..surface.fourier import fit_fourier
 from ..surface.layout import check_sizes
-from .codec import decode_residual, encode_residual
-from .files import parse_json, read_bytes, write_bytes
+from .descriptor import Descriptor
 
 FORMAT = "pdeface.descriptor"
 VERSION = 1

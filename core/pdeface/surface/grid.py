@@ -1,0 +1,70 @@
+"""The PDE surface evaluated on the output grid: the breaks' confinement, the grid and its quads."""
+from __future__ import annotations
+
+import numpy as np
+
+from ..geometry import smoothstep
+from ..landmark_scheme import (
+    EYE_INNER_LEFT,
+    EYE_INNER_RIGHT,
+    EYE_OUTER_LEFT,
+    EYE_OUTER_RIGHT,
+    MOUTH_CORNER_LEFT,
+    MOUTH_CORNER_RIGHT,
+)
+from .model import FaceModel, model_landmarks
+from .pde import BREAK_SLOPE, sample_v, solve_surface
+
+#: A break applies between its opening's corners, fading in over this many mm (along x) inside them; beyond
+#: them the rims are one line (:func:`break_weights`).
+CONFINE_RAMP_MM = 3.0
+#: The corner landmarks of the openings a break can span: the eyes' (one break for both eyes), the mouth's.
+OPENING_CORNERS = (((EYE_OUTER_RIGHT, EYE_INNER_RIGHT), (EYE_INNER_LEFT, EYE_OUTER_LEFT)),
+                   ((MOUTH_CORNER_RIGHT, MOUTH_CORNER_LEFT),))
+
+
+def break_weights(model: FaceModel, sub_v) -> tuple:
+    """``(break, weight, d weight/dv)`` per break on the output columns: 1 between its opening's corner
+    landmarks (the eyes' or the mouth's, whichever lies at its rims' height), fading to 0 at the corners over
+    :data:`CONFINE_RAMP_MM`, 0 beyond, where the rims are one line
+    (:func:`pdeface.surface.pde.solve_surface`). From the neutral face, so the same for every pose: keys stay
+    linear. Empty (breaks across the whole width) without the corners' landmarks."""
+    L = model_landmarks(model)
+    X = model.curve_points()
+    J = X.shape[1]
+    vs = model.layout.sample_params()
+    v = sample_v(J, sub_v)
+    out = []
+    for b in model.layout.breaks():
+        rim = 0.5 * (X[b] + X[b + 1])
+        x = np.interp(v, vs, rim[:, 0])  # across the face along the rims
+        spans = min(OPENING_CORNERS, key=lambda o: abs(L[np.ravel(o), 1].mean() - rim[J // 2, 1]))
+        weight = np.zeros(len(v))
+        for a, c in spans:
+            if not np.isfinite(L[[a, c]]).all():
+                return ()
+            lo, hi = sorted((L[a, 0], L[c, 0]))
+            weight = np.maximum(weight, smoothstep(np.minimum(x - lo, hi - x) / CONFINE_RAMP_MM))
+        out.append((b, weight, np.gradient(weight, v)))
+    return tuple(out)
+
+
+def surface_grid(model: FaceModel, sub_u=4, sub_v=4, assembly=None, coefficients=None, residual=None, deriv=(0, 0),
+                 break_slope=BREAK_SLOPE, confine=True):
+    """PDE surface (or a derivative) on the output grid, in the face frame (mm).
+
+    ``confine``: each break only within its opening's span (:func:`break_weights`); the head binding
+    reads the breaks across the whole width instead, so skin hidden behind a lip follows its rim.
+    """
+    return solve_surface(model.coefficients if coefficients is None else coefficients,
+                         model.residual if residual is None else residual,
+                         model.knots, model.a, model.remainder_w, sub_u, sub_v,
+                         assembly or model.assembly, deriv, model.layout.breaks(), break_slope,
+                         break_weights(model, sub_v) if confine else ())
+
+
+def grid_faces(n_u: int, n_v: int) -> np.ndarray:
+    """Quads ``(m, 4)`` of an n_u × n_v vertex grid (row-major), facing outwards."""
+    r, c = np.meshgrid(np.arange(n_u - 1), np.arange(n_v - 1), indexing="ij")
+    i = (r * n_v + c).ravel()
+    return np.stack([i, i + n_v, i + n_v + 1, i + 1], axis=1)
