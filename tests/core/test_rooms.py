@@ -33,15 +33,18 @@ def test_the_core_never_imports_bpy():
 
 
 def test_only_the_entry_point_imports_the_cli():
-    """The command line's modules (``cli.py`` and a concern's own ``cli.py``, as ``fdt/cli.py``) import
-    each other; nothing else imports them."""
+    """The command line is one room, ``pdeface/cli/``: its modules import each other only from within it
+    (relatively), nothing else imports them (the entry point names ``pdeface.cli:main``), and no concern
+    keeps a ``cli`` module of its own."""
+    room = CORE / "cli"
+    assert (room / "__init__.py").is_file() and (room / "__main__.py").is_file()
+    assert [p.relative_to(ROOT) for p in CORE.rglob("cli.py")] == []
     offenders = []
     for folder in (CORE, ADDON, ROOT / "scripts"):
         for path in folder.rglob("*.py"):
-            if path.name == "cli.py" and folder == CORE:
-                continue
-            absolute, relative = imports(path)
-            if "pdeface.cli" in absolute or any(m == "cli" or m.endswith(".cli") for _, m in relative):
+            absolute, relative = imports(path)  # the room's own modules import each other as ``from .x``
+            if any(m == "pdeface.cli" or m.startswith("pdeface.cli.") for m in absolute) or any(
+                    m == "cli" or m.startswith("cli.") or m.endswith(".cli") for _, m in relative):
                 offenders.append(path.relative_to(ROOT))
     assert offenders == []
 

@@ -95,6 +95,39 @@ def normalise_weights(weights: dict) -> dict:
     return {parse_au_key(k): parse_weight(v, f"AU{k}") for k, v in weights.items()}
 
 
+def parse_au_weights(items) -> dict:
+    """AU weights written ``AU=WEIGHT``, as the command line's ``--au`` takes them.
+
+    Parameters
+    ----------
+    items : iterable of str, or None
+        ``["12=1", "6=0.5", "AU4=C"]``: an AU key, ``=``, then a number (clamped to [0, 1]) or a
+        FACS intensity letter A-E. None or empty gives no weights.
+
+    Returns
+    -------
+    dict
+        Normalised AU key → weight: ``{"12": 1.0, "6": 0.5, "4": 0.6}``.
+
+    Raises
+    ------
+    PdeFaceError
+        An item without ``=``, an AU key that is not a FACS AU, or a weight that is neither a
+        number nor a letter A-E (a one-line message naming the item).
+    """
+    weights = {}
+    for item in items or []:
+        key, sep, value = item.partition("=")
+        if not sep:
+            raise PdeFaceError(f"--au {item!r}: use AU=WEIGHT, e.g. 12=0.8 or 12L=C")
+        try:
+            value = float(value)
+        except ValueError:
+            pass  # a FACS letter
+        weights[key] = value
+    return normalise_weights(weights)
+
+
 def mix(descriptors: dict, weights: dict, mixer: str = "sum") -> tuple[np.ndarray, np.ndarray]:
     """Combine weighted descriptors into one change of coefficients and residual.
 
@@ -151,6 +184,31 @@ def resolve_preset(preset: Preset, available) -> tuple[dict, list]:
     for k, w in normalise_weights(preset.weights).items():
         (weights.__setitem__(k, w) if k in available else missing.append(k))
     return weights, missing
+
+
+def merged_presets(files=()) -> dict:
+    """The built-in presets and those of preset files, by name.
+
+    Parameters
+    ----------
+    files : iterable of path-like
+        Preset files (see :func:`load_presets`), read in turn: a preset replaces an earlier one
+        (built-in or from an earlier file) of the same name.
+
+    Returns
+    -------
+    dict
+        Preset name → :class:`Preset`: :data:`PRESETS` first, then each file's new names.
+
+    Raises
+    ------
+    ModelFormatError
+        A file that cannot be read or holds no valid preset.
+    """
+    presets = dict(PRESETS)
+    for path in files:
+        presets.update({p.name: p for p in load_presets(path)})
+    return presets
 
 
 def choose_mixer(requested=None, preset: Preset | None = None) -> str:
