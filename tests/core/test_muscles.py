@@ -5,8 +5,15 @@ import numpy as np
 import pytest
 from pdeface.assets import load_face
 from pdeface.errors import LandmarkError, ModelFormatError, PdeFaceError
-from pdeface.muscles.aus import MuscleBasis, MuscleTable, activation_vector, mix_activations, parse_activations, parse_table, \
-    table_to_json
+from pdeface.muscles.aus import (
+    MuscleBasis,
+    MuscleTable,
+    activation_vector,
+    mix_activations,
+    parse_activations,
+    parse_table,
+    table_to_json,
+)
 from pdeface.muscles.model import Jaw, LinearMuscle, Sheet, Sphincter
 from pdeface.muscles.placement import MUSCLE_NAMES, place_muscles
 from pdeface.surface.model import model_landmarks

@@ -6,8 +6,14 @@ from ..au.expressions import parse_au_weights
 from ..errors import PdeFaceError
 from ..io.files import check_output
 from ..io.meshio import write_mesh
-from ..muscles.aus import (ACTIVATION_MIXERS, MuscleBasis, activation_vector, load_table, mix_activations,
-                           parse_activations)
+from ..muscles.aus import (
+    ACTIVATION_MIXERS,
+    MuscleBasis,
+    activation_vector,
+    load_table,
+    mix_activations,
+    parse_activations,
+)
 from ..muscles.placement import MUSCLE_NAMES
 from ..surface.fit import face_mesh
 from .common import log, meshing_options, output_option, weights_text
