@@ -125,3 +125,36 @@ def parse_weight(value, where="weight") -> float:
 def normalise_weights(weights: dict) -> dict:
     """``{"AU12": 0.8, 6: "C"}`` → ``{"12": 0.8, "6": 0.6}``."""
     return {parse_au_key(k): parse_weight(v, f"AU{k}") for k, v in weights.items()}
+
+
+def parse_au_weights(items) -> dict:
+    """AU weights written ``AU=WEIGHT``, as the command line's ``--au`` takes them.
+
+    Parameters
+    ----------
+    items : iterable of str, or None
+        ``["12=1", "6=0.5", "AU4=C"]``: an AU key, ``=``, then a number (clamped to [0, 1]) or a
+        FACS intensity letter A-E. None or empty gives no weights.
+
+    Returns
+    -------
+    dict
+        Normalised AU key → weight: ``{"12": 1.0, "6": 0.5, "4": 0.6}``.
+
+    Raises
+    ------
+    PdeFaceError
+        An item without ``=``, an AU key that is not a FACS AU, or a weight that is neither a
+        number nor a letter A-E (a one-line message naming the item).
+    """
+    weights = {}
+    for item in items or []:
+        key, sep, value = item.partition("=")
+        if not sep:
+            raise PdeFaceError(f"--au {item!r}: use AU=WEIGHT, e.g. 12=0.8 or 12L=C")
+        try:
+            value = float(value)
+        except ValueError:
+            pass  # a FACS letter
+        weights[key] = value
+    return normalise_weights(weights)

@@ -95,6 +95,10 @@ class Mesh:
             raise MeshError(f"{name}: a face refers to a vertex outside 0..{len(V) - 1}")
         return self
 
+    def same_topology(self, other: "Mesh") -> bool:
+        """Whether ``other`` has this mesh's vertex count and polygon corners (the same mesh, posed)."""
+        return len(other.vertices) == len(self.vertices) and np.array_equal(other.face_indices, self.face_indices)
+
     def triangles(self) -> tuple[np.ndarray, np.ndarray]:
         """Fan-triangulate every polygon.
 

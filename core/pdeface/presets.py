@@ -79,6 +79,31 @@ def resolve_preset(preset: Preset, available) -> tuple[dict, list]:
     return weights, missing
 
 
+def merged_presets(files=()) -> dict:
+    """The built-in presets and those of preset files, by name.
+
+    Parameters
+    ----------
+    files : iterable of path-like
+        Preset files (see :func:`load_presets`), read in turn: a preset replaces an earlier one
+        (built-in or from an earlier file) of the same name.
+
+    Returns
+    -------
+    dict
+        Preset name → :class:`Preset`: :data:`PRESETS` first, then each file's new names.
+
+    Raises
+    ------
+    ModelFormatError
+        A file that cannot be read or holds no valid preset.
+    """
+    presets = dict(PRESETS)
+    for path in files:
+        presets.update({p.name: p for p in load_presets(path)})
+    return presets
+
+
 def choose_mixer(requested=None, preset: Preset | None = None) -> str:
     """The mixer to pose with: the one asked for, else the preset's own, else ``sum``."""
     mixer = requested or (preset.mixer if preset is not None else "sum")

@@ -33,7 +33,7 @@ def test_manifest_validates():
 
 
 def test_default_face_and_its_shape_keys(bpy, face):
-    from pdeface.assets import load_face
+    from pdeface.au.modelfile import load_face
     from pdeface.surface.sampling import mesh_resolution, parse_resolution
     model = load_face("default")
     rows, cols = mesh_resolution(model)  # the default's steps, chosen for this face, kept on the object
@@ -55,8 +55,8 @@ def test_default_face_and_its_shape_keys(bpy, face):
 
 @pytest.mark.parametrize("key", ["12", "1", "30L", "45R"])
 def test_au_slider_reproduces_pdeface_pose(bpy, face, key):
-    from pdeface.assets import load_face
-    from pdeface.au.expressions import pose_curves
+    from pdeface.au.modelfile import load_face
+    from pdeface.posing import pose_curves
     from pdeface.surface.fit import face_mesh
     model = load_face("default")
     d = next(x for x in model.descriptors if x.key == key)
@@ -82,8 +82,9 @@ def test_presets_as_keys_or_weights_without_double_counting(bpy, face):
 
 
 def test_nonlinear_mixer_goes_into_its_own_key(bpy, face):
-    from pdeface.assets import load_face
-    from pdeface.au.expressions import PRESETS, pose_curves, resolve_preset
+    from pdeface.au.modelfile import load_face
+    from pdeface.presets import PRESETS, resolve_preset
+    from pdeface.posing import pose_curves
     from pdeface.surface.fit import face_mesh
     model = load_face("default")
     bpy.context.scene.pdeface.mixer = "max"
@@ -359,7 +360,7 @@ def test_a_face_keeps_the_steps_it_was_built_with(bpy, face):
     """A capture changes the model's descriptors, and with them the steps the default would choose now: the
     object's keys still land on its own vertices. A face saved before the default adapted (resolution
     "default", 4 steps per interval) keeps its 4 steps."""
-    from pdeface.assets import load_face
+    from pdeface.au.modelfile import load_face
     from pdeface.surface.fit import face_mesh
     fm = face_module()
     model = load_face("default")

@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
-from pdeface.au.modelfile import load_face
 from pdeface.assets import load_neutral_scan
+from pdeface.au.modelfile import load_face
 from pdeface.surface.fit import fit_face
 
 

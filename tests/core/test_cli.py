@@ -49,8 +49,7 @@ def test_points_landmarks_and_unit_guess(tmp_path, capsys, scan_files):
 
 
 def test_straight_curves_as_the_original_method(tmp_path, capsys, scan_files):
-    from pdeface.assets import load_face
-    from pdeface.io.modelfile import load_model
+    from pdeface.au.modelfile import load_face, load_model
 
     code, _, _ = run(capsys, "fit", scan_files / "neutral.obj", "--landmarks", scan_files / "lm_indices.json",
                      "--straight", "-o", tmp_path / "s.npz")

@@ -3,14 +3,14 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from pdeface.assets import load_face, load_ict_shapes
-from pdeface.au.expressions import Preset, save_presets
+from pdeface.assets import load_ict_shapes
+from pdeface.au.descriptorfile import load_descriptor
 from pdeface.au.ict import au_offsets
+from pdeface.au.modelfile import load_face, save_model
 from pdeface.cli import main
-from pdeface.io.descriptorfile import load_descriptor
 from pdeface.io.meshio import read_obj, write_obj
-from pdeface.io.modelfile import save_model
 from pdeface.mesh import Mesh
+from pdeface.presets import Preset, save_presets
 from pdeface.surface.fit import face_mesh
 
 

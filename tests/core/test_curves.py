@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 from pdeface.errors import LayoutError
-from pdeface.surface.curves import CAVITY, HIT, MISS, place_samples
+from pdeface.surface.curves import BEYOND, CAVITY, HIT, MISS, CurveSampler, place_samples
 from pdeface.surface.frame import face_frame
 from pdeface.surface.layout import DEFAULT_CURVES, CurveLayout, place_curves
 
@@ -243,6 +243,16 @@ def test_points_beyond_the_mesh_edge_carry_on_its_slope():
     np.testing.assert_allclose(out[:3], ramp[:3], atol=1e-9)  # extrapolated: the ramp itself, step for step
     np.testing.assert_allclose(out[6, 3], 6.0)
     np.testing.assert_allclose(out[3:], np.where(valid, ramp, out)[3:])  # known points stay
+
+
+def test_curves_mostly_beyond_the_edge_are_named():
+    status = np.full((4, 6), HIT)
+    status[0, :4] = BEYOND  # 4 of 6
+    status[2, :3] = BEYOND  # half: not more than half
+    status[3, 0] = MISS
+    sampler = CurveSampler(None, status, status.shape)
+    assert sampler.beyond_curves().tolist() == [0] and sampler.beyond_curves(0.4).tolist() == [0, 2]
+    assert sampler.summary()["beyond the edge"] == 7
 
 
 def test_twin_triangles_give_the_outward_hit():

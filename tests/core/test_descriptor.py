@@ -3,7 +3,7 @@ import json
 import numpy as np
 import pytest
 from pdeface.au.capture import fit_descriptor
-from pdeface.au.descriptor import Descriptor
+from pdeface.au.descriptor import Descriptor, replace_descriptors
 from pdeface.au.descriptorfile import descriptor_from_bytes, descriptor_to_bytes, load_descriptor, save_descriptor
 from pdeface.au.ict import AU_SHAPES, au_offsets
 from pdeface.errors import LandmarkError, ModelFormatError, PdeFaceError
@@ -65,6 +65,14 @@ def test_algebra(au12):
     other = Descriptor(1, "both", [0], np.zeros((1, 4, 3)), None, (31, 37, 3))
     with pytest.raises(PdeFaceError, match="layouts"):
         d + other
+
+
+def test_extra_descriptors_replace_those_of_their_au(au12):
+    mine = Descriptor(12, "both", [0], np.zeros((1, 4, 3)), None, (31, 37, 3), source="mine")
+    left = Descriptor(12, "left", [0], np.zeros((1, 4, 3)), None, (31, 37, 3))
+    six = Descriptor(6, "both", [0], np.zeros((1, 4, 3)), None, (31, 37, 3))
+    assert replace_descriptors([au12, six], [mine, left]) == [six, mine, left]
+    assert replace_descriptors([au12], []) == [au12]
 
 
 @pytest.mark.parametrize("suffix", [".json", ".pdd"])

@@ -4,7 +4,15 @@ import numpy as np
 import pytest
 from pdeface.au.expressions import ShapeBasis, mix
 from pdeface.errors import ModelFormatError, PdeFaceError
-from pdeface.facs import action_unit, catalogue, letter_to_weight, normalise_weights, parse_au_key, weight_to_letter
+from pdeface.facs import (
+    action_unit,
+    catalogue,
+    letter_to_weight,
+    normalise_weights,
+    parse_au_key,
+    parse_au_weights,
+    weight_to_letter,
+)
 from pdeface.posing import pose_curves
 from pdeface.presets import (
     BASIC_EXPRESSIONS,
@@ -12,6 +20,7 @@ from pdeface.presets import (
     SUPPLEMENTARY_WEIGHT,
     Preset,
     load_presets,
+    merged_presets,
     resolve_preset,
     save_presets,
 )
@@ -111,3 +120,25 @@ def test_preset_files(tmp_path):
     (tmp_path / "broken.json").write_text("{")
     with pytest.raises(ModelFormatError, match="not valid JSON"):
         load_presets(tmp_path / "broken.json")
+
+
+def test_au_weights_as_the_command_line_writes_them():
+    assert parse_au_weights(["12=1", "6=0.5", "AU4=C", "12l=2"]) == {"12": 1.0, "6": 0.5, "4": 0.6, "12L": 1.0}
+    assert parse_au_weights(None) == {} and parse_au_weights([]) == {}
+    for items, message in ((["12"], "--au '12': use AU=WEIGHT"), (["3=1"], "not a FACS Action Unit"),
+                           (["12=Z"], "not a FACS letter"), (["x=1"], "not an AU key")):
+        with pytest.raises(PdeFaceError, match=message) as exc:
+            parse_au_weights(items)
+        assert "\n" not in str(exc.value)
+
+
+def test_merged_presets_let_a_later_file_win(tmp_path):
+    assert merged_presets() == PRESETS and merged_presets() is not PRESETS
+    save_presets(tmp_path / "a.json", [Preset("smirk", {"12L": 0.8}), Preset("happy", {"12": 0.5})])
+    save_presets(tmp_path / "b.json", [Preset("smirk", {"12R": 0.8})])
+    presets = merged_presets([tmp_path / "a.json", tmp_path / "b.json"])
+    assert list(presets)[:len(PRESETS)] == list(PRESETS) and set(presets) == set(PRESETS) | {"smirk"}
+    assert presets["smirk"].weights == {"12R": 0.8} and presets["happy"].weights == {"12": 0.5}
+    assert PRESETS["happy"].weights["12"] == 1.0  # the built-ins are left alone
+    with pytest.raises(ModelFormatError, match="missing.json"):
+        merged_presets([tmp_path / "missing.json"])

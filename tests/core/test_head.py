@@ -10,7 +10,7 @@ from pdeface.au.retarget import retarget
 from pdeface.cli import main
 from pdeface.errors import MeshError, PdeFaceError
 from pdeface.head.bind import HeadBinding
-from pdeface.head.parts import CODE, parse_overrides
+from pdeface.head.parts import CODE, parse_overrides, skin_mask
 from pdeface.head.report import head_report
 from pdeface.io.meshio import read_obj
 from pdeface.rigid import jaw_motion, rigid_displacement, rotation_vector, rotation_vector_matrix
@@ -215,6 +215,8 @@ def test_bad_input(tmp_path, head, capsys):
         parse_overrides({"teeth": [1, 2]})
     with pytest.raises(MeshError, match="list of vertex indices"):
         parse_overrides({"jaw": [1, "x"]})
+    assert skin_mask({"skin": [1, 3]}, 5).tolist() == [False, True, False, True, False]
+    assert skin_mask({"jaw": [1]}, 5) is None and skin_mask({"skin": []}, 5) is None
     with pytest.raises(MeshError, match="out of range"):
         HeadBinding(model, mesh.vertices, T, overrides={"jaw": [10 ** 7]})
     (tmp_path / "bad.json").write_text("{ nope")

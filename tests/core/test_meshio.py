@@ -110,6 +110,13 @@ def test_ascii_ply_and_bad_ply(tmp_path):
         read_ply(write(tmp_path, text.replace("4 0 1 2 3", "4 0 1 2 9"), "d.ply"))
 
 
+def test_same_topology_is_the_same_polygons():
+    quad = Mesh.from_faces(np.zeros((4, 3)), [[0, 1, 2, 3]])
+    assert quad.same_topology(Mesh.from_faces(np.ones((4, 3)), [[0, 1, 2, 3]]))
+    assert not quad.same_topology(Mesh.from_faces(np.zeros((4, 3)), [[0, 1, 3, 2]]))
+    assert not quad.same_topology(Mesh.from_faces(np.zeros((5, 3)), [[0, 1, 2, 3]]))
+
+
 def test_validate_rejects_nan_and_faceless():
     with pytest.raises(MeshError, match="not finite"):
         Mesh.from_faces([[0, 0, 0], [1, 0, np.nan], [0, 1, 0]], [[0, 1, 2]])

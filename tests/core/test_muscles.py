@@ -5,7 +5,15 @@ import numpy as np
 import pytest
 from pdeface.au.modelfile import load_face
 from pdeface.errors import LandmarkError, ModelFormatError, PdeFaceError
-from pdeface.muscles.aus import MuscleBasis, MuscleTable, activation_vector, mix_activations, parse_table, table_to_json
+from pdeface.muscles.aus import (
+    MuscleBasis,
+    MuscleTable,
+    activation_vector,
+    mix_activations,
+    parse_activations,
+    parse_table,
+    table_to_json,
+)
 from pdeface.muscles.model import Jaw, LinearMuscle, Sheet, Sphincter
 from pdeface.muscles.placement import MUSCLE_NAMES, place_muscles
 from pdeface.surface.model import model_landmarks
@@ -249,6 +257,13 @@ def test_muscle_mixers_pose_a_face_through_pose_curves():
     assert not np.allclose(C, C2)
     with pytest.raises(PdeFaceError, match="pose_curves"):
         mix({d.key: d for d in face.descriptors}, w, "muscle-max")
+
+
+def test_activations_as_the_command_line_writes_them():
+    assert parse_activations(["jaw=0.5", "zygomatic_major_L=-0"]) == {"jaw": 0.5, "zygomatic_major_L": 0.0}
+    for item, message in (("jaw", "use MUSCLE=VALUE"), ("jaw=x", "'x' is not a number")):
+        with pytest.raises(PdeFaceError, match=message):
+            parse_activations([item])
 
 
 def test_cli_muscles(tmp_path, capsys):

@@ -120,6 +120,25 @@ class Descriptor:
         return self + (-other)
 
 
+def replace_descriptors(descriptors, extra) -> list:
+    """``descriptors`` with ``extra`` added, each replacing the one of its AU key (``"12"``, ``"12L"``) if any.
+
+    Parameters
+    ----------
+    descriptors : list of Descriptor
+        A face model's own descriptors.
+    extra : list of Descriptor
+        Descriptors to add, for instance read from files.
+
+    Returns
+    -------
+    list of Descriptor
+        The kept descriptors in their order, then ``extra``.
+    """
+    keys = {d.key for d in extra}
+    return [d for d in descriptors if d.key not in keys] + list(extra)
+
+
 def affected_curves(delta_points: np.ndarray, threshold_mm: float = AFFECTED_MM) -> np.ndarray:
     """Curves with a point moving more than ``threshold_mm``."""
     return np.nonzero(np.linalg.norm(delta_points, axis=2).max(axis=1) > threshold_mm)[0]

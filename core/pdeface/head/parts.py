@@ -232,6 +232,16 @@ def read_overrides(path) -> dict:
     return parse_overrides(load_json(path, MeshError), str(path))
 
 
+def skin_mask(overrides: dict, n_vertices: int) -> np.ndarray | None:
+    """The vertices the overrides' ``skin`` list names, as an (n_vertices,) mask; None where it names none."""
+    listed = overrides.get("skin")
+    if not listed:
+        return None
+    skin = np.zeros(n_vertices, bool)
+    skin[np.asarray(listed, np.int64)] = True
+    return skin
+
+
 def parse_overrides(data, name="parts") -> dict:
     """Validate part overrides read from JSON: an object of kind → list of vertex indices."""
     if not isinstance(data, dict):

@@ -4,7 +4,8 @@
 MediaPipe's detector and 468-point face mesh (:mod:`.detector`, the optional
 ``pdeface[landmarks]`` extra), casts the points back onto the mesh and maps
 them to the 68 (:mod:`.facemap`, a map fitted on ICT-FaceKit heads). The
-steps are in :mod:`.pipeline`; the ``pdeface landmarks`` command in :mod:`.cli`.
+steps are in :mod:`.pipeline` (:func:`~.pipeline.find_on_mesh` takes a mesh); the
+``pdeface landmarks`` command is :mod:`pdeface.cli.landmarks`.
 """
 from .detector import MissingDependencyError, available
 from .pipeline import FoundLandmarks, detect

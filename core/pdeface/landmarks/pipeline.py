@@ -28,7 +28,7 @@ from ..rigid import rotation_vector_matrix
 from ..surface.frame import UNITS_MM
 from .detector import Detector
 from .facemap import GROUPS, LandmarkMap, read_map, robust_similarity
-from .render import Raster, View, back_project, rasterise, shade
+from .render import Raster, View, back_project, marked, rasterise, shade
 
 #: The search's view directions (towards the viewer) with an up vector each.
 SEARCH_AXES = {"+z": ((0, 0, 1), (0, 1, 0)), "-y": ((0, -1, 0), (0, 0, 1)), "+x": ((1, 0, 0), (0, 1, 0)),
@@ -88,6 +88,15 @@ class FoundLandmarks:
                 "detector_score": round(self.score, 3), "view": self.view,
                 "residual_mm": round(self.residual_mm, 2), "mm_per_unit": round(self.mm_per_unit, 6),
                 "source": "pdeface landmarks (MediaPipe face mesh, Apache-2.0; map fitted on ICT-FaceKit, MIT)"}
+
+    def least_sure(self) -> str:
+        """The landmark group of the lowest confidence."""
+        return min(self.confidence, key=self.confidence.get)
+
+    def marked_image(self) -> np.ndarray:
+        """The frontal render (RGB) with the landmarks marked; needs ``detect(..., keep_images=True)``."""
+        x, y, _ = self.images["view"].project(self.points)
+        return marked(self.images["frontal"], np.stack([x, y], 1))
 
 
 def _framing(V, forward, up, size, margin=1.05):
@@ -330,6 +339,25 @@ def detect(V, T, unit=None, landmark_map: LandmarkMap | None = None, detector: D
     finally:
         if own:
             detector.close()
+
+
+def find_on_mesh(mesh, unit=None, keep_images=False) -> FoundLandmarks:
+    """:func:`detect` on a :class:`~pdeface.mesh.Mesh` (its faces split into triangles).
+
+    Parameters
+    ----------
+    mesh : Mesh
+        Any head or body mesh, any unit and orientation.
+    unit : {'mm', 'cm', 'm', 'in'} or None
+        The mesh unit, for the mm figures; estimated from the face's size when None.
+    keep_images : bool
+        Keep the frontal render and its view (for :meth:`FoundLandmarks.marked_image`).
+
+    Returns
+    -------
+    FoundLandmarks
+    """
+    return detect(mesh.vertices, mesh.triangles()[0], unit, keep_images=keep_images)
 
 
 def group_spread(m: LandmarkMap, view_points, mm=1.0) -> dict:

@@ -82,6 +82,36 @@ def activation_vector(named: dict) -> np.ndarray:
     return a
 
 
+def parse_activations(items) -> dict:
+    """Muscle activations written ``MUSCLE=VALUE``, as the command line's ``--activation`` takes them.
+
+    Parameters
+    ----------
+    items : iterable of str
+        ``["zygomatic_major_L=0.6", ...]``.
+
+    Returns
+    -------
+    dict
+        Muscle name → activation (checked by :func:`activation_vector`, not here).
+
+    Raises
+    ------
+    PdeFaceError
+        An item without ``=`` or whose value is not a number.
+    """
+    named = {}
+    for item in items:
+        name, sep, value = item.partition("=")
+        if not sep:
+            raise PdeFaceError(f"--activation {item!r}: use MUSCLE=VALUE, e.g. zygomatic_major_L=0.6")
+        try:
+            named[name] = float(value)
+        except ValueError:
+            raise PdeFaceError(f"--activation {item!r}: {value!r} is not a number") from None
+    return named
+
+
 def authored_activations(recipe: dict, calibrated: dict) -> np.ndarray:
     """An :data:`AUTHORED` recipe's (24,) activations: named muscles, plus ``"AU<key>"`` entries, each
     that calibrated AU's activations (``calibrated[key]``) times its weight; the sum must keep within

@@ -60,6 +60,10 @@ class CurveSampler:
         """Count of points per status name."""
         return {STATUS_NAMES[k]: int((self.status == k).sum()) for k in STATUS_NAMES}
 
+    def beyond_curves(self, share: float = 0.5) -> np.ndarray:
+        """Indices of the curves more than ``share`` of whose points lie beyond the mesh's edge."""
+        return np.nonzero((self.status == BEYOND).mean(axis=1) > share)[0]
+
 
 def _cavities(radius: np.ndarray, valid: np.ndarray, depth, window: int) -> np.ndarray:
     """Points lying ``depth`` (a number, or one per point) below the chord between valid points up to

@@ -2,23 +2,26 @@
 from __future__ import annotations
 
 import json
-import sys
 import time
 
+from ..au.modelfile import load_face
 from ..errors import PdeFaceError
+from ..fdt.deform import NeutralFace, classify, fdt_aus, fdt_curves, fit_fdt
+from ..fdt.quadratic import MODELS
+from ..fdt.regions import BLEND
+from ..fdt.table import generic, load_fdt, load_generic_fdts, read_fdts, write_fdts
+from ..head.bind import JAW_AUS, bind_file
 from ..io.files import check_output
-
-
-def _log(msg):
-    print(msg, file=sys.stderr, flush=True)
+from ..io.meshio import read_mesh, write_mesh
+from ..presets import BASIC_EXPRESSIONS
+from ..surface.fit import face_mesh
+from ..surface.frame import landmark_points, read_landmarks
+from ..surface.scan import load_scan
+from .common import json_option, log, meshing_options, output_option, write_head
 
 
 def _pair(args):
     """Neutral mesh, its landmarks, the posed vertices, and the posed mesh's own landmarks (or None)."""
-    from ..assets import load_scan
-    from ..io.meshio import read_mesh
-    from ..surface.frame import landmark_points, read_landmarks
-
     neutral, lm = load_scan(args.neutral, args.landmarks)
     if lm is None:
         raise PdeFaceError(f"{args.neutral}: --landmarks is required (JSON with 'indices' or 'points')")
@@ -35,9 +38,6 @@ def _check_blend(blend):
 
 
 def cmd_fit(args):
-    from .deform import fit_fdt
-    from .table import write_fdts
-
     check_output(args.output, args.neutral, args.posed, args.landmarks, args.posed_landmarks)
     _check_blend(args.blend)
     neutral, lm, posed, posed_lm = _pair(args)
@@ -47,32 +47,23 @@ def cmd_fit(args):
     fit = fit_fdt(neutral.vertices, posed, neutral.triangles()[0], lm, model, name, posed_lm, source=str(args.posed),
                   blend=args.blend)
     size = write_fdts(args.output, [fit.fdt])
-    _log(f"FDT {name!r} ({model}) of {args.posed} in {time.perf_counter() - t0:.2f} s: points per region "
-         + " ".join(str(len(m)) for m in fit.members.values()))
+    log(f"FDT {name!r} ({model}) of {args.posed} in {time.perf_counter() - t0:.2f} s: points per region "
+        + " ".join(str(len(m)) for m in fit.members.values()))
     print(json.dumps({"output": str(args.output), "name": name, "model": model, "bytes": size}))
 
 
 def cmd_mean(args):
-    from .table import generic, read_fdts, write_fdts
-
     check_output(args.output, *args.files)
     tables = [t for f in args.files for t in read_fdts(f)]
     names = {t.name for t in tables}
     if len(names) > 1 and not args.name:
-        _log(f"averaging FDTs named {', '.join(sorted(names))}: give --name for the result")
+        log(f"averaging FDTs named {', '.join(sorted(names))}: give --name for the result")
     g = generic(tables, args.name or tables[0].name, source=f"mean of {len(tables)} FDTs")
     size = write_fdts(args.output, [g])
     print(json.dumps({"output": str(args.output), "name": g.name, "subjects": g.subjects, "bytes": size}))
 
 
 def cmd_apply(args):
-    from dataclasses import replace
-
-    from ..assets import load_face, load_fdt
-    from ..io.meshio import write_mesh
-    from ..surface.fit import face_mesh
-    from .deform import fdt_aus, fdt_curves
-
     check_output(args.output, args.face, args.fdt, args.mesh, args.parts, args.landmarks)
     _check_blend(args.blend)
     model = load_face(args.face)
@@ -82,28 +73,16 @@ def cmd_apply(args):
         raise PdeFaceError(f"--weight {weight:g}: give a weight in [0, 1]")
     dC, dR = fdt_curves(model, fdt, weight, args.blend)
     if args.mesh:
-        from ..assets import DEFAULT, HEAD
-        from ..head.bind import JAW_AUS, bind_file
-        from ..io.meshio import write_posed
-
         mesh, binding = bind_file(model, args.mesh, args.landmarks, args.parts)
         V = mesh.vertices + binding.displacement(dC, dR, jaw=bool(set(fdt_aus(fdt.name)) & set(JAW_AUS)))
-        if args.mesh in (DEFAULT, HEAD):
-            write_mesh(args.output, replace(mesh, vertices=V))
-        else:
-            write_posed(args.output, args.mesh, mesh, V)
+        write_head(args.output, args.mesh, mesh, V)
     else:
         write_mesh(args.output, face_mesh(model, args.resolution, coefficients=model.coefficients + dC,
                                           residual=model.residual + dR))
-    _log(f"wrote {args.output}: FDT {fdt.name!r} ({fdt.model}, {fdt.subjects} subject(s)) at weight {weight:g}")
+    log(f"wrote {args.output}: FDT {fdt.name!r} ({fdt.model}, {fdt.subjects} subject(s)) at weight {weight:g}")
 
 
 def cmd_classify(args):
-    from ..assets import load_fdt, load_generic_fdts
-    from ..au.expressions import BASIC_EXPRESSIONS
-    from .deform import NeutralFace, classify
-    from .table import read_fdts
-
     neutral, lm, posed, posed_lm = _pair(args)
     if args.against:
         generics = [t for f in args.against for t in read_fdts(f)] if args.against != ["bundled-aus"] else \
@@ -124,11 +103,8 @@ def cmd_classify(args):
               f"{inside}")
 
 
-def add_parser(sub, output_option, meshing_options):
+def register(sub):
     """The ``fdt`` command and its subcommands."""
-    from .quadratic import MODELS
-    from .regions import BLEND
-
     p = sub.add_parser("fdt", help="Facial Deformation Tables: fit, mean, apply, classify")
     fsub = p.add_subparsers(dest="fdt_command", required=True)
     model_help = "quadratic model: 3d (x', y', z' quadratic in x, y, z; default), 3d-surface, or the paper's 2d"
@@ -178,6 +154,5 @@ def add_parser(sub, output_option, meshing_options):
     q.add_argument("--model", choices=MODELS, default="3d", help="model of the bundled FDTs")
     q.add_argument("--sigmas", type=float, default=1.0, help="k of the mean ± kσ range")
     q.add_argument("--top", type=int, default=3, help="candidates to print")
-    q.add_argument("--json", action="store_true", help="print one JSON object")
+    json_option(q)
     q.set_defaults(func=cmd_classify)
-    return p

@@ -1,0 +1,77 @@
+"""What the commands share: messages, the options several take, the help format, and output.
+
+A command prints its result on stdout (one JSON object or lines) and its
+progress and notes on stderr (:func:`log`); errors are handled once, in
+:func:`pdeface.cli.main`.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+from dataclasses import replace
+
+from ..assets import DEFAULT, HEAD
+from ..io.meshio import write_mesh, write_posed
+from ..surface.folds import fold_edges
+from ..surface.frame import UNITS_MM
+from ..surface.model import model_landmarks
+from ..surface.pde import ASSEMBLIES
+
+UNIT_HELP = "mesh unit (default: guessed from the eyes)"
+
+
+def log(msg):
+    """A progress line or note on stderr (stdout carries the command's result)."""
+    print(msg, file=sys.stderr, flush=True)
+
+
+class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
+    """Shows each option's default, where it has one worth showing."""
+
+    def _get_help_string(self, action):
+        if action.default is None or action.default is False or "default" in (action.help or ""):
+            return action.help
+        return super()._get_help_string(action)
+
+
+def output_option(p, help="file to write"):
+    p.add_argument("-o", "--output", required=True, help=help)
+
+
+def assembly_option(p):
+    p.add_argument("--assembly", choices=ASSEMBLIES, help="assembly to mesh with (default: the model's own)")
+
+
+def meshing_options(p):
+    p.add_argument("--resolution", default="default",
+                   help="default (steps per interval chosen for the face: more where it creases), original, "
+                        "fine, or ROWS,COLS subdivisions")
+    assembly_option(p)
+
+
+def unit_option(p, help=UNIT_HELP):
+    p.add_argument("--unit", choices=list(UNITS_MM), help=help)
+
+
+def json_option(p):
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+
+
+def weights_text(weights: dict, mixer: str) -> str:
+    """``AU12=1, AU6=0.5 (sum)``: the weights a face was posed with."""
+    return ", ".join(f"AU{k}={w:g}" for k, w in weights.items()) + f" ({mixer})"
+
+
+def turns(model, mesh, rest=None) -> str:
+    """The mesh's largest turn between neighbouring faces outside the openings (issue #16's fold figure)."""
+    r = fold_edges(mesh, model.frame, model_landmarks(model), rest=rest)
+    return f"largest turn outside the eyes, mouth and nostrils {r['max_deg']:.0f}°, {r['count']} edges over 30°"
+
+
+def write_head(output, source, mesh, vertices):
+    """Write a posed head: the bundled one (``source`` 'default' or 'head') as a new mesh, a mesh file
+    with everything of ``source`` but its vertex positions."""
+    if source in (DEFAULT, HEAD):
+        write_mesh(output, replace(mesh, vertices=vertices))
+    else:
+        write_posed(output, source, mesh, vertices)

@@ -1,0 +1,47 @@
+"""``pdeface landmarks``: find the 68 landmarks of a head mesh, no clicks."""
+from __future__ import annotations
+
+import json
+import time
+
+from ..io.files import atomic_open, check_output
+from ..io.png import write_png
+from ..landmarks.pipeline import find_on_mesh
+from ..surface.scan import load_scan
+from .common import log, output_option, unit_option
+
+
+def find_landmarks(mesh, unit=None, keep_images=False):
+    """:func:`~pdeface.landmarks.pipeline.find_on_mesh`, saying what it found (also for ``pdeface fit``)."""
+    t = time.perf_counter()
+    found = find_on_mesh(mesh, unit, keep_images=keep_images)
+    low = found.least_sure()
+    log(f"found the 68 landmarks in {time.perf_counter() - t:.1f} s (view {found.view}, detector score "
+        f"{found.score:.2f}, {found.residual_mm:.1f} mm from the template; least sure: {low} "
+        f"{found.confidence[low]:.2f})")
+    return found
+
+
+def cmd_landmarks(args):
+    check_output(args.output, args.mesh)
+    if args.image:
+        check_output(args.image, args.mesh)
+    mesh, _ = load_scan(args.mesh)
+    found = find_landmarks(mesh, args.unit, keep_images=bool(args.image))
+    with atomic_open(args.output) as f:
+        json.dump(found.to_json(), f)
+    if args.image:
+        write_png(args.image, found.marked_image())
+    print(json.dumps({"output": str(args.output), "view": found.view, "detector_score": round(found.score, 3),
+                      "confidence": {k: round(v, 3) for k, v in found.confidence.items()}}))
+
+
+def register(sub):
+    """The ``landmarks`` command."""
+    p = sub.add_parser("landmarks", help="find the 68 Multi-PIE landmarks on a head or body mesh "
+                                         "(needs pdeface[landmarks])")
+    p.add_argument("mesh", help="head or body mesh (.obj/.ply), any orientation and unit, or 'head'")
+    unit_option(p, "mesh unit, for the mm figures (default: from the face)")
+    p.add_argument("--image", help="also write the frontal render with the landmarks marked (.png)")
+    output_option(p, help="landmarks JSON to write ('indices' and 'points', with confidence per group)")
+    p.set_defaults(func=cmd_landmarks)
