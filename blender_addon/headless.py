@@ -109,8 +109,8 @@ def main(argv=None, prog="render_sequence.py"):
 
     module = enable_addon(bpy)
     progress_bar(1, 1, "Blender start-up", args.quiet)
-    render = __import__(module + ".render", fromlist=["render"])
-    face_logic = __import__(module + ".face", fromlist=["face"])
+    addon = __import__(module, fromlist=["animation", "face", "ict_head", "keys", "render"])
+    render = addon.render
     from pdeface.errors import PdeFaceError
     try:
         width, height = (int(v) for v in args.size.lower().split("x"))
@@ -128,15 +128,15 @@ def main(argv=None, prog="render_sequence.py"):
                 raise SystemExit(f"{args.blend}: no PDE face in the scene")
             face = faces[0]
             bpy.context.view_layer.objects.active = face
-            shown = next(iter(face_logic.user_objects(face)), face)
+            shown = next(iter(addon.face.user_objects(face)), face)
         elif args.head:
             bpy.ops.wm.read_homefile(use_empty=True)
-            shown = face_logic.add_ict_head(bpy.context)
+            shown = addon.ict_head.add_ict_head(bpy.context)
             face = shown.pdeface.rig_face
         else:
             bpy.ops.wm.read_homefile(use_empty=True)
-            face = face_logic.add_face(bpy.context, "" if args.face == "default" else str(Path(args.face).resolve()))
-            face_logic.build_keys(face, face_logic.all_presets(bpy.context.scene))
+            face = addon.face.add_face(bpy.context, "" if args.face == "default" else str(Path(args.face).resolve()))
+            addon.keys.build_keys(face, addon.keys.all_presets(bpy.context.scene))
             shown = face
         progress_bar(1, 1, "rig", args.quiet)
         scene = bpy.context.scene
@@ -157,7 +157,7 @@ def main(argv=None, prog="render_sequence.py"):
             names = [n.strip() for n in (args.sequence or ",".join(METHOD_SEQUENCE)).split(",") if n.strip()]
             timeline = sequence_timeline(names, args.fps, args.hold, args.blend_time)
         if timeline is not None:
-            first, last, missing = face_logic.apply_timeline(face, timeline)
+            first, last, missing = addon.animation.apply_timeline(face, timeline)
             scene.frame_start, scene.frame_end = first, last
             if missing:
                 sys.stderr.write(f"this face has no shape key for: {', '.join(missing)} (skipped)\n")

@@ -76,7 +76,7 @@ def test_fit_puts_every_key_on_the_users_objects(bpy, ict_head, tmp_path):
     want = mesh.vertices + b.pose_displacement({"12": 1.0})
     got = addon().key_coords(key_blocks(head)[AU12])
     np.testing.assert_allclose(got, want[head_idx], atol=1e-5)
-    happy = addon("face").all_presets(bpy.context.scene)["happy"]
+    happy = addon("keys").all_presets(bpy.context.scene)["happy"]
     from pdeface.au.expressions import resolve_preset
     w, _ = resolve_preset(happy, {d.key for d in model.descriptors})
     want = mesh.vertices + b.pose_displacement(w, happy.mixer)

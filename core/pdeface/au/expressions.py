@@ -293,3 +293,31 @@ def load_presets(path) -> list:
             raise ModelFormatError(f"{path}: field 'presets' must be a list")
         return [preset_from_json(p, f"{path}: presets[{i}]") for i, p in enumerate(items)]
     return [preset_from_json(obj, str(path))]
+
+
+def merged_presets(paths=()) -> dict:
+    """The built-in presets with those of preset files laid over them.
+
+    Parameters
+    ----------
+    paths : iterable of str or os.PathLike
+        Preset files (one preset or a ``pdeface.presets`` list each), read in
+        turn; a preset replaces any earlier one of the same name, built-in or
+        from an earlier file.
+
+    Returns
+    -------
+    dict
+        ``{name: Preset}``: the built-in presets (:data:`PRESETS`) first, in
+        their order, then the files' new names in the order read.
+
+    Raises
+    ------
+    PdeFaceError
+        A file that cannot be read or is not a preset file (as
+        :func:`load_presets`).
+    """
+    presets = dict(PRESETS)
+    for path in paths:
+        presets.update({p.name: p for p in load_presets(path)})
+    return presets
