@@ -109,7 +109,7 @@ def main(argv=None, prog="render_sequence.py"):
 
     module = enable_addon(bpy)
     progress_bar(1, 1, "Blender start-up", args.quiet)
-    addon = __import__(module, fromlist=["animation", "face", "ict_head", "keys", "render"])
+    addon = __import__(module, fromlist=["animation", "face", "keys", "render", "rigging"])
     render = addon.render
     from pdeface.errors import PdeFaceError
     try:
@@ -131,7 +131,7 @@ def main(argv=None, prog="render_sequence.py"):
             shown = next(iter(addon.face.user_objects(face)), face)
         elif args.head:
             bpy.ops.wm.read_homefile(use_empty=True)
-            shown = addon.ict_head.add_ict_head(bpy.context)
+            shown = addon.rigging.add_ict_head(bpy.context)
             face = shown.pdeface.rig_face
         else:
             bpy.ops.wm.read_homefile(use_empty=True)

@@ -14,7 +14,7 @@ from pdeface.errors import PdeFaceError
 from pdeface.fdt.quadratic import MODELS as FDT_MODELS
 from pdeface.muscles.placement import MUSCLE_NAMES
 
-from . import animation, compat, face, ict_head, keys, landmarks, live, muscles, texturing
+from . import animation, compat, face, keys, landmarks, live, muscles, rigging, texturing
 
 
 class _Operator:
@@ -97,7 +97,7 @@ class PDEFACE_OT_add_ict_head(_ObjectModeOperator, Operator):
     bl_label = "Add ICT Head (rigged)"
 
     def run(self, context):
-        obj = ict_head.add_ict_head(context)
+        obj = rigging.add_ict_head(context)
         return f"Added {obj.name}: {len(obj.data.shape_keys.key_blocks) - 1} keys on its {len(obj.data.vertices)} vertices"
 
 
@@ -131,24 +131,25 @@ class PDEFACE_OT_fit_to_selected(_UserMeshOperator, Operator):
             if note:
                 self.report({"INFO"}, note)
             src = context.active_object
-            parts = [o for o in context.view_layer.objects.selected if o is not src and o.type == "MESH"]
-            obj, model, sampler = face.fit_face_object(context, src, landmarks,
-                                                       None if s.unit == "AUTO" else s.unit, self.resolution,
-                                                       self.retarget, progress, parts, self.keys_on_mesh)
-            if self.keys_on_mesh and model.descriptors:
-                compat.set_status(context, "PDE Face: binding your mesh and building its shape keys")
-                r = keys.build_keys(obj, keys.all_presets(context.scene))
-                for note in face.binding_notes(obj):
-                    self.report({"INFO"}, note)
-                face.show_user_objects(context, obj)
+            unit = None if s.unit == "AUTO" else s.unit
+            r = None
+            if self.keys_on_mesh:
+                parts = [o for o in context.view_layer.objects.selected if o is not src and o.type == "MESH"]
+                obj, model, sampler, r = rigging.fit_and_rig(context, src, landmarks, unit, self.resolution,
+                                                             self.retarget, progress, parts)
+            else:
+                obj, model, sampler = face.fit_face_object(context, src, landmarks, unit, self.resolution,
+                                                           self.retarget, progress)
             wm.progress_update(4)
         finally:
             wm.progress_end()
             compat.set_status(context, None)
+        for note in face.binding_notes(obj) if r else []:
+            self.report({"INFO"}, note)
         filled = int((sampler.status != 0).sum())
         msg = (f"Fitted {obj.name}: {model.layout.n_curves} curves, unit {model.frame.unit}, "
                f"{filled} curve points filled over openings")
-        if self.keys_on_mesh and model.descriptors:
+        if r:
             msg += f"; {r['aus']} AU and {r['expressions']} expression keys on {r['objects'] - 1} object(s) of yours"
         return msg
 

@@ -1,7 +1,7 @@
-"""ICT-FaceKit's whole generic head as a rigged character: fitted, bound, every key on it.
+"""Rigging the user's head: a PDE face fitted to it and every key put on its objects; ICT's head as a demo.
 
-It spans the other rooms (a mesh made, a face fitted to it in :mod:`.face`,
-keys built in :mod:`.keys`), so it sits above them.
+Rigging spans two rooms (the face fitted in :mod:`.face`, the keys built in
+:mod:`.keys`), so it sits above both.
 """
 import math
 
@@ -20,6 +20,26 @@ HEAD_MATERIALS = {"eyeball": ("PDE Sclera", (0.85, 0.83, 0.8, 1.0)), "teeth": ("
                   # ICT's shading helpers over the eyes (for Unreal's shaders): invisible here
                   "lacrimal": ("PDE Clear", (1.0, 1.0, 1.0, 0.0)), "eye_blend": ("PDE Clear", (1.0, 1.0, 1.0, 0.0)),
                   "eye_occlusion": ("PDE Clear", (1.0, 1.0, 1.0, 0.0))}
+
+
+def fit_and_rig(context, src, landmarks, unit=None, resolution="default", retarget=True, progress=None, parts=()):
+    """Fit a PDE face to mesh object ``src`` and put every AU and expression key on it and on ``parts``.
+
+    As :func:`.face.fit_face_object` with its keys on the user's mesh; then, when the
+    model has AU descriptors (retargeted), :func:`.keys.build_keys` with the scene's
+    presets, the face hidden as the reference and ``src`` active.
+    ``progress(step, message)`` is called before each of the four steps.
+    Returns (face object, model, sampler, the keys' counts or None without descriptors).
+    """
+    obj, model, sampler = fit_face_object(context, src, landmarks, unit, resolution, retarget, progress, parts,
+                                          keys_on_mesh=True)
+    if not model.descriptors:
+        return obj, model, sampler, None
+    if progress is not None:
+        progress(4, "binding your mesh and building its shape keys")
+    counts = build_keys(obj, all_presets(context.scene))
+    show_user_objects(context, obj)
+    return obj, model, sampler, counts
 
 
 def add_ict_head(context, retarget=True):
@@ -55,9 +75,6 @@ def add_ict_head(context, retarget=True):
     obj.data.polygons.foreach_set("material_index", index)
     obj.data.polygons.foreach_set("use_smooth", np.ones(len(first), bool))
     context.view_layer.update()
-    face_obj, model, _ = fit_face_object(context, obj, mesh.vertices[lm], unit="cm", retarget=retarget,
-                                         keys_on_mesh=True)
-    build_keys(face_obj, all_presets(context.scene))
-    show_user_objects(context, face_obj)
+    fit_and_rig(context, obj, mesh.vertices[lm], unit="cm", retarget=retarget)
     context.view_layer.update()
     return obj
