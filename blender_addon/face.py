@@ -20,7 +20,8 @@ from pdeface.errors import LandmarkError, PdeFaceError
 from pdeface.io.files import read_bytes
 from pdeface.io.modelfile import model_from_bytes
 from pdeface.surface.fit import face_mesh, fit_face
-from pdeface.surface.frame import landmark_points, read_landmarks as read_landmark_file
+from pdeface.surface.frame import landmark_points
+from pdeface.surface.frame import read_landmarks as read_landmark_file
 from pdeface.surface.sampling import mesh_resolution, parse_resolution, resolution_text
 
 from . import bridge, head, landmarks

@@ -1,5 +1,5 @@
-"""Operators: each parses the context, calls the add-on's rooms (``face``, ``keys``, ``muscles``,
-``animation``, ``texturing``, ``live`` ...), and says what it did.
+"""Operators: each parses the context, calls the add-on's rooms (``face``, ``rigging``, ``keys``,
+``muscles``, ``animation``, ``texturing``, ``live``), and says what it did.
 
 Every operator runs through :class:`_Operator`: ``run`` returns its message
 (reported as INFO), and errors pdeface raises on purpose (``PdeFaceError``)
@@ -286,7 +286,7 @@ as the FAS let users calibrate their own AUs"""
         if not any(activations):
             raise PdeFaceError("every muscle is at rest: contract some first")
         d = muscles.record_muscle_au(face.active_face(context), activations, self.au or s.muscle_au,
-                                  self.replace or s.muscle_replace)
+                                     self.replace or s.muscle_replace)
         return f"{d.label} recorded from {sum(1 for a in activations if a)} muscles ({len(d.curves)} curves)"
 
 
@@ -355,9 +355,9 @@ class PDEFACE_OT_animate_sequence(_FaceOperator, Operator):
         names = [n.strip() for n in (self.presets or s.sequence).split(",") if n.strip()]
         start = scene.frame_current if self.start < 0 else self.start
         last = animation.animate_sequence(scene, face.active_face(context), names, keys.all_presets(scene), start,
-                                     s.sequence_hold if self.hold < 0 else self.hold,
-                                     s.sequence_blend if self.blend < 0 else self.blend,
-                                     self.mode or s.sequence_mode, self.channels or s.sequence_channels)
+                                          s.sequence_hold if self.hold < 0 else self.hold,
+                                          s.sequence_blend if self.blend < 0 else self.blend,
+                                          self.mode or s.sequence_mode, self.channels or s.sequence_channels)
         return f"Animated {len(names)} expressions over frames {start}-{last}"
 
 
@@ -387,14 +387,16 @@ class PDEFACE_OT_import_au(_FaceOperator, Operator):
     def run(self, context):
         if not self.filepath:
             raise PdeFaceError("choose an AU data file")
-        timeline, dropped, unknown, notes = animation.read_au_file(bpy.path.abspath(self.filepath), self.format,
-                                                              self.fps or animation.scene_fps(context.scene), self.hold,
-                                                              self.smooth, self.reduce, self.capture_fps or None)
+        fps = self.fps or animation.scene_fps(context.scene)
+        timeline, dropped, unknown, notes = animation.read_au_file(bpy.path.abspath(self.filepath), self.format, fps,
+                                                                   self.hold, self.smooth, self.reduce,
+                                                                   self.capture_fps or None)
         for note in notes:
             self.report({"WARNING"}, note)
         if unknown:
             self.report({"WARNING"}, f"not FACS AUs / not mapped, ignored: {', '.join(map(str, unknown))}")
-        first, last, missing = animation.apply_timeline(face.active_face(context), timeline, context.scene, self.merge)
+        first, last, missing = animation.apply_timeline(face.active_face(context), timeline, context.scene,
+                                                        self.merge)
         if missing:
             self.report({"WARNING"}, f"this face has no shape key for {', '.join(missing)}")
         note = f"; {dropped} rows dropped" if dropped else ""
