@@ -4,9 +4,13 @@ A PDE face keeps its model file's bytes (base64) on the object, so a .blend
 is self-contained; decoded models are cached per object.
 """
 import base64
+import hashlib
 
 import bpy
 import numpy as np
+from pdeface.au.modelfile import model_from_bytes, model_to_bytes
+from pdeface.errors import PdeFaceError
+from pdeface.mesh import Mesh
 
 from . import compat
 
@@ -39,8 +43,6 @@ def triangles(mesh):
 
 def as_pdeface_mesh(mesh):
     """A Blender mesh's polygons as a pdeface Mesh (object space), corners in polygon order."""
-    from pdeface.mesh import Mesh
-
     counts = np.empty(len(mesh.polygons), dtype=np.int32)
     starts = np.empty(len(mesh.polygons), dtype=np.int32)
     mesh.polygons.foreach_get("loop_total", counts)
@@ -103,17 +105,12 @@ def new_mesh(name, pde_mesh):
 
 def store_model(obj, model, data=None):
     """Keep the model on the object; ``data``: its file's bytes when at hand (saves re-encoding)."""
-    from pdeface.io.modelfile import model_to_bytes
-
     obj.pdeface.model_data = base64.b64encode(data or model_to_bytes(model)).decode("ascii")
     _models.pop(obj.as_pointer(), None)
 
 
 def face_model(obj):
     """The FaceModel stored on a PDE face object (cached)."""
-    from pdeface.errors import PdeFaceError
-    from pdeface.io.modelfile import model_from_bytes
-
     data = obj.pdeface.model_data
     if not data:
         raise PdeFaceError(f"{obj.name} carries no PDE face model")
@@ -127,7 +124,6 @@ def face_model(obj):
 
 def fingerprint(*parts) -> str:
     """A short hash of arrays (as float32 / int32 where they are numbers) and strings."""
-    import hashlib
     h = hashlib.blake2b(digest_size=8)
     for p in parts:
         if isinstance(p, str):

@@ -13,6 +13,8 @@ user's basis, other keys, drivers, modifiers, UVs and materials are never
 touched.
 """
 import numpy as np
+from pdeface.head.bind import HeadBinding, descriptor_motion_args
+from pdeface.head.parts import KINDS
 
 from . import bridge
 
@@ -42,8 +44,6 @@ def group_members(obj, kind):
 
 
 def _overrides(objs, starts) -> dict:
-    from pdeface.head.parts import KINDS
-
     out = {}
     for obj, start in zip(objs, starts):
         for kind in KINDS:
@@ -55,8 +55,6 @@ def _overrides(objs, starts) -> dict:
 
 def binding(face, model, users):
     """The head binding of ``users`` (cached while their shapes and the model stay the same)."""
-    from pdeface.head.bind import HeadBinding
-
     src = users[0]
     parts_V, parts_T, starts = [], [], []
     n = 0
@@ -97,8 +95,6 @@ def head_keys(face, model, poses, users, au_name, expression_name):
     ``poses`` are ``(preset, label, weights, mixer)``; ``au_name(descriptor)`` and
     ``expression_name(preset)`` name the keys. Nothing is written here.
     """
-    from pdeface.head.bind import descriptor_motion_args
-
     b, layout = binding(face, model, users)
     rests = [rest_coords(obj) for obj, *_ in layout]
     per_object = {obj.name: (obj, []) for obj, *_ in layout}

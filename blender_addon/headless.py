@@ -7,7 +7,7 @@ installed pdeface renders without a checkout. It imports nothing of Blender's
 until it has parsed its arguments, and enables the add-on from its own folder
 as an extension. Builds the PDE
 face with its shape keys (or loads a .blend), keyframes a timeline (a
-pdeface.io.timeline JSON, a list of presets, or an AU data file), frames the face
+pdeface.animation.timeline JSON, a list of presets, or an AU data file), frames the face
 with a camera and lights, renders PNG frames (Cycles CPU by default), and
 optionally a video, a contact sheet and the .blend.
 
@@ -109,8 +109,8 @@ def main(argv=None, prog="render_sequence.py"):
 
     module = enable_addon(bpy)
     progress_bar(1, 1, "Blender start-up", args.quiet)
-    render = __import__(module + ".render", fromlist=["render"])
-    face_logic = __import__(module + ".face", fromlist=["face"])
+    addon = __import__(module, fromlist=["animation", "face", "keys", "render", "rigging"])
+    render = addon.render
     from pdeface.errors import PdeFaceError
     try:
         width, height = (int(v) for v in args.size.lower().split("x"))
@@ -128,36 +128,36 @@ def main(argv=None, prog="render_sequence.py"):
                 raise SystemExit(f"{args.blend}: no PDE face in the scene")
             face = faces[0]
             bpy.context.view_layer.objects.active = face
-            shown = next(iter(face_logic.user_objects(face)), face)
+            shown = next(iter(addon.face.user_objects(face)), face)
         elif args.head:
             bpy.ops.wm.read_homefile(use_empty=True)
-            shown = face_logic.add_ict_head(bpy.context)
+            shown = addon.rigging.add_ict_head(bpy.context)
             face = shown.pdeface.rig_face
         else:
             bpy.ops.wm.read_homefile(use_empty=True)
-            face = face_logic.add_face(bpy.context, "" if args.face == "default" else str(Path(args.face).resolve()))
-            face_logic.build_keys(face, face_logic.all_presets(bpy.context.scene))
+            face = addon.face.add_face(bpy.context, "" if args.face == "default" else str(Path(args.face).resolve()))
+            addon.keys.build_keys(face, addon.keys.all_presets(bpy.context.scene))
             shown = face
         progress_bar(1, 1, "rig", args.quiet)
         scene = bpy.context.scene
         t0 = time.perf_counter()
         timeline = None
         if args.timeline:
-            from pdeface.io.timeline import load_timeline
+            from pdeface.animation.timeline import load_timeline
             timeline = load_timeline(args.timeline)
         elif args.au_data:
-            from pdeface.io.trackers import import_au
+            from pdeface.animation.trackers import import_au
             result = import_au(args.au_data, fps=args.fps)
             timeline = result.timeline
             summary["au_data"] = {"format": result.format, "rows": result.rows, "dropped": result.dropped,
                                   "unknown": result.unknown}
         elif not args.blend or args.sequence:
-            from pdeface.au.sequence import METHOD_SEQUENCE
-            from pdeface.io.timeline import sequence_timeline
+            from pdeface.animation.sequence import METHOD_SEQUENCE
+            from pdeface.animation.timeline import sequence_timeline
             names = [n.strip() for n in (args.sequence or ",".join(METHOD_SEQUENCE)).split(",") if n.strip()]
             timeline = sequence_timeline(names, args.fps, args.hold, args.blend_time)
         if timeline is not None:
-            first, last, missing = face_logic.apply_timeline(face, timeline)
+            first, last, missing = addon.animation.apply_timeline(face, timeline)
             scene.frame_start, scene.frame_end = first, last
             if missing:
                 sys.stderr.write(f"this face has no shape key for: {', '.join(missing)} (skipped)\n")

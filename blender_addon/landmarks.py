@@ -13,6 +13,10 @@ import time
 
 import bpy
 import numpy as np
+from pdeface.errors import LandmarkError, MeshError, PdeFaceError
+from pdeface.landmarks import MissingDependencyError, available, detect
+from pdeface.landmarks.detector import RUNTIME_PACKAGES
+from pdeface.landmarks.facemap import GROUPS
 
 from . import bridge
 
@@ -42,20 +46,17 @@ _AVAILABLE = []
 def model_available():
     """Whether the face-landmark model imports (checked once per session, and again after an install)."""
     if not _AVAILABLE:
-        from pdeface.landmarks import available
         _AVAILABLE.append(available())
     return _AVAILABLE[0]
 
 
 def install_command(target):
     """The pip command that installs the face-landmark model into ``target``."""
-    from pdeface.landmarks.detector import RUNTIME_PACKAGES
     return [sys.executable, "-m", "pip", "install", "--no-deps", "--upgrade", "--target", target, *RUNTIME_PACKAGES]
 
 
 def install():
     """Install the face-landmark model for this extension; returns pip's last lines. Raises PdeFaceError."""
-    from pdeface.errors import PdeFaceError
     target = site_dir(create=True)
     subprocess.run([sys.executable, "-m", "ensurepip"], capture_output=True)
     done = subprocess.run(install_command(target), capture_output=True, text=True)
@@ -85,7 +86,6 @@ def empty_points(obj):
 
 def show(context, obj, points, found):
     """Put (or move) the 68 landmark empties of ``obj`` at ``points`` (object space)."""
-    from pdeface.landmarks.facemap import GROUPS
     group_of = {i: g for g, rows in GROUPS.items() for i in rows}
     coll = bpy.data.collections.get(COLLECTION)
     if coll is None:
@@ -108,17 +108,14 @@ def show(context, obj, points, found):
 
 def find(context, obj, unit=None):
     """Find the landmarks of mesh object ``obj`` and show them as empties; returns (points, found, seconds)."""
-    import pdeface.landmarks
     V = bridge.vertices(obj.data)
     T, _ = bridge.triangles(obj.data)
     if len(T) == 0:
-        from pdeface.errors import MeshError
         raise MeshError(f"{obj.name} has no faces")
     t = time.perf_counter()
     try:
-        found = pdeface.landmarks.detect(V, T, unit)
-    except pdeface.landmarks.MissingDependencyError:
-        from pdeface.errors import LandmarkError
+        found = detect(V, T, unit)
+    except MissingDependencyError:
         raise LandmarkError("finding landmarks needs the face-landmark model: press Install Landmark Model in the "
                             "PDE Face panel, or choose Vertex group, Selected vertices or JSON file") from None
     seconds = time.perf_counter() - t

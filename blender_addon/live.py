@@ -7,8 +7,13 @@ keys, recording keyframes when asked.
 import time
 
 import bpy
+from pdeface.errors import PdeFaceError
+from pdeface.presets import choose_mixer
+from pdeface.stream.player import Player
+from pdeface.stream.rules import AUBlender
 
-from . import face
+from .animation import scene_fps
+from .keys import managed, pose_aus
 
 LOOPBACK = ("127.0.0.1", "localhost", "::1")
 
@@ -27,16 +32,12 @@ def start(obj, role="LISTEN", host="127.0.0.1", port=5000, mode="live", rules=Fa
     Listening on an address other than loopback needs ``allow_remote``. ``mixer``
     None is ``sum`` (the AU keys themselves).
     """
-    from pdeface.au.expressions import choose_mixer
-    from pdeface.stream.player import Player
-    from pdeface.stream.rules import AUBlender
-
     if role == "LISTEN" and host not in LOOPBACK and not allow_remote:
-        raise face.error(f"listening on {host} opens the player to the network: tick 'Allow remote' to do that")
-    if not face.managed(obj, "AU"):
-        raise face.error("build shape keys first")
+        raise PdeFaceError(f"listening on {host} opens the player to the network: tick 'Allow remote' to do that")
+    if not managed(obj, "AU"):
+        raise PdeFaceError("build shape keys first")
     mixer = choose_mixer(mixer)
-    face.pose_aus(obj, {}, mixer)  # the mix key is checked to be ours here, once (the timer does not)
+    pose_aus(obj, {}, mixer)  # the mix key is checked to be ours here, once (the timer does not)
     stop()
     player = Player(mode=mode, transition=transition, blender=AUBlender.load() if rules else None)
     try:
@@ -47,7 +48,7 @@ def start(obj, role="LISTEN", host="127.0.0.1", port=5000, mode="live", rules=Fa
             address = (host, port)
     except OSError as exc:
         player.close()
-        raise face.error(f"cannot {role.lower()} on {host}:{port}: {exc.strerror or exc}") from None
+        raise PdeFaceError(f"cannot {role.lower()} on {host}:{port}: {exc.strerror or exc}") from None
     scene = bpy.context.scene
     _state.update(player=player, address=address, face=obj.name, t0=time.monotonic(), frame0=scene.frame_current,
                   record=record, hz=min(max(hz, 1.0), 60.0), mixer=mixer, applied=0)
@@ -82,11 +83,11 @@ def tick():
     if player is None or obj is None or not obj.pdeface.is_face:
         stop()
         return
-    touched = face.pose_aus(obj, player.pose(), _state["mixer"], check=False)
+    touched = pose_aus(obj, player.pose(), _state["mixer"], check=False)
     _state["applied"] += 1
     if _state["record"]:
         scene = bpy.context.scene
-        frame = _state["frame0"] + round((time.monotonic() - _state["t0"]) * face.scene_fps(scene))
+        frame = _state["frame0"] + round((time.monotonic() - _state["t0"]) * scene_fps(scene))
         for kb in touched:
             kb.keyframe_insert("value", frame=frame)
     obj.data.update()

@@ -1,4 +1,5 @@
-"""Operators: each parses the context, calls ``face`` (or ``texturing``, ``live``), and says what it did.
+"""Operators: each parses the context, calls the add-on's rooms (``face``, ``rigging``, ``keys``,
+``muscles``, ``animation``, ``texturing``, ``live``), and says what it did.
 
 Every operator runs through :class:`_Operator`: ``run`` returns its message
 (reported as INFO), and errors pdeface raises on purpose (``PdeFaceError``)
@@ -8,9 +9,12 @@ nothing written by then.
 import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, StringProperty
 from bpy.types import Operator
+from pdeface.errors import PdeFaceError
 from pdeface.fdt.quadratic import MODELS as FDT_MODELS
+from pdeface.fdt.table import load_fdt
+from pdeface.muscles.placement import MUSCLE_NAMES
 
-from . import compat, face, live, texturing
+from . import animation, compat, face, keys, landmarks, live, muscles, rigging, texturing
 
 
 class _Operator:
@@ -19,7 +23,6 @@ class _Operator:
     bl_options = {"REGISTER", "UNDO"}
 
     def execute(self, context):
-        from pdeface.errors import PdeFaceError
         try:
             message = self.run(context)
         except PdeFaceError as exc:
@@ -94,7 +97,7 @@ class PDEFACE_OT_add_ict_head(_ObjectModeOperator, Operator):
     bl_label = "Add ICT Head (rigged)"
 
     def run(self, context):
-        obj = face.add_ict_head(context)
+        obj = rigging.add_ict_head(context)
         return f"Added {obj.name}: {len(obj.data.shape_keys.key_blocks) - 1} keys on its {len(obj.data.vertices)} vertices"
 
 
@@ -128,24 +131,25 @@ class PDEFACE_OT_fit_to_selected(_UserMeshOperator, Operator):
             if note:
                 self.report({"INFO"}, note)
             src = context.active_object
-            parts = [o for o in context.view_layer.objects.selected if o is not src and o.type == "MESH"]
-            obj, model, sampler = face.fit_face_object(context, src, landmarks,
-                                                       None if s.unit == "AUTO" else s.unit, self.resolution,
-                                                       self.retarget, progress, parts, self.keys_on_mesh)
-            if self.keys_on_mesh and model.descriptors:
-                compat.set_status(context, "PDE Face: binding your mesh and building its shape keys")
-                r = face.build_keys(obj, face.all_presets(context.scene))
-                for note in face.binding_notes(obj):
-                    self.report({"INFO"}, note)
-                face.show_user_objects(context, obj)
+            unit = None if s.unit == "AUTO" else s.unit
+            r = None
+            if self.keys_on_mesh:
+                parts = [o for o in context.view_layer.objects.selected if o is not src and o.type == "MESH"]
+                obj, model, sampler, r = rigging.fit_and_rig(context, src, landmarks, unit, self.resolution,
+                                                             self.retarget, progress, parts)
+            else:
+                obj, model, sampler = face.fit_face_object(context, src, landmarks, unit, self.resolution,
+                                                           self.retarget, progress)
             wm.progress_update(4)
         finally:
             wm.progress_end()
             compat.set_status(context, None)
+        for note in face.binding_notes(obj) if r else []:
+            self.report({"INFO"}, note)
         filled = int((sampler.status != 0).sum())
         msg = (f"Fitted {obj.name}: {model.layout.n_curves} curves, unit {model.frame.unit}, "
                f"{filled} curve points filled over openings")
-        if self.keys_on_mesh and model.descriptors:
+        if r:
             msg += f"; {r['aus']} AU and {r['expressions']} expression keys on {r['objects'] - 1} object(s) of yours"
         return msg
 
@@ -160,7 +164,6 @@ Fit then uses them"""
     select_message = "Select the head or body mesh to find the face on"
 
     def run(self, context):
-        from . import landmarks
         s = context.scene.pdeface
         obj = context.active_object
         compat.set_status(context, "PDE Face: finding landmarks")
@@ -180,9 +183,7 @@ extension's user folder, for Find Landmarks"""
     bl_options = {"REGISTER"}
 
     def run(self, context):
-        from . import landmarks
         if not bpy.app.online_access:
-            from pdeface.errors import PdeFaceError
             raise PdeFaceError("Blender is offline: allow online access (Preferences > System) to install the "
                                "landmark model, or install mediapipe 0.10.21 yourself")
         landmarks.install()
@@ -200,8 +201,8 @@ Rebuilding updates these keys in place; your own keys are left alone"""
 
     def run(self, context):
         obj = face.active_face(context)
-        presets = face.all_presets(context.scene) if self.expressions else {}
-        r = face.build_keys(obj, presets)
+        presets = keys.all_presets(context.scene) if self.expressions else {}
+        r = keys.build_keys(obj, presets)
         msg = (f"{obj.name}: {r['made']} shape keys made, {r['updated']} updated "
                f"({r['aus']} AUs, {r['expressions']} expressions)")
         if not r["skipped"]:
@@ -215,7 +216,7 @@ class PDEFACE_OT_apply_preset(_FaceOperator, Operator):
     bl_idname = "pdeface.apply_preset"
     bl_label = "Apply Expression"
 
-    preset: EnumProperty(name="Preset", items=face.preset_items)
+    preset: EnumProperty(name="Preset", items=keys.preset_items)
     mode: EnumProperty(name="Apply as", items=[("SCENE", "Panel setting", ""), ("AUS", "AU weights", ""),
                                                ("KEY", "Expression key", "")], default="SCENE")
     weight: FloatProperty(name="Weight", default=1.0, min=0.0, max=1.0)
@@ -223,11 +224,11 @@ class PDEFACE_OT_apply_preset(_FaceOperator, Operator):
     def run(self, context):
         s = context.scene.pdeface
         mode = s.preset_mode if self.mode == "SCENE" else self.mode
-        presets = face.all_presets(context.scene)
+        presets = keys.all_presets(context.scene)
         if self.preset not in presets:
-            raise face.error(f"unknown preset {self.preset!r}")
-        mixer, missing = face.apply_preset(face.active_face(context), self.preset, presets[self.preset], mode,
-                                           self.weight, face.scene_mixer(s))
+            raise PdeFaceError(f"unknown preset {self.preset!r}")
+        mixer, missing = keys.apply_preset(face.active_face(context), self.preset, presets[self.preset], mode,
+                                           self.weight, keys.scene_mixer(s))
         if mixer is None:
             return f"{self.preset} as its own key at {self.weight:g}"
         note = f" (no descriptor for AU {', '.join(missing)})" if missing else ""
@@ -255,15 +256,14 @@ key on the face and the objects it drives"""
         return self.execute(context)
 
     def run(self, context):
-        from pdeface.assets import load_fdt
         if not self.filepath.strip():
-            raise face.error("give an FDT file or a bundled FDT's name")
+            raise PdeFaceError("give an FDT file or a bundled FDT's name")
         path = self.filepath.strip()
         fdt = load_fdt(bpy.path.abspath(path) if path.startswith("//") else path, self.model)
         obj = face.active_face(context)
         if obj.data.shape_keys is None:
-            raise face.error(f"{obj.name} has no shape keys yet: Build Shape Keys first")
-        r = face.add_fdt_key(obj, fdt)
+            raise PdeFaceError(f"{obj.name} has no shape keys yet: Build Shape Keys first")
+        r = keys.add_fdt_key(obj, fdt)
         msg = f"{r['name']}: shape key on {r['objects']} object(s) ({r['made']} made, {r['updated']} updated)"
         if not r["skipped"]:
             return msg
@@ -284,9 +284,9 @@ as the FAS let users calibrate their own AUs"""
         s = context.scene.pdeface
         activations = list(s.muscles)
         if not any(activations):
-            raise face.error("every muscle is at rest: contract some first")
-        d = face.record_muscle_au(face.active_face(context), activations, self.au or s.muscle_au,
-                                  self.replace or s.muscle_replace)
+            raise PdeFaceError("every muscle is at rest: contract some first")
+        d = muscles.record_muscle_au(face.active_face(context), activations, self.au or s.muscle_au,
+                                     self.replace or s.muscle_replace)
         return f"{d.label} recorded from {sum(1 for a in activations if a)} muscles ({len(d.curves)} curves)"
 
 
@@ -301,7 +301,7 @@ class PDEFACE_OT_load_muscle_au(_FaceOperator, Operator):
     def run(self, context):
         s = context.scene.pdeface
         key = self.au or s.muscle_au
-        s.muscles, where = face.muscle_activations(face.active_face(context), key)
+        s.muscles, where = muscles.muscle_activations(face.active_face(context), key)
         return f"AU{key}: muscles from {where}"
 
 
@@ -312,7 +312,7 @@ class PDEFACE_OT_reset_muscles(_FaceOperator, Operator):
     bl_label = "Relax All"
 
     def run(self, context):
-        context.scene.pdeface.muscles = [0.0] * 24
+        context.scene.pdeface.muscles = [0.0] * len(MUSCLE_NAMES)
 
 
 class PDEFACE_OT_reset_pose(_FaceOperator, Operator):
@@ -322,7 +322,7 @@ class PDEFACE_OT_reset_pose(_FaceOperator, Operator):
     bl_label = "Reset to Neutral"
 
     def run(self, context):
-        face.set_pose(face.active_face(context), {})
+        keys.set_pose(face.active_face(context), {})
 
 
 class PDEFACE_OT_keyframe_pose(_FaceOperator, Operator):
@@ -333,7 +333,7 @@ class PDEFACE_OT_keyframe_pose(_FaceOperator, Operator):
 
     def run(self, context):
         frame = context.scene.frame_current
-        n = face.keyframe_pose(face.active_face(context), frame)
+        n = animation.keyframe_pose(face.active_face(context), frame)
         return f"Keyframed {n} shape keys at frame {frame}"
 
 
@@ -354,10 +354,10 @@ class PDEFACE_OT_animate_sequence(_FaceOperator, Operator):
         scene, s = context.scene, context.scene.pdeface
         names = [n.strip() for n in (self.presets or s.sequence).split(",") if n.strip()]
         start = scene.frame_current if self.start < 0 else self.start
-        last = face.animate_sequence(scene, face.active_face(context), names, face.all_presets(scene), start,
-                                     s.sequence_hold if self.hold < 0 else self.hold,
-                                     s.sequence_blend if self.blend < 0 else self.blend,
-                                     self.mode or s.sequence_mode, self.channels or s.sequence_channels)
+        last = animation.animate_sequence(scene, face.active_face(context), names, keys.all_presets(scene), start,
+                                          s.sequence_hold if self.hold < 0 else self.hold,
+                                          s.sequence_blend if self.blend < 0 else self.blend,
+                                          self.mode or s.sequence_mode, self.channels or s.sequence_channels)
         return f"Animated {len(names)} expressions over frames {start}-{last}"
 
 
@@ -386,15 +386,17 @@ class PDEFACE_OT_import_au(_FaceOperator, Operator):
 
     def run(self, context):
         if not self.filepath:
-            raise face.error("choose an AU data file")
-        timeline, dropped, unknown, notes = face.read_au_file(bpy.path.abspath(self.filepath), self.format,
-                                                              self.fps or face.scene_fps(context.scene), self.hold,
-                                                              self.smooth, self.reduce, self.capture_fps or None)
+            raise PdeFaceError("choose an AU data file")
+        fps = self.fps or animation.scene_fps(context.scene)
+        timeline, dropped, unknown, notes = animation.read_au_file(bpy.path.abspath(self.filepath), self.format, fps,
+                                                                   self.hold, self.smooth, self.reduce,
+                                                                   self.capture_fps or None)
         for note in notes:
             self.report({"WARNING"}, note)
         if unknown:
             self.report({"WARNING"}, f"not FACS AUs / not mapped, ignored: {', '.join(map(str, unknown))}")
-        first, last, missing = face.apply_timeline(face.active_face(context), timeline, context.scene, self.merge)
+        first, last, missing = animation.apply_timeline(face.active_face(context), timeline, context.scene,
+                                                        self.merge)
         if missing:
             self.report({"WARNING"}, f"this face has no shape key for {', '.join(missing)}")
         note = f"; {dropped} rows dropped" if dropped else ""
@@ -432,7 +434,7 @@ class PDEFACE_OT_live_start(_FaceOperator, Operator):
         s = context.scene.pdeface
         obj = face.active_face(context)
         host, port = live.start(obj, s.live_role, s.live_host, s.live_port, s.live_mode, s.live_rules,
-                                s.live_record, s.live_hz, face.scene_mixer(s), s.live_allow_remote)
+                                s.live_record, s.live_hz, keys.scene_mixer(s), s.live_allow_remote)
         return f"Live link {'listening on' if s.live_role == 'LISTEN' else 'connecting to'} {host}:{port}"
 
 

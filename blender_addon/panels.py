@@ -1,8 +1,11 @@
 """The PDE Face tab of the 3D View sidebar."""
 import bpy
+from pdeface.facs import REGIONS
+from pdeface.muscles.placement import MUSCLE_NAMES
 
 from . import landmarks, live
-from .face import active_face, key_owner, managed, preset_items
+from .face import active_face, key_owner
+from .keys import managed, preset_items
 
 
 class _Panel:
@@ -71,7 +74,6 @@ class PDEFACE_PT_action_units(_FacePanel, bpy.types.Panel):
             layout.label(text="No AU shape keys yet: Build Shape Keys", icon="INFO")
             return
         needle = s.au_filter.strip().lower()
-        from pdeface.au.facs import REGIONS
         for region, title in REGIONS.items():
             rows = [(e, kb) for e, kb in keys if e.region == region and needle in e.label.lower()]
             if not rows:
@@ -118,7 +120,6 @@ class PDEFACE_PT_muscles(_FacePanel, bpy.types.Panel):
     bl_options = {"DEFAULT_CLOSED"}
 
     def draw_face(self, layout, s, obj):
-        from pdeface.muscles.placement import MUSCLE_NAMES
         col = layout.column(align=True)
         for i, name in enumerate(MUSCLE_NAMES):
             col.prop(s, "muscles", index=i, text=name.replace("_", " "), slider=True)

@@ -10,12 +10,16 @@ from bpy.props import (
     PointerProperty,
     StringProperty,
 )
-from pdeface.au.expressions import MIXERS
-from pdeface.au.sequence import METHOD_SEQUENCE, MODES
+from pdeface.animation.sequence import METHOD_SEQUENCE, MODES
+from pdeface.errors import PdeFaceError
+from pdeface.muscles.placement import MUSCLE_NAMES
+from pdeface.presets import MIXERS
 from pdeface.stream.player import MODES as PLAYBACK_MODES
 from pdeface.surface.frame import UNITS_MM
 
-from .face import PRESET_MIXER
+from .face import active_face
+from .keys import PRESET_MIXER
+from .muscles import write_muscle_key
 
 MIXER_ITEMS = [(PRESET_MIXER, "Preset", "Each preset's own mixer (sum unless it names another); AUs alone: sum")] + \
     [(m, m.capitalize(), text) for m, text in MIXERS.items()]
@@ -67,20 +71,17 @@ def muscles_tick():
     them, not the property's update callback (Blender 4.2 crashes at exit with that one, as with a
     poll callback, below; and setting a property does not always tag the depsgraph for a handler).
     A problem cannot be reported from here: it is shown in the panel instead."""
-    from pdeface.errors import PdeFaceError
-
-    from . import face
     scene = bpy.context.scene
     if scene is None:
         return MUSCLES_POLL_S
     settings = scene.pdeface
-    obj = face.active_face(bpy.context)
+    obj = active_face(bpy.context)
     values = tuple(round(v, 6) for v in settings.muscles)
-    if obj is None or _muscles_shown.get(obj.name, (0.0,) * 24) == values:
+    if obj is None or _muscles_shown.get(obj.name, (0.0,) * len(MUSCLE_NAMES)) == values:
         return MUSCLES_POLL_S
     _muscles_shown[obj.name] = values
     try:
-        note = face.write_muscle_key(obj, list(values))
+        note = write_muscle_key(obj, list(values))
     except PdeFaceError as exc:
         note = str(exc)
     if settings.muscle_note != note:
@@ -136,7 +137,8 @@ class PDEFACE_PG_settings(bpy.types.PropertyGroup):
     live_rules: BoolProperty(name="AU blender rules", default=False, description="Apply the co-occurrence rules")
     live_record: BoolProperty(name="Record keyframes", default=False)
     live_hz: FloatProperty(name="Rate", default=60.0, min=1.0, max=60.0, description="Pose updates per second")
-    muscles: FloatVectorProperty(name="Muscles", size=24, default=(0.0,) * 24, min=-1.0, max=2.0,
+    muscles: FloatVectorProperty(name="Muscles", size=len(MUSCLE_NAMES), default=(0.0,) * len(MUSCLE_NAMES),
+                                 min=-1.0, max=2.0,
                                  description="Contract (> 0) or relax (< 0) each muscle: the face follows live")
     muscle_au: StringProperty(name="AU", default="13", description="The AU to record the muscles as: 13, 13L, 46R")
     muscle_replace: BoolProperty(name="Replace", default=False,

@@ -1,7 +1,7 @@
 """Rendering a PDE face: framing, frames, video, contact sheet.
 
 Used by scripts/render_sequence.py (``blender -b -P`` or plain ``python`` with
-bpy), which keyframes its timeline with ``face.apply_timeline``. Camera and
+bpy), which keyframes its timeline with ``animation.apply_timeline``. Camera and
 lights depend only on the face at rest, and Cycles' seed is fixed, so frame
 ranges rendered apart join seamlessly.
 """
@@ -11,8 +11,13 @@ from pathlib import Path
 import bpy
 import numpy as np
 from mathutils import Matrix, Vector
+from pdeface.au.expressions import ShapeBasis
+from pdeface.facs import split_au_key
+from pdeface.presets import resolve_preset
+from pdeface.surface.fit import face_mesh
 
-from . import bridge, compat, face
+from . import bridge, compat
+from .keys import all_presets, au_key_names, expression_key_names
 
 RIG = "PDE Render"  # prefix of the camera and lights this module makes
 
@@ -147,15 +152,11 @@ def contact_sheet(obj, path, items=None, cell=256, columns=8, samples=16, resolu
     view (Cycles, denoised where Blender has OpenImageDenoise), each labelled by
     a text object in a strip below the lowest chin of any cell.
     """
-    from pdeface.au.expressions import ShapeBasis, resolve_preset
-    from pdeface.au.facs import split_au_key
-    from pdeface.surface.fit import face_mesh
-
     pde = obj if obj.pdeface.is_face else obj.pdeface.rig_face
     model = bridge.face_model(pde)
     keys = sorted((d.key for d in model.descriptors), key=split_au_key)
     cells = [("neutral", {})] + [(f"AU{k}", {k: 1.0}) for k in keys]
-    for name, preset in face.all_presets(bpy.context.scene).items():
+    for name, preset in all_presets(bpy.context.scene).items():
         w, _ = resolve_preset(preset, set(keys))
         cells.append((name, w))
     if items is not None:
@@ -169,8 +170,8 @@ def contact_sheet(obj, path, items=None, cell=256, columns=8, samples=16, resolu
         else:  # the user's head: its own keys at weight 1
             cell_mesh = bridge.as_pdeface_mesh(obj.data)
             blocks = obj.data.shape_keys.key_blocks
-            names = {**{f"AU{k}": n for k, n in face.au_key_names(obj).items()},
-                     **face.expression_key_names(obj, [c[0] for c in cells])}
+            names = {**{f"AU{k}": n for k, n in au_key_names(obj).items()},
+                     **expression_key_names(obj, [c[0] for c in cells])}
             rest = bridge.key_coords(obj.data.shape_keys.reference_key).astype(np.float64)
             user_space = [bridge.key_coords(blocks[names[label]]).astype(np.float64) if w else rest
                           for label, w in cells]

@@ -1,9 +1,10 @@
 """UVs for a PDE face: from its scan by closest point (the method's texturing) or a fresh atlas."""
 import bpy
 import numpy as np
+from pdeface.errors import PdeFaceError
+from pdeface.surface.texture import atlas_uvs, transfer_uvs
 
 from . import bridge, compat
-from .face import error
 
 CLOSEST_LAYER = "Scan UV"
 ATLAS_LAYER = "Atlas UV"
@@ -11,8 +12,6 @@ ATLAS_LAYER = "Atlas UV"
 
 def atlas(obj):
     """A fresh xatlas atlas in the ``Atlas UV`` layer (made active)."""
-    from pdeface.surface.texture import atlas_uvs
-
     me = obj.data
     F = np.array([list(p.vertices) for p in me.polygons])
     uv = atlas_uvs(bridge.vertices(me), F)
@@ -24,14 +23,12 @@ def from_scan(obj, src):
 
     Returns (median distance to the scan in scene units, the image or None).
     """
-    from pdeface.surface.texture import transfer_uvs
-
     if src is None or src.type != "MESH":
-        raise error("choose the scan to take UVs from (Scan field)")
+        raise PdeFaceError("choose the scan to take UVs from (Scan field)")
     if src.pdeface.is_face:
-        raise error(f"{src.name} is a PDE face: choose the scan to take UVs from")
+        raise PdeFaceError(f"{src.name} is a PDE face: choose the scan to take UVs from")
     if not src.data.uv_layers:
-        raise error(f"{src.name} has no UV map")
+        raise PdeFaceError(f"{src.name} has no UV map")
     me = obj.data
     T, L = bridge.triangles(src.data)
     corner_uv = bridge.loop_uvs(src.data)[L]

@@ -83,8 +83,8 @@ def test_presets_as_keys_or_weights_without_double_counting(bpy, face):
 
 def test_nonlinear_mixer_goes_into_its_own_key(bpy, face):
     from pdeface.au.modelfile import load_face
-    from pdeface.presets import PRESETS, resolve_preset
     from pdeface.posing import pose_curves
+    from pdeface.presets import PRESETS, resolve_preset
     from pdeface.surface.fit import face_mesh
     model = load_face("default")
     bpy.context.scene.pdeface.mixer = "max"
@@ -271,8 +271,8 @@ def test_bad_input_reports_an_error_and_loses_nothing(bpy, scan_object, tmp_path
     assert bpy.context.active_object.data.shape_keys is None or len(key_blocks(bpy.context.active_object)) <= 1
 
 
-def face_module():
-    return __import__(MODULE + ".face", fromlist=["face"])
+def addon_module(name):
+    return __import__(MODULE + "." + name, fromlist=[name])
 
 
 def shape_key_coords(obj):
@@ -280,12 +280,12 @@ def shape_key_coords(obj):
 
 
 def test_scripting_api_and_operators_make_the_same_face(bpy):
-    # The operators only parse, call face.* and report: both paths give the same mesh and keys.
-    fm = face_module()
+    # The operators only parse, call the add-on's rooms and report: both paths give the same mesh and keys.
+    fm, keys, animation = addon_module("face"), addon_module("keys"), addon_module("animation")
     assert bpy.ops.pdeface.add_default_face() == {"FINISHED"}
     by_operator = bpy.context.active_object
     obj = fm.add_face(bpy.context)
-    result = fm.build_keys(obj, fm.all_presets(bpy.context.scene))
+    result = keys.build_keys(obj, keys.all_presets(bpy.context.scene))
     assert result["made"] == len(key_blocks(by_operator)) - 1 and result["skipped"] == 0
     np.testing.assert_array_equal(np.array([v.co[:] for v in obj.data.vertices]),
                                   np.array([v.co[:] for v in by_operator.data.vertices]))
@@ -297,13 +297,13 @@ def test_scripting_api_and_operators_make_the_same_face(bpy):
     bpy.context.scene.pdeface.mixer = "max"
     bpy.context.view_layer.objects.active = by_operator
     assert bpy.ops.pdeface.apply_preset(preset="fear", mode="AUS") == {"FINISHED"}
-    presets = fm.all_presets(bpy.context.scene)
-    assert fm.apply_preset(obj, "fear", presets["fear"], "AUS", 1.0, "max")[0] == "max"
+    presets = keys.all_presets(bpy.context.scene)
+    assert keys.apply_preset(obj, "fear", presets["fear"], "AUS", 1.0, "max")[0] == "max"
     np.testing.assert_array_equal(evaluated_vertices(bpy, obj), evaluated_vertices(bpy, by_operator))
     # keyframes
     assert bpy.ops.pdeface.animate_sequence(presets="happy,sad", start=1, hold=2, blend=3, mode="direct",
                                             channels="AUS") == {"FINISHED"}
-    fm.animate_sequence(bpy.context.scene, obj, ["happy", "sad"], presets, 1, 2, 3, "direct", "AUS")
+    animation.animate_sequence(bpy.context.scene, obj, ["happy", "sad"], presets, 1, 2, 3, "direct", "AUS")
     for frame in (1, 4, 6, 9, 11):
         bpy.context.scene.frame_set(frame)
         np.testing.assert_array_equal(evaluated_vertices(bpy, obj), evaluated_vertices(bpy, by_operator))
@@ -314,7 +314,7 @@ def test_a_presets_own_mixer_unless_the_panel_names_one(bpy, face, tmp_path):
                                                  "weights": {"1": 1, "2": 1, "4": 1}, "mixer": "average"}))
     s = bpy.context.scene.pdeface
     s.presets_file = str(tmp_path / "p.json")
-    assert s.mixer == face_module().PRESET_MIXER  # the default defers to the preset
+    assert s.mixer == addon_module("keys").PRESET_MIXER  # the default defers to the preset
     kb = key_blocks(face)
     bpy.ops.pdeface.apply_preset(preset="brows", mode="AUS")
     assert kb["PDE Mix"].value == 1.0 and kb["AU1 Inner Brow Raiser"].value == 0.0
@@ -362,7 +362,7 @@ def test_a_face_keeps_the_steps_it_was_built_with(bpy, face):
     "default", 4 steps per interval) keeps its 4 steps."""
     from pdeface.au.modelfile import load_face
     from pdeface.surface.fit import face_mesh
-    fm = face_module()
+    fm, keys = addon_module("face"), addon_module("keys")
     model = load_face("default")
     stored = face.pdeface.resolution
     model.descriptors = model.descriptors[:10]  # another set of keys: another choice
@@ -371,6 +371,6 @@ def test_a_face_keeps_the_steps_it_was_built_with(bpy, face):
     legacy = fm.add_face(bpy.context, resolution="4,4")
     legacy.pdeface.resolution = "default"  # as a face made by an older pdeface stored it
     assert fm.face_resolution(legacy) == "4,4" and len(legacy.data.vertices) == 19285
-    result = fm.build_keys(legacy, fm.all_presets(bpy.context.scene))
+    result = keys.build_keys(legacy, keys.all_presets(bpy.context.scene))
     assert result["made"] == len(load_face("default").descriptors) + 10
     assert face.pdeface.resolution == stored

@@ -12,9 +12,8 @@ def addon(name="bridge"):
 
 
 def test_fdt_key_on_the_face_matches_the_core(bpy, face, tmp_path):
-    from pdeface.fdt.table import load_fdt
     from pdeface.fdt.deform import fdt_curves
-    from pdeface.fdt.table import write_fdts
+    from pdeface.fdt.table import load_fdt, write_fdts
     from pdeface.surface.fit import face_mesh
 
     model = addon().face_model(face)

@@ -76,7 +76,7 @@ def test_fit_puts_every_key_on_the_users_objects(bpy, ict_head, tmp_path):
     want = mesh.vertices + b.pose_displacement({"12": 1.0})
     got = addon().key_coords(key_blocks(head)[AU12])
     np.testing.assert_allclose(got, want[head_idx], atol=1e-5)
-    happy = addon("face").all_presets(bpy.context.scene)["happy"]
+    happy = addon("keys").all_presets(bpy.context.scene)["happy"]
     from pdeface.presets import resolve_preset
     w, _ = resolve_preset(happy, {d.key for d in model.descriptors})
     want = mesh.vertices + b.pose_displacement(w, happy.mixer)
@@ -192,9 +192,9 @@ def test_add_ict_head_is_a_rigged_character(bpy):
 
 def test_fdt_key_on_the_users_head(bpy, ict_head):
     """An FDT loaded as a key goes on the user's objects too: the head binding of the table's curve change."""
-    from pdeface.fdt.table import load_fdt
     from pdeface.assets import load_head
     from pdeface.fdt.deform import fdt_curves
+    from pdeface.fdt.table import load_fdt
     from pdeface.head.bind import HeadBinding
 
     head, eyes, head_idx, _ = ict_head

@@ -16,7 +16,7 @@ def test_muscle_sliders_pose_the_face_live_and_record_an_au(bpy, face):
 
     s = bpy.context.scene.pdeface
     model = addon().face_model(face)
-    a = np.zeros(24)
+    a = np.zeros(len(MUSCLE_NAMES))
     a[MUSCLE_NAMES.index("zygomatic_major_L")] = 0.8
     a[MUSCLE_NAMES.index("orbicularis_oris")] = 0.4
     s.muscles = a.tolist()
@@ -39,7 +39,7 @@ def test_muscle_sliders_pose_the_face_live_and_record_an_au(bpy, face):
     np.testing.assert_allclose(addon().key_coords(kb[name]), want, atol=0.05)
     with pytest.raises(RuntimeError, match="already"):
         bpy.ops.pdeface.record_muscle_au(au="12")  # the scan's AU12 is not overwritten unasked
-    s.muscles = [0.0] * 24
+    s.muscles = [0.0] * len(MUSCLE_NAMES)
     addon("properties").muscles_tick()
     assert kb["PDE Muscles"].value == 1.0 and np.abs(addon().key_coords(kb["PDE Muscles"])
                                                       - addon().key_coords(kb["Basis"])).max() < 1e-6  # relaxed
