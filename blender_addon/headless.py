@@ -45,13 +45,17 @@ def build_parser(prog="render_sequence.py"):
                                                         "with every key on it, instead of the PDE face")
     ap.add_argument("--blend", help="load this .blend (its PDE face) instead of building one")
     ap.add_argument("--out", default="render", help="output folder")
-    ap.add_argument("--frame-start", type=int)
-    ap.add_argument("--frame-end", type=int)
-    ap.add_argument("--engine", default="CYCLES", choices=["CYCLES", "EEVEE", "WORKBENCH"])
+    ap.add_argument("--frame-start", type=int, help="first frame to render (default: the timeline's first); "
+                                                    "with --frame-end, a chunk")
+    ap.add_argument("--frame-end", type=int, help="last frame to render (default: the timeline's last)")
+    ap.add_argument("--engine", default="CYCLES", choices=["CYCLES", "EEVEE", "WORKBENCH"],
+                    help="Blender render engine (Cycles renders on the CPU)")
     ap.add_argument("--size", default="256x256", help="WIDTHxHEIGHT")
-    ap.add_argument("--samples", type=int, default=16)
-    ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--fps", type=float, default=24)
+    ap.add_argument("--samples", type=int, default=16,
+                    help="Cycles samples per pixel (denoised where Blender has OpenImageDenoise)")
+    ap.add_argument("--seed", type=int, default=0, help="Cycles sampling seed (fixed, so chunks join seamlessly)")
+    ap.add_argument("--fps", type=float, default=24, help="frame rate of a --sequence or --au-data timeline "
+                                                          "(a --timeline keeps its own)")
     ap.add_argument("--hold", type=float, default=0.5, help="seconds each preset is held (--sequence)")
     ap.add_argument("--blend-time", type=float, default=0.5, help="seconds between poses (--sequence)")
     ap.add_argument("--video", action="store_true", help="also write frames.mp4 (Blender's FFmpeg)")

@@ -20,7 +20,7 @@ import json
 from dataclasses import dataclass, field
 
 from .errors import ModelFormatError, PdeFaceError
-from .facs import normalise_weights
+from .facs import normalise_weights, split_au_key
 from .io.files import atomic_open, load_json
 
 #: How AUs that move the same curves combine (the FAS's mixers); only ``sum`` is linear, i.e. plain shape keys.
@@ -53,6 +53,13 @@ class Preset:
     mixer: str = "sum"
     description: str = ""
     builtin: bool = field(default=False, compare=False)
+
+    @property
+    def recipe(self) -> str:
+        """``12 + 6 (0.3) + 16 (0.3)``: its AU keys, strongest first, each with its weight unless 1."""
+        weights = normalise_weights(self.weights)
+        keys = sorted(weights, key=lambda k: (-weights[k], split_au_key(k)))
+        return " + ".join(k if weights[k] == 1 else f"{k} ({weights[k]:g})" for k in keys)
 
 
 def _builtin_presets() -> dict:
@@ -102,6 +109,29 @@ def merged_presets(files=()) -> dict:
     for path in files:
         presets.update({p.name: p for p in load_presets(path)})
     return presets
+
+
+def preset_rows(presets, available) -> list:
+    """What presets are and which of their AUs a face lacks, one row per preset, in ``presets``' order.
+
+    Parameters
+    ----------
+    presets : dict
+        Name → :class:`Preset` (e.g. :func:`merged_presets`).
+    available : collection of str
+        The AU keys the face has descriptors for.
+
+    Returns
+    -------
+    list of dict
+        ``name``, ``recipe`` (:attr:`Preset.recipe`), ``weights`` (normalised), ``mixer``,
+        ``builtin``, ``description`` and ``missing`` (its AU keys the face lacks, which
+        :func:`resolve_preset` skips).
+    """
+    return [{"name": name, "recipe": p.recipe, "weights": normalise_weights(p.weights), "mixer": p.mixer,
+             "builtin": p.builtin, "description": p.description,
+             "missing": sorted(resolve_preset(p, available)[1], key=split_au_key)}
+            for name, p in presets.items()]
 
 
 def choose_mixer(requested=None, preset: Preset | None = None) -> str:

@@ -1,3 +1,4 @@
+import argparse
 import json
 import shutil
 import subprocess
@@ -108,6 +109,18 @@ def test_console_script_is_installed(tmp_path):
     assert read_obj(tmp_path / "c.obj").vertices.shape == (DEFAULT_CURVES * 37, 3)
 
 
+def _renderer_parser():
+    """The parser of the renderer ``pdeface render`` runs (read from its file: importing the add-on needs bpy)."""
+    import importlib.util
+    from pathlib import Path
+
+    folder = Path(next(iter(importlib.util.find_spec("pdeface_blender").submodule_search_locations)))
+    spec = importlib.util.spec_from_file_location("pdeface_headless", folder / "headless.py")
+    headless = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(headless)
+    return headless.build_parser("pdeface render")
+
+
 def test_version_and_help_for_every_option(capsys):
     import pdeface
     from pdeface.cli import build_parser, subcommands
@@ -115,10 +128,12 @@ def test_version_and_help_for_every_option(capsys):
         main(["--version"])
     assert exc.value.code == 0 and capsys.readouterr().out.strip() == f"pdeface {pdeface.__version__}"
     commands = subcommands(build_parser())
-    assert {"fit", "render", "demo", "stream play", "stream send"} <= set(commands)
+    assert {"fit", "render", "demo", "aus", "fdt fit", "stream play", "stream send"} <= set(commands)
+    # pdeface render passes its arguments on to the add-on's renderer: its options are render's
+    commands.update({"": build_parser(), "render": _renderer_parser()})
     for name, parser in commands.items():
         for action in parser._actions:
-            if action.dest not in ("help", "func") and not action.__class__.__name__.startswith("_SubParsers"):
+            if not isinstance(action, (argparse._HelpAction, argparse._SubParsersAction)):
                 assert action.help, f"pdeface {name} {action.option_strings or action.dest}: no help text"
     # defaults are shown; without --landmarks a mesh file's are found automatically
     fit_help = commands["fit"].format_help()

@@ -23,6 +23,31 @@ from ..surface.fourier import evaluate_fourier, fit_fourier
 #: same 0.5 mm below which the AU report does not count a vertex as moving.
 AFFECTED_MM = 0.5
 
+#: A descriptor's ``source`` when the muscles made it (:mod:`pdeface.muscles.aus`), and the word that
+#: begins it when an FDT did (``fdt 3d (TABLE)``, :mod:`pdeface.fdt.deform`); any other source names the
+#: scan it was captured from (an AU mesh, ICT-FaceKit's shapes).
+MUSCLE_SOURCE = "muscle"
+FDT_SOURCE = "fdt"
+#: Where descriptors come from, as :func:`source_kind` names it (``other``: no source recorded).
+SOURCE_KINDS = ("scan", "muscle", "fdt", "other")
+
+
+def source_kind(source: str) -> str:
+    """Where a descriptor with this ``source`` came from: one of :data:`SOURCE_KINDS`."""
+    if not source:
+        return "other"
+    if source == MUSCLE_SOURCE:
+        return "muscle"
+    if source.split(" ", 1)[0] == FDT_SOURCE:
+        return "fdt"
+    return "scan"
+
+
+def no_descriptors(face=None) -> str:
+    """The one-line message for a face model without descriptors, naming the command that gives it some."""
+    where = f"{face}: this face" if face else "this face"
+    return f"{where} carries no AU descriptors: run `pdeface retarget {face or 'FACE'} -o RIG.npz` first"
+
 
 @dataclass
 class Descriptor:
@@ -70,6 +95,11 @@ class Descriptor:
     def key(self) -> str:
         """``"12"``, ``"12L"`` or ``"12R"``."""
         return str(self.au) + {"both": "", "left": "L", "right": "R"}[self.side]
+
+    @property
+    def kind(self) -> str:
+        """Where it came from: ``scan``, ``muscle``, ``fdt`` or ``other`` (:func:`source_kind`)."""
+        return source_kind(self.source)
 
     @property
     def label(self) -> str:
@@ -156,3 +186,22 @@ def descriptor_from_points(neutral_points, au_points, au, side="both", n_modes=5
     curves = affected_curves(d, threshold_mm)
     K, J, _ = d.shape
     return Descriptor(int(au), side, curves, C[curves], R[curves], (K, J, n_modes), source=source, notice=notice)
+
+
+def descriptor_rows(descriptors) -> list:
+    """What a face's descriptors are, one row per AU key, by AU number then side.
+
+    Parameters
+    ----------
+    descriptors : iterable of Descriptor
+
+    Returns
+    -------
+    list of dict
+        ``key`` (``"12L"``), ``au`` (12), ``name`` (the FACS catalogue's), ``side`` (``both``, ``left``,
+        ``right``), ``kind`` (:func:`source_kind`), ``source`` (as recorded) and ``curves`` (the
+        indices of the curves it moves).
+    """
+    rows = [{"key": d.key, "au": d.au, "name": action_unit(d.au).name, "side": d.side, "kind": d.kind,
+             "source": d.source, "curves": d.curves.tolist()} for d in descriptors]
+    return sorted(rows, key=lambda r: (r["au"], SIDES.index(r["side"])))

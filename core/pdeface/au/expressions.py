@@ -18,6 +18,7 @@ from ..presets import MIXERS
 from ..surface.fit import face_mesh
 from ..surface.grid import surface_grid
 from ..surface.sampling import mesh_resolution
+from .descriptor import no_descriptors
 
 
 def mix(descriptors: dict, weights: dict, mixer: str = "sum") -> tuple[np.ndarray, np.ndarray]:
@@ -41,7 +42,7 @@ def mix(descriptors: dict, weights: dict, mixer: str = "sum") -> tuple[np.ndarra
     if mixer.startswith("muscle-"):
         raise PdeFaceError(f"the {mixer} mixer mixes muscle activations: pose the face with pose_curves")
     if not descriptors:
-        raise PdeFaceError("this face carries no AU descriptors")
+        raise PdeFaceError(no_descriptors())
     layout = next(iter(descriptors.values())).layout
     K, J, N = layout
     dC, dR = np.zeros((K, N + 1, 3)), np.zeros((K, J, 3))

@@ -9,7 +9,7 @@ from ..animation.trackers import FORMATS, import_au
 from ..assets import DEFAULT, load_ict_shapes
 from ..au.aureport import au_report
 from ..au.capture import fit_descriptor
-from ..au.descriptor import replace_descriptors
+from ..au.descriptor import no_descriptors, replace_descriptors
 from ..au.descriptorfile import load_descriptor, save_descriptor
 from ..au.ict import IctFolder
 from ..au.modelfile import load_face, save_model
@@ -19,7 +19,7 @@ from ..facs import SIDES, parse_au_weights
 from ..head.bind import bind_file
 from ..io.files import check_output
 from ..io.meshio import read_mesh, write_mesh
-from ..posing import pose_curves
+from ..posing import MUSCLE_MIXERS, pose_curves
 from ..presets import MIXERS, choose_mixer, merged_presets, resolve_preset
 from ..surface.fit import face_mesh, fit_face
 from ..surface.frame import landmark_points, read_landmarks
@@ -73,6 +73,8 @@ def cmd_pose(args):
     model = load_face(args.face)
     if args.descriptor:
         model.descriptors = replace_descriptors(model.descriptors, [load_descriptor(p) for p in args.descriptor])
+    if not model.descriptors and args.mixer not in MUSCLE_MIXERS:  # before a preset's AUs are skipped one by one
+        raise PdeFaceError(no_descriptors(args.face))
     weights, preset = _pose_weights(args, model)
     mixer = choose_mixer(args.mixer, preset)
     if args.mesh:
@@ -93,8 +95,14 @@ def _pose_head(args, model, weights, mixer):
     write_head(args.output, args.mesh, mesh, V)
     for note in binding.notes:
         log(note)
-    log(f"wrote {args.output}: {len(V)} vertices of {args.mesh} posed in {time.perf_counter() - t0:.2f} s, "
-        + weights_text(weights, mixer))
+    took = time.perf_counter() - t0
+    # The fold figure is measured where it is defined, on the PDE face (the openings come from its
+    # landmarks; the head has ears, eyeballs and teeth): the same figure `pose` without --mesh prints.
+    C, R = pose_curves(model, weights, mixer)
+    face = face_mesh(model, args.resolution, args.assembly, coefficients=C, residual=R)
+    rest = face_mesh(model, args.resolution, args.assembly)
+    log(f"wrote {args.output}: {len(V)} vertices of {args.mesh} posed in {took:.2f} s, {weights_text(weights, mixer)}; "
+        f"the posed PDE face's {turns(model, face, rest)}")
 
 
 def cmd_retarget(args):
@@ -110,7 +118,7 @@ def cmd_retarget(args):
 def cmd_au_report(args):
     model = load_face(args.face)
     if not model.descriptors:
-        raise PdeFaceError(f"{args.face}: carries no AU descriptors")
+        raise PdeFaceError(no_descriptors(args.face))
     if args.truth == DEFAULT:
         mesh, _ = load_scan(DEFAULT)
         V, T, shapes = mesh.vertices, mesh.triangles()[0], load_ict_shapes()
@@ -161,7 +169,8 @@ def register(sub):
     p = sub.add_parser("pose", help="mesh a face with AU weights or an expression preset")
     p.add_argument("face", help="face model with descriptors (.npz) or 'default'")
     p.add_argument("--au", action="append", metavar="AU=W", help="AU weight, e.g. 12=1, 12L=0.5, 4=C (repeatable)")
-    p.add_argument("--preset", help="expression preset (happy, sad, ... or one from --presets)")
+    p.add_argument("--preset", help="expression preset (happy, sad, ... or one from --presets; "
+                                    "'pdeface aus FACE' lists them)")
     p.add_argument("--presets", action="append", help="user preset JSON file(s)")
     p.add_argument("--descriptor", action="append", help="extra descriptor file(s) (.json/.pdd)")
     p.add_argument("--mixer", choices=MIXERS, help="how AUs on the same curves combine (default: the preset's "

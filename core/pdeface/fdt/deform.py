@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..au.descriptor import descriptor_from_points
+from ..au.descriptor import FDT_SOURCE, descriptor_from_points
 from ..errors import MeshError, PdeFaceError
 from ..facs import au_number, key_side, normalise_weights, parse_au_key
 from ..mesh import vertex_normals
@@ -207,7 +207,7 @@ def fdt_descriptor(face, fdt: FDT):
         raise PdeFaceError(f"FDT {fdt.name!r} is not named by an AU (12, 12L...): use it as an expression") from None
     X = face.curve_points()
     return descriptor_from_points(X, X + fdt_curve_displacement(face, fdt), au, side, face.n_modes,
-                                  source=f"fdt {fdt.model} ({fdt.source or 'file'})", notice=fdt.notice)
+                                  source=f"{FDT_SOURCE} {fdt.model} ({fdt.source or 'file'})", notice=fdt.notice)
 
 
 def fdt_aus(name) -> list:

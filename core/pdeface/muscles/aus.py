@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..au.descriptor import descriptor_from_points
+from ..au.descriptor import MUSCLE_SOURCE, descriptor_from_points
 from ..errors import ModelFormatError, PdeFaceError
 from ..facs import key_side, parse_au_key
 from ..io.files import load_json
@@ -189,7 +189,7 @@ class MuscleBasis:
         au, side = key_side(key)
         X = self.face.curve_points()
         return descriptor_from_points(X, X + self.displacement(activations), au, side, self.face.n_modes,
-                                      source="muscle", notice=notice)
+                                      source=MUSCLE_SOURCE, notice=notice)
 
     def calibrate(self, target_points) -> np.ndarray:
         """Activations (within :data:`BOUNDS`) whose displacement best matches ``target_points`` (K, J, 3)."""
