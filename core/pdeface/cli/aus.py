@@ -51,6 +51,7 @@ def register(sub):
     """The ``aus`` command."""
     p = sub.add_parser("aus", help="list a face's AUs (FACS name, side, source) and the presets with their recipes")
     p.add_argument("face", help="face model (.npz) or 'default'")
-    p.add_argument("--presets", action="append", metavar="FILE", help="user preset JSON file to list as well (repeatable)")
+    p.add_argument("--presets", action="append", metavar="FILE",
+                   help="user preset JSON file to list as well (repeatable)")
     json_option(p)
     p.set_defaults(func=cmd_aus)
