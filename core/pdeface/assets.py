@@ -32,7 +32,7 @@ def assets_dir() -> Path:
     for c in candidates:
         if c and (Path(c) / DEFAULT_FACE).exists():
             return Path(c)
-    raise PdeFaceError("bundled assets not found: set PDEFACE_ASSETS or run scripts/build_assets.py")
+    raise PdeFaceError("bundled assets not found: set PDEFACE_ASSETS or run scripts/build/build_assets.py")
 
 
 def asset_path(name: str) -> Path:
@@ -58,7 +58,7 @@ LOW_POLY_FACE = "low_poly_face.npz"
 
 def load_low_poly_face() -> tuple[Mesh, np.ndarray]:
     """A game-density face of another topology on a known surface: MediaPipe's 468-point face mesh
-    laid on the ICT neutral scan (cm, ICT frame; ``scripts/build_low_poly.py``), and its 68
+    laid on the ICT neutral scan (cm, ICT frame; ``scripts/build/build_low_poly.py``), and its 68
     landmark points (68, 3). Its notice names ICT-FaceKit (MIT) and MediaPipe (Apache-2.0)."""
     with np.load(asset_path(LOW_POLY_FACE), allow_pickle=False) as z:
         mesh = Mesh.from_faces(z["vertices"].astype(np.float64), z["triangles"].astype(np.int64))
@@ -115,7 +115,7 @@ ICT_HEAD_PRIOR = "ict_head_prior.npz"
 @functools.lru_cache(maxsize=1)
 def load_head_prior():
     """The whole-head motion learned from ICT-FaceKit's head (:class:`pdeface.head.prior.HeadPrior`;
-    ``scripts/build_head_prior.py``). Shared: do not modify it."""
+    ``scripts/build/build_head_prior.py``). Shared: do not modify it."""
     from .head.prior import load_prior
 
     head, _ = load_head()

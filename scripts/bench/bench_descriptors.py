@@ -1,6 +1,6 @@
 """Benchmark AU descriptors on the bundled ICT-FaceKit data (issue #3 targets).
 
-Usage: python scripts/bench_descriptors.py [--identities N] [--json OUT]
+Usage: python -m scripts.bench.bench_descriptors [--identities N] [--json OUT]
 
 Prints, measured in this run:
 - per AU of the bundled face: captured, p95 error, binary size, against the targets;
@@ -10,22 +10,18 @@ Prints, measured in this run:
 """
 from __future__ import annotations
 
-import argparse
 import json
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "core"))
-
-from benchlib import bundled_ict  # noqa: E402
-from pdeface.au.aureport import au_report  # noqa: E402
-from pdeface.au.expressions import ShapeBasis, mix  # noqa: E402
-from pdeface.au.facs import au_number  # noqa: E402
-from pdeface.au.retarget import retarget  # noqa: E402
-from pdeface.surface.fit import fit_face, surface_grid  # noqa: E402
+from pdeface.au.aureport import au_report
+from pdeface.au.expressions import ShapeBasis, mix
+from pdeface.au.facs import au_number
+from pdeface.au.retarget import retarget
+from pdeface.surface.fit import fit_face, surface_grid
+from scripts.bench.benchlib import bench_parser, bundled_ict, run_bench
 
 STRICT = {"1", "2", "4", "12", "15"}  # captured >= 0.95
 MOUTH_OPENING = {"25", "26", "27"}  # the method's admitted gap: reported, no target
@@ -37,7 +33,7 @@ def target_of(key):
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = bench_parser(__doc__)
     ap.add_argument("--identities", type=int, default=20)
     ap.add_argument("--json")
     args = ap.parse_args(argv)
@@ -110,4 +106,4 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    main()
+    run_bench(main, "descriptors")

@@ -1,6 +1,6 @@
 """Benchmark the live AU stream on loopback (issue #6 targets).
 
-Usage: python scripts/bench_stream.py [--duration 60] [--rate 1000] [--flood 600] [--hostile 600]
+Usage: python -m scripts.bench.bench_stream [--duration 60] [--rate 1000] [--flood 600] [--hostile 600]
 
 Prints, measured in this run:
 - receive → pose applied latency (p50, p99) in live mode at RATE packets/s for DURATION s, and
@@ -8,22 +8,19 @@ Prints, measured in this run:
 - the player's resident memory at the start and end of a FLOOD-second flood of malformed
   packets (garbage, oversized, NaN, unknown AUs, partial packets), which must stay flat;
 - HOSTILE seconds of the packets that once broke the reader (huge numbers, 60 KB lines, endless
-  digits, deep nesting: scripts/fuzz_readers.HOSTILE_PACKETS) each followed by a good packet, in
+  digits, deep nesting: scripts/bench/fuzz_readers.HOSTILE_PACKETS) each followed by a good packet, in
   queue mode: every good packet must be acked and played, RSS flat.
 """
 from __future__ import annotations
 
-import argparse
 import socket
-import sys
 import threading
 import time
-from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "core"))
-
-from pdeface.stream.player import Player  # noqa: E402
-from pdeface.stream.sender import Sender  # noqa: E402
+from pdeface.stream.player import Player
+from pdeface.stream.sender import Sender
+from scripts.bench.fuzz_readers import HOSTILE_PACKETS
+from scripts.bench.benchlib import bench_parser, run_bench
 
 
 def rss_mb():
@@ -40,7 +37,7 @@ def play(player, stop):
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = bench_parser(__doc__)
     ap.add_argument("--duration", type=float, default=60.0)
     ap.add_argument("--rate", type=float, default=1000.0)
     ap.add_argument("--flood", type=float, default=600.0)
@@ -104,9 +101,6 @@ def main(argv=None):
 
 def hostile_run(seconds):
     """Hostile packets, each followed by a good one: count the good ones acked and played."""
-    sys.path.insert(0, str(Path(__file__).resolve().parent))
-    from fuzz_readers import HOSTILE_PACKETS
-
     player = Player(mode="queue", transition=0.0, receive_capacity=10_000, playout_capacity=10_000)
     address = player.listen()
     stop = threading.Event()
@@ -150,4 +144,4 @@ def hostile_run(seconds):
 
 
 if __name__ == "__main__":
-    main()
+    run_bench(main, "stream")

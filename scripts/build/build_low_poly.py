@@ -1,6 +1,6 @@
 """Build the low-poly test face: MediaPipe's 468-point face mesh laid on the bundled ICT neutral scan.
 
-Usage: python scripts/build_low_poly.py [-o assets/low_poly_face.npz]
+Usage: python -m scripts.build.build_low_poly [-o assets/low_poly_face.npz]
 
 MediaPipe's face mesh (found on the scan by ``pdeface.landmarks``, its 468 points cast onto the
 skin) with MediaPipe's own tessellation: a game-density face of another topology on a surface whose
@@ -15,17 +15,13 @@ Writes ``vertices`` (468, 3) cm and ``triangles`` in ICT's frame, ``landmarks`` 
 from __future__ import annotations
 
 import argparse
-import sys
 from collections import Counter, defaultdict
-from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "core"))
-
-from pdeface.assets import ICT_NOTICE, assets_dir, load_neutral_scan  # noqa: E402
-from pdeface.landmarks import detect  # noqa: E402
-from pdeface.landmarks.facemap import read_map  # noqa: E402
+from pdeface.assets import ICT_NOTICE, assets_dir, load_neutral_scan
+from pdeface.landmarks import detect
+from pdeface.landmarks.facemap import read_map
 
 MEDIAPIPE_NOTICE = ("Tessellation and 468-point layout: MediaPipe face mesh, Copyright 2020 The MediaPipe Authors, "
                     "Apache License 2.0 (https://github.com/google-ai-edge/mediapipe)")

@@ -1,6 +1,6 @@
 """Build the bundled generic Facial Deformation Tables from the bundled ICT-FaceKit data.
 
-Usage: python scripts/build_fdts.py [--out assets/ict_generic_fdts.json.gz]
+Usage: python -m scripts.build.build_fdts [--out assets/ict_generic_fdts.json.gz]
 
 For every AU key ICT-FaceKit maps and the six basic expressions, the mean and σ
 over identity000-019 of each identity's own FDT (models 3d and 2d), as one
@@ -9,14 +9,11 @@ FDT bundle (:mod:`pdeface.fdt.table`). Needs only the assets (no ../shared).
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "core"))
-
-from pdeface.assets import load_ict_shapes, load_neutral_scan  # noqa: E402
-from pdeface.fdt.generic import generic_fdts, ict_targets, identity_fits  # noqa: E402
-from pdeface.fdt.table import write_fdts  # noqa: E402
+from pdeface.assets import load_ict_shapes, load_neutral_scan
+from pdeface.fdt.generic import generic_fdts, ict_targets, identity_fits
+from pdeface.fdt.table import write_fdts
 
 IDENTITIES = [f"identity{i:03d}" for i in range(20)]
 MODELS = ("3d", "2d")
@@ -24,7 +21,7 @@ MODELS = ("3d", "2d")
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--out", type=Path, default=Path(__file__).resolve().parent.parent / "assets" / "ict_generic_fdts.json.gz")
+    ap.add_argument("--out", type=Path, default=Path(__file__).resolve().parents[2] / "assets" / "ict_generic_fdts.json.gz")
     args = ap.parse_args(argv)
     mesh, idx = load_neutral_scan()
     T, _ = mesh.triangles()

@@ -1,6 +1,6 @@
 """Build the PDE Face Blender extension zips, with their wheels.
 
-Usage: python scripts/build_extension.py [--platforms linux-x64,macos-arm64,macos-x64,windows-x64]
+Usage: python scripts/build/build_extension.py [--platforms linux-x64,macos-arm64,macos-x64,windows-x64]
                                          [--out dist] [--wheel-cache DIR]
 
 Stages blender_addon/, builds a pdeface wheel carrying the default face assets
@@ -21,7 +21,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 PLATFORMS = {
     "linux-x64": ["manylinux_2_17_x86_64", "manylinux2014_x86_64", "manylinux_2_28_x86_64"],
     "macos-arm64": ["macosx_12_0_arm64", "macosx_14_0_arm64", "macosx_11_0_arm64"],
@@ -99,7 +99,7 @@ def main(argv=None):
                 wheels.append(wheels_dir / w.name)
         manifest = (stage / "blender_manifest.toml").read_text()
         listing = "".join(f'  "./wheels/{w.name}",\n' for w in sorted(set(wheels)))
-        manifest = re.sub(r"\n# scripts/build_extension.py adds.*\n", "\n", manifest)
+        manifest = re.sub(r"\n# scripts/build/build_extension.py adds.*\n", "\n", manifest)
         quoted = ", ".join(f'"{p}"' for p in platforms)
         # Top-level keys must come before the first [table].
         manifest = manifest.replace("[permissions]", f"platforms = [{quoted}]\nwheels = [\n{listing}]\n\n[permissions]", 1)

@@ -1,6 +1,6 @@
 """Draw the 24 muscles over the default face, and the muscle-only AUs it carries (README pictures).
 
-Usage: python scripts/render_muscles.py [-o docs/muscles.png] [--aus docs/muscle_aus.png] [--size 640]
+Usage: python -m scripts.figures.render_muscles [-o docs/muscles.png] [--aus docs/muscle_aus.png] [--size 640]
 
 Muscles: a front view of the default PDE face (grey), each linear muscle as a line from its
 bony head (dot) to its insertion, the sphincters as their ellipses, the sheets as their
@@ -10,20 +10,17 @@ rectangles, the jaw's hinge as a cross. AUs: the face neutral and posed by its m
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "core"))
-
-from drawlib import dot, line, rasterise, shade, to_pixel  # noqa: E402
-from pdeface.assets import load_face  # noqa: E402
-from pdeface.io.png import draw_text, write_png  # noqa: E402
-from pdeface.muscles.aus import load_table  # noqa: E402
-from pdeface.muscles.placement import place_muscles  # noqa: E402
-from pdeface.surface.fit import face_mesh  # noqa: E402
-from pdeface.surface.model import model_landmarks  # noqa: E402
+from pdeface.assets import load_face
+from pdeface.io.png import draw_text, write_png
+from pdeface.muscles.aus import load_table
+from pdeface.muscles.placement import place_muscles
+from pdeface.surface.fit import face_mesh
+from pdeface.surface.model import model_landmarks
+from scripts.figures.drawlib import dot, line, rasterise, shade, to_pixel
 
 BOX = ((-85.0, 85.0), (-105.0, 115.0))
 COLOURS = {"linear": (200, 40, 40), "sphincter": (40, 90, 200), "sheet": (30, 150, 60), "jaw": (120, 60, 160)}
@@ -86,7 +83,7 @@ def aus_row(face, size):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    root = Path(__file__).resolve().parent.parent
+    root = Path(__file__).resolve().parents[2]
     ap.add_argument("-o", "--output", default=str(root / "docs" / "muscles.png"))
     ap.add_argument("--aus", default=str(root / "docs" / "muscle_aus.png"))
     ap.add_argument("--size", type=int, default=640)

@@ -1,6 +1,6 @@
 """Benchmark the muscle AUs (issue #19 targets).
 
-Usage: python scripts/bench_muscles.py [--identities 20] [--json OUT]
+Usage: python -m scripts.bench.bench_muscles [--identities 20] [--json OUT]
 
 Prints, measured in this run:
 - per AU key ICT covers: captured (as in au-report) of the muscle table's AU on the bundled face,
@@ -13,21 +13,18 @@ Prints, measured in this run:
 """
 from __future__ import annotations
 
-import argparse
 import json
-import sys
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "core"))
-
-from benchlib import bundled_ict, median_time  # noqa: E402
-from pdeface.au.aureport import MotionProbe  # noqa: E402
-from pdeface.au.ict import AU_SHAPES, au_offsets  # noqa: E402
-from pdeface.muscles.aus import AUTHORED, MuscleBasis, MuscleTable, load_table, recipe_text  # noqa: E402
-from pdeface.surface.fit import fit_face, surface_grid  # noqa: E402
-from pdeface.surface.model import model_landmarks  # noqa: E402
+from pdeface.au.aureport import MotionProbe
+from pdeface.au.ict import AU_SHAPES, au_offsets
+from pdeface.muscles.aus import AUTHORED, MuscleBasis, MuscleTable, load_table
+from pdeface.surface.fit import fit_face, surface_grid
+from pdeface.surface.model import model_landmarks
+from scripts.bench.benchlib import bench_parser, bundled_ict, median_time, run_bench
+from scripts.build.build_muscles import recipe_text
 
 
 def captured(face, V, T, shapes, table, keys):
@@ -48,7 +45,7 @@ def waters_alone(face, table):
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = bench_parser(__doc__)
     ap.add_argument("--identities", type=int, default=20)
     ap.add_argument("--json")
     args = ap.parse_args(argv)
@@ -109,4 +106,4 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    main()
+    run_bench(main, "muscles")

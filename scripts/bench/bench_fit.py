@@ -1,6 +1,6 @@
 """Benchmark the PDE face engine on the bundled ICT-FaceKit data (issue #2 targets).
 
-Usage: python scripts/bench_fit.py [--identities N] [--json OUT]
+Usage: python -m scripts.bench.bench_fit [--identities N] [--json OUT]
 
 Prints, each measured in this run:
 - accuracy on the ICT neutral (smooth and patches) and on identity000-019
@@ -12,27 +12,22 @@ Prints, each measured in this run:
 """
 from __future__ import annotations
 
-import argparse
 import json
-import sys
 from pathlib import Path
 
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import spsolve
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "core"))
+from pdeface.assets import load_ict_shapes, load_neutral_scan
+from pdeface.geometry import ClosestPoint
+from pdeface.io.modelfile import save_model
+from pdeface.surface.fit import fit_face, grid_faces, surface_grid
+from pdeface.surface.fourier import fit_fourier
+from pdeface.surface.pde import output_grid, solve_surface
+from pdeface.surface.report import accuracy_report, band_vertices
+from scripts.bench.benchlib import bench_parser, median_time, run_bench
 
-from pdeface.assets import load_ict_shapes, load_neutral_scan  # noqa: E402
-from pdeface.geometry import ClosestPoint  # noqa: E402
-from pdeface.io.modelfile import save_model  # noqa: E402
-from pdeface.surface.fit import fit_face, grid_faces, surface_grid  # noqa: E402
-from pdeface.surface.fourier import fit_fourier  # noqa: E402
-from pdeface.surface.pde import output_grid, solve_surface  # noqa: E402
-from pdeface.surface.report import accuracy_report, band_vertices  # noqa: E402
-
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from benchlib import median_time  # noqa: E402
 
 TARGETS = {"mean_mm": 0.15, "p95_mm": 0.6, "max_mm": 3.0, "normal_p95_deg": 8.0, "seam_max_deg": 0.01}
 KEYS = list(TARGETS)
@@ -82,7 +77,7 @@ def surface_error(model, X, Vf, T, vis):
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = bench_parser(__doc__)
     ap.add_argument("--identities", type=int, default=20)
     ap.add_argument("--json")
     args = ap.parse_args(argv)
@@ -155,4 +150,4 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    main()
+    run_bench(main, "fit")

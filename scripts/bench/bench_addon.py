@@ -1,6 +1,6 @@
 """Benchmark the Blender add-on (issue #4 targets), headless with the bpy module.
 
-Usage: python scripts/bench_addon.py [--updates 200]
+Usage: python -m scripts.bench.bench_addon [--updates 200]
 
 Prints, measured in this run:
 - building the full rig (neutral PDE face + every bundled AU key + every preset key) after
@@ -14,7 +14,6 @@ Prints, measured in this run:
 """
 from __future__ import annotations
 
-import argparse
 import os
 import sys
 import tempfile
@@ -22,13 +21,13 @@ import time
 from pathlib import Path
 
 import numpy as np
-from benchlib import median_time
+from scripts.bench.benchlib import bench_parser, median_time, run_bench
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = bench_parser(__doc__)
     ap.add_argument("--updates", type=int, default=200)
     args = ap.parse_args(argv)
     os.environ["BLENDER_USER_RESOURCES"] = tempfile.mkdtemp()
@@ -162,4 +161,4 @@ def bench_head(bpy, updates):
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(run_bench(main, "addon"))

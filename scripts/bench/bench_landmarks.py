@@ -1,6 +1,6 @@
 """Benchmark automatic landmarks (issue #15 targets).
 
-Usage: python scripts/bench_landmarks.py [--heads N] [--json OUT]
+Usage: python -m scripts.bench.bench_landmarks [--heads N] [--json OUT]
 
 On the bundled ICT-FaceKit full heads the shipped map was not fitted on
 (identity014-019), each seen as ICT gives it (cm, +z front) and turned into
@@ -15,27 +15,23 @@ Needs ``pdeface[landmarks]``.
 """
 from __future__ import annotations
 
-import argparse
 import json
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "core"))
-
-from benchlib import body_character  # noqa: E402
-from pdeface.assets import load_face, load_head, load_head_shapes, load_ict_shapes, load_neutral_scan  # noqa: E402
-from pdeface.au.aureport import au_report  # noqa: E402
-from pdeface.au.retarget import retarget  # noqa: E402
-from pdeface.head.rigid import rotation_vector_matrix  # noqa: E402
-from pdeface.landmarks.detector import Detector  # noqa: E402
-from pdeface.landmarks.facemap import read_map  # noqa: E402
-from pdeface.landmarks.pipeline import detect  # noqa: E402
-from pdeface.surface.fit import fit_face  # noqa: E402
-from pdeface.surface.frame import BLENDER_FROM_ICT  # noqa: E402
-from pdeface.surface.report import accuracy_report  # noqa: E402
+from pdeface.assets import load_face, load_head, load_head_shapes, load_ict_shapes, load_neutral_scan
+from pdeface.au.aureport import au_report
+from pdeface.au.retarget import retarget
+from pdeface.head.rigid import rotation_vector_matrix
+from pdeface.landmarks.detector import Detector
+from pdeface.landmarks.facemap import read_map
+from pdeface.landmarks.pipeline import detect
+from pdeface.surface.fit import fit_face
+from pdeface.surface.frame import BLENDER_FROM_ICT
+from pdeface.surface.report import accuracy_report
+from scripts.bench.benchlib import bench_parser, body_character, run_bench
 
 #: The two ways each held-out head is seen: (name, matrix from ICT cm, unit, mm per unit).
 POSES = [("ict-cm", np.eye(3), "cm", 10.0),
@@ -60,7 +56,7 @@ def fit_figures(Vf, Tf, L, face):
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = bench_parser(__doc__)
     ap.add_argument("--heads", type=int, default=6, help="held-out heads to measure (at most 20 - trained)")
     ap.add_argument("--json")
     args = ap.parse_args(argv)
@@ -141,4 +137,4 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    main()
+    run_bench(main, "landmarks")

@@ -1,8 +1,8 @@
 """Close-ups of the PDE face's eyes, nose and mouth with its folds marked (README pictures, issue #16).
 
-Usage: python scripts/render_folds.py [-o docs/folds_closeup.png] [--size 420]
-       python scripts/render_folds.py --identity 7 --au 28 --resolution 4,4 -o docs/folds_retarget.png
-       python scripts/render_folds.py --identity 0 --au 18 --compare-steps -o docs/folds_steps.png
+Usage: python -m scripts.figures.render_folds [-o docs/folds_closeup.png] [--size 420]
+       python -m scripts.figures.render_folds --identity 7 --au 28 --resolution 4,4 -o docs/folds_retarget.png
+       python -m scripts.figures.render_folds --identity 0 --au 18 --compare-steps -o docs/folds_steps.png
 
 Panels: the bundled ICT neutral scan; the PDE face fitted to it at rest; the same with the bundled
 descriptors retargeted, in AU27 and in happy. With ``--identity``: that ICT identity posed by ICT's
@@ -16,22 +16,19 @@ edge over 30° outside the openings) is a red dot.
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "core"))
-
-from drawlib import rasterise, shade, to_pixel  # noqa: E402
-from pdeface.assets import load_face, load_ict_shapes, load_neutral_scan  # noqa: E402
-from pdeface.au.expressions import PRESETS, pose_curves, resolve_preset  # noqa: E402
-from pdeface.au.ict import au_offsets  # noqa: E402
-from pdeface.au.retarget import retarget  # noqa: E402
-from pdeface.io.png import draw_text, write_png  # noqa: E402
-from pdeface.landmarks.render import marked  # noqa: E402
-from pdeface.surface.fit import face_mesh, fit_face  # noqa: E402
-from pdeface.surface.folds import fold_edges  # noqa: E402
+from pdeface.assets import load_face, load_ict_shapes, load_neutral_scan
+from pdeface.au.expressions import PRESETS, pose_curves, resolve_preset
+from pdeface.au.ict import au_offsets
+from pdeface.au.retarget import retarget
+from pdeface.io.png import draw_text, write_png
+from pdeface.landmarks.render import marked
+from pdeface.surface.fit import face_mesh, fit_face
+from pdeface.surface.folds import fold_edges
+from scripts.figures.drawlib import rasterise, shade, to_pixel
 
 BOX = ((-75.0, 75.0), (-65.0, 45.0))
 MOUTH_BOX = ((-45.0, 45.0), (-75.0, 15.0))  # --identity: the mouth and the cheeks beside its corners
@@ -57,7 +54,7 @@ def posed_panel(rig, weights, size, title, box=BOX, resolution="default"):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("-o", "--out", default=str(Path(__file__).resolve().parent.parent / "docs" / "folds_closeup.png"))
+    ap.add_argument("-o", "--out", default=str(Path(__file__).resolve().parents[2] / "docs" / "folds_closeup.png"))
     ap.add_argument("--size", type=int, default=420)
     ap.add_argument("--identity", type=int, help="an ICT identity (0-19): compare retargeting with and without "
                                                  "the gap rule on it")

@@ -1,6 +1,6 @@
 """Benchmark Facial Deformation Tables against the PDE descriptors (issue #18 targets).
 
-Usage: python scripts/bench_fdt.py [--folds 4] [--json OUT]
+Usage: python -m scripts.bench.bench_fdt [--folds 4] [--json OUT]
 
 Cross-validated over ICT identity000-019: each fold builds the generic FDTs on
 the other identities and measures on its own (held out). Prints, measured in
@@ -15,30 +15,26 @@ this run:
 """
 from __future__ import annotations
 
-import argparse
 import json
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "core"))
-
-from benchlib import bundled_ict, median_time  # noqa: E402
-from pdeface.au.aureport import MotionProbe  # noqa: E402
-from pdeface.au.capture import fit_descriptor  # noqa: E402
-from pdeface.au.expressions import BASIC_EXPRESSIONS, PRESETS, mix, resolve_preset  # noqa: E402
-from pdeface.au.facs import key_side  # noqa: E402
-from pdeface.au.ict import AU_SHAPES  # noqa: E402
-from pdeface.au.retarget import retarget  # noqa: E402
-from pdeface.fdt import quadratic  # noqa: E402
-from pdeface.fdt.deform import NeutralFace, classify, fdt_curves  # noqa: E402
-from pdeface.fdt.generic import generic_fdts, ict_targets, identity_fits  # noqa: E402
-from pdeface.fdt.regions import PupilFrame, assign_regions, opening_sides  # noqa: E402
-from pdeface.io.descriptorfile import descriptor_to_bytes  # noqa: E402
-from pdeface.surface.fit import fit_face, surface_grid  # noqa: E402
-from pdeface.surface.model import model_landmarks  # noqa: E402
+from pdeface.au.aureport import MotionProbe
+from pdeface.au.capture import fit_descriptor
+from pdeface.au.expressions import BASIC_EXPRESSIONS, PRESETS, mix, resolve_preset
+from pdeface.au.facs import key_side
+from pdeface.au.ict import AU_SHAPES
+from pdeface.au.retarget import retarget
+from pdeface.fdt import quadratic
+from pdeface.fdt.deform import NeutralFace, classify, fdt_curves
+from pdeface.fdt.generic import generic_fdts, ict_targets, identity_fits
+from pdeface.fdt.regions import PupilFrame, assign_regions, opening_sides
+from pdeface.io.descriptorfile import descriptor_to_bytes
+from pdeface.surface.fit import fit_face, surface_grid
+from pdeface.surface.model import model_landmarks
+from scripts.bench.benchlib import bench_parser, bundled_ict, median_time, run_bench
 
 MODELS = ("2d", "3d", "3d-surface")
 COLUMNS = ("pde", "2d", "3d", "3d-surface")
@@ -83,7 +79,7 @@ def largest_jumps(face, tables):
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = bench_parser(__doc__)
     ap.add_argument("--folds", type=int, default=4)
     ap.add_argument("--json")
     args = ap.parse_args(argv)
@@ -180,4 +176,4 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    main()
+    run_bench(main, "fdt")

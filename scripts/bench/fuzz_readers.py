@@ -1,6 +1,6 @@
 """Fuzz every pdeface reader with mutated copies of valid files (seeded, deterministic).
 
-Usage: python scripts/fuzz_readers.py [--inputs 100000] [--readers obj,model,...] [--seed 0] [--json OUT]
+Usage: python -m scripts.bench.fuzz_readers [--inputs 100000] [--readers obj,model,...] [--seed 0] [--json OUT]
 
 Each reader gets a corpus of valid files made from the project's own data (the
 default face, its descriptors, presets, a timeline, tracker CSVs, packets), and
@@ -23,7 +23,6 @@ import time
 import traceback
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "core"))
 
 #: Packets that once broke the player's reader (each is garbage or a packet; the next one must still play).
 HOSTILE_PACKETS = [

@@ -1,7 +1,7 @@
 """Render a PDE face animation headless, from a checkout (``pdeface render`` does the same when installed).
 
-Runs as ``blender -b -P scripts/render_sequence.py -- ARGS`` and as
-``python scripts/render_sequence.py ARGS`` with the bpy module; ``--help`` lists
+Runs as ``blender -b -P scripts/figures/render_sequence.py -- ARGS`` and as
+``python scripts/figures/render_sequence.py ARGS`` with the bpy module; ``--help`` lists
 the arguments. The work is ``blender_addon/headless.py``, which travels with
 the add-on.
 """
@@ -9,7 +9,7 @@ import importlib.util
 import sys
 from pathlib import Path
 
-HEADLESS = Path(__file__).resolve().parent.parent / "blender_addon" / "headless.py"
+HEADLESS = Path(__file__).resolve().parents[2] / "blender_addon" / "headless.py"
 
 
 def load_headless():

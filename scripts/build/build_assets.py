@@ -1,7 +1,7 @@
 """Build the bundled assets from an ICT-FaceKit folder.
 
-Usage: python scripts/build_assets.py ICT_DIR [--out assets]
-       python scripts/build_assets.py --refit-face [--out assets]
+Usage: python -m scripts.build.build_assets ICT_DIR [--out assets]
+       python -m scripts.build.build_assets --refit-face [--out assets]
 
 Writes, all derived from ICT-FaceKit (MIT, notice copied alongside):
   ict_neutral_face.npz   the neutral face region (vertices 0-9408, cm) with UVs and landmarks
@@ -24,22 +24,19 @@ from __future__ import annotations
 import argparse
 import json
 import shutil
-import sys
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "core"))
-
-from pdeface.assets import ICT_NOTICE  # noqa: E402
-from pdeface.au.capture import fit_descriptor  # noqa: E402
-from pdeface.au.facs import key_side  # noqa: E402
-from pdeface.au.ict import APPROXIMATIONS, AU_SHAPES, FACE_VERTICES, NOTICE_SHORT, IctFolder, au_offsets  # noqa: E402
-from pdeface.io.descriptorfile import descriptor_to_bytes  # noqa: E402
-from pdeface.io.modelfile import load_model, model_nbytes, save_model  # noqa: E402
-from pdeface.mesh import Mesh  # noqa: E402
-from pdeface.surface.fit import fit_face  # noqa: E402
-from pdeface.surface.sampling import adaptive_resolution  # noqa: E402
+from pdeface.assets import ICT_NOTICE
+from pdeface.au.capture import fit_descriptor
+from pdeface.au.facs import key_side
+from pdeface.au.ict import APPROXIMATIONS, AU_SHAPES, FACE_VERTICES, NOTICE_SHORT, IctFolder, au_offsets
+from pdeface.io.descriptorfile import descriptor_to_bytes
+from pdeface.io.modelfile import load_model, model_nbytes, save_model
+from pdeface.mesh import Mesh
+from pdeface.surface.fit import fit_face
+from pdeface.surface.sampling import adaptive_resolution
 
 OFFSET_STEP = 2e-4  # cm per int16 step of stored offsets (2 µm; range ±6.5 cm)
 
@@ -78,7 +75,7 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("ict_dir", type=Path, nargs="?")
     ap.add_argument("--refit-face", action="store_true", help="refit default_face.npz alone from the bundled assets")
-    ap.add_argument("--out", type=Path, default=Path(__file__).resolve().parent.parent / "assets")
+    ap.add_argument("--out", type=Path, default=Path(__file__).resolve().parents[2] / "assets")
     args = ap.parse_args(argv)
     if args.refit_face:
         from pdeface.assets import load_ict_shapes, load_neutral_scan

@@ -1,6 +1,6 @@
 """Count the folds of PDE face meshes (issue #16's figure), at rest and in every AU and preset.
 
-Usage: python scripts/bench_folds.py [--identities N] [--resolution default] [--json OUT]
+Usage: python -m scripts.bench.bench_folds [--identities N] [--resolution default] [--json OUT]
 
 ``--resolution 4,4`` measures the even 4-step mesh the default was before it adapted to each face
 (:mod:`pdeface.surface.sampling`).
@@ -26,23 +26,20 @@ scan's.
 """
 from __future__ import annotations
 
-import argparse
 import json
-import sys
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "core"))
-
-from pdeface.assets import load_face, load_ict_shapes, load_low_poly_face, load_neutral_scan  # noqa: E402
-from pdeface.au.expressions import every_pose, pose_curves  # noqa: E402
-from pdeface.au.ict import AU_SHAPES, weights_offsets  # noqa: E402
-from pdeface.au.retarget import retarget  # noqa: E402
-from pdeface.geometry import ClosestPoint  # noqa: E402
-from pdeface.surface.fit import face_mesh, fit_face  # noqa: E402
-from pdeface.surface.folds import CREASE_MM, carried, fold_edges, off_creases  # noqa: E402
+from pdeface.assets import load_face, load_ict_shapes, load_low_poly_face, load_neutral_scan
+from pdeface.au.expressions import every_pose, pose_curves
+from pdeface.au.ict import AU_SHAPES, weights_offsets
+from pdeface.au.retarget import retarget
+from pdeface.geometry import ClosestPoint
+from pdeface.surface.fit import face_mesh, fit_face
+from pdeface.surface.folds import CREASE_MM, carried, fold_edges, off_creases
+from scripts.bench.benchlib import bench_parser, run_bench
 
 
 def folds_of(model, resolution, scan=None, shapes=None, crease_mm=CREASE_MM):
@@ -95,7 +92,7 @@ def print_folds(label, folds, extra=""):
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = bench_parser(__doc__)
     ap.add_argument("--identities", type=int, default=3)
     ap.add_argument("--resolution", default="default")
     ap.add_argument("--crease-mm", type=float, default=CREASE_MM,
@@ -146,4 +143,4 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    main()
+    run_bench(main, "folds")

@@ -1,6 +1,6 @@
 """Benchmark headless animation and AU import (issue #5 targets).
 
-Usage: python scripts/bench_render.py [--frames 24]
+Usage: python -m scripts.bench.bench_render [--frames 24]
 
 Prints, measured in this run:
 - our overhead per frame (timeline keyframing amortised + the frame change that evaluates
@@ -9,18 +9,17 @@ Prints, measured in this run:
 """
 from __future__ import annotations
 
-import argparse
 import csv
 import importlib.util
 import os
-import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
+from scripts.bench.benchlib import bench_parser, run_bench
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def write_openface(path, rows=10000, seed=0):
@@ -37,10 +36,9 @@ def write_openface(path, rows=10000, seed=0):
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = bench_parser(__doc__)
     ap.add_argument("--frames", type=int, default=24)
     args = ap.parse_args(argv)
-    sys.path.insert(0, str(ROOT / "core"))
     from pdeface.io.trackers import import_au
 
     tmp = Path(tempfile.mkdtemp())
@@ -95,4 +93,4 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    main()
+    run_bench(main, "render")

@@ -1,6 +1,6 @@
 """Calibrate the muscles against ICT-FaceKit and write the muscle AU table; add the muscle-only AUs to the default face.
 
-Usage: python scripts/build_muscles.py [--evaluations 0] [--start GEOMETRY.json | --from-defaults]
+Usage: python -m scripts.build.build_muscles [--evaluations 0] [--start GEOMETRY.json | --from-defaults]
                                       [--rounds 60] [--table core/pdeface/data/muscle_aus.json]
 
 1. Geometry: the muscles' shapes (:data:`pdeface.muscles.placement.DEFAULT_GEOMETRY`: heads, zones,
@@ -25,31 +25,21 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "core"))
+from pdeface.assets import ICT_NOTICE, asset_path, load_face
+from pdeface.au.ict import NOTICE_SHORT
+from pdeface.au.retarget import face_size
+from pdeface.muscles.aus import AUTHORED, TABLE, VERSION, MuscleBasis, MuscleTable, authored_activations, load_table
+from pdeface.muscles.aus import FORMAT as TABLE_FORMAT
+from pdeface.muscles.fields import FORMAT as FIELDS_FORMAT
+from pdeface.muscles.fields import REACH, LearnedFields, learn_corrections, load_fields, reach_mask
+from pdeface.muscles.placement import BOUNDS, DEFAULT_GEOMETRY, MUSCLE_NAMES, eye_distance, place_muscles
+from pdeface.surface.model import model_landmarks
 
-from pdeface.assets import ICT_NOTICE, asset_path, load_face  # noqa: E402
-from pdeface.au.ict import NOTICE_SHORT  # noqa: E402
-from pdeface.au.retarget import face_size  # noqa: E402
-from pdeface.muscles.aus import (  # noqa: E402
-    AUTHORED,
-    TABLE,
-    MuscleBasis,
-    MuscleTable,
-    authored_activations,
-    load_table,
-    recipe_text,
-    table_to_json,
-)
-from pdeface.muscles.fields import REACH, LearnedFields, learn_corrections, load_fields, reach_mask, save_fields  # noqa: E402
-from pdeface.muscles.placement import BOUNDS, DEFAULT_GEOMETRY, MUSCLE_NAMES, eye_distance, place_muscles  # noqa: E402
-from pdeface.surface.model import model_landmarks  # noqa: E402
-
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 #: Bounds of each geometry value: head moves (eye distances), zone (degrees), fall-offs and sizes
 #: (fractions), bulge and push (mm). Anatomical, on purpose: with looser ones (heads moved half an
 #: eye distance, sizes tripled) the fit made the muscles generic bumps far from their anatomy
@@ -63,6 +53,31 @@ LIMITS = {"lateral": (-0.15, 0.15), "up": (-0.15, 0.15), "back": (-0.05, 0.15), 
 #: shape and get no learned correction: fitted to the other AUs they became broad bumps (AU13 lifted the
 #: lower lip 7 mm more than the corners).
 AUTHORED_ONLY = ("levator_anguli_oris", "nasalis")
+
+
+def recipe_text(recipe: dict) -> str:
+    """``{"AU45R": 1.0, "AU7R": 0.33}`` → ``"AU45R 1.0, AU7R 0.33"`` (tables, reports)."""
+    return ", ".join(f"{n} {v:g}" for n, v in recipe.items())
+
+
+def table_to_json(table: dict, hows: dict, notice="", geometry=None, fields=None) -> dict:
+    """A muscle table file's content (:mod:`pdeface.muscles.aus`'s format); ``fields``: the learned fields'
+    file name (beside the table), if any."""
+    out = {"format": TABLE_FORMAT, "version": VERSION, "muscles": list(MUSCLE_NAMES),
+           "geometry": {n: {k: round(float(v), 4) for k, v in g.items()} for n, g in (geometry or {}).items()}}
+    if fields:
+        out["fields"] = str(fields)
+    out.update({"aus": {k: {"activations": [round(float(v), 4) for v in a], "how": hows[k]}
+                        for k, a in table.items()}, "notice": notice})
+    return out
+
+
+def save_fields(path, learned: LearnedFields):
+    """Write :class:`~pdeface.muscles.fields.LearnedFields` in :mod:`pdeface.muscles.fields`'s format (float16:
+    0.01 mm at the corrections' size)."""
+    np.savez_compressed(path, format=np.array(FIELDS_FORMAT), muscles=np.array(MUSCLE_NAMES),
+                        corrections=learned.corrections.astype(np.float16),
+                        face_size=np.asarray(learned.face_size, np.float64), notice=np.array(learned.notice))
 
 
 def curve_motion(face, d):

@@ -1,6 +1,6 @@
 """Draw automatic landmarks found on three meshes (README picture).
 
-Usage: python scripts/render_landmarks.py [-o docs/landmarks.png] [--size 320]
+Usage: python -m scripts.figures.render_landmarks [-o docs/landmarks.png] [--size 320]
 
 Panels: a held-out ICT head as ICT gives it (cm, +z front); the same head in
 Blender's axes, turned 25° and in metres; a whole body in metres of another
@@ -11,22 +11,19 @@ found ones in red. Needs ``pdeface[landmarks]``.
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "core"))
-
-from benchlib import body_character  # noqa: E402
-from pdeface.assets import load_head, load_head_shapes  # noqa: E402
-from pdeface.head.rigid import rotation_vector_matrix  # noqa: E402
-from pdeface.io.png import draw_text, write_png  # noqa: E402
-from pdeface.landmarks import detect  # noqa: E402
-from pdeface.landmarks.detector import Detector  # noqa: E402
-from pdeface.landmarks.pipeline import SEARCH_AXES, _framing  # noqa: E402
-from pdeface.landmarks.render import marked, rasterise, shade  # noqa: E402
-from pdeface.surface.frame import BLENDER_FROM_ICT  # noqa: E402
+from pdeface.assets import load_head, load_head_shapes
+from pdeface.head.rigid import rotation_vector_matrix
+from pdeface.io.png import draw_text, write_png
+from pdeface.landmarks import detect
+from pdeface.landmarks.detector import Detector
+from pdeface.landmarks.pipeline import SEARCH_AXES, _framing
+from pdeface.landmarks.render import marked, rasterise, shade
+from pdeface.surface.frame import BLENDER_FROM_ICT
+from scripts.bench.benchlib import body_character
 
 HEAD = "identity017"  # held out of the shipped map
 
@@ -52,7 +49,7 @@ def face_panel(V, T, true, det, size, title):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("-o", "--out", default=str(Path(__file__).resolve().parent.parent / "docs" / "landmarks.png"))
+    ap.add_argument("-o", "--out", default=str(Path(__file__).resolve().parents[2] / "docs" / "landmarks.png"))
     ap.add_argument("--size", type=int, default=320)
     args = ap.parse_args(argv)
     mesh, lm = load_head()

@@ -1,9 +1,9 @@
 """Build the shipped map from MediaPipe's 468 face-mesh points to the 68 Multi-PIE landmarks.
 
-Usage: python scripts/build_landmark_map.py [--out core/pdeface/data/landmark_map.json] [--train 14]
+Usage: python -m scripts.build.build_landmark_map [--out core/pdeface/data/landmark_map.json] [--train 14]
 
 Trained on the bundled ICT-FaceKit full heads identity000..(train-1) (the rest
-are held out for ``scripts/bench_landmarks.py``), each found as the user's
+are held out for ``scripts/bench/bench_landmarks.py``), each found as the user's
 mesh would be: ICT's frame, and Blender's turned 25° in metres. First pass:
 the face-mesh points of each head's render from its true face frame, in that frame,
 averaged into the template. Second pass: the full pipeline with that template;
@@ -13,20 +13,20 @@ constrained least squares. Needs ``pdeface[landmarks]`` and only the assets.
 from __future__ import annotations
 
 import argparse
-import sys
+import json
 import time
 from pathlib import Path
 
 import numpy as np
+from scipy.optimize import linear_sum_assignment
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "core"))
-
-from pdeface.assets import ICT_NOTICE, load_head, load_head_shapes  # noqa: E402
-from pdeface.head.rigid import rotation_vector_matrix  # noqa: E402
-from pdeface.landmarks.detector import Detector  # noqa: E402
-from pdeface.landmarks.facemap import DEFAULT_MAP, LandmarkMap, fit_map, mirror_pairs, write_map  # noqa: E402
-from pdeface.landmarks.pipeline import detect, face_points, frontal, group_spread  # noqa: E402
-from pdeface.surface.frame import BLENDER_FROM_ICT, face_frame  # noqa: E402
+from pdeface.assets import ICT_NOTICE, load_head, load_head_shapes
+from pdeface.head.rigid import rotation_vector_matrix
+from pdeface.io.files import write_bytes
+from pdeface.landmarks.detector import Detector
+from pdeface.landmarks.facemap import DEFAULT_MAP, LandmarkMap, fit_map
+from pdeface.landmarks.pipeline import detect, face_points, frontal, group_spread
+from pdeface.surface.frame import BLENDER_FROM_ICT, face_frame
 
 #: The poses each training head is seen in: (name, rotation, scale to the mesh unit, unit).
 POSES = [("ict", np.eye(3), 1.0, "cm"),
@@ -36,6 +36,22 @@ POSES = [("ict", np.eye(3), 1.0, "cm"),
 
 #: About the middle of a face in the face frame (mm; the nose tip is the origin).
 FACE_CENTRE_MM = np.array([0.0, -20.0, -25.0])
+
+
+def mirror_pairs(template) -> np.ndarray:
+    """Each template point's mirror image across the face's midplane (x = 0 in the face frame), as the
+    one-to-one pairing of least total distance (an involution: midline points pair with themselves)."""
+    T = np.asarray(template, np.float64)
+    T = T - [np.median(T[:, 0]), 0, 0]
+    d = np.linalg.norm(T[:, None] - (T * [-1, 1, 1])[None], axis=2)
+    pairs = linear_sum_assignment(d)[1]
+    # Keep the pairing symmetric even where two assignments tie.
+    return np.where(pairs[pairs] == np.arange(len(T)), pairs, np.arange(len(T)))
+
+
+def write_map(path, m: LandmarkMap) -> int:
+    """Write a landmark map file (:mod:`pdeface.landmarks.facemap`'s format); returns its size in bytes."""
+    return write_bytes(path, json.dumps(m.to_json(), separators=(",", ":")).encode())
 
 
 def heads(names):

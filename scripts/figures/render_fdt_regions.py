@@ -1,6 +1,6 @@
 """Draw the 16 FDT regions on the bundled neutral face, and FDTs posing the default face (README pictures).
 
-Usage: python scripts/render_fdt_regions.py [-o docs/fdt_regions.png] [--faces docs/fdt_faces.png] [--size 640]
+Usage: python -m scripts.figures.render_fdt_regions [-o docs/fdt_regions.png] [--faces docs/fdt_faces.png] [--size 640]
 
 Regions: a front view of the ICT-FaceKit neutral face region (orthographic, in
 the pupil-normalised frame), each skin vertex coloured by its region, shaded by
@@ -13,17 +13,14 @@ would show. No plotting library: a small z-buffer rasteriser and :mod:`pdeface.i
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "core"))
-
-from drawlib import dot, rasterise, shade, to_pixel  # noqa: E402
-from pdeface.assets import load_neutral_scan  # noqa: E402
-from pdeface.fdt.regions import OPENINGS, REGIONS, PupilFrame, region_seeds, region_weights  # noqa: E402
-from pdeface.io.png import draw_text, write_png  # noqa: E402
+from pdeface.assets import load_neutral_scan
+from pdeface.fdt.regions import OPENINGS, REGIONS, PupilFrame, region_seeds, region_weights
+from pdeface.io.png import draw_text, write_png
+from scripts.figures.drawlib import dot, rasterise, shade, to_pixel
 
 #: One colour per region (pairs share a hue family, left a shade lighter).
 PALETTE = np.array([
@@ -34,7 +31,7 @@ PALETTE = np.array([
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("-o", "--output", default=str(Path(__file__).resolve().parent.parent / "docs" / "fdt_regions.png"))
+    ap.add_argument("-o", "--output", default=str(Path(__file__).resolve().parents[2] / "docs" / "fdt_regions.png"))
     ap.add_argument("--faces", help="also write the row of posed faces here (e.g. docs/fdt_faces.png)")
     ap.add_argument("--size", type=int, default=640)
     args = ap.parse_args(argv)

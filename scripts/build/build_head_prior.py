@@ -1,6 +1,6 @@
 """Build the whole-head prior: what the PDE face and its harmonic extension miss on ICT-FaceKit's head.
 
-Usage: python scripts/build_head_prior.py [--identities 10-19] [-o assets/ict_head_prior.npz]
+Usage: python -m scripts.build.build_head_prior [--identities 10-19] [-o assets/ict_head_prior.npz]
 
 Fits the PDE face on the bundled generic head and on each training identity's head, gives each
 the bundled descriptors (retargeted, as ``pdeface retarget`` does), binds the head without a
@@ -16,19 +16,34 @@ the assets only; about 30 s.
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "core"))
+from pdeface.assets import ICT_HEAD, ICT_HEAD_PRIOR, ICT_NOTICE, assets_dir, load_face, load_head, load_head_shapes  # noqa: E501
+from pdeface.au.ict import AU_SHAPES, au_offsets
+from pdeface.au.retarget import face_size, retarget
+from pdeface.errors import ModelFormatError
+from pdeface.head.bind import HeadBinding, descriptor_motion_args
+from pdeface.head.prior import FORMAT, STEP_MM, HeadPrior
+from pdeface.surface.fit import fit_face
 
-from pdeface.assets import ICT_HEAD, ICT_HEAD_PRIOR, ICT_NOTICE, assets_dir, load_face, load_head, load_head_shapes  # noqa: E402,E501
-from pdeface.au.ict import AU_SHAPES, au_offsets  # noqa: E402
-from pdeface.au.retarget import face_size, retarget  # noqa: E402
-from pdeface.head.bind import HeadBinding, descriptor_motion_args  # noqa: E402
-from pdeface.head.prior import HeadPrior, save_prior  # noqa: E402
-from pdeface.surface.fit import fit_face  # noqa: E402
+
+def save_prior(path, prior: HeadPrior, frame: np.ndarray, head: str, step_mm: float = STEP_MM, identities=None):
+    """Write a prior file (:mod:`pdeface.head.prior`'s format) of the head asset ``head`` (``frame``: its 4×4
+    map to the face frame)."""
+    identities = prior.identities if identities is None else identities
+    carried = np.nonzero(np.abs(prior.residuals).max(axis=(0, 2)) >= step_mm)[0]
+    q = np.round(prior.residuals[:, carried] / step_mm)
+    if np.abs(q).max(initial=0) > np.iinfo(np.int16).max:
+        raise ModelFormatError(f"residuals too large for steps of {step_mm} mm")
+    np.savez_compressed(path, format=np.array(FORMAT), keys=np.array(prior.keys),
+                        features=prior.features.astype(np.float16), residuals=q.astype(np.int16),
+                        step_mm=np.array(step_mm), carried=carried.astype(np.int32), kind=prior.kind.astype(np.int8),
+                        frame=np.asarray(frame, np.float64), head=np.array(head),
+                        curve_points=prior.curve_points.astype(np.float32), face_size=np.asarray(prior.face_size),
+                        ridge=np.array(prior.ridge), notice=np.array(prior.notice),
+                        identities=np.array(list(identities), np.int64))
 
 
 def head_samples(V, T, lm, shapes, source, unit="cm"):

@@ -1,6 +1,6 @@
 """Benchmark the whole-head binding on ICT-FaceKit's heads (issue #14 targets).
 
-Usage: python scripts/bench_head.py [--identities N] [--json OUT]
+Usage: python -m scripts.bench.bench_head [--identities N] [--json OUT]
 
 For the generic head and identities 000-(N-1) (bundled, full heads, 26,719
 vertices): fit the PDE face on the head, retarget the bundled descriptors,
@@ -25,23 +25,20 @@ Targets: face region median over AUs >= 0.92 and every AU >= 0.80; whole head me
 """
 from __future__ import annotations
 
-import argparse
 import json
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "core"))
-
-from pdeface.assets import load_face, load_head, load_head_prior, load_head_shapes  # noqa: E402
-from pdeface.au.facs import au_number  # noqa: E402
-from pdeface.au.ict import AU_SHAPES, FACE_VERTICES, au_offsets  # noqa: E402
-from pdeface.au.retarget import retarget  # noqa: E402
-from pdeface.head.bind import HeadBinding  # noqa: E402
-from pdeface.head.report import head_report  # noqa: E402
-from pdeface.surface.fit import fit_face  # noqa: E402
+from pdeface.assets import load_face, load_head, load_head_prior, load_head_shapes
+from pdeface.au.facs import au_number
+from pdeface.au.ict import AU_SHAPES, FACE_VERTICES, au_offsets
+from pdeface.au.retarget import retarget
+from pdeface.head.bind import HeadBinding
+from pdeface.head.report import head_report
+from pdeface.surface.fit import fit_face
+from scripts.bench.benchlib import bench_parser, run_bench
 
 REGIONS = ("face", "head", "covered")
 WAYS = ("prior", "held out", "no prior")
@@ -110,7 +107,7 @@ def print_summaries(reps, indent="  "):
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = bench_parser(__doc__)
     ap.add_argument("--identities", type=int, default=20)
     ap.add_argument("--cell", type=float, default=3.0, help="grid of the remeshed head (mm); 0: skip it")
     ap.add_argument("--json")
@@ -186,4 +183,4 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    main()
+    run_bench(main, "head")
