@@ -32,7 +32,7 @@ def assets_dir() -> Path:
     for c in candidates:
         if c and (Path(c) / DEFAULT_FACE).exists():
             return Path(c)
-    raise PdeFaceError("bundled assets not found: set PDEFACE_ASSETS or run scripts/build/build_assets.py")
+    raise PdeFaceError("bundled assets not found: set PDEFACE_ASSETS or run python -m scripts.build.build_assets")
 
 
 def asset_path(name: str) -> Path:

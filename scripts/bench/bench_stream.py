@@ -19,7 +19,6 @@ import time
 
 from pdeface.stream.player import Player
 from pdeface.stream.sender import Sender
-from scripts.bench.fuzz_readers import HOSTILE_PACKETS
 from scripts.bench.benchlib import bench_parser, run_bench
 
 
@@ -101,6 +100,8 @@ def main(argv=None):
 
 def hostile_run(seconds):
     """Hostile packets, each followed by a good one: count the good ones acked and played."""
+    from scripts.bench.fuzz_readers import HOSTILE_PACKETS  # here: the RSS figures before are the player's alone
+
     player = Player(mode="queue", transition=0.0, receive_capacity=10_000, playout_capacity=10_000)
     address = player.listen()
     stop = threading.Event()

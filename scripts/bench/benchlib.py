@@ -8,12 +8,13 @@ import argparse
 import os
 import platform
 import shlex
+import statistics
 import sys
 import time
 from datetime import datetime, timezone
 from pathlib import Path
 
-import numpy as np
+# numpy is imported by the helpers that need it: bench_stream measures the player's memory without it.
 
 ROOT = Path(__file__).resolve().parents[2]
 PAGES = ROOT / "docs" / "measurements"
@@ -98,7 +99,7 @@ def median_time(fn, repeat=5):
         t = time.perf_counter()
         fn()
         times.append(time.perf_counter() - t)
-    return float(np.median(times))
+    return float(statistics.median(times))
 
 
 def bundled_ict():
@@ -111,6 +112,8 @@ def bundled_ict():
 
 def clustered(V, T, cell):
     """The mesh remeshed by vertex clustering on a grid of ``cell``: another topology of the same shape."""
+    import numpy as np
+
     key = np.floor(V / cell).astype(np.int64)
     _, inv, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
     inv = inv.ravel()
@@ -125,6 +128,7 @@ def body_character(V, T):
     """A whole-body character in metres, Blender's axes (-y front, +z up), of another topology than ``V, T``
     (an ICT head in cm, ICT axes): the head clustered on a 3 mm grid on a box torso, arms and legs.
     Returns vertices, triangles and the matrix taking ICT cm to the body's space (``V @ M.T``)."""
+    import numpy as np
     from pdeface.surface.frame import BLENDER_FROM_ICT
 
     M = BLENDER_FROM_ICT * 0.01
