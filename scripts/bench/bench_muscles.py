@@ -24,7 +24,7 @@ from pdeface.muscles.aus import AUTHORED, MuscleBasis, MuscleTable, load_table
 from pdeface.surface.fit import fit_face, surface_grid
 from pdeface.surface.model import model_landmarks
 from scripts.bench.benchlib import bench_parser, bundled_ict, median_time, run_bench
-from scripts.build.build_muscles import recipe_text
+from scripts.build.build_muscles import curve_motion, recipe_text
 
 
 def captured(face, V, T, shapes, table, keys):
@@ -37,8 +37,6 @@ def captured(face, V, T, shapes, table, keys):
 
 def waters_alone(face, table):
     """The table's muscle shapes without learned fields, each AU calibrated on them (as before #19's fields)."""
-    from build_muscles import curve_motion
-
     basis = MuscleBasis(face, MuscleTable({}, geometry=table.geometry))
     acts = {d.key: basis.calibrate(curve_motion(face, d)) for d in face.descriptors if d.source != "muscle"}
     return MuscleTable(acts, geometry=table.geometry)
