@@ -1,7 +1,7 @@
-"""Render a PDE face animation headless: ``pdeface render``, ``scripts/render_sequence.py``.
+"""Render a PDE face animation headless: ``pdeface render``, ``scripts/figures/render_sequence.py``.
 
-Runs as ``pdeface render ARGS``, ``blender -b -P scripts/render_sequence.py -- ARGS``
-and ``python scripts/render_sequence.py ARGS`` (with the bpy module); this
+Runs as ``pdeface render ARGS``, ``blender -b -P scripts/figures/render_sequence.py -- ARGS``
+and ``python scripts/figures/render_sequence.py ARGS`` (with the bpy module); this
 file travels with the add-on (and, installed, as ``pdeface_blender``), so an
 installed pdeface renders without a checkout. It imports nothing of Blender's
 until it has parsed its arguments, and enables the add-on from its own folder

@@ -1,6 +1,6 @@
 """Rendering a PDE face: framing, frames, video, contact sheet.
 
-Used by scripts/render_sequence.py (``blender -b -P`` or plain ``python`` with
+Used by scripts/figures/render_sequence.py (``blender -b -P`` or plain ``python`` with
 bpy), which keyframes its timeline with ``animation.apply_timeline``. Camera and
 lights depend only on the face at rest, and Cycles' seed is fixed, so frame
 ranges rendered apart join seamlessly.

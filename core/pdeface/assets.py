@@ -31,7 +31,7 @@ def assets_dir() -> Path:
     for c in candidates:
         if c and (Path(c) / DEFAULT_FACE).exists():
             return Path(c)
-    raise PdeFaceError("bundled assets not found: set PDEFACE_ASSETS or run scripts/build_assets.py")
+    raise PdeFaceError("bundled assets not found: set PDEFACE_ASSETS or run python -m scripts.build.build_assets")
 
 
 def asset_path(name: str) -> Path:
@@ -57,7 +57,7 @@ LOW_POLY_FACE = "low_poly_face.npz"
 
 def load_low_poly_face() -> tuple[Mesh, np.ndarray]:
     """A game-density face of another topology on a known surface: MediaPipe's 468-point face mesh
-    laid on the ICT neutral scan (cm, ICT frame; ``scripts/build_low_poly.py``), and its 68
+    laid on the ICT neutral scan (cm, ICT frame; ``scripts/build/build_low_poly.py``), and its 68
     landmark points (68, 3). Its notice names ICT-FaceKit (MIT) and MediaPipe (Apache-2.0)."""
     with np.load(asset_path(LOW_POLY_FACE), allow_pickle=False) as z:
         mesh = Mesh.from_faces(z["vertices"].astype(np.float64), z["triangles"].astype(np.int64))

@@ -1,6 +1,6 @@
 """The rigid movers of a head: the jaw about its hinge, the eyeballs about their centres.
 
-Constants here were measured on ICT-FaceKit's generic head (``scripts/bench_head.py``
+Constants here were measured on ICT-FaceKit's generic head (``scripts/bench/bench_head.py``
 checks them on identities 000-019, which they were not fitted on):
 
 - its jawOpen turns the lower teeth 25.3° about a left-right axis through the

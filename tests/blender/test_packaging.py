@@ -1,4 +1,4 @@
-"""The extension as users get it: built by scripts/build_extension.py, installed from its zip."""
+"""The extension as users get it: built by scripts/build/build_extension.py, installed from its zip."""
 import subprocess
 import sys
 import textwrap
@@ -10,7 +10,7 @@ ROOT = Path(__file__).resolve().parents[2]
 
 def test_build_install_and_use_the_linux_zip(tmp_path):
     out = tmp_path / "dist"
-    res = subprocess.run([sys.executable, str(ROOT / "scripts" / "build_extension.py"), "--platforms", "linux-x64",
+    res = subprocess.run([sys.executable, str(ROOT / "scripts" / "build" / "build_extension.py"), "--platforms", "linux-x64",
                           "--out", str(out), "--wheel-cache", str(ROOT / "build" / "wheels")],
                          capture_output=True, text=True)
     assert res.returncode == 0, res.stdout + res.stderr

@@ -1,4 +1,4 @@
-"""Headless animation and rendering through scripts/render_sequence.py, and AU data import in Blender."""
+"""Headless animation and rendering through scripts/figures/render_sequence.py, and AU data import in Blender."""
 import json
 import subprocess
 import sys
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
-SCRIPT = ROOT / "scripts" / "render_sequence.py"
+SCRIPT = ROOT / "scripts" / "figures" / "render_sequence.py"
 TINY = ["--sequence", "happy", "--fps", "4", "--hold", "0.5", "--blend-time", "0.5", "--size", "64x64",
         "--samples", "4", "--quiet"]
 

@@ -12,7 +12,7 @@ def test_fit_is_accurate_on_the_ict_scan(scan, fitted):
     mesh, T, _ = scan
     model, _ = fitted
     r = accuracy_report(model, mesh.vertices, T)
-    # issue #2 targets for the ICT neutral, smooth assembly (see scripts/bench_fit.py)
+    # issue #2 targets for the ICT neutral, smooth assembly (see scripts/bench/bench_fit.py)
     assert r["mean_mm"] <= 0.15 and r["p95_mm"] <= 0.6 and r["max_mm"] <= 3.0
     assert r["seam_max_deg"] <= 0.01
     # Skin normals by area (target 8°); per vertex the eye and nostril rings dominate.

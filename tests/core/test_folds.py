@@ -258,17 +258,14 @@ def test_every_pose_has_no_fold(scan):
     where its curves converge to half the default face's spacing; the retargeting's gap rule leaves none) and
     the low-poly face (it had 3 poses with 1-4 folds off the creases, at the lids and in surprise: the last
     occupied column beyond the temple, extrapolated half a step out, turned by 48° with the brows raised)."""
-    import sys
     from dataclasses import replace
-    from pathlib import Path
 
     from pdeface.assets import load_ict_shapes, load_low_poly_face
     from pdeface.au.modelfile import load_face
     from pdeface.au.retarget import retarget
     from pdeface.surface.fit import fit_face
 
-    sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "scripts"))
-    from bench_folds import folds_of
+    from scripts.bench.bench_folds import folds_of
 
     mesh, T, idx = scan
     shapes = load_ict_shapes()

@@ -1,22 +1,18 @@
 """Every reader, fed mutated copies of valid files, says what is wrong with a PdeFaceError or reads them.
 
-A fixed slice of scripts/fuzz_readers.py (the long run's harness): the same seed, a few hundred
+A fixed slice of scripts/bench/fuzz_readers.py (the long run's harness): the same seed, a few hundred
 inputs per reader, so a failure here replays exactly.
 """
-import importlib.util
 import io
 import time
 import zipfile
 import zlib
-from pathlib import Path
 
 import numpy as np
 import pytest
 from pdeface.errors import LandmarkError, ModelFormatError
 
-spec = importlib.util.spec_from_file_location("fuzz_readers", Path(__file__).parents[2] / "scripts" / "fuzz_readers.py")
-fuzz_readers = importlib.util.module_from_spec(spec)
-spec.loader.exec_module(fuzz_readers)
+from scripts.bench import fuzz_readers
 
 
 @pytest.mark.parametrize("reader", sorted(fuzz_readers.readers()))

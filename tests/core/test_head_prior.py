@@ -1,7 +1,5 @@
 """The head prior: motion learned from ICT-FaceKit's head beyond the PDE face and its extension."""
-import sys
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -12,11 +10,11 @@ from pdeface.au.retarget import retarget
 from pdeface.errors import ModelFormatError
 from pdeface.facs import au_number
 from pdeface.head.bind import HeadBinding
-from pdeface.head.prior import HeadPrior, load_head_prior, load_prior, save_prior
+from pdeface.head.prior import HeadPrior, load_head_prior, load_prior
 from pdeface.head.report import head_report
 from pdeface.surface.fit import fit_face
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "scripts"))
+from scripts.build.build_head_prior import build, save_prior
 
 
 @pytest.fixture(scope="module")
@@ -80,8 +78,6 @@ def test_kernel_ridge_recovers_its_samples_and_ignores_what_it_never_saw():
 
 
 def test_bundled_prior_is_what_the_build_script_makes():
-    from build_head_prior import build
-
     built, _ = build()
     bundled = load_head_prior()
     assert bundled.keys == built.keys and len(bundled.keys) >= 60

@@ -12,11 +12,12 @@ from pdeface.muscles.aus import (
     mix_activations,
     parse_activations,
     parse_table,
-    table_to_json,
 )
 from pdeface.muscles.model import Jaw, LinearMuscle, Sheet, Sphincter
 from pdeface.muscles.placement import MUSCLE_NAMES, place_muscles
 from pdeface.surface.model import model_landmarks
+
+from scripts.build.build_muscles import save_fields, table_to_json
 
 
 def test_linear_muscle_pulls_along_its_line_towards_the_head_and_stops_at_its_fall_off():
@@ -132,7 +133,7 @@ def test_table_file_is_validated():
 
 
 def test_learned_fields_file_round_trip_and_checks(tmp_path):
-    from pdeface.muscles.fields import LearnedFields, load_fields, save_fields
+    from pdeface.muscles.fields import LearnedFields, load_fields
 
     C = np.zeros((24, 4, 5, 3))
     C[3, 1, 2] = [0.5, -1.25, 2.0]

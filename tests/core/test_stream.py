@@ -1,11 +1,9 @@
-import importlib.util
 import json
 import socket
 import subprocess
 import sys
 import threading
 import time
-from pathlib import Path
 
 import pytest
 from pdeface.errors import ModelFormatError
@@ -25,6 +23,8 @@ from pdeface.stream.wire import (
     parse_json_line,
     parse_packet,
 )
+
+from scripts.bench.fuzz_readers import HOSTILE_PACKETS
 
 PUBLISHED = {"{1,2,5,15,16,20,26}": 19, "{1,2,4,5,15,20,26}": 18, "{2,4,9,15,17}": 13,
              "{2,4,7,9,10,20,26}": 18, "{1,6,12,14}": 11, "{1,4,15,23}": 11}
@@ -313,12 +313,6 @@ def test_a_peer_that_never_reads_acks_cannot_stall_the_player():
         stop.set()
         t.join()
         player.close()
-
-
-spec = importlib.util.spec_from_file_location("fuzz_readers", Path(__file__).parents[2] / "scripts" / "fuzz_readers.py")
-fuzz_readers = importlib.util.module_from_spec(spec)
-spec.loader.exec_module(fuzz_readers)
-HOSTILE_PACKETS = fuzz_readers.HOSTILE_PACKETS
 
 
 @pytest.mark.parametrize("hostile", HOSTILE_PACKETS, ids=range(len(HOSTILE_PACKETS)))

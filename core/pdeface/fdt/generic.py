@@ -3,8 +3,8 @@
 Ground truth of an identity's expression is the identity's neutral plus ICT's
 shape offsets (:mod:`pdeface.au.ict`); a basic expression is its preset's AU
 weights (the method's Table 5-3) summed the same way, without the AUs ICT has
-no shape for (anger's AU23). ``scripts/build_fdts.py`` writes them to the
-assets; ``scripts/bench_fdt.py`` measures them on identities left out.
+no shape for (anger's AU23). ``scripts/build/build_fdts.py`` writes them to the
+assets; ``scripts/bench/bench_fdt.py`` measures them on identities left out.
 """
 from __future__ import annotations
 

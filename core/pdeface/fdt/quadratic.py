@@ -17,7 +17,7 @@ Two 3-D extensions keep depth (the lips' push, the cheeks' bulge):
     surface parameters: ``z' = z + c₁x² + c₂xy + c₃y² + c₄x + c₅y + c₆``
     (18 parameters; its first 12 are the 2-D model's, fitted the same way).
 
-``scripts/bench_fdt.py`` measures both: ``3d`` captures more of every AU's motion
+``scripts/bench/bench_fdt.py`` measures both: ``3d`` captures more of every AU's motion
 (README, "Facial Deformation Tables"), so it is the default.
 """
 from __future__ import annotations

@@ -14,7 +14,7 @@ prior was learned from gets (nearly) its scanned residual; a new AU (a muscle AU
 scan) gets the residual of the samples it resembles, none where it resembles none.
 
 The residuals are those of ICT's generic head averaged, vertex by vertex, with those of ten of its
-identities (``scripts/build_head_prior.py``), so they are less one head's own.
+identities (``scripts/build/build_head_prior.py``), so they are less one head's own.
 
 On the user's head (:meth:`HeadPrior.on`) each vertex takes the residual of the prior head's
 nearest vertices of the same part kind, after a thin-plate warp taking the user's curve points to
@@ -22,7 +22,7 @@ the prior face's (so the lips meet the lips), scaled per axis by face size as de
 (:mod:`pdeface.au.retarget`); in full within :data:`NEAR_IOD` eye distances of the prior head,
 fading to none at :data:`FAR_IOD` (a body, a helmet, hair far from the head: nothing).
 
-File (``assets/ict_head_prior.npz``, built by ``scripts/build_head_prior.py``): ``format``,
+File (``assets/ict_head_prior.npz``, built by ``scripts/build/build_head_prior.py``): ``format``,
 ``keys`` (S,), ``features`` (S, K, J, 3) float16 mm, ``residuals`` (S, m, 3) int16 in steps of
 ``step_mm`` at the vertices ``carried`` (m,) of the prior head, ``kind`` (n,) part codes,
 ``frame`` (4, 4) from the head asset named ``head`` to the face frame (mm), ``curve_points``
@@ -229,22 +229,6 @@ class PriorOnHead:
         """:meth:`__call__` of several curve-point motions, (q, k, 3): two matrix products."""
         X = np.stack([(np.asarray(x, np.float64) / self.ratio).ravel() for x in curve_motions], axis=1)
         return (self.residuals @ (self.solver @ X)).reshape(len(self.vertices), 3, -1).transpose(0, 2, 1)
-
-
-def save_prior(path, prior: HeadPrior, frame: np.ndarray, head: str, step_mm: float = STEP_MM, identities=None):
-    """Write a prior of the head asset ``head`` (``frame``: its 4×4 map to the face frame)."""
-    identities = prior.identities if identities is None else identities
-    carried = np.nonzero(np.abs(prior.residuals).max(axis=(0, 2)) >= step_mm)[0]
-    q = np.round(prior.residuals[:, carried] / step_mm)
-    if np.abs(q).max(initial=0) > np.iinfo(np.int16).max:
-        raise ModelFormatError(f"residuals too large for steps of {step_mm} mm")
-    np.savez_compressed(path, format=np.array(FORMAT), keys=np.array(prior.keys),
-                        features=prior.features.astype(np.float16), residuals=q.astype(np.int16),
-                        step_mm=np.array(step_mm), carried=carried.astype(np.int32), kind=prior.kind.astype(np.int8),
-                        frame=np.asarray(frame, np.float64), head=np.array(head),
-                        curve_points=prior.curve_points.astype(np.float32), face_size=np.asarray(prior.face_size),
-                        ridge=np.array(prior.ridge), notice=np.array(prior.notice),
-                        identities=np.array(list(identities), np.int64))
 
 
 def load_prior(path, head_vertices, head_triangles) -> HeadPrior:

@@ -3,7 +3,7 @@
 Each landmark is an affine combination (weights summing to 1) of a few
 face-mesh points, so the map commutes with rotation, scale and translation.
 The weights were fitted on ICT-FaceKit identities whose 68 landmark vertices
-are known (``scripts/build_landmark_map.py``); the file also keeps a template
+are known (``scripts/build/build_landmark_map.py``); the file also keeps a template
 of the 468 points in the face frame (mm), used to find the face's pose.
 
 File format ``pdeface.landmark-map`` (JSON)::
@@ -27,7 +27,7 @@ import numpy as np
 
 from ..errors import LandmarkError
 from ..geometry import similarity
-from ..io.files import load_json, write_bytes
+from ..io.files import load_json
 
 MAP_FORMAT = "pdeface.landmark-map"
 MAP_VERSION = 1
@@ -124,27 +124,6 @@ def read_map(path=None) -> LandmarkMap:
 
     path = DEFAULT_MAP if path is None else path
     return parse_map(load_json(path, LandmarkError), str(path))
-
-
-def write_map(path, m: LandmarkMap) -> int:
-    """Write a landmark map file; returns its size in bytes."""
-    import json
-
-
-    return write_bytes(path, json.dumps(m.to_json(), separators=(",", ":")).encode())
-
-
-def mirror_pairs(template) -> np.ndarray:
-    """Each template point's mirror image across the face's midplane (x = 0 in the face frame), as the
-    one-to-one pairing of least total distance (an involution: midline points pair with themselves)."""
-    from scipy.optimize import linear_sum_assignment
-
-    T = np.asarray(template, np.float64)
-    T = T - [np.median(T[:, 0]), 0, 0]
-    d = np.linalg.norm(T[:, None] - (T * [-1, 1, 1])[None], axis=2)
-    pairs = linear_sum_assignment(d)[1]
-    # Keep the pairing symmetric even where two assignments tie.
-    return np.where(pairs[pairs] == np.arange(len(T)), pairs, np.arange(len(T)))
 
 
 def robust_similarity(A, B, keep=0.85, rounds=3):

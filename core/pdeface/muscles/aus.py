@@ -4,7 +4,7 @@ An AU is 24 activation values (:data:`~pdeface.muscles.placement.MUSCLE_NAMES`),
 as the FAS records it. On a face model, the muscles (placed from its landmarks)
 move its curve points; the change of their Fourier fit is the AU's descriptor
 (source ``muscle``). The bundled table (``data/muscle_aus.json``, built by
-``scripts/build_muscles.py``) holds the muscles' shapes fitted to ICT-FaceKit and, per AU,
+``scripts/build/build_muscles.py``) holds the muscles' shapes fitted to ICT-FaceKit and, per AU,
 activations calibrated against it (:meth:`MuscleBasis.calibrate`), or, for the AUs it has no shape
 for, authored from FACS's muscles or from calibrated AUs (:data:`AUTHORED`).
 
@@ -129,11 +129,6 @@ def authored_activations(recipe: dict, calibrated: dict) -> np.ndarray:
     return a
 
 
-def recipe_text(recipe: dict) -> str:
-    """``{"AU45R": 1.0, "AU7R": 0.33}`` → ``"AU45R 1.0, AU7R 0.33"`` (tables, reports)."""
-    return ", ".join(f"{n} {v:g}" for n, v in recipe.items())
-
-
 @dataclass
 class MuscleTable:
     """AU key → (24,) activations, how each was made, and the muscles they go with: their shapes
@@ -198,17 +193,6 @@ class MuscleBasis:
         A = self.fields.reshape(len(self.fields), -1).T
         lo, hi = np.array([BOUNDS[n] for n in MUSCLE_NAMES]).T
         return lsq_linear(A, np.asarray(target_points, np.float64).ravel(), bounds=(lo, hi)).x
-
-
-def table_to_json(table: dict, hows: dict, notice="", geometry=None, fields=None) -> dict:
-    """A table file's content; ``fields``: the learned fields' file name (beside the table), if any."""
-    out = {"format": FORMAT, "version": VERSION, "muscles": list(MUSCLE_NAMES),
-           "geometry": {n: {k: round(float(v), 4) for k, v in g.items()} for n, g in (geometry or {}).items()}}
-    if fields:
-        out["fields"] = str(fields)
-    out.update({"aus": {k: {"activations": [round(float(v), 4) for v in a], "how": hows[k]}
-                        for k, a in table.items()}, "notice": notice})
-    return out
 
 
 def parse_table(data, where="muscle table", folder=None) -> MuscleTable:

@@ -135,13 +135,6 @@ def learn_corrections(waters, targets, activations, mask, ridge=RIDGE, rounds=60
     return C, A
 
 
-def save_fields(path, learned: LearnedFields):
-    """Write :class:`LearnedFields` (float16: 0.01 mm at the corrections' size)."""
-    np.savez_compressed(path, format=np.array(FORMAT), muscles=np.array(MUSCLE_NAMES),
-                        corrections=learned.corrections.astype(np.float16),
-                        face_size=np.asarray(learned.face_size, np.float64), notice=np.array(learned.notice))
-
-
 def load_fields(path) -> LearnedFields:
     """Read and check a muscle-fields file."""
     path = Path(path)

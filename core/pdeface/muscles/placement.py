@@ -79,7 +79,7 @@ def _side(L, side):
 
 
 #: Shape of each muscle pair beyond what the landmarks give, in eye distances e and degrees; the
-#: bundled table's own (``geometry``, fitted to ICT-FaceKit by ``scripts/build_muscles.py``)
+#: bundled table's own (``geometry``, fitted to ICT-FaceKit by ``scripts/build/build_muscles.py``)
 #: replaces these defaults. Linear: head moved (lateral, up, back), zone, Rs and Rf as fractions
 #: of the head-insertion length, bulge (mm). Sphincters: semi-axes' scale, pull, push (mm).
 #: Sheets: length and width scale, pull (mm).

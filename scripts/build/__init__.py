@@ -1,0 +1,1 @@
+"""Builders of the bundled assets and of the Blender extension."""

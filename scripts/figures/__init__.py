@@ -1,0 +1,1 @@
+"""Pictures for the docs, and the headless animation renderer."""
