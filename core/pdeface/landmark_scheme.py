@@ -35,6 +35,8 @@ NOSE_WING_LEFT = 35
 EYE_RIGHT = range(36, 42)
 EYE_LEFT = range(42, 48)
 EYE_OUTER_RIGHT, EYE_INNER_RIGHT, EYE_INNER_LEFT, EYE_OUTER_LEFT = 36, 39, 42, 45
+#: The right eye's lower-lid points (inner, outer); the left's mirror them (:data:`MIRROR`).
+LID_LOWER_INNER_RIGHT, LID_LOWER_OUTER_RIGHT = 40, 41
 #: The upper- and lower-lid points of both eyes.
 UPPER_LIDS = [37, 38, 43, 44]
 LOWER_LIDS = [40, 41, 46, 47]
@@ -51,6 +53,15 @@ LIP_LOWER_INNER = 66
 MOUTH_CORNERS = [MOUTH_CORNER_RIGHT, MOUTH_CORNER_LEFT]
 #: The lips' middle, outer and inner: where an open mouth's gap is measured.
 LIP_MIDDLES = [LIP_UPPER_TOP, LIP_LOWER_BOTTOM, LIP_UPPER_INNER, LIP_LOWER_INNER]
+
+#: Each landmark's mirror image across the face's midline (its own index on the midline): jaw, brows,
+#: nose base, eyes and lips read right to left in the scheme, so the pairs are fixed by its numbering.
+MIRROR = tuple(
+    [16 - i for i in JAW] + [43 - i for i in range(17, 27)] + list(NOSE_BRIDGE) + [66 - i for i in range(31, 36)]
+    + [81 - i for i in range(36, 40)] + [87 - i for i in range(40, 42)] + [81 - i for i in range(42, 46)]
+    + [87 - i for i in range(46, 48)] + [102 - i for i in range(48, 55)] + [114 - i for i in range(55, 60)]
+    + [124 - i for i in range(60, 65)] + [132 - i for i in range(65, 68)]
+)
 
 #: The 19 feature points of the method, each the mean of the listed landmarks.
 FEATURE_POINTS = {

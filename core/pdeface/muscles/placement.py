@@ -15,13 +15,21 @@ import numpy as np
 
 from ..errors import LandmarkError
 from ..landmark_scheme import (
+    BROW_INNER_RIGHT,
+    BROW_OUTER_RIGHT,
     CHIN,
+    EYE_INNER_RIGHT,
     EYE_LEFT,
+    EYE_OUTER_RIGHT,
     EYE_RIGHT,
+    JAW_RIGHT_ANGLE,
+    LID_LOWER_INNER_RIGHT,
+    LID_LOWER_OUTER_RIGHT,
     LIP_LOWER_BOTTOM,
     LIP_LOWER_INNER,
     LIP_UPPER_INNER,
     LIP_UPPER_TOP,
+    MIRROR,
     MOUTH_CORNER_LEFT,
     MOUTH_CORNER_RIGHT,
     NOSE_TIP,
@@ -36,7 +44,6 @@ from .model import Jaw, LinearMuscle, Sheet, Sphincter
 HEAD_DEPTH = 0.12
 #: The jawOpen turn of the bone (degrees) measured on ICT (pdeface.rigid), for the skin.
 JAW_DEGREES = 25.3
-_MIRROR = {17: 26, 21: 22, 31: 35, 36: 45, 37: 44, 38: 43, 39: 42, 40: 47, 41: 46, 48: 54, 5: 11}
 
 #: (name, FACS muscle, AUs it serves), in the table's order; "_R"/"_L" are the subject's sides.
 _PAIRS = (
@@ -72,10 +79,10 @@ BOUNDS = {n: ((-1.0, 2.0) if n.startswith(("orbicularis", "nasalis")) else (0.0,
 
 
 def _side(L, side):
-    """The landmarks of one side: the subject's right as given, the left mirrored in index."""
+    """The landmarks of one side, named by the subject's right: as given, or mirrored for the left."""
     if side == "R":
         return lambda i: L[i]
-    return lambda i: L[_MIRROR.get(i, i)]
+    return lambda i: L[MIRROR[i]]
 
 
 #: Shape of each muscle pair beyond what the landmarks give, in eye distances e and degrees; the
@@ -102,27 +109,30 @@ def _linear(name, side, L, e, g):
     lateral = np.array([out, 0, 0])
     mid = lambda a, b, t=0.5: p(a) + t * (p(b) - p(a))  # noqa: E731
     if name == "frontalis_inner":
-        i, h, pull = p(21) + 0.05 * e * up, p(21) + 0.8 * e * up, 7.0
+        i, h, pull = p(BROW_INNER_RIGHT) + 0.05 * e * up, p(BROW_INNER_RIGHT) + 0.8 * e * up, 7.0
     elif name == "frontalis_outer":
-        i, h, pull = p(17) + 0.05 * e * up, p(17) + 0.8 * e * up - 0.1 * e * lateral, 7.0
+        i, h, pull = p(BROW_OUTER_RIGHT) + 0.05 * e * up, p(BROW_OUTER_RIGHT) + 0.8 * e * up - 0.1 * e * lateral, 7.0
     elif name == "corrugator":
-        i, h, pull = mid(21, 17, 0.45), p(21) - 0.1 * e * lateral - 0.08 * e * up, 6.0
+        i = mid(BROW_INNER_RIGHT, BROW_OUTER_RIGHT, 0.45)
+        h, pull = p(BROW_INNER_RIGHT) - 0.1 * e * lateral - 0.08 * e * up, 6.0
     elif name == "levator_labii_alaeque":
-        i, h, pull = p(31) - 0.04 * e * up, p(39) - 0.05 * e * lateral - 0.05 * e * up, 6.0
+        i, h, pull = p(NOSE_WING_RIGHT) - 0.04 * e * up, p(EYE_INNER_RIGHT) - 0.05 * e * lateral - 0.05 * e * up, 6.0
     elif name == "levator_labii":
-        i = mid(51, 48, 0.55) + 0.03 * e * up
-        h, pull = mid(40, 41) - 0.22 * e * up, 6.0
+        i = mid(LIP_UPPER_TOP, MOUTH_CORNER_RIGHT, 0.55) + 0.03 * e * up
+        h, pull = mid(LID_LOWER_INNER_RIGHT, LID_LOWER_OUTER_RIGHT) - 0.22 * e * up, 6.0
     elif name == "zygomatic_major":
-        i, h, pull = p(48), p(36) + 0.12 * e * lateral - 0.42 * e * up, 10.0
+        i, h, pull = p(MOUTH_CORNER_RIGHT), p(EYE_OUTER_RIGHT) + 0.12 * e * lateral - 0.42 * e * up, 10.0
     elif name == "levator_anguli_oris":
-        i = p(48) + 0.04 * e * up
-        h = np.array([p(48)[0] - 0.02 * e * out, 0.5 * (p(31)[1] + mid(40, 41)[1]), mid(40, 41)[2]])
+        i = p(MOUTH_CORNER_RIGHT) + 0.04 * e * up
+        lower_lid = mid(LID_LOWER_INNER_RIGHT, LID_LOWER_OUTER_RIGHT)
+        h = np.array([p(MOUTH_CORNER_RIGHT)[0] - 0.02 * e * out, 0.5 * (p(NOSE_WING_RIGHT)[1] + lower_lid[1]),
+                      lower_lid[2]])
         pull = 7.0
     elif name == "depressor_anguli_oris":
-        i, h, pull = p(48), mid(48, 5, 0.6) - 0.1 * e * up, 8.0
+        i, h, pull = p(MOUTH_CORNER_RIGHT), mid(MOUTH_CORNER_RIGHT, JAW_RIGHT_ANGLE, 0.6) - 0.1 * e * up, 8.0
     elif name == "depressor_labii":
-        i = mid(57, 48, 0.4)
-        h, pull = p(57) + 0.7 * (L[CHIN] - p(LIP_LOWER_BOTTOM)) + 0.15 * e * lateral, 7.0
+        i = mid(LIP_LOWER_BOTTOM, MOUTH_CORNER_RIGHT, 0.4)
+        h, pull = p(LIP_LOWER_BOTTOM) + 0.7 * (L[CHIN] - p(LIP_LOWER_BOTTOM)) + 0.15 * e * lateral, 7.0
     else:
         raise KeyError(name)
     h = h + e * (g["lateral"] * lateral + g["up"] * up + (HEAD_DEPTH + g["back"]) * back)
@@ -149,9 +159,10 @@ def place_muscles(landmarks_face, geometry=None) -> list:
     out = [_linear(n, s, L, e, g[n]) for n, _, _ in _PAIRS for s in "RL"]
     mouth = 0.5 * (L[LIP_UPPER_INNER] + L[LIP_LOWER_INNER])
     m = g["orbicularis_oris"]
-    out.append(Sphincter("orbicularis_oris", mouth, (0.75 * m["scale_x"] * (L[MOUTH_CORNER_LEFT, 0] - L[MOUTH_CORNER_RIGHT, 0]),
-                                                     1.2 * m["scale_y"] * (L[LIP_UPPER_TOP, 1] - L[LIP_LOWER_BOTTOM, 1])), m["pull"],
-                         push_mm=m["push"]))
+    mouth_width = L[MOUTH_CORNER_LEFT, 0] - L[MOUTH_CORNER_RIGHT, 0]
+    lips_height = L[LIP_UPPER_TOP, 1] - L[LIP_LOWER_BOTTOM, 1]
+    out.append(Sphincter("orbicularis_oris", mouth, (0.75 * m["scale_x"] * mouth_width, 1.2 * m["scale_y"] * lips_height),
+                         m["pull"], push_mm=m["push"]))
     o = g["orbicularis_oculi"]
     for side, eye in (("R", EYE_RIGHT), ("L", EYE_LEFT)):
         c = L[list(eye)].mean(0)
