@@ -140,8 +140,9 @@ def _pose_all_keys(args, model):
     aus = [f"AU{d.key}" for d in model.descriptors]
     log(f"wrote {len(files)} meshes of {vertices} vertices in {time.perf_counter() - t0:.1f} s: {len(aus)} AUs, "
         f"{len(files) - len(aus) - 1} presets and the neutral")
-    print(json.dumps({"output": str(out), "format": ext[1:], "vertices": vertices, "aus": aus,
-                      "presets": [n for n in poses if n not in aus and n != "neutral"], "files": {n: str(p) for n, p in files.items()}}))
+    presets = [n for n in poses if n not in aus and n != "neutral"]
+    print(json.dumps({"output": str(out), "format": ext[1:], "vertices": vertices, "aus": aus, "presets": presets,
+                      "files": {n: str(p) for n, p in files.items()}}))
 
 
 def _input_format(mesh_arg):
@@ -201,7 +202,7 @@ def cmd_import_au(args):
 def register(sub):
     """The ``descriptor``, ``pose``, ``retarget``, ``au-report`` and ``import-au`` commands."""
     p = sub.add_parser("descriptor", help="AU descriptor from a neutral mesh and an AU mesh")
-    p.add_argument("neutral", help="neutral mesh (.obj/.ply) or 'default'")
+    p.add_argument("neutral", help="neutral mesh (.obj/.ply/.glb/.gltf) or 'default'")
     p.add_argument("au_mesh", help="the same face showing the AU")
     p.add_argument("--landmarks", help="68 landmarks of the neutral (JSON; required unless NEUTRAL is 'default')")
     p.add_argument("--au-landmarks", help="68 landmarks of the AU mesh, when its topology differs")
