@@ -88,9 +88,12 @@ def rig_mesh_file(context, addon, path, landmarks=None, unit=None):
 
     mesh, lm = load_scan(path, landmarks)
     if lm is None:
-        from pdeface.cli.landmarks import find_landmarks
+        from pdeface.landmarks.pipeline import find_on_mesh
 
-        lm = find_landmarks(mesh, unit).points
+        found = find_on_mesh(mesh, unit)
+        sys.stderr.write(f"{path}: found the 68 landmarks (detector score {found.score:.2f}, "
+                         f"{found.residual_mm:.1f} mm from the template)\n")
+        lm = found.points
     # Blender's importers turn OBJ's and glTF's +Y up to +Z; a PLY keeps its axes.
     y_up = Path(path).suffix.lower() != ".ply"
     return addon.rigging.add_head_mesh(context, Path(path).stem, mesh, lm, unit=unit, y_up=y_up)
