@@ -44,6 +44,8 @@ def test_all_keys_on_the_pde_face(tmp_path, capsys, small_face):
     assert np.abs(smile.vertices - neutral.vertices).max() > 0.1  # cm: the lip corners moved
     code, _, err = run(capsys, "pose", small_face, "--all-keys", "--au", "12=1", "-o", tmp_path / "k2")
     assert code == 2 and "drop --au and --preset" in err
+    code, _, err = run(capsys, "pose", small_face, "--au", "12=1", "--format", "ply", "-o", tmp_path / "x.ply")
+    assert code == 2 and "--format is for --all-keys" in err
 
 
 def test_all_keys_on_a_glb_head_in_its_vertex_order(tmp_path, capsys, small_face):

@@ -78,6 +78,8 @@ def cmd_pose(args):
     if args.all_keys:
         _pose_all_keys(args, model)
         return
+    if args.format:
+        raise PdeFaceError("--format is for --all-keys (a single pose is written in -o's format)")
     weights, preset = _pose_weights(args, model)
     mixer = choose_mixer(args.mixer, preset)
     if args.mesh:
