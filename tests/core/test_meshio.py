@@ -137,7 +137,7 @@ def _glb(path, gltf, blob):
     return path
 
 
-def _two_node_glb(path):
+def _two_node_glb(path, material=True, external=False):
     """One triangle mesh (a unit quad, UVs with glTF's v down) used by two nodes: a parent translated by
     (10, 0, 0) and its child scaled by 2; the child's triangles come in with both transforms."""
     P = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], "<f4")
@@ -147,8 +147,9 @@ def _two_node_glb(path):
     gltf = {
         "asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}],
         "nodes": [{"mesh": 0, "translation": [10, 0, 0], "children": [1]}, {"mesh": 0, "scale": [2, 2, 2]}],
-        "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "TEXCOORD_0": 1}, "indices": 2, "material": 0}]}],
-        "materials": [{"name": "skin"}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "TEXCOORD_0": 1}, "indices": 2,
+                                    **({"material": 0} if material else {})}]}],
+        "materials": [{"name": "skin"}] if material else [],
         "buffers": [{"byteLength": len(blob)}],
         "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 48},
                         {"buffer": 0, "byteOffset": 48, "byteLength": 32},
@@ -158,12 +159,19 @@ def _two_node_glb(path):
                       {"bufferView": 1, "componentType": 5126, "count": 4, "type": "VEC2"},
                       {"bufferView": 2, "componentType": 5123, "count": 6, "type": "SCALAR"}],
     }
+    if external:  # a .gltf beside its .bin
+        gltf["buffers"][0]["uri"] = path.stem + ".bin"
+        path.with_suffix(".bin").write_bytes(blob)
+        path.write_text(__import__("json").dumps(gltf))
+        return path, P
     return _glb(path, gltf, blob), P
 
 
-def test_glb_nodes_flatten_into_one_mesh_with_their_transforms(tmp_path):
+# A sculpt exported without a material keeps its UVs too; a .gltf finds its .bin beside it.
+@pytest.mark.parametrize("name, material", [("head.glb", True), ("head.glb", False), ("head.gltf", False)])
+def test_glb_nodes_flatten_into_one_mesh_with_their_transforms(tmp_path, name, material):
     pytest.importorskip("trimesh")
-    path, P = _two_node_glb(tmp_path / "head.glb")
+    path, P = _two_node_glb(tmp_path / name, material, external=name.endswith(".gltf"))
     m = read_mesh(path)
     assert m.vertices.shape == (8, 3) and m.face_counts.tolist() == [3] * 4
     # Each node's copy of the quad, wherever trimesh puts it in the order: parent at +10 x, child scaled by 2 too.

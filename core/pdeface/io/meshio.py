@@ -8,6 +8,8 @@ which leaves this module only flattening its scene into one mesh.
 """
 from __future__ import annotations
 
+import io
+import json
 import os
 import struct
 
@@ -379,8 +381,7 @@ def read_gltf(path) -> Mesh:
     becomes one mesh), in trimesh's order of the scene's nodes and each
     primitive's own vertex order; positions stay in the file's units (glTF's
     are metres, +Y up). Texture coordinates come along when every primitive
-    has them (flipped to OBJ's convention, v up); trimesh reads them for
-    primitives with a material. Points and lines are skipped.
+    has them (flipped to OBJ's convention, v up). Points and lines are skipped.
 
     Raises
     ------
@@ -388,13 +389,16 @@ def read_gltf(path) -> Mesh:
         Naming the file: missing, not glTF 2.0, broken, or without triangles;
         or trimesh not installed (with how to install it).
     """
-    read_bytes(path, MeshError)  # a missing or unreadable file says so as every other format does
+    data = read_bytes(path, MeshError)  # a missing or unreadable file says so as every other format does
     try:
         import trimesh
+        from trimesh.resolvers import FilePathResolver
     except ImportError:
         raise MeshError(f"{path}: reading glTF needs trimesh: python -m pip install 'pdeface[gltf]'") from None
+    ext = os.path.splitext(str(path))[1].lower()[1:]
     try:
-        scene = trimesh.load(str(path), force="scene", process=False)
+        scene = trimesh.load(io.BytesIO(_with_materials(data, ext == "glb")), file_type=ext, force="scene",
+                             process=False, resolver=FilePathResolver(os.path.abspath(path)))
     except Exception as exc:  # trimesh raises whatever its parsing met (ValueError, KeyError, struct.error ...)
         raise MeshError(f"{path}: not a readable glTF file ({type(exc).__name__}: {str(exc)[:120]})") from None
     V, F, UV = [], [], []
@@ -420,3 +424,35 @@ def read_gltf(path) -> Mesh:
     if all(uv is not None for uv in UV):
         mesh.uvs, mesh.face_uv_indices = np.concatenate(UV), mesh.face_indices.copy()
     return mesh.validate(str(path))
+
+
+def _with_materials(data: bytes, binary: bool) -> bytes:
+    """A glTF file's bytes with an empty material on every primitive that has none.
+
+    trimesh reads a primitive's texture coordinates only along with its material;
+    a head exported without one (a sculpt) keeps its UVs this way. Bytes that are
+    not glTF are returned as they are, for trimesh to refuse.
+    """
+    try:
+        if binary:
+            magic, version, _, n, kind = struct.unpack_from("<4sIIII", data)
+            if magic != b"glTF" or kind != 0x4E4F534A:
+                return data
+            gltf, rest = json.loads(data[20:20 + n]), data[20 + n:]
+        else:
+            gltf = json.loads(data)
+    except (struct.error, ValueError):
+        return data
+    primitives = [p for m in gltf.get("meshes", []) if isinstance(m, dict) for p in m.get("primitives", [])
+                  if isinstance(p, dict) and "material" not in p]
+    if not primitives or not isinstance(gltf.get("materials", []), list):
+        return data
+    gltf.setdefault("materials", []).append({"name": "pdeface_default"})
+    for p in primitives:
+        p["material"] = len(gltf["materials"]) - 1
+    text = json.dumps(gltf).encode()
+    if not binary:
+        return text
+    text += b" " * (-len(text) % 4)  # chunks are 4-byte aligned
+    body = struct.pack("<II", len(text), 0x4E4F534A) + text + rest
+    return struct.pack("<4sII", b"glTF", version, 12 + len(body)) + body
