@@ -67,14 +67,14 @@ def build_parser(prog="render_sequence.py"):
 
 def add_mesh_options(ap):
     """``--mesh``: a head of the user's own, found, fitted and rigged here, and what that takes."""
+    from pdeface.surface.frame import UNITS_MM
+
     g = ap.add_argument_group("a head of your own (instead of --face, --head or --blend)")
     g.add_argument("--mesh", help="head mesh (.obj, .ply, .glb or .gltf): its landmarks found (or --landmarks), "
                                   "a PDE face fitted, the bundled AU descriptors retargeted and every key put on "
                                   "the whole mesh, then rendered")
     g.add_argument("--landmarks", help="the mesh's 68 landmarks (JSON with 'indices' or 'points', as "
                                        "'pdeface landmarks' writes); default: found (needs pdeface[landmarks])")
-    from pdeface.surface.frame import UNITS_MM
-
     g.add_argument("--unit", choices=list(UNITS_MM), help="the mesh's unit (default: guessed from the eyes)")
 
 
