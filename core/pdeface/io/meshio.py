@@ -19,7 +19,6 @@ from ..errors import MeshError
 from ..mesh import Mesh
 from .files import atomic_open, open_file, read_bytes
 
-
 #: Mesh file extensions :func:`read_mesh` reads, and those :func:`write_mesh` writes.
 READ_FORMATS = (".obj", ".ply", ".glb", ".gltf")
 WRITE_FORMATS = (".obj", ".ply")
@@ -34,7 +33,7 @@ def read_mesh(path) -> Mesh:
         return read_ply(path)
     if ext in (".glb", ".gltf"):
         return read_gltf(path)
-    raise MeshError(f"{path}: unsupported mesh format {ext!r} (use .obj, .ply, .glb or .gltf)")
+    raise MeshError(f"{path}: unsupported mesh format {ext!r} (use {', '.join(READ_FORMATS)})")
 
 
 def write_mesh(path, mesh: Mesh) -> None:
@@ -45,7 +44,7 @@ def write_mesh(path, mesh: Mesh) -> None:
     elif ext == ".ply":
         write_ply(path, mesh)
     else:
-        raise MeshError(f"{path}: cannot write mesh format {ext!r} (use .obj or .ply)")
+        raise MeshError(f"{path}: cannot write mesh format {ext!r} (use {' or '.join(WRITE_FORMATS)})")
 
 
 def write_posed(path, source, mesh: Mesh, vertices) -> None:
@@ -399,7 +398,7 @@ def read_gltf(path) -> Mesh:
     try:
         scene = trimesh.load(io.BytesIO(_with_materials(data, ext == "glb")), file_type=ext, force="scene",
                              process=False, resolver=FilePathResolver(os.path.abspath(path)))
-    except Exception as exc:  # trimesh raises whatever its parsing met (ValueError, KeyError, struct.error ...)
+    except Exception as exc:  # noqa: BLE001 - trimesh raises whatever its parsing met (KeyError, struct.error ...)
         raise MeshError(f"{path}: not a readable glTF file ({type(exc).__name__}: {str(exc)[:120]})") from None
     V, F, UV = [], [], []
     offset = 0
