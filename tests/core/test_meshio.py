@@ -216,6 +216,10 @@ def test_gltf_errors_name_the_file(tmp_path, monkeypatch):
     empty = _glb(tmp_path / "empty.glb", {"asset": {"version": "2.0"}, "scenes": [{"nodes": []}]}, b"")
     with pytest.raises(MeshError, match="empty.glb: no triangle mesh"):
         read_mesh(empty)
+    huge = {"asset": {"version": "2.0"}, "buffers": [{"byteLength": 12}],
+            "accessors": [{"componentType": 5126, "count": 10**12, "type": "VEC3"}]}
+    with pytest.raises(MeshError, match="huge.glb: accessor 0 claims 1000000000000 elements in 12 bytes"):
+        read_mesh(_glb(tmp_path / "huge.glb", huge, b"\0" * 12))
     monkeypatch.setitem(__import__("sys").modules, "trimesh", None)
     with pytest.raises(MeshError, match=r"bad.glb: reading glTF needs trimesh: .*pdeface\[gltf\]"):
         read_mesh(bad)

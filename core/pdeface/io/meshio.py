@@ -395,8 +395,9 @@ def read_gltf(path) -> Mesh:
     except ImportError:
         raise MeshError(f"{path}: reading glTF needs trimesh: python -m pip install 'pdeface[gltf]'") from None
     ext = os.path.splitext(str(path))[1].lower()[1:]
+    data = _prepared(path, data, ext == "glb")
     try:
-        scene = trimesh.load(io.BytesIO(_with_materials(data, ext == "glb")), file_type=ext, force="scene",
+        scene = trimesh.load(io.BytesIO(data), file_type=ext, force="scene",
                              process=False, resolver=FilePathResolver(os.path.abspath(path)))
     except Exception as exc:  # noqa: BLE001 - trimesh raises whatever its parsing met (KeyError, struct.error ...)
         raise MeshError(f"{path}: not a readable glTF file ({type(exc).__name__}: {str(exc)[:120]})") from None
@@ -425,12 +426,14 @@ def read_gltf(path) -> Mesh:
     return mesh.validate(str(path))
 
 
-def _with_materials(data: bytes, binary: bool) -> bytes:
-    """A glTF file's bytes with an empty material on every primitive that has none.
+def _prepared(path, data: bytes, binary: bool) -> bytes:
+    """A glTF file's bytes with an empty material on every primitive that has none, its claims checked.
 
     trimesh reads a primitive's texture coordinates only along with its material;
-    a head exported without one (a sculpt) keeps its UVs this way. Bytes that are
-    not glTF are returned as they are, for trimesh to refuse.
+    a head exported without one (a sculpt) keeps its UVs this way. An accessor
+    claiming more elements than the buffers have bytes is refused before trimesh
+    allocates it. Bytes that are not glTF are returned as they are, for trimesh
+    to refuse.
     """
     try:
         if binary:
@@ -440,9 +443,20 @@ def _with_materials(data: bytes, binary: bool) -> bytes:
             gltf, rest = json.loads(data[20:20 + n]), data[20 + n:]
         else:
             gltf = json.loads(data)
-    except (struct.error, ValueError):
+    except (struct.error, ValueError, RecursionError):
         return data
-    primitives = [p for m in gltf.get("meshes", []) if isinstance(m, dict) for p in m.get("primitives", [])
+    if not isinstance(gltf, dict):
+        return data
+
+    def listed(key):  # the objects of a top-level array (anything else is trimesh's to refuse)
+        items = gltf.get(key)
+        return [x for x in items if isinstance(x, dict)] if isinstance(items, list) else []
+
+    total = sum(b["byteLength"] for b in listed("buffers") if isinstance(b.get("byteLength"), int))
+    for i, a in enumerate(listed("accessors")):
+        if isinstance(a.get("count"), int) and a["count"] > total:
+            raise MeshError(f"{path}: accessor {i} claims {a['count']} elements in {total} bytes of buffers")
+    primitives = [p for m in listed("meshes") if isinstance(m.get("primitives"), list) for p in m["primitives"]
                   if isinstance(p, dict) and "material" not in p]
     if not primitives or not isinstance(gltf.get("materials", []), list):
         return data
