@@ -65,7 +65,42 @@ def build_parser(prog="render_sequence.py"):
     ap.add_argument("--no-frames", action="store_true", help="render no animation frames")
     ap.add_argument("--save-blend", help="save the scene to this .blend")
     ap.add_argument("--quiet", action="store_true", help="no progress bars")
+    add_mesh_options(ap)
     return ap
+
+
+def add_mesh_options(ap):
+    """``--mesh``: a head of the user's own, found, fitted and rigged here, and what that takes."""
+    from pdeface.surface.frame import UNITS_MM
+
+    g = ap.add_argument_group("a head of your own (instead of --face, --head or --blend)")
+    g.add_argument("--mesh", help="head mesh (.obj, .ply, .glb or .gltf): its landmarks found (or --landmarks), "
+                                  "a PDE face fitted, the bundled AU descriptors retargeted and every key put on "
+                                  "the whole mesh, then rendered")
+    g.add_argument("--landmarks", help="the mesh's 68 landmarks (JSON with 'indices' or 'points', as "
+                                       "'pdeface landmarks' writes); default: found (needs pdeface[landmarks])")
+    g.add_argument("--unit", choices=list(UNITS_MM), help="the mesh's unit (default: guessed from the eyes)")
+
+
+def rig_mesh_file(context, addon, path, landmarks=None, unit=None):
+    """The user's head file as a Blender object with every AU and expression key (``--mesh``); returns it.
+
+    Read, landmarked and fitted as ``pdeface landmarks``, ``fit`` and ``retarget``
+    do, rigged as the add-on's Fit does (:func:`rigging.add_head_mesh`).
+    """
+    from pdeface.surface.scan import load_scan
+
+    mesh, lm = load_scan(path, landmarks)
+    if lm is None:
+        from pdeface.landmarks.pipeline import find_on_mesh
+
+        found = find_on_mesh(mesh, unit)
+        sys.stderr.write(f"{path}: found the 68 landmarks (detector score {found.score:.2f}, "
+                         f"{found.residual_mm:.1f} mm from the template)\n")
+        lm = found.points
+    # Blender's importers turn OBJ's and glTF's +Y up to +Z; a PLY keeps its axes.
+    y_up = Path(path).suffix.lower() != ".ply"
+    return addon.rigging.add_head_mesh(context, Path(path).stem, mesh, lm, unit=unit, y_up=y_up)
 
 
 def enable_addon(bpy, repo_name="pdeface_render"):
@@ -105,7 +140,10 @@ def progress_bar(done, total, label, quiet):
 
 
 def main(argv=None, prog="render_sequence.py"):
-    args = build_parser(prog).parse_args(script_args(sys.argv if argv is None else argv))
+    ap = build_parser(prog)
+    args = ap.parse_args(script_args(sys.argv if argv is None else argv))
+    if args.mesh and (args.blend or args.head or args.face != "default"):
+        ap.error("--mesh renders your head: drop --face, --head and --blend")
     if "bpy" not in sys.modules:  # plain python: keep Blender's user config out of the user's home
         os.environ.setdefault("BLENDER_USER_RESOURCES", tempfile.mkdtemp(prefix="pdeface_blender_"))
     progress_bar(0, 1, "Blender start-up", args.quiet)
@@ -133,6 +171,10 @@ def main(argv=None, prog="render_sequence.py"):
             face = faces[0]
             bpy.context.view_layer.objects.active = face
             shown = next(iter(addon.face.user_objects(face)), face)
+        elif args.mesh:
+            bpy.ops.wm.read_homefile(use_empty=True)
+            shown = rig_mesh_file(bpy.context, addon, args.mesh, args.landmarks, args.unit)
+            face = shown.pdeface.rig_face
         elif args.head:
             bpy.ops.wm.read_homefile(use_empty=True)
             shown = addon.rigging.add_ict_head(bpy.context)

@@ -42,6 +42,24 @@ def fit_and_rig(context, src, landmarks, unit=None, resolution="default", retarg
     return obj, model, sampler, counts
 
 
+def add_head_mesh(context, name, mesh, landmarks, unit=None, y_up=True, retarget=True):
+    """A head read from a file (a pdeface Mesh) as the user's mesh, fitted and rigged: every key on it.
+
+    ``landmarks``: its 68 landmark positions; ``y_up``: the file's +Y is up (OBJ,
+    glTF), turned to Blender's +Z as Blender's own importers do. Returns the head
+    object (active); its PDE face is hidden as the reference.
+    """
+    obj = bpy.data.objects.new(name, bridge.new_mesh(name, mesh))
+    context.collection.objects.link(obj)
+    if y_up:
+        obj.rotation_euler = (math.pi / 2, 0.0, 0.0)
+    obj.data.materials.append(bridge.skin_material())
+    context.view_layer.update()
+    fit_and_rig(context, obj, landmarks, unit=unit, retarget=retarget)
+    context.view_layer.update()
+    return obj
+
+
 def add_ict_head(context, retarget=True):
     """ICT-FaceKit's whole generic head as the user's mesh, fitted and rigged: every key on it.
 

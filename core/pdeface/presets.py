@@ -142,6 +142,21 @@ def choose_mixer(requested=None, preset: Preset | None = None) -> str:
     return mixer
 
 
+def key_poses(model, presets, mixer=None) -> dict:
+    """``{name: (AU weights, mixer)}`` of every key a face gets: each descriptor at weight 1 (``AU<key>``),
+    then each of ``presets`` (name → :class:`Preset`) this face has AUs for.
+
+    ``mixer`` overrides the presets' own (see :func:`choose_mixer`); the AUs' is ``mixer`` or ``sum``.
+    """
+    keys = {d.key for d in model.descriptors}
+    poses = {f"AU{d.key}": ({d.key: 1.0}, choose_mixer(mixer)) for d in model.descriptors}
+    for name, preset in presets.items():
+        weights = resolve_preset(preset, keys)[0]
+        if weights:
+            poses[name] = (weights, choose_mixer(mixer, preset))
+    return poses
+
+
 def every_pose(model) -> dict:
     """``{name: AU weights}``: rest (``neutral``), each descriptor at weight 1 (``AU<key>``) and each built-in
     preset this face has AUs for, as a sum: the poses a face's folds are measured in (issue #16)."""

@@ -122,3 +122,104 @@ def test_validate_rejects_nan_and_faceless():
         Mesh.from_faces([[0, 0, 0], [1, 0, np.nan], [0, 1, 0]], [[0, 1, 2]])
     with pytest.raises(MeshError, match="no faces"):
         Mesh(np.zeros((3, 3)), np.zeros(0, int), np.zeros(0, int)).validate()
+
+
+def _glb(path, gltf, blob):
+    """Write a GLB container: the JSON chunk, then the binary one (both padded to 4 bytes)."""
+    import json
+    import struct
+
+    text = json.dumps(gltf).encode()
+    text += b" " * (-len(text) % 4)
+    blob += b"\0" * (-len(blob) % 4)
+    body = struct.pack("<II", len(text), 0x4E4F534A) + text + struct.pack("<II", len(blob), 0x004E4942) + blob
+    path.write_bytes(struct.pack("<III", 0x46546C67, 2, 12 + len(body)) + body)
+    return path
+
+
+def _two_node_glb(path, material=True, external=False):
+    """One triangle mesh (a unit quad, UVs with glTF's v down) used by two nodes: a parent translated by
+    (10, 0, 0) and its child scaled by 2; the child's triangles come in with both transforms."""
+    P = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], "<f4")
+    UV = np.array([[0, 1], [1, 1], [1, 0], [0, 0]], "<f4")  # glTF's v runs down the image
+    idx = np.array([0, 1, 2, 0, 2, 3], "<u2")
+    blob = P.tobytes() + UV.tobytes() + idx.tobytes()
+    gltf = {
+        "asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}],
+        "nodes": [{"mesh": 0, "translation": [10, 0, 0], "children": [1]}, {"mesh": 0, "scale": [2, 2, 2]}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "TEXCOORD_0": 1}, "indices": 2,
+                                    **({"material": 0} if material else {})}]}],
+        "materials": [{"name": "skin"}] if material else [],
+        "buffers": [{"byteLength": len(blob)}],
+        "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 48},
+                        {"buffer": 0, "byteOffset": 48, "byteLength": 32},
+                        {"buffer": 0, "byteOffset": 80, "byteLength": 12}],
+        "accessors": [{"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3", "min": [0, 0, 0],
+                       "max": [1, 1, 0]},
+                      {"bufferView": 1, "componentType": 5126, "count": 4, "type": "VEC2"},
+                      {"bufferView": 2, "componentType": 5123, "count": 6, "type": "SCALAR"}],
+    }
+    if external:  # a .gltf beside its .bin
+        gltf["buffers"][0]["uri"] = path.stem + ".bin"
+        path.with_suffix(".bin").write_bytes(blob)
+        path.write_text(__import__("json").dumps(gltf))
+        return path, P
+    return _glb(path, gltf, blob), P
+
+
+# A sculpt exported without a material keeps its UVs too; a .gltf finds its .bin beside it.
+@pytest.mark.parametrize("name, material", [("head.glb", True), ("head.glb", False), ("head.gltf", False)])
+def test_glb_nodes_flatten_into_one_mesh_with_their_transforms(tmp_path, name, material):
+    pytest.importorskip("trimesh")
+    path, P = _two_node_glb(tmp_path / name, material, external=name.endswith(".gltf"))
+    m = read_mesh(path)
+    assert m.vertices.shape == (8, 3) and m.face_counts.tolist() == [3] * 4
+    # Each node's copy of the quad, wherever trimesh puts it in the order: parent at +10 x, child scaled by 2 too.
+    copies = sorted([m.vertices[:4], m.vertices[4:]], key=lambda c: c.max())
+    np.testing.assert_allclose(copies[0], P + [10, 0, 0])
+    np.testing.assert_allclose(copies[1], 2 * P + [10, 0, 0])
+    assert set(m.face_indices[:6]) | set(m.face_indices[6:]) == set(range(8))
+    # UVs in OBJ's convention (v up): the quad's corner at y=0 has v=0.
+    uv = m.uvs[m.face_uv_indices]
+    np.testing.assert_allclose(uv[m.face_indices == 0], [[0, 0]] * 2)
+
+
+def test_glb_and_gltf_round_trip_a_scene_written_by_trimesh(tmp_path):
+    trimesh = pytest.importorskip("trimesh")
+    head, eye = trimesh.creation.icosphere(2), trimesh.creation.icosphere(1, radius=0.1)
+    scene = trimesh.Scene()
+    placed = {"head": (head, trimesh.transformations.rotation_matrix(0.3, [0, 1, 0])),
+              "eye": (eye, trimesh.transformations.translation_matrix([0.03, 0.02, 0.09]))}
+    for name, (geom, matrix) in placed.items():
+        scene.add_geometry(geom, node_name=name, geom_name=name, transform=matrix)
+    for ext in ("glb", "gltf"):
+        scene.export(tmp_path / f"s.{ext}")
+        m = read_mesh(tmp_path / f"s.{ext}")
+        assert len(m.vertices) == len(head.vertices) + len(eye.vertices)
+        expected = {len(g.vertices): trimesh.transform_points(g.vertices, M) for g, M in placed.values()}
+        start = 0
+        for _ in placed:  # each node's vertices in their own order, whichever node comes first
+            first = m.vertices[start]
+            n = next(k for k, X in expected.items() if np.allclose(X[0], first, atol=1e-6))
+            np.testing.assert_allclose(m.vertices[start:start + n], expected[n], atol=1e-6)
+            start += n
+
+
+def test_gltf_errors_name_the_file(tmp_path, monkeypatch):
+    pytest.importorskip("trimesh")
+    bad = tmp_path / "bad.glb"
+    bad.write_bytes(b"glTF\x02\0\0\0 not really")
+    with pytest.raises(MeshError, match="bad.glb: not a readable glTF file"):
+        read_mesh(bad)
+    with pytest.raises(MeshError, match="nope.gltf: cannot open"):
+        read_mesh(tmp_path / "nope.gltf")
+    empty = _glb(tmp_path / "empty.glb", {"asset": {"version": "2.0"}, "scenes": [{"nodes": []}]}, b"")
+    with pytest.raises(MeshError, match="empty.glb: no triangle mesh"):
+        read_mesh(empty)
+    huge = {"asset": {"version": "2.0"}, "buffers": [{"byteLength": 12}],
+            "accessors": [{"componentType": 5126, "count": 10**12, "type": "VEC3"}]}
+    with pytest.raises(MeshError, match="huge.glb: accessor 0 claims 1000000000000 elements in 12 bytes"):
+        read_mesh(_glb(tmp_path / "huge.glb", huge, b"\0" * 12))
+    monkeypatch.setitem(__import__("sys").modules, "trimesh", None)
+    with pytest.raises(MeshError, match=r"bad.glb: reading glTF needs trimesh: .*pdeface\[gltf\]"):
+        read_mesh(bad)

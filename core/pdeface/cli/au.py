@@ -2,7 +2,9 @@
 from __future__ import annotations
 
 import json
+import re
 import time
+from pathlib import Path
 
 from ..animation.timeline import save_timeline
 from ..animation.trackers import FORMATS, import_au
@@ -14,13 +16,13 @@ from ..au.descriptorfile import load_descriptor, save_descriptor
 from ..au.ict import IctFolder
 from ..au.modelfile import load_face, save_model
 from ..au.retarget import SCALINGS, retarget
-from ..errors import PdeFaceError
+from ..errors import FileError, PdeFaceError
 from ..facs import SIDES, parse_au_weights
 from ..head.bind import bind_file
 from ..io.files import check_output
-from ..io.meshio import read_mesh, write_mesh
+from ..io.meshio import WRITE_FORMATS, read_mesh, write_mesh
 from ..posing import MUSCLE_MIXERS, pose_curves
-from ..presets import MIXERS, choose_mixer, merged_presets, resolve_preset
+from ..presets import MIXERS, choose_mixer, key_poses, merged_presets, resolve_preset
 from ..surface.fit import face_mesh, fit_face
 from ..surface.frame import landmark_points, read_landmarks
 from ..surface.scan import load_scan
@@ -73,6 +75,11 @@ def cmd_pose(args):
     model = load_face(args.face)
     if args.descriptor:
         model.descriptors = replace_descriptors(model.descriptors, [load_descriptor(p) for p in args.descriptor])
+    if args.all_keys:
+        _pose_all_keys(args, model)
+        return
+    if args.format:
+        raise PdeFaceError("--format is for --all-keys (a single pose is written in -o's format)")
     if not model.descriptors and args.mixer not in MUSCLE_MIXERS:  # before a preset's AUs are skipped one by one
         raise PdeFaceError(no_descriptors(args.face))
     weights, preset = _pose_weights(args, model)
@@ -103,6 +110,54 @@ def _pose_head(args, model, weights, mixer):
     rest = face_mesh(model, args.resolution, args.assembly)
     log(f"wrote {args.output}: {len(V)} vertices of {args.mesh} posed in {took:.2f} s, {weights_text(weights, mixer)}; "
         f"the posed PDE face's {turns(model, face, rest)}")
+
+
+def _pose_all_keys(args, model):
+    """``pose --all-keys``: one mesh per AU and per preset in the folder ``args.output``, for other DCC tools."""
+    if args.au or args.preset:
+        raise PdeFaceError("--all-keys writes every AU and preset: drop --au and --preset")
+    poses = key_poses(model, merged_presets(args.presets or []), args.mixer)
+    if not poses:
+        raise PdeFaceError(no_descriptors(args.face))
+    poses = {"neutral": ({}, choose_mixer(args.mixer)), **poses}  # the base the other files are targets of
+    ext = "." + (args.format or _input_format(args.mesh))
+    out = Path(args.output)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise FileError(f"{out}: cannot make the output folder ({exc.strerror})") from None
+    # A preset file's name may hold any character: the file name keeps letters, digits, '-', '_' and '.'.
+    files = {name: out / (re.sub(r"[^\w.-]", "_", name) + ext) for name in poses}
+    inputs = (args.face, args.mesh, args.parts, args.landmarks, *(args.presets or []), *(args.descriptor or []))
+    for path in files.values():
+        check_output(path, *inputs)
+    t0 = time.perf_counter()
+    if args.mesh:
+        mesh, binding = bind_file(model, args.mesh, args.landmarks, args.parts)
+        D = binding.pose_displacements(list(poses.values()))
+        for (name, path), d in zip(files.items(), D):
+            write_head(path, args.mesh, mesh, mesh.vertices + d)
+        for note in binding.notes:
+            log(note)
+        vertices = len(mesh.vertices)
+    else:
+        for name, (weights, mixer) in poses.items():
+            C, R = pose_curves(model, weights, mixer)
+            mesh = face_mesh(model, args.resolution, args.assembly, coefficients=C, residual=R)
+            write_mesh(files[name], mesh)
+        vertices = len(mesh.vertices)
+    aus = [f"AU{d.key}" for d in model.descriptors]
+    log(f"wrote {len(files)} meshes of {vertices} vertices in {time.perf_counter() - t0:.1f} s: {len(aus)} AUs, "
+        f"{len(files) - len(aus) - 1} presets and the neutral")
+    presets = [n for n in poses if n not in aus and n != "neutral"]
+    print(json.dumps({"output": str(out), "format": ext[1:], "vertices": vertices, "aus": aus, "presets": presets,
+                      "files": {n: str(p) for n, p in files.items()}}))
+
+
+def _input_format(mesh_arg):
+    """The format ``pose --all-keys`` writes by default: the input mesh's if writable, else OBJ."""
+    ext = Path(str(mesh_arg)).suffix.lower() if mesh_arg else ""
+    return ext[1:] if ext in WRITE_FORMATS else "obj"
 
 
 def cmd_retarget(args):
@@ -156,7 +211,7 @@ def cmd_import_au(args):
 def register(sub):
     """The ``descriptor``, ``pose``, ``retarget``, ``au-report`` and ``import-au`` commands."""
     p = sub.add_parser("descriptor", help="AU descriptor from a neutral mesh and an AU mesh")
-    p.add_argument("neutral", help="neutral mesh (.obj/.ply) or 'default'")
+    p.add_argument("neutral", help="neutral mesh (.obj/.ply/.glb/.gltf) or 'default'")
     p.add_argument("au_mesh", help="the same face showing the AU")
     p.add_argument("--landmarks", help="68 landmarks of the neutral (JSON; required unless NEUTRAL is 'default')")
     p.add_argument("--au-landmarks", help="68 landmarks of the AU mesh, when its topology differs")
@@ -176,13 +231,20 @@ def register(sub):
     p.add_argument("--mixer", choices=MIXERS, help="how AUs on the same curves combine (default: the preset's "
                                                    "own, else sum)")
     g = p.add_argument_group("the whole head (the mesh FACE was fitted on)")
-    g.add_argument("--mesh", help="pose this head or body mesh (.obj/.ply, or 'head': the bundled ICT head) instead "
-                                  "of the PDE face: same vertices, order, faces, UVs, groups and materials")
+    g.add_argument("--mesh", help="pose this head or body mesh (.obj/.ply/.glb/.gltf, or 'head': the bundled ICT "
+                                  "head) instead of the PDE face: same vertices, order, faces, UVs, groups and "
+                                  "materials")
     g.add_argument("--parts", help="JSON of part kind → vertex indices overriding the automatic parts "
                                    "(see 'pdeface parts')")
     g.add_argument("--landmarks", help="the mesh's 68 landmarks (JSON), for a face model made by pdeface 0.1")
+    g = p.add_argument_group("every key as a mesh file (for other DCC tools)")
+    g.add_argument("--all-keys", action="store_true",
+                   help="write the neutral (neutral.obj), one mesh per AU (AU12.obj ...) and one per preset "
+                        "(happy.obj ...) into the folder -o, all in the input's vertex order; prints a JSON summary")
+    g.add_argument("--format", choices=[e[1:] for e in WRITE_FORMATS],
+                   help="file format of --all-keys' meshes (default: the --mesh file's when writable, else obj)")
     meshing_options(p)
-    output_option(p)
+    output_option(p, "file to write (with --all-keys: the folder)")
     p.set_defaults(func=cmd_pose)
 
     p = sub.add_parser("retarget", help="carry AU descriptors over to another face model")

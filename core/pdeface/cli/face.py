@@ -90,8 +90,8 @@ def cmd_parts(args):
 def register(sub):
     """The ``fit``, ``mesh``, ``report`` and ``parts`` commands."""
     p = sub.add_parser("fit", help="fit a PDE face model to a neutral mesh")
-    p.add_argument("mesh", help="neutral face, head or body mesh (.obj/.ply), 'default' (the bundled ICT neutral "
-                                "face) or 'head' (the bundled ICT whole head)")
+    p.add_argument("mesh", help="neutral face, head or body mesh (.obj/.ply/.glb/.gltf), 'default' (the bundled "
+                                "ICT neutral face) or 'head' (the bundled ICT whole head)")
     p.add_argument("--landmarks", help="JSON with the 68 Multi-PIE landmarks as 'indices' or 'points' (default: the "
                                        "bundled meshes' own; for a file, found automatically with pdeface[landmarks])")
     p.add_argument("--parts", help="JSON of part kind → vertex indices; its 'skin' list is the skin to fit "
@@ -118,7 +118,7 @@ def register(sub):
 
     p = sub.add_parser("report", help="accuracy of a face model against its scan")
     p.add_argument("face", help="face model (.npz) or 'default'")
-    p.add_argument("mesh", help="the scan (.obj/.ply) or 'default'")
+    p.add_argument("mesh", help="the scan (.obj/.ply/.glb/.gltf) or 'default'")
     assembly_option(p)
     json_option(p)
     p.add_argument("--profiles-png", help="write the three cut profiles (scan, PDE, difference x10) as a PNG")
@@ -126,7 +126,7 @@ def register(sub):
     p.set_defaults(func=cmd_report)
 
     p = sub.add_parser("parts", help="what each vertex of a head is: skin, eyeball, jaw, skull, attached, rest")
-    p.add_argument("mesh", help="head mesh (.obj/.ply) or 'head' (the bundled ICT head)")
+    p.add_argument("mesh", help="head mesh (.obj/.ply/.glb/.gltf) or 'head' (the bundled ICT head)")
     p.add_argument("--landmarks", help="JSON with the 68 landmarks (required for a mesh file)")
     unit_option(p)
     p.add_argument("--parts", help="overrides to apply (JSON, as written by this command)")

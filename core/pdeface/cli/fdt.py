@@ -110,7 +110,8 @@ def register(sub):
     model_help = "quadratic model: 3d (x', y', z' quadratic in x, y, z; default), 3d-surface, or the paper's 2d"
 
     def pair(q):
-        q.add_argument("neutral", help="neutral mesh (.obj/.ply) or 'default' (the bundled ICT neutral face)")
+        q.add_argument("neutral", help="neutral mesh (.obj/.ply/.glb/.gltf) or 'default' (the bundled ICT neutral "
+                                       "face)")
         q.add_argument("posed", help="the same mesh (same vertices) showing the expression")
         q.add_argument("--landmarks", help="the neutral's 68 landmarks (JSON; required unless NEUTRAL is 'default')")
         q.add_argument("--posed-landmarks", help="the posed mesh's own landmarks: normalise it by its own pupils "
@@ -140,7 +141,7 @@ def register(sub):
     q.add_argument("--weight", type=float, default=1.0, help="how much of the expression, in [0, 1]")
     q.add_argument("--blend", type=float, help="apply with this border width instead of the table's own")
     g = q.add_argument_group("the whole head (the mesh FACE was fitted on)")
-    g.add_argument("--mesh", help="pose this head mesh (.obj/.ply or 'head') instead of the PDE face")
+    g.add_argument("--mesh", help="pose this head mesh (.obj/.ply/.glb/.gltf or 'head') instead of the PDE face")
     g.add_argument("--parts", help="JSON of part kind → vertex indices (see 'pdeface parts')")
     g.add_argument("--landmarks", help="the mesh's 68 landmarks (JSON), for a face model made by pdeface 0.1")
     meshing_options(q)

@@ -40,7 +40,7 @@ def register(sub):
     """The ``landmarks`` command."""
     p = sub.add_parser("landmarks", help="find the 68 Multi-PIE landmarks on a head or body mesh "
                                          "(needs pdeface[landmarks])")
-    p.add_argument("mesh", help="head or body mesh (.obj/.ply), any orientation and unit, or 'head'")
+    p.add_argument("mesh", help="head or body mesh (.obj/.ply/.glb/.gltf), any orientation and unit, or 'head'")
     unit_option(p, "mesh unit, for the mm figures (default: from the face)")
     p.add_argument("--image", help="also write the frontal render with the landmarks marked (.png)")
     output_option(p, help="landmarks JSON to write ('indices' and 'points', with confidence per group)")

@@ -1,9 +1,15 @@
-"""Read and write meshes: Wavefront OBJ and PLY (ASCII and binary).
+"""Read and write meshes: Wavefront OBJ and PLY (ASCII and binary); read glTF 2.0 (``.glb``, ``.gltf``).
 
 Broken files raise :class:`~pdeface.errors.MeshError` naming the file and line.
+glTF is read with ``trimesh`` (the optional extra ``pdeface[gltf]``): it is
+maintained, depends on numpy alone, and reads the whole container (binary
+chunks, external and embedded buffers, triangle strips, the node hierarchy),
+which leaves this module only flattening its scene into one mesh.
 """
 from __future__ import annotations
 
+import io
+import json
 import os
 import struct
 
@@ -13,15 +19,21 @@ from ..errors import MeshError
 from ..mesh import Mesh
 from .files import atomic_open, open_file, read_bytes
 
+#: Mesh file extensions :func:`read_mesh` reads, and those :func:`write_mesh` writes.
+READ_FORMATS = (".obj", ".ply", ".glb", ".gltf")
+WRITE_FORMATS = (".obj", ".ply")
+
 
 def read_mesh(path) -> Mesh:
-    """Read an ``.obj`` or ``.ply`` file by its extension."""
+    """Read an ``.obj``, ``.ply``, ``.glb`` or ``.gltf`` file by its extension."""
     ext = os.path.splitext(str(path))[1].lower()
     if ext == ".obj":
         return read_obj(path)
     if ext == ".ply":
         return read_ply(path)
-    raise MeshError(f"{path}: unsupported mesh format {ext!r} (use .obj or .ply)")
+    if ext in (".glb", ".gltf"):
+        return read_gltf(path)
+    raise MeshError(f"{path}: unsupported mesh format {ext!r} (use {', '.join(READ_FORMATS)})")
 
 
 def write_mesh(path, mesh: Mesh) -> None:
@@ -32,7 +44,7 @@ def write_mesh(path, mesh: Mesh) -> None:
     elif ext == ".ply":
         write_ply(path, mesh)
     else:
-        raise MeshError(f"{path}: unsupported mesh format {ext!r} (use .obj or .ply)")
+        raise MeshError(f"{path}: cannot write mesh format {ext!r} (use {' or '.join(WRITE_FORMATS)})")
 
 
 def write_posed(path, source, mesh: Mesh, vertices) -> None:
@@ -358,3 +370,102 @@ def write_ply(path, mesh: Mesh) -> None:
         fh.write((np.hstack([V, uv]) if uv is not None else V).astype("<f4").tobytes())
         for s, c in zip(mesh.face_starts, mesh.face_counts):
             fh.write(struct.pack("<B", c) + mesh.face_indices[s:s + c].astype("<i4").tobytes())
+
+
+def read_gltf(path) -> Mesh:
+    """Read a glTF 2.0 file (``.glb`` or ``.gltf``) as one triangle mesh.
+
+    Every triangle primitive of every node in the default scene comes in with
+    its node's world transform applied (a head with separate eyes and teeth
+    becomes one mesh), in trimesh's order of the scene's nodes and each
+    primitive's own vertex order; positions stay in the file's units (glTF's
+    are metres, +Y up). Texture coordinates come along when every primitive
+    has them (flipped to OBJ's convention, v up). Points and lines are skipped.
+
+    Raises
+    ------
+    MeshError
+        Naming the file: missing, not glTF 2.0, broken, or without triangles;
+        or trimesh not installed (with how to install it).
+    """
+    data = read_bytes(path, MeshError)  # a missing or unreadable file says so as every other format does
+    try:
+        import trimesh
+        from trimesh.resolvers import FilePathResolver
+    except ImportError:
+        raise MeshError(f"{path}: reading glTF needs trimesh: python -m pip install 'pdeface[gltf]'") from None
+    ext = os.path.splitext(str(path))[1].lower()[1:]
+    data = _prepared(path, data, ext == "glb")
+    try:
+        scene = trimesh.load(io.BytesIO(data), file_type=ext, force="scene",
+                             process=False, resolver=FilePathResolver(os.path.abspath(path)))
+    except Exception as exc:  # noqa: BLE001 - trimesh raises whatever its parsing met (KeyError, struct.error ...)
+        raise MeshError(f"{path}: not a readable glTF file ({type(exc).__name__}: {str(exc)[:120]})") from None
+    V, F, UV = [], [], []
+    offset = 0
+    for node in scene.graph.nodes_geometry:
+        matrix, name = scene.graph[node]
+        geom = scene.geometry.get(name)
+        if not isinstance(geom, trimesh.Trimesh) or len(geom.faces) == 0:
+            continue
+        P = np.asarray(geom.vertices, dtype=np.float64)
+        V.append(P @ matrix[:3, :3].T + matrix[:3, 3])
+        faces = np.asarray(geom.faces, dtype=np.int64)
+        if np.linalg.det(matrix[:3, :3]) < 0:  # a mirroring node turns its triangles inside out: keep them facing out
+            faces = faces[:, ::-1]
+        F.append(faces + offset)
+        uv = getattr(geom.visual, "uv", None)
+        UV.append(None if uv is None or len(uv) != len(P) else np.asarray(uv, dtype=np.float64)[:, :2])
+        offset += len(P)
+    if not V:
+        raise MeshError(f"{path}: no triangle mesh in the file's scene")
+    F = np.concatenate(F).reshape(-1)
+    mesh = Mesh(np.concatenate(V), np.full(len(F) // 3, 3, dtype=np.int64), F)
+    if all(uv is not None for uv in UV):
+        mesh.uvs, mesh.face_uv_indices = np.concatenate(UV), mesh.face_indices.copy()
+    return mesh.validate(str(path))
+
+
+def _prepared(path, data: bytes, binary: bool) -> bytes:
+    """A glTF file's bytes with an empty material on every primitive that has none, its claims checked.
+
+    trimesh reads a primitive's texture coordinates only along with its material;
+    a head exported without one (a sculpt) keeps its UVs this way. An accessor
+    claiming more elements than the buffers have bytes is refused before trimesh
+    allocates it. Bytes that are not glTF are returned as they are, for trimesh
+    to refuse.
+    """
+    try:
+        if binary:
+            magic, version, _, n, kind = struct.unpack_from("<4sIIII", data)
+            if magic != b"glTF" or kind != 0x4E4F534A:
+                return data
+            gltf, rest = json.loads(data[20:20 + n]), data[20 + n:]
+        else:
+            gltf = json.loads(data)
+    except (struct.error, ValueError, RecursionError):
+        return data
+    if not isinstance(gltf, dict):
+        return data
+
+    def listed(key):  # the objects of a top-level array (anything else is trimesh's to refuse)
+        items = gltf.get(key)
+        return [x for x in items if isinstance(x, dict)] if isinstance(items, list) else []
+
+    total = sum(b["byteLength"] for b in listed("buffers") if isinstance(b.get("byteLength"), int))
+    for i, a in enumerate(listed("accessors")):
+        if isinstance(a.get("count"), int) and a["count"] > total:
+            raise MeshError(f"{path}: accessor {i} claims {a['count']} elements in {total} bytes of buffers")
+    primitives = [p for m in listed("meshes") if isinstance(m.get("primitives"), list) for p in m["primitives"]
+                  if isinstance(p, dict) and "material" not in p]
+    if not primitives or not isinstance(gltf.get("materials", []), list):
+        return data
+    gltf.setdefault("materials", []).append({"name": "pdeface_default"})
+    for p in primitives:
+        p["material"] = len(gltf["materials"]) - 1
+    text = json.dumps(gltf).encode()
+    if not binary:
+        return text
+    text += b" " * (-len(text) % 4)  # chunks are 4-byte aligned
+    body = struct.pack("<II", len(text), 0x4E4F534A) + text + rest
+    return struct.pack("<4sII", b"glTF", version, 12 + len(body)) + body
