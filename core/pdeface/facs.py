@@ -11,12 +11,11 @@ from __future__ import annotations
 
 import json
 import math
+import numbers
 import re
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
-
-import numpy as np
 
 from .errors import PdeFaceError
 
@@ -114,10 +113,10 @@ def parse_weight(value, where="weight") -> float:
     if isinstance(value, str):
         return letter_to_weight(value)
     try:
-        number = float(value) if isinstance(value, (int, float, np.integer, np.floating)) else math.nan
+        number = float(value) if isinstance(value, numbers.Real) else math.nan  # numpy's numbers too
     except OverflowError:  # an integer of hundreds of digits
         number = math.nan
-    if isinstance(value, (bool, np.bool_)) or not math.isfinite(number):
+    if isinstance(value, bool) or not math.isfinite(number):  # numpy's bool_ is no numbers.Real
         raise PdeFaceError(f"{where}: {str(value)[:20]!r} is not a weight (a number in [0, 1] or a letter A-E)")
     return clamp_weight(number)
 

@@ -227,3 +227,15 @@ def test_the_rooms_stack_with_no_arrow_back_up_and_no_circle():
                for target, where in targets.items() if floor[target] >= floor[room]]
     # an arrow to the same floor or up would be the start of a circle: none
     assert back_up == []
+
+
+def test_heavy_modules_load_only_when_needed():
+    """Importing the core (the add-on does at start-up) loads neither scipy nor mediapipe: fitting, reports
+    and landmarks load them when called. The stream player (a lightweight process) needs no numpy."""
+    import subprocess
+    import sys
+    probe = ("import sys, pdeface.cli, pdeface.posing, pdeface.head.bind, pdeface.fdt.deform, pdeface.landmarks.pipeline; "
+             "print(sorted(m for m in ('scipy', 'mediapipe', 'trimesh') if m in sys.modules))")
+    assert subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True).stdout.strip() == "[]"
+    probe = "import sys, pdeface.stream.player, pdeface.stream.sender; print('numpy' in sys.modules)"
+    assert subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True).stdout.strip() == "False"

@@ -12,7 +12,6 @@ import numpy as np
 from ..errors import LandmarkError, PdeFaceError
 from ..geometry import similarity
 from ..landmark_scheme import FEATURE_NAMES
-from ..surface.curves import project_samples
 from ..surface.frame import feature_points
 from .descriptor import Descriptor, descriptor_from_points
 
@@ -87,6 +86,7 @@ def fit_descriptor(model, sampler, neutral_vertices, au_vertices, au, side="both
         if au_landmarks is None:
             raise LandmarkError("an AU mesh of another topology needs its own 68 landmarks for the alignment")
 
+        from ..surface.curves import project_samples  # scipy: loaded only when a mesh is projected
         Vf = align_to_neutral(model, au_vertices, au_landmarks, au)
         au_points = project_samples(neutral_points, Vf, np.asarray(au_triangles), sampler.status,
                                     sampler.groove_mix).sample(Vf)

@@ -10,7 +10,6 @@ import numpy as np
 
 from ..errors import LandmarkError, MeshError
 from ..mesh import Mesh, butterfly_step, connected_components, seam_welds
-from .curves import CurveSampler, cavity_depths, groove_depths, place_samples
 from .fourier import fit_fourier
 from .frame import face_frame, feature_points
 from .grid import grid_faces, surface_grid
@@ -171,6 +170,7 @@ def fit_face(vertices, triangles, landmarks, unit=None, n_curves=DEFAULT_CURVES,
         skin = T[skin[T].all(axis=1)]
         if len(skin) == 0:
             raise MeshError("the skin given has no triangles")
+    from .curves import CurveSampler, cavity_depths, groove_depths, place_samples  # scipy: loaded only when a face is fitted
     refine, Vs, skin = refined_skin(Vf, skin, layout)
     layout = follow_rims(layout, Vs, skin)
     sampler = place_samples(Vs, skin, layout, cavity_depths(layout, Lf), groove_depth=groove_depths(layout, Lf))
