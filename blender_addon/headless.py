@@ -18,6 +18,7 @@ face at rest and the sampling seed is fixed, so chunks from several machines
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import sys
@@ -61,6 +62,8 @@ def build_parser(prog="render_sequence.py"):
     ap.add_argument("--no-frames", action="store_true", help="render no animation frames")
     ap.add_argument("--save-blend", help="save the scene to this .blend")
     ap.add_argument("--quiet", action="store_true", help="no progress bars")
+    ap.add_argument("--json", action="store_true", help="stdout: the JSON summary only (always so: "
+                                                       "Blender's own messages go to stderr)")
     return ap
 
 
@@ -100,8 +103,44 @@ def progress_bar(done, total, label, quiet):
     sys.stderr.flush()
 
 
+def _flush_c_stdout():
+    """Flush the C library's stdout buffer (Blender's printf), so it lands where fd 1 points now."""
+    import ctypes
+    try:
+        libc = ctypes.CDLL(None) if os.name == "posix" else ctypes.cdll.msvcrt
+        libc.fflush(None)
+    except (OSError, AttributeError):  # no C library to reach: Python's own flush is all there is
+        pass
+
+
+@contextlib.contextmanager
+def stdout_to_stderr():
+    """File descriptor 1 points at stderr inside: Blender's ``Saved: …`` lines cannot mix with the JSON summary.
+
+    Yields a text stream on the real stdout; fd 1 is restored however the block ends.
+    """
+    sys.stdout.flush()
+    _flush_c_stdout()
+    saved = os.dup(1)
+    try:
+        os.dup2(2, 1)
+        with os.fdopen(os.dup(saved), "w") as real:
+            yield real
+            sys.stdout.flush()
+            _flush_c_stdout()
+    finally:
+        os.dup2(saved, 1)
+        os.close(saved)
+
+
 def main(argv=None, prog="render_sequence.py"):
     args = build_parser(prog).parse_args(script_args(sys.argv if argv is None else argv))
+    with stdout_to_stderr() as stdout:
+        return render_job(args, prog, stdout)
+
+
+def render_job(args, prog, stdout):
+    """Render what ``args`` ask; the JSON summary goes to ``stdout``. Returns the exit status."""
     if "bpy" not in sys.modules:  # plain python: keep Blender's user config out of the user's home
         os.environ.setdefault("BLENDER_USER_RESOURCES", tempfile.mkdtemp(prefix="pdeface_blender_"))
     progress_bar(0, 1, "Blender start-up", args.quiet)
@@ -195,7 +234,7 @@ def main(argv=None, prog="render_sequence.py"):
         if module == MODULE:
             addon_utils.disable(module, default_set=True)
     summary.update({"frame_start": start, "frame_end": end, "engine": args.engine})
-    print(json.dumps(summary))
+    print(json.dumps(summary), file=stdout)
     return 0
 
 

@@ -16,7 +16,7 @@ TINY = ["--sequence", "happy", "--fps", "4", "--hold", "0.5", "--blend-time", "0
 def run_script(argv, tmp_path):
     res = subprocess.run([sys.executable] + argv, capture_output=True, text=True, cwd=tmp_path, timeout=600)
     assert res.returncode == 0, res.stdout[-2000:] + res.stderr[-2000:]
-    return json.loads(res.stdout.strip().splitlines()[-1])
+    return json.loads(res.stdout)  # with --quiet, stdout holds the JSON summary alone
 
 
 def pixels(bpy, path):
@@ -79,6 +79,40 @@ def test_loading_a_blend_renders_the_same(bpy, chunks, tmp_path):
     x = pixels(bpy, Path(out["frames_dir"]) / "frame_0003.png")
     y = pixels(bpy, tmp / "a" / "frames" / "frame_0003.png")
     assert np.abs(x - y).mean() < 0.01
+
+
+def test_a_new_sequence_on_a_posed_blend_starts_from_the_timeline_alone(bpy, chunks, tmp_path):
+    """A .blend saved posed (surprise's AUs, unkeyed) renders a new sequence from neutral; the user's key stays."""
+    tmp, _, _ = chunks
+    addon = __import__("bl_ext.pdeface_test.pdeface", fromlist=["animation", "keys"])
+    bpy.ops.wm.open_mainfile(filepath=str(tmp / "a" / "scene.blend"))
+    face = next(o for o in bpy.context.scene.objects if o.type == "MESH" and o.pdeface.is_face)
+    addon.animation.clear_keyframes(face)
+    addon.keys.apply_preset(face, "surprise", addon.keys.all_presets(bpy.context.scene)["surprise"], mode="AUS")
+    assert max(kb.value for _, kb in addon.keys.managed(face)) > 0.5
+    mine = face.shape_key_add(name="Smirk", from_mix=False)  # the user's own key (the basis: moves nothing)
+    mine.value = 0.7
+    bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "posed.blend"))
+    res = subprocess.run([sys.executable, "-m", "pdeface.cli", "render", "--blend", str(tmp_path / "posed.blend"),
+                          *TINY[:-1], "--json", "--out", str(tmp_path / "out"), "--frame-start", "1",
+                          "--frame-end", "1", "--save-blend", str(tmp_path / "out.blend")],
+                         capture_output=True, text=True, cwd=tmp_path, timeout=600)
+    assert res.returncode == 0, res.stderr[-3000:]
+    summary = json.loads(res.stdout)  # stdout holds the JSON summary alone; Blender's lines go to stderr
+    assert summary["frames"] == 1 and "Saved:" in res.stderr
+    # frame 1 is neutral: as the same face rendered from a new file
+    x = pixels(bpy, Path(summary["frames_dir"]) / "frame_0001.png")
+    y = pixels(bpy, tmp / "a" / "frames" / "frame_0001.png")
+    assert np.abs(x - y).max() < 0.02
+    bpy.ops.wm.open_mainfile(filepath=str(tmp_path / "out.blend"))
+    face = next(o for o in bpy.context.scene.objects if o.type == "MESH" and o.pdeface.is_face)
+    blocks = face.data.shape_keys.key_blocks
+    for frame, expected in ((1, 0.0), (3, 1.0)):  # neutral, then happy held
+        bpy.context.scene.frame_set(frame)
+        values = {kb.name: kb.value for _, kb in addon.keys.managed(face)}
+        assert values.pop("Expr happy") == pytest.approx(expected)
+        assert max(values.values()) == 0.0, {k: v for k, v in values.items() if v}
+        assert blocks["Smirk"].value == pytest.approx(0.7)
 
 
 def test_contact_sheet(bpy, face, tmp_path):
