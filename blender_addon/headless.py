@@ -59,6 +59,8 @@ def build_parser(prog="render_sequence.py"):
     ap.add_argument("--contact-sheet", action="store_true", help="also write contact_sheet.png")
     ap.add_argument("--sheet-cell", type=int, default=256, help="contact sheet cell width in pixels")
     ap.add_argument("--sheet-samples", type=int, default=4, help="contact sheet samples (denoised)")
+    ap.add_argument("--plain-sheet", action="store_true", help="a contact sheet without its rows coloured by "
+                                                               "how far each vertex moved (mm)")
     ap.add_argument("--no-frames", action="store_true", help="render no animation frames")
     ap.add_argument("--save-blend", help="save the scene to this .blend")
     ap.add_argument("--quiet", action="store_true", help="no progress bars")
@@ -220,7 +222,7 @@ def render_job(args, prog, stdout):
         if args.contact_sheet:
             progress_bar(0, 1, "contact sheet", args.quiet)
             path, cells = render.contact_sheet(shown, out / "contact_sheet.png", cell=args.sheet_cell,
-                                               samples=args.sheet_samples)
+                                               samples=args.sheet_samples, motion=not args.plain_sheet)
             progress_bar(1, 1, "contact sheet", args.quiet)
             summary["contact_sheet"], summary["contact_sheet_cells"] = str(path), cells
         if args.save_blend:

@@ -118,7 +118,7 @@ def test_a_new_sequence_on_a_posed_blend_starts_from_the_timeline_alone(bpy, chu
 def test_contact_sheet(bpy, face, tmp_path):
     render = __import__("bl_ext.pdeface_test.pdeface.render", fromlist=["render"])
     path, cells = render.contact_sheet(face, tmp_path / "sheet.png", items=["neutral", "AU12", "AU27", "happy"],
-                                       cell=48, columns=4, samples=2)
+                                       cell=48, columns=4, samples=2, motion=False)
     assert cells == ["neutral", "AU12", "AU27", "happy"]
     img = pixels(bpy, path)
     assert img.shape[1] == 192 and 48 < img.shape[0] < 96  # one row of 48 px wide cells, taller than wide
@@ -127,8 +127,39 @@ def test_contact_sheet(bpy, face, tmp_path):
     assert np.abs(cols[0] - cols[2]).mean() > 0.005  # jaw open differs from neutral
     # AUs in numeric order (12 before 27, sides after both), whatever order they are asked in
     _, cells = render.contact_sheet(face, tmp_path / "order.png", items=["AU27", "AU1R", "AU12", "neutral", "AU1"],
-                                    cell=16, columns=5, samples=1)
+                                    cell=16, columns=5, samples=1, motion=False)
     assert cells == ["neutral", "AU1", "AU1R", "AU12", "AU27"]
+
+
+def test_contact_sheet_motion_rows(bpy, face, tmp_path):
+    """Below each face, the same pose coloured by how far it moved: grey at neutral, coloured where a subtle AU moved."""
+    render = __import__("bl_ext.pdeface_test.pdeface.render", fromlist=["render"])
+    plain, _ = render.contact_sheet(face, tmp_path / "plain.png", items=["neutral", "AU1", "AU12"], cell=48,
+                                    columns=3, samples=1, motion=False)
+    path, _ = render.contact_sheet(face, tmp_path / "sheet.png", items=["neutral", "AU1", "AU12"], cell=48,
+                                   columns=3, samples=1)
+    img, top = pixels(bpy, path), pixels(bpy, plain)
+    assert img.shape[1] == 144 and img.shape[0] > 1.8 * top.shape[0]  # a motion row and the legend below
+    rows = img[::-1]  # Blender's pixels run bottom-up
+    motion = rows[top.shape[0] + 2: 2 * top.shape[0] - 8]
+    cols = [motion[:, i * 48:(i + 1) * 48] for i in range(3)]
+    saturation = [float((c.max(axis=2) - c.min(axis=2)).max()) for c in cols]
+    assert saturation[0] < 0.05 < saturation[1] and saturation[2] > 0.2  # neutral grey; AU1's brows, AU12 coloured
+
+
+def test_motion_attribute_is_the_keys_displacement_in_mm(bpy, face):
+    addon = __import__("bl_ext.pdeface_test.pdeface", fromlist=["bridge", "keys", "render"])
+    model = addon.bridge.face_model(face)
+    blocks = face.data.shape_keys.key_blocks
+    rest = addon.bridge.key_coords(face.data.shape_keys.reference_key).astype(np.float64)
+    key = addon.bridge.key_coords(blocks[addon.keys.au_key_names(face)["12"]]).astype(np.float64)
+    me = face.data.copy()
+    d = addon.render.set_motion(me, model.frame.to_face(key) - model.frame.to_face(rest))
+    stored = np.empty(len(me.vertices), np.float32)
+    me.attributes[addon.render.MOTION_ATTRIBUTE].data.foreach_get("value", stored)
+    expected = np.linalg.norm(key - rest, axis=1).max() * model.frame.scale  # object units to mm
+    assert stored.max() == pytest.approx(expected, rel=1e-5) and np.array_equal(stored, d)
+    assert 2.0 < expected < 30.0  # a smile moves the lip corners by millimetres
 
 
 def test_import_au_operator(bpy, face, tmp_path):
