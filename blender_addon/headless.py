@@ -109,7 +109,7 @@ def _flush_c_stdout():
     """Flush the C library's stdout buffer (Blender's printf), so it lands where fd 1 points now."""
     import ctypes
     try:
-        libc = ctypes.CDLL(None) if os.name == "posix" else ctypes.cdll.msvcrt
+        libc = ctypes.CDLL(None) if os.name == "posix" else ctypes.CDLL("ucrtbase")  # Blender's C runtime
         libc.fflush(None)
     except (OSError, AttributeError):  # no C library to reach: Python's own flush is all there is
         pass
