@@ -132,7 +132,7 @@ def test_contact_sheet(bpy, face, tmp_path):
 
 
 def test_contact_sheet_motion_rows(bpy, face, tmp_path):
-    """Below each face, the same pose coloured by how far it moved: grey at neutral, coloured where a subtle AU moved."""
+    """Below each face, the same pose coloured by how far it moved: grey at neutral, coloured where an AU moved."""
     render = __import__("bl_ext.pdeface_test.pdeface.render", fromlist=["render"])
     plain, _ = render.contact_sheet(face, tmp_path / "plain.png", items=["neutral", "AU1", "AU12"], cell=48,
                                     columns=3, samples=1, motion=False)
