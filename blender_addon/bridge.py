@@ -42,7 +42,8 @@ def triangles(mesh):
 
 
 def as_pdeface_mesh(mesh):
-    """A Blender mesh's polygons as a pdeface Mesh (object space), corners in polygon order."""
+    """A Blender mesh's polygons as a pdeface Mesh (object space), corners in polygon order,
+    with the active UV layer's coordinates where it has one."""
     counts = np.empty(len(mesh.polygons), dtype=np.int32)
     starts = np.empty(len(mesh.polygons), dtype=np.int32)
     mesh.polygons.foreach_get("loop_total", counts)
@@ -51,7 +52,10 @@ def as_pdeface_mesh(mesh):
     mesh.loops.foreach_get("vertex_index", corners)
     first = np.repeat(np.cumsum(counts) - counts, counts)
     loops = np.repeat(starts, counts) + np.arange(counts.sum()) - first  # each polygon's loops, in polygon order
-    return Mesh(vertices(mesh), counts.astype(np.int64), corners[loops].astype(np.int64))
+    out = Mesh(vertices(mesh), counts.astype(np.int64), corners[loops].astype(np.int64))
+    if mesh.uv_layers.active is not None:
+        out.uvs, out.face_uv_indices = loop_uvs(mesh), loops.astype(np.int64)
+    return out
 
 
 def polygon_materials(mesh) -> np.ndarray:

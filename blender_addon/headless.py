@@ -18,6 +18,7 @@ face at rest and the sampling seed is fixed, so chunks from several machines
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import sys
@@ -62,10 +63,14 @@ def build_parser(prog="render_sequence.py"):
     ap.add_argument("--contact-sheet", action="store_true", help="also write contact_sheet.png")
     ap.add_argument("--sheet-cell", type=int, default=256, help="contact sheet cell width in pixels")
     ap.add_argument("--sheet-samples", type=int, default=4, help="contact sheet samples (denoised)")
+    ap.add_argument("--plain-sheet", action="store_true", help="a contact sheet without its rows coloured by "
+                                                               "how far each vertex moved (mm)")
     ap.add_argument("--no-frames", action="store_true", help="render no animation frames")
     ap.add_argument("--save-blend", help="save the scene to this .blend")
     ap.add_argument("--quiet", action="store_true", help="no progress bars")
     add_mesh_options(ap)
+    ap.add_argument("--json", action="store_true", help="stdout: the JSON summary only (always so: "
+                                                       "Blender's own messages go to stderr)")
     return ap
 
 
@@ -139,11 +144,47 @@ def progress_bar(done, total, label, quiet):
     sys.stderr.flush()
 
 
+def _flush_c_stdout():
+    """Flush the C library's stdout buffer (Blender's printf), so it lands where fd 1 points now."""
+    import ctypes
+    try:
+        libc = ctypes.CDLL(None) if os.name == "posix" else ctypes.CDLL("ucrtbase")  # Blender's C runtime
+        libc.fflush(None)
+    except (OSError, AttributeError):  # no C library to reach: Python's own flush is all there is
+        pass
+
+
+@contextlib.contextmanager
+def stdout_to_stderr():
+    """File descriptor 1 points at stderr inside: Blender's ``Saved: …`` lines cannot mix with the JSON summary.
+
+    Yields a text stream on the real stdout; fd 1 is restored however the block ends.
+    """
+    sys.stdout.flush()
+    _flush_c_stdout()
+    saved = os.dup(1)
+    try:
+        os.dup2(2, 1)
+        with os.fdopen(os.dup(saved), "w") as real:
+            yield real
+            sys.stdout.flush()
+            _flush_c_stdout()
+    finally:
+        os.dup2(saved, 1)
+        os.close(saved)
+
+
 def main(argv=None, prog="render_sequence.py"):
     ap = build_parser(prog)
     args = ap.parse_args(script_args(sys.argv if argv is None else argv))
     if args.mesh and (args.blend or args.head or args.face != "default"):
         ap.error("--mesh renders your head: drop --face, --head and --blend")
+    with stdout_to_stderr() as stdout:
+        return render_job(args, prog, stdout)
+
+
+def render_job(args, prog, stdout):
+    """Render what ``args`` ask; the JSON summary goes to ``stdout``. Returns the exit status."""
     if "bpy" not in sys.modules:  # plain python: keep Blender's user config out of the user's home
         os.environ.setdefault("BLENDER_USER_RESOURCES", tempfile.mkdtemp(prefix="pdeface_blender_"))
     progress_bar(0, 1, "Blender start-up", args.quiet)
@@ -227,7 +268,7 @@ def main(argv=None, prog="render_sequence.py"):
         if args.contact_sheet:
             progress_bar(0, 1, "contact sheet", args.quiet)
             path, cells = render.contact_sheet(shown, out / "contact_sheet.png", cell=args.sheet_cell,
-                                               samples=args.sheet_samples)
+                                               samples=args.sheet_samples, motion=not args.plain_sheet)
             progress_bar(1, 1, "contact sheet", args.quiet)
             summary["contact_sheet"], summary["contact_sheet_cells"] = str(path), cells
         if args.save_blend:
@@ -241,7 +282,7 @@ def main(argv=None, prog="render_sequence.py"):
         if module == MODULE:
             addon_utils.disable(module, default_set=True)
     summary.update({"frame_start": start, "frame_end": end, "engine": args.engine})
-    print(json.dumps(summary))
+    print(json.dumps(summary), file=stdout)
     return 0
 
 

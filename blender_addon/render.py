@@ -145,12 +145,114 @@ def _has_denoiser() -> bool:
         return False
 
 
-def contact_sheet(obj, path, items=None, cell=256, columns=8, samples=16, resolution="2,2"):
+#: The contact sheet's motion rows: each vertex's distance from neutral (mm), a float point attribute of
+#: each cell's mesh, coloured on this ramp of (mm, RGBA); beyond its last stop, the last colour.
+MOTION_ATTRIBUTE = "pdeface_motion_mm"
+MOTION_RAMP = ((0.0, (0.3, 0.3, 0.32, 1.0)), (0.5, (0.12, 0.22, 0.8, 1.0)), (2.0, (0.0, 0.65, 0.65, 1.0)),
+               (5.0, (0.95, 0.85, 0.1, 1.0)), (10.0, (0.9, 0.12, 0.05, 1.0)))
+#: The legend's ticks (mm).
+MOTION_TICKS = (0, 2, 4, 6, 8, 10)
+
+
+def set_motion(me, moved):
+    """Store each vertex's distance moved, ``|moved|`` ((n, 3), mm), as ``me``'s :data:`MOTION_ATTRIBUTE`.
+
+    Returns the distances (float32, as stored).
+    """
+    d = np.linalg.norm(np.asarray(moved, np.float64), axis=1).astype(np.float32)
+    attr = me.attributes.get(MOTION_ATTRIBUTE) or me.attributes.new(MOTION_ATTRIBUTE, "FLOAT", "POINT")
+    attr.data.foreach_set("value", d)
+    return d
+
+
+def motion_material():
+    """Emission coloured by :data:`MOTION_ATTRIBUTE` on :data:`MOTION_RAMP`, darker where the surface turns
+    away (the face's shape still reads); lights do not change its colours, so the legend holds."""
+    mat = bpy.data.materials.new("PDE motion")
+    compat.use_nodes(mat)
+    tree = mat.node_tree
+    tree.nodes.clear()
+    attr = tree.nodes.new("ShaderNodeAttribute")
+    attr.attribute_type, attr.attribute_name = "GEOMETRY", MOTION_ATTRIBUTE
+    full = MOTION_RAMP[-1][0]
+    scaled = tree.nodes.new("ShaderNodeMath")
+    scaled.operation, scaled.use_clamp = "DIVIDE", True
+    scaled.inputs[1].default_value = full
+    tree.links.new(attr.outputs["Fac"], scaled.inputs[0])
+    ramp = tree.nodes.new("ShaderNodeValToRGB")
+    elements = ramp.color_ramp.elements
+    while len(elements) < len(MOTION_RAMP):
+        elements.new(0.5)
+    for e, (mm, colour) in zip(elements, MOTION_RAMP):
+        e.position, e.color = mm / full, colour
+    tree.links.new(scaled.outputs[0], ramp.inputs["Fac"])
+    facing = tree.nodes.new("ShaderNodeLayerWeight")
+    facing.inputs["Blend"].default_value = 0.5
+    shade = tree.nodes.new("ShaderNodeMath")  # 1 facing the camera, 0.45 at the silhouette
+    shade.operation = "MULTIPLY_ADD"
+    shade.inputs[1].default_value, shade.inputs[2].default_value = -0.55, 1.0
+    tree.links.new(facing.outputs["Facing"], shade.inputs[0])
+    emit = tree.nodes.new("ShaderNodeEmission")
+    tree.links.new(ramp.outputs["Color"], emit.inputs["Color"])
+    tree.links.new(shade.outputs[0], emit.inputs["Strength"])
+    out = tree.nodes.new("ShaderNodeOutputMaterial")
+    tree.links.new(emit.outputs[0], out.inputs["Surface"])
+    if hasattr(mat, "cycles") and hasattr(mat.cycles, "emission_sampling"):
+        mat.cycles.emission_sampling = "NONE"  # a colour map, not a lamp: sampling it as light triples the sheet's time
+    return mat
+
+
+def _camera_only(o):
+    """Seen by the camera alone: no shadows, bounces or light on the faces beside it."""
+    for ray in ("visible_diffuse", "visible_glossy", "visible_transmission", "visible_volume_scatter",
+                "visible_shadow"):
+        setattr(o, ray, False)
+
+
+def _text(scene, name, body, size, location, material, align="CENTER"):
+    curve = bpy.data.curves.new(name, "FONT")
+    curve.body = body
+    curve.align_x = align
+    curve.size = size
+    curve.materials.append(material)
+    t = bpy.data.objects.new(name, curve)
+    t.visible_shadow = False  # the sun would print it on the forehead below
+    t.location = location
+    scene.collection.objects.link(t)
+    return t
+
+
+def _legend(scene, left, top, length, size, z, motion_mat, text_mat):
+    """The motion rows' colour bar, ``length`` long from (``left``, ``top``), with its ticks in mm."""
+    full = MOTION_RAMP[-1][0]
+    n = 64
+    x = np.linspace(0.0, length, n + 1)
+    V = np.concatenate([np.stack([x, np.zeros_like(x), np.zeros_like(x)], 1),
+                        np.stack([x, np.full_like(x, -size), np.zeros_like(x)], 1)])
+    me = bpy.data.meshes.new("legend bar")
+    me.from_pydata(V.tolist(), [], [(i, i + 1, n + 2 + i, n + 1 + i) for i in range(n)])
+    set_motion(me, np.stack([np.tile(x / length * full, 2), np.zeros(len(V)), np.zeros(len(V))], 1))
+    me.materials.append(motion_mat)
+    bar = bpy.data.objects.new("legend bar", me)
+    _camera_only(bar)
+    bar.location = (left, top, z)
+    scene.collection.objects.link(bar)
+    for mm in MOTION_TICKS:
+        _text(scene, f"legend {mm}", f"{mm}", 0.8 * size, (left + length * mm / full, top - 2.0 * size, z), text_mat)
+    _text(scene, "legend title", "mm moved from neutral", 0.8 * size, (left + length + 1.5 * size, top - 0.8 * size, z),
+          text_mat, align="LEFT")
+
+
+def contact_sheet(obj, path, items=None, cell=256, columns=8, samples=16, resolution="2,2", motion=True):
     """One PNG grid of the neutral, every AU (in numeric order) and every preset at weight 1, labelled.
 
     All cells are posed copies of the face rendered together in one orthographic
     view (Cycles, denoised where Blender has OpenImageDenoise), each labelled by
-    a text object in a strip below the lowest chin of any cell.
+    a text object in a strip below the lowest chin of any cell. With ``motion``,
+    each row of faces has a row below it of the same poses coloured by how far
+    each vertex moved from neutral (:func:`set_motion`, :data:`MOTION_RAMP`),
+    where AUs too subtle to see in the shading show, and a colour bar in mm
+    closes the sheet.
     """
     pde = obj if obj.pdeface.is_face else obj.pdeface.rig_face
     model = bridge.face_model(pde)
@@ -162,6 +264,7 @@ def contact_sheet(obj, path, items=None, cell=256, columns=8, samples=16, resolu
     if items is not None:
         cells = [c for c in cells if c[0] in items]
     scene = bpy.data.scenes.new("PDE contact sheet")
+    materials = []
     try:
         if pde is obj:  # the PDE face, meshed at the sheet's resolution
             basis = ShapeBasis(model, resolution, dtype=np.float64)
@@ -188,7 +291,12 @@ def contact_sheet(obj, path, items=None, cell=256, columns=8, samples=16, resolu
         label_y = lowest - 0.04 * height - label_size  # the text's baseline, its top clear of every chin
         top = hi[1] - centre[1]
         pitch_x, pitch_y = 1.08 * width, (top - label_y) + 0.08 * height
+        motion_pitch = (top - lowest) + 0.06 * height if motion else 0.0  # a motion row has no labels
+        block = pitch_y + motion_pitch
+        legend_h = 4.5 * label_size if motion else 0.0
+        motion_mat = motion_material() if motion else None
         text_mat = bpy.data.materials.new("PDE label")
+        materials += [m for m in (motion_mat, text_mat) if m is not None]
         text_mat.diffuse_color = (0.9, 0.9, 0.9, 1)
         compat.use_nodes(text_mat)
         bsdf = text_mat.node_tree.nodes.get("Principled BSDF")
@@ -206,25 +314,29 @@ def contact_sheet(obj, path, items=None, cell=256, columns=8, samples=16, resolu
                 me.polygons.foreach_set("use_smooth", np.ones(len(me.polygons), bool))
             o = bpy.data.objects.new(f"sheet {label}", me)
             r, c = divmod(i, columns)
-            cx, cy = c * pitch_x, -r * pitch_y
+            cx, cy = c * pitch_x, -r * block
             o.location = (cx, cy, 0)
             scene.collection.objects.link(o)
-            curve = bpy.data.curves.new(f"label {label}", "FONT")
-            curve.body = label.replace("_", " ")
-            curve.align_x = "CENTER"
-            curve.size = label_size
-            curve.materials.append(text_mat)
-            t = bpy.data.objects.new(f"label {label}", curve)
-            t.visible_shadow = False  # the sun would print it on the forehead below
-            t.location = (cx, cy + label_y, hi[2] - centre[2])
-            scene.collection.objects.link(t)
+            _text(scene, f"label {label}", label.replace("_", " "), label_size, (cx, cy + label_y, hi[2] - centre[2]),
+                  text_mat)
+            if motion:
+                mm = bridge.new_mesh(f"motion {label}", cell_mesh)
+                set_motion(mm, V - neutral)
+                mm.materials.append(motion_mat)
+                m_obj = bpy.data.objects.new(f"motion {label}", mm)
+                m_obj.location = (cx, cy - pitch_y, 0)
+                _camera_only(m_obj)
+                scene.collection.objects.link(m_obj)
+        if motion:
+            _legend(scene, -width / 2, top + 0.04 * height - rows * block - 0.5 * label_size,
+                    max(1.0, min(3.0, columns - 1.5)) * pitch_x, label_size, hi[2] - centre[2], motion_mat, text_mat)
         cam_data = bpy.data.cameras.new("sheet camera")
         cam_data.type = "ORTHO"
-        sheet_w, sheet_h = columns * pitch_x, rows * pitch_y
+        sheet_w, sheet_h = columns * pitch_x, rows * block + legend_h
         cam_data.ortho_scale = max(sheet_w, sheet_h)
         cam = bpy.data.objects.new("sheet camera", cam_data)
-        mid_y = (top + label_y) / 2  # the middle of a cell's face and label
-        cam.location = ((columns - 1) * pitch_x / 2, -(rows - 1) * pitch_y / 2 + mid_y, 500)
+        sheet_top = top + 0.04 * height
+        cam.location = ((columns - 1) * pitch_x / 2, sheet_top - sheet_h / 2, 500)
         cam_data.clip_end = 2000
         scene.collection.objects.link(cam)
         scene.camera = cam
@@ -242,7 +354,7 @@ def contact_sheet(obj, path, items=None, cell=256, columns=8, samples=16, resolu
             scene.cycles.denoising_quality = "FAST"
         scene.cycles.denoising_prefilter = "FAST"
         scene.render.resolution_x = columns * cell
-        scene.render.resolution_y = int(round(rows * cell * pitch_y / pitch_x))
+        scene.render.resolution_y = int(round(columns * cell * sheet_h / sheet_w))
         scene.render.resolution_percentage = 100
         cam_data.sensor_fit = "HORIZONTAL" if sheet_w >= sheet_h else "VERTICAL"
         compat.set_image_output(scene, path)
@@ -257,4 +369,6 @@ def contact_sheet(obj, path, items=None, cell=256, columns=8, samples=16, resolu
             elif isinstance(data, bpy.types.Curve):
                 bpy.data.curves.remove(data)
         bpy.data.scenes.remove(scene)
+        for m in materials:
+            bpy.data.materials.remove(m)
     return Path(path), [c[0] for c in cells]

@@ -14,12 +14,79 @@ from .face import fit_face_object, show_user_objects
 from .keys import all_presets, build_keys
 
 #: Colours of the demo head's parts (ICT-FaceKit part name prefix → material name, RGBA).
-HEAD_MATERIALS = {"eyeball": ("PDE Sclera", (0.85, 0.83, 0.8, 1.0)), "teeth": ("PDE Teeth", (0.9, 0.86, 0.75, 1.0)),
+HEAD_MATERIALS = {"eyeball": ("PDE Eye", (0.85, 0.83, 0.8, 1.0)), "teeth": ("PDE Teeth", (0.9, 0.86, 0.75, 1.0)),
                   "gums": ("PDE Mouth", (0.55, 0.2, 0.2, 1.0)), "mouth": ("PDE Mouth", (0.55, 0.2, 0.2, 1.0)),
-                  "eyelashes": ("PDE Lashes", (0.05, 0.04, 0.03, 1.0)),
+                  "eyelashes": ("PDE Lashes", (0.03, 0.02, 0.015, 1.0)),
                   # ICT's shading helpers over the eyes (for Unreal's shaders): invisible here
                   "lacrimal": ("PDE Clear", (1.0, 1.0, 1.0, 0.0)), "eye_blend": ("PDE Clear", (1.0, 1.0, 1.0, 0.0)),
                   "eye_occlusion": ("PDE Clear", (1.0, 1.0, 1.0, 0.0))}
+
+#: The iris on ICT's eyeball UVs, which put the front of each eye at (0.5, 0.5): radius in UV units of
+#: the pupil, the iris and the dark ring at its rim, and the iris colour. UVs travel with the vertices,
+#: so the iris turns with the gaze keys.
+IRIS = {"pupil": 0.035, "iris": 0.085, "rim": 0.01, "colour": (0.22, 0.33, 0.42, 1.0)}
+#: ICT's lashes are cards drawn for an alpha texture it does not ship: thin dark strands across
+#: their UV's u (this many per UV unit), the card between them clear.
+LASH_STRANDS, LASH_COVER = 120.0, 0.12
+
+
+def _node(tree, kind, **inputs):
+    node = tree.nodes.new(kind)
+    for name, value in inputs.items():
+        if name == "operation":
+            node.operation = value
+        else:
+            node.inputs[name].default_value = value
+    return node
+
+
+def _uv_part(tree, index):
+    """The node output of UV coordinate ``index`` (0: u, 1: v)."""
+    uv = tree.nodes.new("ShaderNodeTexCoord")
+    xyz = tree.nodes.new("ShaderNodeSeparateXYZ")
+    tree.links.new(uv.outputs["UV"], xyz.inputs[0])
+    return xyz.outputs[index]
+
+
+def shade_eye(mat, sclera):
+    """Iris and pupil on the eyeball's UVs (:data:`IRIS`), around the front of each eye."""
+    tree = mat.node_tree
+    uv = tree.nodes.new("ShaderNodeTexCoord")
+    dist = _node(tree, "ShaderNodeVectorMath", operation="DISTANCE")
+    dist.inputs[1].default_value = (0.5, 0.5, 0.0)
+    tree.links.new(uv.outputs["UV"], dist.inputs[0])
+    ramp = tree.nodes.new("ShaderNodeValToRGB")
+    scale = 2 * IRIS["iris"]  # the ramp spans 0 to twice the iris radius
+    r, g, b, a = IRIS["colour"]
+    stops = [(0.0, (0.01, 0.01, 0.01, 1)), (IRIS["pupil"] * 0.9, (0.01, 0.01, 0.01, 1)),
+             (IRIS["pupil"] * 1.1, (r * 0.6, g * 0.6, b * 0.6, 1)), (IRIS["iris"] - IRIS["rim"], (r, g, b, a)),
+             (IRIS["iris"], (r * 0.3, g * 0.3, b * 0.3, 1)), (IRIS["iris"] + 0.008, sclera)]
+    elements = ramp.color_ramp.elements
+    while len(elements) < len(stops):
+        elements.new(0.5)
+    for e, (pos, colour) in zip(elements, stops):
+        e.position, e.color = pos / scale, colour
+    scaled = _node(tree, "ShaderNodeMath", operation="DIVIDE")
+    scaled.inputs[1].default_value = scale
+    tree.links.new(dist.outputs["Value"], scaled.inputs[0])
+    tree.links.new(scaled.outputs[0], ramp.inputs["Fac"])
+    bsdf = tree.nodes["Principled BSDF"]
+    tree.links.new(ramp.outputs["Color"], bsdf.inputs["Base Color"])
+    bsdf.inputs["Roughness"].default_value = 0.15  # a wet eye: a highlight on the cornea
+
+
+def shade_lashes(mat):
+    """Thin strands (:data:`LASH_STRANDS`) across the lash cards' u; the rest of each card clear."""
+    tree = mat.node_tree
+    wave = _node(tree, "ShaderNodeMath", operation="MULTIPLY")
+    wave.inputs[1].default_value = LASH_STRANDS
+    tree.links.new(_uv_part(tree, 0), wave.inputs[0])
+    frac = _node(tree, "ShaderNodeMath", operation="FRACT")
+    tree.links.new(wave.outputs[0], frac.inputs[0])
+    strand = _node(tree, "ShaderNodeMath", operation="LESS_THAN")
+    strand.inputs[1].default_value = LASH_COVER
+    tree.links.new(frac.outputs[0], strand.inputs[0])
+    tree.links.new(strand.outputs[0], tree.nodes["Principled BSDF"].inputs["Alpha"])
 
 
 def fit_and_rig(context, src, landmarks, unit=None, resolution="default", retarget=True, progress=None, parts=()):
@@ -83,6 +150,10 @@ def add_ict_head(context, retarget=True):
             if bsdf is not None:
                 bsdf.inputs["Base Color"].default_value = colour
                 bsdf.inputs["Alpha"].default_value = colour[3]
+            if prefix == "eyeball":
+                shade_eye(mat, colour)
+            elif prefix == "eyelashes":
+                shade_lashes(mat)
             obj.data.materials.append(mat)
             slots[mat_name] = len(obj.data.materials) - 1
     first = mesh.face_indices[np.r_[0, np.cumsum(mesh.face_counts)[:-1]]]

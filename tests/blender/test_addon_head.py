@@ -185,9 +185,26 @@ def test_add_ict_head_is_a_rigged_character(bpy):
     assert "ICT-FaceKit" in head["pdeface_notice"] and len(head.data.vertices) == 26719
     n_aus = len(addon().face_model(head.pdeface.rig_face).descriptors)  # 63 from ICT + 9 muscle AUs
     assert n_aus == 72 and head.pdeface.rig_face.hide_get() and len(key_blocks(head)) == 1 + n_aus + 10
-    assert {m.name for m in head.data.materials} >= {"PDE Skin", "PDE Sclera", "PDE Teeth"}
+    assert {m.name for m in head.data.materials} >= {"PDE Skin", "PDE Eye", "PDE Teeth"}
     jaw = addon().key_coords(key_blocks(head)["AU27 Mouth Stretch"]) - addon().key_coords(key_blocks(head)["Basis"])
     assert np.linalg.norm(jaw, axis=1).max() > 2  # cm: the jaw opens, teeth with it
+    # The iris is drawn around UV (0.5, 0.5) of each eyeball: the front of the eye at rest, turning with the gaze keys
+    me = head.data
+    eye = [m.name for m in me.materials].index("PDE Eye")
+    on_eye = np.zeros(len(me.polygons), bool)
+    on_eye[[p.index for p in me.polygons if p.material_index == eye]] = True
+    corners = np.array([i for p in me.polygons if on_eye[p.index] for i in p.loop_indices])
+    uv = addon().loop_uvs(me)[corners]
+    centre = np.unique([me.loops[i].vertex_index for i in corners[np.linalg.norm(uv - 0.5, axis=1) < 0.01]])
+    eyeballs = np.unique([me.loops[i].vertex_index for i in corners])
+    frame = addon().face_model(head.pdeface.rig_face).frame
+    rest = frame.to_face(addon().key_coords(key_blocks(head)["Basis"]))
+    for sign in (1, -1):  # each eye: its iris centre is its most forward point (mm; the face looks along +z)
+        iris, ball = centre[sign * rest[centre, 0] > 0], eyeballs[sign * rest[eyeballs, 0] > 0]
+        assert len(iris) and abs(rest[iris, 2].mean() - rest[ball, 2].max()) < 0.3
+    for au, axis in (("AU61 Eyes Turn Left", 0), ("AU64 Eyes Down", 1)):
+        moved = frame.to_face(addon().key_coords(key_blocks(head)[au]))[centre] - rest[centre]
+        assert np.abs(moved[:, axis]).min() > 3.0  # mm: both irises look aside, or down
 
 
 def test_fdt_key_on_the_users_head(bpy, ict_head):

@@ -16,7 +16,7 @@ TINY = ["--sequence", "happy", "--fps", "4", "--hold", "0.5", "--blend-time", "0
 def run_script(argv, tmp_path):
     res = subprocess.run([sys.executable] + argv, capture_output=True, text=True, cwd=tmp_path, timeout=600)
     assert res.returncode == 0, res.stdout[-2000:] + res.stderr[-2000:]
-    return json.loads(res.stdout.strip().splitlines()[-1])
+    return json.loads(res.stdout)  # with --quiet, stdout holds the JSON summary alone
 
 
 def pixels(bpy, path):
@@ -81,10 +81,44 @@ def test_loading_a_blend_renders_the_same(bpy, chunks, tmp_path):
     assert np.abs(x - y).mean() < 0.01
 
 
+def test_a_new_sequence_on_a_posed_blend_starts_from_the_timeline_alone(bpy, chunks, tmp_path):
+    """A .blend saved posed (surprise's AUs, unkeyed) renders a new sequence from neutral; the user's key stays."""
+    tmp, _, _ = chunks
+    addon = __import__("bl_ext.pdeface_test.pdeface", fromlist=["animation", "keys"])
+    bpy.ops.wm.open_mainfile(filepath=str(tmp / "a" / "scene.blend"))
+    face = next(o for o in bpy.context.scene.objects if o.type == "MESH" and o.pdeface.is_face)
+    addon.animation.clear_keyframes(face)
+    addon.keys.apply_preset(face, "surprise", addon.keys.all_presets(bpy.context.scene)["surprise"], mode="AUS")
+    assert max(kb.value for _, kb in addon.keys.managed(face)) > 0.5
+    mine = face.shape_key_add(name="Smirk", from_mix=False)  # the user's own key (the basis: moves nothing)
+    mine.value = 0.7
+    bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "posed.blend"))
+    res = subprocess.run([sys.executable, "-m", "pdeface.cli", "render", "--blend", str(tmp_path / "posed.blend"),
+                          *TINY[:-1], "--json", "--out", str(tmp_path / "out"), "--frame-start", "1",
+                          "--frame-end", "1", "--save-blend", str(tmp_path / "out.blend")],
+                         capture_output=True, text=True, cwd=tmp_path, timeout=600)
+    assert res.returncode == 0, res.stderr[-3000:]
+    summary = json.loads(res.stdout)  # stdout holds the JSON summary alone; Blender's lines go to stderr
+    assert summary["frames"] == 1 and "Saved:" in res.stderr
+    # frame 1 is neutral: as the same face rendered from a new file
+    x = pixels(bpy, Path(summary["frames_dir"]) / "frame_0001.png")
+    y = pixels(bpy, tmp / "a" / "frames" / "frame_0001.png")
+    assert np.abs(x - y).max() < 0.02
+    bpy.ops.wm.open_mainfile(filepath=str(tmp_path / "out.blend"))
+    face = next(o for o in bpy.context.scene.objects if o.type == "MESH" and o.pdeface.is_face)
+    blocks = face.data.shape_keys.key_blocks
+    for frame, expected in ((1, 0.0), (3, 1.0)):  # neutral, then happy held
+        bpy.context.scene.frame_set(frame)
+        values = {kb.name: kb.value for _, kb in addon.keys.managed(face)}
+        assert values.pop("Expr happy") == pytest.approx(expected)
+        assert max(values.values()) == 0.0, {k: v for k, v in values.items() if v}
+        assert blocks["Smirk"].value == pytest.approx(0.7)
+
+
 def test_contact_sheet(bpy, face, tmp_path):
     render = __import__("bl_ext.pdeface_test.pdeface.render", fromlist=["render"])
     path, cells = render.contact_sheet(face, tmp_path / "sheet.png", items=["neutral", "AU12", "AU27", "happy"],
-                                       cell=48, columns=4, samples=2)
+                                       cell=48, columns=4, samples=2, motion=False)
     assert cells == ["neutral", "AU12", "AU27", "happy"]
     img = pixels(bpy, path)
     assert img.shape[1] == 192 and 48 < img.shape[0] < 96  # one row of 48 px wide cells, taller than wide
@@ -93,8 +127,39 @@ def test_contact_sheet(bpy, face, tmp_path):
     assert np.abs(cols[0] - cols[2]).mean() > 0.005  # jaw open differs from neutral
     # AUs in numeric order (12 before 27, sides after both), whatever order they are asked in
     _, cells = render.contact_sheet(face, tmp_path / "order.png", items=["AU27", "AU1R", "AU12", "neutral", "AU1"],
-                                    cell=16, columns=5, samples=1)
+                                    cell=16, columns=5, samples=1, motion=False)
     assert cells == ["neutral", "AU1", "AU1R", "AU12", "AU27"]
+
+
+def test_contact_sheet_motion_rows(bpy, face, tmp_path):
+    """Below each face, the same pose coloured by how far it moved: grey at neutral, coloured where an AU moved."""
+    render = __import__("bl_ext.pdeface_test.pdeface.render", fromlist=["render"])
+    plain, _ = render.contact_sheet(face, tmp_path / "plain.png", items=["neutral", "AU1", "AU12"], cell=48,
+                                    columns=3, samples=1, motion=False)
+    path, _ = render.contact_sheet(face, tmp_path / "sheet.png", items=["neutral", "AU1", "AU12"], cell=48,
+                                   columns=3, samples=1)
+    img, top = pixels(bpy, path), pixels(bpy, plain)
+    assert img.shape[1] == 144 and img.shape[0] > 1.8 * top.shape[0]  # a motion row and the legend below
+    rows = img[::-1]  # Blender's pixels run bottom-up
+    motion = rows[top.shape[0] + 2: 2 * top.shape[0] - 8]
+    cols = [motion[:, i * 48:(i + 1) * 48] for i in range(3)]
+    saturation = [float((c.max(axis=2) - c.min(axis=2)).max()) for c in cols]
+    assert saturation[0] < 0.05 < saturation[1] and saturation[2] > 0.2  # neutral grey; AU1's brows, AU12 coloured
+
+
+def test_motion_attribute_is_the_keys_displacement_in_mm(bpy, face):
+    addon = __import__("bl_ext.pdeface_test.pdeface", fromlist=["bridge", "keys", "render"])
+    model = addon.bridge.face_model(face)
+    blocks = face.data.shape_keys.key_blocks
+    rest = addon.bridge.key_coords(face.data.shape_keys.reference_key).astype(np.float64)
+    key = addon.bridge.key_coords(blocks[addon.keys.au_key_names(face)["12"]]).astype(np.float64)
+    me = face.data.copy()
+    d = addon.render.set_motion(me, model.frame.to_face(key) - model.frame.to_face(rest))
+    stored = np.empty(len(me.vertices), np.float32)
+    me.attributes[addon.render.MOTION_ATTRIBUTE].data.foreach_get("value", stored)
+    expected = np.linalg.norm(key - rest, axis=1).max() * model.frame.scale  # object units to mm
+    assert stored.max() == pytest.approx(expected, rel=1e-5) and np.array_equal(stored, d)
+    assert 2.0 < expected < 30.0  # a smile moves the lip corners by millimetres
 
 
 def test_import_au_operator(bpy, face, tmp_path):
