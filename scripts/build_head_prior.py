@@ -23,8 +23,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "core"))
 
-from pdeface.assets import ICT_HEAD, ICT_HEAD_PRIOR, ICT_NOTICE, assets_dir, load_face, load_head, load_head_shapes  # noqa: E402,E501
+from pdeface.assets import ICT_HEAD, ICT_HEAD_PRIOR, ICT_NOTICE, assets_dir, load_head, load_head_shapes  # noqa: E402
 from pdeface.au.ict import AU_SHAPES, au_offsets  # noqa: E402
+from pdeface.au.modelfile import load_face  # noqa: E402
 from pdeface.au.retarget import face_size, retarget  # noqa: E402
 from pdeface.head.bind import HeadBinding, descriptor_motion_args  # noqa: E402
 from pdeface.head.prior import HeadPrior, save_prior  # noqa: E402
