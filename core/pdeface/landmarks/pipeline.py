@@ -341,7 +341,7 @@ def detect(V, T, unit=None, landmark_map: LandmarkMap | None = None, detector: D
             detector.close()
 
 
-def find_on_mesh(mesh, unit=None, keep_images=False) -> FoundLandmarks:
+def find_on_mesh(mesh, unit=None, keep_images=False, verbose=False) -> FoundLandmarks:
     """:func:`detect` on a :class:`~pdeface.mesh.Mesh` (its faces split into triangles).
 
     Parameters
@@ -352,12 +352,15 @@ def find_on_mesh(mesh, unit=None, keep_images=False) -> FoundLandmarks:
         The mesh unit, for the mm figures; estimated from the face's size when None.
     keep_images : bool
         Keep the frontal render and its view (for :meth:`FoundLandmarks.marked_image`).
+    verbose : bool
+        Let MediaPipe's own log lines through (see :class:`~pdeface.landmarks.detector.Detector`).
 
     Returns
     -------
     FoundLandmarks
     """
-    return detect(mesh.vertices, mesh.triangles()[0], unit, keep_images=keep_images)
+    with Detector(verbose=verbose) as detector:
+        return detect(mesh.vertices, mesh.triangles()[0], unit, detector=detector, keep_images=keep_images)
 
 
 def group_spread(m: LandmarkMap, view_points, mm=1.0) -> dict:
