@@ -277,10 +277,9 @@ def test_mediapipe_logs_only_with_verbose(tmp_path):
 
 
 def test_native_logs_are_silenced_and_stderr_comes_back_after_an_error(capfd):
-    with pytest.raises(RuntimeError):
-        with detector_module.native_logs_silenced():
-            os.write(2, b"from C++\n")
-            raise RuntimeError("inside")
+    with pytest.raises(RuntimeError), detector_module.native_logs_silenced():
+        os.write(2, b"from C++\n")
+        raise RuntimeError("inside")
     os.write(2, b"after\n")
     with detector_module.native_logs_silenced(show=True):
         os.write(2, b"verbose\n")

@@ -16,8 +16,16 @@ from ..surface.layout import DEFAULT_CURVES
 from ..surface.pde import ASSEMBLIES
 from ..surface.report import accuracy_report
 from ..surface.scan import load_scan
-from .common import (assembly_option, json_option, log, meshing_options, output_option, turns, unit_option,
-                     verbose_option)
+from .common import (
+    assembly_option,
+    json_option,
+    log,
+    meshing_options,
+    output_option,
+    turns,
+    unit_option,
+    verbose_option,
+)
 from .landmarks import find_landmarks
 
 
