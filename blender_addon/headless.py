@@ -133,14 +133,27 @@ def enable_addon(bpy, repo_name="pdeface_render"):
     return module
 
 
+#: Stages whose start line went out and whose end line has not (stderr not a terminal).
+_STAGES_BEGUN = set()
+
+
 def progress_bar(done, total, label, quiet):
+    """A bar redrawn in place on a terminal; elsewhere (a log file, a pipe) a line when a stage starts and one
+    when it ends, not a line per step."""
     if quiet:
         return
-    width = 30
-    n = int(width * done / max(total, 1))
-    sys.stderr.write(f"\r{label} [{'#' * n}{'.' * (width - n)}] {done}/{total}")
-    if done >= total:
-        sys.stderr.write("\n")
+    if getattr(sys.stderr, "isatty", lambda: False)():
+        width = 30
+        n = int(width * done / max(total, 1))
+        sys.stderr.write(f"\r{label} [{'#' * n}{'.' * (width - n)}] {done}/{total}")
+        if done >= total:
+            sys.stderr.write("\n")
+    elif done >= total:
+        _STAGES_BEGUN.discard(label)
+        sys.stderr.write(f"{label}: done ({done}/{total})\n")
+    elif label not in _STAGES_BEGUN:
+        _STAGES_BEGUN.add(label)
+        sys.stderr.write(f"{label}: started ({done}/{total})\n")
     sys.stderr.flush()
 
 

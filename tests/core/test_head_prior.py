@@ -81,8 +81,14 @@ def test_bundled_prior_is_what_the_build_script_makes():
     built, _ = build()
     bundled = load_head_prior()
     assert bundled.keys == built.keys and len(bundled.keys) >= 60
-    np.testing.assert_allclose(bundled.residuals, built.residuals, atol=0.0101)  # steps of 0.01 mm; below one: 0
-    np.testing.assert_allclose(bundled.features, built.features, atol=0.02)
+    np.testing.assert_allclose(bundled.features, built.features, atol=0.02)  # the fit: the same on every machine
+    # The residuals are not: which skin vertex the PDE face covers is a hard test at the covered skin's edge, and
+    # last-bit differences (BLAS's thread count alone) flip a few vertices there, moving their neighbours' residual
+    # up to ~0.8 mm (measured: 1 vs 2 OpenBLAS threads, relative RMS 0.7-1.3 %, each key's 99th percentile
+    # <= 0.11 mm). So they are compared as a whole, not to the file's 0.01 mm steps.
+    d = np.linalg.norm(bundled.residuals - built.residuals, axis=2)
+    assert np.sqrt((d ** 2).sum() / (np.linalg.norm(built.residuals, axis=2) ** 2).sum()) < 0.03
+    assert np.percentile(d, 99, axis=1).max() < 0.2
     assert "ICT-FaceKit" in bundled.notice and bundled.identities == tuple(range(10, 20))
 
 

@@ -1,5 +1,8 @@
 """Automatic landmarks: the renderer, the back-projection, the 468→68 map, and detection on real heads."""
 import json
+import os
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -251,3 +254,33 @@ def test_cli_landmarks_then_fit_without_clicks(tmp_path, heads, capsys):
     assert main(["fit", str(src), "-o", str(tmp_path / "f.npz")]) == 0
     assert "no --landmarks given: finding them" in capsys.readouterr().err
     assert read_mesh(src).vertices.shape == mesh.vertices.shape  # the input is untouched
+
+
+#: Lines MediaPipe's C++ side writes to fd 2 on a landmark run (TensorFlow Lite, absl).
+MEDIAPIPE_NOISE = ("TensorFlow Lite", "inference_feedback_manager", "absl::InitializeLog", "W0000")
+
+
+@needs_mediapipe
+def test_mediapipe_logs_only_with_verbose(tmp_path):
+    """A fresh process (the models log once, when they load): stderr has pdeface's line alone, MediaPipe's
+    lines only with --verbose."""
+    def landmarks(*extra):
+        res = subprocess.run([sys.executable, "-m", "pdeface.cli", "landmarks", "head", "-o", str(tmp_path / "lm.json"),
+                              *extra], capture_output=True, text=True, cwd=tmp_path, timeout=300)
+        assert res.returncode == 0, res.stderr[-2000:]
+        return res.stderr
+
+    quiet = landmarks()
+    assert "found the 68 landmarks" in quiet
+    assert not any(noise in quiet for noise in MEDIAPIPE_NOISE), quiet
+    assert any(noise in landmarks("--verbose") for noise in MEDIAPIPE_NOISE)  # there is something to silence
+
+
+def test_native_logs_are_silenced_and_stderr_comes_back_after_an_error(capfd):
+    with pytest.raises(RuntimeError), detector_module.native_logs_silenced():
+        os.write(2, b"from C++\n")
+        raise RuntimeError("inside")
+    os.write(2, b"after\n")
+    with detector_module.native_logs_silenced(show=True):
+        os.write(2, b"verbose\n")
+    assert capfd.readouterr().err == "after\nverbose\n"

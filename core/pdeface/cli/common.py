@@ -53,6 +53,12 @@ def unit_option(p, help=UNIT_HELP):
     p.add_argument("--unit", choices=list(UNITS_MM), help=help)
 
 
+def verbose_option(p):
+    """``--verbose`` for the commands that run the landmark detector."""
+    p.add_argument("--verbose", action="store_true",
+                   help="also show MediaPipe's own log lines (TensorFlow Lite, absl), silenced by default")
+
+
 def json_option(p):
     p.add_argument("--json", action="store_true", help="print one JSON object")
 

@@ -16,7 +16,16 @@ from ..surface.layout import DEFAULT_CURVES
 from ..surface.pde import ASSEMBLIES
 from ..surface.report import accuracy_report
 from ..surface.scan import load_scan
-from .common import assembly_option, json_option, log, meshing_options, output_option, turns, unit_option
+from .common import (
+    assembly_option,
+    json_option,
+    log,
+    meshing_options,
+    output_option,
+    turns,
+    unit_option,
+    verbose_option,
+)
 from .landmarks import find_landmarks
 
 
@@ -26,7 +35,7 @@ def cmd_fit(args):
     mesh, lm = load_scan(args.mesh, args.landmarks)
     if lm is None:
         log(f"{args.mesh}: no --landmarks given: finding them (pdeface landmarks)")
-        lm = find_landmarks(mesh, args.unit).points
+        lm = find_landmarks(mesh, args.unit, verbose=args.verbose).points
     T, _ = mesh.triangles()
     skin = skin_mask(read_overrides(args.parts), len(mesh.vertices)) if args.parts else None
     t0 = time.perf_counter()
@@ -108,6 +117,7 @@ def register(sub):
                    help="horizontal curves throughout, as the original method (default: bend along the lips "
                         "and nostrils, with a curve on each rim of the eyes and mouth)")
     output_option(p)
+    verbose_option(p)
     p.set_defaults(func=cmd_fit)
 
     p = sub.add_parser("mesh", help="mesh the PDE surface of a face model")

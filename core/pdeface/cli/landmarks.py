@@ -8,13 +8,13 @@ from ..io.files import atomic_open, check_output
 from ..io.png import write_png
 from ..landmarks.pipeline import find_on_mesh
 from ..surface.scan import load_scan
-from .common import log, output_option, unit_option
+from .common import log, output_option, unit_option, verbose_option
 
 
-def find_landmarks(mesh, unit=None, keep_images=False):
+def find_landmarks(mesh, unit=None, keep_images=False, verbose=False):
     """:func:`~pdeface.landmarks.pipeline.find_on_mesh`, saying what it found (also for ``pdeface fit``)."""
     t = time.perf_counter()
-    found = find_on_mesh(mesh, unit, keep_images=keep_images)
+    found = find_on_mesh(mesh, unit, keep_images=keep_images, verbose=verbose)
     low = found.least_sure()
     log(f"found the 68 landmarks in {time.perf_counter() - t:.1f} s (view {found.view}, detector score "
         f"{found.score:.2f}, {found.residual_mm:.1f} mm from the template; least sure: {low} "
@@ -27,7 +27,7 @@ def cmd_landmarks(args):
     if args.image:
         check_output(args.image, args.mesh)
     mesh, _ = load_scan(args.mesh)
-    found = find_landmarks(mesh, args.unit, keep_images=bool(args.image))
+    found = find_landmarks(mesh, args.unit, keep_images=bool(args.image), verbose=args.verbose)
     with atomic_open(args.output) as f:
         json.dump(found.to_json(), f)
     if args.image:
@@ -44,4 +44,5 @@ def register(sub):
     unit_option(p, "mesh unit, for the mm figures (default: from the face)")
     p.add_argument("--image", help="also write the frontal render with the landmarks marked (.png)")
     output_option(p, help="landmarks JSON to write ('indices' and 'points', with confidence per group)")
+    verbose_option(p)
     p.set_defaults(func=cmd_landmarks)

@@ -6,6 +6,9 @@
 """
 from __future__ import annotations
 
+import os
+import sys
+from contextlib import contextmanager
 from dataclasses import dataclass
 
 import numpy as np
@@ -38,6 +41,32 @@ class Detection:
     box: np.ndarray
 
 
+@contextmanager
+def native_logs_silenced(show=False):
+    """Send file descriptor 2 to the null device for the block, unless ``show`` (``--verbose``).
+
+    MediaPipe's C++ side (TensorFlow Lite, absl/glog) writes its log lines (``INFO: Created TensorFlow Lite
+    XNNPACK delegate``, ``W0000 ... inference_feedback_manager.cc``) straight to fd 2, past ``sys.stderr``,
+    some of them from its own threads while a graph starts: only the descriptor itself silences them. It is
+    restored on leaving, errors included.
+    """
+    if show:
+        yield
+        return
+    try:
+        sys.stderr.flush()  # Python's pending lines go out before the descriptor turns
+    except (AttributeError, OSError, ValueError):
+        pass
+    saved, null = os.dup(2), os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(null, 2)
+        yield
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+        os.close(null)
+
+
 def _mediapipe():
     try:
         from mediapipe.python.solutions import face_detection, face_mesh
@@ -56,19 +85,34 @@ def available() -> bool:
 
 
 class Detector:
-    """The two MediaPipe models, loaded once; use as a context manager or call :meth:`close`."""
+    """The two MediaPipe models, loaded once; use as a context manager or call :meth:`close`.
 
-    def __init__(self, min_score: float = 0.5):
-        face_detection, face_mesh = _mediapipe()
-        self.min_score = min_score
-        # Full range (model 1): it also finds the small face of a whole body seen from afar.
-        self._faces = face_detection.FaceDetection(model_selection=1, min_detection_confidence=0.2)
-        self._mesh = face_mesh.FaceMesh(static_image_mode=True, max_num_faces=1, refine_landmarks=False,
-                                        min_detection_confidence=min_score)
+    Parameters
+    ----------
+    min_score : float
+        The face mesh's detection threshold.
+    verbose : bool
+        Let MediaPipe's own log lines through (silenced by default: see :func:`native_logs_silenced`).
+    """
+
+    def __init__(self, min_score: float = 0.5, verbose: bool = False):
+        self.verbose, self.min_score = verbose, min_score
+        with native_logs_silenced(verbose):
+            face_detection, face_mesh = _mediapipe()
+            # Full range (model 1): it also finds the small face of a whole body seen from afar.
+            self._faces = face_detection.FaceDetection(model_selection=1, min_detection_confidence=0.2)
+            self._mesh = face_mesh.FaceMesh(static_image_mode=True, max_num_faces=1, refine_landmarks=False,
+                                            min_detection_confidence=min_score)
+            # The graphs open their models on threads of their own after this and log as they do: one inference
+            # on a blank image waits for them, with fd 2 still silenced.
+            blank = self._rgb(np.zeros((8, 8)))
+            self._faces.process(blank)
+            self._mesh.process(blank)
 
     def close(self):
-        self._faces.close()
-        self._mesh.close()
+        with native_logs_silenced(self.verbose):
+            self._faces.close()
+            self._mesh.close()
 
     def __enter__(self):
         return self
@@ -83,7 +127,8 @@ class Detector:
     def faces(self, gray) -> list[Detection]:
         """Faces in a grey image, best first (any score; compare with ``min_score``)."""
         h, w = gray.shape
-        res = self._faces.process(self._rgb(gray))
+        with native_logs_silenced(self.verbose):  # MediaPipe warns on some inputs too
+            res = self._faces.process(self._rgb(gray))
         out = []
         for d in res.detections or []:
             b = d.location_data.relative_bounding_box
@@ -94,7 +139,8 @@ class Detector:
     def mesh_points(self, gray):
         """The 468 face-mesh points of the face in a grey image as pixel (x, y), or None when none is found."""
         h, w = gray.shape
-        res = self._mesh.process(self._rgb(gray))
+        with native_logs_silenced(self.verbose):
+            res = self._mesh.process(self._rgb(gray))
         if not res.multi_face_landmarks:
             return None
         lm = res.multi_face_landmarks[0].landmark

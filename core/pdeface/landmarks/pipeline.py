@@ -271,7 +271,7 @@ def frontal_readings(V, T, skin, detector: Detector, m: LandmarkMap, pose, first
 
 
 def detect(V, T, unit=None, landmark_map: LandmarkMap | None = None, detector: Detector | None = None,
-           keep_images=False) -> FoundLandmarks:
+           keep_images=False, verbose=False) -> FoundLandmarks:
     """Find the 68 Multi-PIE landmarks on a mesh.
 
     Parameters
@@ -286,6 +286,11 @@ def detect(V, T, unit=None, landmark_map: LandmarkMap | None = None, detector: D
         The shipped map by default.
     detector : Detector, optional
         A loaded detector to reuse (its models take ~0.1 s to load).
+    keep_images : bool
+        Keep the frontal render and its view (for :meth:`FoundLandmarks.marked_image`).
+    verbose : bool
+        Let MediaPipe's own log lines through, for a detector made here (see
+        :class:`~pdeface.landmarks.detector.Detector`).
 
     Raises
     ------
@@ -301,7 +306,7 @@ def detect(V, T, unit=None, landmark_map: LandmarkMap | None = None, detector: D
         raise MeshError("triangles must be (m, 3) vertex indices")
     m = landmark_map or read_map()
     own = detector is None
-    detector = detector or Detector()
+    detector = detector or Detector(verbose=verbose)
     try:
         candidates = search(V, T, detector)
         first = first_pass(V, T, detector, m.template, candidates)
@@ -341,7 +346,7 @@ def detect(V, T, unit=None, landmark_map: LandmarkMap | None = None, detector: D
             detector.close()
 
 
-def find_on_mesh(mesh, unit=None, keep_images=False) -> FoundLandmarks:
+def find_on_mesh(mesh, unit=None, keep_images=False, verbose=False) -> FoundLandmarks:
     """:func:`detect` on a :class:`~pdeface.mesh.Mesh` (its faces split into triangles).
 
     Parameters
@@ -352,12 +357,14 @@ def find_on_mesh(mesh, unit=None, keep_images=False) -> FoundLandmarks:
         The mesh unit, for the mm figures; estimated from the face's size when None.
     keep_images : bool
         Keep the frontal render and its view (for :meth:`FoundLandmarks.marked_image`).
+    verbose : bool
+        Let MediaPipe's own log lines through (see :class:`~pdeface.landmarks.detector.Detector`).
 
     Returns
     -------
     FoundLandmarks
     """
-    return detect(mesh.vertices, mesh.triangles()[0], unit, keep_images=keep_images)
+    return detect(mesh.vertices, mesh.triangles()[0], unit, keep_images=keep_images, verbose=verbose)
 
 
 def group_spread(m: LandmarkMap, view_points, mm=1.0) -> dict:
