@@ -168,16 +168,18 @@ def _flush_c_stdout():
 
 
 @contextlib.contextmanager
-def stdout_to_stderr():
-    """File descriptor 1 points at stderr inside: Blender's ``Saved: …`` lines cannot mix with the JSON summary.
+def blender_output_aside(shown=True):
+    """File descriptor 1 points at stderr inside (``shown``) or at the null device: Blender's ``Saved: …``
+    lines, one per frame, cannot mix with the JSON summary, nor fill a log file.
 
     Yields a text stream on the real stdout; fd 1 is restored however the block ends.
     """
     sys.stdout.flush()
     _flush_c_stdout()
     saved = os.dup(1)
+    aside = os.open(os.devnull, os.O_WRONLY) if not shown else None
     try:
-        os.dup2(2, 1)
+        os.dup2(2 if shown else aside, 1)
         with os.fdopen(os.dup(saved), "w") as real:
             yield real
             sys.stdout.flush()
@@ -185,6 +187,8 @@ def stdout_to_stderr():
     finally:
         os.dup2(saved, 1)
         os.close(saved)
+        if aside is not None:
+            os.close(aside)
 
 
 def main(argv=None, prog="render_sequence.py"):
@@ -192,7 +196,8 @@ def main(argv=None, prog="render_sequence.py"):
     args = ap.parse_args(script_args(sys.argv if argv is None else argv))
     if args.mesh and (args.blend or args.head or args.face != "default"):
         ap.error("--mesh renders your head: drop --face, --head and --blend")
-    with stdout_to_stderr() as stdout:
+    # Blender's own lines on a terminal only: off one (a log file, a pipe) they would be a line per frame.
+    with blender_output_aside(shown=not args.quiet and sys.stderr.isatty()) as stdout:
         return render_job(args, prog, stdout)
 
 
