@@ -7,6 +7,7 @@ face's model (a descriptor of source ``muscle``) with its AU key, as the FAS let
 users calibrate their own AUs, and loaded back onto the sliders.
 """
 import numpy as np
+from pdeface.au.descriptor import replace_descriptors
 from pdeface.errors import PdeFaceError
 from pdeface.facs import parse_au_key
 from pdeface.muscles.aus import MuscleBasis, load_table, turns_jaw
@@ -55,10 +56,10 @@ def record_muscle_au(obj, activations, key, replace=False):
     model = bridge.face_model(obj)
     old = next((d for d in model.descriptors if d.key == key), None)
     if old is not None and not replace:
-        raise PdeFaceError(f"{obj.name} has AU{key} already ({old.source or 'scan'}): tick Replace to record over it")
+        raise PdeFaceError(f"{obj.name} has AU{key} already ({old.kind}): tick Replace to record over it")
     d = MuscleBasis(model).descriptor(key, activations)
     d.extra["activations"] = [round(float(a), 4) for a in activations]
-    model.descriptors = [x for x in model.descriptors if x.key != key] + [d]
+    model.descriptors = replace_descriptors(model.descriptors, [d])
     write_change_keys(obj, model, d.dense(), turns_jaw(activations), au_key_name(d), "AU", d.key, d.label)
     bridge.store_model(obj, model)
     return d

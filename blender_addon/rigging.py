@@ -109,6 +109,17 @@ def fit_and_rig(context, src, landmarks, unit=None, resolution="default", retarg
     return obj, model, sampler, counts
 
 
+def _head_object(context, name, mesh, y_up=True):
+    """A new object of ``mesh`` in the scene with the skin material; a +Y-up file turned to Blender's +Z up,
+    as Blender's own importers do."""
+    obj = bpy.data.objects.new(name, bridge.new_mesh(name, mesh))
+    context.collection.objects.link(obj)
+    if y_up:
+        obj.rotation_euler = (math.pi / 2, 0.0, 0.0)
+    obj.data.materials.append(bridge.skin_material())
+    return obj
+
+
 def add_head_mesh(context, name, mesh, landmarks, unit=None, y_up=True, retarget=True):
     """A head read from a file (a pdeface Mesh) as the user's mesh, fitted and rigged: every key on it.
 
@@ -116,11 +127,7 @@ def add_head_mesh(context, name, mesh, landmarks, unit=None, y_up=True, retarget
     glTF), turned to Blender's +Z as Blender's own importers do. Returns the head
     object (active); its PDE face is hidden as the reference.
     """
-    obj = bpy.data.objects.new(name, bridge.new_mesh(name, mesh))
-    context.collection.objects.link(obj)
-    if y_up:
-        obj.rotation_euler = (math.pi / 2, 0.0, 0.0)
-    obj.data.materials.append(bridge.skin_material())
+    obj = _head_object(context, name, mesh, y_up)
     context.view_layer.update()
     fit_and_rig(context, obj, landmarks, unit=unit, retarget=retarget)
     context.view_layer.update()
@@ -133,11 +140,8 @@ def add_ict_head(context, retarget=True):
     Returns the head object (active); its PDE face is hidden as the reference.
     """
     mesh, lm = load_head()
-    obj = bpy.data.objects.new("ICT Head", bridge.new_mesh("ICT Head", mesh))
-    context.collection.objects.link(obj)
-    obj.rotation_euler = (math.pi / 2, 0.0, 0.0)  # ICT's +y up becomes Blender's +Z up
+    obj = _head_object(context, "ICT Head", mesh)  # ICT's +y up becomes Blender's +Z up
     obj["pdeface_notice"] = ICT_NOTICE
-    obj.data.materials.append(bridge.skin_material())
     starts = np.array(list(HEAD_PARTS.values()))
     names = list(HEAD_PARTS)
     slots = {}

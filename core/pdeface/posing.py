@@ -7,10 +7,7 @@ from __future__ import annotations
 
 from .au.expressions import mix
 from .facs import normalise_weights
-from .muscles.aus import muscle_pose
-
-#: Mixers that combine the AUs' muscle activations instead of their descriptors.
-MUSCLE_MIXERS = ("muscle-average", "muscle-max")
+from .muscles.aus import MUSCLE_MIXERS, muscle_pose
 
 
 def pose_curves(model, weights: dict, mixer: str = "sum"):

@@ -66,3 +66,17 @@ def test_all_keys_on_a_glb_head_in_its_vertex_order(tmp_path, capsys, small_face
                          "-o", tmp_path / "ply")
     assert code == 0, err
     np.testing.assert_allclose(read_mesh(tmp_path / "ply/AU26.ply").vertices - head.vertices, jaw, atol=1e-4)
+
+
+def test_all_keys_refuses_presets_whose_files_would_clash(tmp_path, capsys, small_face):
+    """A preset named like an AU's or the neutral's file, or two whose file names meet, would overwrite a
+    file the user asked for: refused, nothing written."""
+    for names in (["AU12"], ["neutral"], ["a b", "a/b"]):
+        presets = tmp_path / "p.json"
+        presets.write_text(json.dumps({"format": "pdeface.presets", "version": 1, "presets": [
+            {"format": "pdeface.preset", "version": 1, "name": n, "weights": {"12": 0.5}} for n in names]}))
+        out = tmp_path / "keys"
+        code, _, err = run(capsys, "pose", small_face, "--all-keys", "--presets", presets, "--resolution", "2,2",
+                           "-o", out)
+        assert code == 2 and "rename" in err, (names, err)
+        assert not out.exists() or not any(out.iterdir())

@@ -75,7 +75,7 @@ def test_the_rims_beyond_the_corners_fold_less(fitted):
     """The break piece keeps the runs' tangents at BREAK_SLOPE, and the eyes' rims beyond their corners sit
     OPENING_GAPS["lid_top"] (0.6 mm) apart. With the break piece at the runs' full slope and 0.1 mm: 92 folds along the eyes' line at
     rest, 79 along the mouth's in AU27 and 12 in AU12; with the break slope alone 35, 0 and 0; with the gap 8, 0, 0;
-    with each break confined to its opening's span (pdeface.surface.fit.break_weights) 0, 0, 0."""
+    with each break confined to its opening's span (pdeface.surface.grid.break_weights) 0, 0, 0."""
     from pdeface.au.modelfile import load_face
     from pdeface.au.retarget import retarget
     from pdeface.posing import pose_curves

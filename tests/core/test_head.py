@@ -217,6 +217,9 @@ def test_bad_input(tmp_path, head, capsys):
         parse_overrides({"jaw": [1, "x"]})
     assert skin_mask({"skin": [1, 3]}, 5).tolist() == [False, True, False, True, False]
     assert skin_mask({"jaw": [1]}, 5) is None and skin_mask({"skin": []}, 5) is None
+    for bad in ([5], [-1]):  # out of range or negative: an error naming the kind, not a traceback or a wrap-around
+        with pytest.raises(MeshError, match="'skin': vertex index out of range"):
+            skin_mask({"skin": bad}, 5)
     with pytest.raises(MeshError, match="out of range"):
         HeadBinding(model, mesh.vertices, T, overrides={"jaw": [10 ** 7]})
     (tmp_path / "bad.json").write_text("{ nope")

@@ -20,13 +20,13 @@ from ..errors import FileError, PdeFaceError
 from ..facs import SIDES, parse_au_weights
 from ..head.bind import bind_file
 from ..io.files import check_output
-from ..io.meshio import WRITE_FORMATS, read_mesh, write_mesh
+from ..io.meshio import WRITE_FORMATS, read_mesh, write_mesh, write_posed
 from ..posing import MUSCLE_MIXERS, pose_curves
 from ..presets import MIXERS, choose_mixer, key_poses, merged_presets, resolve_preset
 from ..surface.fit import face_mesh, fit_face
 from ..surface.frame import landmark_points, read_landmarks
 from ..surface.scan import load_scan
-from .common import json_option, log, meshing_options, output_option, turns, unit_option, weights_text, write_head
+from .common import json_option, log, meshing_options, output_option, turns, unit_option, weights_text
 
 
 def cmd_descriptor(args):
@@ -99,7 +99,7 @@ def _pose_head(args, model, weights, mixer):
     t0 = time.perf_counter()
     mesh, binding = bind_file(model, args.mesh, args.landmarks, args.parts)
     V = mesh.vertices + binding.pose_displacement(weights, mixer)
-    write_head(args.output, args.mesh, mesh, V)
+    write_posed(args.output, args.mesh, mesh, V)
     for note in binding.notes:
         log(note)
     took = time.perf_counter() - t0
@@ -116,9 +116,14 @@ def _pose_all_keys(args, model):
     """``pose --all-keys``: one mesh per AU and per preset in the folder ``args.output``, for other DCC tools."""
     if args.au or args.preset:
         raise PdeFaceError("--all-keys writes every AU and preset: drop --au and --preset")
-    poses = key_poses(model, merged_presets(args.presets or []), args.mixer)
+    presets = merged_presets(args.presets or [])
+    poses = key_poses(model, presets, args.mixer)
     if not poses:
         raise PdeFaceError(no_descriptors(args.face))
+    taken = {"neutral"} | {f"AU{d.key}" for d in model.descriptors}
+    clash = sorted(n for n in presets if n in taken or n.lower() in {t.lower() for t in taken})
+    if clash:  # its file would replace the base or an AU's own
+        raise PdeFaceError(f"preset {clash[0]!r} has the name of an AU's or the neutral's file: rename it")
     poses = {"neutral": ({}, choose_mixer(args.mixer)), **poses}  # the base the other files are targets of
     ext = "." + (args.format or _input_format(args.mesh))
     out = Path(args.output)
@@ -128,6 +133,11 @@ def _pose_all_keys(args, model):
         raise FileError(f"{out}: cannot make the output folder ({exc.strerror})") from None
     # A preset file's name may hold any character: the file name keeps letters, digits, '-', '_' and '.'.
     files = {name: out / (re.sub(r"[^\w.-]", "_", name) + ext) for name in poses}
+    seen = {}
+    for name, path in files.items():  # 'a b' and 'a/b' (or 'Happy' and 'happy' on some disks) share a file name
+        other = seen.setdefault(path.name.lower(), name)
+        if other != name:
+            raise PdeFaceError(f"presets {other!r} and {name!r} would both be written to {path.name}: rename one")
     inputs = (args.face, args.mesh, args.parts, args.landmarks, *(args.presets or []), *(args.descriptor or []))
     for path in files.values():
         check_output(path, *inputs)
@@ -136,7 +146,7 @@ def _pose_all_keys(args, model):
         mesh, binding = bind_file(model, args.mesh, args.landmarks, args.parts)
         D = binding.pose_displacements(list(poses.values()))
         for (name, path), d in zip(files.items(), D):
-            write_head(path, args.mesh, mesh, mesh.vertices + d)
+            write_posed(path, args.mesh, mesh, mesh.vertices + d)
         for note in binding.notes:
             log(note)
         vertices = len(mesh.vertices)

@@ -8,10 +8,7 @@ from __future__ import annotations
 
 import argparse
 import sys
-from dataclasses import replace
 
-from ..assets import DEFAULT, HEAD
-from ..io.meshio import write_mesh, write_posed
 from ..surface.folds import fold_edges
 from ..surface.frame import UNITS_MM
 from ..surface.model import model_landmarks
@@ -73,11 +70,3 @@ def turns(model, mesh, rest=None) -> str:
     r = fold_edges(mesh, model.frame, model_landmarks(model), rest=rest)
     return f"largest turn outside the eyes, mouth and nostrils {r['max_deg']:.0f}°, {r['count']} edges over 30°"
 
-
-def write_head(output, source, mesh, vertices):
-    """Write a posed head: the bundled one (``source`` 'default' or 'head') as a new mesh, a mesh file
-    with everything of ``source`` but its vertex positions."""
-    if source in (DEFAULT, HEAD):
-        write_mesh(output, replace(mesh, vertices=vertices))
-    else:
-        write_posed(output, source, mesh, vertices)

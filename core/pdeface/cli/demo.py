@@ -52,7 +52,10 @@ def render_demo(out, args):
     code, stdout = run_headless(argv, capture=True)
     if code != 0:
         raise PdeFaceError(f"rendering failed (exit {code}); see the messages above")
-    summary = json.loads(stdout)  # the renderer's stdout is its JSON summary alone
+    try:
+        summary = json.loads(stdout)  # the renderer's stdout is its JSON summary alone
+    except json.JSONDecodeError:
+        raise PdeFaceError(f"the renderer printed no JSON summary (got {stdout[:80]!r})") from None
     log(f"wrote {summary.get('frames', 0)} frames in {out}/frames, {out}/contact_sheet.png, {out}/demo.blend")
     return {k: summary[k] for k in ("frame_start", "frame_end", "contact_sheet", "blend", "render_s") if k in summary}
 

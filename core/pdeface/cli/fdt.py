@@ -12,12 +12,12 @@ from ..fdt.regions import BLEND
 from ..fdt.table import generic, load_fdt, load_generic_fdts, read_fdts, write_fdts
 from ..head.bind import JAW_AUS, bind_file
 from ..io.files import check_output
-from ..io.meshio import read_mesh, write_mesh
+from ..io.meshio import read_mesh, write_mesh, write_posed
 from ..presets import BASIC_EXPRESSIONS
 from ..surface.fit import face_mesh
 from ..surface.frame import landmark_points, read_landmarks
 from ..surface.scan import load_scan
-from .common import json_option, log, meshing_options, output_option, write_head
+from .common import json_option, log, meshing_options, output_option
 
 
 def _pair(args):
@@ -75,7 +75,7 @@ def cmd_apply(args):
     if args.mesh:
         mesh, binding = bind_file(model, args.mesh, args.landmarks, args.parts)
         V = mesh.vertices + binding.displacement(dC, dR, jaw=bool(set(fdt_aus(fdt.name)) & set(JAW_AUS)))
-        write_head(args.output, args.mesh, mesh, V)
+        write_posed(args.output, args.mesh, mesh, V)
     else:
         write_mesh(args.output, face_mesh(model, args.resolution, coefficients=model.coefficients + dC,
                                           residual=model.residual + dR))

@@ -200,16 +200,21 @@ def classify_parts(Vf, T, Lf, hinge, overrides=None) -> Parts:
 JAW_CUT_IOD = 0.15
 
 
+def override_indices(kind, indices, n_vertices) -> np.ndarray:
+    """An override's vertex indices as an array, each checked to be a vertex of a mesh of ``n_vertices``."""
+    idx = np.asarray(indices, dtype=np.int64).ravel()
+    if len(idx) and (idx.min() < 0 or idx.max() >= n_vertices):
+        raise MeshError(f"part override {kind!r}: vertex index out of range 0..{n_vertices - 1}")
+    return idx
+
+
 def apply_overrides(parts: Parts, overrides: dict) -> None:
     """Set the kind of named vertices: ``{"skin": [...], "jaw": [...], ...}`` (indices, 0-based)."""
     n = len(parts.kind)
     for k, idx in overrides.items():
         if k not in CODE:
             raise MeshError(f"part override: unknown kind {k!r}; use {', '.join(KINDS)}")
-        idx = np.asarray(idx, dtype=np.int64).ravel()
-        if len(idx) and (idx.min() < 0 or idx.max() >= n):
-            raise MeshError(f"part override {k!r}: vertex index out of range 0..{n - 1}")
-        parts.kind[idx] = CODE[k]
+        parts.kind[override_indices(k, idx, n)] = CODE[k]
         parts.notes.append(f"{len(idx)} vertices set to {k} by the user")
 
 
@@ -238,7 +243,7 @@ def skin_mask(overrides: dict, n_vertices: int) -> np.ndarray | None:
     if not listed:
         return None
     skin = np.zeros(n_vertices, bool)
-    skin[np.asarray(listed, np.int64)] = True
+    skin[override_indices("skin", listed, n_vertices)] = True
     return skin
 
 

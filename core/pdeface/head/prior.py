@@ -274,6 +274,6 @@ def load_prior(path, head_vertices, head_triangles) -> HeadPrior:
 @functools.lru_cache(maxsize=1)
 def load_head_prior():
     """The bundled whole-head motion learned from ICT-FaceKit's head (:class:`HeadPrior`;
-    ``scripts/build_head_prior.py``). Shared: do not modify it."""
+    ``scripts/build/build_head_prior.py``). Shared: do not modify it."""
     head, _ = load_head()
     return load_prior(asset_path(ICT_HEAD_PRIOR), head.vertices, head.triangles()[0])

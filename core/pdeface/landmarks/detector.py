@@ -57,7 +57,17 @@ def native_logs_silenced(show=False):
         sys.stderr.flush()  # Python's pending lines go out before the descriptor turns
     except (AttributeError, OSError, ValueError):
         pass
-    saved, null = os.dup(2), os.open(os.devnull, os.O_WRONLY)
+    try:
+        saved = os.dup(2)
+    except OSError:  # no descriptor 2 (a windowed process): nothing to silence
+        yield
+        return
+    try:
+        null = os.open(os.devnull, os.O_WRONLY)
+    except OSError:
+        os.close(saved)
+        yield
+        return
     try:
         os.dup2(null, 2)
         yield

@@ -170,7 +170,12 @@ def fit_face(vertices, triangles, landmarks, unit=None, n_curves=DEFAULT_CURVES,
         skin = T[skin[T].all(axis=1)]
         if len(skin) == 0:
             raise MeshError("the skin given has no triangles")
-    from .curves import CurveSampler, cavity_depths, groove_depths, place_samples  # scipy: loaded only when a face is fitted
+    from .curves import (  # scipy: loaded only when a face is fitted
+        CurveSampler,
+        cavity_depths,
+        groove_depths,
+        place_samples,
+    )
     refine, Vs, skin = refined_skin(Vf, skin, layout)
     layout = follow_rims(layout, Vs, skin)
     sampler = place_samples(Vs, skin, layout, cavity_depths(layout, Lf), groove_depth=groove_depths(layout, Lf))

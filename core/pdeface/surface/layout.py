@@ -34,6 +34,7 @@ from ..landmark_scheme import (
     LIP_LOWER_INNER,
     LIP_UPPER_INNER,
     LIP_UPPER_TOP,
+    MOUTH_CORNERS,
     NOSE_BOTTOM,
     NOSE_TIP,
     eye_distance,
@@ -359,7 +360,7 @@ def place_curves(landmarks_face: np.ndarray, n_curves: int = DEFAULT_CURVES, n_p
         half.append(np.abs(np.interp(heights, y[side][o], th[side][o])))
     half = side_margin * 0.5 * (half[0] + half[1])
     # Never narrower than the mouth, so the chin curves cover the chin.
-    half = np.maximum(half, 1.5 * np.abs(th[[48, 54]]).mean())
+    half = np.maximum(half, 1.5 * np.abs(th[MOUTH_CORNERS]).mean())
     layout = CurveLayout(heights, half, float(axis_z), int(n_points))
     if follow_lips:
         layout.anchors, layout.openings = ys, openings
