@@ -88,28 +88,12 @@ def clear_keyframes(obj):
     return count
 
 
-def rest_keys(obj, frame, skip=()):
-    """Our keys (face and the user's objects it drives) not named in ``skip`` to 0, keyed at ``frame``.
-
-    A new animation starts from itself alone, not from the pose the file was
-    saved in; the user's own keys are not touched. Returns how many were keyed.
-    """
-    count = 0
-    for o in rig_objects(obj):
-        for _, kb in managed(o):
-            if kb.name not in skip:
-                kb.value = 0.0
-                kb.keyframe_insert("value", frame=frame)
-                count += 1
-    return count
-
-
 def apply_timeline(obj, timeline, scene=None, merge=False):
     """Keyframe the face's shape keys from a pdeface Timeline.
 
     By default the timeline replaces the animation of our keys (the user's own
     keys keep theirs; ours it does not name rest at 0 from its first frame,
-    :func:`rest_keys`) and ``scene``'s frame range becomes the timeline's; with
+    values only: no keyframe is added to keys it does not name) and ``scene``'s frame range becomes the timeline's; with
     ``merge`` its keys go in among those already there and the range only grows.
     Returns (first frame, last frame, channels the face lacks).
     """
@@ -120,7 +104,7 @@ def apply_timeline(obj, timeline, scene=None, merge=False):
     names = [by_au[a] for a in aus if a in by_au] + [by_preset[p] for p in presets if p in by_preset]
     if not merge:
         clear_keyframes(obj)
-        rest_keys(obj, timeline.keys[0].frame, set(names))
+        set_pose(obj, {})  # a new animation starts from itself alone, not from the pose the file was saved in
     prefs = bpy.context.preferences.edit
     saved = prefs.keyframe_new_interpolation_type
     try:

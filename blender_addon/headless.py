@@ -196,8 +196,10 @@ def main(argv=None, prog="render_sequence.py"):
     args = ap.parse_args(script_args(sys.argv if argv is None else argv))
     if args.mesh and (args.blend or args.head or args.face != "default"):
         ap.error("--mesh renders your head: drop --face, --head and --blend")
-    # Blender's own lines on a terminal only: off one (a log file, a pipe) they would be a line per frame.
-    with blender_output_aside(shown=not args.quiet and sys.stderr.isatty()) as stdout:
+    if not args.mesh and (args.landmarks or args.unit):
+        ap.error("--landmarks and --unit are for --mesh")
+    # Blender's own lines (a Saved line per frame, its warnings) to stderr; none with --quiet.
+    with blender_output_aside(shown=not args.quiet) as stdout:
         return render_job(args, prog, stdout)
 
 

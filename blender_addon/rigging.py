@@ -147,17 +147,19 @@ def add_ict_head(context, retarget=True):
     slots = {}
     for prefix, (mat_name, colour) in HEAD_MATERIALS.items():
         if mat_name not in slots:
-            mat = bpy.data.materials.get(mat_name) or bpy.data.materials.new(mat_name)
-            mat.diffuse_color = colour
-            compat.use_nodes(mat)
-            bsdf = mat.node_tree.nodes.get("Principled BSDF")
-            if bsdf is not None:
-                bsdf.inputs["Base Color"].default_value = colour
-                bsdf.inputs["Alpha"].default_value = colour[3]
-            if prefix == "eyeball":
-                shade_eye(mat, colour)
-            elif prefix == "eyelashes":
-                shade_lashes(mat)
+            mat = bpy.data.materials.get(mat_name)
+            if mat is None:  # made and shaded once: an existing one (maybe the user's edit) is kept as it is
+                mat = bpy.data.materials.new(mat_name)
+                mat.diffuse_color = colour
+                compat.use_nodes(mat)
+                bsdf = mat.node_tree.nodes.get("Principled BSDF")
+                if bsdf is not None:
+                    bsdf.inputs["Base Color"].default_value = colour
+                    bsdf.inputs["Alpha"].default_value = colour[3]
+                if prefix == "eyeball":
+                    shade_eye(mat, colour)
+                elif prefix == "eyelashes":
+                    shade_lashes(mat)
             obj.data.materials.append(mat)
             slots[mat_name] = len(obj.data.materials) - 1
     first = mesh.face_indices[np.r_[0, np.cumsum(mesh.face_counts)[:-1]]]

@@ -195,3 +195,10 @@ def test_cli_reads_the_capture_rate_or_takes_it(tmp_path, capsys):
     # told a wrong rate (the clip's frames reach 59), it says so
     assert main(["import-au", str(clip), "--capture-fps", "30", "-o", str(tmp_path / "u.json")]) == 2
     assert "does not fit 30" in capsys.readouterr().err
+
+
+def test_neutral_in_a_sequence_is_the_rest_pose():
+    from pdeface.animation.timeline import sequence_timeline
+    t = sequence_timeline(["neutral", "happy"], fps=4, hold=0.5, blend=0.5)
+    assert t.channels() == ([], ["happy"])  # no channel a face would lack: nothing reported missing
+    assert [k.presets for k in t.keys][:3] == [{}, {}, {}] and any(k.presets == {"happy": 1.0} for k in t.keys)

@@ -144,7 +144,7 @@ def save_timeline(path, t: Timeline) -> None:
 
 
 def sequence_timeline(presets, fps=24, hold=0.5, blend=0.5, mode="via_neutral") -> Timeline:
-    """A timeline of presets, as :func:`pdeface.animation.sequence.sequence_keys` times them."""
-
-    frames = sequence_keys([{p: 1.0} for p in presets], 1, int(round(hold * fps)), max(1, int(round(blend * fps))), mode)
+    """A timeline of presets, as :func:`pdeface.animation.sequence.sequence_keys` times them; ``neutral`` is the
+    rest pose (no key of its own)."""
+    frames = sequence_keys([{} if p == "neutral" else {p: 1.0} for p in presets], 1, int(round(hold * fps)), max(1, int(round(blend * fps))), mode)
     return Timeline(fps, [Key(f, {}, {p: w for p, w in pose.items() if w > 0}) for f, pose in frames], 1)
