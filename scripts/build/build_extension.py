@@ -56,7 +56,7 @@ def build_core_wheel(dest: Path) -> Path:
         (stage / "assets").mkdir()
         for name in BUNDLED_ASSETS:  # the ICT shapes (tests and benchmarks only) stay out
             shutil.copy(ROOT / "assets" / name, stage / "assets" / name)
-        for name in ("pyproject.toml", "README.md"):
+        for name in ("pyproject.toml", "README.md", "LICENSE"):
             shutil.copy(ROOT / name, stage / name)
         subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-q",
                         "-w", str(dest), str(stage)], check=True)
