@@ -1,7 +1,6 @@
 """The stream player against strangers (issue 38): who may end or stop it, slots, fair turns, arguments."""
 import os
 import socket
-import threading
 import time
 
 import pytest
@@ -9,6 +8,8 @@ from pdeface.cli import build_parser
 from pdeface.stream.player import Player, loopback_peer_uid
 from pdeface.stream.sender import send
 from pdeface.stream.wire import Auth, Control, Garbage, Packet, StreamParser
+
+from scripts.bench.bench_stream import guard
 
 STOPS = [b"-4 ", b"-4x ", b"-4\n", b"-2\n", b"\n-4\t", b"-04 ", b"-4{12}", b'{"au_r": {"AU12": 1}}\n-4 ']
 CONTROLS = len(STOPS) - 1  # "-4x" is garbage, not a control
@@ -136,77 +137,17 @@ def test_a_trickle_is_dropped_from_its_last_complete_packet_not_its_last_byte():
 
 @pytest.mark.parametrize("mode", ["queue", "live"])
 def test_silent_trickling_and_flooding_strangers_cannot_lock_out_or_delay_a_sender(mode):
-    """100 silent connections, a trickle on every slot, a flood from another sender (the benchmark runs it for
-    10 s): a well-behaved sender is served and its newest pose is headed for within 2 ticks of arriving."""
-    player = Player(mode=mode, transition=0.1, idle_timeout=1.5, evict_after=0.5, token="s3cret")
-    address = player.listen()
-    tick, received, shown, stop = [0], {}, {}, threading.Event()
-    receive = player.receive
-
-    def stamped(packet, when=None, conn=None):  # the tick each well-behaved packet (AU2) arrived at
-        if "2" in packet.weights:
-            received.setdefault(packet.weights["2"], tick[0])
-        return receive(packet, when, conn)
-    player.receive = stamped
-
-    def controller():
-        while not stop.is_set():
-            player.pose()
-            w = player.target.get("2")
-            if w is not None:
-                shown.setdefault(w, tick[0])
-            tick[0] += 1
-            time.sleep(1 / 60)
-
-    def trickle():  # a slot's worth of one byte at a time, reconnecting when dropped
-        s = None
-        while not stop.is_set():
-            try:
-                if s is None:
-                    s = connect(address)
-                s.sendall(b"{1" if tick[0] % 2 else b"1")
-            except OSError:
-                s = None
-            stop.wait(0.3)
-
-    def flood():
-        with connect(address) as s:
-            try:
-                while not stop.is_set():
-                    s.sendall(b"{4:0.5}{4:0.6} -4 -2\n" * 200)
-            except OSError:
-                pass  # held back by the player's backpressure until the end
-
-    threads = [threading.Thread(target=controller, daemon=True)]
-    silent = [connect(address) for _ in range(100)]
-    try:
-        threads[0].start()
-        time.sleep(0.6)
-        threads += [threading.Thread(target=trickle, daemon=True) for _ in range(8)]
-        for t in threads[1:]:
-            t.start()
-        time.sleep(0.6)
-        threads.append(threading.Thread(target=flood, daemon=True))
-        threads[-1].start()
-        until(lambda: player.stats.controls_refused > 0)
-        with connect(address) as good:
-            good.sendall(b'{"auth": "s3cret"}\n')
-            for i in range(1, 31):
-                good.sendall(b"{2:%.2f}" % (i / 100))
-                time.sleep(0.05)
-            until(lambda: len(shown) == 30)
-    finally:
-        stop.set()
-        for s in silent:
-            s.close()
-        for t in threads:
-            t.join(timeout=5)
-        player.close()
-    late = {w: shown[w] - received[w] for w in shown if shown[w] - received[w] > 2}
-    assert late == {}, f"{mode}: poses shown more than 2 ticks after they arrived: {late}"
-    st = player.stats
-    assert st.refused + st.evicted >= 92 and st.evicted >= 8 and not st.stopped and not st.ended
-    assert st.packets > player.receive_capacity and st.controls_refused > 0  # the flood went on, its stops refused
+    """100 silent connections, a trickle on every slot, a flood from another sender with stops it may not give
+    (the benchmark runs it for 10 s, here 2 s at shorter timeouts): a well-behaved sender is served and its
+    newest pose is headed for within 2 ticks of arriving."""
+    run = guard(mode, 2.0, idle_timeout=1.5, trickle_every=0.3, evict_after=0.5)
+    st = run.stats
+    assert run.sent >= 10 and run.acked == run.sent == len(run.received)
+    assert mode == "live" or len(run.shown) == run.sent  # queue mode plays every packet
+    late = [d for d in run.delays() if d is None or d > 2]
+    assert late == [], f"{mode}: newest poses headed for more than 2 ticks after they arrived: {run.delays()}"
+    assert st.refused + st.evicted >= 92 and st.evicted >= 8 and st.idle_drops > 0
+    assert run.flood_packets > 100 and st.controls_refused > 0 and not st.stopped and not st.ended
 
 
 @pytest.mark.parametrize("argv", [["play", "--listen", ":99999"], ["play", "--listen", "host:0"],
