@@ -5,7 +5,7 @@ import time
 
 import pytest
 from pdeface.cli import build_parser
-from pdeface.stream.player import Player, loopback_peer_uid
+from pdeface.stream.player import Player, _proc_address, loopback_peer_uid
 from pdeface.stream.sender import send
 from pdeface.stream.wire import Auth, Control, Garbage, Packet, StreamParser
 
@@ -85,6 +85,12 @@ def test_the_sender_presents_the_token_and_ends_the_player():
         until(lambda: player.stats.ended)
     finally:
         player.close()
+
+
+def test_proc_net_tcp_addresses_are_read_as_the_kernel_writes_them():
+    assert _proc_address("0100007F:1F90") == ("127.0.0.1", 8080)
+    assert _proc_address("0000000000000000FFFF00000100007F:1F90") == ("127.0.0.1", 8080)  # IPv4-mapped, tcp6
+    assert _proc_address("00000000000000000000000001000000:0050") == ("::1", 80)
 
 
 @pytest.mark.skipif(not os.path.exists("/proc/net/tcp"), reason="who owns a loopback peer is read from /proc/net/tcp")
