@@ -26,11 +26,12 @@ def running() -> bool:
 
 
 def start(obj, role="LISTEN", host="127.0.0.1", port=5000, mode="live", rules=False, record=False, hz=60.0,
-          mixer=None, allow_remote=False, transition=0.25):
+          mixer=None, allow_remote=False, transition=0.25, token=""):
     """Start the player for face ``obj``; returns the address it listens on (or connects to).
 
     Listening on an address other than loopback needs ``allow_remote``. ``mixer``
-    None is ``sum`` (the AU keys themselves).
+    None is ``sum`` (the AU keys themselves). ``token``: the shared secret a sender
+    must present to end or stop the player (empty: only this user, from this machine).
     """
     if role == "LISTEN" and host not in LOOPBACK and not allow_remote:
         raise PdeFaceError(f"listening on {host} opens the player to the network: tick 'Allow remote' to do that")
@@ -39,7 +40,7 @@ def start(obj, role="LISTEN", host="127.0.0.1", port=5000, mode="live", rules=Fa
     mixer = choose_mixer(mixer)
     pose_aus(obj, {}, mixer)  # the mix key is checked to be ours here, once (the timer does not)
     stop()
-    player = Player(mode=mode, transition=transition, blender=AUBlender.load() if rules else None)
+    player = Player(mode=mode, transition=transition, blender=AUBlender.load() if rules else None, token=token or None)
     try:
         if role == "LISTEN":
             address = tuple(player.listen(host, port))

@@ -434,7 +434,8 @@ class PDEFACE_OT_live_start(_FaceOperator, Operator):
         s = context.scene.pdeface
         obj = face.active_face(context)
         host, port = live.start(obj, s.live_role, s.live_host, s.live_port, s.live_mode, s.live_rules,
-                                s.live_record, s.live_hz, keys.scene_mixer(s), s.live_allow_remote)
+                                s.live_record, s.live_hz, keys.scene_mixer(s), s.live_allow_remote,
+                                token=s.live_token)
         return f"Live link {'listening on' if s.live_role == 'LISTEN' else 'connecting to'} {host}:{port}"
 
 

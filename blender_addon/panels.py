@@ -147,6 +147,7 @@ class PDEFACE_PT_live(_FacePanel, bpy.types.Panel):
         row.prop(s, "live_host")
         row.prop(s, "live_port")
         col.prop(s, "live_allow_remote")
+        col.prop(s, "live_token")
         col.prop(s, "live_mode")
         col.prop(s, "live_rules")
         col.prop(s, "live_record")
@@ -158,6 +159,9 @@ class PDEFACE_PT_live(_FacePanel, bpy.types.Panel):
                       icon="LINKED" if st["connected"] else "UNLINKED")
             box.label(text=f"Packets {st['packets']}, played {st['played']}, dropped {st['dropped']}, "
                            f"garbage {st['garbage']}")
+            if st["controls_refused"] or st["refused"] or st["unauthenticated"] or st["auth_failures"]:
+                box.label(text=f"Refused: {st['controls_refused']} stops, {st['refused']} connections, "
+                               f"{st['unauthenticated'] + st['auth_failures']} without the token", icon="LOCKED")
             if st["latency_ms_p99"] is not None:
                 box.label(text=f"Latency p50 {st['latency_ms_p50']:.1f} ms, p99 {st['latency_ms_p99']:.1f} ms")
         else:

@@ -132,6 +132,9 @@ class PDEFACE_PG_settings(bpy.types.PropertyGroup):
     live_port: IntProperty(name="Port", default=5000, min=0, max=65535)
     live_allow_remote: BoolProperty(name="Allow remote", default=False,
                                     description="Listen on an address other than this machine's loopback")
+    live_token: StringProperty(name="Token", default="", subtype="PASSWORD",
+                               description="A shared secret: only senders that present it may end or stop the "
+                                           "player or send JSON lines (empty: only you, from this machine)")
     live_mode: EnumProperty(name="Playback", default="live",
                             items=[(m, *PLAYBACK[m]) for m in PLAYBACK_MODES])
     live_rules: BoolProperty(name="AU blender rules", default=False, description="Apply the co-occurrence rules")

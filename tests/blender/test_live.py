@@ -65,3 +65,22 @@ def test_live_link_refuses_to_open_to_the_network_unasked(bpy, face):
         with pytest.raises(RuntimeError, match="cannot listen"):
             bpy.ops.pdeface.live_start()
     assert not live().running()
+
+
+def test_live_link_token_keeps_strangers_from_stopping_it(bpy, face):
+    s = bpy.context.scene.pdeface
+    s.live_port, s.live_mode, s.live_record, s.live_token = 0, "live", False, "s3cret"
+    assert bpy.ops.pdeface.live_start() == {"FINISHED"}
+    link = live()
+    try:
+        address = tuple(link.status()["address"])
+        with socket.create_connection(address, timeout=5) as stranger:
+            stranger.sendall(b"{12} -4 -4x -2\n")
+            wait_for(lambda: link.status()["controls_refused"] == 2)
+            assert not link.status()["stopped"] and link.status()["packets"] == 1
+        with socket.create_connection(address, timeout=5) as owner:
+            owner.sendall(b'{"auth": "s3cret"}\n-4 ')
+            wait_for(lambda: link.status()["stopped"])
+    finally:
+        s.live_token = ""
+        bpy.ops.pdeface.live_stop()

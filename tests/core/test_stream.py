@@ -186,7 +186,7 @@ def test_malformed_input_and_floods_are_survived():
         time.sleep(0.2)
         st = player.stats
         assert st.garbage >= 4 and 99 in st.unknown_aus
-        assert len(player._buffer) == 50 and st.packets == 50  # bounded: reading waits for room
+        assert player.buffered == 50 and st.packets == 50  # bounded: reading waits for room
         deadline = time.monotonic() + 10
         while player.stats.packets < 204:  # playing drains the buffer; the rest arrives, nothing lost
             assert time.monotonic() < deadline, player.stats
@@ -341,21 +341,21 @@ def test_one_bad_packet_never_stops_the_stream(hostile):
 
 
 def test_senders_are_served_at_once_and_an_idle_half_packet_is_dropped():
-    player = Player(transition=0.0, idle_timeout=0.5, max_senders=2)
+    player = Player(transition=0.0, idle_timeout=0.5, max_senders=2, evict_after=60.0)
     address = player.listen()
     try:
-        stuck = connect(address)
-        stuck.sendall(b"{1,2")  # half a packet, then silence
+        quiet = connect(address)
         until(lambda: player.stats.senders == 1)
         other = connect(address)
         other.sendall(b"{12}")
         until(lambda: player.pose().get("12") == 1.0)  # served while the first one sits there
-        third = connect(address)  # over max_senders: turned away, the others go on
+        third = connect(address)  # over max_senders, nobody idle long enough to evict: turned away
         until(lambda: player.stats.refused == 1)
+        quiet.sendall(b"{1,2")  # half a packet, then silence: dropped, the others go on
         until(lambda: player.stats.idle_drops == 1 and player.stats.senders == 1, timeout=5)
         other.sendall(b"{6}")
         until(lambda: player.pose().get("6") == 1.0)
-        for s in (stuck, other, third):
+        for s in (quiet, other, third):
             s.close()
     finally:
         player.close()

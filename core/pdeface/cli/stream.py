@@ -1,7 +1,10 @@
 """``pdeface stream send`` and ``stream play``: the live AU stream's sender and headless player."""
 from __future__ import annotations
 
+import argparse
 import json
+import math
+import os
 
 from ..errors import PdeFaceError
 from ..stream.player import MODES, Player
@@ -9,14 +12,55 @@ from ..stream.rules import DEFAULT_RULES, AUBlender
 from ..stream.sender import read_packets, send
 from .common import log
 
+#: Where ``--token`` is read from when not given (a token on the command line shows in the process list).
+TOKEN_ENV = "PDEFACE_STREAM_TOKEN"
 
-def _address(text, default_host="127.0.0.1"):
-    """``HOST:PORT`` or ``PORT`` → (host, port)."""
-    host, sep, port = text.rpartition(":")
+
+# Argument types: a bad value is argparse's usage error (exit 2) at parse time, naming the option.
+def port(text) -> int:
+    """A TCP port, 1-65535."""
     try:
-        return (host or default_host) if sep else default_host, int(port if sep else text)
+        value = int(text)
     except ValueError:
-        raise PdeFaceError(f"{text!r}: use HOST:PORT or PORT") from None
+        raise argparse.ArgumentTypeError(f"{text[:40]!r} is not a port number (1-65535)") from None
+    if not 1 <= value <= 65535:
+        raise argparse.ArgumentTypeError(f"{text[:40]!r} is not a port number (1-65535)")
+    return value
+
+
+def address(text, default_host="127.0.0.1") -> tuple:
+    """``HOST:PORT`` or ``PORT`` → (host, port); ``:PORT`` is the default host."""
+    host, sep, number = text.rpartition(":")
+    if sep and not host.strip("[]"):
+        host = default_host
+    try:
+        return (host.strip("[]") if sep else default_host), port(number if sep else text)
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(f"{text[:60]!r}: use HOST:PORT or PORT, the port 1-65535") from None
+
+
+def bounded_float(low, high, zero=False, what="a number"):
+    """An argparse type: a finite number in [low, high] (and 0 when ``zero``)."""
+    def parse(text):
+        try:
+            value = float(text)
+        except ValueError:
+            value = math.nan
+        if not (math.isfinite(value) and (low <= value <= high or (zero and value == 0))):
+            raise argparse.ArgumentTypeError(f"{text[:40]!r} is not {what}")
+        return value
+    return parse
+
+
+HZ = bounded_float(1.0, 1000.0, what="a rate of 1 to 1000 poses per second")
+RATE = bounded_float(0.01, 1e6, zero=True, what="0 (as fast as allowed) or 0.01 to 1e6 packets per second")
+SECONDS = bounded_float(0.0, 3600.0, what="a number of seconds from 0 to 3600")
+DURATION = bounded_float(0.0, 1e7, what="a number of seconds from 0 (no limit) to 1e7")
+
+
+def token_option(p, help):
+    p.add_argument("--token", default=os.environ.get(TOKEN_ENV) or None,
+                   help=f"{help} (default: ${TOKEN_ENV}, when set)")
 
 
 def cmd_send(args):
@@ -24,7 +68,7 @@ def cmd_send(args):
     for line in bad:
         log(f"skipped {line}")
     try:
-        result = send(packets, args.host, args.port, args.rate, args.listen)
+        result = send(packets, args.host, args.port, args.rate, args.listen, token=args.token)
     except OSError as exc:
         raise PdeFaceError(f"{args.host}:{args.port}: {exc.strerror or exc}") from None
     print(json.dumps({**result, "skipped": len(bad)}))
@@ -36,14 +80,14 @@ def _print_pose(t, pose):
 
 def cmd_play(args):
     blender = AUBlender.load(args.rules or DEFAULT_RULES) if args.rules is not None else None
-    player = Player(transition=args.transition, mode=args.mode, blender=blender)
+    player = Player(transition=args.transition, mode=args.mode, blender=blender, token=args.token)
     try:
         if args.connect:
-            player.connect(*_address(args.connect))
-            log(f"connecting to {args.connect}")
+            player.connect(*args.connect)
+            log(f"connecting to {args.connect[0]}:{args.connect[1]}")
         else:
-            host, port = player.listen(*_address(args.listen))
-            log(f"listening on {host}:{port}")
+            host, bound = player.listen(*args.listen)
+            log(f"listening on {host}:{bound}")
     except OSError as exc:
         raise PdeFaceError(f"cannot listen/connect: {exc.strerror or exc}") from None
     try:
@@ -62,22 +106,25 @@ def register(sub):
     q = ssub.add_parser("send", help="replay a file of AU packets to a player")
     q.add_argument("file", help="one {1,2,5} / {12:0.8} / {12E} packet or JSON line per line")
     q.add_argument("--host", default="127.0.0.1", help="the player's address")
-    q.add_argument("--port", type=int, default=5000, help="the player's port")
-    q.add_argument("--rate", type=float, default=4.0, help="packets per second (0: as fast as allowed)")
+    q.add_argument("--port", type=port, default=5000, help="the player's port")
+    q.add_argument("--rate", type=RATE, default=4.0, help="packets per second (0: as fast as allowed)")
     q.add_argument("--listen", action="store_true", help="wait for a player to connect instead")
+    token_option(q, "the player's shared token: sent first, so this sender may end or stop it")
     q.set_defaults(func=cmd_send)
 
     q = ssub.add_parser("play", help="run the player headless")
     g = q.add_mutually_exclusive_group()
-    g.add_argument("--listen", default="127.0.0.1:5000", help="HOST:PORT to listen on (default 127.0.0.1:5000)")
-    g.add_argument("--connect", help="HOST:PORT of a sender that listens")
+    g.add_argument("--listen", type=address, default=("127.0.0.1", 5000),
+                   help="HOST:PORT to listen on (default 127.0.0.1:5000)")
+    g.add_argument("--connect", type=address, help="HOST:PORT of a sender that listens")
     q.add_argument("--print", action="store_true", help="print each pose as a JSON line")
     q.add_argument("--mode", choices=MODES, default="queue",
                    help="queue: play every packet in turn (the FAS player); live: head for the newest")
-    q.add_argument("--transition", type=float, default=0.25, help="seconds from one pose to the next")
+    q.add_argument("--transition", type=SECONDS, default=0.25, help="seconds from one pose to the next")
     q.add_argument("--rules", nargs="?", const="", default=None,
                    help="apply the AU blender's co-occurrence rules (a rules JSON, or the bundled ones)")
-    q.add_argument("--hz", type=float, default=60.0, help="poses per second")
-    q.add_argument("--duration", type=float, default=0.0, help="stop after this many seconds (0: never)")
+    q.add_argument("--hz", type=HZ, default=60.0, help="poses per second")
+    q.add_argument("--duration", type=DURATION, default=0.0, help="stop after this many seconds (0: never)")
     q.add_argument("--keep-running", action="store_true", help="do not exit when the sender ends")
+    token_option(q, "a shared secret: only senders that present it may end or stop the player or send JSON lines")
     q.set_defaults(func=cmd_play)

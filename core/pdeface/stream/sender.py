@@ -1,6 +1,7 @@
 """Replay a file of AU packets to a player, honouring its flow control."""
 from __future__ import annotations
 
+import json
 import socket
 import threading
 import time
@@ -34,10 +35,13 @@ def read_packets(path) -> tuple[list, list]:
 
 
 class Sender:
-    """Sends packets at ``rate`` per second; pauses on -1, resumes on -3, stops on -4."""
+    """Sends packets at ``rate`` per second; pauses on -1, resumes on -3, stops on -4.
 
-    def __init__(self, packets, rate=4.0):
-        self.packets, self.rate = list(packets), float(rate)
+    ``token``: the player's shared token, presented first (``{"auth": TOKEN}``) when given.
+    """
+
+    def __init__(self, packets, rate=4.0, token=None):
+        self.packets, self.rate, self.token = list(packets), float(rate), token or None
         self.acks = 0
         self.sent = 0
         self.pauses = 0
@@ -51,7 +55,7 @@ class Sender:
         while not done.is_set():
             try:
                 data = sock.recv(4096)
-            except socket.timeout:
+            except TimeoutError:
                 continue
             except OSError:
                 break
@@ -78,6 +82,8 @@ class Sender:
         interval = 1.0 / self.rate if self.rate > 0 else 0.0
         next_t = time.monotonic()
         try:
+            if self.token is not None:
+                sock.sendall((json.dumps({"auth": self.token}) + "\n").encode())
             for p in self.packets:
                 self._go.wait()
                 if self.stopped:
@@ -99,7 +105,7 @@ class Sender:
         return {"sent": self.sent, "acks": self.acks, "pauses": self.pauses, "stopped": self.stopped}
 
 
-def send(packets, host="127.0.0.1", port=5000, rate=4.0, listen=False, timeout=30.0) -> dict:
+def send(packets, host="127.0.0.1", port=5000, rate=4.0, listen=False, timeout=30.0, token=None) -> dict:
     """Connect to a player (or, with ``listen``, wait for one) and replay ``packets``."""
     if listen:
         with socket.create_server((host, port)) as srv:
@@ -109,4 +115,4 @@ def send(packets, host="127.0.0.1", port=5000, rate=4.0, listen=False, timeout=3
         sock = socket.create_connection((host, port), timeout=timeout)
     with sock:
         sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-        return Sender(packets, rate).run(sock)
+        return Sender(packets, rate, token).run(sock)

@@ -5,7 +5,8 @@ The FAS system's own: one packet per expression, the AU set as plain text
 spaces between packets are ignored). Extended: intensities ``{12:0.8,6:0.5}``
 and FACS letters ``{12E,6C}``; side suffixes ``{12L:0.5}``. Control integers
 between packets: 1 packet received (ack), -1 pause, -2 end of transmission,
--3 resume, -4 stop. FACSvatar-style JSON lines: ``{"au_r": {"AU12": 0.8}, "timestamp": 1.5}``.
+-3 resume, -4 stop. FACSvatar-style JSON lines: ``{"au_r": {"AU12": 0.8}, "timestamp": 1.5}``, and
+``{"auth": "TOKEN"}``: a sender presenting the player's shared token (see :mod:`.player`).
 
 :class:`StreamParser` takes bytes as they arrive (partial packets, garbage,
 floods) and yields events; it never evaluates anything and bounds its buffer.
@@ -26,6 +27,8 @@ CONTROLS = {ACK: "ack", PAUSE: "pause", END: "end", RESUME: "resume", STOP: "sto
 MAX_PACKET = 1024
 #: Digits a control integer may have (they are -4 … 1); a longer run is garbage, however it arrives.
 MAX_CONTROL_DIGITS = 8
+#: What may follow a control integer: whitespace or the next packet (``-4x`` is garbage, not a stop).
+CONTROL_DELIMITERS = " \t\r\n{"
 
 _ITEM = re.compile(r"^(\d{1,3})([LR]?)(?:([A-E])|:([0-9]*\.?[0-9]+(?:[eE][-+]?\d+)?))?$")
 
@@ -36,12 +39,13 @@ class PacketError(PdeFaceError, ValueError):
 
 @dataclass
 class Packet:
-    """One expression: AU key → weight in [0, 1]; ``unknown``: AU numbers not in FACS."""
+    """One expression: AU key → weight in [0, 1]; ``unknown``: AU numbers not in FACS; ``json``: sent as a JSON line."""
 
     weights: dict
     raw: str = ""
     unknown: list = field(default_factory=list)
     timestamp: float | None = None
+    json: bool = False
 
 
 @dataclass
@@ -51,6 +55,13 @@ class Control:
     @property
     def name(self) -> str:
         return CONTROLS[self.code]
+
+
+@dataclass
+class Auth:
+    """``{"auth": "TOKEN"}``: a sender presenting a shared token (never shown in a repr)."""
+
+    token: str = field(repr=False)
 
 
 @dataclass
@@ -109,7 +120,22 @@ def parse_json_line(line: str) -> Packet:
     """
     if len(line) > MAX_PACKET:
         raise PacketError(f"JSON line longer than {MAX_PACKET} bytes")
-    obj = parse_json(line, "JSON line", PacketError)  # (depth and huge integers refused there)
+    return _json_packet(parse_json(line, "JSON line", PacketError), line)  # (depth and huge integers refused there)
+
+
+def parse_json_event(line: str) -> Packet | Auth:
+    """A JSON line: an AU packet (see :func:`parse_json_line`) or ``{"auth": "TOKEN"}``."""
+    if len(line) > MAX_PACKET:
+        raise PacketError(f"JSON line longer than {MAX_PACKET} bytes")
+    obj = parse_json(line, "JSON line", PacketError)
+    if isinstance(obj, dict) and "auth" in obj and "au_r" not in obj:
+        if not isinstance(obj["auth"], str):
+            raise PacketError("JSON line's 'auth' must be a string")
+        return Auth(obj["auth"])
+    return _json_packet(obj, line)
+
+
+def _json_packet(obj, line: str) -> Packet:
     if not isinstance(obj, dict) or not isinstance(obj.get("au_r"), dict):
         raise PacketError("JSON line needs an 'au_r' object")
     weights, unknown = {}, []
@@ -127,7 +153,7 @@ def parse_json_line(line: str) -> Packet:
         weights[key] = clamp_weight(v / scale)
     ts = obj.get("timestamp")
     ts = float(ts) if isinstance(ts, (int, float)) and not isinstance(ts, bool) and math.isfinite(ts) else None
-    return Packet(weights, line[:200], unknown, ts)
+    return Packet(weights, line[:200], unknown, ts, json=True)
 
 
 class StreamParser:
@@ -167,7 +193,7 @@ class StreamParser:
                         events.append(Garbage("JSON line too long", line[:40]))
                         continue
                     try:
-                        events.append(parse_json_line(line))
+                        events.append(parse_json_event(line))
                     except PacketError as exc:
                         events.append(Garbage(str(exc), line[:40]))
                     continue
@@ -193,6 +219,8 @@ class StreamParser:
                 events.append(Garbage("control integer too long", m.group()[:40]))
                 self._buf = s[m.end():]
                 continue
+            if m and m.end() < len(s) and s[m.end()] not in CONTROL_DELIMITERS:
+                m = None  # digits glued to something else: garbage up to the next delimiter
             if m and (m.end() < len(s)):  # a control integer needs a delimiter after it
                 code = int(m.group())
                 events.append(Control(code) if code in CONTROLS else Garbage(f"unknown control {code}", m.group()))
