@@ -1,8 +1,8 @@
 """Keyframes on our shape keys: a pose, a sequence of presets, a timeline or tracker file.
 
-Keyframes go on the face and on the user's objects it drives (the same key
-names); only our keys' animation is ever cleared, the user's own keys keep
-theirs.
+Keyframes go on the head's controls (:func:`.face.pose_objects`: the fitted mesh,
+whose keys the face's and the other objects' follow); only our keys' animation
+is ever cleared, the user's own keys keep theirs.
 """
 import bpy
 from pdeface.animation.sequence import sequence_keys
@@ -12,7 +12,7 @@ from pdeface.errors import PdeFaceError
 from pdeface.presets import resolve_preset
 
 from . import compat
-from .face import rig_objects
+from .face import pose_objects, rig_objects
 from .keys import au_key_names, expression_key_name, expression_key_names, managed, set_pose
 
 
@@ -22,8 +22,8 @@ def scene_fps(scene):
 
 
 def keyframe_pose(obj, frame):
-    """Keyframe every PDE key (of the face and the user's objects it drives) at ``frame``; returns how many."""
-    keys = [k for o in rig_objects(obj) for k in managed(o)]
+    """Keyframe every PDE key of the head's controls at ``frame``; returns how many."""
+    keys = [k for o in pose_objects(obj) for k in managed(o)]
     for _, kb in keys:
         kb.keyframe_insert("value", frame=frame)
     return len(keys)
@@ -55,7 +55,7 @@ def animate_sequence(scene, obj, names, presets, start, hold, blend, mode="via_n
             w, _ = resolve_preset(presets[n], set(by_au))
             poses.append({by_au[k]: v for k, v in w.items()})
     frames = sequence_keys(poses, start, hold, blend, mode)
-    for o in rig_objects(obj):
+    for o in pose_objects(obj):
         blocks = o.data.shape_keys.key_blocks
         for frame, pose in frames:
             for name, value in pose.items():
@@ -113,7 +113,7 @@ def apply_timeline(obj, timeline, scene=None, merge=False):
             prefs.keyframe_new_interpolation_type = key.interpolation.upper()
             values = {by_au[a]: w for a, w in key.aus.items() if a in by_au}
             values.update({by_preset[p]: w for p, w in key.presets.items() if p in by_preset})
-            for o in rig_objects(obj):
+            for o in pose_objects(obj):
                 blocks = o.data.shape_keys.key_blocks
                 for name in names:
                     if name in blocks:

@@ -26,6 +26,11 @@ from pdeface.surface.sampling import mesh_resolution, parse_resolution, resoluti
 
 from . import bridge, head, landmarks
 
+#: The hidden reference face of a rigged head is meshed this coarsely (steps per interval) unless the user
+#: asks for a resolution: nobody sees it, the head's keys come from the model (its binding samples the
+#: surface itself), and at the adaptive resolution its mesh and keys made up most of a saved .blend
+#: (57–235 k vertices × 83 keys: 49–223 MB, issue #40).
+REFERENCE_RESOLUTION = "1,1"
 #: Faces made before the default resolution adapted to the face (issue #16) stored ``"default"`` for its
 #: then 4 rows and columns per interval; their meshes keep them.
 LEGACY_DEFAULT = "4,4"
@@ -53,15 +58,28 @@ def user_objects(face):
 
 
 def key_owner(context):
-    """Whose keys the sliders show: the active user's object when it carries ours, else the active face."""
+    """Whose keys the sliders show: the head's controls (:func:`pose_objects`) when the rest follows them,
+    else the active user's object when it carries ours, else the active face."""
     obj = context.active_object
     face = active_face(context)
+    if face is not None and face.pdeface.linked:
+        return pose_objects(face)[0]
     return obj if face is not None and obj is not face and obj.pdeface.keys else face
 
 
 def rig_objects(face):
-    """The face and the user's objects carrying its keys: what poses and keyframes go to."""
+    """The face and the user's objects carrying its keys."""
     return [face] + [o for o in user_objects(face) if o.pdeface.keys]
+
+
+def pose_objects(face):
+    """What poses, sliders and keyframes set: the fitted mesh alone when the face and the head's other
+    objects follow its keys by drivers (:mod:`.controls`), else every object of :func:`rig_objects`
+    (a face saved before the drivers, until its keys are rebuilt)."""
+    users = user_objects(face)
+    if face.pdeface.linked and users and users[0].pdeface.keys and users[0] is face.pdeface.source:
+        return users[:1]
+    return rig_objects(face)
 
 
 def face_resolution(obj):
@@ -177,6 +195,8 @@ def fit_face_object(context, src, landmarks, unit=None, resolution="default", re
     if retarget:
         model = retarget_descriptors(load_face(DEFAULT), model)
     step(3, "building the face")
+    if keys_on_mesh and resolution == "default":
+        resolution = REFERENCE_RESOLUTION
     obj = new_face_object(context, f"PDE {src.name}", model, resolution, src.matrix_world.copy(), src)
     if keys_on_mesh:
         obj.pdeface.head_keys = True

@@ -20,8 +20,8 @@ from pdeface.posing import pose_curves
 from pdeface.presets import PRESETS, choose_mixer, merged_presets, resolve_preset
 from pdeface.surface.fit import face_mesh
 
-from . import bridge, head
-from .face import face_resolution, rig_objects, user_objects
+from . import bridge, controls, head
+from .face import face_resolution, pose_objects, user_objects
 
 #: The key a mixed (not linear) pose is written into.
 MIX_KEY = "PDE Mix"
@@ -160,6 +160,8 @@ def write_change_keys(obj, model, delta, jaw, name, kind, au_key="", label=""):
         o.data.update()
         for k in w.counts:
             counts[k] += w.counts[k]
+    if obj.pdeface.linked:
+        controls.link(obj, {name})
     return counts
 
 
@@ -231,6 +233,8 @@ def build_keys(obj, presets):
         user.data.update()
         for k in counts:
             counts[k] += w.counts[k]
+    if head_keys:
+        controls.link(obj)  # one control per key: the fitted mesh's, the others follow it
     return {**counts, "aus": len(model.descriptors), "expressions": len(expressions), "objects": 1 + len(head_keys)}
 
 
@@ -239,9 +243,9 @@ def build_keys(obj, presets):
 def set_pose(obj, values, kinds=("AU", "EXPRESSION", "MIX")):
     """Set our keys of ``kinds``: those named in ``values`` to their value, the others to 0.
 
-    On the face and on every user's object it drives (same key names).
+    On the head's controls (:func:`.face.pose_objects`): the others follow them.
     """
-    for o in rig_objects(obj):
+    for o in pose_objects(obj):
         for e, kb in managed(o):
             if e.kind in kinds:
                 kb.value = values.get(e.name, 0.0)
@@ -267,6 +271,9 @@ def put_pose_key(targets, name, label, check=True):
             entry = o.pdeface.keys.add()
             entry.name, entry.kind, entry.label = name, "MIX", label
         _write_key(kb, entry, coords)
+    face = targets[0][0]
+    if face.pdeface.linked:
+        controls.link(face, {name})
 
 
 def write_mix_key(obj, model, weights, mixer, check=True):
@@ -293,9 +300,9 @@ def pose_aus(obj, weights, mixer="sum", check=True):
     if mixer == "sum":
         names = au_key_names(obj)
         set_pose(obj, {names[k]: w for k, w in weights.items() if k in names})
-        return [kb for o in rig_objects(obj) for _, kb in managed(o, "AU")]
+        return [kb for o in pose_objects(obj) for _, kb in managed(o, "AU")]
     write_mix_key(obj, bridge.face_model(obj), weights, mixer, check)
-    return [kb for o in rig_objects(obj) for _, kb in managed(o, "MIX")]
+    return [kb for o in pose_objects(obj) for _, kb in managed(o, "MIX")]
 
 
 def apply_preset(obj, name, preset, mode="AUS", weight=1.0, mixer=None):

@@ -112,7 +112,8 @@ class PDEFACE_OT_fit_to_selected(_UserMeshOperator, Operator):
     keys_on_mesh: BoolProperty(name="Keys on my mesh", default=True,
                                description="Put the AU and expression keys on the selected mesh(es) themselves: "
                                            "the active one's skin and the other selected objects of the head "
-                                           "(eyes, teeth). The PDE face stays hidden as their reference")
+                                           "(eyes, teeth; selected alone, the other meshes of its collection). "
+                                           "The PDE face stays hidden as their reference")
 
     select_message = "Select the neutral face mesh to fit (not a PDE face)"
 
@@ -134,7 +135,7 @@ class PDEFACE_OT_fit_to_selected(_UserMeshOperator, Operator):
             unit = None if s.unit == "AUTO" else s.unit
             r = None
             if self.keys_on_mesh:
-                parts = [o for o in context.view_layer.objects.selected if o is not src and o.type == "MESH"]
+                parts = rigging.head_parts(context, src)
                 obj, model, sampler, r = rigging.fit_and_rig(context, src, landmarks, unit, self.resolution,
                                                              self.retarget, progress, parts)
             else:

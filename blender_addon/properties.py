@@ -56,6 +56,8 @@ class PDEFACE_PG_face(bpy.types.PropertyGroup):
     parts: CollectionProperty(type=PDEFACE_PG_part, description="Other objects of the user's head it drives")
     head_keys: BoolProperty(default=False, description="Put the AU and expression keys on the user's objects too")
     rig_face: PointerProperty(type=bpy.types.Object, description="On a user's object: the PDE face driving it")
+    linked: BoolProperty(default=False, description="On a face driving the user's objects: the fitted mesh's keys "
+                                                    "are the controls, the face's and the other parts' follow them")
     keys: CollectionProperty(type=PDEFACE_PG_key)
 
 

@@ -89,6 +89,18 @@ def shade_lashes(mat):
     tree.links.new(strand.outputs[0], tree.nodes["Principled BSDF"].inputs["Alpha"])
 
 
+def head_parts(context, src):
+    """The other objects of ``src``'s head: the other selected meshes, else (``src`` selected alone) the
+    other meshes of the collection it is in, when that is a collection of its own (not the scene's)."""
+    def usable(o):
+        return o is not src and o.type == "MESH" and not o.pdeface.is_face
+    selected = [o for o in context.view_layer.objects.selected if usable(o)]
+    if selected:
+        return selected
+    own = [c for c in src.users_collection if c is not context.scene.collection]
+    return [o for o in own[0].objects if usable(o)] if len(own) == 1 else []
+
+
 def fit_and_rig(context, src, landmarks, unit=None, resolution="default", retarget=True, progress=None, parts=()):
     """Fit a PDE face to mesh object ``src`` and put every AU and expression key on it and on ``parts``.
 

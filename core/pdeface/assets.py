@@ -99,6 +99,28 @@ def load_head() -> tuple[Mesh, np.ndarray]:
         return mesh, z["landmarks"].astype(np.int64)
 
 
+def split_head(mesh: Mesh, groups: dict) -> dict:
+    """ICT's head (:func:`load_head`) as objects of their own, as heads are usually exported.
+
+    ``groups`` maps an object name to the :data:`HEAD_PARTS` name prefixes it holds
+    (``{"Teeth": ("teeth",)}``); a polygon goes with its first vertex's part. Returns
+    ``{name: (Mesh, indices of its vertices in mesh)}`` (without UVs).
+    """
+    starts = np.array(list(HEAD_PARTS.values()))
+    names = np.array(list(HEAD_PARTS))
+    offsets = np.r_[0, np.cumsum(mesh.face_counts)]
+    part = names[np.searchsorted(starts, mesh.face_indices[offsets[:-1]], side="right") - 1]
+    out = {}
+    for name, prefixes in groups.items():
+        keep = np.flatnonzero(np.isin(part, [n for n in names if n.startswith(tuple(prefixes))]))
+        polys = [mesh.face_indices[offsets[k]:offsets[k + 1]] for k in keep]
+        used = np.unique(np.concatenate(polys))
+        remap = np.full(len(mesh.vertices), -1)
+        remap[used] = np.arange(len(used))
+        out[name] = (Mesh(mesh.vertices[used], mesh.face_counts[keep], remap[np.concatenate(polys)]), used)
+    return out
+
+
 def load_head_shapes() -> dict:
     """ICT-FaceKit's shapes and identities as offsets (cm) of every vertex of :func:`load_head`."""
     face = load_ict_shapes()

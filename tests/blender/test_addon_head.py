@@ -167,6 +167,7 @@ def test_live_link_and_tracker_import_drive_the_users_head(bpy, ict_head, tmp_pa
             assert time.monotonic() < deadline
             link.tick()
             time.sleep(0.02)
+        bpy.context.view_layer.update()  # the eyes' key follows the head's by a driver: evaluated on redraw
         assert key_blocks(eyes)[AU12].value == 1.0
         sock.close()
     finally:
