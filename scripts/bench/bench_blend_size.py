@@ -11,6 +11,8 @@ the head's own keys need (keys x vertices x 12 bytes): the rest is the constant.
 """
 from __future__ import annotations
 
+import contextlib
+import io
 import os
 import sys
 import tempfile
@@ -55,7 +57,8 @@ def rigged_size(bpy, addon, vertices, reference, folder):
     addon.face.REFERENCE_RESOLUTION = reference
     addon.rigging.fit_and_rig(bpy.context, skin, mesh.vertices[lm], unit="cm", parts=parts)
     path = folder / f"head_{vertices}_{reference.replace(',', '_')}.blend"
-    bpy.ops.wm.save_as_mainfile(filepath=str(path), compress=False)
+    with contextlib.redirect_stdout(io.StringIO()):  # Blender's "Saved as" report, not a figure
+        bpy.ops.wm.save_as_mainfile(filepath=str(path), compress=False)
     n = sum(len(o.data.vertices) for o in [skin, *parts])
     return path.stat().st_size, n, len(skin.data.shape_keys.key_blocks)
 
