@@ -5,7 +5,8 @@ selected objects of the head (eyes, teeth, lashes as objects of their own) as
 ``parts``; each of them points back with ``rig_face``. The face's model binds
 all of them at once (:class:`pdeface.head.bind.HeadBinding`, in the source's
 object space), and each object gets the same keys as the face, under the same
-names, so every slider, preset, keyframe and the live link drive both.
+names; the fitted mesh's keys are the controls, the others follow them by drivers (:mod:`.controls`),
+so every slider, preset, keyframe and the live link drive them all.
 
 Vertex groups ``pdeface_skin``, ``pdeface_jaw``, ``pdeface_eye_L`` ... (one per
 kind of :data:`pdeface.head.parts.KINDS`) override the automatic parts. The

@@ -1,7 +1,8 @@
 """Our shape keys: the presets they are built from, building them, and posing the face with them.
 
 One key per AU (kind ``AU``) and per preset or FDT (``EXPRESSION``) on the
-face, and the same keys on the user's objects it drives (see :mod:`.head`); a
+face, and the same keys on the user's objects it drives (see :mod:`.head`; poses set
+the fitted mesh's keys, the others follow them: :mod:`.controls`); a
 pose the keys cannot add up to (the average and max mixers, the muscles) goes
 into a key of its own (``MIX``) set to 1.
 
