@@ -33,7 +33,7 @@ import numpy as np
 from ..errors import ModelFormatError, PdeFaceError
 from ..facs import SIDES, action_unit
 from ..io.codec import decode_residual, encode_residual
-from ..io.files import parse_json, read_bytes, write_bytes
+from ..io.files import inflate, parse_json, read_bytes, write_bytes
 from ..surface.fourier import fit_fourier
 from ..surface.layout import check_sizes
 from .descriptor import Descriptor
@@ -152,13 +152,7 @@ def descriptor_from_bytes(data: bytes, where="descriptor") -> Descriptor:
     """Read the compact binary form; errors name the problem."""
     if data[:8] != MAGIC:
         raise ModelFormatError(f"{where}: not a pdeface binary descriptor (bad magic)")
-    inflate = zlib.decompressobj()
-    try:  # inflated with a cap: a small file must not claim gigabytes
-        raw = inflate.decompress(data[8:], MAX_INFLATED)
-    except zlib.error:
-        raise ModelFormatError(f"{where}: body is corrupt (zlib)") from None
-    if inflate.unconsumed_tail:
-        raise ModelFormatError(f"{where}: body inflates past {MAX_INFLATED // 2**20} MiB; no descriptor is that large")
+    raw = inflate(data[8:], f"{where}: body", limit=MAX_INFLATED)
     if len(raw) < 4:
         raise ModelFormatError(f"{where}: truncated")
     (n,) = struct.unpack("<I", raw[:4])
