@@ -77,7 +77,7 @@ from ..surface.frame import UNITS_MM, FaceFrame
 from ..surface.layout import CurveLayout, check_sizes
 from ..surface.model import KEPT_LANDMARKS, FaceModel
 from ..surface.sampling import known_resolution, remember_resolution
-from .descriptorfile import pack_descriptors, unpack_descriptors
+from .descriptorfile import check_reach, pack_descriptors, unpack_descriptors
 
 FORMAT = "pdeface.face"
 LANDMARK_STEP_MM = 0.1
@@ -173,6 +173,7 @@ def _landmarks(entry, path) -> np.ndarray:
     if (idx.ndim != 1 or codes.shape != (len(idx), 3) or not len(idx) or idx.min() < 0 or idx.max() > 67
             or not step > 0 or not np.isfinite(codes).all()):
         raise ModelFormatError(f"{path}: meta 'landmarks' is malformed (indices 0-67, one finite point each)")
+    check_reach(codes * step, path, "landmarks")
     out = np.full((68, 3), np.nan)
     out[idx] = codes * step
     return out
@@ -232,6 +233,13 @@ def _read_model(fileobj, path) -> FaceModel:
         for name, arr in (("knots", knots), ("coefficients", coef), ("residual", res), ("frame", M), ("layout", layout_arr)):
             if not np.isfinite(arr).all():
                 raise ModelFormatError(f"{path}: field {name!r} contains NaN or inf")
+        for name, arr in (("coefficients", coef), ("residual", res), ("features", feats)):
+            check_reach(arr, path, name)
+        for name in ("a", "w"):  # the PDE's smoothing and its weight: positive numbers (w: None, derived from a)
+            v = meta.get(name, 1.0)
+            if not (v is None and name == "w") and (isinstance(v, bool) or not isinstance(v, (int, float))
+                                                    or not 0 < v < 1e6):
+                raise ModelFormatError(f"{path}: meta {name!r} must be a positive number, got {str(v)[:20]!r}")
         scale = float(np.cbrt(np.linalg.det(M[:3, :3])))
         if not scale > 0:
             raise ModelFormatError(f"{path}: field 'frame' is not a proper rotation and scale")

@@ -11,7 +11,7 @@ import numpy as np
 from ..errors import LandmarkError, MeshError
 from ..mesh import Mesh, butterfly_step, connected_components, seam_welds
 from .fourier import fit_fourier
-from .frame import face_frame, feature_points
+from .frame import FACE_REACH_MM, face_frame, feature_points
 from .grid import grid_faces, surface_grid
 from .layout import DEFAULT_CURVES, place_curves
 from .model import FaceModel
@@ -64,11 +64,6 @@ def check_landmarks_on_mesh(V_face, L_face, reach_mm=20.0):
     if dist[worst] > reach_mm:
         raise LandmarkError(f"landmark {worst} lies {dist[worst]:.3g} mm from the mesh (limit {reach_mm:g} mm): "
                             "are these this mesh's landmarks, in its unit?")
-
-
-#: Vertices farther than this from the nose tip (face frame, mm) are no part of the face: the triangles
-#: touching one (a vertex an exporter left far away) are left out of the fit.
-FACE_REACH_MM = 1000.0
 
 
 def reachable_triangles(V_face: np.ndarray, T: np.ndarray) -> np.ndarray:
