@@ -240,7 +240,7 @@ def test_a_model_whose_meta_numbers_are_not_numbers(tmp_path, change):
 
     def load_and_mesh():
         face_mesh(load_model(path))
-    assert "m.npz" in refused(load_and_mesh, "meta")
+    assert "m.npz" in refused(load_and_mesh, f"meta '{next(iter(change))}'")
 
 
 def test_values_far_beyond_a_face_are_refused(tmp_path, default_face):
