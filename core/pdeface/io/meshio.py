@@ -263,14 +263,14 @@ def read_ply(path) -> Mesh:
                 raise MeshError(f"{path}:{lineno}: incomplete property {line[:60]!r}")
             if p[1] == "list":
                 if p[2] not in _PLY_TYPES or p[3] not in _PLY_TYPES:
-                    raise MeshError(f"{path}:{lineno}: unknown PLY type in {line!r}")
+                    raise MeshError(f"{path}:{lineno}: unknown PLY type in {line[:60]!r}")
                 elements[-1][2].append((p[4], "list", _PLY_TYPES[p[2]], _PLY_TYPES[p[3]]))
             else:
                 if p[1] not in _PLY_TYPES:
-                    raise MeshError(f"{path}:{lineno}: unknown PLY type {p[1]!r}")
+                    raise MeshError(f"{path}:{lineno}: unknown PLY type {p[1][:20]!r}")
                 elements[-1][2].append((p[2], _PLY_TYPES[p[1]]))
     if fmt not in ("ascii", "binary_little_endian", "binary_big_endian"):
-        raise MeshError(f"{path}: unknown PLY format {fmt!r}")
+        raise MeshError(f"{path}: unknown PLY format {fmt and fmt[:20]!r}")
     values = {}
     if fmt == "ascii":
         tokens = body.decode("ascii", "replace").split()
