@@ -79,14 +79,14 @@ def weight_to_letter(weight: float) -> str:
     return "" if w <= 0 else "ABCDE"[min(4, max(0, math.ceil(round(w * 5, 9)) - 1))]
 
 
-_KEY = re.compile(r"^(?:AU)?(\d+)([LR]?)$", re.IGNORECASE)
+_KEY = re.compile(r"^(?:AU)?(\d{1,15})([LR]?)$", re.IGNORECASE)  # digits capped as in every text format
 
 
 def parse_au_key(key) -> str:
     """Normalise ``12``, ``"AU12"``, ``"au12l"`` → ``"12"``, ``"12L"``; checks the catalogue."""
     m = _KEY.match(str(key).strip())
     if not m:
-        raise PdeFaceError(f"{key!r} is not an AU key (use 12, AU12, 12L or 12R)")
+        raise PdeFaceError(f"{str(key)[:20]!r} is not an AU key (use 12, AU12, 12L or 12R)")
     action_unit(int(m.group(1)))
     return f"{int(m.group(1))}{m.group(2).upper()}"
 

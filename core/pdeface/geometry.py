@@ -39,27 +39,49 @@ def unit_rows(X: np.ndarray) -> np.ndarray:
     return X / np.maximum(np.linalg.norm(X, axis=-1, keepdims=True), 1e-300)
 
 
+#: The candidate grid's cells per axis at most: a cell is never smaller than the queries' extent over this,
+#: whatever the triangles' sizes, so no coordinate (a vertex left a kilometre away) sizes the grid.
+MAX_GRID_CELLS = 1024
+
+
 def cylinder_ray_candidates(V, T, axis_z, theta, height) -> tuple[np.ndarray, np.ndarray]:
     """(ray, triangle) pairs worth a hit test for rays cast from a vertical axis.
 
-    Triangles are binned into a uniform (angle, height) grid over their boxes, a
-    few per cell; a ray is paired with the triangles of its own cell. Triangles
-    wrapping round the back of the axis, or touching it, never face the rays
-    and are left out.
+    Triangles are binned into a uniform (angle, height) grid over the rays' own
+    extent, a few per cell; a ray is paired with the triangles of its own cell.
+    Triangles wrapping round the back of the axis, touching it, not finite or
+    wholly outside the rays' extent are left out; the grid has at most
+    :data:`MAX_GRID_CELLS` cells per axis and each triangle is clipped to it, so
+    the work is bounded by the rays' extent, never by a vertex's coordinates.
     """
     th, y, r = cylinder_coords(V, axis_z)
     tth, ty = th[T], y[T]
-    ok = (np.ptp(tth, axis=1) < np.pi / 2) & (r[T].min(axis=1) > 1e-9)
+    q = np.stack([theta, height], 1)
+    q_ok = np.isfinite(q).all(1)
+    if not q_ok.any() or len(T) == 0:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    q_lo, q_hi = q[q_ok].min(0), q[q_ok].max(0)
+    with np.errstate(invalid="ignore"):
+        lo = np.stack([tth.min(1), ty.min(1)], 1)
+        hi = np.stack([tth.max(1), ty.max(1)], 1)
+        ok = ((np.ptp(tth, axis=1) < np.pi / 2) & (r[T].min(axis=1) > 1e-9) & np.isfinite(lo).all(1)
+              & np.isfinite(hi).all(1) & (hi >= q_lo).all(1) & (lo <= q_hi).all(1))
     cand = np.nonzero(ok)[0]
-    lo = np.stack([tth[cand].min(1), ty[cand].min(1)], 1)
-    hi = np.stack([tth[cand].max(1), ty[cand].max(1)], 1)
+    if len(cand) == 0:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    lo, hi = np.maximum(lo[cand], q_lo), np.minimum(hi[cand], q_hi)  # clipped to the rays' extent
     size = np.maximum(np.median(hi - lo, axis=0) * 2.0, 1e-9)
-    origin = lo.min(0)
-    c0 = np.floor((lo - origin) / size).astype(np.int64)
-    c1 = np.floor((hi - origin) / size).astype(np.int64)
-    ncell = c1.max(0) + 1
-    span = c1 - c0 + 1
-    reps = span[:, 0] * span[:, 1]
+    size = np.maximum(size, (q_hi - q_lo) / (MAX_GRID_CELLS - 1))
+    origin = q_lo
+    while True:  # a few huge triangles may fill many cells; many coarsen the grid (a few doublings at most)
+        c0 = np.floor((lo - origin) / size).astype(np.int64)
+        c1 = np.floor((hi - origin) / size).astype(np.int64)
+        span = c1 - c0 + 1
+        reps = span[:, 0] * span[:, 1]
+        if reps.sum() <= 16 * len(cand) + 2 ** 22:
+            break
+        size = size * 2
+    ncell = np.floor((q_hi - origin) / size).astype(np.int64) + 1
     tid = np.repeat(np.arange(len(cand)), reps)
     k = np.arange(len(tid)) - np.repeat(np.cumsum(reps) - reps, reps)
     cx = c0[tid, 0] + k % span[tid, 0]
@@ -67,11 +89,12 @@ def cylinder_ray_candidates(V, T, axis_z, theta, height) -> tuple[np.ndarray, np
     cell = cx * ncell[1] + cy
     order = np.argsort(cell, kind="stable")
     cell, tid = cell[order], cand[tid[order]]
-    qc = np.floor((np.stack([theta, height], 1) - origin) / size).astype(np.int64)
-    inside = (qc >= 0).all(1) & (qc < ncell).all(1)
-    qcell = np.where(inside, qc[:, 0] * ncell[1] + qc[:, 1], -1)
+    with np.errstate(invalid="ignore"):
+        qc = np.floor((np.where(q_ok[:, None], q, origin) - origin) / size).astype(np.int64)
+    qc = np.minimum(qc, ncell - 1)
+    qcell = np.where(q_ok, qc[:, 0] * ncell[1] + qc[:, 1], -1)
     start = np.searchsorted(cell, qcell, "left")
-    stop = np.where(inside, np.searchsorted(cell, qcell, "right"), start)
+    stop = np.where(q_ok, np.searchsorted(cell, qcell, "right"), start)
     counts = stop - start
     rays = np.repeat(np.arange(len(theta)), counts)
     pos = np.arange(len(rays)) - np.repeat(np.cumsum(counts) - counts, counts) + np.repeat(start, counts)

@@ -193,7 +193,7 @@ def preset_from_json(obj, where="preset") -> Preset:
     except PdeFaceError as exc:
         raise ModelFormatError(f"{where}: field 'weights': {exc}") from None
     mixer = obj.get("mixer", "sum")
-    if mixer not in MIXERS:
+    if not isinstance(mixer, str) or mixer not in MIXERS:
         raise ModelFormatError(f"{where}: field 'mixer' must be one of {', '.join(MIXERS)}")
     return Preset(name, weights, mixer, str(obj.get("description", "")))
 

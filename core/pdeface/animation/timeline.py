@@ -31,6 +31,10 @@ from .sequence import sequence_keys
 FORMAT = "pdeface.timeline"
 #: The highest frame rate a timeline may have.
 MAX_FPS = 1000
+#: The longest timeline or recording read (a day): a time past it is a broken file, not a take.
+MAX_SECONDS = 24 * 3600
+#: The furthest frame from 0 a timeline may key (a day at the highest rate).
+MAX_FRAME = MAX_SECONDS * MAX_FPS
 INTERPOLATIONS = ("constant", "linear", "bezier")
 
 
@@ -69,8 +73,8 @@ def timeline_from_json(obj, where="timeline") -> Timeline:
     if isinstance(fps, bool) or not isinstance(fps, (int, float)) or not math.isfinite(fps) or not 0 < fps <= MAX_FPS:
         raise ModelFormatError(f"{where}: field 'fps' must be a number in (0, {MAX_FPS}]")
     start = obj.get("frame_start", 1)
-    if not isinstance(start, int) or isinstance(start, bool):
-        raise ModelFormatError(f"{where}: field 'frame_start' must be an integer")
+    if not isinstance(start, int) or isinstance(start, bool) or abs(start) > MAX_FRAME:
+        raise ModelFormatError(f"{where}: field 'frame_start' must be an integer within ±{MAX_FRAME}")
     items = obj.get("keys")
     if not isinstance(items, list) or not items:
         raise ModelFormatError(f"{where}: field 'keys' must be a non-empty list")
@@ -83,13 +87,13 @@ def timeline_from_json(obj, where="timeline") -> Timeline:
             raise ModelFormatError(f"{at} needs exactly one of 'time' (seconds) or 'frame'")
         if "time" in k:
             t = k["time"]
-            if isinstance(t, bool) or not isinstance(t, (int, float)) or not math.isfinite(t) or t < 0:
-                raise ModelFormatError(f"{at}: field 'time' must be a number of seconds >= 0")
+            if isinstance(t, bool) or not isinstance(t, (int, float)) or not 0 <= t <= MAX_SECONDS:
+                raise ModelFormatError(f"{at}: field 'time' must be a number of seconds in [0, {MAX_SECONDS}]")
             frame = start + int(round(t * fps))
         else:
             frame = k["frame"]
-            if not isinstance(frame, int) or isinstance(frame, bool):
-                raise ModelFormatError(f"{at}: field 'frame' must be an integer")
+            if not isinstance(frame, int) or isinstance(frame, bool) or abs(frame) > MAX_FRAME:
+                raise ModelFormatError(f"{at}: field 'frame' must be an integer within ±{MAX_FRAME}")
         aus = k.get("aus", {})
         if not isinstance(aus, dict):
             raise ModelFormatError(f"{at}: field 'aus' must be an object of AU → weight")
@@ -98,7 +102,7 @@ def timeline_from_json(obj, where="timeline") -> Timeline:
         except PdeFaceError as exc:
             raise ModelFormatError(f"{at}: field 'aus': {exc}") from None
         presets = k.get("presets", {})
-        if isinstance(presets, list):
+        if isinstance(presets, list) and all(isinstance(p, str) for p in presets):
             presets = {p: 1.0 for p in presets}
         if not isinstance(presets, dict) or not all(isinstance(p, str) for p in presets):
             raise ModelFormatError(f"{at}: field 'presets' must be a list of names or an object name → weight")
@@ -107,7 +111,7 @@ def timeline_from_json(obj, where="timeline") -> Timeline:
         except PdeFaceError as exc:
             raise ModelFormatError(f"{at}: field 'presets': {exc}") from None
         interp = k.get("interpolation", "bezier")
-        if interp not in INTERPOLATIONS:
+        if not isinstance(interp, str) or interp not in INTERPOLATIONS:
             raise ModelFormatError(f"{at}: field 'interpolation' must be one of {', '.join(INTERPOLATIONS)}")
         if keys and frame <= keys[-1].frame:
             raise ModelFormatError(f"{at}: frame {frame} is not after the previous key's frame {keys[-1].frame}")

@@ -35,13 +35,11 @@ import numpy as np
 from ..au.ict import ARKIT_TO_AU
 from ..errors import ModelFormatError, PdeFaceError
 from ..facs import clamp_weight, clamp_weights, parse_au_key, split_au_key
-from ..io.files import open_file, read_lines
+from ..io.files import MAX_DIGITS, open_file, read_lines
 from ..stream.wire import PacketError, parse_packet
-from .timeline import MAX_FPS, Key, Timeline
+from .timeline import MAX_FPS, MAX_SECONDS, Key, Timeline
 
 FORMATS = ("openface", "pyfeat", "livelink", "fas")
-#: The longest recording read (a day): time stamps beyond it are a broken file, not a take.
-MAX_SECONDS = 24 * 3600
 
 _LLF_META = {"timecode", "blendshapecount"}
 
@@ -58,7 +56,7 @@ class ImportResult:
 
 
 def detect_format(path) -> str:
-    with open_file(path, encoding="utf-8-sig", errors="replace") as fh:
+    with open_file(path, encoding="utf-8-sig", errors="replace", kind="table") as fh:
         first = ""
         for line in fh:
             if line.strip() and not line.lstrip().startswith("#"):
@@ -78,6 +76,10 @@ def detect_format(path) -> str:
 
 
 def _number(text, path, lineno, column):
+    digits = len(text) > MAX_DIGITS and sum(c.isdigit() for c in re.split("[.eE]", text)[0])
+    if digits > MAX_DIGITS:  # the whole part's digits: as in JSON, no value in these files needs more
+        raise ModelFormatError(f"{path}:{lineno}: column {column!r} has a number of {digits} digits "
+                               f"(at most {MAX_DIGITS})")
     try:
         v = float(text)
     except ValueError:
@@ -88,7 +90,7 @@ def _number(text, path, lineno, column):
 
 
 def _rows(path):
-    with open_file(path, encoding="utf-8-sig", errors="replace", newline="") as fh:
+    with open_file(path, encoding="utf-8-sig", errors="replace", newline="", kind="table") as fh:
         reader = csv.reader(fh)
         header = None
         while True:
@@ -265,8 +267,8 @@ def _frame(seconds, fps):
 
 def _keys_fas(path, fps, hold):
 
-    if not hold > 0:
-        raise ModelFormatError(f"hold must be > 0 seconds, got {hold}")
+    if not 0 < hold <= MAX_SECONDS:
+        raise ModelFormatError(f"hold must be in (0, {MAX_SECONDS}] seconds, got {hold}")
     keys, unknown = [Key(1, {}, {}, "linear")], set()
     blend = min(0.25, hold / 2)  # the FAS player's 250 ms between expressions
     t = 0.0
@@ -289,6 +291,9 @@ def _keys_fas(path, fps, hold):
             keys.append(Key(f_out, dict(p.weights), {}, "linear"))
         t += hold
         n += 1
+        if t > MAX_SECONDS:
+            raise ModelFormatError(f"{path}:{lineno}: the AU sets held {hold} s each last past "
+                                   f"{MAX_SECONDS // 3600} hours")
     if n == 0:
         raise ModelFormatError(f"{path}: no AU sets in the file")
     keys.append(Key(keys[-1].frame + max(1, _frame(blend, fps) - 1), {}, {}, "linear"))
@@ -299,6 +304,7 @@ def smooth(values: np.ndarray, window: int) -> np.ndarray:
     """Centred moving average over ``window`` samples along axis 0 (edges use what is there)."""
     if window <= 1 or values.size == 0:
         return values
+    window = min(window, 2 * len(values) + 1)  # any wider window averages everything, as this one does
     kernel = np.ones(window)
     pad = window // 2
     num = np.apply_along_axis(lambda c: np.convolve(c, kernel, mode="full")[pad:pad + len(c)], 0, values)
@@ -314,6 +320,8 @@ def reduce_keys(frames: np.ndarray, values: np.ndarray, tolerance: float) -> np.
     n = len(frames)
     if n <= 2 or tolerance <= 0:
         return np.arange(n)
+    if values.shape[1] == 0:  # no channel: the first and last keys say everything
+        return np.array([0, n - 1])
     keep = np.zeros(n, bool)
     keep[[0, n - 1]] = True
     stack = [(0, n - 1)]
@@ -356,6 +364,14 @@ def import_au(path, fmt="auto", fps=30.0, hold=0.5, smooth_window=1, reduce_tole
     """
     if not 0 < fps <= MAX_FPS:
         raise ModelFormatError(f"fps must be in (0, {MAX_FPS}], got {fps}")
+    if not 1 <= smooth_window < math.inf:
+        raise ModelFormatError(f"the smoothing window must be a whole number of samples >= 1, got {smooth_window}")
+    if not 0 <= reduce_tolerance < math.inf:
+        raise ModelFormatError(f"the reduction tolerance must be a weight >= 0, got {reduce_tolerance}")
+    if not -math.inf < min_confidence < math.inf:
+        raise ModelFormatError(f"the minimum confidence must be a number, got {min_confidence}")
+    if capture_fps is not None and not 0 < capture_fps <= MAX_FPS:
+        raise ModelFormatError(f"the capture rate must be in (0, {MAX_FPS}] fps, got {capture_fps}")
     fmt = detect_format(path) if fmt == "auto" else fmt
     if fmt not in FORMATS:
         raise ModelFormatError(f"unknown format {fmt!r}; use one of {', '.join(FORMATS)}")

@@ -33,8 +33,9 @@ import numpy as np
 from ..errors import ModelFormatError, PdeFaceError
 from ..facs import SIDES, action_unit
 from ..io.codec import decode_residual, encode_residual
-from ..io.files import parse_json, read_bytes, write_bytes
+from ..io.files import inflate, parse_json, read_bytes, write_bytes
 from ..surface.fourier import fit_fourier
+from ..surface.frame import FACE_REACH_MM
 from ..surface.layout import check_sizes
 from .descriptor import Descriptor
 
@@ -115,7 +116,16 @@ def _array(value, shape, where, name):
         raise ModelFormatError(f"{where}: field {name!r} has shape {a.shape}, expected {shape}")
     if not np.isfinite(a).all():
         raise ModelFormatError(f"{where}: field {name!r} contains NaN or inf")
+    check_reach(a, where, name)
     return a
+
+
+def check_reach(values, where, name):
+    """Refuse point changes (mm) larger than a face (:data:`pdeface.surface.frame.FACE_REACH_MM`)."""
+    top = float(np.abs(values).max(initial=0))
+    if top > FACE_REACH_MM:
+        raise ModelFormatError(f"{where}: field {name!r} holds {top:.3g} mm; no face moves more than "
+                               f"{FACE_REACH_MM:g} mm")
 
 
 def _curves(value, K, where):
@@ -152,13 +162,7 @@ def descriptor_from_bytes(data: bytes, where="descriptor") -> Descriptor:
     """Read the compact binary form; errors name the problem."""
     if data[:8] != MAGIC:
         raise ModelFormatError(f"{where}: not a pdeface binary descriptor (bad magic)")
-    inflate = zlib.decompressobj()
-    try:  # inflated with a cap: a small file must not claim gigabytes
-        raw = inflate.decompress(data[8:], MAX_INFLATED)
-    except zlib.error:
-        raise ModelFormatError(f"{where}: body is corrupt (zlib)") from None
-    if inflate.unconsumed_tail:
-        raise ModelFormatError(f"{where}: body inflates past {MAX_INFLATED // 2**20} MiB; no descriptor is that large")
+    raw = inflate(data[8:], f"{where}: body", limit=MAX_INFLATED)
     if len(raw) < 4:
         raise ModelFormatError(f"{where}: truncated")
     (n,) = struct.unpack("<I", raw[:4])
@@ -176,6 +180,7 @@ def descriptor_from_bytes(data: bytes, where="descriptor") -> Descriptor:
         raise ModelFormatError(f"{where}: field 'curves' has indices outside 0..{K - 1} or repeats")
     codes = np.frombuffer(body, "<i2", 3 * m * J, m).reshape(3, J, m).transpose(0, 2, 1)
     points = decode_residual(codes, step, order=2)
+    check_reach(points, where, "point_step")
     C, R = fit_fourier(points, N) if m else (np.zeros((0, N + 1, 3)), np.zeros((0, J, 3)))
     return Descriptor(au, side, curves, C, R, (K, J, N), name=str(meta.get("name", "")),
                       source=str(meta.get("source", "")), notice=str(meta.get("notice", "")), extra=extra)

@@ -58,7 +58,6 @@ from __future__ import annotations
 import io
 import json
 import os
-import zipfile
 
 import numpy as np
 
@@ -72,19 +71,17 @@ from ..io.codec import (
     from_byte_planes,
     to_byte_planes,
 )
-from ..io.files import parse_json, read_bytes, write_bytes
+from ..io.files import check_archive, parse_json, read_bytes, write_bytes
 from ..landmark_scheme import FEATURE_NAMES
 from ..surface.frame import UNITS_MM, FaceFrame
 from ..surface.layout import CurveLayout, check_sizes
 from ..surface.model import KEPT_LANDMARKS, FaceModel
 from ..surface.sampling import known_resolution, remember_resolution
-from .descriptorfile import pack_descriptors, unpack_descriptors
+from .descriptorfile import check_reach, pack_descriptors, unpack_descriptors
 
 FORMAT = "pdeface.face"
 LANDMARK_STEP_MM = 0.1
 VERSION = 3
-#: The most a model file's arrays may inflate to (the bundled face with 63 descriptors: under 1 MiB).
-MAX_INFLATED = 64 * 2**20
 
 
 def _member(z, name, path):
@@ -156,25 +153,13 @@ def load_model(path, where=None) -> FaceModel:
     path_arg, path = path, (where or path)
     data = read_bytes(path_arg) if isinstance(path_arg, (str, os.PathLike)) else path_arg.read()
     try:
-        _check_members(data, path)
+        check_archive(data, path, "pdeface model")  # the bundled face with 63 descriptors inflates to under 1 MiB
         return _read_model(io.BytesIO(data), path)
     except PdeFaceError:
         raise
     except Exception as exc:  # noqa: BLE001 - a damaged archive or array header raises many kinds; all mean one thing
         raise ModelFormatError(f"{path}: not a valid pdeface model file ({type(exc).__name__}: "
                                f"{str(exc)[:80]})") from None
-
-
-def _check_members(data: bytes, path):
-    """Refuse an archive whose members would inflate past :data:`MAX_INFLATED` (before inflating any)."""
-    try:
-        with zipfile.ZipFile(io.BytesIO(data)) as zf:
-            total = sum(info.file_size for info in zf.infolist())
-    except zipfile.BadZipFile as exc:
-        raise ModelFormatError(f"{path}: not a pdeface model file ({exc})") from None
-    if total > MAX_INFLATED:
-        raise ModelFormatError(f"{path}: its arrays claim {total / 2**20:.0f} MiB; a face model is far smaller "
-                               f"(limit {MAX_INFLATED // 2**20} MiB)")
 
 
 def _landmarks(entry, path) -> np.ndarray:
@@ -188,6 +173,7 @@ def _landmarks(entry, path) -> np.ndarray:
     if (idx.ndim != 1 or codes.shape != (len(idx), 3) or not len(idx) or idx.min() < 0 or idx.max() > 67
             or not step > 0 or not np.isfinite(codes).all()):
         raise ModelFormatError(f"{path}: meta 'landmarks' is malformed (indices 0-67, one finite point each)")
+    check_reach(codes * step, path, "landmarks")
     out = np.full((68, 3), np.nan)
     out[idx] = codes * step
     return out
@@ -247,6 +233,13 @@ def _read_model(fileobj, path) -> FaceModel:
         for name, arr in (("knots", knots), ("coefficients", coef), ("residual", res), ("frame", M), ("layout", layout_arr)):
             if not np.isfinite(arr).all():
                 raise ModelFormatError(f"{path}: field {name!r} contains NaN or inf")
+        for name, arr in (("coefficients", coef), ("residual", res), ("features", feats)):
+            check_reach(arr, path, name)
+        for name in ("a", "w"):  # the PDE's smoothing and its weight: positive numbers (w: None, derived from a)
+            v = meta.get(name, 1.0)
+            if not (v is None and name == "w") and (isinstance(v, bool) or not isinstance(v, (int, float))
+                                                    or not 0 < v < 1e6):
+                raise ModelFormatError(f"{path}: meta {name!r} must be a positive number, got {str(v)[:20]!r}")
         scale = float(np.cbrt(np.linalg.det(M[:3, :3])))
         if not scale > 0:
             raise ModelFormatError(f"{path}: field 'frame' is not a proper rotation and scale")

@@ -29,7 +29,7 @@ import numpy as np
 
 from ..assets import GENERIC_FDTS, asset_path
 from ..errors import ModelFormatError, PdeFaceError
-from ..io.files import parse_json, read_bytes, write_bytes
+from ..io.files import MAX_BYTES, inflate, parse_json, read_bytes, write_bytes
 from .quadratic import MODELS, PARAMETERS
 from .regions import N_REGIONS
 
@@ -192,15 +192,11 @@ def parse_fdts(data, where="FDT file") -> list:
 
 def read_fdts(path) -> list:
     """Every FDT in a ``.fdt.json`` file or bundle (``.gz``: gzip-compressed)."""
-    import gzip
-
-
     data = read_bytes(path)
     if str(path).endswith(".gz"):
-        try:
-            data = gzip.decompress(data)
-        except (OSError, EOFError) as exc:
-            raise ModelFormatError(f"{path}: not a gzip file ({exc})") from None
+        if data[:2] != b"\x1f\x8b":
+            raise ModelFormatError(f"{path}: not a gzip file")
+        data = inflate(data, path, wbits=31, limit=MAX_BYTES["json"])  # capped, as the JSON file itself is
     return parse_fdts(parse_json(data, str(path)), str(path))
 
 

@@ -5,29 +5,100 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import stat
 import tempfile
 
 from ..errors import FileError, ModelFormatError
 
+#: The largest file of each kind pdeface reads (bytes), checked before reading: a mesh (OBJ, PLY, glTF), a
+#: table (tracker CSVs, FAS and stream text: hours of frames), an archive (models, ``.pdd``, ``.npz``,
+#: ``.gz``; and what one inflates to, see :func:`inflate`) and JSON (presets, timelines, landmarks, maps, rules).
+MAX_BYTES = {"mesh": 1 << 30, "table": 256 << 20, "archive": 64 << 20, "json": 64 << 20}
+_KIND_OF_EXT = {".obj": "mesh", ".ply": "mesh", ".glb": "mesh", ".gltf": "mesh", ".csv": "table", ".txt": "table",
+                ".npz": "archive", ".pdd": "archive", ".gz": "archive"}
+#: The most digits an integer in any of pdeface's text formats (JSON, CSV, PLY) may have: no count, index or
+#: frame in them needs more, and Python's int() of thousands of digits is slow or refused.
+MAX_DIGITS = 15
 
-def open_file(path, mode="r", error=ModelFormatError, **kwargs):
-    """``open(path, mode, **kwargs)``; a failure raises ``error`` (a PdeFaceError subclass) naming the file."""
+
+def file_kind(path) -> str:
+    """The kind of file (a key of :data:`MAX_BYTES`) a path's extension says; JSON for any other."""
+    return _KIND_OF_EXT.get(os.path.splitext(str(path))[1].lower(), "json")
+
+
+def open_file(path, mode="r", error=ModelFormatError, kind=None, **kwargs):
+    """``open(path, mode, **kwargs)``; a failure raises ``error`` (a PdeFaceError subclass) naming the file.
+
+    Opened for reading, the file must be a regular file (a device, FIFO or folder is refused before it is
+    opened: it may never end) no larger than ``MAX_BYTES[kind]`` (``kind`` by default from the extension,
+    see :func:`file_kind`).
+    """
+    if not any(c in mode for c in "wax+"):
+        check_readable(path, error, kind)
     try:
         return open(path, mode, **kwargs)
     except OSError as exc:
         raise error(f"{path}: cannot open ({exc.strerror})") from None
 
 
-def read_bytes(path, error=ModelFormatError) -> bytes:
-    """A whole file's bytes (see :func:`open_file`)."""
-    with open_file(path, "rb", error) as fh:
-        return fh.read()
+def check_readable(path, error=ModelFormatError, kind=None) -> int:
+    """Refuse a path that is not a regular file, or is larger than ``MAX_BYTES[kind]``; returns its size."""
+    try:
+        st = os.stat(path)
+    except (OSError, ValueError) as exc:
+        raise error(f"{path}: cannot open ({getattr(exc, 'strerror', None) or exc})") from None
+    if stat.S_ISDIR(st.st_mode):
+        raise error(f"{path}: cannot open (a folder, not a file)")
+    if not stat.S_ISREG(st.st_mode):
+        raise error(f"{path}: not a regular file (a device, pipe or socket has no end to read to)")
+    kind = kind or file_kind(path)
+    if st.st_size > MAX_BYTES[kind]:
+        raise error(f"{path}: {st.st_size / 2**20:.0f} MiB is too large for a {kind} file "
+                    f"(limit {MAX_BYTES[kind] >> 20} MiB)")
+    return st.st_size
 
 
-def read_lines(path, error=ModelFormatError) -> list:
-    """A UTF-8 text file's lines (undecodable bytes replaced; see :func:`open_file`)."""
-    with open_file(path, "r", error, encoding="utf-8", errors="replace") as fh:
-        return fh.read().splitlines()
+def read_bytes(path, error=ModelFormatError, kind=None) -> bytes:
+    """A whole file's bytes, at most ``MAX_BYTES[kind]`` (see :func:`open_file`)."""
+    kind = kind or file_kind(path)
+    with open_file(path, "rb", error, kind) as fh:
+        data = fh.read(MAX_BYTES[kind] + 1)  # a file growing while read is cut off too
+    if len(data) > MAX_BYTES[kind]:
+        raise error(f"{path}: larger than a {kind} file may be (limit {MAX_BYTES[kind] >> 20} MiB)")
+    return data
+
+
+def read_lines(path, error=ModelFormatError, kind="table") -> list:
+    """A UTF-8 text file's lines (undecodable bytes replaced; see :func:`read_bytes`)."""
+    return read_bytes(path, error, kind).decode("utf-8", "replace").splitlines()
+
+
+def inflate(data: bytes, where, error=ModelFormatError, wbits=15, limit=MAX_BYTES["archive"]) -> bytes:
+    """Inflate zlib (``wbits`` 15) or gzip (31) ``data``, refusing output past ``limit`` bytes (a small file
+    must not claim gigabytes) and a corrupt stream, naming ``where``."""
+    import zlib
+
+    stream = zlib.decompressobj(wbits)
+    try:
+        raw = stream.decompress(data, limit)
+    except zlib.error:
+        raise error(f"{where}: compressed data is corrupt") from None
+    if stream.unconsumed_tail:
+        raise error(f"{where}: inflates past {limit >> 20} MiB; no pdeface file is that large")
+    if not stream.eof:
+        raise error(f"{where}: compressed data is truncated")
+    return raw
+
+
+def parse_int(text, where, error=ModelFormatError) -> int:
+    """An integer written in text, of at most :data:`MAX_DIGITS` digits."""
+    s = str(text).strip()
+    if len(s.lstrip("+-")) > MAX_DIGITS:
+        raise error(f"{where}: integer of {len(s.lstrip('+-'))} digits (at most {MAX_DIGITS})")
+    try:
+        return int(s)
+    except ValueError:
+        raise error(f"{where}: not an integer: {s[:20]!r}") from None
 
 
 def parse_json(text, where="JSON", error=ModelFormatError):
@@ -45,29 +116,50 @@ def parse_json(text, where="JSON", error=ModelFormatError):
 
 
 def _json_int(text: str) -> int:
-    """A JSON integer; one of more than 15 digits (no count, index or frame in pdeface's files) is refused."""
-    if len(text.lstrip("-")) > 15:
+    """A JSON integer; one of more than :data:`MAX_DIGITS` digits is refused."""
+    if len(text.lstrip("-")) > MAX_DIGITS:
         raise ValueError(f"integer of {len(text.lstrip('-'))} digits")
     return int(text)
 
 
 def load_json(path, error=ModelFormatError):
-    """Parse a JSON file; ``error`` names the file and line of a problem."""
-    return parse_json(read_bytes(path, error), str(path), error)
+    """Parse a JSON file (at most ``MAX_BYTES["json"]``); ``error`` names the file and line of a problem."""
+    return parse_json(read_bytes(path, error, "json"), str(path), error)
+
+
+def check_archive(data: bytes, where, what="pdeface", error=ModelFormatError) -> None:
+    """Refuse a zip archive (``.npz``, ``what`` names its kind) whose members claim more than
+    ``MAX_BYTES["archive"]`` inflated (before inflating any), or that is no zip archive."""
+    import io
+    import zipfile
+
+    try:
+        with zipfile.ZipFile(io.BytesIO(data)) as zf:
+            total = sum(info.file_size for info in zf.infolist())
+    except (zipfile.BadZipFile, ValueError, OSError, EOFError) as exc:
+        raise error(f"{where}: not a {what} file ({str(exc)[:80]})") from None
+    if total > MAX_BYTES["archive"]:
+        raise error(f"{where}: its arrays claim {total / 2**20:.0f} MiB; a {what} file is far smaller "
+                    f"(limit {MAX_BYTES['archive'] >> 20} MiB)")
 
 
 def load_npz(path, fmt: str, what: str) -> dict:
     """The arrays of a pdeface ``.npz`` file whose ``format`` member is ``fmt`` (``what`` names the kind
-    of file in the errors), read without pickles."""
+    of file in the errors), read without pickles, its size and what it inflates to capped
+    (:func:`check_archive`)."""
+    import io
+
     import numpy as np
 
+    if not os.path.exists(path):
+        raise ModelFormatError(f"{path}: {what} file not found")
+    data = read_bytes(path, ModelFormatError, "archive")
+    check_archive(data, path, what)
     try:
-        with np.load(path, allow_pickle=False) as f:
+        with np.load(io.BytesIO(data), allow_pickle=False) as f:
             data = {k: f[k] for k in f.files}
-    except FileNotFoundError:
-        raise ModelFormatError(f"{path}: {what} file not found") from None
-    except (OSError, ValueError) as exc:
-        raise ModelFormatError(f"{path}: not a {what} file ({exc})") from None
+    except Exception as exc:  # noqa: BLE001 - a damaged member raises zlib, zip, value or OS errors: all mean one thing
+        raise ModelFormatError(f"{path}: not a {what} file ({type(exc).__name__}: {str(exc)[:80]})") from None
     if str(data.get("format", "")) != fmt:
         raise ModelFormatError(f"{path}: not a pdeface {what} file (format {fmt!r})")
     return data

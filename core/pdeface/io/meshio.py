@@ -17,7 +17,7 @@ import numpy as np
 
 from ..errors import MeshError
 from ..mesh import Mesh
-from .files import atomic_open, open_file, read_bytes
+from .files import MAX_DIGITS, atomic_open, open_file, read_bytes
 
 #: Mesh file extensions :func:`read_mesh` reads, and those :func:`write_mesh` writes.
 READ_FORMATS = (".obj", ".ply", ".glb", ".gltf")
@@ -249,11 +249,11 @@ def read_ply(path) -> Mesh:
         if not p:
             continue
         if p[0] == "format":
-            fmt = p[1]
+            fmt = p[1] if len(p) > 1 else None
         elif p[0] == "element":
-            if len(p) != 3 or not p[2].isdigit():
+            if len(p) != 3 or not (p[2].isascii() and p[2].isdigit()):
                 raise MeshError(f"{path}:{lineno}: 'element NAME COUNT' expected, got {line[:60]!r}")
-            if int(p[2]) > len(data):  # every element takes at least a byte: checked before any allocation
+            if len(p[2]) > MAX_DIGITS or int(p[2]) > len(data):  # every element takes at least a byte: checked before any allocation
                 raise MeshError(f"{path}:{lineno}: {p[2][:20]} {p[1][:20]} elements claimed in {len(data)} bytes")
             elements.append([p[1], int(p[2]), []])
         elif p[0] == "property":
@@ -263,14 +263,14 @@ def read_ply(path) -> Mesh:
                 raise MeshError(f"{path}:{lineno}: incomplete property {line[:60]!r}")
             if p[1] == "list":
                 if p[2] not in _PLY_TYPES or p[3] not in _PLY_TYPES:
-                    raise MeshError(f"{path}:{lineno}: unknown PLY type in {line!r}")
+                    raise MeshError(f"{path}:{lineno}: unknown PLY type in {line[:60]!r}")
                 elements[-1][2].append((p[4], "list", _PLY_TYPES[p[2]], _PLY_TYPES[p[3]]))
             else:
                 if p[1] not in _PLY_TYPES:
-                    raise MeshError(f"{path}:{lineno}: unknown PLY type {p[1]!r}")
+                    raise MeshError(f"{path}:{lineno}: unknown PLY type {p[1][:20]!r}")
                 elements[-1][2].append((p[2], _PLY_TYPES[p[1]]))
     if fmt not in ("ascii", "binary_little_endian", "binary_big_endian"):
-        raise MeshError(f"{path}: unknown PLY format {fmt!r}")
+        raise MeshError(f"{path}: unknown PLY format {fmt and fmt[:20]!r}")
     values = {}
     if fmt == "ascii":
         tokens = body.decode("ascii", "replace").split()
@@ -283,7 +283,7 @@ def read_ply(path) -> Mesh:
                     for prop in props:
                         if prop[1] == "list":
                             n = int(tokens[pos]); pos += 1
-                            if pos + n > len(tokens):
+                            if not 0 <= n <= len(tokens) - pos:
                                 raise IndexError
                             row.append([float(t) for t in tokens[pos:pos + n]]); pos += n
                         else:
@@ -310,6 +310,8 @@ def read_ply(path) -> Mesh:
                             if prop[1] == "list":
                                 ct, it = np.dtype(order + prop[2]), np.dtype(order + prop[3])
                                 n = int(np.frombuffer(body, ct, 1, off)[0]); off += ct.itemsize
+                                if not 0 <= n <= len(body) - off:
+                                    raise ValueError
                                 row.append(np.frombuffer(body, it, n, off).tolist()); off += it.itemsize * n
                             else:
                                 t = np.dtype(order + prop[1])
@@ -324,6 +326,8 @@ def read_ply(path) -> Mesh:
     names = [p[0] for p in props]
     if not {"x", "y", "z"} <= set(names):
         raise MeshError(f"{path}: vertex element lacks x, y, z")
+    if any(p[1] == "list" for p in props):  # x, y, z and the UVs are numbers; a list of them is no vertex
+        raise MeshError(f"{path}: vertex properties must be numbers, not lists")
     if isinstance(rows, np.ndarray):
         with np.errstate(invalid="ignore"):  # NaN/inf coordinates are refused below, naming the file
             V = np.stack([rows["x"], rows["y"], rows["z"]], 1).astype(np.float64)
@@ -345,7 +349,10 @@ def read_ply(path) -> Mesh:
     if not polys:
         raise MeshError(f"{path}: no faces")
     counts = np.array([len(p) for p in polys], dtype=np.int64)
-    idx = np.array([int(i) for p in polys for i in p], dtype=np.int64)
+    flat = np.array([i for p in polys for i in p], dtype=np.float64)
+    if not (np.isfinite(flat).all() and (flat == np.round(flat)).all() and np.abs(flat).max(initial=0) < 2**62):
+        raise MeshError(f"{path}: face vertex indices must be whole numbers (NaN, inf or fractions found)")
+    idx = flat.astype(np.int64)
     mesh = Mesh(V, counts, idx)
     if UV is not None:
         mesh.uvs, mesh.face_uv_indices = UV, idx.copy()

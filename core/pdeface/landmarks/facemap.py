@@ -28,6 +28,7 @@ import numpy as np
 from ..errors import LandmarkError
 from ..geometry import similarity
 from ..io.files import load_json
+from ..surface.frame import FACE_REACH_MM
 
 MAP_FORMAT = "pdeface.landmark-map"
 MAP_VERSION = 1
@@ -73,10 +74,10 @@ def parse_map(data, name="landmark map") -> LandmarkMap:
     if not isinstance(data, dict) or data.get("format") != MAP_FORMAT:
         raise LandmarkError(f"{name}: not a {MAP_FORMAT} file")
     if data.get("version") != MAP_VERSION:
-        raise LandmarkError(f"{name}: version {data.get('version')!r} is not supported (expected {MAP_VERSION})")
+        raise LandmarkError(f"{name}: version {str(data.get('version'))[:20]!r} is not supported (expected {MAP_VERSION})")
     try:
         template = np.array(data.get("template"), np.float64)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         template = np.zeros((0,))
     try:
         rows = data["landmarks"]
@@ -90,7 +91,7 @@ def parse_map(data, name="landmark map") -> LandmarkMap:
             if i.shape != v.shape or i.ndim != 1 or len(i) == 0:
                 raise LandmarkError(f"{name}: landmark {j} needs as many weights as indices")
             idx[j, :len(i)], w[j, :len(v)] = i, v
-    except (KeyError, TypeError, ValueError) as exc:
+    except (KeyError, TypeError, ValueError, OverflowError) as exc:
         if isinstance(exc, LandmarkError):
             raise
         raise LandmarkError(f"{name}: malformed ({exc})") from None
@@ -98,6 +99,8 @@ def parse_map(data, name="landmark map") -> LandmarkMap:
         raise LandmarkError(f"{name}: 'template' must be 'points' rows of [x, y, z]")
     if not (np.isfinite(template).all() and np.isfinite(w).all()):
         raise LandmarkError(f"{name}: NaN or inf in the map")
+    if np.abs(template).max(initial=0) > FACE_REACH_MM or np.abs(w).max(initial=0) > 1e6:
+        raise LandmarkError(f"{name}: 'template' points lie past {FACE_REACH_MM:g} mm, or weights are absurd")
     if idx.min() < 0 or idx.max() >= len(template):
         raise LandmarkError(f"{name}: indices must be face-mesh points 0-{len(template) - 1}")
     if np.abs(w.sum(1) - 1).max() > 1e-4:
@@ -110,12 +113,15 @@ def parse_map(data, name="landmark map") -> LandmarkMap:
     if mirror is not None:
         try:
             mirror = np.array(mirror, np.int64)
-        except (TypeError, ValueError):
+        except (TypeError, ValueError, OverflowError):
             mirror = np.zeros(0, np.int64)
         n = len(template)
         if mirror.shape != (n,) or mirror.min() < 0 or mirror.max() >= n or (mirror[mirror] != np.arange(n)).any():
             raise LandmarkError(f"{name}: 'mirror' must pair the {n} face-mesh points (each with its mirror image)")
-    return LandmarkMap(idx, w, template, list(data.get("trained_on", [])), str(data.get("notice", "")),
+    trained_on = data.get("trained_on", [])
+    if not isinstance(trained_on, list) or not all(isinstance(t, str) for t in trained_on):
+        raise LandmarkError(f"{name}: 'trained_on' must be a list of names")
+    return LandmarkMap(idx, w, template, trained_on, str(data.get("notice", "")),
                        {g: float(v) for g, v in spread.items()}, mirror)
 
 

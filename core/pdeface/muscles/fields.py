@@ -26,6 +26,7 @@ import numpy as np
 from ..au.retarget import face_size
 from ..errors import ModelFormatError
 from ..io.files import load_npz
+from ..surface.frame import FACE_REACH_MM
 from .placement import BOUNDS, MUSCLE_NAMES
 
 FORMAT = "pdeface.muscle-fields"
@@ -139,13 +140,18 @@ def load_fields(path) -> LearnedFields:
     """Read and check a muscle-fields file."""
     path = Path(path)
     data = load_npz(path, FORMAT, "muscle fields")
-    if [str(n) for n in data.get("muscles", [])] != list(MUSCLE_NAMES):
+    if [str(n) for n in np.atleast_1d(data.get("muscles", []))] != list(MUSCLE_NAMES):
         raise ModelFormatError(f"{path}: 'muscles' must list the 24 muscles in order")
-    C = np.asarray(data.get("corrections", np.zeros(0)), np.float64)
-    if C.ndim != 4 or C.shape[0] != len(MUSCLE_NAMES) or C.shape[3] != 3 or not np.isfinite(C).all():
-        raise ModelFormatError(f"{path}: 'corrections' must be finite, shaped (24, curves, points, 3); "
+    try:
+        C = np.asarray(data.get("corrections", np.zeros(0)), np.float64)
+        size = np.asarray(data.get("face_size", np.zeros(0)), np.float64)
+    except (TypeError, ValueError):
+        raise ModelFormatError(f"{path}: 'corrections' and 'face_size' must be numbers") from None
+    if (C.ndim != 4 or C.shape[0] != len(MUSCLE_NAMES) or C.shape[3] != 3 or not np.isfinite(C).all()
+            or np.abs(C).max(initial=0) > FACE_REACH_MM):
+        raise ModelFormatError(f"{path}: 'corrections' must be finite (within {FACE_REACH_MM:g} mm), shaped "
+                               "(24, curves, points, 3); "
                                f"got {C.shape}")
-    size = np.asarray(data.get("face_size", np.zeros(0)), np.float64)
     if size.shape != (3,) or not (np.isfinite(size).all() and (size > 0).all()):
         raise ModelFormatError(f"{path}: 'face_size' must be 3 positive numbers (mm)")
     return LearnedFields(C, size, str(data.get("notice", "")))

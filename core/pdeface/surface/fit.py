@@ -11,7 +11,7 @@ import numpy as np
 from ..errors import LandmarkError, MeshError
 from ..mesh import Mesh, butterfly_step, connected_components, seam_welds
 from .fourier import fit_fourier
-from .frame import face_frame, feature_points
+from .frame import FACE_REACH_MM, face_frame, feature_points
 from .grid import grid_faces, surface_grid
 from .layout import DEFAULT_CURVES, place_curves
 from .model import FaceModel
@@ -31,15 +31,17 @@ def skin_vertices(V: np.ndarray, T: np.ndarray, points: np.ndarray) -> np.ndarra
     from scipy.spatial import cKDTree  # scipy is heavy: only fitting and reports need it
 
 
-    rep = seam_welds(V, T)  # a face split along its UV seams is still one piece
+    used = np.unique(T)  # the mesh's size from its triangles: a stray vertex far away must not set it
+    extent = np.ptp(V[used], axis=0) if len(used) else np.zeros(3)
+    rep = seam_welds(V, T, tol=1e-6 * float(np.linalg.norm(extent)))  # split along UV seams: still one piece
     lab = connected_components(len(V), rep[T])[rep]
     sizes = np.bincount(lab)
-    tree = cKDTree(V)
+    tree = cKDTree(V[used])
     dist, _ = tree.query(points)
-    scale = float(np.ptp(V, axis=0).max()) or 1.0
+    scale = float(extent.max()) or 1.0
     labels = set()
     for p, d in zip(points, dist):
-        near = tree.query_ball_point(p, d + 1e-6 * scale)
+        near = used[tree.query_ball_point(p, d + 1e-6 * scale)]
         labels.add(int(lab[max(near, key=lambda i: sizes[lab[i]])]))
     return np.isin(lab, list(labels))
 
@@ -62,6 +64,12 @@ def check_landmarks_on_mesh(V_face, L_face, reach_mm=20.0):
     if dist[worst] > reach_mm:
         raise LandmarkError(f"landmark {worst} lies {dist[worst]:.3g} mm from the mesh (limit {reach_mm:g} mm): "
                             "are these this mesh's landmarks, in its unit?")
+
+
+def reachable_triangles(V_face: np.ndarray, T: np.ndarray) -> np.ndarray:
+    """The triangles whose corners all lie within :data:`FACE_REACH_MM` of the nose tip (face frame)."""
+    near = np.linalg.norm(V_face, axis=1) <= FACE_REACH_MM
+    return T[near[T].all(axis=1)]
 
 
 #: A skin whose median edge is longer than this fraction of the curves' median spacing is read off a
@@ -160,6 +168,9 @@ def fit_face(vertices, triangles, landmarks, unit=None, n_curves=DEFAULT_CURVES,
     Vf = frame.to_face(V)
     Lf = frame.to_face(landmarks)
     check_landmarks_on_mesh(Vf, Lf)
+    T = reachable_triangles(Vf, T)
+    if len(T) == 0:
+        raise MeshError(f"no triangle of the mesh lies within {FACE_REACH_MM:g} mm of the nose tip")
     layout = place_curves(Lf, n_curves, n_points, follow_lips=follow_lips)
     if skin is None:
         skin = skin_triangles(Vf, T, Lf)

@@ -33,6 +33,10 @@ BLENDER_FROM_ICT = np.array([[1.0, 0, 0], [0, 0, -1], [0, 1, 0]])
 EYE_DISTANCE_MM = 63.0
 #: Eye-centre distances a face may have (a small child's to a giant caricature's), in mm.
 EYE_DISTANCE_RANGE_MM = (20.0, 200.0)
+#: No point of a face, and no change of one an AU makes, lies farther than this from the nose tip (face frame,
+#: mm): a fit leaves out triangles beyond it (a vertex an exporter left far away), and models, descriptors and
+#: landmark maps holding values past it are refused (a residual of -6.5e11 would be posed for minutes).
+FACE_REACH_MM = 1000.0
 
 
 
