@@ -121,9 +121,9 @@ class Mesh:
 def vertex_normals(V: np.ndarray, T: np.ndarray) -> np.ndarray:
     """Area-weighted unit vertex normals of a triangle mesh."""
     n = triangle_cross(V, T)
-    out = np.zeros_like(V, dtype=np.float64)
-    for c in range(3):
-        np.add.at(out, T[:, c], n)
+    # bincount sums in input order: corner 0 of every triangle, then 1, then 2 (as np.add.at did, 5x slower).
+    corners = np.asarray(T).T.ravel()
+    out = np.stack([np.bincount(corners, np.tile(n[:, j], 3), minlength=len(V)) for j in range(3)], 1)
     return unit_rows(out)
 
 
