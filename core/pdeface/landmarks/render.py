@@ -132,17 +132,18 @@ def rasterise(V, T, view: View, keep_fragments=False) -> Raster:
     V, T = np.asarray(V, np.float64), np.asarray(T, np.int64)
     n = view.size
     px, py, pz = view.project(V)
-    tx, ty, tz = px[T], py[T], pz[T]
-    x0, y0 = np.maximum(np.ceil(tx.min(1)), 0).astype(np.int64), np.maximum(np.ceil(ty.min(1)), 0).astype(np.int64)
-    x1 = np.minimum(np.floor(tx.max(1)), n - 1).astype(np.int64)
-    y1 = np.minimum(np.floor(ty.max(1)), n - 1).astype(np.int64)
+    # Corners a, b, c of each triangle; np.minimum of columns, as .min(1) over three is several times slower.
+    (ax, bx, cx), (ay, by, cy) = (px[T[:, k]] for k in range(3)), (py[T[:, k]] for k in range(3))
+    x0 = np.maximum(np.ceil(np.minimum(np.minimum(ax, bx), cx)), 0).astype(np.int32)
+    y0 = np.maximum(np.ceil(np.minimum(np.minimum(ay, by), cy)), 0).astype(np.int32)
+    x1 = np.minimum(np.floor(np.maximum(np.maximum(ax, bx), cx)), n - 1).astype(np.int32)
+    y1 = np.minimum(np.floor(np.maximum(np.maximum(ay, by), cy)), n - 1).astype(np.int32)
     # The barycentric weights of (x, y): l0 = (e0x (x - cx) + e0y (y - cy)) / d, l1 likewise, l2 = 1 - l0 - l1.
-    (ax, bx, cx), (ay, by, cy) = tx.T, ty.T
     d = (by - cy) * (ax - cx) + (cx - bx) * (ay - cy)
     width, height = x1 - x0 + 1, y1 - y0 + 1
     ids = np.nonzero((width > 0) & (height > 0) & (np.abs(d) > 1e-12))[0]
     count = width[ids] * height[ids]
-    ends = np.cumsum(count)
+    ends = np.cumsum(count, dtype=np.int64)
     pieces = []
     lo = 0
     while lo < len(ids):
@@ -150,7 +151,7 @@ def rasterise(V, T, view: View, keep_fragments=False) -> Raster:
         hi = max(int(np.searchsorted(ends, (ends[lo - 1] if lo else 0) + _CHUNK, side="right")), lo + 1)
         t = ids[lo:hi]
         c = count[lo:hi]
-        local = np.arange(int(c.sum())) - np.repeat(np.cumsum(c) - c, c)
+        local = np.arange(int(c.sum()), dtype=np.int32) - np.repeat(np.cumsum(c, dtype=np.int32) - c, c)
         ry, rx = np.divmod(local, np.repeat(width[t], c))
         gx, gy = rx + np.repeat(x0[t], c), ry + np.repeat(y0[t], c)
         dx, dy = gx - np.repeat(cx[t], c), gy - np.repeat(cy[t], c)
@@ -160,13 +161,13 @@ def rasterise(V, T, view: View, keep_fragments=False) -> Raster:
         inside = np.nonzero((l0 >= 0) & (l1 >= 0) & (1 - l0 - l1 >= 0))[0]
         tt = np.repeat(t, c)[inside]
         l0, l1 = l0[inside], l1[inside]
-        z = l0 * tz[tt, 0] + l1 * tz[tt, 1] + (1 - l0 - l1) * tz[tt, 2]
+        z = l0 * pz[T[tt, 0]] + l1 * pz[T[tt, 1]] + (1 - l0 - l1) * pz[T[tt, 2]]
         pieces.append((gy[inside] * n + gx[inside], z, tt, l0, l1))
         lo = hi
     if pieces:
         fragments = _Fragments(*(np.concatenate(p) for p in zip(*pieces)))
     else:
-        fragments = _Fragments(np.zeros(0, np.int64), np.zeros(0), np.zeros(0, np.int64), np.zeros(0), np.zeros(0))
+        fragments = _Fragments(np.zeros(0, np.int32), np.zeros(0), np.zeros(0, np.int64), np.zeros(0), np.zeros(0))
     f = fragments
     raster = _resolved(view, f.pix, f.z, f.tri, f.l0, f.l1)
     if keep_fragments:
