@@ -107,14 +107,14 @@ def before_path():
 
 
 #: A fresh process finding the landmarks of one ICT head (cm) from scratch; prints the seconds of the landmark
-#: modules' and MediaPipe's import, the detector's loading, detect itself, and all three.
+#: modules' and MediaPipe's import, the detector's loading, detect itself, all three, and their CPU seconds.
 _COLD = """
 import time
 from contextlib import nullcontext
 from pdeface.assets import load_head, load_head_shapes
 mesh, _ = load_head()
 V, T = mesh.vertices + load_head_shapes()[HEAD], mesh.triangles()[0]
-t = time.perf_counter()
+t, c = time.perf_counter(), time.process_time()
 from pdeface.landmarks.detector import Detector, _mediapipe
 from pdeface.landmarks.pipeline import detect
 if BEFORE:
@@ -127,18 +127,18 @@ with before_path() if BEFORE else nullcontext(), Detector() as det:
     t2 = time.perf_counter()
     detect(V, T, "cm", detector=det)
     t3 = time.perf_counter()
-print(t1 - t, t2 - t1, t3 - t2, t3 - t)
+print(t1 - t, t2 - t1, t3 - t2, t3 - t, time.process_time() - c)
 """
 
 
 def cold_seconds(head, repeat=3):
     """Median seconds, before #35 and now, of a fresh process finding the landmarks of ``head`` (an ICT identity)
-    from scratch, run alternately: ``{"before": {"import", "load", "detect", "total"}, "now": {...}}``."""
-    keys = ("import", "load", "detect", "total")
+    from scratch, run alternately: ``{"before": {"import", "load", "detect", "total", "cpu"}, "now": {...}}``."""
+    keys = ("import", "load", "detect", "total", "cpu")
     runs = {"before": [], "now": []}
     for _ in range(repeat):
         for name, seconds in runs.items():
             code = _COLD.replace("HEAD", repr(head)).replace("BEFORE", str(name == "before"))
             out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
-            seconds.append([float(x) for x in out.stdout.split()[-4:]])
+            seconds.append([float(x) for x in out.stdout.split()[-5:]])
     return {name: dict(zip(keys, np.median(np.array(r), axis=0).tolist())) for name, r in runs.items()}
