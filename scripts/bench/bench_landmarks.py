@@ -1,4 +1,4 @@
-"""Benchmark automatic landmarks (issue #15 targets).
+"""Benchmark automatic landmarks (issue #15 targets; speed: issue #35).
 
 Usage: python -m scripts.bench.bench_landmarks [--heads N] [--json OUT]
 
@@ -10,12 +10,16 @@ Blender's convention (-y front, +z up) with 25° of yaw, in metres:
 - fitting with the found landmarks (from either pose) against ICT's own: the neutral
   fit's mean error (accuracy_report) and the median captured of the retargeted bundled AUs;
 - one held-out head turned 45° about each axis, in ICT's axes (mm) and Blender's (m);
-- a whole-body character in metres of another topology: found, fitted, its errors.
+- a whole-body character in metres of another topology: found, fitted, its errors;
+- speed against the renderer as it was before #35 (:mod:`scripts.bench.landmarks_before`), in the same run:
+  each held-out head found both ways (same landmarks, bit for bit; time ratio), and a fresh process finding
+  one head from scratch (imports, detector, detect) both ways, with the machine's load beside.
 Needs ``pdeface[landmarks]``.
 """
 from __future__ import annotations
 
 import json
+import os
 import time
 from pathlib import Path
 
@@ -33,6 +37,7 @@ from pdeface.surface.frame import BLENDER_FROM_ICT
 from pdeface.surface.report import accuracy_report
 
 from scripts.bench.benchlib import bench_parser, body_character, run_bench
+from scripts.bench.landmarks_before import before_path, cold_seconds
 
 #: The two ways each held-out head is seen: (name, matrix from ICT cm, unit, mm per unit).
 POSES = [("ict-cm", np.eye(3), "cm", 10.0),
@@ -41,6 +46,12 @@ POSES = [("ict-cm", np.eye(3), "cm", 10.0),
 TURNS = {"yaw 45": (0, 45, 0), "yaw -45": (0, -45, 0), "pitch 45": (45, 0, 0), "pitch -45": (-45, 0, 0),
          "roll 45": (0, 0, 45), "yaw+pitch 30": (30, 30, 0)}
 TARGETS = {"inner_median": 1.5, "inner_p95": 4.0, "jaw_median": 5.0, "seconds": 5.0}
+#: Seconds to find the landmarks of the 27k-vertex ICT head (#35): detect alone, and a fresh process from scratch.
+SPEED_TARGET = 1.0
+
+
+def load():
+    return "load " + " ".join(f"{x:.1f}" for x in os.getloadavg())
 
 
 def errors(found, true, mm):
@@ -71,19 +82,26 @@ def main(argv=None):
     nf = len(scan.vertices)
     face = load_face("default")
     out = {"heads": {}, "targets": TARGETS}
-    print(f"== held-out heads ({', '.join(held)}; map trained on {len(m.trained_on)})")
-    print(f"  {'head':12s} {'pose':16s} {'inner med':>9s} {'inner p95':>9s} {'jaw med':>8s} {'s':>5s}  "
-          "least sure group")
+    print(f"== held-out heads ({', '.join(held)}; map trained on {len(m.trained_on)}); s: detect now, "
+          f"before #35 and their ratio, wall clock then CPU (all threads) ({load()})")
+    print(f"  {'head':12s} {'pose':16s} {'inner med':>9s} {'inner p95':>9s} {'jaw med':>8s} {'s':>5s} {'before':>6s} "
+          f"{'ratio':>5s} {'cpu s':>5s} {'before':>6s} {'ratio':>5s}  least sure group")
     with Detector() as det:
+        detect(mesh.vertices, T, "cm", detector=det)  # the first call imports scipy's parts: not timed
         for name in held:
             V = mesh.vertices + shapes[name]
             for pose, M, unit, mm in POSES:
                 Vp = V @ M.T
-                t = time.perf_counter()
+                t, c = time.perf_counter(), time.process_time()
                 found = detect(Vp, T, unit, detector=det)
-                sec = time.perf_counter() - t
+                sec, cpu = time.perf_counter() - t, time.process_time() - c
+                with before_path():
+                    t, c = time.perf_counter(), time.process_time()
+                    was = detect(Vp, T, unit, detector=det)
+                    before, cpu_before = time.perf_counter() - t, time.process_time() - c
                 e = errors(found.points, Vp[lm], mm)
-                e["seconds"] = sec
+                e["seconds"], e["seconds_before"], e["cpu"], e["cpu_before"] = sec, before, cpu, cpu_before
+                e["moved_mm"] = float(np.abs(found.points - was.points).max() * mm)
                 e["confidence"] = found.confidence
                 # The fit only sees landmarks relative to the mesh: the found points taken back to ICT's frame
                 # fit ICT's face region as they would fit the turned head.
@@ -94,10 +112,17 @@ def main(argv=None):
                 out["heads"][f"{name} {pose}"] = e
                 low = min(found.confidence, key=found.confidence.get)
                 print(f"  {name:12s} {pose:16s} {e['inner_median']:9.2f} {e['inner_p95']:9.2f} {e['jaw_median']:8.2f} "
-                      f"{sec:5.2f}  {low} {found.confidence[low]:.2f}", flush=True)
+                      f"{sec:5.2f} {before:6.2f} {sec / before:5.2f} {cpu:5.2f} {cpu_before:6.2f} {cpu / cpu_before:5.2f}  "
+                      f"{low} {found.confidence[low]:.2f}", flush=True)
         rows = list(out["heads"].values())
         worst = {k: max(r[k] for r in rows) for k in ("inner_median", "inner_p95", "jaw_median", "seconds")}
         print("  worst head: " + ", ".join(f"{k} {v:.2f} (target <= {TARGETS[k]})" for k, v in worst.items()))
+        for key, what in (("seconds", "wall clock"), ("cpu", "CPU")):
+            ratios = [r[key] / r[key + "_before"] for r in rows]
+            print(f"  speed, {what}: median {np.median([r[key] for r in rows]):.2f} s per head (27k vertices; target "
+                  f"<= {SPEED_TARGET}), {np.median(ratios):.2f} of the time before #35 (range {min(ratios):.2f}-"
+                  f"{max(ratios):.2f})")
+        print(f"  landmarks moved at most {max(r['moved_mm'] for r in rows):.2g} mm from before's ({load()})")
         fits = rows
         acc_ratio = max(r["fit_mean_mm"] / r["fit_mean_mm_true"] for r in fits)
         cap_drop = max(r["captured_true"] - r["captured"] for r in fits)
@@ -133,6 +158,15 @@ def main(argv=None):
               f"inner median {e['inner_median']:.2f} mm, p95 {e['inner_p95']:.2f}, jaw median {e['jaw_median']:.2f}; "
               f"fitted: {model.layout.n_curves} curves")
         out["body"] = {**e, "seconds": sec, "vertices": len(Vb), "unit": model.frame.unit}
+    print(f"== a fresh process finding {held[0]} (cm) from scratch, before #35 and now (medians of 3, run in turn; "
+          f"{load()})")
+    cold = cold_seconds(held[0])
+    for name, c in cold.items():
+        print(f"  {name:6s}  imports {c['import']:.2f} s, detector loaded {c['load']:.2f} s, detect {c['detect']:.2f} s: "
+              f"{c['total']:.2f} s ({c['cpu']:.2f} s CPU)")
+    print(f"  now / before: {cold['now']['total'] / cold['before']['total']:.2f} wall clock, "
+          f"{cold['now']['cpu'] / cold['before']['cpu']:.2f} CPU (target <= {SPEED_TARGET} s now; {load()})")
+    out["cold"] = cold
     if args.json:
         Path(args.json).write_text(json.dumps(out, indent=2))
 

@@ -22,7 +22,7 @@ from pdeface.landmarks.facemap import (
     robust_similarity,
 )
 from pdeface.landmarks.render import View, back_project, rasterise, shade
-from pdeface.mesh import Mesh
+from pdeface.mesh import Mesh, connected_components
 from pdeface.rigid import rotation_vector_matrix
 from pdeface.surface.frame import BLENDER_FROM_ICT
 
@@ -69,6 +69,51 @@ def test_a_flipped_raster_is_the_mirrored_view_rendered(heads):
     x, y, _ = view.flipped().project(mesh.vertices[:50])
     x0, y0, _ = view.project(mesh.vertices[:50])
     assert np.allclose(x, view.size - 1 - x0) and np.allclose(y, y0)
+
+
+def test_a_subset_drawn_from_one_pass_is_that_subset_rendered(heads):
+    # The skin raster of a frontal view comes from the view's own fragments: the same pixels, triangles and
+    # weights as rendering the skin triangles alone (the two-pass way it was done before).
+    mesh, T, lm, _ = heads
+    V = mesh.vertices
+    labels = connected_components(len(V), T)
+    skin = labels[T[:, 0]] == labels[lm[30]]  # the part the nose tip is on: lashes, eyes, teeth left out
+    assert 0.2 < skin.mean() < 1
+    view = View.looking([0.2, 0.1, 1], [0, 1, 0], V[lm].mean(0), 13.0, 160)
+    once = rasterise(V, T, view, keep_fragments=True)
+    alone = rasterise(V, T[skin], view)
+    drawn = once.showing(skin)
+    assert np.array_equal(drawn.tri, alone.tri) and np.array_equal(drawn.bary, alone.bary)
+    hidden = (once.tri >= 0) & ~skin[np.maximum(once.tri, 0)]  # eyes and lashes in front of the skin
+    assert hidden.sum() > 100 and np.mean(drawn.tri[hidden] >= 0) > 0.9  # the skin behind them shows
+    assert np.array_equal(shade(V, T[skin], drawn), shade(V, T[skin], alone))
+    with pytest.raises(ValueError, match="keep_fragments"):
+        alone.showing(np.ones(skin.sum(), bool))
+
+
+def test_on_a_tie_the_lowest_numbered_triangle_wins(heads):
+    mesh, T, _, _ = heads
+    view = View.looking([0, 0, 1], [0, 1, 0], mesh.vertices.mean(0), 15.0, 96)
+    r = rasterise(mesh.vertices, T, view)
+    twice = rasterise(mesh.vertices, np.concatenate([T, T]), view)  # every triangle drawn again, behind none
+    assert np.array_equal(twice.tri, r.tri) and np.array_equal(twice.bary, r.bary)
+
+
+def test_the_detector_module_loads_its_models_without_matplotlib():
+    """MediaPipe's package imports its drawing utilities (matplotlib) and every other solution; the detector
+    loads its two models without them, and the package is whole for any other code in the process."""
+    code = ("import sys\nfrom pdeface.landmarks import detector\n"
+            "assert 'matplotlib' not in sys.modules and 'mediapipe' not in sys.modules\n"
+            "if detector.available():\n"
+            "    detector.Detector().close()\n"
+            "    assert 'matplotlib' not in sys.modules, 'matplotlib loaded with the models'\n"
+            "    import mediapipe\n"
+            "    assert mediapipe.solutions.drawing_utils.plt is sys.modules['matplotlib.pyplot']\n"
+            "    assert mediapipe.__version__.startswith('0.10.') and mediapipe.tasks.vision\n"
+            "    assert mediapipe.solutions.face_mesh is sys.modules['mediapipe.python.solutions.face_mesh']\n"
+            "print('ok')\n")
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300, check=False)
+    assert res.returncode == 0 and res.stdout.strip() == "ok", res.stderr[-2000:]
 
 
 def test_the_shipped_mirror_pairs_mirror_images():

@@ -241,7 +241,8 @@ def on_skin(V, Ts, skin_raster: Raster, px, P_any, reach, closest):
 def frontal_readings(V, T, skin, detector: Detector, m: LandmarkMap, pose, first=None):
     """The face mesh's points on the skin from each frontal render (:data:`FRONTAL_TURNS`), each read as it
     is and mirrored (the mirrored reading's points renumbered by ``m.mirror``, which cancels any left-right
-    bias of the face mesh). ``first``: a straight-on render's raster, image and pixels, already read.
+    bias of the face mesh). ``first``: a straight-on render's raster (with its fragments), image and pixels,
+    already read.
     Returns points (readings, 468, 3) and which rays hit skin directly (readings, 468)."""
 
     Ts = T[skin]
@@ -250,9 +251,12 @@ def frontal_readings(V, T, skin, detector: Detector, m: LandmarkMap, pose, first
     Ps, direct = [], []
     for k, turn in enumerate(FRONTAL_TURNS):
         view = frontal(m.template, *pose, rotation_vector_matrix(np.radians(turn)))
-        raster, img, px = first if (k == 0 and first is not None) else (rasterise(V, T, view), None, None)
+        if k == 0 and first is not None:
+            raster, img, px = first
+        else:
+            raster, img, px = rasterise(V, T, view, keep_fragments=True), None, None
         img = shade(V, T, raster) if img is None else img
-        skin_raster = rasterise(V, Ts, raster.view)
+        skin_raster = raster.showing(skin)  # the skin alone, from the same pass
         for mirrored in (False, True) if m.mirror is not None else (False,):
             r, sr = (raster.flipped(), skin_raster.flipped()) if mirrored else (raster, skin_raster)
             if px is None or mirrored:
@@ -319,7 +323,7 @@ def detect(V, T, unit=None, landmark_map: LandmarkMap | None = None, detector: D
         # Frontal renders: straight on (which also finds the skin and refines the pose), then turned a little;
         # their landmarks are averaged and their spread gives the confidence.
         fview = frontal(m.template, *pose)
-        raster = rasterise(V, T, fview)
+        raster = rasterise(V, T, fview, keep_fragments=True)  # its skin is drawn from it once found
         P_any, tri, px, img = face_points(V, T, detector, raster)
         if P_any is None:
             raise LandmarkError(f"the face found in view {name} was lost in its frontal render")
