@@ -165,7 +165,6 @@ def decimate(V, T, target=3000):
 def voxel_remesh(V, T, voxel):
     """The boundary faces of the voxels inside the surface (inside: between the surfaces seen first from the
     front and from the back; ``V`` looking +z), each corner then moved onto the surface: a new topology of even quads, split into triangles."""
-    from scipy.spatial import cKDTree
 
     from pdeface.landmarks.render import View, rasterise
 
@@ -193,7 +192,7 @@ def voxel_remesh(V, T, voxel):
         occ = (zs[None, None, :] <= front[..., None]) & (zs[None, None, :] >= back[..., None])
     cp = ClosestPoint(V, T)
     quads = []
-    corner = lambda i, j, k: (i * (shape[1] + 1) + j) * (shape[2] + 1) + k  # noqa: E731
+    corner = lambda i, j, k: (i * (shape[1] + 1) + j) * (shape[2] + 1) + k
     for axis in range(3):
         a = np.moveaxis(occ, axis, 0)
         diff = a[1:] != a[:-1]
@@ -251,7 +250,7 @@ def build(spec: Spec) -> Character:
                 merged.append(T)
             elif how == "separate":
                 separate[g.removeprefix("helper-")] = _compact(V, T)[:2]
-    W, F, remap = _compact(V, np.concatenate(merged))
+    W, F, _ = _compact(V, np.concatenate(merged))
     if spec.remesh != "none":
         skin, Fs, _ = _compact(V, skin_T)
         if spec.remesh == "decimate":
@@ -275,7 +274,7 @@ def build(spec: Spec) -> Character:
 
 
 def _specs():
-    idn = lambda *mix: {m: 1.0 / len(mix) for m in mix}  # noqa: E731
+    idn = lambda *mix: {m: 1.0 / len(mix) for m in mix}
     S = [
         Spec("base-dm", identity={}, unit="dm", tags=("identity",)),
         Spec("caucasian-female-young-cm", idn("caucasian-female-young"), eyeballs="merged", tags=("identity",)),
