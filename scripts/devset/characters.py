@@ -13,7 +13,7 @@ Characters: mixed ethnicity, gender and age (MakeHuman's macrodetails, adults: a
 adult's face cannot be right for a baby's), stylised (local targets at weight 1–2), decimated to about
 3k vertices, voxel-remeshed, with and without eyeballs, parted lips (mouth-open at 0.2), eyes/teeth/
 tongue as separate objects, whole bodies in T-pose and A-pose (the base's own) and with the head turned
-40°, in metres, centimetres, inches, millimetres and the base's decimetres, in ICT's axes (+z front,
+40°, in metres, centimetres, inches, millimetres, the base's decimetres and a game's 168 mm units, in ICT's axes (+z front,
 +y up) and Blender's (−y front, +z up).
 """
 from __future__ import annotations
@@ -32,7 +32,7 @@ from .makehuman import BASE_MM, apply_targets, read_base, triangles
 
 ANNOTATION = Path(__file__).with_name("makehuman_landmarks.json")
 #: Millimetres per unit of each unit a character may be given in.
-UNIT_MM = {"mm": 1.0, "cm": 10.0, "dm": 100.0, "m": 1000.0, "in": 25.4}
+UNIT_MM = {"mm": 1.0, "cm": 10.0, "dm": 100.0, "m": 1000.0, "in": 25.4, "game168mm": 168.0}
 #: Where a head is cut from the body (base-mesh decimetres below the neck joint).
 HEAD_CUT = 0.35
 #: Separate-object groups of the base mesh.
@@ -317,6 +317,8 @@ def _specs():
              style={"nose/nose-scale-vert-incr": 1.5, "mouth/mouth-scale-vert-incr": 1.0}, mouth_open=0.2,
              remesh="decimate", unit="dm", tags=("stylised", "remeshed", "mouth")),
         Spec("head-turn40-m", idn("caucasian-male-old"), head_turn=40, unit="m", tags=("turned",)),
+        Spec("game-unit-168mm", idn("african-female-young", "caucasian-male-young"), unit="game168mm",
+             axes="blender", tags=("identity",)),
     ]
     return {s.name: s for s in S}
 
