@@ -5,7 +5,8 @@ Usage: python -m scripts.bench.bench_devset [--only NAME,...] [--json OUT]
 Each character of ``scripts.devset.characters.SPECS`` (≥ 20, built at run time from MakeHuman's CC0 base
 mesh: identities, stylised, remeshed, eyes/teeth merged or separate, parted lips, bodies in T- and A-pose and
 with the head turned, in mm, cm, dm, m, inches and a game's 168 mm units) is given to
-``pdeface.landmarks.detect`` as a user would give it, unit unknown. Per character: found?; the error of the
+``pdeface landmarks``'s search (``pdeface.landmarks.headfind.detect_anywhere``: on a body where no face
+shows, the head cut out) as a user would give it, unit unknown. Per character: found?; the error of the
 found landmarks against the annotated vertices in % of the true eye distance (inner points 17-67: median
 and p95; jaw 0-16: median; the worst group's median); the landmark gate's verdict on the found points
 (on the skin they were cast onto) and on the true ones; the unit: millimetres per unit estimated from the
@@ -23,7 +24,7 @@ from pdeface.errors import PdeFaceError
 from pdeface.landmarks.detector import Detector
 from pdeface.landmarks.facemap import GROUPS
 from pdeface.landmarks.gate import check
-from pdeface.landmarks.pipeline import detect
+from pdeface.landmarks.headfind import detect_anywhere
 from pdeface.surface.fit import fit_face
 from pdeface.surface.frame import estimate_unit
 
@@ -61,7 +62,7 @@ def main(argv=None):
             r["gate_truth"] = truth.to_json()
             t = time.perf_counter()
             try:
-                found = detect(ch.vertices, ch.triangles, detector=det)
+                found = detect_anywhere(ch.vertices, ch.triangles, detector=det)
             except PdeFaceError as exc:
                 r.update(found=False, error=str(exc), seconds=time.perf_counter() - t)
                 print(f"  {name:32s} {'no':5s} {'':>9s} {'':>6s} {'':>7s} {'':>14s} {'':>8s} "
@@ -106,7 +107,7 @@ def main(argv=None):
     if "base-dm" in rows and rows["base-dm"]["found"]:
         ch = build(SPECS["base-dm"])
         with Detector() as det:
-            found = detect(ch.vertices, ch.triangles, detector=det)
+            found = detect_anywhere(ch.vertices, ch.triangles, detector=det)
         try:
             model, _ = fit_face(ch.vertices, ch.triangles, found.points)
             print(f"== base mesh in decimetres: fitted, unit {model.frame.unit}, {model.frame.scale:.4g} mm per unit")

@@ -32,7 +32,8 @@ def main(argv=None):
     for centre, half in PANELS:
         view = View.looking(np.array([0, 0, 1.0]), np.array([0, 1.0, 0]), np.array(centre), half, args.size)
         x, y, _ = view.project(V[idx])
-        panels.append(marked(shade(V, T, rasterise(V, T, view)), np.stack([x, y], 1), r=3))
+        inside = (x > 3) & (x < args.size - 4) & (y > 3) & (y < args.size - 4)
+        panels.append(marked(shade(V, T, rasterise(V, T, view)), np.stack([x, y], 1)[inside], r=3))
     write_png(args.output, np.concatenate(panels, axis=1))
     print(f"wrote {args.output}")
 

@@ -182,3 +182,36 @@ def test_cli_stops_on_a_failing_gate_with_a_picture_and_accept_goes_on(tmp_path,
     data = json.loads(out.read_text(), parse_constant=lambda c: pytest.fail(f"bare {c} in the JSON"))
     assert data["gate"]["passed"] is False and data["gate"]["failures"]
     assert main(["fit", str(src), "-o", str(tmp_path / "f.npz"), "--curves", "12", "--points", "17"]) == 2
+
+
+@needs_makehuman
+@pytest.mark.parametrize("name", ["body-A-cm", "body-T-m", "body-T-turn40-blender-cm", "body-A-turn40-m"])
+def test_the_head_of_a_body_is_found_first_in_any_pose_and_axes(name, ict):
+    from pdeface.landmarks.headfind import head_candidates
+
+    ch = build(SPECS[name])
+    best = head_candidates(ch.vertices, ch.triangles)[0]
+    kept = ch.vertices[best.vertices]
+    assert np.linalg.norm(kept - ch.landmarks[30], axis=1).min() < 1e-9        # the nose tip is in the head
+    assert np.linalg.norm(kept - ch.landmarks[8], axis=1).min() < 1e-9         # and the chin
+    up = np.array([0, 0, 1.0]) if ch.spec.axes == "blender" else np.array([0, 1.0, 0])
+    assert best.up @ up > 0.95
+    assert len(best.vertices) < 0.4 * len(ch.vertices)                        # the head, not the body
+    mesh, T, _, _ = ict
+    assert head_candidates(mesh.vertices, T) == []                            # a head is searched as it is
+
+
+@needs_makehuman
+@needs_mediapipe
+def test_landmarks_of_a_turned_body_come_back_in_the_whole_mesh(ict):
+    from pdeface.landmarks.headfind import detect_anywhere
+
+    ch = build(SPECS["body-T-turn40-blender-cm"])
+    found = detect_anywhere(ch.vertices, ch.triangles)
+    assert found.view.startswith("head cut out")
+    # indices in the whole mesh: each the nearest vertex, within an edge (5 mm here) of its point
+    assert np.linalg.norm(ch.vertices[found.indices] - found.points, axis=1).max() < 0.15 * ch.eye_distance
+    assert found.skin.shape == (len(ch.triangles),)
+    # Found near the truth (the nose tip), at the body's own scale.
+    assert np.linalg.norm(found.points[30] - ch.landmarks[30]) < 0.2 * ch.eye_distance
+    assert found.mm_per_unit == pytest.approx(ch.mm_per_unit, rel=0.1)
