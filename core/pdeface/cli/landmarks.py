@@ -56,7 +56,8 @@ def cmd_landmarks(args):
     if args.image:
         write_png(args.image, found.marked_image())
     print(json.dumps({"output": str(args.output), "view": found.view, "detector_score": round(found.score, 3),
-                      "confidence": {k: round(v, 3) for k, v in found.confidence.items()}}))
+                      "confidence": {k: round(v, 3) for k, v in found.confidence.items()},
+                      "mm_per_unit": round(found.mm_per_unit, 6), "gate": verdict.passed}))
 
 
 def accept_option(p):
