@@ -26,7 +26,7 @@ from .common import (
     unit_option,
     verbose_option,
 )
-from .landmarks import find_landmarks
+from .landmarks import accept_option, find_landmarks
 
 
 def cmd_fit(args):
@@ -35,7 +35,7 @@ def cmd_fit(args):
     mesh, lm = load_scan(args.mesh, args.landmarks)
     if lm is None:
         log(f"{args.mesh}: no --landmarks given: finding them (pdeface landmarks)")
-        lm = find_landmarks(mesh, args.unit, verbose=args.verbose).points
+        lm = find_landmarks(mesh, args.unit, verbose=args.verbose, accept=args.accept)[0].points
     T, _ = mesh.triangles()
     skin = skin_mask(read_overrides(args.parts), len(mesh.vertices)) if args.parts else None
     t0 = time.perf_counter()
@@ -106,6 +106,7 @@ def register(sub):
     p.add_argument("--parts", help="JSON of part kind → vertex indices; its 'skin' list is the skin to fit "
                                    "(default: the parts under the landmarks; see 'pdeface parts')")
     unit_option(p)
+    accept_option(p)
     p.add_argument("--curves", type=int, default=DEFAULT_CURVES,
                    help=f"boundary curves (default {DEFAULT_CURVES}; 31 is the method's 10 patches of 4)")
     p.add_argument("--points", type=int, default=37, help="points per curve (rays from the axis behind the face)")

@@ -6,20 +6,35 @@ import time
 
 from ..io.files import atomic_open, check_output
 from ..io.png import write_png
-from ..landmarks.pipeline import find_on_mesh
+from ..landmarks.gate import LandmarkGateError, check, require
+from ..landmarks.headfind import detect_anywhere
 from ..surface.scan import load_scan
 from .common import log, output_option, unit_option, verbose_option
 
 
-def find_landmarks(mesh, unit=None, keep_images=False, verbose=False):
-    """:func:`~pdeface.landmarks.pipeline.find_on_mesh`, saying what it found (also for ``pdeface fit``)."""
+def find_landmarks(mesh, unit=None, keep_images=False, verbose=False, accept=False):
+    """:func:`~pdeface.landmarks.headfind.detect_anywhere` (on a body where no face shows, the head cut out),
+    saying what it found, then the landmark gate
+    (:mod:`~pdeface.landmarks.gate`; also for ``pdeface fit``). Returns the landmarks and the gate's verdict;
+    raises :class:`~pdeface.landmarks.gate.LandmarkGateError` when a group fails, unless ``accept``."""
     t = time.perf_counter()
-    found = find_on_mesh(mesh, unit, keep_images=keep_images, verbose=verbose)
+    T = mesh.triangles()[0]
+    found = detect_anywhere(mesh.vertices, T, unit, keep_images=keep_images, verbose=verbose)
     low = found.least_sure()
     log(f"found the 68 landmarks in {time.perf_counter() - t:.1f} s (view {found.view}, detector score "
         f"{found.score:.2f}, {found.residual_mm:.1f} mm from the template; least sure: {low} "
-        f"{found.confidence[low]:.2f})")
-    return found
+        f"{found.confidence[low]:.2f}; {found.mm_per_unit:.4g} mm per unit)")
+    # On the skin the points were cast onto: lashes and helper geometry in front of it are no face.
+    verdict = check(found.points, mesh.vertices, T if found.skin is None else T[found.skin], unit)
+    if not verdict.passed:
+        if not accept:
+            try:
+                require(verdict)
+            except LandmarkGateError as exc:
+                exc.found = found  # for the picture of what failed
+                raise
+        log(f"note: the landmarks fail the gate ({verdict.message()}); going on (--accept)")
+    return found, verdict
 
 
 def cmd_landmarks(args):
@@ -27,13 +42,29 @@ def cmd_landmarks(args):
     if args.image:
         check_output(args.image, args.mesh)
     mesh, _ = load_scan(args.mesh)
-    found = find_landmarks(mesh, args.unit, keep_images=bool(args.image), verbose=args.verbose)
+    try:
+        found, verdict = find_landmarks(mesh, args.unit, keep_images=bool(args.image), verbose=args.verbose,
+                                        accept=args.accept)
+    except LandmarkGateError as exc:
+        if args.image:  # the picture of what failed, the landmarks themselves not written
+            write_png(args.image, exc.found.marked_image())
+            exc.args = (f"{exc.args[0]} (picture: {args.image})",)
+        raise
+    data = {**found.to_json(), "gate": verdict.to_json()}
     with atomic_open(args.output) as f:
-        json.dump(found.to_json(), f)
+        json.dump(data, f, allow_nan=False)  # strictly valid JSON: no bare NaN
     if args.image:
         write_png(args.image, found.marked_image())
     print(json.dumps({"output": str(args.output), "view": found.view, "detector_score": round(found.score, 3),
-                      "confidence": {k: round(v, 3) for k, v in found.confidence.items()}}))
+                      "confidence": {k: round(v, 3) for k, v in found.confidence.items()},
+                      "mm_per_unit": round(found.mm_per_unit, 6), "gate": verdict.passed}))
+
+
+def accept_option(p):
+    """``--accept``: go on with landmarks that fail the gate."""
+    p.add_argument("--accept", action="store_true",
+                   help="go on with found landmarks that fail the landmark gate (a group off the surface, "
+                        "not mirrored, out of order or out of proportion)")
 
 
 def register(sub):
@@ -42,7 +73,9 @@ def register(sub):
                                          "(needs pdeface[landmarks])")
     p.add_argument("mesh", help="head or body mesh (.obj/.ply/.glb/.gltf), any orientation and unit, or 'head'")
     unit_option(p, "mesh unit, for the mm figures (default: from the face)")
-    p.add_argument("--image", help="also write the frontal render with the landmarks marked (.png)")
+    p.add_argument("--image", help="also write the frontal render with the landmarks marked (.png); written also "
+                                   "when the gate stops")
+    accept_option(p)
     output_option(p, help="landmarks JSON to write ('indices' and 'points', with confidence per group)")
     verbose_option(p)
     p.set_defaults(func=cmd_landmarks)

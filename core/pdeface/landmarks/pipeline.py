@@ -25,7 +25,7 @@ from ..errors import LandmarkError, MeshError
 from ..geometry import ClosestPoint
 from ..mesh import connected_components
 from ..rigid import rotation_vector_matrix
-from ..surface.frame import UNITS_MM
+from ..surface.frame import UNITS_MM, estimate_unit
 from .detector import Detector
 from .facemap import GROUPS, LandmarkMap, read_map, robust_similarity
 from .render import Raster, View, back_project, marked, rasterise, shade
@@ -335,7 +335,7 @@ def detect(V, T, unit=None, landmark_map: LandmarkMap | None = None, detector: D
         Ps, direct = frontal_readings(V, T, skin, detector, m, (s, R, t), first=(raster, img, px))
         P2 = np.nanmean(Ps, axis=0)
         points, indices = snap(V, T[skin], m.apply(P2))
-        mm = UNITS_MM[unit] if unit else 1.0 / s
+        mm = UNITS_MM[unit] if unit else estimate_unit(points)[1]  # the fit's own estimate (one for both)
         spread = group_spread(m, Ps, mm)
         direct = direct.mean(0)
         # A group as steady as on the training heads scores 1/√2 of its rays' skin hits; twice as unsteady, 1/2.

@@ -23,14 +23,25 @@ from ..landmark_scheme import (
     eye_distance,
 )
 
-#: Millimetres per mesh unit.
-UNITS_MM = {"mm": 1.0, "cm": 10.0, "m": 1000.0, "in": 25.4}
+#: Millimetres per mesh unit (decimetres: MakeHuman's base mesh).
+UNITS_MM = {"mm": 1.0, "cm": 10.0, "dm": 100.0, "m": 1000.0, "in": 25.4}
+#: The unit of a mesh whose scale is none of :data:`UNITS_MM`: its millimetres per unit are the face's own estimate.
+ESTIMATED = "estimated"
 
 #: Rotation taking ICT-FaceKit's axes (+z front, +y up) to Blender's (-y front, +z up): ``V @ BLENDER_FROM_ICT.T``.
 BLENDER_FROM_ICT = np.array([[1.0, 0, 0], [0, 0, -1], [0, 1, 0]])
 
-#: Typical adult distance between the eye centres (mm), used to guess the unit.
+#: Typical adult distance between the eye centres (mm), used to estimate the unit.
 EYE_DISTANCE_MM = 63.0
+#: An adult face's inner sizes (mm), each the median over ICT-FaceKit's 20 identities scaled to
+#: :data:`EYE_DISTANCE_MM` (they vary 1.2-1.5 % between them): the landmark pairs (each side's mean) measured.
+FACE_SIZES_MM = {"eye centres": (list(EYE_RIGHT), list(EYE_LEFT), 63.0),
+                 "eyes to mouth": ([*EYE_RIGHT, *EYE_LEFT], [48, 51, 54, 57], 68.9),
+                 "nose length": ([NOSE_BRIDGE_TOP], [33], 48.4),
+                 "mouth width": ([48], [54], 48.9),
+                 "outer eye corners": ([36], [45], 86.3)}
+#: An estimate this close (ratio) to a named unit is that unit: units are at least 2.5 times apart.
+UNIT_SNAP = 1.3
 #: Eye-centre distances a face may have (a small child's to a giant caricature's), in mm.
 EYE_DISTANCE_RANGE_MM = (20.0, 200.0)
 #: No point of a face, and no change of one an AU makes, lies farther than this from the nose tip (face frame,
@@ -107,12 +118,33 @@ def feature_points(landmarks68: np.ndarray) -> np.ndarray:
     return np.array([L[ids].mean(axis=0) for ids in FEATURE_POINTS.values()])
 
 
+def estimate_mm_per_unit(landmarks68: np.ndarray) -> float:
+    """Millimetres per mesh unit from the face's size: the median over :data:`FACE_SIZES_MM` of each adult size
+    over the same size measured on the landmarks (a face 10 % smaller than the norm reads 10 % off)."""
+    L = np.asarray(landmarks68, dtype=np.float64)
+    ratios = []
+    for a, b, mm in FACE_SIZES_MM.values():
+        d = np.linalg.norm(L[a].mean(0) - L[b].mean(0))
+        if d > 0:
+            ratios.append(mm / d)
+    if not ratios or not eye_distance(L) > 0:
+        raise LandmarkError("eye landmarks coincide: cannot estimate the unit")
+    return float(np.median(ratios))
+
+
+def estimate_unit(landmarks68: np.ndarray) -> tuple[str, float]:
+    """The mesh unit and millimetres per unit, from the face's size (:func:`estimate_mm_per_unit`): a named
+    unit within :data:`UNIT_SNAP` of the estimate, else :data:`ESTIMATED` at the estimate (any scale)."""
+    mm = estimate_mm_per_unit(landmarks68)
+    unit = min(UNITS_MM, key=lambda u: abs(np.log(mm / UNITS_MM[u])))
+    if abs(np.log(mm / UNITS_MM[unit])) <= np.log(UNIT_SNAP):
+        return unit, UNITS_MM[unit]
+    return ESTIMATED, mm
+
+
 def guess_unit(landmarks68: np.ndarray) -> str:
-    """Guess the mesh unit from the inter-ocular distance (nearest in log scale)."""
-    d = eye_distance(landmarks68)
-    if not d > 0:
-        raise LandmarkError("eye landmarks coincide: cannot guess the unit")
-    return min(UNITS_MM, key=lambda u: abs(np.log(d * UNITS_MM[u] / EYE_DISTANCE_MM)))
+    """The mesh unit's name from the face's size (:func:`estimate_unit`)."""
+    return estimate_unit(landmarks68)[0]
 
 
 @dataclass
@@ -155,8 +187,8 @@ def face_frame(landmarks68: np.ndarray, unit: str | None = None) -> FaceFrame:
     ----------
     landmarks68 : (68, 3) array
         Landmark positions in the mesh's own space.
-    unit : {'mm', 'cm', 'm', 'in'} or None
-        Mesh unit; guessed from the inter-ocular distance when None.
+    unit : {'mm', 'cm', 'dm', 'm', 'in'} or None
+        Mesh unit; estimated from the face's size when None (:func:`estimate_unit`: any scale).
 
     Raises
     ------
@@ -167,10 +199,12 @@ def face_frame(landmarks68: np.ndarray, unit: str | None = None) -> FaceFrame:
     if L.shape != (68, 3) or not np.isfinite(L).all():
         raise LandmarkError(f"need 68 finite landmarks, got shape {L.shape}")
     if unit is None:
-        unit = guess_unit(L)
-    if unit not in UNITS_MM:
+        unit, scale = estimate_unit(L)
+    elif unit in UNITS_MM:
+        scale = UNITS_MM[unit]
+    else:
         raise LandmarkError(f"unknown unit {unit!r}; use one of {', '.join(UNITS_MM)}")
-    eyes_mm = eye_distance(L) * UNITS_MM[unit]
+    eyes_mm = eye_distance(L) * scale
     if not EYE_DISTANCE_RANGE_MM[0] <= eyes_mm <= EYE_DISTANCE_RANGE_MM[1]:
         raise LandmarkError(f"the eyes are {eyes_mm:.3g} mm apart in unit {unit!r}; a face's are "
                             f"{EYE_DISTANCE_RANGE_MM[0]}-{EYE_DISTANCE_RANGE_MM[1]} mm: check the unit and the landmarks")
@@ -187,7 +221,7 @@ def face_frame(landmarks68: np.ndarray, unit: str | None = None) -> FaceFrame:
         raise LandmarkError("landmarks are degenerate: the eye line is parallel to the face's vertical")
     y /= ny
     z = np.cross(x, y)
-    frame = FaceFrame(np.stack([x, y, z]), L[NOSE_TIP].copy(), UNITS_MM[unit], unit)
+    frame = FaceFrame(np.stack([x, y, z]), L[NOSE_TIP].copy(), scale, unit)
     # A mirrored landmark order would put the nose tip behind the eyes.
     if (frame.to_face(L[[*EYE_RIGHT, *EYE_LEFT]]).mean(0)[2]) > 0:
         raise LandmarkError("landmarks look mirrored or out of order: the eyes are in front of the nose tip")

@@ -1,0 +1,179 @@
+"""The landmark gate: checks of each landmark group that do not need the detector's word.
+
+Landmarks are judged in their own face frame (:func:`~pdeface.surface.frame.face_frame`, the unit estimated
+from the face), against the eye distance, so they hold at any scale, orientation and unit:
+
+- **finite**: no NaN or inf;
+- **surface**: each point on the outer surface, not inside a socket, the mouth or the skull: seen straight
+  on, nothing of the mesh lies more than :data:`BURIED` in front of it (the jawline, a contour, from
+  either side too);
+- **mirror**: left and right mirror each other across the face's midline (median of the group's pairs);
+- **order**: brows above the eyes above the nose bottom above the mouth above the chin; upper lids above
+  lower lids;
+- **spacing**: the group's size, over the eye distance, within what faces have (:data:`SPACING`).
+
+A group failing any check is named with the check; ``pdeface landmarks`` and ``pdeface fit`` then stop
+(exit 2) unless told ``--accept``.
+"""
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import LandmarkError, PdeFaceError
+from ..landmark_scheme import CHIN, INNER_LIPS, JAW, LOWER_LIDS, MIRROR, NOSE_BOTTOM, UPPER_LIDS, eye_distance
+from ..surface.frame import face_frame
+from .facemap import GROUPS
+from .render import View, rasterise
+
+#: How far (share of the eye distance) something of the mesh may lie in front of a landmark seen straight on;
+#: for the inner lip line, in the seam of closed lips that a full lower lip may hide, farther.
+BURIED, BURIED_INNER_LIPS = 0.05, 0.15
+#: Median distance of a group's points from their mirror partners' mirror images (share of the eye distance).
+MIRROR_TOL = 0.10
+#: Each group's size over the eye distance: (landmark a, landmark b, least, most); wide enough for stylised
+#: characters (MakeHuman's local targets at weight 2, ICT's identities lie well inside).
+SPACING = {"jaw": [(0, 16, 1.3, 3.2)], "brows": [(17, 26, 1.0, 2.6)],
+           "nose": [(27, 33, 0.45, 1.4), (31, 35, 0.25, 0.9)],
+           "eyes": [(36, 39, 0.25, 0.75), (42, 45, 0.25, 0.75)], "mouth": [(48, 54, 0.45, 1.5)]}
+#: Pixels of the visibility renders.
+SIZE = 256
+
+
+class LandmarkGateError(LandmarkError):
+    """Landmarks that fail the gate (``verdict`` holds the failures)."""
+
+    def __init__(self, message, verdict):
+        super().__init__(message)
+        self.verdict = verdict
+
+
+@dataclass
+class Verdict:
+    """What the gate found: per group, the checks it failed (with a word on each)."""
+
+    failures: dict = field(default_factory=dict)
+
+    @property
+    def passed(self) -> bool:
+        return not self.failures
+
+    def fail(self, group, check, detail):
+        self.failures.setdefault(group, []).append((check, detail))
+
+    def message(self) -> str:
+        """One line naming each failing group and its checks."""
+        return "; ".join(f"{g}: " + ", ".join(f"{c} ({d})" for c, d in checks) for g, checks in self.failures.items())
+
+    def to_json(self) -> dict:
+        return {"passed": self.passed, "failures": {g: [{"check": c, "detail": d} for c, d in checks]
+                                                    for g, checks in self.failures.items()}}
+
+
+def _group_of():
+    g = np.empty(68, dtype=object)
+    for name, rows in GROUPS.items():
+        g[list(rows)] = name
+    return g
+
+
+def buried(V, T, points, frame, eyes) -> np.ndarray:
+    """How far (the mesh's unit) the mesh lies in front of each point seen straight on (the least over the
+    3 × 3 pixels around it: a point on an edge may see the edge's far side). The jawline, a contour seen edge
+    on from the front, is also looked at from 45° to its side; the lesser counts."""
+    R = frame.rotation
+    centre = points.mean(0)
+    jaw = np.array(list(JAW))
+    inner = np.array(list(INNER_LIPS))  # closed lips hide their seam straight on: also from 25° above and below
+    up, down = np.cos(0.44) * R[2] + np.sin(0.44) * R[1], np.cos(0.44) * R[2] - np.sin(0.44) * R[1]
+    looks = [(R[2], np.arange(68)), ((R[2] - R[0]) / np.sqrt(2), jaw[:8]), ((R[2] + R[0]) / np.sqrt(2), jaw[9:]),
+             (up, inner), (down, inner)]
+    best = np.full(len(points), np.inf)
+    for forward, rows in looks:
+        side = np.cross(R[1], forward)
+        view = View.looking(forward, np.cross(forward, side), centre, 1.6 * eyes, SIZE)
+        r = rasterise(V, T, view)
+        x, y, z = view.project(points[rows])
+        xi, yi = np.round(x).astype(int), np.round(y).astype(int)
+        ahead = np.full(len(rows), np.inf)
+        for dx in (-1, 0, 1):
+            for dy in (-1, 0, 1):
+                px, py = np.clip(xi + dx, 0, SIZE - 1), np.clip(yi + dy, 0, SIZE - 1)
+                tri, bary = r.tri[py, px], r.bary[py, px]
+                hit = tri >= 0
+                d = np.zeros(len(rows))  # nothing there: nothing in front
+                Q = np.einsum("ij,ijk->ik", bary[hit], V[T[tri[hit]]])
+                d[hit] = (Q - view.centre) @ view.rotation[2] - z[hit]
+                ahead = np.minimum(ahead, d)
+        best[rows] = np.minimum(best[rows], np.maximum(ahead, 0.0))
+    return best
+
+
+def check(points, V=None, T=None, unit=None) -> Verdict:
+    """Check 68 landmarks group by group (see the module's docstring); ``V, T`` for the surface check.
+
+    Parameters
+    ----------
+    points : (68, 3) array
+        The landmarks, in the mesh's space.
+    V, T : arrays, optional
+        The mesh the landmarks lie on; without it the surface check is skipped.
+    unit : str, optional
+        The mesh unit (only the frame needs it; the checks are relative to the eye distance).
+    """
+    verdict = Verdict()
+    P = np.asarray(points, np.float64)
+    if P.shape != (68, 3):
+        raise LandmarkError(f"need 68 landmarks, got shape {P.shape}")
+    group = _group_of()
+    bad = ~np.isfinite(P).all(1)
+    for g in dict.fromkeys(group[bad]):
+        verdict.fail(g, "finite", "NaN or inf points")
+    if bad.any():
+        return verdict
+    eyes = eye_distance(P)
+    try:
+        frame = face_frame(P, unit)
+    except PdeFaceError as exc:
+        verdict.fail("eyes", "order", str(exc))
+        return verdict
+    F = frame.to_face(P) / (eyes * frame.scale)  # in eye distances, nose tip at 0, +y up, +z forward
+    mirrored = F[list(MIRROR)] * [-1, 1, 1]
+    off = np.linalg.norm(F - mirrored, axis=1)
+    for g, rows in GROUPS.items():
+        m = float(np.median(off[list(rows)]))
+        if m > MIRROR_TOL:
+            verdict.fail(g, "mirror", f"left and right {m:.2f} eye distances apart from mirror images")
+    y = {"brows": F[17:27, 1].mean(), "eyes": F[36:48, 1].mean(), "nose": F[NOSE_BOTTOM, 1],
+         "mouth": F[48:68, 1].mean(), "jaw": F[CHIN, 1]}
+    order = ["brows", "eyes", "nose", "mouth", "jaw"]
+    for upper, lower in itertools.pairwise(order):
+        if not y[upper] > y[lower]:
+            g = lower if lower != "eyes" else upper
+            verdict.fail(g, "order", f"{upper} not above {lower}")
+    lids = F[UPPER_LIDS, 1] - F[LOWER_LIDS[::-1], 1]  # 37-41, 38-40, 43-47, 44-46
+    if (lids < -0.03).any():
+        verdict.fail("eyes", "order", "a lower lid above its upper lid")
+    for g, pairs in SPACING.items():
+        for a, b, lo, hi in pairs:
+            d = float(np.linalg.norm(F[a] - F[b]))
+            if not lo <= d <= hi:
+                verdict.fail(g, "spacing", f"{a}-{b} {d:.2f} eye distances (faces: {lo}-{hi})")
+    if V is not None:
+        depth = buried(np.asarray(V, np.float64), np.asarray(T, np.int64), P, frame, eyes) / eyes
+        for g, rows in GROUPS.items():
+            rows = list(rows)
+            worst = int(np.argmax(depth[rows]))
+            if depth[rows][worst] > (BURIED_INNER_LIPS if rows[worst] in INNER_LIPS else BURIED):
+                verdict.fail(g, "surface", f"landmark {rows[worst]} {depth[rows][worst]:.2f} eye distances "
+                                           "behind the surface in front of it (inside a socket, the mouth or the skull?)")
+    return verdict
+
+
+def require(verdict: Verdict, what="landmarks"):
+    """Raise :class:`LandmarkGateError` naming the failing groups and checks, when any failed."""
+    if not verdict.passed:
+        raise LandmarkGateError(f"{what} fail the landmark gate: {verdict.message()}; check them (--image), give "
+                                "them by hand (--landmarks), or --accept to go on anyway", verdict)
