@@ -172,9 +172,11 @@ def _plan_rig(data, base, where):
     names = _unique_names(Path(e["mesh"]).stem for e in entries)
     for entry, name in zip(entries, names):
         lm = entry.get("landmarks", data.get("landmarks"))
-        if lm:  # "{stem}" stands for the mesh's file name without its extension
-            lm = str(Path(entry["mesh"]).parent / lm.format(stem=Path(entry["mesh"]).stem)) \
-                if "{stem}" in lm else str(base / lm)
+        if lm and "{stem}" in lm:  # the mesh's file name without its extension; no such file: found on the mesh
+            lm = str(Path(entry["mesh"]).parent / lm.format(stem=Path(entry["mesh"]).stem))
+            lm = lm if os.path.exists(lm) else None
+        elif lm:
+            lm = str(base / lm)
         params = {**options, "mesh": entry["mesh"], "landmarks": lm, "unit": entry.get("unit", options["unit"]),
                   "parts": str(base / entry["parts"]) if entry.get("parts") else None, "folder": name}
         outputs = [f"{name}/{f}" for f in ("landmarks.json", "face.npz", "rigged.npz", "keys.npz", "report.json")]
@@ -190,7 +192,10 @@ def _plan_rig(data, base, where):
 def _intensity(value, where):
     """(weight, FACS letter, the file names' tag) of an intensity: a letter or a weight."""
     if isinstance(value, str):
-        return letter_to_weight(value), value.upper(), value.upper()
+        try:
+            return letter_to_weight(value), value.upper(), value.upper()
+        except PdeFaceError as exc:
+            raise JobError(f"{where}: intensities: {exc}") from None
     if isinstance(value, (int, float)) and 0 < value <= 1:
         return float(value), weight_to_letter(value), f"w{float(value):g}"
     raise JobError(f"{where}: intensity {value!r}: a FACS letter A-E or a weight in (0, 1]")
