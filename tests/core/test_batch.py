@@ -2,7 +2,6 @@
 (a worker killed mid-job, an interrupted job resumed, failures recorded)."""
 import csv
 import json
-import os
 import signal
 import subprocess
 import sys
@@ -11,7 +10,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from pdeface.assets import load_ict_shapes, load_neutral_scan
 from pdeface.batch.job import JobError, plan_job
 from pdeface.batch.run import labels_csv
@@ -178,7 +176,7 @@ def test_a_rig_job_rigs_each_head_and_records_a_broken_one(tmp_path):
     (tmp_path / "broken.obj").write_text("v 0 0 0\nv 1 0 0\nf 1 2 3\n")
     job = _job(tmp_path, 'kind = "rig"\nout = "rigs"\nmeshes = ["ict*.obj", "broken.obj"]\n'
                          'landmarks = "{stem}.json"\npresets = false\n')
-    code, out, err = _finish(_pdeface("batch", job, "--workers", 2))
+    code, _, err = _finish(_pdeface("batch", job, "--workers", 2))
     assert code == 2, err
     assert "manifest.json" in err
     manifest = json.loads((tmp_path / "rigs" / "manifest.json").read_text())
@@ -194,3 +192,24 @@ def test_a_rig_job_rigs_each_head_and_records_a_broken_one(tmp_path):
     assert not np.allclose(k1["deltas"], k2["deltas"])  # each head its own keys
     report = json.loads((tmp_path / "rigs/ict001/report.json").read_text())
     assert report["landmarks"]["source"] == "given" and set(report["timings"]) >= {"fit", "bind", "total"}
+
+
+def test_pdeface_rig_writes_the_same_bytes_twice(tmp_path, capsys):
+    """``pdeface rig``: every file, and the same bytes for the same inputs (the batch jobs' idempotence rests on
+    it); the keys are those ``pose --mesh`` gives."""
+    from pdeface.au.modelfile import load_face
+    from pdeface.cli import main
+    from pdeface.head.bind import bind_file
+
+    mesh = _identity(tmp_path, 3)
+    lm = tmp_path / "ict003.json"
+    assert main(["rig", str(mesh), "--landmarks", str(lm), "--no-presets", "-o", str(tmp_path / "a")]) == 0
+    printed = json.loads(capsys.readouterr().out)
+    assert printed["keys"]["count"] == printed["keys"]["aus"] > 60 and "bind" in printed["timings"]
+    assert main(["rig", str(mesh), "--landmarks", str(lm), "--no-presets", "-o", str(tmp_path / "b")]) == 0
+    for name in ("landmarks.json", "face.npz", "rigged.npz", "keys.npz"):
+        assert (tmp_path / "a" / name).read_bytes() == (tmp_path / "b" / name).read_bytes(), name
+    keys = load_keys(tmp_path / "a" / "keys.npz")
+    _, binding = bind_file(load_face(tmp_path / "a" / "rigged.npz"), str(mesh))
+    smile = keys["names"].index("AU12")
+    np.testing.assert_allclose(keys["deltas"][smile], binding.pose_displacement({"12": 1.0}), atol=1e-5)
