@@ -12,7 +12,12 @@ def cmd_batch(args):
     if args.workers is not None and args.workers < 1:
         raise SystemExit("pdeface batch: error: --workers must be at least 1")
     job = load_job(args.job)
-    summary = run_job(job, workers=args.workers, scheduler=args.scheduler, resume=args.resume)
+    try:
+        summary = run_job(job, workers=args.workers, scheduler=args.scheduler, resume=args.resume)
+    except KeyboardInterrupt:
+        log(f"\nbatch: interrupted; what was done is kept (see {job.out / 'manifest.json'}): run it again with "
+            "--resume to make only what is missing")
+        raise SystemExit(130) from None
     result = summary.as_dict()
     rate = f", {result['per_second']:.2f} {'images' if job.kind == 'stimuli' else 'tasks'}/s" if summary.done else ""
     log(f"batch: {summary.done} done, {summary.skipped} skipped, {len(summary.failed)} failed in "
