@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from .assets import DEFAULT, HEAD, ICT_NOTICE
-from .au.modelfile import load_face, save_model
+from .au.modelfile import load_face, model_from_bytes, model_to_bytes
 from .au.retarget import retarget
 from .errors import FileError, ModelFormatError, PdeFaceError
 from .head.bind import HeadBinding
@@ -131,12 +131,11 @@ def rig_head(mesh_arg, out, landmarks=None, unit=None, parts=None, descriptors=D
     model, sampler = fit_face(V, T, lm, unit=unit, source=str(mesh_arg), skin=skin)
     if mesh_arg in (DEFAULT, HEAD):
         model.notice = ICT_NOTICE
-    save_model(out / "face.npz", model)
+    model = _saved(out / "face.npz", model)
     report["fit"] = {"unit": model.frame.unit, "curves": model.layout.n_curves, "points": sampler.summary()}
     lap("fit")
 
-    rigged = retarget(load_face(descriptors), model)
-    save_model(out / "rigged.npz", rigged)
+    rigged = _saved(out / "rigged.npz", retarget(load_face(descriptors), model))
     lap("retarget")
 
     binding = HeadBinding(rigged, V, T, overrides=overrides)
@@ -160,6 +159,14 @@ def rig_head(mesh_arg, out, landmarks=None, unit=None, parts=None, descriptors=D
     write_bytes(out / "report.json", json.dumps(report, indent=1).encode())
     say(f"{mesh_arg}: rigged {len(poses)} keys on {len(V)} vertices in {report['timings']['total']:.1f} s")
     return report
+
+
+def _saved(path, model):
+    """Write ``model`` to ``path`` and return it as read back (its file's precision): the next step works on
+    what the file holds, as ``pdeface retarget`` and ``pose --mesh`` do after ``pdeface fit``."""
+    data = model_to_bytes(model)
+    write_bytes(path, data)
+    return model_from_bytes(data, str(path))
 
 
 def rig_blend(mesh_arg, landmarks, path, unit=None):
