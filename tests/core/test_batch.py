@@ -2,6 +2,7 @@
 (a worker killed mid-job, an interrupted job resumed, failures recorded)."""
 import csv
 import json
+import os
 import signal
 import subprocess
 import sys
@@ -213,3 +214,32 @@ def test_pdeface_rig_writes_the_same_bytes_twice(tmp_path, capsys):
     _, binding = bind_file(load_face(tmp_path / "a" / "rigged.npz"), str(mesh))
     smile = keys["names"].index("AU12")
     np.testing.assert_allclose(keys["deltas"][smile], binding.pose_displacement({"12": 1.0}), atol=1e-5)
+
+
+def test_stimuli_of_a_rigged_head_and_a_broken_face(tmp_path):
+    """A head's keys file (as ``pdeface rig`` writes it) is posed by its keys; a broken face fails its images
+    alone, each with its one-line error in the manifest, and the labels list the images made."""
+    from pdeface.batch.job import load_job
+    from pdeface.batch.run import run_job
+    from pdeface.rig import save_keys
+
+    mesh, idx = load_neutral_scan()
+    shapes = load_ict_shapes()
+    smile = shapes["mouthSmile_L"] + shapes["mouthSmile_R"]
+    (tmp_path / "bob").mkdir()
+    save_keys(tmp_path / "bob" / "keys.npz", mesh.vertices, mesh.triangles()[0], mesh.vertices[idx], ["AU12", "happy"],
+              np.stack([smile, smile]), "cm")
+    (tmp_path / "broken.npz").write_bytes(b"not a face")
+    job = load_job(_job(tmp_path, 'kind = "stimuli"\nout = "out"\nfaces = ["bob", "broken.npz"]\n'
+                                  'aus = [[12]]\nintensities = ["A", "E"]\nsize = 64\nretries = 0\n'))
+    with open(os.devnull, "w") as quiet:
+        summary = run_job(job, workers=2, stream=quiet)
+    assert summary.done == 2 and len(summary.failed) == 2
+    assert all("broken.npz" in e and "\n" not in e for e in summary.failed.values())
+    a, e = (np.asarray(bytearray((tmp_path / "out" / f"bob_AU12_{x}_front.png").read_bytes())) for x in "AE")
+    assert len(a) != len(e) or (a != e).any()  # the smile shows
+    rows = list(csv.DictReader((tmp_path / "out" / "labels.csv").read_text().splitlines()))
+    assert [(r["identity"], r["intensity"], r["AU12_r"], r["AU12_c"]) for r in rows] == \
+        [("bob", "A", "1.0", "1"), ("bob", "E", "5.0", "1")]
+    manifest = json.loads((tmp_path / "out" / "manifest.json").read_text())
+    assert sorted(t["status"] for t in manifest["tasks"]) == ["done", "done", "failed", "failed"]

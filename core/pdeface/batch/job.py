@@ -61,17 +61,21 @@ class Job:
     aus: list = field(default_factory=list)  # stimuli: every AU number in the job (the label columns)
 
 
-def _hash_file(path, cache={}) -> str:  # noqa: B006 - one planning's cache of the inputs' hashes
+#: Content hashes of the input files read so far, by (path, size, modification time).
+_HASHES = {}
+
+
+def _hash_file(path) -> str:
     path = os.path.abspath(path)
     st = os.stat(path)
     sig = (path, st.st_size, st.st_mtime_ns)
-    if sig not in cache:
+    if sig not in _HASHES:
         h = hashlib.sha256()
         with open(path, "rb") as fh:
             for block in iter(lambda: fh.read(1 << 20), b""):
                 h.update(block)
-        cache[sig] = h.hexdigest()
-    return cache[sig]
+        _HASHES[sig] = h.hexdigest()
+    return _HASHES[sig]
 
 
 def _input_hash(spec) -> str:

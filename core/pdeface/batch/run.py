@@ -97,11 +97,12 @@ def open_client(workers=None, scheduler=None):
     n = workers or os.cpu_count() or 1
     try:
         import bokeh  # noqa: F401 - the dashboard needs it
-        dashboard = ":0"
+        dashboard = True
     except ImportError:
-        dashboard = None
-    cluster = distributed.LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                                       dashboard_address=dashboard, silence_logs=logging.ERROR)
+        dashboard = False
+    # a free port for the scheduler's web server (another job's cluster may hold the usual 8787)
+    cluster = distributed.LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
+                                       silence_logs=logging.ERROR)
     client = distributed.Client(cluster)
     return client, cluster, client.dashboard_link if dashboard else None
 

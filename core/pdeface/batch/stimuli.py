@@ -83,7 +83,7 @@ def load_identity(face: str, aus: tuple = ()) -> Identity:
 
     ``aus`` are the AU keys a job poses (a head's keys are made for those only).
     """
-    if face == DEFAULT or (face.endswith(".npz") and Path(face).name != "keys.npz"):
+    if face == DEFAULT or (Path(face).is_file() and not _is_keys_file(face)):
         model = load_face(face)
         mesh = face_mesh(model)
         V = model.frame.to_face(mesh.vertices)
@@ -109,6 +109,15 @@ def load_identity(face: str, aus: tuple = ()) -> Identity:
         if name.startswith("AU"):
             keys[name[2:]] = frame.to_face(data["vertices"] + d) - rest
     return Identity(face, rest, data["triangles"], frame.to_face(data["landmarks"]), keys=keys)
+
+
+def _is_keys_file(path) -> bool:
+    """Whether ``path`` is a keys file (``pdeface rig``'s ``keys.npz``) rather than a face model."""
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            return "deltas" in z.files
+    except (OSError, ValueError):
+        return False  # not an archive: the face model's reader says what it is
 
 
 def render_identity(identity: Identity, weights: dict, view: str, size: int, samples: int = 1,
