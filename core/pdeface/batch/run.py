@@ -176,7 +176,7 @@ def _write_results(job, status, summary):
     write_bytes(job.out / MANIFEST, json.dumps(manifest, indent=1).encode())
     if job.kind == "stimuli":
         write_bytes(job.out / LABELS, labels_csv(job, status).encode())
-    for stale in job.out.glob(".*.part"):  # a worker killed mid-write leaves its temporary file
+    for stale in job.out.rglob(".*.part"):  # a worker killed mid-write leaves its temporary file
         stale.unlink(missing_ok=True)
 
 
