@@ -102,7 +102,7 @@ def open_client(workers=None, scheduler=None):
         dashboard = False
     # a free port for the scheduler's web server (another job's cluster may hold the usual 8787)
     cluster = distributed.LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
-                                       silence_logs=logging.ERROR)
+                                       silence_logs=logging.CRITICAL)
     client = distributed.Client(cluster)
     return client, cluster, client.dashboard_link if dashboard else None
 
