@@ -43,10 +43,11 @@ def make_heads(folder: Path, n: int) -> list:
 
 
 class PeakMemory:
-    """The peak resident memory of each child process of this one (the local cluster's workers)."""
+    """The peak resident memory and the CPU time of each child process of this one (the local cluster's
+    workers)."""
 
     def __init__(self, every=0.2):
-        self.every, self.peak, self._stop = every, {}, threading.Event()
+        self.every, self.peak, self.cpu, self._stop = every, {}, {}, threading.Event()
         self._thread = threading.Thread(target=self._watch, daemon=True)
 
     def _watch(self):
@@ -56,6 +57,8 @@ class PeakMemory:
                 try:
                     if any("spawn_main" in part for part in p.cmdline()):
                         self.peak[p.pid] = max(self.peak.get(p.pid, 0), p.memory_info().rss)
+                        t = p.cpu_times()
+                        self.cpu[p.pid] = t.user + t.system
                 except psutil.Error:
                     pass
             self._stop.wait(self.every)
@@ -85,8 +88,11 @@ def run(data, folder, workers, label):
         raise SystemExit(f"{label}: {len(summary.failed)} tasks failed: {next(iter(summary.failed.values()))}")
     rate = summary.done / summary.seconds
     peaks = sorted(mem.peak.values(), reverse=True)[:workers]
+    cpu = sum(mem.cpu.values())
     print(f"    {summary.seconds:.1f} s, {rate:.3f} tasks/s; peak RSS per worker "
-          + ", ".join(f"{p / 2**20:.0f} MB" for p in peaks), flush=True)
+          + ", ".join(f"{p / 2**20:.0f} MB" for p in peaks)
+          + f"; workers' CPU {cpu / max(summary.done, 1):.2f} s per task, {cpu / summary.seconds:.2f} cores busy "
+          "on average (of the workers': the rest went to other processes)", flush=True)
     return summary, rate, peaks
 
 
