@@ -176,7 +176,7 @@ FLOORS = [
     ["errors"],
     ["geometry", "landmark_scheme", "facs"],
     ["mesh", "rigid"],
-    ["assets", "io"],
+    ["assets", "io", "headless"],
     ["presets"],
     ["surface"],
     ["au"],
@@ -187,6 +187,8 @@ FLOORS = [
     ["head"],
     ["fdt"],
     ["landmarks"],
+    ["rig"],
+    ["batch"],
     ["cli"],
 ]
 

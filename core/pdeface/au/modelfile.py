@@ -71,7 +71,7 @@ from ..io.codec import (
     from_byte_planes,
     to_byte_planes,
 )
-from ..io.files import check_archive, parse_json, read_bytes, write_bytes
+from ..io.files import check_archive, npz_bytes, parse_json, read_bytes, write_bytes
 from ..landmark_scheme import FEATURE_NAMES
 from ..surface.frame import ESTIMATED, UNITS_MM, FaceFrame
 from ..surface.layout import CurveLayout, check_sizes
@@ -122,9 +122,7 @@ def model_to_bytes(model: FaceModel, descriptors: bool = True) -> bytes:
         arrays["status"] = np.asarray(model.status, np.uint8)
     if descriptors and model.descriptors:
         arrays.update(pack_descriptors(model.descriptors))
-    buf = io.BytesIO()
-    np.savez_compressed(buf, **arrays)
-    return buf.getvalue()
+    return npz_bytes(arrays)
 
 
 def model_nbytes(model: FaceModel) -> int:

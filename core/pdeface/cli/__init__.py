@@ -8,8 +8,8 @@ One module per command group, each registering its own subcommands
 (``register(sub)``): :mod:`.face` (fit, mesh, report, parts), :mod:`.au`
 (descriptor, pose, retarget, au-report, import-au), :mod:`.aus` (the AUs and
 presets a face has), :mod:`.fdt`,
-:mod:`.muscles`, :mod:`.landmarks`, :mod:`.stream`, :mod:`.render` and
-:mod:`.demo`; what they share is in :mod:`.common`. The library functions
+:mod:`.muscles`, :mod:`.landmarks`, :mod:`.rig`, :mod:`.stream`, :mod:`.render`,
+:mod:`.batch` and :mod:`.demo`; what they share is in :mod:`.common`. The library functions
 they call live in their concerns' modules and return results: the commands
 parse, call and print.
 """
@@ -20,11 +20,11 @@ import sys
 
 from .. import __version__
 from ..errors import PdeFaceError
-from . import au, aus, demo, face, fdt, landmarks, muscles, render, stream
+from . import au, aus, batch, demo, face, fdt, landmarks, muscles, render, rig, stream
 from .common import HelpFormatter
 
 #: The command groups, in the order ``pdeface --help`` lists their commands.
-GROUPS = (face, au, aus, fdt, muscles, landmarks, stream, render, demo)
+GROUPS = (face, au, aus, fdt, muscles, landmarks, rig, stream, render, batch, demo)
 
 
 def build_parser():

@@ -8,13 +8,13 @@ from ..animation.sequence import METHOD_SEQUENCE
 from ..assets import DEFAULT, ICT_NOTICE
 from ..au.modelfile import save_model
 from ..errors import PdeFaceError
+from ..headless import run_headless
 from ..io.files import write_bytes
 from ..io.meshio import write_mesh
 from ..surface.fit import face_mesh, fit_face
 from ..surface.report import accuracy_report
 from ..surface.scan import load_scan
 from .common import log
-from .render import run_headless
 
 
 def cmd_demo(args):
@@ -44,7 +44,7 @@ def cmd_demo(args):
 def render_demo(out, args):
     """The rig on ICT-FaceKit's whole head, the method's sequence, frames, contact sheet and .blend (bpy).
 
-    Runs in a child process (:func:`~pdeface.cli.render.run_headless`), so this package never imports bpy itself.
+    Runs in a child process (:func:`~pdeface.headless.run_headless`), so this package never imports bpy itself.
     """
     argv = ["--head", "--sequence", ",".join(METHOD_SEQUENCE), "--out", str(out), "--fps", str(args.fps), "--hold", "0.33",
             "--blend-time", "0.33", "--size", args.size, "--samples", str(args.samples), "--contact-sheet",

@@ -74,7 +74,7 @@ def parse_map(data, name="landmark map") -> LandmarkMap:
     if not isinstance(data, dict) or data.get("format") != MAP_FORMAT:
         raise LandmarkError(f"{name}: not a {MAP_FORMAT} file")
     if data.get("version") != MAP_VERSION:
-        raise LandmarkError(f"{name}: version {str(data.get('version'))[:20]!r} is not supported (expected {MAP_VERSION})")
+        raise LandmarkError(f"{name}: version {str(data.get('version'))[:20]} is not supported (expected {MAP_VERSION})")
     try:
         template = np.array(data.get("template"), np.float64)
     except (TypeError, ValueError, OverflowError):

@@ -1,0 +1,105 @@
+"""What a batch worker runs: one task, its outputs written atomically, then its record.
+
+A task is idempotent: run twice (a worker lost mid-task, its task run again elsewhere) it writes the same bytes
+to the same files, each through a temporary file renamed over it, so no output is ever half written. The record
+(``.pdeface-batch/KEY.json`` in the job's folder) is written last: a task with its record and every output
+present is done, and ``--resume`` skips it.
+"""
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import time
+from pathlib import Path
+
+from ..errors import PdeFaceError
+from ..headless import headless_command
+from ..io.files import write_bytes
+from ..io.png import write_png
+from ..rig import rig_head
+from .stimuli import load_identity, render_identity
+
+RECORDS = ".pdeface-batch"
+
+
+def record_path(out, key) -> Path:
+    return Path(out) / RECORDS / f"{key}.json"
+
+
+def is_done(out, task) -> bool:
+    """Whether ``task``'s record (with its key) and every output it lists are in ``out``."""
+    try:
+        rec = json.loads(record_path(out, task.key).read_text())
+    except (OSError, ValueError):
+        return False
+    return rec.get("key") == task.key and all((Path(out) / f).is_file() for f in task.outputs)
+
+
+def one_line(exc) -> str:
+    """An error as one line: a pdeface error's own message, else its type and first line."""
+    text = (str(exc).strip().splitlines() or [""])[0]
+    return text if isinstance(exc, PdeFaceError) else f"{type(exc).__name__}: {text}".rstrip(": ")
+
+
+def run_task(task, out) -> dict:
+    """Run ``task`` into the folder ``out``; returns ``{"key", "status": "done" | "failed", "error", "seconds"}``.
+
+    A :class:`PdeFaceError` or a file error (a broken mesh, the landmark gate refusing) is the task's result,
+    ``failed`` with its one-line message: run again, it would fail again. Anything else propagates, and the
+    scheduler retries the task (a bounded number of times).
+    """
+    t0 = time.perf_counter()
+    out = Path(out)
+    try:
+        RUNNERS[task.kind](task.params, out, task.key)
+    except (PdeFaceError, OSError) as exc:
+        return {"key": task.key, "status": "failed", "error": one_line(exc), "seconds": time.perf_counter() - t0}
+    seconds = time.perf_counter() - t0
+    (out / RECORDS).mkdir(parents=True, exist_ok=True)
+    write_bytes(record_path(out, task.key), json.dumps({"key": task.key, "name": task.name,
+                                                         "outputs": task.outputs}).encode())
+    return {"key": task.key, "status": "done", "error": None, "seconds": seconds, "pid": os.getpid()}
+
+
+def _rig(p, out, key):
+    rig_head(p["mesh"], out / p["folder"], landmarks=p["landmarks"], unit=p["unit"], parts=p["parts"],
+             descriptors=p["descriptors"], presets=p["presets"], blend=p["blend"])
+
+
+def _stimulus(p, out, key):
+    identity = load_identity(p["face"], tuple(p["keys"]))
+    img = render_identity(identity, p["weights"], p["view"], p["size"], p["samples"], p["background"])
+    out.mkdir(parents=True, exist_ok=True)
+    write_png(out / p["file"], img)
+
+
+def _render_chunk(p, out, key):
+    """Frames ``frame_start``-``frame_end`` by the add-on's headless renderer (a child Python with bpy, one
+    Blender per task), rendered aside and moved into ``out/frames`` one by one (a rename: atomic)."""
+    aside = out / RECORDS / "chunks" / key
+    shutil.rmtree(aside, ignore_errors=True)
+    argv = ["--timeline", p["timeline"], "--out", aside, "--frame-start", p["frame_start"],
+            "--frame-end", p["frame_end"], "--engine", p["engine"], "--size", p["size"],
+            "--samples", p["samples"], "--seed", p["seed"], "--quiet"]
+    if p["blend"]:
+        argv += ["--blend", p["blend"]]
+    elif p["head"]:
+        argv += ["--head"]
+    else:
+        argv += ["--face", p["face"]]
+    res = subprocess.run(headless_command(argv, prog="pdeface batch"), capture_output=True, text=True, check=False)
+    if res.returncode:
+        lines = [ln for ln in res.stderr.splitlines() if ln.strip()]
+        raise PdeFaceError(f"frames {p['frame_start']}-{p['frame_end']}: "
+                           f"{lines[-1] if lines else f'the renderer exited with {res.returncode}'}")
+    frames = out / "frames"
+    frames.mkdir(parents=True, exist_ok=True)
+    for f in range(p["frame_start"], p["frame_end"] + 1):
+        name = f"frame_{f:04d}.png"
+        os.replace(aside / "frames" / name, frames / name)
+    shutil.rmtree(aside, ignore_errors=True)
+
+
+RUNNERS = {"rig": _rig, "stimuli": _stimulus, "render": _render_chunk}

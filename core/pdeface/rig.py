@@ -1,0 +1,178 @@
+"""A user's head rigged in one go: landmarks → face model → retargeted model → every key on the user's mesh.
+
+The chain ``pdeface landmarks``, ``fit``, ``retarget`` and ``pose --mesh --all-keys`` run one by one (and the
+add-on's Fit to Selected), in one process that reads the mesh once: :func:`rig_head`, behind ``pdeface rig`` and
+the batch ``rig`` job. It writes into one folder:
+
+- ``landmarks.json`` (as ``pdeface landmarks`` writes), ``face.npz`` (the fitted face model), ``rigged.npz``
+  (the same carrying the retargeted AU descriptors);
+- ``keys.npz``: the keys for other tools (:func:`save_keys`, :func:`load_keys`): the mesh at rest, its
+  triangles and landmarks, and each key's vertex deltas (every AU, then the presets the face has AUs for);
+- ``report.json``: what each step found (the landmark gate, the fit's points, the binding's notes) and took;
+- with ``blend``, ``head.blend``: the add-on's rigged head, made by its headless renderer (needs the bpy module).
+
+Every file but the report's ``timings`` is the same, byte for byte, for the same inputs.
+"""
+from __future__ import annotations
+
+import json
+import os
+import time
+from pathlib import Path
+
+import numpy as np
+
+from .assets import DEFAULT, HEAD, ICT_NOTICE
+from .au.modelfile import load_face, model_from_bytes, model_to_bytes
+from .au.retarget import retarget
+from .errors import FileError, ModelFormatError, PdeFaceError
+from .head.bind import HeadBinding
+from .head.parts import read_overrides, skin_mask
+from .headless import run_headless
+from .io.files import load_npz, npz_bytes, parse_json, write_bytes
+from .landmarks.pipeline import find_on_mesh
+from .presets import key_poses, merged_presets
+from .surface.fit import fit_face
+from .surface.frame import UNITS_MM
+from .surface.scan import load_scan
+
+KEYS_FORMAT = "pdeface.keys"
+KEYS_VERSION = 1
+#: The files :func:`rig_head` writes into its folder (``head.blend`` only when asked).
+OUTPUTS = ("landmarks.json", "face.npz", "rigged.npz", "keys.npz", "report.json")
+
+
+def save_keys(path, vertices, triangles, landmarks, names, deltas, unit, source="") -> int:
+    """Write the keys file: the rest mesh ``vertices (n, 3)``, ``triangles (t, 3)``, ``landmarks (68, 3)`` and
+    each key's ``deltas (k, n, 3)`` (float32, the mesh's unit) named ``names``; returns its size in bytes."""
+    meta = {"version": KEYS_VERSION, "unit": unit, "names": list(names), "source": source}
+    arrays = {"format": np.array(KEYS_FORMAT), "meta": np.frombuffer(json.dumps(meta, separators=(",", ":")).encode(), np.uint8),
+              "vertices": np.asarray(vertices, np.float64), "triangles": np.asarray(triangles, np.int32),
+              "landmarks": np.asarray(landmarks, np.float64), "deltas": np.asarray(deltas, np.float32)}
+    return write_bytes(path, npz_bytes(arrays))
+
+
+def load_keys(path) -> dict:
+    """A keys file as ``{"vertices", "triangles", "landmarks", "deltas", "names", "unit", "source"}``."""
+    data = load_npz(path, KEYS_FORMAT, "keys")
+    meta = parse_json(data["meta"].tobytes().decode(), f"{path}: meta")
+    if meta.get("version", 0) > KEYS_VERSION:
+        raise ModelFormatError(f"{path}: keys file version {meta['version']} is newer than this pdeface reads")
+    out = {k: data[k] for k in ("vertices", "triangles", "landmarks", "deltas")}
+    if out["deltas"].shape != (len(meta["names"]), *out["vertices"].shape):
+        raise ModelFormatError(f"{path}: its deltas do not match its vertices and names")
+    return out | {"names": list(meta["names"]), "unit": meta["unit"], "source": meta.get("source", "")}
+
+
+def rig_head(mesh_arg, out, landmarks=None, unit=None, parts=None, descriptors=DEFAULT, presets=True,
+             blend=False, log=None) -> dict:
+    """Rig the head ``mesh_arg`` (a file, ``head`` or ``default``) into the folder ``out``; returns the report.
+
+    Parameters
+    ----------
+    mesh_arg : str or path
+    out : str or path
+        The folder to write (made if missing; the files of :data:`OUTPUTS` in it are replaced).
+    landmarks : str, optional
+        The mesh's landmarks JSON; found on the mesh (MediaPipe) when None and the mesh is a file.
+    unit : str, optional
+        The mesh's unit (guessed from the eyes when None).
+    parts : str, optional
+        JSON of part overrides (as ``pdeface parts`` writes): its skin is fitted, its parts bound.
+    descriptors : str
+        The face model whose AU descriptors are retargeted (``default``: the bundled ones).
+    presets : bool
+        Also a key per preset the face has AUs for (as the add-on's Fit makes).
+    blend : bool
+        Also ``head.blend``, rigged by the add-on (needs Blender's bpy module).
+    log : callable, optional
+        Called with each progress line.
+
+    Raises
+    ------
+    PdeFaceError
+        A broken mesh, landmarks refused by the gate, a fit or binding that cannot be made.
+    """
+    say = log or (lambda msg: None)
+    out = Path(out)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise FileError(f"{out}: cannot make the output folder ({exc.strerror})") from None
+    timings, report = {}, {"mesh": str(mesh_arg)}
+    clock = [time.perf_counter()]
+
+    def lap(name):
+        now = time.perf_counter()
+        timings[name] = round(now - clock[0], 3)
+        clock[0] = now
+
+    mesh, lm = load_scan(mesh_arg, landmarks)
+    V, T = mesh.vertices, mesh.triangles()[0]
+    report["vertices"], report["triangles"] = len(V), len(T)
+    lap("read")
+    if lm is None:
+        found = find_on_mesh(mesh, unit)
+        lm = found.points
+        lm_json = found.to_json()
+        report["landmarks"] = {"source": "found", "detector_score": round(found.score, 3), "view": found.view,
+                               "residual_mm": round(found.residual_mm, 2),
+                               "confidence": {k: round(v, 3) for k, v in found.confidence.items()}}
+        say(f"{mesh_arg}: found the 68 landmarks (detector score {found.score:.2f}, "
+            f"{found.residual_mm:.1f} mm from the template)")
+    else:
+        lm_json = {"points": np.round(lm, 6).tolist()}
+        report["landmarks"] = {"source": "given" if landmarks else "bundled"}
+    write_bytes(out / "landmarks.json", json.dumps(lm_json).encode())
+    lap("landmarks")
+
+    overrides = read_overrides(parts) if parts else None
+    skin = skin_mask(overrides, len(V)) if overrides else None
+    model, sampler = fit_face(V, T, lm, unit=unit, source=str(mesh_arg), skin=skin)
+    if mesh_arg in (DEFAULT, HEAD):
+        model.notice = ICT_NOTICE
+    model = _saved(out / "face.npz", model)
+    report["fit"] = {"unit": model.frame.unit, "curves": model.layout.n_curves, "points": sampler.summary()}
+    lap("fit")
+
+    rigged = _saved(out / "rigged.npz", retarget(load_face(descriptors), model))
+    lap("retarget")
+
+    binding = HeadBinding(rigged, V, T, overrides=overrides)
+    poses = key_poses(rigged, merged_presets([]) if presets else {})
+    deltas = binding.pose_displacements(list(poses.values()))
+    lap("bind")
+    save_keys(out / "keys.npz", V, T, lm, list(poses), deltas, model.frame.unit, str(mesh_arg))
+    report["keys"] = {"count": len(poses), "aus": sum(n.startswith("AU") for n in poses),
+                      "largest_mm": round(float(np.linalg.norm(deltas, axis=2).max(initial=0.0))
+                                          * UNITS_MM[model.frame.unit], 2)}
+    report["binding_notes"] = list(binding.notes)
+    lap("keys")
+
+    outputs = list(OUTPUTS)
+    if blend:
+        rig_blend(mesh_arg, out / "landmarks.json", out / "head.blend", unit)
+        outputs.append("head.blend")
+        lap("blend")
+    report["outputs"] = outputs
+    report["timings"] = {**timings, "total": round(sum(timings.values()), 3)}
+    write_bytes(out / "report.json", json.dumps(report, indent=1).encode())
+    say(f"{mesh_arg}: rigged {len(poses)} keys on {len(V)} vertices in {report['timings']['total']:.1f} s")
+    return report
+
+
+def _saved(path, model):
+    """Write ``model`` to ``path`` and return it as read back (its file's precision): the next step works on
+    what the file holds, as ``pdeface retarget`` and ``pose --mesh`` do after ``pdeface fit``."""
+    data = model_to_bytes(model)
+    write_bytes(path, data)
+    return model_from_bytes(data, str(path))
+
+
+def rig_blend(mesh_arg, landmarks, path, unit=None):
+    """``path``: the head rigged by the add-on (its Fit), saved as a ``.blend`` by the headless renderer."""
+    argv = ["--mesh", mesh_arg, "--landmarks", landmarks, "--no-frames", "--quiet", "--save-blend",
+            os.fspath(Path(path).resolve())]
+    code, _ = run_headless(argv + (["--unit", unit] if unit else []), capture=True, prog="pdeface rig")
+    if code:
+        raise PdeFaceError(f"{path}: Blender could not rig the head (the headless renderer exited with {code})")

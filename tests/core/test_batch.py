@@ -1,0 +1,245 @@
+"""``pdeface rig`` and ``pdeface batch``: job files, task keys, and jobs on a local Dask cluster of 2 processes
+(a worker killed mid-job, an interrupted job resumed, failures recorded)."""
+import csv
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from pdeface.assets import load_ict_shapes, load_neutral_scan
+from pdeface.batch.job import JobError, plan_job
+from pdeface.batch.run import labels_csv
+from pdeface.batch.work import RECORDS, one_line
+from pdeface.errors import LandmarkError
+from pdeface.io.meshio import write_mesh
+from pdeface.rig import load_keys
+
+distributed = pytest.importorskip("distributed")
+psutil = pytest.importorskip("psutil")
+
+
+def _pdeface(*args, **kwargs):
+    return subprocess.Popen([sys.executable, "-m", "pdeface.cli", *map(str, args)], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, **kwargs)
+
+
+def _finish(proc, timeout=600):
+    out, err = proc.communicate(timeout=timeout)
+    return proc.returncode, out, err
+
+
+def _job(tmp_path, text, name="job.toml"):
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def _identity(folder, i):
+    """An ICT identity's face region as an OBJ with its landmarks JSON beside it (``{stem}.json``)."""
+    mesh, idx = load_neutral_scan()
+    mesh.vertices = mesh.vertices + load_ict_shapes()[f"identity{i:03d}"]
+    path = folder / f"ict{i:03d}.obj"
+    write_mesh(path, mesh)
+    (folder / f"ict{i:03d}.json").write_text(json.dumps({"indices": idx.tolist()}))
+    return path
+
+
+STIMULI = """kind = "stimuli"
+out = "{out}"
+faces = ["default"]
+aus = [[12], [1, 2], [4]]
+intensities = ["B", "E"]
+views = ["front", "yaw20"]
+size = 48
+"""
+
+
+def _outputs(folder):
+    return {p.relative_to(folder).as_posix(): p.read_bytes() for p in sorted(Path(folder).rglob("*.png"))}
+
+
+def _workers(proc):
+    """The job's Dask worker processes (spawned by the nannies, which run in the job's process), once both are
+    up."""
+    for _ in range(1200):
+        workers = [k for k in psutil.Process(proc.pid).children(recursive=True)
+                   if any("spawn_main" in part for part in k.cmdline())]
+        if len(workers) >= 2:
+            return workers
+        time.sleep(0.1)
+    raise AssertionError("the local cluster's workers did not start")
+
+
+def _wait_for_records(out, n, proc, timeout=300):
+    t0 = time.time()
+    while time.time() - t0 < timeout:
+        records = list((out / RECORDS).glob("*.json")) if (out / RECORDS).exists() else []
+        if len(records) >= n:
+            return records
+        assert proc.poll() is None, proc.communicate()
+        time.sleep(0.05)
+    raise AssertionError("the job made no progress")
+
+
+def test_job_files_are_checked(tmp_path):
+    for data, message in [({"kind": "paint", "out": "o"}, "'kind' must be one of"),
+                          ({"kind": "rig", "out": "o", "meshes": ["m.obj"], "colour": 1}, "unknown key 'colour'"),
+                          ({"kind": "rig", "meshes": ["m.obj"]}, "'out'"),
+                          ({"kind": "rig", "out": "o", "meshes": ["nothing*.obj"]}, "matches no file"),
+                          ({"kind": "stimuli", "out": "o", "faces": ["default"]}, "give 'aus'"),
+                          ({"kind": "stimuli", "out": "o", "faces": ["default"], "aus": [[12]],
+                            "intensities": ["F"]}, "FACS letter"),
+                          ({"kind": "stimuli", "out": "o", "faces": ["default"], "aus": [[12]], "samples": 3},
+                           "a square"),
+                          ({"kind": "stimuli", "out": "o", "faces": ["default"], "aus": [[12]], "views": ["up"]},
+                           "view 'up'")]:
+        with pytest.raises(JobError, match=message) as info:
+            plan_job(data, tmp_path)
+        assert "\n" not in str(info.value)
+
+
+def test_stimulus_tasks_are_keyed_by_their_inputs_and_labelled(tmp_path):
+    data = {"kind": "stimuli", "out": "o", "faces": ["default"], "aus": [[12], [1, 2]], "presets": ["happy"],
+            "intensities": ["A", "E", 0.5], "views": ["front", "left"], "size": 32}
+    job = plan_job(data, tmp_path)
+    assert len(job.tasks) == 3 * 3 * 2
+    assert len({t.key for t in job.tasks}) == len(job.tasks) == len({t.outputs[0] for t in job.tasks})
+    assert [t.key for t in plan_job(data, tmp_path).tasks] == [t.key for t in job.tasks]
+    bigger = plan_job({**data, "size": 64}, tmp_path)
+    assert not {t.key for t in bigger.tasks} & {t.key for t in job.tasks}
+    rows = list(csv.DictReader(labels_csv(job, {t.key: {"status": "done"} for t in job.tasks}).splitlines()))
+    assert len(rows) == len(job.tasks)
+    assert {"AU01_r", "AU02_r", "AU06_r", "AU12_r", "AU01_c", "AU12_c", "identity", "view", "intensity"} <= set(rows[0])
+    one = next(r for r in rows if r["file"] == "default_AU01+02_E_left.png")
+    assert (one["AU01_r"], one["AU02_r"], one["AU12_r"], one["AU01_c"], one["AU12_c"]) == ("5.0", "5.0", "0.0", "1", "0")
+    assert next(r for r in rows if r["file"] == "default_AU12_w0.5_front.png")["AU12_r"] == "2.5"
+    sampled = plan_job({**data, "sampler": {"count": 7, "seed": 3}}, tmp_path)
+    again = plan_job({**data, "sampler": {"count": 7, "seed": 3}}, tmp_path)
+    assert [t.outputs for t in sampled.tasks] == [t.outputs for t in again.tasks] and len(sampled.tasks) == 7
+
+
+def test_one_line_errors():
+    assert one_line(LandmarkError("m.obj: no face found\nmore")) == "m.obj: no face found"
+    assert one_line(ValueError("bad\nvalue")) == "ValueError: bad"
+
+
+def test_a_killed_worker_loses_nothing(tmp_path):
+    """Kill one of the 2 workers mid-job: the job completes, each image exists once, byte-identical to a serial
+    run's (1 worker), and the labels too."""
+    job = _job(tmp_path, STIMULI.format(out="par"))
+    proc = _pdeface("batch", job, "--workers", 2)
+    workers = _workers(proc)
+    _wait_for_records(tmp_path / "par", 1, proc)
+    workers[0].send_signal(signal.SIGKILL)
+    code, out, err = _finish(proc)
+    assert code == 0, err
+    assert json.loads(out)["done"] == 12
+    serial = _job(tmp_path, STIMULI.format(out="ser"), "serial.toml")
+    code, _, err = _finish(_pdeface("batch", serial, "--workers", 1))
+    assert code == 0, err
+    made, expected = _outputs(tmp_path / "par"), _outputs(tmp_path / "ser")
+    assert len(expected) == 12 and made == expected
+    assert (tmp_path / "par" / "labels.csv").read_bytes() == (tmp_path / "ser" / "labels.csv").read_bytes()
+    assert not [p for p in (tmp_path / "par").rglob("*.part")]
+
+
+def test_an_interrupted_job_resumes_with_only_the_missing_outputs(tmp_path):
+    job = _job(tmp_path, STIMULI.format(out="out"))
+    out = tmp_path / "out"
+    proc = _pdeface("batch", job, "--workers", 2)
+    _wait_for_records(out, 3, proc)
+    proc.send_signal(signal.SIGINT)
+    _finish(proc)
+    before = {p: p.stat().st_mtime_ns for p in out.glob("*.png")}
+    records = len(list((out / RECORDS).glob("*.json")))
+    assert 3 <= records < 12, "interrupted too late: nothing left to resume"
+    code, stdout, err = _finish(_pdeface("batch", job, "--workers", 2, "--resume"))
+    assert code == 0, err
+    summary = json.loads(stdout)
+    assert summary["skipped"] == records and summary["done"] == 12 - records
+    assert len(list(out.glob("*.png"))) == 12
+    kept = [p for p in before if (out / RECORDS).exists() and p.stat().st_mtime_ns == before[p]]
+    assert len(kept) >= records  # the done ones were not made again
+    with open(out / "labels.csv") as f:
+        assert len(list(csv.DictReader(f))) == 12
+
+
+def test_a_rig_job_rigs_each_head_and_records_a_broken_one(tmp_path):
+    """2 ICT identities and a broken mesh: both heads get their keys, the broken one is failed in the manifest
+    with its one-line error, and the job exits 2 naming the manifest."""
+    for i in (1, 2):
+        _identity(tmp_path, i)
+    (tmp_path / "broken.obj").write_text("v 0 0 0\nv 1 0 0\nf 1 2 3\n")
+    job = _job(tmp_path, 'kind = "rig"\nout = "rigs"\nmeshes = ["ict*.obj", "broken.obj"]\n'
+                         'landmarks = "{stem}.json"\npresets = false\n')
+    code, _, err = _finish(_pdeface("batch", job, "--workers", 2))
+    assert code == 2, err
+    assert "manifest.json" in err
+    manifest = json.loads((tmp_path / "rigs" / "manifest.json").read_text())
+    status = {t["name"]: t for t in manifest["tasks"]}
+    assert status["ict001"]["status"] == status["ict002"]["status"] == "done"
+    assert status["broken"]["status"] == "failed" and "broken.obj" in status["broken"]["error"]
+    assert "\n" not in status["broken"]["error"]
+    k1, k2 = load_keys(tmp_path / "rigs/ict001/keys.npz"), load_keys(tmp_path / "rigs/ict002/keys.npz")
+    assert k1["names"] == k2["names"] and len(k1["names"]) >= 60 and all(n.startswith("AU") for n in k1["names"])
+    assert k1["deltas"].shape == (len(k1["names"]), 9409, 3)
+    smile = k1["names"].index("AU12")
+    assert np.linalg.norm(k1["deltas"][smile], axis=1).max() > 0.3  # cm: a smile moves the lips' corners
+    assert not np.allclose(k1["deltas"], k2["deltas"])  # each head its own keys
+    report = json.loads((tmp_path / "rigs/ict001/report.json").read_text())
+    assert report["landmarks"]["source"] == "given" and set(report["timings"]) >= {"fit", "bind", "total"}
+
+
+def test_pdeface_rig_writes_the_same_bytes_twice(tmp_path, capsys):
+    """``pdeface rig``: every file, and the same bytes for the same inputs (the batch jobs' idempotence rests on
+    it); the keys are those ``pose --mesh`` gives."""
+    from pdeface.au.modelfile import load_face
+    from pdeface.cli import main
+    from pdeface.head.bind import bind_file
+
+    mesh = _identity(tmp_path, 3)
+    lm = tmp_path / "ict003.json"
+    assert main(["rig", str(mesh), "--landmarks", str(lm), "--no-presets", "-o", str(tmp_path / "a")]) == 0
+    printed = json.loads(capsys.readouterr().out)
+    assert printed["keys"]["count"] == printed["keys"]["aus"] > 60 and "bind" in printed["timings"]
+    assert main(["rig", str(mesh), "--landmarks", str(lm), "--no-presets", "-o", str(tmp_path / "b")]) == 0
+    for name in ("landmarks.json", "face.npz", "rigged.npz", "keys.npz"):
+        assert (tmp_path / "a" / name).read_bytes() == (tmp_path / "b" / name).read_bytes(), name
+    keys = load_keys(tmp_path / "a" / "keys.npz")
+    _, binding = bind_file(load_face(tmp_path / "a" / "rigged.npz"), str(mesh))
+    smile = keys["names"].index("AU12")
+    np.testing.assert_allclose(keys["deltas"][smile], binding.pose_displacement({"12": 1.0}), atol=1e-5)
+
+
+def test_stimuli_of_a_rigged_head_and_a_broken_face(tmp_path):
+    """A head's keys file (as ``pdeface rig`` writes it) is posed by its keys; a broken face fails its images
+    alone, each with its one-line error in the manifest, and the labels list the images made."""
+    from pdeface.batch.job import load_job
+    from pdeface.batch.run import run_job
+    from pdeface.rig import save_keys
+
+    mesh, idx = load_neutral_scan()
+    shapes = load_ict_shapes()
+    smile = shapes["mouthSmile_L"] + shapes["mouthSmile_R"]
+    (tmp_path / "bob").mkdir()
+    save_keys(tmp_path / "bob" / "keys.npz", mesh.vertices, mesh.triangles()[0], mesh.vertices[idx], ["AU12", "happy"],
+              np.stack([smile, smile]), "cm")
+    (tmp_path / "broken.npz").write_bytes(b"not a face")
+    job = load_job(_job(tmp_path, 'kind = "stimuli"\nout = "out"\nfaces = ["bob", "broken.npz"]\n'
+                                  'aus = [[12]]\nintensities = ["A", "E"]\nsize = 64\nretries = 0\n'))
+    with open(os.devnull, "w") as quiet:
+        summary = run_job(job, workers=2, stream=quiet)
+    assert summary.done == 2 and len(summary.failed) == 2
+    assert all("broken.npz" in e and "\n" not in e for e in summary.failed.values())
+    a, e = (np.asarray(bytearray((tmp_path / "out" / f"bob_AU12_{x}_front.png").read_bytes())) for x in "AE")
+    assert len(a) != len(e) or (a != e).any()  # the smile shows
+    rows = list(csv.DictReader((tmp_path / "out" / "labels.csv").read_text().splitlines()))
+    assert [(r["identity"], r["intensity"], r["AU12_r"], r["AU12_c"]) for r in rows] == \
+        [("bob", "A", "1.0", "1"), ("bob", "E", "5.0", "1")]
+    manifest = json.loads((tmp_path / "out" / "manifest.json").read_text())
+    assert sorted(t["status"] for t in manifest["tasks"]) == ["done", "done", "failed", "failed"]
