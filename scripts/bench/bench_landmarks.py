@@ -11,7 +11,7 @@ Blender's convention (-y front, +z up) with 25° of yaw, in metres:
   fit's mean error (accuracy_report) and the median captured of the retargeted bundled AUs;
 - one held-out head turned 45° about each axis, in ICT's axes (mm) and Blender's (m);
 - a whole-body character in metres of another topology: found, fitted, its errors;
-- speed against the renderer as it was before #35 (:mod:`scripts.bench.landmarks_before`), in the same run:
+- speed against the renderer as it was before #35 (:mod:`scripts.bench.baseline_landmarks`), in the same run:
   each held-out head found both ways (same landmarks, bit for bit; time ratio), and a fresh process finding
   one head from scratch (imports, detector, detect) both ways, with the machine's load beside.
 Needs ``pdeface[landmarks]``.
@@ -37,7 +37,7 @@ from pdeface.surface.frame import BLENDER_FROM_ICT
 from pdeface.surface.report import accuracy_report
 
 from scripts.bench.benchlib import bench_parser, body_character, run_bench
-from scripts.bench.landmarks_before import before_path, cold_seconds
+from scripts.bench.baseline_landmarks import before_path, cold_seconds
 
 #: The two ways each held-out head is seen: (name, matrix from ICT cm, unit, mm per unit).
 POSES = [("ict-cm", np.eye(3), "cm", 10.0),

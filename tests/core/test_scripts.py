@@ -10,7 +10,7 @@ SCRIPTS = ROOT / "scripts"
 
 def test_scripts_are_sorted_by_kind_and_never_edit_sys_path():
     assert sorted(p.name for p in SCRIPTS.glob("*.py")) == ["__init__.py"]
-    for kind, prefixes in {"bench": ("bench_", "benchlib", "fuzz_readers"), "build": ("build_",),
+    for kind, prefixes in {"bench": ("bench_", "benchlib", "fuzz_readers", "baseline_"), "build": ("build_",),
                            "figures": ("render_", "drawlib")}.items():
         names = [p.stem for p in (SCRIPTS / kind).glob("*.py") if p.stem != "__init__"]
         assert names and all(n.startswith(prefixes) for n in names), (kind, names)

@@ -119,7 +119,7 @@ from pdeface.landmarks.detector import Detector, _mediapipe
 from pdeface.landmarks.pipeline import detect
 if BEFORE:
     from mediapipe.python.solutions import face_detection, face_mesh  # as before: every solution, matplotlib too
-    from scripts.bench.landmarks_before import before_path
+    from scripts.bench.baseline_landmarks import before_path
 else:
     _mediapipe()
 t1 = time.perf_counter()
