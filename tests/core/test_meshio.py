@@ -359,3 +359,44 @@ def test_obj_irregular_files_read_or_fail_as_line_by_line(tmp_path, text):
         assert str(got.value) == str(exc)
     else:
         _same_mesh(read_obj(path), expected)
+
+
+POSED_SOURCE = ("# head\r\nmtllib h.mtl\r\no head\r\nv 0 0 0 0.5 0.5 0.5\r\n  v 1 0 0\r\nvt 0 0\r\ng skin\r\n"
+                "v 0 1 0\r\nvn 0 0 1\r\nusemtl Skin\r\ns 1\r\nf 1/1/1 2/1/1 3/1/1\r\n# end")
+
+
+def test_write_posed_changes_only_the_vertex_positions(tmp_path):
+    from pdeface.io.meshio import write_posed
+
+    src = tmp_path / "src.obj"
+    src.write_bytes(POSED_SOURCE.encode())
+    mesh = read_obj(src)
+    V = mesh.vertices + [[0.25, 0, 0], [0, 0.5, 0], [0, 0, -1.5]]
+    write_posed(tmp_path / "out.obj", src, mesh, V)
+    got = (tmp_path / "out.obj").read_bytes().decode().split("\r\n")
+    want = POSED_SOURCE.split("\r\n")
+    # the v lines: new x y z, their colours kept; every other line (and its CRLF) exactly as it was
+    want[3], want[4], want[7] = "v 0.250000 0.000000 0.000000 0.5 0.5 0.5", "v 1.000000 0.500000 0.000000", \
+        "v 0.000000 1.000000 -1.500000"
+    assert got == want
+    np.testing.assert_allclose(read_obj(tmp_path / "out.obj").vertices, V)
+
+
+def test_write_posed_many_reads_the_source_once(tmp_path, monkeypatch):
+    from pdeface.io import meshio
+
+    src = tmp_path / "src.obj"
+    src.write_bytes(POSED_SOURCE.encode())
+    mesh = read_obj(src)
+    opened = []
+    real_open = meshio.open_file
+    monkeypatch.setattr(meshio, "open_file", lambda path, *a, **k: opened.append(path) or real_open(path, *a, **k))
+    poses = [(tmp_path / f"p{i}.obj", mesh.vertices + i) for i in range(5)] + [(tmp_path / "p.ply", mesh.vertices)]
+    meshio.write_posed_many(poses, src, mesh)
+    assert opened == [src]
+    for path, V in poses:
+        np.testing.assert_allclose(read_mesh(path).vertices, V, atol=1e-5)
+    other = Mesh.from_faces(np.zeros((4, 3)), [[0, 1, 2, 3]])  # not the mesh read from src
+    with pytest.raises(MeshError, match=r"src.obj: changed since it was read \(3 vertices, expected 4\)"):
+        meshio.write_posed_many([(tmp_path / "q.obj", other.vertices)], src, other)
+    assert not (tmp_path / "q.obj").exists()

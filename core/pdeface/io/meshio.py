@@ -54,33 +54,51 @@ def write_posed(path, source, mesh: Mesh, vertices) -> None:
     An OBJ source is copied line by line with only its ``v`` lines' x y z
     replaced: groups, objects, smoothing, materials, UVs, normals, vertex
     colours and comments stay exactly as they were. Other sources are written
-    with :func:`write_mesh`.
+    with :func:`write_mesh`. :func:`write_posed_many` writes several poses of
+    one source, reading it once.
     """
-    V = np.asarray(vertices, dtype=np.float64)
-    if V.shape != mesh.vertices.shape or not np.isfinite(V).all():
-        raise MeshError(f"{path}: posed vertices must be finite and shaped {mesh.vertices.shape}, got {V.shape}")
-    src_ext = os.path.splitext(str(source))[1].lower()
-    out_ext = os.path.splitext(str(path))[1].lower()
-    if src_ext != ".obj" or out_ext != ".obj":
-        posed = Mesh(**{**mesh.__dict__, "vertices": V})
-        write_mesh(path, posed)
-        return
-    out, k = [], 0
+    write_posed_many([(path, vertices)], source, mesh)
+
+
+def write_posed_many(outputs, source, mesh: Mesh) -> None:
+    """:func:`write_posed` for each ``(path, vertices)`` of ``outputs`` (an iterable), reading ``source`` once."""
+    template = None
+    for path, vertices in outputs:
+        V = np.asarray(vertices, dtype=np.float64)
+        if V.shape != mesh.vertices.shape or not np.isfinite(V).all():
+            raise MeshError(f"{path}: posed vertices must be finite and shaped {mesh.vertices.shape}, got {V.shape}")
+        src_ext = os.path.splitext(str(source))[1].lower()
+        out_ext = os.path.splitext(str(path))[1].lower()
+        if src_ext != ".obj" or out_ext != ".obj":
+            write_mesh(path, Mesh(**{**mesh.__dict__, "vertices": V}))
+            continue
+        if template is None:
+            template = _posed_template(source, len(V))
+        out, rows, tails = template
+        for i, xyz, tail in zip(rows, V.tolist(), tails):
+            out[i] = "v %.6f %.6f %.6f%s" % (*xyz, tail)
+        with atomic_open(path, "w", encoding="utf-8", newline="") as fh:
+            fh.write("".join(out))
+
+
+def _posed_template(source, n):
+    """The OBJ ``source``'s lines (a list to fill in), the index of each ``v`` line in it and what follows
+    each one's x y z (its other values and its line ending)."""
     with open_file(source, "r", MeshError, encoding="utf-8", errors="replace", newline="") as fh:
-        for line in fh:
+        out = fh.readlines()
+    rows, tails = [], []
+    for i, line in enumerate(out):
+        if line[:1] == "v" or line[:1].isspace():  # the only lines split: a v line, maybe indented
             parts = line.split()
             if parts and parts[0] == "v":
-                if k >= len(V):
-                    raise MeshError(f"{source}: has more vertices than the mesh read from it ({len(V)})")
+                rows.append(i)
                 end = "\r\n" if line.endswith("\r\n") else "\n"
-                out.append("v %.6f %.6f %.6f%s%s" % (*V[k], "".join(" " + p for p in parts[4:]), end))
-                k += 1
-            else:
-                out.append(line)
-    if k != len(V):
-        raise MeshError(f"{source}: changed since it was read ({k} vertices, expected {len(V)})")
-    with atomic_open(path, "w", encoding="utf-8", newline="") as fh:
-        fh.write("".join(out))
+                tails.append("".join(" " + p for p in parts[4:]) + end)
+    if len(rows) > n:
+        raise MeshError(f"{source}: has more vertices than the mesh read from it ({n})")
+    if len(rows) != n:
+        raise MeshError(f"{source}: changed since it was read ({len(rows)} vertices, expected {n})")
+    return out, rows, tails
 
 
 def read_obj(path) -> Mesh:
