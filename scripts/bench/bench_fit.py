@@ -11,6 +11,9 @@ Prints, each measured in this run:
   factorised once and cached, as the spectral operators are (the fair figure),
   and, beside it, built and factorised on every solve;
 - fit + solve time after curve extraction, and the model file size.
+
+Everything runs with the BLAS pools bounded as the command line and the add-on run them
+(:mod:`pdeface.threads`).
 """
 from __future__ import annotations
 
@@ -27,6 +30,7 @@ from pdeface.surface.fourier import fit_fourier
 from pdeface.surface.grid import grid_faces, surface_grid
 from pdeface.surface.pde import output_grid, solve_surface
 from pdeface.surface.report import accuracy_report, band_vertices
+from pdeface.threads import bounded
 
 from scripts.bench.benchlib import bench_parser, median_time, run_bench
 
@@ -91,6 +95,7 @@ def surface_error(model, X, Vf, T, vis):
     return float(ClosestPoint(X.reshape(-1, 3), Tp).query(Vf[vis])[0].mean())
 
 
+@bounded  # BLAS threads bounded, as every pdeface command and operator runs (pdeface.threads)
 def main(argv=None):
     ap = bench_parser(__doc__)
     ap.add_argument("--identities", type=int, default=20)

@@ -141,23 +141,22 @@ def _obj_blocks(data: bytes) -> Mesh | None:
     empty face field or a line starting with whitespace. What is accepted here
     reads exactly as :func:`_obj_lines` reads it (tests/core/test_meshio.py checks).
     """
-    lines = data.split(b"\n")
     buf = np.frombuffer(data + b"\n\n\n", np.uint8)
-    starts = np.empty(len(lines), np.int64)
-    starts[0] = 0
-    starts[1:] = np.flatnonzero(buf[:len(data)] == 10) + 1
+    newlines = np.flatnonzero(buf[:len(data)] == 10)
+    starts = np.concatenate([[0], newlines + 1])
+    lines = _Lines(data, starts, np.concatenate([newlines, [len(data)]]))
     b0, b1, b2 = buf[starts], buf[starts + 1], buf[starts + 2]
     odd = (_SEP[b0] & (b0 != 10)) | _UNSPLIT[b0] | (((b0 == ord("v")) | (b0 == ord("f"))) & (_UNSPLIT[b1] | _UNSPLIT[b2]))
     for i in np.flatnonzero(odd).tolist():  # indented, or maybe split by Unicode whitespace: what is the tag?
         if lines[i].decode("utf-8", "replace").split()[:1] in (["v"], ["vt"], ["vn"], ["f"], ["usemtl"], ["mtllib"]):
             return None
-    kind = np.zeros(len(lines), np.int8)
+    kind = np.zeros(len(starts), np.int8)
     kind[(b0 == ord("v")) & _SEP[b1]] = _V
     kind[(b0 == ord("v")) & (b1 == ord("t")) & _SEP[b2]] = _VT
     kind[(b0 == ord("v")) & (b1 == ord("n")) & _SEP[b2]] = _VN
     kind[(b0 == ord("f")) & _SEP[b1]] = _F
     rows = {k: np.flatnonzero(kind == k) for k in (_V, _VT, _VN, _F)}
-    blocks = {k: _numbers(data, lines, starts, rows[k], tag, n)
+    blocks = {k: _numbers(lines, rows[k], tag, n)
               for k, tag, n in ((_V, b"v", 3), (_VT, b"vt", 2), (_VN, b"vn", 3))}
     if any(b is None for b in blocks.values()) or not len(rows[_V]) or not len(rows[_F]):
         return None
@@ -189,11 +188,20 @@ def _obj_blocks(data: bytes) -> Mesh | None:
     return mesh
 
 
-def _block(data: bytes, lines: list, starts, rows) -> bytes:
-    """The lines ``rows`` (ascending) joined by newlines: a slice of ``data`` when they follow each other."""
-    if rows[-1] - rows[0] + 1 == len(rows):
-        return data[starts[rows[0]]:starts[rows[-1]] + len(lines[rows[-1]])]
-    return b"\n".join([lines[i] for i in rows.tolist()])
+class _Lines:
+    """The lines of ``data`` without their newlines, by number (``starts``, ``ends``: where each begins and ends)."""
+
+    def __init__(self, data: bytes, starts, ends):
+        self.data, self.starts, self.ends = data, starts, ends
+
+    def __getitem__(self, i):
+        return self.data[self.starts[i]:self.ends[i]]
+
+    def block(self, rows) -> bytes:
+        """The lines ``rows`` (ascending) joined by newlines: a slice of the data for each run of consecutive lines."""
+        run = np.flatnonzero(np.diff(rows) != 1) + 1
+        first, last = rows[np.concatenate([[0], run])], rows[np.concatenate([run - 1, [len(rows) - 1]])]
+        return b"\n".join([self.data[a:b] for a, b in zip(self.starts[first].tolist(), self.ends[last].tolist())])
 
 
 def _tokens(b, sep):
@@ -253,12 +261,12 @@ _DOT_TO_SPACE = bytes.maketrans(b".vtnf", b"     ")
 _SLASH_TO_SPACE = bytes.maketrans(b"/f", b"  ")
 
 
-def _numbers(data: bytes, lines: list, starts, rows, tag: bytes, n: int):
+def _numbers(lines: _Lines, rows, tag: bytes, n: int):
     """The first ``n`` numbers of each of the lines ``rows`` (all tagged ``tag``) as a ``(len(rows), n)``
     array; None if a line is short or has anything but numbers, or a number is not finite."""
     if not len(rows):
         return np.zeros((0, n))
-    block = b"\n" + _block(data, lines, starts, rows) + b"\n"
+    block = b"\n" + lines.block(rows) + b"\n"
     b = np.frombuffer(block + b"\0" * 18, np.uint8)
     if np.count_nonzero(~_NUMBER_CHARS[b[:len(block)]]) != len(rows) * len(tag):  # letters other than the tags'
         return None
@@ -283,10 +291,10 @@ def _numbers(data: bytes, lines: list, starts, rows, tag: bytes, n: int):
     return out if np.isfinite(out).all() else None
 
 
-def _faces(lines: list, rows: dict):
+def _faces(lines: _Lines, rows: dict):
     """The faces' corner counts and their vertex, texture and normal indices, 0-based (-1: none given);
     None if a face has fewer than 3 corners or a corner is not 1 to 3 fields of valid indices."""
-    block = b"\n" + b"\n".join([lines[i] for i in rows[_F].tolist()]) + b"\n"
+    block = b"\n" + lines.block(rows[_F]) + b"\n"
     b = np.frombuffer(block + b"\0" * 18, np.uint8)
     text = b[:len(block)]
     if np.count_nonzero(~_CORNER_CHARS[text]) != len(rows[_F]):  # anything but the tags, indices and slashes
