@@ -16,6 +16,7 @@ the fit and the head binding run inside it.
 from __future__ import annotations
 
 import functools
+import sys
 import threading
 from contextlib import contextmanager
 
@@ -29,18 +30,17 @@ _inside = threading.local()
 def bounded_threads(limit: int = THREADS):
     """Run the block with at most ``limit`` BLAS threads, then restore the pools as they were.
 
-    Nested uses keep the outermost limit (and cost nothing). Without ``threadpoolctl`` installed the
-    block runs unbounded, as before.
+    Nested uses keep the outermost limit, and bound again only when modules were imported since
+    (scipy loads its own BLAS when first used, inside a command already bounded). Without
+    ``threadpoolctl`` installed the block runs unbounded, as before.
     """
-    if getattr(_inside, "depth", 0):
-        _inside.depth += 1
-        try:
-            yield
-        finally:
-            _inside.depth -= 1
+    outer = getattr(_inside, "limit", None)
+    if outer is not None and _inside.modules == len(sys.modules):
+        yield  # nothing new loaded: the outer bound holds
         return
-    limiter = _limiter(limit)
-    _inside.depth = 1
+    limiter = _limiter(limit if outer is None else outer)
+    saved = outer, getattr(_inside, "modules", None)
+    _inside.limit, _inside.modules = (limit if outer is None else outer), len(sys.modules)
     try:
         if limiter is None:
             yield
@@ -48,7 +48,7 @@ def bounded_threads(limit: int = THREADS):
             with limiter:
                 yield
     finally:
-        _inside.depth = 0
+        _inside.limit, _inside.modules = saved
 
 
 def bounded(fn):

@@ -52,3 +52,19 @@ def test_without_threadpoolctl_the_block_runs_unbounded(monkeypatch):
         assert set(inside) == {2} and set(blas_threads()) == {2}
         with bounded_threads():  # and once installed again, bounded again
             assert set(blas_threads()) == {THREADS}
+
+
+def test_a_blas_loaded_inside_a_bound_is_bounded_by_the_next_nested_one():
+    """A command is bounded before scipy (and its own BLAS) loads; the fit's or binding's bound inside it
+    catches that library, at the command's limit."""
+    import subprocess
+
+    probe = ("import numpy; from threadpoolctl import threadpool_info, threadpool_limits\n"
+             "from pdeface.threads import bounded_threads\n"
+             "with threadpool_limits(limits=2, user_api='blas'), bounded_threads(1):\n"
+             "    import scipy.linalg\n"
+             "    with bounded_threads(2):\n"
+             "        print(sorted({p['num_threads'] for p in threadpool_info() if p['user_api'] == 'blas'}),"
+             " len([p for p in threadpool_info() if p['user_api'] == 'blas']))\n")
+    out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True).stdout.split()
+    assert out[0] == "[1]" and int(out[1]) >= 2  # numpy's and scipy's pools, both at the outer limit
