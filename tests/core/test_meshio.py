@@ -265,7 +265,7 @@ WELL_FORMED = {
     "names in UTF-8, last mtllib wins": (
         "mtllib a.mtl\nmtllib b c.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl Haut\u00e9\nf 1 2 3\nusemtl x\nf 3 2 1\n"
         "usemtl Haut\u00e9\nf 1 3 2\n# \u00fcber\n"),
-    "long decimals (numpy's float parser)": "v 0.12345678901234567 1 2\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+    "long decimals (read by float() one by one)": "v 0.12345678901234567 1 2\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
 }
 
 

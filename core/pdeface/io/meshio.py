@@ -223,28 +223,55 @@ _IPOW10 = 10 ** np.arange(16, dtype=np.int64)
 
 
 def _decimals(text: bytes, b, at, end):
-    """The numbers ``-?digits[.digits]`` at ``b[at:end]`` (``b``: ``text``'s bytes), at most 15 digits each,
-    parsed exactly as ``float()`` parses them; None if any is of another form (exponents, a bare dot ...).
+    """The numbers at ``b[at:end]`` (``b``: ``text``'s bytes, padded), exactly as ``float()`` parses them;
+    None if one is not a number.
 
-    Integers parse several times faster than floats: each number is read as its integer and fraction
-    digits, and ``mantissa / 10**k``, both exact, is one correctly rounded division, as float() rounds.
+    ``-?digits[.digits]`` of at most 15 digits, nearly all of them, are read as integers (several
+    times faster than floats): the integer and fraction digits, then ``mantissa / 10**k``, both exact,
+    one correctly rounded division, as float() rounds. The few others (exponents, a sign +, many
+    digits) are read by float() itself.
     """
-    if np.count_nonzero(_EXOTIC[b[:len(text)]]):
+    other = np.flatnonzero(_EXOTIC[b[:len(text)]])
+    other = np.union1d(np.searchsorted(at, other, side="right") - 1, np.flatnonzero(end - at > 15))
+    if len(other) > 1000:
         return None
+    if len(other):  # blanked for the integer reading, read one by one
+        spans = list(zip(at[other].tolist(), end[other].tolist()))
+        try:
+            exotic = [float(text[i:j]) for i, j in spans]
+        except ValueError:
+            return None
+        blanked = bytearray(text)
+        for i, j in spans:
+            blanked[i:j] = b" " * (j - i)
+        text = bytes(blanked)
+        b = np.frombuffer(text + b"\0" * 18, np.uint8)
+        plain = np.ones(len(at), bool)
+        plain[other] = False
+        values = np.empty(len(at))
+        values[other] = exotic
+        values[plain] = _plain_decimals(text, b, at[plain], end[plain])
+        return None if np.isnan(values[plain]).any() else values
+    return _plain_decimals(text, b, at, end)
+
+
+def _plain_decimals(text: bytes, b, at, end):
+    """:func:`_decimals` of numbers ``-?digits[.digits]`` of at most 15 digits; NaN everywhere if any is not."""
     dot = np.flatnonzero(b == ord("."))
     has_dot = np.zeros(len(at), bool)
     of = np.searchsorted(at, dot, side="right") - 1
     has_dot[of] = True
     minus = b[at] == ord("-")
     digits = end - at - minus - has_dot
+    bad = np.full(len(at), np.nan)
     if (len(dot) != np.count_nonzero(has_dot) or not _DIGIT[b[dot - 1]].all() or not _DIGIT[b[dot + 1]].all()
             or (digits > 15).any()):
-        return None
+        return bad
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DeprecationWarning)  # fromstring stops early on a bad token: counted
         ints = np.fromstring(text.translate(_DOT_TO_SPACE), np.int64, sep=" ")
     if len(ints) != len(at) + len(dot):
-        return None
+        return bad
     first = np.arange(len(at)) + np.cumsum(has_dot) - has_dot
     frac_digits = np.zeros(len(at), np.int64)
     frac_digits[of] = end[of] - dot - 1
@@ -271,14 +298,14 @@ def _numbers(lines: _Lines, rows, tag: bytes, n: int):
     if np.count_nonzero(~_NUMBER_CHARS[b[:len(block)]]) != len(rows) * len(tag):  # letters other than the tags'
         return None
     at, end = _tokens(b[:len(block)], b[:len(block)] <= 32)  # only whitespace is below '+' now
-    line = np.searchsorted(np.flatnonzero(b == 10), at)
-    is_tag = np.ones(len(at), bool)
-    is_tag[1:] = line[1:] != line[:-1]
-    per_line = np.bincount(line, minlength=len(rows) + 1)[1:] - 1
+    first = np.searchsorted(at, np.flatnonzero(b == 10))  # each line's first token: its tag
+    is_tag = np.zeros(len(at), bool)
+    is_tag[first[:-1]] = True
+    per_line = np.diff(first) - 1
     if (per_line < n).any():
         return None
     values = _decimals(block, b, at[~is_tag], end[~is_tag])
-    if values is None:  # exponents or many digits: numpy's parser, which reads as float() reads
+    if values is None or np.isnan(values).any():  # not numbers, or many digits: numpy's float parser
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", DeprecationWarning)  # fromstring stops early on a bad token: counted
             values = np.fromstring(block.translate(bytes.maketrans(tag, b" " * len(tag))), np.float64, sep=" ")
@@ -301,7 +328,7 @@ def _faces(lines: _Lines, rows: dict):
         return None
     at, _ = _tokens(text, text <= 32)  # only whitespace is below '-' now
     corner_at = at[b[at] != ord("f")]
-    counts = np.bincount(np.searchsorted(np.flatnonzero(text == 10), corner_at), minlength=len(rows[_F]) + 1)[1:]
+    counts = np.diff(np.searchsorted(at, np.flatnonzero(text == 10))) - 1  # tokens per line but the tag
     slash = np.flatnonzero(text == ord("/"))
     # A slash stands between two fields, or is the first of "//" (no texture index).
     double = slash[b[slash + 1] == ord("/")]
@@ -329,7 +356,10 @@ def _faces(lines: _Lines, rows: dict):
     for k, has, col in ((_V, slashes >= 0, first), (_VT, has_uv, first + 1), (_VN, slashes == 2, first + 1 + has_uv)):
         i = values[col[has]]
         # OBJ indices are 1-based; negative ones count back from the last element read before the face.
-        count = np.searchsorted(rows[k], rows[_F])[corner_line[has]]
+        if not len(rows[k]) or rows[k][-1] < rows[_F][0]:
+            count = len(rows[k])  # all read before the first face (the usual layout)
+        else:
+            count = np.searchsorted(rows[k], rows[_F])[corner_line[has]]
         j = np.where(i > 0, i - 1, count + i)
         if ((i == 0) | (j < 0) | (j >= count)).any():
             return None
