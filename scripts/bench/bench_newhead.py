@@ -62,12 +62,16 @@ def chain(bpy, path, measure):
 
 
 def top(prof, n):
-    """The ``n`` functions of most time of their own: (seconds, cumulative seconds, calls, name)."""
+    """The ``n`` functions of most time of their own, then the ``n`` of pdeface's (core and add-on) of most
+    time in all they call: (own seconds, cumulative seconds, calls, name) each."""
     rows = []
     for (file, line, name), (_, calls, own, cum, _) in pstats.Stats(prof).stats.items():
         where = file.split("site-packages/")[-1].split("/core/")[-1].split("/blender_addon/")[-1]
-        rows.append((own, cum, calls, f"{where}:{line}({name})" if line else name))
-    return sorted(rows, reverse=True)[:n]
+        ours = "/core/pdeface/" in file or "/pdeface/" in file and "site-packages" not in file
+        rows.append((own, cum, calls, f"{where}:{line}({name})" if line else name, ours))
+    own = sorted(rows, key=lambda r: -r[0])[:n]
+    cum = sorted([r for r in rows if r[4] and "bench_newhead" not in r[3]], key=lambda r: -r[1])[:n]
+    return own, cum
 
 
 def main(argv=None):
@@ -104,8 +108,11 @@ def main(argv=None):
         for step, s in timed.items():
             print(f"  {step:45s} {s:6.2f} s  {100 * s / total:4.0f}%")
             if step in profiles:
-                for own, cum, calls, fn in top(profiles[step], args.profile):
-                    print(f"      {own:6.2f} s own {cum:6.2f} s cum {calls:7d}×  {fn[:110]}")
+                own, cum = top(profiles[step], args.profile)
+                for title, listed in (("most time of their own", own), ("pdeface's, most time in all they call", cum)):
+                    print(f"    {title}:" if listed else "", end="\n" if listed else "")
+                    for o, c, calls, fn, _ in listed:
+                        print(f"      {o:6.2f} s own {c:6.2f} s cum {calls:7d}×  {fn[:110]}")
     return 0
 
 
