@@ -231,7 +231,8 @@ def _decimals(text: bytes, b, at, end):
     one correctly rounded division, as float() rounds. The few others (exponents, a sign +, many
     digits) are read by float() itself.
     """
-    other = np.flatnonzero(_EXOTIC[b[:len(text)]])
+    t = b[:len(text)]
+    other = np.flatnonzero((t == ord("+")) | ((t | 32) == ord("e")))  # + e E: the only other letters allowed
     other = np.union1d(np.searchsorted(at, other, side="right") - 1, np.flatnonzero(end - at > 15))
     if len(other) > 1000:
         return None
@@ -282,7 +283,6 @@ def _plain_decimals(text: bytes, b, at, end):
     return values
 
 
-_EXOTIC = _chars(b"+eE")
 _DIGIT = _chars(b"0123456789")
 _DOT_TO_SPACE = bytes.maketrans(b".vtnf", b"     ")
 _SLASH_TO_SPACE = bytes.maketrans(b"/f", b"  ")
