@@ -13,6 +13,7 @@ from pdeface.errors import PdeFaceError
 from pdeface.fdt.quadratic import MODELS as FDT_MODELS
 from pdeface.fdt.table import load_fdt
 from pdeface.muscles.placement import MUSCLE_NAMES
+from pdeface.threads import bounded_threads
 
 from . import animation, compat, face, keys, landmarks, live, muscles, rigging, texturing
 
@@ -24,7 +25,8 @@ class _Operator:
 
     def execute(self, context):
         try:
-            message = self.run(context)
+            with bounded_threads():  # BLAS threads that do not spin beside Blender's own (pdeface.threads)
+                message = self.run(context)
         except PdeFaceError as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}

@@ -28,7 +28,7 @@ PLATFORMS = {
     "macos-x64": ["macosx_10_9_x86_64", "macosx_10_14_x86_64", "macosx_10_15_x86_64"],
     "windows-x64": ["win_amd64"],
 }
-DEPENDENCIES = ["scipy==1.14.1", "xatlas==0.0.11"]
+DEPENDENCIES = ["scipy==1.14.1", "xatlas==0.0.11", "threadpoolctl==3.8.0"]
 BUNDLED_ASSETS = ["default_face.npz", "ict_neutral_face.npz", "ict_head.npz", "ict_head_prior.npz",
                   "ict_generic_fdts.json.gz", "ICT-FaceKit-LICENSE.txt"]
 

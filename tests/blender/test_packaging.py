@@ -19,6 +19,7 @@ def test_build_install_and_use_the_linux_zip(tmp_path):
     names = zipfile.ZipFile(zip_path).namelist()
     wheels = [n for n in names if n.startswith("wheels/")]
     assert any("pdeface-" in w for w in wheels) and any("scipy-" in w for w in wheels) and any("xatlas-" in w for w in wheels)
+    assert any("threadpoolctl-" in w for w in wheels)  # the operators' bounded BLAS threads (pdeface.threads)
     assert not any("numpy" in w for w in wheels)  # Blender ships numpy
     manifest = zipfile.ZipFile(zip_path).read("blender_manifest.toml").decode()
     assert 'platforms = ["linux-x64"]' in manifest and "wheels = [" in manifest

@@ -223,3 +223,180 @@ def test_gltf_errors_name_the_file(tmp_path, monkeypatch):
     monkeypatch.setitem(__import__("sys").modules, "trimesh", None)
     with pytest.raises(MeshError, match=r"bad.glb: reading glTF needs trimesh: .*pdeface\[gltf\]"):
         read_mesh(bad)
+
+
+# --- the OBJ reader: numpy blocks for well-formed files, line by line for the rest (same mesh, same errors) ---
+
+_MESH_FIELDS = ("vertices", "face_counts", "face_indices", "uvs", "face_uv_indices", "normals",
+                "face_normal_indices", "material_names", "face_materials", "mtllib")
+
+
+def _same_mesh(a, b):
+    for name in _MESH_FIELDS:
+        x, y = getattr(a, name), getattr(b, name)
+        if isinstance(x, np.ndarray) or isinstance(y, np.ndarray):
+            assert x is not None and y is not None and x.dtype == y.dtype, name
+            np.testing.assert_array_equal(x, y, err_msg=name)
+        else:
+            assert x == y, name
+
+
+def _both_ways(path):
+    """(the mesh read_obj reads, the one the line-by-line reader reads, whether numpy's blocks read it)."""
+    from pdeface.io import meshio
+
+    data = path.read_bytes().replace(b"\r\n", b"\n").replace(b"\r", b"\n")
+    lines = meshio._obj_lines(path, data.decode("utf-8", "replace").split("\n"))
+    return read_obj(path), lines, meshio._obj_blocks(data) is not None
+
+
+WELL_FORMED = {
+    "all forms": OBJ,
+    "mixed polygons, forms, o/g/s, comments": (
+        "# c\no head\ng skin\ns 1\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 2 .5 0\nvn 0 0 1\nvn 0 0 -1\n"
+        "f 1//1 2//2 3//1 4//2\nf 2 5 3\ng other\nf -5//-1 -4//-2 -3//1 -2//2 -1//1\n"),
+    "vertex colours, uv w, exponents, signs": (
+        "v 1e-3 -2.5E+2 +3 0.5 0.25 1\nv -0 0.000001 123456.789012\nv 1. .5 -.25\nvt 0.5 0.25 0\nvt 1 1\n"
+        "vt 0 1\nf 1/1 2/2 3/3\n"),
+    "interleaved blocks and relative indices": (
+        "v 0 0 0\nv 1 0 0\nvt 0 0\nv 1 1 0\nvt 1 0\nf -3/-2 -2/-1 -1/-1\nv 0 1 0\nvt 0 1\nf -4/1 -2/-2 -1/-1\n"),
+    "tabs, CRLF, blank and indented blank lines, no final newline": (
+        "v\t0 0 0\r\nv 1\t0 0 \r\n\r\n   \r\nv 0 1 0\r\nusemtl  two  words \r\nf 1 2 3"),
+    "names in UTF-8, last mtllib wins": (
+        "mtllib a.mtl\nmtllib b c.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl Haut\u00e9\nf 1 2 3\nusemtl x\nf 3 2 1\n"
+        "usemtl Haut\u00e9\nf 1 3 2\n# \u00fcber\n"),
+    "long decimals (read by float() one by one)": "v 0.12345678901234567 1 2\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+}
+
+
+@pytest.mark.parametrize("name", WELL_FORMED)
+def test_obj_well_formed_files_read_in_blocks_as_line_by_line(tmp_path, name):
+    path = tmp_path / "m.obj"
+    path.write_bytes(WELL_FORMED[name].encode())
+    fast, lines, in_blocks = _both_ways(path)
+    assert in_blocks
+    _same_mesh(fast, lines)
+
+
+def test_obj_blocks_read_random_meshes_exactly(tmp_path, rng):
+    from pdeface.io import meshio
+
+    for trial in range(20):
+        nv, nt, nn = rng.integers(3, 40, size=3)
+        V = np.round(rng.normal(scale=10.0 ** rng.integers(-3, 4), size=(nv, 3)), rng.integers(0, 9))
+        out, seen = [], {"v": 0, "vt": 0, "vn": 0}
+        pending = [("v", row) for row in V] + [("vt", row) for row in rng.random((nt, 2))] + \
+            [("vn", row) for row in rng.normal(size=(nn, 3))]
+        order = rng.permutation(len(pending))
+        form = rng.integers(0, 4)  # v, v/vt, v//vn, v/vt/vn (the same for the whole file: attributes kept)
+        for k in order:
+            tag, row = pending[k]
+            out.append(tag + " " + " ".join(repr(float(x)) for x in row))
+            seen[tag] += 1
+            if seen["v"] >= 3 and seen["vt"] and seen["vn"] and rng.random() < 0.3:
+                n_corners = int(rng.integers(3, 7))
+                corner = []
+                for _ in range(n_corners):
+                    idx = {t: int(rng.integers(0, seen[t])) for t in seen}
+                    # a relative (negative) index now and then
+                    txt = {t: str(idx[t] - seen[t] if rng.random() < 0.3 else idx[t] + 1) for t in seen}
+                    corner.append([txt["v"], f"{txt['v']}/{txt['vt']}", f"{txt['v']}//{txt['vn']}",
+                                   f"{txt['v']}/{txt['vt']}/{txt['vn']}"][form])
+                if rng.random() < 0.2:
+                    out.append(f"usemtl m{int(rng.integers(0, 3))}")
+                out.append("f " + " ".join(corner))
+        out.append("f 1 2 3")
+        path = tmp_path / f"r{trial}.obj"
+        path.write_text("\n".join(out) + "\n")
+        data = path.read_bytes()
+        assert meshio._obj_blocks(data) is not None
+        _same_mesh(read_obj(path), meshio._obj_lines(path, data.decode().split("\n")))
+
+
+@pytest.mark.parametrize("text", [
+    "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3 # a comment\n",       # a comment after a face: a bad index
+    "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1/1/1/1 2 3\n",               # four fields
+    "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1/ 2 3\n",                    # an empty texture field: kept line by line
+    "v 0 0 0\nv 1 0 0\nv 0 1 0\nf /1 2 3\n",                    # no vertex index
+    "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\nv 0 0 1\n",            # a vertex defined after its face
+    "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 99999999999999999999\n",  # an index too long for int64
+    "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3x\n",
+    "v 0 0 0\nv 1 0 0\nv 0 1 0\nf +1 2 3\n",                    # int() reads +1: line by line
+    "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1-2 2 3\n",
+    "v 0 0 0\nv 1 0 0 inf\nv 0 1 0\nf 1 2 3\n",                # a fourth value is ignored, even inf
+    "v 0 0 0\nv 1 0 inf\nv 0 1 0\nf 1 2 3\n",
+    "v 0 0 0\nv 1 0 1e999\nv 0 1 0\nf 1 2 3\n",
+    "v 0 0 0\nv 1 0 1.5.3\nv 0 1 0\nf 1 2 3\n",
+    "v 0 0 0\nv 1 0 1-2\nv 0 1 0\nf 1 2 3\n",
+    "v 0 0 0\nv 1 0 1_0\nv 0 1 0\nf 1 2 3\n",                  # float() reads 1_0 as 10
+    "v 0 0 0\nv 1 0\nv 0 1 0\nf 1 2 3\n",
+    "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0\nf 1/1 2/1 3/1\n",
+    "v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 x\nf 1//1 2//1 3//1\n",
+    "v 0 0 0\nv 1 0 0\nv 0 1 0\n  f 1 2 3\n",                  # an indented face
+    "v 0 0 0\nv 1 0 0\nv 0 1 0\nf\u00a01 2 3\n",               # a no-break space str.split splits on
+    "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1\x1c2 3\n",
+    "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 1 2\n",
+    "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/1 2/1 3/2\n",
+    "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 -4\n",
+    "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 2 3\n",
+    "v 0 0 0\nv 1 0 0\nv 0 1 0\nf -0 2 3\n",
+    "v 0 \xff 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",                  # undecodable: replaced, then a bad number
+    "v 0 0 0\n",
+    "f 1 2 3\n",
+    "",
+])
+def test_obj_irregular_files_read_or_fail_as_line_by_line(tmp_path, text):
+    from pdeface.io import meshio
+
+    path = tmp_path / "m.obj"
+    path.write_bytes(text.encode("utf-8", "surrogateescape") if "\xff" not in text else text.encode("latin-1"))
+    data = path.read_bytes()
+    try:
+        expected = meshio._obj_lines(path, data.decode("utf-8", "replace").split("\n"))
+    except MeshError as exc:
+        with pytest.raises(MeshError) as got:
+            read_obj(path)
+        assert str(got.value) == str(exc)
+    else:
+        _same_mesh(read_obj(path), expected)
+
+
+POSED_SOURCE = ("# head\r\nmtllib h.mtl\r\no head\r\nv 0 0 0 0.5 0.5 0.5\r\n  v 1 0 0\r\nvt 0 0\r\ng skin\r\n"
+                "v 0 1 0\r\nvn 0 0 1\r\nusemtl Skin\r\ns 1\r\nf 1/1/1 2/1/1 3/1/1\r\n# end")
+
+
+def test_write_posed_changes_only_the_vertex_positions(tmp_path):
+    from pdeface.io.meshio import write_posed
+
+    src = tmp_path / "src.obj"
+    src.write_bytes(POSED_SOURCE.encode())
+    mesh = read_obj(src)
+    V = mesh.vertices + [[0.25, 0, 0], [0, 0.5, 0], [0, 0, -1.5]]
+    write_posed(tmp_path / "out.obj", src, mesh, V)
+    got = (tmp_path / "out.obj").read_bytes().decode().split("\r\n")
+    want = POSED_SOURCE.split("\r\n")
+    # the v lines: new x y z, their colours kept; every other line (and its CRLF) exactly as it was
+    want[3], want[4], want[7] = "v 0.250000 0.000000 0.000000 0.5 0.5 0.5", "v 1.000000 0.500000 0.000000", \
+        "v 0.000000 1.000000 -1.500000"
+    assert got == want
+    np.testing.assert_allclose(read_obj(tmp_path / "out.obj").vertices, V)
+
+
+def test_write_posed_many_reads_the_source_once(tmp_path, monkeypatch):
+    from pdeface.io import meshio
+
+    src = tmp_path / "src.obj"
+    src.write_bytes(POSED_SOURCE.encode())
+    mesh = read_obj(src)
+    opened = []
+    real_open = meshio.open_file
+    monkeypatch.setattr(meshio, "open_file", lambda path, *a, **k: opened.append(path) or real_open(path, *a, **k))
+    poses = [(tmp_path / f"p{i}.obj", mesh.vertices + i) for i in range(5)] + [(tmp_path / "p.ply", mesh.vertices)]
+    meshio.write_posed_many(poses, src, mesh)
+    assert opened == [src]
+    for path, V in poses:
+        np.testing.assert_allclose(read_mesh(path).vertices, V, atol=1e-5)
+    other = Mesh.from_faces(np.zeros((4, 3)), [[0, 1, 2, 3]])  # not the mesh read from src
+    with pytest.raises(MeshError, match=r"src.obj: changed since it was read \(3 vertices, expected 4\)"):
+        meshio.write_posed_many([(tmp_path / "q.obj", other.vertices)], src, other)
+    assert not (tmp_path / "q.obj").exists()

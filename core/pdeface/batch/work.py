@@ -19,6 +19,7 @@ from ..headless import headless_command
 from ..io.files import write_bytes
 from ..io.png import write_png
 from ..rig import rig_head
+from ..threads import bounded_threads
 from .stimuli import load_identity, render_identity
 
 RECORDS = ".pdeface-batch"
@@ -53,7 +54,8 @@ def run_task(task, out) -> dict:
     t0 = time.perf_counter()
     out = Path(out)
     try:
-        RUNNERS[task.kind](task.params, out, task.key)
+        with bounded_threads():  # workers share the machine's cores: BLAS threads that do not spin
+            RUNNERS[task.kind](task.params, out, task.key)
     except (PdeFaceError, OSError) as exc:
         return {"key": task.key, "status": "failed", "error": one_line(exc), "seconds": time.perf_counter() - t0}
     seconds = time.perf_counter() - t0

@@ -20,6 +20,7 @@ import sys
 
 from .. import __version__
 from ..errors import PdeFaceError
+from ..threads import bounded_threads
 from . import au, aus, batch, demo, face, fdt, landmarks, muscles, render, rig, stream
 from .common import HelpFormatter
 
@@ -58,7 +59,8 @@ def main(argv=None):
         ap.error(f"unrecognized arguments: {' '.join(extra)}")
     args.extra = extra  # pdeface render passes its arguments on to the renderer
     try:
-        args.func(args)
+        with bounded_threads():  # BLAS threads that do not spin beside other work (pdeface.threads)
+            args.func(args)
     except PdeFaceError as exc:
         print(f"pdeface: error: {exc}", file=sys.stderr)
         return 2

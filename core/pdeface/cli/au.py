@@ -20,7 +20,7 @@ from ..errors import FileError, PdeFaceError
 from ..facs import SIDES, parse_au_weights
 from ..head.bind import bind_file
 from ..io.files import check_output
-from ..io.meshio import WRITE_FORMATS, read_mesh, write_mesh, write_posed
+from ..io.meshio import WRITE_FORMATS, read_mesh, write_mesh, write_posed, write_posed_many
 from ..posing import MUSCLE_MIXERS, pose_curves
 from ..presets import MIXERS, choose_mixer, key_poses, merged_presets, resolve_preset
 from ..surface.fit import face_mesh, fit_face
@@ -145,8 +145,7 @@ def _pose_all_keys(args, model):
     if args.mesh:
         mesh, binding = bind_file(model, args.mesh, args.landmarks, args.parts)
         D = binding.pose_displacements(list(poses.values()))
-        for (name, path), d in zip(files.items(), D):
-            write_posed(path, args.mesh, mesh, mesh.vertices + d)
+        write_posed_many(((path, mesh.vertices + d) for path, d in zip(files.values(), D)), args.mesh, mesh)
         for note in binding.notes:
             log(note)
         vertices = len(mesh.vertices)

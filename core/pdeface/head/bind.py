@@ -43,6 +43,7 @@ from ..rigid import JAW_BONE_GAIN, gaze_matrix, jaw_hinge, jaw_motion, rigid_dis
 from ..surface.grid import grid_faces, surface_grid
 from ..surface.model import KEPT_LANDMARKS
 from ..surface.scan import load_scan
+from ..threads import bounded
 from .parts import TOUCH_IOD, classify_parts, mouth_line, read_overrides
 from .prior import load_head_prior
 
@@ -195,6 +196,7 @@ class HeadBinding:
         ICT-FaceKit's by default; None for the PDE face and its extension alone.
     """
 
+    @bounded
     def __init__(self, model, vertices, triangles, landmarks=None, overrides=None, resolution=RESOLUTION,
                  prior="bundled"):
         from scipy.sparse import csr_matrix
@@ -346,6 +348,7 @@ class HeadBinding:
         """
         return self.face_motions([(delta_coefficients, delta_residual, jaw, gaze)], with_prior)[0]
 
+    @bounded
     def face_motions(self, motions, with_prior=True) -> np.ndarray:
         """:meth:`face_motion` of several ``(delta_coefficients, delta_residual, jaw, gaze)`` at once, (k, n, 3)
         (one PDE solve, one harmonic solve per kind and one prior product for them all)."""

@@ -12,6 +12,7 @@ import io
 import json
 import os
 import struct
+import warnings
 
 import numpy as np
 
@@ -53,33 +54,381 @@ def write_posed(path, source, mesh: Mesh, vertices) -> None:
     An OBJ source is copied line by line with only its ``v`` lines' x y z
     replaced: groups, objects, smoothing, materials, UVs, normals, vertex
     colours and comments stay exactly as they were. Other sources are written
-    with :func:`write_mesh`.
+    with :func:`write_mesh`. :func:`write_posed_many` writes several poses of
+    one source, reading it once.
     """
-    V = np.asarray(vertices, dtype=np.float64)
-    if V.shape != mesh.vertices.shape or not np.isfinite(V).all():
-        raise MeshError(f"{path}: posed vertices must be finite and shaped {mesh.vertices.shape}, got {V.shape}")
-    src_ext = os.path.splitext(str(source))[1].lower()
-    out_ext = os.path.splitext(str(path))[1].lower()
-    if src_ext != ".obj" or out_ext != ".obj":
-        posed = Mesh(**{**mesh.__dict__, "vertices": V})
-        write_mesh(path, posed)
-        return
-    out, k = [], 0
+    write_posed_many([(path, vertices)], source, mesh)
+
+
+def write_posed_many(outputs, source, mesh: Mesh) -> None:
+    """:func:`write_posed` for each ``(path, vertices)`` of ``outputs`` (an iterable), reading ``source`` once."""
+    template = None
+    for path, vertices in outputs:
+        V = np.asarray(vertices, dtype=np.float64)
+        if V.shape != mesh.vertices.shape or not np.isfinite(V).all():
+            raise MeshError(f"{path}: posed vertices must be finite and shaped {mesh.vertices.shape}, got {V.shape}")
+        src_ext = os.path.splitext(str(source))[1].lower()
+        out_ext = os.path.splitext(str(path))[1].lower()
+        if src_ext != ".obj" or out_ext != ".obj":
+            write_mesh(path, Mesh(**{**mesh.__dict__, "vertices": V}))
+            continue
+        if template is None:
+            template = _posed_template(source, len(V))
+        out, rows, tails = template
+        for i, xyz, tail in zip(rows, V.tolist(), tails):
+            out[i] = "v %.6f %.6f %.6f%s" % (*xyz, tail)
+        with atomic_open(path, "w", encoding="utf-8", newline="") as fh:
+            fh.write("".join(out))
+
+
+def _posed_template(source, n):
+    """The OBJ ``source``'s lines (a list to fill in), the index of each ``v`` line in it and what follows
+    each one's x y z (its other values and its line ending)."""
     with open_file(source, "r", MeshError, encoding="utf-8", errors="replace", newline="") as fh:
-        for line in fh:
+        out = fh.readlines()
+    rows, tails = [], []
+    for i, line in enumerate(out):
+        if line[:1] == "v" or line[:1].isspace():  # the only lines split: a v line, maybe indented
             parts = line.split()
             if parts and parts[0] == "v":
-                if k >= len(V):
-                    raise MeshError(f"{source}: has more vertices than the mesh read from it ({len(V)})")
+                rows.append(i)
                 end = "\r\n" if line.endswith("\r\n") else "\n"
-                out.append("v %.6f %.6f %.6f%s%s" % (*V[k], "".join(" " + p for p in parts[4:]), end))
-                k += 1
-            else:
-                out.append(line)
-    if k != len(V):
-        raise MeshError(f"{source}: changed since it was read ({k} vertices, expected {len(V)})")
-    with atomic_open(path, "w", encoding="utf-8", newline="") as fh:
-        fh.write("".join(out))
+                tails.append("".join(" " + p for p in parts[4:]) + end)
+    if len(rows) > n:
+        raise MeshError(f"{source}: has more vertices than the mesh read from it ({n})")
+    if len(rows) != n:
+        raise MeshError(f"{source}: changed since it was read ({len(rows)} vertices, expected {n})")
+    return out, rows, tails
+
+
+def read_obj(path) -> Mesh:
+    """Read a Wavefront OBJ file.
+
+    Supports ``v``, ``vt``, ``vn``, ``f`` with triangles, quads and n-gons in
+    ``v``, ``v/vt``, ``v//vn`` and ``v/vt/vn`` forms, negative (relative)
+    indices, comments, ``mtllib``/``usemtl``. Other statements are ignored.
+    A well-formed file is read a block at a time with numpy (a 27k-vertex head
+    in milliseconds); any other is read line by line, which names the line at fault.
+
+    Raises
+    ------
+    MeshError
+        With file and line, for bad numbers, indices out of range, NaN/inf,
+        missing file or a file without faces.
+    """
+    data = read_bytes(path, MeshError)
+    if b"\r" in data:  # universal newlines, as text mode reads them
+        data = data.replace(b"\r\n", b"\n").replace(b"\r", b"\n")
+    mesh = _obj_blocks(data)
+    if mesh is None:
+        mesh = _obj_lines(path, data.decode("utf-8", "replace").split("\n"))
+    return mesh
+
+
+#: Bytes that end a token in a line (ASCII whitespace and the newline), as ``bytes.split`` splits.
+_SEP = np.zeros(256, bool)
+_SEP[[9, 10, 11, 12, 13, 32]] = True
+#: Bytes that may begin whitespace ``str.split`` knows and ``bytes.split`` does not (non-ASCII, \x1c-\x1f).
+_UNSPLIT = np.zeros(256, bool)
+_UNSPLIT[0x1c:0x20] = _UNSPLIT[0x80:] = True
+_V, _VT, _VN, _F = 1, 2, 3, 4
+
+
+def _obj_blocks(data: bytes) -> Mesh | None:
+    """A well-formed OBJ file's mesh, parsed a block of like lines at a time; None for any other file.
+
+    None means "read it line by line": a bad number or index, a short line, an
+    empty face field or a line starting with whitespace. What is accepted here
+    reads exactly as :func:`_obj_lines` reads it (tests/core/test_meshio.py checks).
+    """
+    buf = np.frombuffer(data + b"\n\n\n", np.uint8)
+    newlines = np.flatnonzero(buf[:len(data)] == 10)
+    starts = np.concatenate([[0], newlines + 1])
+    lines = _Lines(data, starts, np.concatenate([newlines, [len(data)]]))
+    b0, b1, b2 = buf[starts], buf[starts + 1], buf[starts + 2]
+    odd = (_SEP[b0] & (b0 != 10)) | _UNSPLIT[b0] | (((b0 == ord("v")) | (b0 == ord("f"))) & (_UNSPLIT[b1] | _UNSPLIT[b2]))
+    for i in np.flatnonzero(odd).tolist():  # indented, or maybe split by Unicode whitespace: what is the tag?
+        if lines[i].decode("utf-8", "replace").split()[:1] in (["v"], ["vt"], ["vn"], ["f"], ["usemtl"], ["mtllib"]):
+            return None
+    kind = np.zeros(len(starts), np.int8)
+    kind[(b0 == ord("v")) & _SEP[b1]] = _V
+    kind[(b0 == ord("v")) & (b1 == ord("t")) & _SEP[b2]] = _VT
+    kind[(b0 == ord("v")) & (b1 == ord("n")) & _SEP[b2]] = _VN
+    kind[(b0 == ord("f")) & _SEP[b1]] = _F
+    rows = {k: np.flatnonzero(kind == k) for k in (_V, _VT, _VN, _F)}
+    blocks = {k: _numbers(lines, rows[k], tag, n)
+              for k, tag, n in ((_V, b"v", 3), (_VT, b"vt", 2), (_VN, b"vn", 3))}
+    if any(b is None for b in blocks.values()) or not len(rows[_V]) or not len(rows[_F]):
+        return None
+    faces = _faces(lines, rows)
+    if faces is None:
+        return None
+    counts, corners = faces
+    mesh = Mesh(blocks[_V], counts, corners[0])
+    # Per-corner attributes are kept only when every corner has one.
+    if len(rows[_VT]) and (corners[1] >= 0).all():
+        mesh.uvs, mesh.face_uv_indices = blocks[_VT], corners[1]
+    if len(rows[_VN]) and (corners[2] >= 0).all():
+        mesh.normals, mesh.face_normal_indices = blocks[_VN], corners[2]
+    materials, used_at, used = [], [], []
+    for i in np.flatnonzero((b0 == ord("u")) | (b0 == ord("m"))).tolist():
+        parts = lines[i].decode("utf-8", "replace").split()
+        if parts[0] == "usemtl" and len(parts) > 1:
+            name = " ".join(parts[1:])
+            if name not in materials:
+                materials.append(name)
+            used_at.append(i)
+            used.append(materials.index(name))
+        elif parts[0] == "mtllib" and len(parts) > 1:
+            mesh.mtllib = " ".join(parts[1:])
+    if materials:
+        current = np.searchsorted(used_at, rows[_F], side="right") - 1
+        mesh.material_names = materials
+        mesh.face_materials = np.where(current >= 0, np.array(used, np.int64)[current], -1)
+    return mesh
+
+
+class _Lines:
+    """The lines of ``data`` without their newlines, by number (``starts``, ``ends``: where each begins and ends)."""
+
+    def __init__(self, data: bytes, starts, ends):
+        self.data, self.starts, self.ends = data, starts, ends
+
+    def __getitem__(self, i):
+        return self.data[self.starts[i]:self.ends[i]]
+
+    def block(self, rows) -> bytes:
+        """The lines ``rows`` (ascending) joined by newlines: a slice of the data for each run of consecutive lines."""
+        run = np.flatnonzero(np.diff(rows) != 1) + 1
+        first, last = rows[np.concatenate([[0], run])], rows[np.concatenate([run - 1, [len(rows) - 1]])]
+        return b"\n".join([self.data[a:b] for a, b in zip(self.starts[first].tolist(), self.ends[last].tolist())])
+
+
+def _tokens(b, sep):
+    """Where each token of the bytes ``b`` starts and ends (``sep``: ``b``'s separator bytes, a bool array)."""
+    edge = np.flatnonzero(sep[1:] != sep[:-1]) + 1  # b starts and ends with a separator (the callers pad it)
+    return edge[::2], edge[1::2]
+
+
+def _chars(*groups: bytes):
+    table = np.zeros(256, bool)
+    table[list(b"".join(groups))] = True
+    return table
+
+
+_NUMBER_CHARS = _chars(b"0123456789+-.eE \t\n\x0b\x0c")
+_CORNER_CHARS = _chars(b"0123456789-/ \t\n\x0b\x0c")
+_POW10 = 10.0 ** np.arange(16)
+_IPOW10 = 10 ** np.arange(16, dtype=np.int64)
+
+
+def _decimals(text: bytes, b, at, end):
+    """The numbers at ``b[at:end]`` (``b``: ``text``'s bytes, padded), exactly as ``float()`` parses them;
+    None if one is not a number.
+
+    ``-?digits[.digits]`` of at most 15 digits, nearly all of them, are read as integers (several
+    times faster than floats): the integer and fraction digits, then ``mantissa / 10**k``, both exact,
+    one correctly rounded division, as float() rounds. The few others (exponents, a sign +, many
+    digits) are read by float() itself.
+    """
+    t = b[:len(text)]
+    other = np.flatnonzero((t == ord("+")) | ((t | 32) == ord("e")))  # + e E: the only other letters allowed
+    other = np.union1d(np.searchsorted(at, other, side="right") - 1, np.flatnonzero(end - at > 15))
+    if len(other) > 1000:
+        return None
+    if len(other):  # blanked for the integer reading, read one by one
+        spans = list(zip(at[other].tolist(), end[other].tolist()))
+        try:
+            exotic = [float(text[i:j]) for i, j in spans]
+        except ValueError:
+            return None
+        blanked = bytearray(text)
+        for i, j in spans:
+            blanked[i:j] = b" " * (j - i)
+        text = bytes(blanked)
+        b = np.frombuffer(text + b"\0" * 18, np.uint8)
+        plain = np.ones(len(at), bool)
+        plain[other] = False
+        values = np.empty(len(at))
+        values[other] = exotic
+        values[plain] = _plain_decimals(text, b, at[plain], end[plain])
+        return None if np.isnan(values[plain]).any() else values
+    return _plain_decimals(text, b, at, end)
+
+
+def _plain_decimals(text: bytes, b, at, end):
+    """:func:`_decimals` of numbers ``-?digits[.digits]`` of at most 15 digits; NaN everywhere if any is not."""
+    dot = np.flatnonzero(b == ord("."))
+    has_dot = np.zeros(len(at), bool)
+    of = np.searchsorted(at, dot, side="right") - 1
+    has_dot[of] = True
+    minus = b[at] == ord("-")
+    digits = end - at - minus - has_dot
+    bad = np.full(len(at), np.nan)
+    if (len(dot) != np.count_nonzero(has_dot) or not _DIGIT[b[dot - 1]].all() or not _DIGIT[b[dot + 1]].all()
+            or (digits > 15).any()):
+        return bad
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)  # fromstring stops early on a bad token: counted
+        ints = np.fromstring(text.translate(_DOT_TO_SPACE), np.int64, sep=" ")
+    if len(ints) != len(at) + len(dot):
+        return bad
+    first = np.arange(len(at)) + np.cumsum(has_dot) - has_dot
+    frac_digits = np.zeros(len(at), np.int64)
+    frac_digits[of] = end[of] - dot - 1
+    mantissa = np.abs(ints[first]) * _IPOW10[frac_digits]
+    mantissa[has_dot] += ints[first[has_dot] + 1]
+    values = mantissa / _POW10[frac_digits]
+    values[minus] *= -1
+    return values
+
+
+_DIGIT = _chars(b"0123456789")
+_DOT_TO_SPACE = bytes.maketrans(b".vtnf", b"     ")
+_SLASH_TO_SPACE = bytes.maketrans(b"/f", b"  ")
+
+
+def _numbers(lines: _Lines, rows, tag: bytes, n: int):
+    """The first ``n`` numbers of each of the lines ``rows`` (all tagged ``tag``) as a ``(len(rows), n)``
+    array; None if a line is short or has anything but numbers, or a number is not finite."""
+    if not len(rows):
+        return np.zeros((0, n))
+    block = b"\n" + lines.block(rows) + b"\n"
+    b = np.frombuffer(block + b"\0" * 18, np.uint8)
+    if np.count_nonzero(~_NUMBER_CHARS[b[:len(block)]]) != len(rows) * len(tag):  # letters other than the tags'
+        return None
+    at, end = _tokens(b[:len(block)], b[:len(block)] <= 32)  # only whitespace is below '+' now
+    first = np.searchsorted(at, np.flatnonzero(b == 10))  # each line's first token: its tag
+    is_tag = np.zeros(len(at), bool)
+    is_tag[first[:-1]] = True
+    per_line = np.diff(first) - 1
+    if (per_line < n).any():
+        return None
+    values = _decimals(block, b, at[~is_tag], end[~is_tag])
+    if values is None or np.isnan(values).any():  # not numbers, or many digits: numpy's float parser
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", DeprecationWarning)  # fromstring stops early on a bad token: counted
+            values = np.fromstring(block.translate(bytes.maketrans(tag, b" " * len(tag))), np.float64, sep=" ")
+        if len(values) != per_line.sum():
+            return None
+    if (per_line == n).all():
+        out = values.reshape(len(rows), n)
+    else:  # more values on some lines (vertex colours): the first n of each
+        out = values[(np.cumsum(per_line) - per_line)[:, None] + np.arange(n)]
+    return out if np.isfinite(out).all() else None
+
+
+def _faces(lines: _Lines, rows: dict):
+    """The faces' corner counts and their vertex, texture and normal indices, 0-based (-1: none given);
+    None if a face has fewer than 3 corners or a corner is not 1 to 3 fields of valid indices."""
+    block = b"\n" + lines.block(rows[_F]) + b"\n"
+    b = np.frombuffer(block + b"\0" * 18, np.uint8)
+    text = b[:len(block)]
+    if np.count_nonzero(~_CORNER_CHARS[text]) != len(rows[_F]):  # anything but the tags, indices and slashes
+        return None
+    at, _ = _tokens(text, text <= 32)  # only whitespace is below '-' now
+    corner_at = at[b[at] != ord("f")]
+    counts = np.diff(np.searchsorted(at, np.flatnonzero(text == 10))) - 1  # tokens per line but the tag
+    slash = np.flatnonzero(text == ord("/"))
+    # A slash stands between two fields, or is the first of "//" (no texture index).
+    double = slash[b[slash + 1] == ord("/")]
+    if (counts < 3).any() or _SEP[b[slash - 1]].any() or _SEP[b[slash + 1]].any() or (b[double + 2] == ord("/")).any():
+        return None
+    slashes = np.bincount(np.searchsorted(corner_at, slash, side="right") - 1, minlength=len(corner_at))
+    no_uv = np.zeros(len(corner_at), bool)
+    no_uv[np.searchsorted(corner_at, double, side="right") - 1] = True
+    fields = slashes + 1 - no_uv
+    if (slashes > 2).any():
+        return None
+    if (np.diff(at).max() > 16):  # a long corner: has it a field too long to be an index (of 15 digits at most)?
+        field_at, field_end = _tokens(text, (text <= 32) | (text == ord("/")))
+        if (field_end - field_at).max() > 16:
+            return None
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)  # fromstring stops early on a bad token: counted
+        values = np.fromstring(block.translate(_SLASH_TO_SPACE), np.int64, sep=" ")
+    if len(values) != fields.sum():
+        return None
+    first = np.cumsum(fields) - fields
+    has_uv = (slashes >= 1) & ~no_uv
+    corner_line = np.repeat(np.arange(len(counts)), counts)
+    out = []
+    for k, has, col in ((_V, slashes >= 0, first), (_VT, has_uv, first + 1), (_VN, slashes == 2, first + 1 + has_uv)):
+        i = values[col[has]]
+        # OBJ indices are 1-based; negative ones count back from the last element read before the face.
+        if not len(rows[k]) or rows[k][-1] < rows[_F][0]:
+            count = len(rows[k])  # all read before the first face (the usual layout)
+        else:
+            count = np.searchsorted(rows[k], rows[_F])[corner_line[has]]
+        j = np.where(i > 0, i - 1, count + i)
+        if ((i == 0) | (j < 0) | (j >= count)).any():
+            return None
+        idx = np.full(len(corner_at), -1, np.int64)
+        idx[has] = j
+        out.append(idx)
+    return counts, out
+
+
+def _obj_lines(path, lines: list) -> Mesh:
+    """Read an OBJ file's text lines one by one (see :func:`read_obj`): the errors name the line."""
+    V, VT, VN = [], [], []
+    counts, fv, ft, fn, fmat = [], [], [], [], []
+    materials, current_mat, mtllib = [], -1, None
+    any_vt = any_vn = False
+    for lineno, line in enumerate(lines, 1):
+        parts = line.split()
+        if not parts or parts[0].startswith("#"):
+            continue
+        tag = parts[0]
+        if tag == "v":
+            V.append(_floats(parts[1:], 3, path, lineno, "vertex"))
+        elif tag == "vt":
+            VT.append(_floats(parts[1:], 2, path, lineno, "texture coordinate"))
+        elif tag == "vn":
+            VN.append(_floats(parts[1:], 3, path, lineno, "normal"))
+        elif tag == "f":
+            corners = parts[1:]
+            if len(corners) < 3:
+                raise MeshError(f"{path}:{lineno}: face needs at least 3 corners, got {len(corners)}")
+            for c in corners:
+                sub = c.split("/")
+                if len(sub) > 3:
+                    raise MeshError(f"{path}:{lineno}: bad face corner {c!r}")
+                fv.append(_index(sub[0], len(V), path, lineno, "vertex"))
+                if len(sub) > 1 and sub[1]:
+                    ft.append(_index(sub[1], len(VT), path, lineno, "texture coordinate"))
+                    any_vt = True
+                else:
+                    ft.append(-1)
+                if len(sub) > 2 and sub[2]:
+                    fn.append(_index(sub[2], len(VN), path, lineno, "normal"))
+                    any_vn = True
+                else:
+                    fn.append(-1)
+            counts.append(len(corners))
+            fmat.append(current_mat)
+        elif tag == "usemtl" and len(parts) > 1:
+            name = " ".join(parts[1:])
+            if name not in materials:
+                materials.append(name)
+            current_mat = materials.index(name)
+        elif tag == "mtllib" and len(parts) > 1:
+            mtllib = " ".join(parts[1:])
+    if not V:
+        raise MeshError(f"{path}: no vertices")
+    if not counts:
+        raise MeshError(f"{path}: no faces")
+    mesh = Mesh(np.array(V, dtype=np.float64), np.array(counts, dtype=np.int64), np.array(fv, dtype=np.int64))
+    ft, fn = np.array(ft, dtype=np.int64), np.array(fn, dtype=np.int64)
+    # Per-corner attributes are kept only when every corner has one.
+    if any_vt and (ft >= 0).all():
+        mesh.uvs, mesh.face_uv_indices = np.array(VT, dtype=np.float64), ft
+    if any_vn and (fn >= 0).all():
+        mesh.normals, mesh.face_normal_indices = np.array(VN, dtype=np.float64), fn
+    if materials:
+        mesh.material_names, mesh.face_materials = materials, np.array(fmat, dtype=np.int64)
+    mesh.mtllib = mtllib
+    return mesh
 
 
 def _floats(parts, n, path, lineno, what):
@@ -104,81 +453,6 @@ def _index(token, count, path, lineno, what):
     if i == 0 or not 0 <= j < count:
         raise MeshError(f"{path}:{lineno}: {what} index {i} out of range (have {count})")
     return j
-
-
-def read_obj(path) -> Mesh:
-    """Read a Wavefront OBJ file.
-
-    Supports ``v``, ``vt``, ``vn``, ``f`` with triangles, quads and n-gons in
-    ``v``, ``v/vt``, ``v//vn`` and ``v/vt/vn`` forms, negative (relative)
-    indices, comments, ``mtllib``/``usemtl``. Other statements are ignored.
-
-    Raises
-    ------
-    MeshError
-        With file and line, for bad numbers, indices out of range, NaN/inf,
-        missing file or a file without faces.
-    """
-    fh = open_file(path, "r", MeshError, encoding="utf-8", errors="replace")
-    V, VT, VN = [], [], []
-    counts, fv, ft, fn, fmat = [], [], [], [], []
-    materials, current_mat, mtllib = [], -1, None
-    any_vt = any_vn = False
-    with fh:
-        for lineno, line in enumerate(fh, 1):
-            parts = line.split()
-            if not parts or parts[0].startswith("#"):
-                continue
-            tag = parts[0]
-            if tag == "v":
-                V.append(_floats(parts[1:], 3, path, lineno, "vertex"))
-            elif tag == "vt":
-                VT.append(_floats(parts[1:], 2, path, lineno, "texture coordinate"))
-            elif tag == "vn":
-                VN.append(_floats(parts[1:], 3, path, lineno, "normal"))
-            elif tag == "f":
-                corners = parts[1:]
-                if len(corners) < 3:
-                    raise MeshError(f"{path}:{lineno}: face needs at least 3 corners, got {len(corners)}")
-                for c in corners:
-                    sub = c.split("/")
-                    if len(sub) > 3:
-                        raise MeshError(f"{path}:{lineno}: bad face corner {c!r}")
-                    fv.append(_index(sub[0], len(V), path, lineno, "vertex"))
-                    if len(sub) > 1 and sub[1]:
-                        ft.append(_index(sub[1], len(VT), path, lineno, "texture coordinate"))
-                        any_vt = True
-                    else:
-                        ft.append(-1)
-                    if len(sub) > 2 and sub[2]:
-                        fn.append(_index(sub[2], len(VN), path, lineno, "normal"))
-                        any_vn = True
-                    else:
-                        fn.append(-1)
-                counts.append(len(corners))
-                fmat.append(current_mat)
-            elif tag == "usemtl" and len(parts) > 1:
-                name = " ".join(parts[1:])
-                if name not in materials:
-                    materials.append(name)
-                current_mat = materials.index(name)
-            elif tag == "mtllib" and len(parts) > 1:
-                mtllib = " ".join(parts[1:])
-    if not V:
-        raise MeshError(f"{path}: no vertices")
-    if not counts:
-        raise MeshError(f"{path}: no faces")
-    mesh = Mesh(np.array(V, dtype=np.float64), np.array(counts, dtype=np.int64), np.array(fv, dtype=np.int64))
-    ft, fn = np.array(ft, dtype=np.int64), np.array(fn, dtype=np.int64)
-    # Per-corner attributes are kept only when every corner has one.
-    if any_vt and (ft >= 0).all():
-        mesh.uvs, mesh.face_uv_indices = np.array(VT, dtype=np.float64), ft
-    if any_vn and (fn >= 0).all():
-        mesh.normals, mesh.face_normal_indices = np.array(VN, dtype=np.float64), fn
-    if materials:
-        mesh.material_names, mesh.face_materials = materials, np.array(fmat, dtype=np.int64)
-    mesh.mtllib = mtllib
-    return mesh
 
 
 def write_obj(path, mesh: Mesh, header: str | None = None) -> None:

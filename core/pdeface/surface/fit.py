@@ -10,6 +10,7 @@ import numpy as np
 
 from ..errors import LandmarkError, MeshError
 from ..mesh import Mesh, butterfly_step, connected_components, seam_welds
+from ..threads import bounded
 from .fourier import fit_fourier
 from .frame import FACE_REACH_MM, face_frame, feature_points
 from .grid import grid_faces, surface_grid
@@ -121,6 +122,7 @@ def chord_knots(points: np.ndarray) -> np.ndarray:
     return u / u[-1]
 
 
+@bounded
 def fit_face(vertices, triangles, landmarks, unit=None, n_curves=DEFAULT_CURVES, n_points=37, n_modes=5,
              a=1.0, assembly="smooth", source="", follow_lips=True, skin=None):
     """Fit a PDE face model to a neutral face mesh.

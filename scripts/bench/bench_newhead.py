@@ -1,0 +1,120 @@
+"""Benchmark a new head in Blender: import → Find Landmarks → Fit to Selected (issue #35: ≤ 3 s each head).
+
+Usage: python -m scripts.bench.bench_newhead [--profile N]
+
+Headless with the bpy module and the add-on from this checkout: ICT-FaceKit's whole head (26,719
+vertices, written as OBJ from the bundled asset) and the same head clustered on a grid to about 8k
+vertices (another topology, as a sculpted head has), each imported with Blender's OBJ importer,
+then Find Landmarks and Fit PDE Face to Selected (fit, bind, every key on the mesh). Prints each
+step's seconds and share of the chain; then, from a second run of the chain under cProfile (which
+slows Python-heavy steps), where each step's time goes: the ``N`` functions of the most time of
+their own, pdeface's and the libraries'. The first Find Landmarks of a process pays MediaPipe's
+import. The machine's load average is printed. Needs ``pdeface[blender,landmarks]``.
+"""
+from __future__ import annotations
+
+import cProfile
+import os
+import pstats
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from scripts.bench.benchlib import bench_parser, clustered, run_bench
+
+ROOT = Path(__file__).resolve().parents[2]
+TARGET_S = 3.0
+
+
+def load_text():
+    return ", ".join(f"{x:.2f}" for x in os.getloadavg())
+
+
+def time_only(fn):
+    """``fn()``'s wall seconds."""
+    t = time.perf_counter()
+    fn()
+    return time.perf_counter() - t
+
+
+def profiled(fn):
+    """``fn()``'s profile."""
+    prof = cProfile.Profile()
+    prof.enable()
+    fn()
+    prof.disable()
+    return prof
+
+
+def chain(bpy, path, measure):
+    """Import the OBJ ``path`` into an empty scene, Find Landmarks on it, Fit to Selected: ``{step: measure(step)}``."""
+    bpy.ops.wm.read_homefile(use_empty=True)
+    bpy.context.scene.pdeface.unit = "AUTO"
+    out = {"import (Blender's OBJ importer)": measure(lambda: bpy.ops.wm.obj_import(filepath=str(path)))}
+    obj = bpy.context.selected_objects[0]
+    bpy.context.view_layer.objects.active = obj
+    out["Find Landmarks"] = measure(bpy.ops.pdeface.find_landmarks)
+    bpy.context.view_layer.objects.active = obj
+    obj.select_set(True)
+    out["Fit PDE Face to Selected (fit, bind, keys)"] = measure(bpy.ops.pdeface.fit_to_selected)
+    return out
+
+
+def top(prof, n):
+    """The ``n`` functions of most time of their own, then the ``n`` of pdeface's (core and add-on) of most
+    time in all they call: (own seconds, cumulative seconds, calls, name) each."""
+    rows = []
+    for (file, line, name), (_, calls, own, cum, _) in pstats.Stats(prof).stats.items():
+        where = file.split("site-packages/")[-1].split("/core/")[-1].split("/blender_addon/")[-1]
+        ours = "/core/pdeface/" in file or "/pdeface/" in file and "site-packages" not in file
+        rows.append((own, cum, calls, f"{where}:{line}({name})" if line else name, ours))
+    own = sorted(rows, key=lambda r: -r[0])[:n]
+    cum = sorted([r for r in rows if r[4] and "bench_newhead" not in r[3]], key=lambda r: -r[1])[:n]
+    return own, cum
+
+
+def main(argv=None):
+    ap = bench_parser(__doc__)
+    ap.add_argument("--profile", type=int, default=8, help="functions listed per step")
+    args = ap.parse_args(argv)
+    os.environ["BLENDER_USER_RESOURCES"] = tempfile.mkdtemp()
+    import bpy  # noqa: I001 - first: addon_utils exists only once bpy is imported
+    import addon_utils
+    from pdeface.assets import load_head
+    from pdeface.io.meshio import write_obj
+    from pdeface.mesh import Mesh
+
+    repo = Path(tempfile.mkdtemp())
+    os.symlink(ROOT / "blender_addon", repo / "pdeface")
+    bpy.context.preferences.extensions.repos.new(name="bench", module="bench", custom_directory=str(repo), source="USER")
+    addon_utils.enable("bl_ext.bench.pdeface", default_set=True)
+    head, _ = load_head()
+    tmp = Path(tempfile.mkdtemp())
+    V, T = head.vertices, head.triangles()[0]
+    Vc, Tc = clustered(V, T, 0.42)  # cm: about 8k vertices
+    heads = {"ICT head": head, f"clustered head ({len(Vc) / 1000:.0f}k)": Mesh.from_faces(Vc, Tc)}
+    print(f"{os.cpu_count()} cores; load average at the start: {load_text()}")
+    for name, mesh in heads.items():
+        path = tmp / f"{len(mesh.vertices)}.obj"
+        write_obj(path, mesh)
+        timed = chain(bpy, path, time_only)
+        obj = bpy.context.view_layer.objects.active
+        total = sum(timed.values())
+        keys = len(obj.data.shape_keys.key_blocks) - 1 if obj.data.shape_keys else 0
+        print(f"\n== {name}: {len(mesh.vertices)} vertices, {keys} keys on it; chain {total:.2f} s "
+              f"(target ≤ {TARGET_S:.0f} s, ratio {total / TARGET_S:.2f}); load after: {load_text()}")
+        profiles = chain(bpy, path, profiled) if args.profile else {}
+        for step, s in timed.items():
+            print(f"  {step:45s} {s:6.2f} s  {100 * s / total:4.0f}%")
+            if step in profiles:
+                own, cum = top(profiles[step], args.profile)
+                for title, listed in (("most time of their own", own), ("pdeface's, most time in all they call", cum)):
+                    print(f"    {title}:" if listed else "", end="\n" if listed else "")
+                    for o, c, calls, fn, _ in listed:
+                        print(f"      {o:6.2f} s own {c:6.2f} s cum {calls:7d}×  {fn[:110]}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(run_bench(main, "newhead"))
