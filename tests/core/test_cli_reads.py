@@ -16,9 +16,9 @@ def test_fit_without_landmarks_finds_them_on_the_mesh_it_read(tmp_path, capsys, 
     real_read = meshio.read_bytes
     monkeypatch.setattr(meshio, "read_bytes", lambda path, *a: reads.append(str(path)) or real_read(path, *a))
 
-    def found(m, unit, verbose=False):  # the finder (MediaPipe's) stood in for: the bundled scan's own landmarks
+    def found(m, unit, verbose=False, **options):  # the finder and its gate stood in for: the scan's own landmarks
         searched.append(m)
-        return SimpleNamespace(points=m.vertices[idx])
+        return SimpleNamespace(points=m.vertices[idx]), None
 
     monkeypatch.setattr("pdeface.cli.face.find_landmarks", found)
     code = main(["fit", str(tmp_path / "neutral.obj"), "--unit", "cm", "-o", str(tmp_path / "face.npz")])
