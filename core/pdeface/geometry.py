@@ -39,43 +39,63 @@ def unit_rows(X: np.ndarray) -> np.ndarray:
     return X / np.maximum(np.linalg.norm(X, axis=-1, keepdims=True), 1e-300)
 
 
+#: Most cells along each axis of the ray-casting grid: the grid covers the rays, never the mesh's raw extent,
+#: so a stray vertex far away cannot size it, and a triangle's cells stay under this squared.
+MAX_GRID_CELLS = 512
+
+
 def cylinder_ray_candidates(V, T, axis_z, theta, height) -> tuple[np.ndarray, np.ndarray]:
     """(ray, triangle) pairs worth a hit test for rays cast from a vertical axis.
 
-    Triangles are binned into a uniform (angle, height) grid over their boxes, a
-    few per cell; a ray is paired with the triangles of its own cell. Triangles
-    wrapping round the back of the axis, or touching it, never face the rays
-    and are left out.
+    Triangles are binned into a uniform (angle, height) grid over the rays' own box (cells about twice a
+    triangle's median extent, at most :data:`MAX_GRID_CELLS` along each axis); a ray is paired with the
+    triangles of its own cell, in ascending order. Triangles outside the rays' box, wrapping round the back of
+    the axis, or touching it, never meet the rays and are left out; of a cell's triangles, those whose box does
+    not hold the ray's (angle, height) too. The pairs include every hit: a triangle's box holds every point
+    a ray from the axis can meet on it.
     """
+    theta = np.asarray(theta, dtype=np.float64).ravel()
+    height = np.asarray(height, dtype=np.float64).ravel()
+    none = np.zeros(0, np.int64)
+    if len(theta) == 0 or len(T) == 0:
+        return none, none
     th, y, r = cylinder_coords(V, axis_z)
     tth, ty = th[T], y[T]
-    ok = (np.ptp(tth, axis=1) < np.pi / 2) & (r[T].min(axis=1) > 1e-9)
+    lo = np.stack([tth.min(1), ty.min(1)], 1)
+    hi = np.stack([tth.max(1), ty.max(1)], 1)
+    qlo = np.array([theta.min(), height.min()])
+    qhi = np.array([theta.max(), height.max()])
+    ok = ((hi[:, 0] - lo[:, 0] < np.pi / 2) & (r[T].min(axis=1) > 1e-9)
+          & (hi >= qlo).all(1) & (lo <= qhi).all(1))
     cand = np.nonzero(ok)[0]
-    lo = np.stack([tth[cand].min(1), ty[cand].min(1)], 1)
-    hi = np.stack([tth[cand].max(1), ty[cand].max(1)], 1)
-    size = np.maximum(np.median(hi - lo, axis=0) * 2.0, 1e-9)
-    origin = lo.min(0)
-    c0 = np.floor((lo - origin) / size).astype(np.int64)
-    c1 = np.floor((hi - origin) / size).astype(np.int64)
-    ncell = c1.max(0) + 1
+    if len(cand) == 0:
+        return none, none
+    lo, hi = lo[cand], hi[cand]
+    size = np.maximum(np.maximum(np.median(hi - lo, axis=0) * 2.0, (qhi - qlo) / MAX_GRID_CELLS), 1e-9)
+    ncell = np.minimum(np.floor((qhi - qlo) / size), MAX_GRID_CELLS).astype(np.int64) + 1
+
+    def cell_of(p):  # clipped as floats first: no integer overflow however far a point lies
+        return np.floor(np.clip((p - qlo) / size, 0, ncell - 1)).astype(np.int64)
+
+    c0, c1 = cell_of(lo), cell_of(hi)
     span = c1 - c0 + 1
     reps = span[:, 0] * span[:, 1]
     tid = np.repeat(np.arange(len(cand)), reps)
     k = np.arange(len(tid)) - np.repeat(np.cumsum(reps) - reps, reps)
-    cx = c0[tid, 0] + k % span[tid, 0]
-    cy = c0[tid, 1] + k // span[tid, 0]
-    cell = cx * ncell[1] + cy
+    cell = (c0[tid, 0] + k % span[tid, 0]) * ncell[1] + c0[tid, 1] + k // span[tid, 0]
     order = np.argsort(cell, kind="stable")
     cell, tid = cell[order], cand[tid[order]]
-    qc = np.floor((np.stack([theta, height], 1) - origin) / size).astype(np.int64)
-    inside = (qc >= 0).all(1) & (qc < ncell).all(1)
-    qcell = np.where(inside, qc[:, 0] * ncell[1] + qc[:, 1], -1)
+    qcell = (cell_of(np.stack([theta, height], 1)) * [ncell[1], 1]).sum(1)
     start = np.searchsorted(cell, qcell, "left")
-    stop = np.where(inside, np.searchsorted(cell, qcell, "right"), start)
-    counts = stop - start
+    counts = np.searchsorted(cell, qcell, "right") - start
     rays = np.repeat(np.arange(len(theta)), counts)
     pos = np.arange(len(rays)) - np.repeat(np.cumsum(counts) - counts, counts) + np.repeat(start, counts)
-    return rays, tid[pos]
+    tri = tid[pos]
+    # only the triangles whose box holds the ray's point: the grid's cells hold many more
+    box = np.searchsorted(cand, tri)
+    inside = ((lo[box, 0] <= theta[rays]) & (theta[rays] <= hi[box, 0])
+              & (lo[box, 1] <= height[rays]) & (height[rays] <= hi[box, 1]))
+    return rays[inside], tri[inside]
 
 
 def ray_triangle(origins, directions, A, B, C, eps=1e-9):
