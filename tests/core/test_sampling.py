@@ -126,3 +126,25 @@ def test_the_bundled_face_has_no_fold_in_any_pose(model):
         turns[name] = (r["count"], r["max_deg"])
     assert len(turns) == 83 and {k: n for k, (n, _) in turns.items() if n} == {}
     assert max(t for _, t in turns.values()) < 25
+
+
+def test_a_descriptor_turning_edges_everywhere_is_capped(model):
+    """A huge residual in one descriptor (a broken or hostile file) turns edges everywhere: the steps are capped
+    to MAX_VERTICES instead of the most everywhere (230,800 vertices), and the rest is chosen as before."""
+    import copy
+
+    hostile = copy.deepcopy(model)
+    d = hostile.descriptors[0]
+    d.residual = d.residual * 1e4 + 50 * np.random.default_rng(0).normal(size=d.residual.shape)
+    rows, cols = sampling.adaptive_resolution(hostile)
+    assert (sum(rows) + 1) * (sum(cols) + 1) <= sampling.MAX_VERTICES
+    K, J = len(model.knots), model.layout.n_points
+    lo, hi = sampling.STEPS_RANGE
+    turns = sampling.interval_turns(hostile, (sampling.PROBE,) * (K - 1), (sampling.PROBE,) * (J - 1),
+                                    sampling.pose_weights(hostile))
+    wanted = [np.clip(np.ceil(sampling.PROBE * t / sampling.MAX_TURN_DEG), lo, hi) for t in turns]
+    assert np.prod([w.sum() + 1 for w in wanted]) > 4 * sampling.MAX_VERTICES  # what the probe alone asks for
+    steps, lowered = sampling.capped_steps([np.array(rows), np.array(cols)])
+    assert not lowered and [tuple(s) for s in steps] == [rows, cols]
+    many, lowered = sampling.capped_steps([np.full(33, 16), np.full(36, 16)])
+    assert lowered and np.prod([s.sum() + 1 for s in many]) <= sampling.MAX_VERTICES and min(map(min, many)) >= 2

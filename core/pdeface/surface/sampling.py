@@ -24,7 +24,7 @@ from ..errors import MeshError
 from ..geometry import degrees_from_cos
 from ..presets import every_pose
 from .folds import carried, nearest_vertices, opening_mask
-from .grid import surface_grid
+from .grid import key_grids, surface_grid
 from .model import model_landmarks
 
 #: Named uniform resolutions: (rows per curve interval, columns per point interval). ``default`` is adaptive.
@@ -42,6 +42,10 @@ STEPS_RANGE = (2, 16)
 #: more steps, measured on the chosen mesh, at most this many rounds.
 VERIFY_FACTOR = 1.25
 VERIFY_ROUNDS = 2
+#: Most vertices the adaptive mesh may have (the bundled face's has 17,802, the low-poly face's 25,281): a
+#: descriptor that turns edges everywhere (a broken file, a huge residual) gets its steps capped to fit, not
+#: the most steps everywhere (a 230,800-vertex mesh, its choice 6.3 s of CPU against 0.9 s capped; issue #35).
+MAX_VERTICES = 40_000
 #: Skin a pose moves less than this (mm) turns its edges as at rest (by under 0.3° on 1 mm edges).
 MOVED_MM = 0.005
 #: Largest explicit steps per interval.
@@ -191,13 +195,11 @@ def interval_turns(model, rows, cols, W, floor=0.0):
     X0 = surface_grid(model, rows, cols)
     n_u, n_v, _ = X0.shape
     n = W.shape[1]
-    D = np.zeros((n, n_u * n_v * 3))
+    D = np.zeros((n, n_u * n_v * 3))  # (keys, n_u · n_v · 3)
     rows_moved, cols_moved = np.zeros((n, n_u), bool), np.zeros((n, n_v), bool)
     if n:
-        dense = [d.dense() for d in model.descriptors]
-        C, R = (np.concatenate(parts, axis=2) for parts in zip(*dense))
-        D = surface_grid(model, rows, cols, coefficients=C, residual=R).reshape(n_u, n_v, n, 3)
-        D = np.ascontiguousarray(np.moveaxis(D, 2, 0)).reshape(n, -1)  # (keys, n_u · n_v · 3)
+        for first, grids in key_grids(model, rows, cols):
+            D[first:first + grids.shape[2]] = np.moveaxis(grids, 2, 0).reshape(grids.shape[2], -1)
         # a pose turns edges as the rest does where it does not move the skin: only its moved block is measured
         moves = (np.abs(D) > MOVED_MM).reshape(n, n_u, n_v * 3)
         rows_moved, cols_moved = moves.any(axis=2), moves.any(axis=1).reshape(n, n_v, 3).any(axis=2)
@@ -244,6 +246,16 @@ def interval_turns(model, rows, cols, W, floor=0.0):
     return need
 
 
+def capped_steps(steps):
+    """``steps`` (rows, cols per interval) with the largest lowered to a common cap until the mesh has at most
+    :data:`MAX_VERTICES` vertices (never under :data:`STEPS_RANGE`'s fewest), and whether any was lowered."""
+    cap = max(int(max(s.max() for s in steps)), STEPS_RANGE[0])
+    while cap > STEPS_RANGE[0] and np.prod([np.minimum(s, cap).sum() + 1 for s in steps]) > MAX_VERTICES:
+        cap -= 1
+    out = [np.minimum(s, cap) for s in steps]
+    return out, any((o != s).any() for o, s in zip(out, steps))
+
+
 def adaptive_resolution(model, max_turn=MAX_TURN_DEG):
     """Steps per curve interval and per point interval (two tuples) keeping each edge's turn outside the
     openings under about ``max_turn`` at rest, at weight 1 of each descriptor and in each built-in preset.
@@ -252,7 +264,8 @@ def adaptive_resolution(model, max_turn=MAX_TURN_DEG):
     gives it ``ceil(PROBE * t / max_turn)`` steps within :data:`STEPS_RANGE`. Then the mesh so chosen is
     measured the same way: where a bend is narrower than the probe's steps its turn does not shrink in
     proportion, and an interval still over :data:`VERIFY_FACTOR` × ``max_turn`` gets steps in proportion
-    to its measured turn (up to :data:`VERIFY_ROUNDS` times).
+    to its measured turn (up to :data:`VERIFY_ROUNDS` times). The mesh is kept under :data:`MAX_VERTICES`
+    (:func:`capped_steps`); a capped choice is not verified again (more steps are what it would ask for).
     """
     known = known_resolution(model, max_turn)
     if known is not None:
@@ -263,12 +276,15 @@ def adaptive_resolution(model, max_turn=MAX_TURN_DEG):
     floor = max_turn * lo / PROBE  # turns below this leave an interval at the fewest steps
     steps = [np.clip(np.ceil(PROBE * t / max_turn), lo, hi).astype(int)
              for t in interval_turns(model, (PROBE,) * (K - 1), (PROBE,) * (J - 1), W, floor)]
-    for _ in range(VERIFY_ROUNDS):
+    steps, capped = capped_steps(steps)
+    for _ in range(0 if capped else VERIFY_ROUNDS):
         turns = interval_turns(model, *steps, W, VERIFY_FACTOR * max_turn)
         over = [(t > VERIFY_FACTOR * max_turn) & (s < hi) for s, t in zip(steps, turns)]
         if not any(o.any() for o in over):
             break
-        steps = [np.where(o, np.minimum(np.ceil(s * t / max_turn), hi), s).astype(int)
-                 for s, t, o in zip(steps, turns, over)]
+        steps, capped = capped_steps([np.where(o, np.minimum(np.ceil(s * t / max_turn), hi), s).astype(int)
+                                      for s, t, o in zip(steps, turns, over)])
+        if capped:
+            break
     remember_resolution(model, *steps, max_turn=max_turn)
     return known_resolution(model, max_turn)
