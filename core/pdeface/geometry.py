@@ -60,13 +60,13 @@ def cylinder_ray_candidates(V, T, axis_z, theta, height) -> tuple[np.ndarray, np
     if len(theta) == 0 or len(T) == 0:
         return none, none
     th, y, r = cylinder_coords(V, axis_z)
-    tth, ty = th[T], y[T]
-    lo = np.stack([tth.min(1), ty.min(1)], 1)
-    hi = np.stack([tth.max(1), ty.max(1)], 1)
+    a, b, c = T[:, 0], T[:, 1], T[:, 2]  # corner by corner: reductions over an axis of 3 are slow in numpy
+    lo = np.stack([np.minimum(np.minimum(th[a], th[b]), th[c]), np.minimum(np.minimum(y[a], y[b]), y[c])], 1)
+    hi = np.stack([np.maximum(np.maximum(th[a], th[b]), th[c]), np.maximum(np.maximum(y[a], y[b]), y[c])], 1)
     qlo = np.array([theta.min(), height.min()])
     qhi = np.array([theta.max(), height.max()])
-    ok = ((hi[:, 0] - lo[:, 0] < np.pi / 2) & (r[T].min(axis=1) > 1e-9)
-          & (hi >= qlo).all(1) & (lo <= qhi).all(1))
+    ok = ((hi[:, 0] - lo[:, 0] < np.pi / 2) & (np.minimum(np.minimum(r[a], r[b]), r[c]) > 1e-9)
+          & (hi[:, 0] >= qlo[0]) & (hi[:, 1] >= qlo[1]) & (lo[:, 0] <= qhi[0]) & (lo[:, 1] <= qhi[1]))
     cand = np.nonzero(ok)[0]
     if len(cand) == 0:
         return none, none
