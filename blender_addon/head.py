@@ -89,9 +89,10 @@ def _split(layout, displacement, rests=None):
             for (obj, s, n, back), rest in zip(layout, rests)]
 
 
-#: Keys displaced per batch: a whole head's 82 keys in float64 at once, with the solve's temporaries, held
-#: ~400 MB more than the float32 keys themselves (issue #35); batches of this many cost a few % more time.
-KEY_BATCH = 24
+#: Keys displaced per batch: a whole head's 82 keys in float64 at once, with the solve's temporaries, peaked
+#: ~150 MB over the float32 keys themselves (issue #35: the ICT head's rig 779 → 626 MB in batches of 24, and
+#: ~50 MB less in batches of 12, at the same CPU time within this machine's noise).
+KEY_BATCH = 12
 
 
 def head_keys(face, model, poses, users, au_name, expression_name):
