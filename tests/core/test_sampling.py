@@ -148,3 +148,21 @@ def test_a_descriptor_turning_edges_everywhere_is_capped(model):
     assert not lowered and [tuple(s) for s in steps] == [rows, cols]
     many, lowered = sampling.capped_steps([np.full(33, 16), np.full(36, 16)])
     assert lowered and np.prod([s.sum() + 1 for s in many]) <= sampling.MAX_VERTICES and min(map(min, many)) >= 2
+
+
+def test_descriptors_solved_in_batches_are_those_solved_at_once(model):
+    """key_grids (a few descriptors per solve, to bound memory) gives each descriptor's grid as one stacked solve
+    of them all does, in order."""
+    from pdeface.surface.grid import key_grids
+
+    rows, cols = mesh_resolution(model)
+    dense = [d.dense() for d in model.descriptors]
+    C, R = (np.concatenate(parts, axis=2) for parts in zip(*dense))
+    at_once = surface_grid(model, rows, cols, coefficients=C, residual=R)
+    seen = 0
+    for first, grids in key_grids(model, rows, cols, batch=7):
+        assert first == seen and grids.shape[2] <= 7
+        np.testing.assert_allclose(grids, at_once[..., 3 * first:3 * (first + grids.shape[2])].reshape(grids.shape),
+                                   atol=1e-10)
+        seen += grids.shape[2]
+    assert seen == len(model.descriptors)

@@ -174,14 +174,6 @@ def pose_weights(model) -> np.ndarray:
     return np.array(W, dtype=np.float64).reshape(len(W), len(keys))
 
 
-def _poses(X0, D, W, chunk=16):
-    """``(weights, surface)`` of each pose: rest ``X0`` (n_u, n_v, 3) plus keys ``D`` (keys, n_u · n_v · 3) by
-    the weights ``W``; a matrix product per ``chunk`` of poses (one each would read ``D`` each time)."""
-    for start in range(0, len(W), chunk):
-        Wc = W[start:start + chunk]
-        yield from zip(Wc, X0 + (Wc @ D).reshape((len(Wc),) + X0.shape))
-
-
 def interval_turns(model, rows, cols, W, floor=0.0):
     """Largest turn (degrees) of the edges in each curve interval and each point interval, outside the
     openings, over the poses ``W`` (:func:`pose_weights`), on the mesh of ``rows``, ``cols`` steps.
@@ -197,12 +189,12 @@ def interval_turns(model, rows, cols, W, floor=0.0):
     n = W.shape[1]
     D = np.zeros((n, n_u * n_v * 3))  # (keys, n_u · n_v · 3)
     rows_moved, cols_moved = np.zeros((n, n_u), bool), np.zeros((n, n_v), bool)
-    if n:
-        for first, grids in key_grids(model, rows, cols):
-            D[first:first + grids.shape[2]] = np.moveaxis(grids, 2, 0).reshape(grids.shape[2], -1)
-        # a pose turns edges as the rest does where it does not move the skin: only its moved block is measured
-        moves = (np.abs(D) > MOVED_MM).reshape(n, n_u, n_v * 3)
-        rows_moved, cols_moved = moves.any(axis=2), moves.any(axis=1).reshape(n, n_v, 3).any(axis=2)
+    # a pose turns edges as the rest does where it does not move the skin: only its moved block is measured
+    for first, grids in key_grids(model, rows, cols):
+        keys = np.s_[first:first + grids.shape[2]]
+        D[keys] = np.moveaxis(grids, 2, 0).reshape(grids.shape[2], -1)
+        moves = (np.abs(D[keys]) > MOVED_MM).reshape(-1, n_u, n_v * 3)
+        rows_moved[keys], cols_moved[keys] = moves.any(axis=2), moves.any(axis=1).reshape(-1, n_v, 3).any(axis=2)
     K, J = len(model.knots), model.layout.n_points
     interval = [np.repeat(np.arange(K - 1), rows), np.repeat(np.arange(J - 1), cols)]  # of each quad row, column
     L = model_landmarks(model)
@@ -213,31 +205,40 @@ def interval_turns(model, rows, cols, W, floor=0.0):
     flat0 = X0.reshape(-1, 3)
     open_at_rest = [opening_mask(0.5 * (flat0[a] + flat0[b]).reshape(-1, 3), L).reshape(a.shape) for a, b in ends]
     need = [np.zeros(K - 1), np.zeros(J - 1)]
-    for w, X in _poses(X0, D, W):
-        if w.any():
-            r_moved, c_moved = (np.nonzero(m[w != 0].any(axis=0))[0] for m in (rows_moved, cols_moved))
+    D = D.reshape(n, n_u, n_v, 3)
+    known = nearest >= 0
+    at_landmarks = np.where(known, nearest, 0)  # the posed grid is read only here and in the moved block
+    rest_at_landmarks = flat0[at_landmarks]
+    for w in W:
+        keys = np.nonzero(w)[0]
+        if len(keys):
+            r_moved, c_moved = (np.nonzero(m[keys].any(axis=0))[0] for m in (rows_moved, cols_moved))
         else:
             r_moved, c_moved = np.arange(n_u), np.arange(n_v)
         if not len(r_moved):
             continue
         r0, c0 = max(r_moved[0] - 2, 0), max(c_moved[0] - 2, 0)
-        block = np.s_[r0:r_moved[-1] + 3, c0:c_moved[-1] + 3]
-        flat = X.reshape(-1, 3)
+        r1, c1 = r_moved[-1] + 3, c_moved[-1] + 3
+        X = X0[r0:r1, c0:c1] + np.tensordot(w[keys], D[keys, r0:r1, c0:c1], axes=1)  # the block, posed
         edges = []  # (interval before, interval after, turn, midpoint) per axis, of edges that raise a need
-        for axis, turns in enumerate(quad_turns(X[block])):
+        for axis, turns in enumerate(quad_turns(X)):
             opened = open_at_rest[axis][r0:r0 + turns.shape[0], c0:c0 + turns.shape[1]]
             r, c = np.nonzero((turns > floor) & ~opened)
             t = turns[r, c]
-            r, c = r + r0, c + c0
-            first = (r, c)[axis]  # the quad before the edge; the one after is first + 1
+            first = (r + r0, c + c0)[axis]  # the quad before the edge; the one after is first + 1
             before, after = interval[axis][first], interval[axis][first + 1]
             keep = (t > need[axis][before]) | (t > need[axis][after])
-            a, b = (e[r[keep], c[keep]] for e in ends[axis])
-            edges.append((before[keep], after[keep], t[keep], 0.5 * (flat[a] + flat[b])))
+            r, c = r[keep], c[keep]
+            # the edge's ends in the block: across rows (r + 1, c) and (r + 1, c + 1), across columns (r, c + 1)
+            # and (r + 1, c + 1)
+            mid = 0.5 * (X[r + 1, c] + X[r + 1, c + 1]) if axis == 0 else 0.5 * (X[r, c + 1] + X[r + 1, c + 1])
+            edges.append((before[keep], after[keep], t[keep], mid))
         if not sum(len(e[2]) for e in edges):
             continue
         mid = np.concatenate([e[3] for e in edges])
-        posed_L = carried(flat0, flat, L, nearest=nearest)
+        moved = np.tensordot(w[keys], D.reshape(n, -1, 3)[keys[:, None], at_landmarks], axes=1)
+        posed_L = carried(rest_at_landmarks, rest_at_landmarks + moved, L,
+                          nearest=np.where(known, np.arange(len(nearest)), -1))
         shut = ~(opening_mask(mid, L) | opening_mask(mid, posed_L))
         for axis, (before, after, t, _) in enumerate(edges):
             s, shut = shut[:len(t)], shut[len(t):]
