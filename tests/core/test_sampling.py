@@ -75,6 +75,9 @@ def test_a_model_file_keeps_its_steps(model, tmp_path, monkeypatch):
     fewer.descriptors = fewer.descriptors[:5]
     assert known_resolution(fewer) is None
     assert mesh_resolution(fewer) != steps  # fewer keys to keep smooth: another choice
+    fewer.descriptors = []  # a face just fitted (pdeface demo meshes one): the rest shape alone
+    rows, cols = mesh_resolution(fewer)
+    assert len(rows) == len(model.knots) - 1 and min(rows) >= sampling.STEPS_RANGE[0]
 
 
 def test_the_bundled_steps_are_the_current_choice(model):

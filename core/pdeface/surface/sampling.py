@@ -236,7 +236,7 @@ def interval_turns(model, rows, cols, W, floor=0.0):
         if not sum(len(e[2]) for e in edges):
             continue
         mid = np.concatenate([e[3] for e in edges])
-        moved = np.tensordot(w[keys], D.reshape(n, -1, 3)[keys[:, None], at_landmarks], axes=1)
+        moved = np.tensordot(w[keys], D.reshape(n, n_u * n_v, 3)[keys[:, None], at_landmarks], axes=1)
         posed_L = carried(rest_at_landmarks, rest_at_landmarks + moved, L,
                           nearest=np.where(known, np.arange(len(nearest)), -1))
         shut = ~(opening_mask(mid, L) | opening_mask(mid, posed_L))
