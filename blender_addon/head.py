@@ -90,6 +90,12 @@ def _split(layout, displacement, rests=None):
             for (obj, s, n, back), rest in zip(layout, rests)]
 
 
+#: Keys displaced per batch: a whole head's 82 keys in float64 at once, with the solve's temporaries, peaked
+#: ~150 MB over the float32 keys themselves (issue #35: the ICT head's rig 779 → 626 MB in batches of 24, and
+#: ~50 MB less in batches of 12, at the same CPU time within this machine's noise).
+KEY_BATCH = 12
+
+
 def head_keys(face, model, poses, users, au_name, expression_name):
     """Every AU and expression key of the user's objects: ``[(object, [(name, coords, kind, au_key, label)])]``.
 
@@ -101,11 +107,14 @@ def head_keys(face, model, poses, users, au_name, expression_name):
     per_object = {obj.name: (obj, []) for obj, *_ in layout}
     keys = [(au_name(d), "AU", d.key, d.label) for d in model.descriptors]
     keys += [(expression_name(name), "EXPRESSION", "", label) for name, label, _, _ in poses]
-    moved = b.displacements([descriptor_motion_args(d) for d in model.descriptors]
-                            + [b.pose_motion_args(weights, mixer) for _, _, weights, mixer in poses])  # one batch
-    for (name, kind, au_key, label), D in zip(keys, moved):
-        for obj, coords in _split(layout, D, rests):
-            per_object[obj.name][1].append((name, coords, kind, au_key, label))
+    motions = ([descriptor_motion_args(d) for d in model.descriptors]
+               + [b.pose_motion_args(weights, mixer) for _, _, weights, mixer in poses])
+    for start in range(0, len(motions), KEY_BATCH):  # a few batches: each one solve, float64 only while solved
+        moved = b.displacements(motions[start:start + KEY_BATCH])
+        for (name, kind, au_key, label), D in zip(keys[start:start + KEY_BATCH], moved):
+            for obj, coords in _split(layout, D, rests):
+                per_object[obj.name][1].append((name, coords, kind, au_key, label))
+        del moved
     return list(per_object.values())
 
 

@@ -18,11 +18,8 @@ def cylinder_coords(P: np.ndarray, axis_z: float) -> tuple[np.ndarray, np.ndarra
 
 def triangle_cross(V: np.ndarray, T: np.ndarray) -> np.ndarray:
     """Cross product of each triangle's two edges from its first corner: the normal times twice the area."""
-    a = V[T[:, 0]]
-    e1, e2 = V[T[:, 1]] - a, V[T[:, 2]] - a
-    # Written out along the last axis (V may be (n, ..., 3)): np.cross is several times slower, the same numbers.
-    return np.stack([e1[..., 1] * e2[..., 2] - e1[..., 2] * e2[..., 1], e1[..., 2] * e2[..., 0] - e1[..., 0] * e2[..., 2],
-                     e1[..., 0] * e2[..., 1] - e1[..., 1] * e2[..., 0]], -1)
+    P = V[T]
+    return np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
 
 
 def smoothstep(t) -> np.ndarray:
@@ -42,66 +39,72 @@ def unit_rows(X: np.ndarray) -> np.ndarray:
     return X / np.maximum(np.linalg.norm(X, axis=-1, keepdims=True), 1e-300)
 
 
-#: The candidate grid's cells per axis at most: a cell is never smaller than the queries' extent over this,
-#: whatever the triangles' sizes, so no coordinate (a vertex left a kilometre away) sizes the grid.
-MAX_GRID_CELLS = 1024
+#: Most cells along each axis of the ray-casting grid: the grid covers the rays, never the mesh's raw extent,
+#: so a stray vertex far away cannot size it, and a triangle's cells stay under this squared.
+MAX_GRID_CELLS = 512
 
 
 def cylinder_ray_candidates(V, T, axis_z, theta, height) -> tuple[np.ndarray, np.ndarray]:
     """(ray, triangle) pairs worth a hit test for rays cast from a vertical axis.
 
-    Triangles are binned into a uniform (angle, height) grid over the rays' own
-    extent, a few per cell; a ray is paired with the triangles of its own cell.
-    Triangles wrapping round the back of the axis, touching it, not finite or
-    wholly outside the rays' extent are left out; the grid has at most
-    :data:`MAX_GRID_CELLS` cells per axis and each triangle is clipped to it, so
-    the work is bounded by the rays' extent, never by a vertex's coordinates.
+    Triangles are binned into a uniform (angle, height) grid over the rays' own box (cells about twice a
+    triangle's median extent, at most :data:`MAX_GRID_CELLS` along each axis); a ray is paired with the
+    triangles of its own cell, in ascending order. Triangles outside the rays' box, wrapping round the back of
+    the axis, or touching it, never meet the rays and are left out; of a cell's triangles, those whose box does
+    not hold the ray's (angle, height) too. The pairs include every hit: a triangle's box holds every point
+    a ray from the axis can meet on it.
     """
+    theta = np.asarray(theta, dtype=np.float64).ravel()
+    height = np.asarray(height, dtype=np.float64).ravel()
+    none = np.zeros(0, np.int64)
+    if len(theta) == 0 or len(T) == 0:
+        return none, none
+    q_ok = np.isfinite(theta) & np.isfinite(height)  # a ray that is not finite meets nothing
+    if not q_ok.any():
+        return none, none
     th, y, r = cylinder_coords(V, axis_z)
-    tth, ty = th[T], y[T]
-    q = np.stack([theta, height], 1)
-    q_ok = np.isfinite(q).all(1)
-    if not q_ok.any() or len(T) == 0:
-        return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    q_lo, q_hi = q[q_ok].min(0), q[q_ok].max(0)
-    with np.errstate(invalid="ignore"):
-        lo = np.stack([tth.min(1), ty.min(1)], 1)
-        hi = np.stack([tth.max(1), ty.max(1)], 1)
-        ok = ((np.ptp(tth, axis=1) < np.pi / 2) & (r[T].min(axis=1) > 1e-9) & np.isfinite(lo).all(1)
-              & np.isfinite(hi).all(1) & (hi >= q_lo).all(1) & (lo <= q_hi).all(1))
+    a, b, c = T[:, 0], T[:, 1], T[:, 2]  # corner by corner: reductions over an axis of 3 are slow in numpy
+    lo = np.stack([np.minimum(np.minimum(th[a], th[b]), th[c]), np.minimum(np.minimum(y[a], y[b]), y[c])], 1)
+    hi = np.stack([np.maximum(np.maximum(th[a], th[b]), th[c]), np.maximum(np.maximum(y[a], y[b]), y[c])], 1)
+    qlo = np.array([theta[q_ok].min(), height[q_ok].min()])
+    qhi = np.array([theta[q_ok].max(), height[q_ok].max()])
+    ok = (np.isfinite(lo).all(1) & np.isfinite(hi).all(1) & (hi[:, 0] - lo[:, 0] < np.pi / 2) & (np.minimum(np.minimum(r[a], r[b]), r[c]) > 1e-9)
+          & (hi[:, 0] >= qlo[0]) & (hi[:, 1] >= qlo[1]) & (lo[:, 0] <= qhi[0]) & (lo[:, 1] <= qhi[1]))
     cand = np.nonzero(ok)[0]
     if len(cand) == 0:
-        return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    lo, hi = np.maximum(lo[cand], q_lo), np.minimum(hi[cand], q_hi)  # clipped to the rays' extent
-    size = np.maximum(np.median(hi - lo, axis=0) * 2.0, 1e-9)
-    size = np.maximum(size, (q_hi - q_lo) / (MAX_GRID_CELLS - 1))
-    origin = q_lo
-    while True:  # a few huge triangles may fill many cells; many coarsen the grid (a few doublings at most)
-        c0 = np.floor((lo - origin) / size).astype(np.int64)
-        c1 = np.floor((hi - origin) / size).astype(np.int64)
+        return none, none
+    lo, hi = lo[cand], hi[cand]
+    size = np.maximum(np.maximum(np.median(hi - lo, axis=0) * 2.0, (qhi - qlo) / MAX_GRID_CELLS), 1e-9)
+    ncell = np.minimum(np.floor((qhi - qlo) / size), MAX_GRID_CELLS).astype(np.int64) + 1
+
+    def cell_of(p):  # clipped as floats first: no integer overflow however far a point lies
+        return np.floor(np.clip((p - qlo) / size, 0, ncell - 1)).astype(np.int64)
+
+    while True:  # many huge triangles would fill many cells each: coarsen the grid (a few doublings at most)
+        c0, c1 = cell_of(lo), cell_of(hi)
         span = c1 - c0 + 1
         reps = span[:, 0] * span[:, 1]
         if reps.sum() <= 16 * len(cand) + 2 ** 22:
             break
         size = size * 2
-    ncell = np.floor((q_hi - origin) / size).astype(np.int64) + 1
+        ncell = np.minimum(np.floor((qhi - qlo) / size), MAX_GRID_CELLS).astype(np.int64) + 1
     tid = np.repeat(np.arange(len(cand)), reps)
     k = np.arange(len(tid)) - np.repeat(np.cumsum(reps) - reps, reps)
-    cx = c0[tid, 0] + k % span[tid, 0]
-    cy = c0[tid, 1] + k // span[tid, 0]
-    cell = cx * ncell[1] + cy
+    cell = (c0[tid, 0] + k % span[tid, 0]) * ncell[1] + c0[tid, 1] + k // span[tid, 0]
     order = np.argsort(cell, kind="stable")
     cell, tid = cell[order], cand[tid[order]]
-    with np.errstate(invalid="ignore"):
-        qc = np.floor((np.where(q_ok[:, None], q, origin) - origin) / size).astype(np.int64)
-    qc = np.minimum(qc, ncell - 1)
-    qcell = np.where(q_ok, qc[:, 0] * ncell[1] + qc[:, 1], -1)
+    q = np.where(q_ok[:, None], np.stack([theta, height], 1), qlo)
+    qcell = (cell_of(q) * [ncell[1], 1]).sum(1)
     start = np.searchsorted(cell, qcell, "left")
-    stop = np.where(q_ok, np.searchsorted(cell, qcell, "right"), start)
-    counts = stop - start
+    counts = np.where(q_ok, np.searchsorted(cell, qcell, "right") - start, 0)
     rays = np.repeat(np.arange(len(theta)), counts)
     pos = np.arange(len(rays)) - np.repeat(np.cumsum(counts) - counts, counts) + np.repeat(start, counts)
-    return rays, tid[pos]
+    tri = tid[pos]
+    # only the triangles whose box holds the ray's point: the grid's cells hold many more
+    box = np.searchsorted(cand, tri)
+    inside = ((lo[box, 0] <= theta[rays]) & (theta[rays] <= hi[box, 0])
+              & (lo[box, 1] <= height[rays]) & (height[rays] <= hi[box, 1]))
+    return rays[inside], tri[inside]
 
 
 def ray_triangle(origins, directions, A, B, C, eps=1e-9):

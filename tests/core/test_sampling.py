@@ -75,6 +75,9 @@ def test_a_model_file_keeps_its_steps(model, tmp_path, monkeypatch):
     fewer.descriptors = fewer.descriptors[:5]
     assert known_resolution(fewer) is None
     assert mesh_resolution(fewer) != steps  # fewer keys to keep smooth: another choice
+    fewer.descriptors = []  # a face just fitted (pdeface demo meshes one): the rest shape alone
+    rows, cols = mesh_resolution(fewer)
+    assert len(rows) == len(model.knots) - 1 and min(rows) >= sampling.STEPS_RANGE[0]
 
 
 def test_the_bundled_steps_are_the_current_choice(model):
@@ -126,3 +129,43 @@ def test_the_bundled_face_has_no_fold_in_any_pose(model):
         turns[name] = (r["count"], r["max_deg"])
     assert len(turns) == 83 and {k: n for k, (n, _) in turns.items() if n} == {}
     assert max(t for _, t in turns.values()) < 25
+
+
+def test_a_descriptor_turning_edges_everywhere_is_capped(model):
+    """A huge residual in one descriptor (a broken or hostile file) turns edges everywhere: the steps are capped
+    to MAX_VERTICES instead of the most everywhere (230,800 vertices), and the rest is chosen as before."""
+    import copy
+
+    hostile = copy.deepcopy(model)
+    d = hostile.descriptors[0]
+    d.residual = d.residual * 1e4 + 50 * np.random.default_rng(0).normal(size=d.residual.shape)
+    rows, cols = sampling.adaptive_resolution(hostile)
+    assert (sum(rows) + 1) * (sum(cols) + 1) <= sampling.MAX_VERTICES
+    K, J = len(model.knots), model.layout.n_points
+    lo, hi = sampling.STEPS_RANGE
+    turns = sampling.interval_turns(hostile, (sampling.PROBE,) * (K - 1), (sampling.PROBE,) * (J - 1),
+                                    sampling.pose_weights(hostile))
+    wanted = [np.clip(np.ceil(sampling.PROBE * t / sampling.MAX_TURN_DEG), lo, hi) for t in turns]
+    assert np.prod([w.sum() + 1 for w in wanted]) > 3 * sampling.MAX_VERTICES  # what the probe alone asks for
+    steps, lowered = sampling.capped_steps([np.array(rows), np.array(cols)])
+    assert not lowered and [tuple(s) for s in steps] == [rows, cols]
+    many, lowered = sampling.capped_steps([np.full(33, 16), np.full(36, 16)])
+    assert lowered and np.prod([s.sum() + 1 for s in many]) <= sampling.MAX_VERTICES and min(map(min, many)) >= 2
+
+
+def test_descriptors_solved_in_batches_are_those_solved_at_once(model):
+    """key_grids (a few descriptors per solve, to bound memory) gives each descriptor's grid as one stacked solve
+    of them all does, in order."""
+    from pdeface.surface.grid import key_grids
+
+    rows, cols = mesh_resolution(model)
+    dense = [d.dense() for d in model.descriptors]
+    C, R = (np.concatenate(parts, axis=2) for parts in zip(*dense))
+    at_once = surface_grid(model, rows, cols, coefficients=C, residual=R)
+    seen = 0
+    for first, grids in key_grids(model, rows, cols, batch=7):
+        assert first == seen and grids.shape[2] <= 7
+        np.testing.assert_allclose(grids, at_once[..., 3 * first:3 * (first + grids.shape[2])].reshape(grids.shape),
+                                   atol=1e-10)
+        seen += grids.shape[2]
+    assert seen == len(model.descriptors)

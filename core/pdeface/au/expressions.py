@@ -16,7 +16,7 @@ from ..errors import PdeFaceError
 from ..facs import clamp_weights, normalise_weights, parse_weight, split_au_key
 from ..presets import MIXERS
 from ..surface.fit import face_mesh
-from ..surface.grid import surface_grid
+from ..surface.grid import key_grids
 from ..surface.sampling import mesh_resolution
 from .descriptor import no_descriptors
 
@@ -85,14 +85,11 @@ class ShapeBasis:
         self.keys = [d.key for d in model.descriptors]
         self.neutral = face_mesh(model, (su, sv), assembly).vertices
         n = len(model.descriptors)
-        dense = [d.dense() for d in model.descriptors]
-        # All AUs in one solve: stacked along the last axis (the solve is linear).
-        C = np.concatenate([c for c, _ in dense], axis=2) if n else np.zeros(model.coefficients.shape[:2] + (0,))
-        R = np.concatenate([r for _, r in dense], axis=2) if n else np.zeros(model.residual.shape[:2] + (0,))
-        D = surface_grid(model, su, sv, assembly, coefficients=C, residual=R).reshape(-1, n, 3)
-        D = model.frame.to_user_vectors(D)  # (vertices, n, 3)
         # Stored vertex-major (column-major deltas): sgemm with the short AU axis innermost is fastest.
-        self._deltas_t = np.ascontiguousarray(D.transpose(0, 2, 1).reshape(-1, n).astype(dtype))
+        self._deltas_t = np.empty((self.neutral.size, n), dtype)
+        for first, grids in key_grids(model, su, sv, assembly):  # a few AUs per solve: float64 only meanwhile
+            D = model.frame.to_user_vectors(grids.reshape(-1, grids.shape[2], 3))  # (vertices, m, 3)
+            self._deltas_t[:, first:first + grids.shape[2]] = D.transpose(0, 2, 1).reshape(-1, grids.shape[2])
         self.neutral_flat = self.neutral.ravel().astype(dtype)
 
     @property

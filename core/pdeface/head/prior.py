@@ -180,14 +180,10 @@ class HeadPrior:
         # Mixed and scaled to the user's face once for all keys: a key is then one dense product.
         S = len(self.keys)
         used = np.unique(mix.indices)
-        residuals = (self.per_vertex.reshape(-1, 3, S)[used] * ratio[:, None]).reshape(len(used), 3 * S)
+        # (used, 3, S): gathered, not a cached per-vertex copy of every residual (40 MB held for good; issue #35)
+        residuals = (self.residuals[:, used].transpose(1, 2, 0) * ratio[:, None]).reshape(len(used), 3 * S)
         residuals = np.asarray(mix[:, used] @ residuals).reshape(-1, S)
         return PriorOnHead(idx[keep], residuals, self.solver(), ratio)
-
-    @functools.cached_property
-    def per_vertex(self) -> np.ndarray:
-        """(n·3, S): the residuals laid out per vertex and axis (x y z), each over the samples."""
-        return np.ascontiguousarray(self.residuals.transpose(1, 2, 0)).reshape(-1, len(self.keys))
 
 
 def _warp(src, dst, smoothing=1.0):

@@ -25,14 +25,12 @@ CREASE_MM = 3.0
 
 def _inside(points, polygon) -> np.ndarray:
     """Even-odd test of 2-D ``points`` against a closed ``polygon`` (vectorised over points)."""
-    x, y = points[:, 0], points[:, 1]
-    inside = np.zeros(len(points), bool)
-    for (x0, y0), (x1, y1) in zip(polygon, np.roll(polygon, -1, axis=0)):
-        crosses = (y0 > y) != (y1 > y)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            xc = x0 + (y - y0) * (x1 - x0) / (y1 - y0)
-        inside ^= crosses & (x < xc)
-    return inside
+    x, y = points[:, :1], points[:, 1:2]
+    (x0, y0), (x1, y1) = polygon.T, np.roll(polygon, -1, axis=0).T  # each edge, as a row over the points
+    crosses = (y0 > y) != (y1 > y)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        xc = x0 + (y - y0) * (x1 - x0) / (y1 - y0)
+    return (crosses & (x < xc)).sum(axis=1) % 2 == 1
 
 
 def nearest_vertices(rest_vertices, points) -> np.ndarray:

@@ -63,6 +63,21 @@ def surface_grid(model: FaceModel, sub_u=4, sub_v=4, assembly=None, coefficients
                          break_weights(model, sub_v) if confine else ())
 
 
+#: Descriptors solved together by :func:`key_grids`: all of a face's 72 at once held ~5 copies of their
+#: float64 grids (issue #35: 150 MB on a 27k head's face); a batch this size keeps the solve as fast.
+KEY_BATCH = 16
+
+
+def key_grids(model: FaceModel, sub_u, sub_v, assembly=None, batch=KEY_BATCH):
+    """Each descriptor's change of the surface (face frame, mm) on the output grid, a few solves at a time:
+    yields ``(first, grids)``, ``grids`` (n_u, n_v, m, 3) for descriptors ``first .. first + m - 1``."""
+    for first in range(0, len(model.descriptors), batch):
+        dense = [d.dense() for d in model.descriptors[first:first + batch]]
+        C, R = (np.concatenate(parts, axis=2) for parts in zip(*dense))  # stacked: the solve is linear
+        X = surface_grid(model, sub_u, sub_v, assembly, coefficients=C, residual=R)
+        yield first, X.reshape(X.shape[:2] + (len(dense), 3))
+
+
 def grid_faces(n_u: int, n_v: int) -> np.ndarray:
     """Quads ``(m, 4)`` of an n_u × n_v vertex grid (row-major), facing outwards."""
     r, c = np.meshgrid(np.arange(n_u - 1), np.arange(n_v - 1), indexing="ij")

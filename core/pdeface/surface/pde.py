@@ -91,16 +91,23 @@ def _taylor_table(kappa: float, deriv: int):
     g_m(t; κ) = κ^{-m} G_m(κ t), so its derivatives at 0 are κ^{j-m} times
     those for κ = 1: one table serves every κ.
     """
-    D1 = _unit_taylor_derivatives()
-    j = np.arange(deriv, deriv + _TAYLOR_TERMS + 1)
-    m = np.arange(4)[:, None]
-    scale = np.where(j[None, :] >= m, float(kappa) ** np.maximum(j[None, :] - m, 0), 0.0)
-    fact = np.cumprod(np.concatenate([[1.0], np.arange(1, _TAYLOR_TERMS + 1)]))
-    coef = D1[:, j] * scale / fact  # (4, terms)
+    D1j, above, power, fact, orders = _taylor_constants(deriv)
+    scale = np.where(above, float(kappa) ** power, 0.0)
+    coef = D1j * scale / fact  # (4, terms)
 
     def evaluate(t):
-        return (t[:, None] ** np.arange(_TAYLOR_TERMS + 1)[None, :]) @ coef.T
+        return (t[:, None] ** orders) @ coef.T
     return evaluate
+
+
+@lru_cache(maxsize=4)
+def _taylor_constants(deriv: int):
+    """What :func:`_taylor_table` needs for every κ: a mesh's operators ask for thousands of tables."""
+    j = np.arange(deriv, deriv + _TAYLOR_TERMS + 1)
+    m = np.arange(4)[:, None]
+    fact = np.cumprod(np.concatenate([[1.0], np.arange(1, _TAYLOR_TERMS + 1)]))
+    return (_unit_taylor_derivatives()[:, j], j[None, :] >= m, np.maximum(j[None, :] - m, 0), fact,
+            np.arange(_TAYLOR_TERMS + 1)[None, :])
 
 
 def interval_steps(sub, n_intervals: int) -> tuple:

@@ -84,9 +84,14 @@ def _rims(V, T, axis_z, th, y_above, y_top, y_bottom, y_below, gap):
     """Heights of the upper and lower rim at angles ``th``; ``gap`` apart where they meet."""
     mid = 0.5 * (y_top + y_bottom)
     up, lo = mid + 0.5 * gap, mid - 0.5 * gap
-    for c in range(len(th)):
-        ys = np.arange(mid[c] + 0.5 * (y_above[c] - mid[c]), mid[c] - 0.5 * (mid[c] - y_below[c]), -RIM_STEP_MM)
-        r, _, _, facing = cast_cylinder_rays(V, T, axis_z, np.full(len(ys), th[c]), ys)
+    walks = [np.arange(mid[c] + 0.5 * (y_above[c] - mid[c]), mid[c] - 0.5 * (mid[c] - y_below[c]), -RIM_STEP_MM)
+             for c in range(len(th))]
+    # every column's walk cast at once: one candidate grid for all of them
+    r_all, _, _, facing_all = cast_cylinder_rays(V, T, axis_z, np.repeat(th, [len(w) for w in walks]),
+                                                 np.concatenate(walks) if walks else np.zeros(0))
+    ends = np.cumsum([0] + [len(w) for w in walks])
+    for c, ys in enumerate(walks):
+        r, facing = r_all[ends[c]:ends[c + 1]], facing_all[ends[c]:ends[c + 1]]
         ok = np.isfinite(r) & (facing >= FACING_MIN_COS)
         step_ok = np.abs(np.diff(r)) <= RIM_JUMP_MM  # False across NaN too
         if not ok[0] or not ok[-1]:

@@ -24,7 +24,7 @@ from ..errors import MeshError
 from ..geometry import degrees_from_cos
 from ..presets import every_pose
 from .folds import carried, nearest_vertices, opening_mask
-from .grid import surface_grid
+from .grid import key_grids, surface_grid
 from .model import model_landmarks
 
 #: Named uniform resolutions: (rows per curve interval, columns per point interval). ``default`` is adaptive.
@@ -42,6 +42,11 @@ STEPS_RANGE = (2, 16)
 #: more steps, measured on the chosen mesh, at most this many rounds.
 VERIFY_FACTOR = 1.25
 VERIFY_ROUNDS = 2
+#: Most vertices the adaptive mesh may have (the bundled face's has 17,802, the low-poly face's 25,281, a
+#: MakeHuman head's 45,373): a descriptor that turns edges everywhere (a broken file, a huge residual) gets
+#: its steps capped to fit, not the most steps everywhere (a 230,800-vertex mesh, its choice 6.3 s of CPU;
+#: issue #35).
+MAX_VERTICES = 60_000
 #: Skin a pose moves less than this (mm) turns its edges as at rest (by under 0.3° on 1 mm edges).
 MOVED_MM = 0.005
 #: Largest explicit steps per interval.
@@ -170,14 +175,6 @@ def pose_weights(model) -> np.ndarray:
     return np.array(W, dtype=np.float64).reshape(len(W), len(keys))
 
 
-def _poses(X0, D, W, chunk=16):
-    """``(weights, surface)`` of each pose: rest ``X0`` (n_u, n_v, 3) plus keys ``D`` (keys, n_u · n_v · 3) by
-    the weights ``W``; a matrix product per ``chunk`` of poses (one each would read ``D`` each time)."""
-    for start in range(0, len(W), chunk):
-        Wc = W[start:start + chunk]
-        yield from zip(Wc, X0 + (Wc @ D).reshape((len(Wc),) + X0.shape))
-
-
 def interval_turns(model, rows, cols, W, floor=0.0):
     """Largest turn (degrees) of the edges in each curve interval and each point interval, outside the
     openings, over the poses ``W`` (:func:`pose_weights`), on the mesh of ``rows``, ``cols`` steps.
@@ -191,16 +188,14 @@ def interval_turns(model, rows, cols, W, floor=0.0):
     X0 = surface_grid(model, rows, cols)
     n_u, n_v, _ = X0.shape
     n = W.shape[1]
-    D = np.zeros((n, n_u * n_v * 3))
+    D = np.zeros((n, n_u * n_v * 3))  # (keys, n_u · n_v · 3)
     rows_moved, cols_moved = np.zeros((n, n_u), bool), np.zeros((n, n_v), bool)
-    if n:
-        dense = [d.dense() for d in model.descriptors]
-        C, R = (np.concatenate(parts, axis=2) for parts in zip(*dense))
-        D = surface_grid(model, rows, cols, coefficients=C, residual=R).reshape(n_u, n_v, n, 3)
-        D = np.ascontiguousarray(np.moveaxis(D, 2, 0)).reshape(n, -1)  # (keys, n_u · n_v · 3)
-        # a pose turns edges as the rest does where it does not move the skin: only its moved block is measured
-        moves = (np.abs(D) > MOVED_MM).reshape(n, n_u, n_v * 3)
-        rows_moved, cols_moved = moves.any(axis=2), moves.any(axis=1).reshape(n, n_v, 3).any(axis=2)
+    # a pose turns edges as the rest does where it does not move the skin: only its moved block is measured
+    for first, grids in key_grids(model, rows, cols):
+        keys = np.s_[first:first + grids.shape[2]]
+        D[keys] = np.moveaxis(grids, 2, 0).reshape(grids.shape[2], -1)
+        moves = (np.abs(D[keys]) > MOVED_MM).reshape(-1, n_u, n_v * 3)
+        rows_moved[keys], cols_moved[keys] = moves.any(axis=2), moves.any(axis=1).reshape(-1, n_v, 3).any(axis=2)
     K, J = len(model.knots), model.layout.n_points
     interval = [np.repeat(np.arange(K - 1), rows), np.repeat(np.arange(J - 1), cols)]  # of each quad row, column
     L = model_landmarks(model)
@@ -211,37 +206,56 @@ def interval_turns(model, rows, cols, W, floor=0.0):
     flat0 = X0.reshape(-1, 3)
     open_at_rest = [opening_mask(0.5 * (flat0[a] + flat0[b]).reshape(-1, 3), L).reshape(a.shape) for a, b in ends]
     need = [np.zeros(K - 1), np.zeros(J - 1)]
-    for w, X in _poses(X0, D, W):
-        if w.any():
-            r_moved, c_moved = (np.nonzero(m[w != 0].any(axis=0))[0] for m in (rows_moved, cols_moved))
+    D = D.reshape(n, n_u, n_v, 3)
+    known = nearest >= 0
+    at_landmarks = np.where(known, nearest, 0)  # the posed grid is read only here and in the moved block
+    rest_at_landmarks = flat0[at_landmarks]
+    for w in W:
+        keys = np.nonzero(w)[0]
+        if len(keys):
+            r_moved, c_moved = (np.nonzero(m[keys].any(axis=0))[0] for m in (rows_moved, cols_moved))
         else:
             r_moved, c_moved = np.arange(n_u), np.arange(n_v)
         if not len(r_moved):
             continue
         r0, c0 = max(r_moved[0] - 2, 0), max(c_moved[0] - 2, 0)
-        block = np.s_[r0:r_moved[-1] + 3, c0:c_moved[-1] + 3]
-        flat = X.reshape(-1, 3)
+        r1, c1 = r_moved[-1] + 3, c_moved[-1] + 3
+        X = X0[r0:r1, c0:c1] + np.tensordot(w[keys], D[keys, r0:r1, c0:c1], axes=1)  # the block, posed
         edges = []  # (interval before, interval after, turn, midpoint) per axis, of edges that raise a need
-        for axis, turns in enumerate(quad_turns(X[block])):
+        for axis, turns in enumerate(quad_turns(X)):
             opened = open_at_rest[axis][r0:r0 + turns.shape[0], c0:c0 + turns.shape[1]]
             r, c = np.nonzero((turns > floor) & ~opened)
             t = turns[r, c]
-            r, c = r + r0, c + c0
-            first = (r, c)[axis]  # the quad before the edge; the one after is first + 1
+            first = (r + r0, c + c0)[axis]  # the quad before the edge; the one after is first + 1
             before, after = interval[axis][first], interval[axis][first + 1]
             keep = (t > need[axis][before]) | (t > need[axis][after])
-            a, b = (e[r[keep], c[keep]] for e in ends[axis])
-            edges.append((before[keep], after[keep], t[keep], 0.5 * (flat[a] + flat[b])))
+            r, c = r[keep], c[keep]
+            # the edge's ends in the block: across rows (r + 1, c) and (r + 1, c + 1), across columns (r, c + 1)
+            # and (r + 1, c + 1)
+            mid = 0.5 * (X[r + 1, c] + X[r + 1, c + 1]) if axis == 0 else 0.5 * (X[r, c + 1] + X[r + 1, c + 1])
+            edges.append((before[keep], after[keep], t[keep], mid))
         if not sum(len(e[2]) for e in edges):
             continue
         mid = np.concatenate([e[3] for e in edges])
-        posed_L = carried(flat0, flat, L, nearest=nearest)
+        moved = np.tensordot(w[keys], D.reshape(n, n_u * n_v, 3)[keys[:, None], at_landmarks], axes=1)
+        posed_L = carried(rest_at_landmarks, rest_at_landmarks + moved, L,
+                          nearest=np.where(known, np.arange(len(nearest)), -1))
         shut = ~(opening_mask(mid, L) | opening_mask(mid, posed_L))
         for axis, (before, after, t, _) in enumerate(edges):
             s, shut = shut[:len(t)], shut[len(t):]
             np.maximum.at(need[axis], before[s], t[s])
             np.maximum.at(need[axis], after[s], t[s])
     return need
+
+
+def capped_steps(steps):
+    """``steps`` (rows, cols per interval) with the largest lowered to a common cap until the mesh has at most
+    :data:`MAX_VERTICES` vertices (never under :data:`STEPS_RANGE`'s fewest), and whether any was lowered."""
+    cap = max(int(max(s.max() for s in steps)), STEPS_RANGE[0])
+    while cap > STEPS_RANGE[0] and np.prod([np.minimum(s, cap).sum() + 1 for s in steps]) > MAX_VERTICES:
+        cap -= 1
+    out = [np.minimum(s, cap) for s in steps]
+    return out, any((o != s).any() for o, s in zip(out, steps))
 
 
 def adaptive_resolution(model, max_turn=MAX_TURN_DEG):
@@ -252,7 +266,8 @@ def adaptive_resolution(model, max_turn=MAX_TURN_DEG):
     gives it ``ceil(PROBE * t / max_turn)`` steps within :data:`STEPS_RANGE`. Then the mesh so chosen is
     measured the same way: where a bend is narrower than the probe's steps its turn does not shrink in
     proportion, and an interval still over :data:`VERIFY_FACTOR` × ``max_turn`` gets steps in proportion
-    to its measured turn (up to :data:`VERIFY_ROUNDS` times).
+    to its measured turn (up to :data:`VERIFY_ROUNDS` times). The mesh is kept under :data:`MAX_VERTICES`
+    (:func:`capped_steps`); a capped choice is not verified again (more steps are what it would ask for).
     """
     known = known_resolution(model, max_turn)
     if known is not None:
@@ -263,12 +278,15 @@ def adaptive_resolution(model, max_turn=MAX_TURN_DEG):
     floor = max_turn * lo / PROBE  # turns below this leave an interval at the fewest steps
     steps = [np.clip(np.ceil(PROBE * t / max_turn), lo, hi).astype(int)
              for t in interval_turns(model, (PROBE,) * (K - 1), (PROBE,) * (J - 1), W, floor)]
-    for _ in range(VERIFY_ROUNDS):
+    steps, capped = capped_steps(steps)
+    for _ in range(0 if capped else VERIFY_ROUNDS):
         turns = interval_turns(model, *steps, W, VERIFY_FACTOR * max_turn)
         over = [(t > VERIFY_FACTOR * max_turn) & (s < hi) for s, t in zip(steps, turns)]
         if not any(o.any() for o in over):
             break
-        steps = [np.where(o, np.minimum(np.ceil(s * t / max_turn), hi), s).astype(int)
-                 for s, t, o in zip(steps, turns, over)]
+        steps, capped = capped_steps([np.where(o, np.minimum(np.ceil(s * t / max_turn), hi), s).astype(int)
+                                      for s, t, o in zip(steps, turns, over)])
+        if capped:
+            break
     remember_resolution(model, *steps, max_turn=max_turn)
     return known_resolution(model, max_turn)
