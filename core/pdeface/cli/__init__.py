@@ -50,8 +50,17 @@ def subcommands(parser, prefix="") -> dict:
     return out
 
 
+def one_line(text) -> str:
+    """An error's message as the one line the CLI prints (a message never spans lines, whatever it quotes)."""
+    return " ".join(str(text).split())[:500]
+
+
 def main(argv=None):
-    """Run one ``pdeface`` command; returns its exit status (2 for a :class:`PdeFaceError` or a file error)."""
+    """Run one ``pdeface`` command; returns its exit status (2 for a :class:`PdeFaceError` or a file error).
+
+    A bad argument is argparse's usage error (``SystemExit(2)``); any other exception is a bug and shows
+    its traceback.
+    """
     ap = build_parser()
     args, extra = ap.parse_known_args(argv)
     if extra and not getattr(args, "passes_arguments_on", False):
@@ -60,11 +69,11 @@ def main(argv=None):
     try:
         args.func(args)
     except PdeFaceError as exc:
-        print(f"pdeface: error: {exc}", file=sys.stderr)
+        print(f"pdeface: error: {one_line(exc)}", file=sys.stderr)
         return 2
     except BrokenPipeError:  # output piped into head & co.
         return 1
     except OSError as exc:
-        print(f"pdeface: error: {exc.filename or ''}: {exc.strerror}", file=sys.stderr)
+        print(f"pdeface: error: {one_line(str(exc.filename or '') + ': ' + str(exc.strerror or exc))}", file=sys.stderr)
         return 2
     return 0

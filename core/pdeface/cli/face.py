@@ -12,7 +12,7 @@ from ..head.parts import classify_mesh, overrides_of, read_overrides, skin_mask
 from ..io.files import check_output, write_bytes
 from ..io.meshio import write_mesh
 from ..surface.fit import face_mesh, fit_face
-from ..surface.layout import DEFAULT_CURVES
+from ..surface.layout import DEFAULT_CURVES, MAX_CURVES, MAX_MODES, MAX_POINTS
 from ..surface.pde import ASSEMBLIES
 from ..surface.report import accuracy_report
 from ..surface.scan import load_scan
@@ -21,7 +21,9 @@ from .common import (
     json_option,
     log,
     meshing_options,
+    number_in,
     output_option,
+    positive_float,
     turns,
     unit_option,
     verbose_option,
@@ -106,11 +108,11 @@ def register(sub):
     p.add_argument("--parts", help="JSON of part kind → vertex indices; its 'skin' list is the skin to fit "
                                    "(default: the parts under the landmarks; see 'pdeface parts')")
     unit_option(p)
-    p.add_argument("--curves", type=int, default=DEFAULT_CURVES,
+    p.add_argument("--curves", type=number_in(4, MAX_CURVES, int), default=DEFAULT_CURVES,
                    help=f"boundary curves (default {DEFAULT_CURVES}; 31 is the method's 10 patches of 4)")
-    p.add_argument("--points", type=int, default=37, help="points per curve (rays from the axis behind the face)")
-    p.add_argument("--modes", type=int, default=5, help="Fourier modes per curve (the rest goes to the remainder)")
-    p.add_argument("--a", type=float, default=1.0, help="PDE smoothing parameter")
+    p.add_argument("--points", type=number_in(7, MAX_POINTS, int), default=37, help="points per curve (rays from the axis behind the face)")
+    p.add_argument("--modes", type=number_in(0, MAX_MODES, int), default=5, help="Fourier modes per curve (the rest goes to the remainder)")
+    p.add_argument("--a", type=positive_float, default=1.0, help="PDE smoothing parameter")
     p.add_argument("--assembly", choices=ASSEMBLIES, default="smooth",
                    help="smooth: one C1 surface through all curves; patches: the method's patches of 4")
     p.add_argument("--straight", action="store_true",

@@ -8,12 +8,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import LandmarkError, MeshError
+from ..errors import LandmarkError, LayoutError, MeshError
 from ..mesh import Mesh, butterfly_step, connected_components, seam_welds
 from .fourier import fit_fourier
 from .frame import face_frame, feature_points
 from .grid import grid_faces, surface_grid
-from .layout import DEFAULT_CURVES, place_curves
+from .layout import DEFAULT_CURVES, check_sizes, place_curves
 from .model import FaceModel
 from .pde import output_grid
 from .rims import follow_rims
@@ -150,6 +150,11 @@ def fit_face(vertices, triangles, landmarks, unit=None, n_curves=DEFAULT_CURVES,
     """
     import scipy.sparse as sp
 
+    check_sizes(n_curves, n_points, n_modes, "fit")
+    if not n_modes < n_points:
+        raise LayoutError(f"fit: {n_modes} modes need more than {n_points} points per curve")
+    if not (isinstance(a, (int, float, np.floating)) and np.isfinite(a) and a > 0):
+        raise LayoutError(f"fit: the smoothing parameter a must be a positive number, got {a!r}")
     V = np.asarray(vertices, dtype=np.float64)
     T = np.asarray(triangles, dtype=np.int64)
     if V.ndim != 2 or V.shape[1] != 3 or not np.isfinite(V).all():
