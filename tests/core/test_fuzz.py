@@ -20,6 +20,37 @@ def test_mutated_files_raise_only_pdeface_errors(reader):
     r = fuzz_readers.fuzz(reader, 250, seed=0)
     assert r["failures"] == 0, r["examples"]
     assert r["slowest_s"] < 2.0
+    if reader in fuzz_readers.consumers() and reader not in ("descriptor_pdd", "fas"):
+        assert r["consumed"] > 0  # some inputs get past the reader into the code that uses them
+
+
+def test_structured_mutations_keep_their_grammar_and_reach_the_limits():
+    import json
+    import random
+    rng = random.Random(0)
+    doc = json.dumps({"a": [1, 2.5, {"b": "x"}], "c": 3}).encode()
+    texts = [fuzz_readers.mutate_json(doc, rng).decode() for _ in range(300)]
+    for t in texts:  # each still JSON (with NaN, Infinity and huge integers)
+        json.loads(t, parse_int=len)
+    assert any("NaN" in t for t in texts) and any("1" * 5000 in t for t in texts) and any("[]" in t for t in texts)
+    csv = b"frame,timestamp,AU12_r\n1,0.0,0.5\n2,0.1,0.7"
+    rows = [fuzz_readers.mutate_csv(csv, rng) for _ in range(200)]
+    assert any(b"nan" in r for r in rows) and any(r.count(b",") != csv.count(b",") for r in rows)
+    seed = fuzz_readers.corpus_cache()["model"][1][0]
+    with zipfile.ZipFile(io.BytesIO(seed)) as zf:
+        names = set(zf.namelist())
+    changed = 0
+    for _ in range(20):
+        with zipfile.ZipFile(io.BytesIO(fuzz_readers.mutate_zip(seed, rng))) as zf:  # still an archive
+            changed += set(zf.namelist()) != names or any(zf.read(n) != zipfile.ZipFile(io.BytesIO(seed)).read(n)
+                                                          for n in names & set(zf.namelist()))
+    assert changed == 20
+
+
+def test_command_line_arguments_fuzzed_in_process():
+    r = fuzz_readers.fuzz_cli(150, seed=0)
+    assert r["failures"] == 0, r["examples"]
+    assert r["consumed"] > 0  # some commands ran to the end
 
 
 def refused_fast(call, error, match):

@@ -19,7 +19,7 @@ import argparse
 import sys
 
 from .. import __version__
-from ..errors import PdeFaceError
+from ..errors import PdeFaceError, one_line
 from . import au, aus, demo, face, fdt, landmarks, muscles, render, stream
 from .common import HelpFormatter
 
@@ -48,11 +48,6 @@ def subcommands(parser, prefix="") -> dict:
                 out[prefix + name] = sub
                 out.update(subcommands(sub, prefix + name + " "))
     return out
-
-
-def one_line(text) -> str:
-    """An error's message as the one line the CLI prints (a message never spans lines, whatever it quotes)."""
-    return " ".join(str(text).split())[:500]
 
 
 def main(argv=None):
