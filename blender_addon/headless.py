@@ -42,7 +42,7 @@ MAX_FRAME = 1048574
 
 
 def build_parser(prog="render_sequence.py"):
-    from pdeface.cli.common import (
+    from pdeface.io.arguments import (
         existing_file,
         non_negative_float,
         non_negative_int,

@@ -15,7 +15,7 @@ replaced by NaNs, the wrong type or shape, garbage bytes, dropped). What a
 reader returns is fed to its consumers (mesh → triangles; model → surface,
 pose, retarget; descriptor → pose; presets → resolve and pose; timeline →
 channels and its first key posed; FDT → apply; tracker CSV → timeline).
-``--cli`` fuzzes every command's arguments in-process (``pdeface.cli.main``):
+``--cli`` fuzzes every command's arguments in-process (the ``pdeface`` entry point's ``main``):
 each option given a value at the limits, a wrong type, a bad file or a good
 one; the cheap commands run, the rest are parsed.
 
@@ -506,12 +506,20 @@ ARG_VALUES = ["-1", "0", "1", "0.5", "nan", "inf", "-inf", "1e308", "-0", "1e-30
 RUN_COMMANDS = {"mesh", "pose", "aus", "muscles", "import-au", "fdt apply", "fdt mean", "retarget"}
 
 
+def cli_module():
+    """The module of the ``pdeface`` console entry point: the command as installed (scripts import no CLI
+    module by name; see tests/core/test_rooms.py)."""
+    from importlib.metadata import entry_points
+
+    main = entry_points(group="console_scripts")["pdeface"].load()
+    return sys.modules[main.__module__]
+
+
 def cli_inputs(rng, files):
     """One command line: a (sub)command, a few of its options with values from :data:`ARG_VALUES` or
     ``files`` (bad and good files of each kind), its positionals, and ``-o`` into a scratch folder."""
-    from pdeface.cli import build_parser, subcommands
-
-    commands = {n: p for n, p in subcommands(build_parser()).items() if n not in ("fdt", "stream", "render")}
+    cli = cli_module()
+    commands = {n: p for n, p in cli.subcommands(cli.build_parser()).items() if n not in ("fdt", "stream", "render")}
     name = rng.choice(sorted(commands))
     parser = commands[name]
     argv = name.split()
@@ -531,10 +539,11 @@ def cli_inputs(rng, files):
 
 
 def fuzz_cli(n, seed=0, slow_s=2.0, keep=5):
-    """``n`` command lines through ``pdeface.cli.main``; returns a summary dict like :func:`fuzz`'s."""
-    from pdeface.cli import build_parser, main
+    """``n`` command lines through the ``pdeface`` command's ``main``; returns a summary dict like :func:`fuzz`'s."""
     from pdeface.errors import PdeFaceError
 
+    cli = cli_module()
+    build_parser, main = cli.build_parser, cli.main
     rng = random.Random(f"{seed}:cli")
     failures, slowest, ran, slow = [], (0.0, None), 0, 0
     with tempfile.TemporaryDirectory() as tmp:

@@ -19,6 +19,7 @@ from ..au.retarget import SCALINGS, retarget
 from ..errors import FileError, PdeFaceError
 from ..facs import SIDES, parse_au_weights
 from ..head.bind import bind_file
+from ..io.arguments import non_negative_float, positive_float, positive_int, unit_float
 from ..io.files import check_output
 from ..io.meshio import WRITE_FORMATS, read_mesh, write_mesh, write_posed
 from ..posing import MUSCLE_MIXERS, pose_curves
@@ -32,12 +33,8 @@ from .common import (
     json_option,
     log,
     meshing_options,
-    non_negative_float,
     output_option,
-    positive_float,
-    positive_int,
     turns,
-    unit_float,
     unit_option,
     weights_text,
 )

@@ -8,12 +8,13 @@ from ..animation.sequence import METHOD_SEQUENCE
 from ..assets import DEFAULT, ICT_NOTICE
 from ..au.modelfile import save_model
 from ..errors import PdeFaceError
+from ..io.arguments import positive_float, positive_int, size
 from ..io.files import write_bytes
 from ..io.meshio import write_mesh
 from ..surface.fit import face_mesh, fit_face
 from ..surface.report import accuracy_report
 from ..surface.scan import load_scan
-from .common import log, positive_float, positive_int, size
+from .common import log
 from .render import run_headless
 
 

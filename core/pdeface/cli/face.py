@@ -9,6 +9,7 @@ from ..assets import DEFAULT, HEAD, ICT_NOTICE
 from ..au.modelfile import load_face, model_nbytes, save_model
 from ..errors import PdeFaceError
 from ..head.parts import classify_mesh, overrides_of, read_overrides, skin_mask
+from ..io.arguments import number_in, positive_float
 from ..io.files import check_output, write_bytes
 from ..io.meshio import write_mesh
 from ..surface.fit import face_mesh, fit_face
@@ -21,9 +22,7 @@ from .common import (
     json_option,
     log,
     meshing_options,
-    number_in,
     output_option,
-    positive_float,
     turns,
     unit_option,
     verbose_option,

@@ -11,22 +11,14 @@ from ..fdt.quadratic import MODELS
 from ..fdt.regions import BLEND
 from ..fdt.table import generic, load_fdt, load_generic_fdts, read_fdts, write_fdts
 from ..head.bind import JAW_AUS, bind_file
+from ..io.arguments import number_in, positive_float, positive_int, unit_float
 from ..io.files import check_output
 from ..io.meshio import read_mesh, write_mesh, write_posed
 from ..presets import BASIC_EXPRESSIONS
 from ..surface.fit import face_mesh
 from ..surface.frame import landmark_points, read_landmarks
 from ..surface.scan import load_scan
-from .common import (
-    json_option,
-    log,
-    meshing_options,
-    number_in,
-    output_option,
-    positive_float,
-    positive_int,
-    unit_float,
-)
+from .common import json_option, log, meshing_options, output_option
 
 #: An FDT's blended border width, in pupil half-distances.
 blend_width = number_in(0.0, 2.0, what="a width in [0, 2] pupil half-distances")
