@@ -231,7 +231,7 @@ def render_job(args, prog, stdout):
     progress_bar(1, 1, "Blender start-up", args.quiet)
     addon = __import__(module, fromlist=["animation", "face", "keys", "render", "rigging"])
     render = addon.render
-    from pdeface.errors import PdeFaceError
+    from pdeface.errors import PdeFaceError, one_line
     try:
         width, height = (int(v) for v in args.size.lower().split("x"))
     except ValueError:
@@ -315,7 +315,7 @@ def render_job(args, prog, stdout):
             bpy.ops.wm.save_as_mainfile(filepath=str(Path(args.save_blend).resolve()), copy=True)
             summary["blend"] = str(args.save_blend)
     except PdeFaceError as exc:
-        sys.stderr.write(f"{prog}: error: {exc}\n")
+        sys.stderr.write(f"{prog}: error: {one_line(exc)}\n")
         return 2
     finally:
         import addon_utils

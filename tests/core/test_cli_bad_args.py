@@ -121,3 +121,16 @@ def test_fit_face_refuses_bad_options_with_its_own_error(scan):
                       ({"a": float("nan")}, "smoothing"), ({"a": 0}, "smoothing"), ({"n_curves": 1}, "curves")):
         with pytest.raises(LayoutError, match=match):
             fit_face(mesh.vertices, T, L, unit="cm", **kw)
+
+
+def test_pdeface_render_refuses_a_file_that_is_not_a_blend(tmp_path, capfd):
+    import importlib.util
+    if importlib.util.find_spec("bpy") is None:
+        pytest.skip("pdeface render needs the bpy module")
+    fake = tmp_path / "scene.blend"
+    fake.write_text("hello")
+    with pytest.raises(SystemExit) as exc:
+        main(["render", "--blend", str(fake), "--out", str(tmp_path / "out")])
+    err = capfd.readouterr().err.strip().splitlines()
+    assert exc.value.code == 2 and "argument --blend" in err[-1] and "Traceback" not in "\n".join(err)
+    assert not (tmp_path / "out").exists()
