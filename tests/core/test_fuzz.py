@@ -19,7 +19,7 @@ from scripts.bench import fuzz_readers
 def test_mutated_files_raise_only_pdeface_errors(reader):
     r = fuzz_readers.fuzz(reader, 250, seed=0)
     assert r["failures"] == 0, r["examples"]
-    assert r["slowest_s"] < 2.0
+    assert r["slowest_s"] < 5.0  # the campaign's limit per input (a small fit takes a quarter of a second)
     if reader in fuzz_readers.consumers() and reader not in ("descriptor_pdd", "fas"):
         assert r["consumed"] > 0  # some inputs get past the reader into the code that uses them
 
@@ -110,3 +110,12 @@ def test_ply_headers_that_once_escaped(tmp_path):
         (tmp_path / f"{i}.ply").write_bytes(data)
         with pytest.raises(MeshError, match=match):
             read_mesh(tmp_path / f"{i}.ply")
+
+
+def test_a_landmark_whose_coordinates_overflow_is_off_the_mesh(scan):
+    from pdeface.surface.fit import fit_face
+    mesh, T, idx = scan
+    L = mesh.vertices[idx].copy()
+    L[17, 1] = 1e308  # a brow landmark: the frame is made of others, so it overflows only in the frame's space
+    with pytest.raises(LandmarkError, match="landmark 17 lies inf mm"):
+        fit_face(mesh.vertices, T, L, unit="cm")

@@ -57,7 +57,12 @@ def check_landmarks_on_mesh(V_face, L_face, reach_mm=20.0):
     from scipy.spatial import cKDTree
 
 
-    dist = cKDTree(V_face).query(L_face)[0]
+    # a coordinate that overflowed into the face frame (1e308 in the file) is no vertex or landmark near anything
+    V_face = V_face[np.isfinite(V_face).all(axis=1)]
+    near = np.isfinite(L_face).all(axis=1)
+    dist = np.full(len(L_face), np.inf)
+    if len(V_face) and near.any():
+        dist[near] = cKDTree(V_face).query(L_face[near])[0]
     worst = int(np.argmax(dist))
     if dist[worst] > reach_mm:
         raise LandmarkError(f"landmark {worst} lies {dist[worst]:.3g} mm from the mesh (limit {reach_mm:g} mm): "
