@@ -12,7 +12,7 @@ limits: NaN, inf, 1e308, -0, 2**63, 5,000 digits; lists emptied, nested or
 repeated; keys dropped), CSV, OBJ and PLY by their grammar (cells, columns,
 rows, header counts, face indices), model archives member by member (a member
 replaced by NaNs, the wrong type or shape, garbage bytes, dropped). What a
-reader returns is fed to its consumers (mesh → triangles; model → surface,
+reader returns is fed to its consumers (mesh and landmarks → a small fit; model → surface,
 pose, retarget; descriptor → pose; presets → resolve and pose; timeline →
 channels and its first key posed; FDT → apply; tracker CSV → timeline).
 ``--cli`` fuzzes every command's arguments in-process (the ``pdeface`` entry point's ``main``):

@@ -119,3 +119,16 @@ def test_a_landmark_whose_coordinates_overflow_is_off_the_mesh(scan):
     L[17, 1] = 1e308  # a brow landmark: the frame is made of others, so it overflows only in the frame's space
     with pytest.raises(LandmarkError, match="landmark 17 lies inf mm"):
         fit_face(mesh.vertices, T, L, unit="cm")
+
+
+def test_a_model_whose_curve_parameters_coincide_is_refused(tmp_path):
+    from pdeface.au.modelfile import load_face, load_model, model_to_bytes
+    with zipfile.ZipFile(io.BytesIO(model_to_bytes(load_face("default"), descriptors=False))) as zf:
+        arrays = {n[:-4]: np.load(io.BytesIO(zf.read(n))) for n in zf.namelist()}
+    for name, knots in (("squashed", arrays["knots"].astype(np.float64) * 1e-300),
+                        ("backwards", arrays["knots"][::-1]), ("short", arrays["knots"][:1])):
+        out = io.BytesIO()
+        np.savez_compressed(out, **{**arrays, "knots": knots})
+        (tmp_path / f"{name}.npz").write_bytes(out.getvalue())
+        with pytest.raises(ModelFormatError):  # the surface's equations would be singular
+            load_model(tmp_path / f"{name}.npz")
