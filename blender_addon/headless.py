@@ -35,7 +35,24 @@ def script_args(argv):
     return argv[argv.index("--") + 1:] if "--" in argv else argv[1:]
 
 
+#: What a .blend file starts with: plain, zstd- (Blender 3+) or gzip-compressed (older).
+BLEND_MAGIC = (b"BLENDER", b"\x28\xb5\x2f\xfd", b"\x1f\x8b")
+#: Blender's last frame.
+MAX_FRAME = 1048574
+
+
 def build_parser(prog="render_sequence.py"):
+    from pdeface.io.arguments import (
+        existing_file,
+        non_negative_float,
+        non_negative_int,
+        number_in,
+        positive_float,
+        positive_int,
+        size,
+    )
+
+    frame = number_in(0, MAX_FRAME, int)
     ap = argparse.ArgumentParser(prog=prog, description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     src = ap.add_mutually_exclusive_group()
     src.add_argument("--timeline", help="pdeface.timeline JSON")
@@ -44,25 +61,25 @@ def build_parser(prog="render_sequence.py"):
     ap.add_argument("--face", default="default", help="face model (.npz) or 'default'")
     ap.add_argument("--head", action="store_true", help="render ICT-FaceKit's whole head (eyes, teeth, lashes) "
                                                         "with every key on it, instead of the PDE face")
-    ap.add_argument("--blend", help="load this .blend (its PDE face) instead of building one")
+    ap.add_argument("--blend", type=existing_file((".blend",), BLEND_MAGIC), help="load this .blend (its PDE face) instead of building one")
     ap.add_argument("--out", default="render", help="output folder")
-    ap.add_argument("--frame-start", type=int, help="first frame to render (default: the timeline's first); "
+    ap.add_argument("--frame-start", type=frame, help="first frame to render (default: the timeline's first); "
                                                     "with --frame-end, a chunk")
-    ap.add_argument("--frame-end", type=int, help="last frame to render (default: the timeline's last)")
+    ap.add_argument("--frame-end", type=frame, help="last frame to render (default: the timeline's last)")
     ap.add_argument("--engine", default="CYCLES", choices=["CYCLES", "EEVEE", "WORKBENCH"],
                     help="Blender render engine (Cycles renders on the CPU)")
-    ap.add_argument("--size", default="256x256", help="WIDTHxHEIGHT")
-    ap.add_argument("--samples", type=int, default=16,
+    ap.add_argument("--size", default="256x256", type=size, help="WIDTHxHEIGHT")
+    ap.add_argument("--samples", type=positive_int, default=16,
                     help="Cycles samples per pixel (denoised where Blender has OpenImageDenoise)")
-    ap.add_argument("--seed", type=int, default=0, help="Cycles sampling seed (fixed, so chunks join seamlessly)")
-    ap.add_argument("--fps", type=float, default=24, help="frame rate of a --sequence or --au-data timeline "
+    ap.add_argument("--seed", type=non_negative_int, default=0, help="Cycles sampling seed (fixed, so chunks join seamlessly)")
+    ap.add_argument("--fps", type=positive_float, default=24, help="frame rate of a --sequence or --au-data timeline "
                                                           "(a --timeline keeps its own)")
-    ap.add_argument("--hold", type=float, default=0.5, help="seconds each preset is held (--sequence)")
-    ap.add_argument("--blend-time", type=float, default=0.5, help="seconds between poses (--sequence)")
+    ap.add_argument("--hold", type=positive_float, default=0.5, help="seconds each preset is held (--sequence)")
+    ap.add_argument("--blend-time", type=non_negative_float, default=0.5, help="seconds between poses (--sequence)")
     ap.add_argument("--video", action="store_true", help="also write frames.mp4 (Blender's FFmpeg)")
     ap.add_argument("--contact-sheet", action="store_true", help="also write contact_sheet.png")
-    ap.add_argument("--sheet-cell", type=int, default=256, help="contact sheet cell width in pixels")
-    ap.add_argument("--sheet-samples", type=int, default=4, help="contact sheet samples (denoised)")
+    ap.add_argument("--sheet-cell", type=number_in(1, 4096, int), default=256, help="contact sheet cell width in pixels")
+    ap.add_argument("--sheet-samples", type=positive_int, default=4, help="contact sheet samples (denoised)")
     ap.add_argument("--plain-sheet", action="store_true", help="a contact sheet without its rows coloured by "
                                                                "how far each vertex moved (mm)")
     ap.add_argument("--no-frames", action="store_true", help="render no animation frames")
@@ -214,7 +231,7 @@ def render_job(args, prog, stdout):
     progress_bar(1, 1, "Blender start-up", args.quiet)
     addon = __import__(module, fromlist=["animation", "face", "keys", "render", "rigging"])
     render = addon.render
-    from pdeface.errors import PdeFaceError
+    from pdeface.errors import PdeFaceError, one_line
     try:
         width, height = (int(v) for v in args.size.lower().split("x"))
     except ValueError:
@@ -225,7 +242,10 @@ def render_job(args, prog, stdout):
     try:
         progress_bar(0, 1, "rig", args.quiet)
         if args.blend:
-            bpy.ops.wm.open_mainfile(filepath=str(args.blend))
+            try:
+                bpy.ops.wm.open_mainfile(filepath=str(args.blend))
+            except RuntimeError as exc:  # a damaged .blend: Blender's own one line
+                raise PdeFaceError(f"{args.blend}: cannot open ({str(exc).strip().splitlines()[-1]})") from None
             faces = [o for o in bpy.context.scene.objects if o.type == "MESH" and o.pdeface.is_face]
             if not faces:
                 raise SystemExit(f"{args.blend}: no PDE face in the scene")
@@ -295,7 +315,7 @@ def render_job(args, prog, stdout):
             bpy.ops.wm.save_as_mainfile(filepath=str(Path(args.save_blend).resolve()), copy=True)
             summary["blend"] = str(args.save_blend)
     except PdeFaceError as exc:
-        sys.stderr.write(f"{prog}: error: {exc}\n")
+        sys.stderr.write(f"{prog}: error: {one_line(exc)}\n")
         return 2
     finally:
         import addon_utils

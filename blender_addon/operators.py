@@ -4,18 +4,24 @@
 Every operator runs through :class:`_Operator`: ``run`` returns its message
 (reported as INFO), and errors pdeface raises on purpose (``PdeFaceError``)
 become one ``self.report`` error and ``CANCELLED``, never a traceback, with
-nothing written by then.
+nothing written by then. Anything else is a bug: one line saying so in the
+report, its traceback on the console.
 """
+import traceback
+
 import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, StringProperty
 from bpy.types import Operator
-from pdeface.errors import PdeFaceError
+from pdeface.errors import PdeFaceError, one_line
 from pdeface.fdt.quadratic import MODELS as FDT_MODELS
 from pdeface.fdt.table import load_fdt
 from pdeface.muscles.placement import MUSCLE_NAMES
 from pdeface.threads import bounded_threads
 
 from . import animation, compat, face, keys, landmarks, live, muscles, rigging, texturing
+
+#: How an unexpected exception's report starts (the tests look for it).
+BUG = "pdeface internal error, please report it with the console's traceback"
 
 
 class _Operator:
@@ -28,7 +34,14 @@ class _Operator:
             with bounded_threads():  # BLAS threads that do not spin beside Blender's own (pdeface.threads)
                 message = self.run(context)
         except PdeFaceError as exc:
-            self.report({"ERROR"}, str(exc))
+            self.report({"ERROR"}, one_line(exc))
+            return {"CANCELLED"}
+        except Exception as exc:  # noqa: BLE001 - a bug: one line for the user, the traceback for its report
+            if isinstance(exc, RuntimeError) and str(exc).startswith("Error: "):
+                self.report({"ERROR"}, one_line(str(exc)[7:]))  # an operator it called reported this error
+            else:
+                traceback.print_exc()
+                self.report({"ERROR"}, one_line(f"{BUG} ({type(exc).__name__}: {exc})"))
             return {"CANCELLED"}
         if isinstance(message, set):  # the result of an operator it handed over to
             return message

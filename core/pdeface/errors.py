@@ -27,3 +27,8 @@ class ModelFormatError(PdeFaceError, ValueError):
 
 class FileError(PdeFaceError, OSError):
     """A file cannot be written (or would overwrite one of the command's own inputs)."""
+
+
+def one_line(exc) -> str:
+    """An error's message as the one line the CLI prints and the add-on reports (whatever text it quotes)."""
+    return " ".join(str(exc).split())[:500]

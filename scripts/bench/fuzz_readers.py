@@ -1,27 +1,50 @@
-"""Fuzz every pdeface reader with mutated copies of valid files (seeded, deterministic).
+"""Fuzz every pdeface reader, what consumes what it read, and every CLI command's arguments (seeded).
 
-Usage: python -m scripts.bench.fuzz_readers [--inputs 100000] [--readers obj,model,...] [--seed 0] [--json OUT]
+Usage: python -m scripts.bench.fuzz_readers [--inputs 100000] [--readers obj,model,...] [--seed 0]
+       [--cli] [--time-limit 5] [--memory-mb 500] [--json OUT] [--markdown OUT]
 
 Each reader gets a corpus of valid files made from the project's own data (the
-default face, its descriptors, presets, a timeline, tracker CSVs, packets), and
-``--inputs`` mutations of them: bit flips, byte runs inserted, deleted or
-repeated, truncation, numbers replaced by huge, negative, NaN or inf ones, and
-deep nesting. A reader passes an input when it returns or raises
-``PdeFaceError``; anything else, or an input slower than 2 s, is a failure.
-Prints per reader: inputs tried, failures (with the first few), slowest input,
-peak RSS. The test suite runs a short, fixed slice of the same (tests/core/test_fuzz.py).
+default face, its descriptors, presets, a timeline, FDTs, tracker CSVs, packets)
+and ``--inputs`` mutations of them, half by bytes (bit flips, runs inserted,
+deleted or repeated, truncation, absurd numbers, deep nesting) and half by
+structure: JSON is parsed and mutated as a tree (types swapped, numbers at the
+limits: NaN, inf, 1e308, -0, 2**63, 5,000 digits; lists emptied, nested or
+repeated; keys dropped), CSV, OBJ and PLY by their grammar (cells, columns,
+rows, header counts, face indices), model archives member by member (a member
+replaced by NaNs, the wrong type or shape, garbage bytes, dropped). What a
+reader returns is fed to its consumers (mesh and landmarks → a small fit; model → surface,
+pose, retarget; descriptor → pose; presets → resolve and pose; timeline →
+channels and its first key posed; FDT → apply; tracker CSV → timeline).
+``--cli`` fuzzes every command's arguments in-process (the ``pdeface`` entry point's ``main``):
+each option given a value at the limits, a wrong type, a bad file or a good
+one; the cheap commands run, the rest are parsed.
+
+An input passes when it is read or refused with ``PdeFaceError`` (the CLI:
+exit 0 or 2, or argparse's ``SystemExit(2)``); anything else escaping is a
+failure, and so is an input slower than ``--time-limit`` seconds. The process's
+address space is capped at its size after warm-up plus ``--memory-mb``, so an
+allocation past that is a ``MemoryError`` failure. Prints per target: inputs,
+failures (the first few, replayable by seed and index), slowest input, peak
+RSS. The test suite runs a short, fixed slice (tests/core/test_fuzz.py).
 """
 from __future__ import annotations
 
 import argparse
+import contextlib
+import copy
+import io
 import json
+import os
 import random
 import resource
 import sys
 import tempfile
 import time
 import traceback
+import zipfile
 from pathlib import Path
+
+import numpy as np
 
 #: Packets that once broke the player's reader (each is garbage or a packet; the next one must still play).
 HOSTILE_PACKETS = [
@@ -38,11 +61,23 @@ NUMBERS = [b"1e308", b"-1e308", b"nan", b"NaN", b"inf", b"-inf", b"Infinity", b"
 
 
 def _small_mesh():
-    """A small PDE face (a few hundred vertices): quick to parse thousands of times."""
+    """A small PDE face (about 1,300 vertices): quick to parse thousands of times."""
     from pdeface.au.modelfile import load_face
     from pdeface.surface.fit import face_mesh
 
     return face_mesh(load_face("default"), (1, 1))
+
+
+def _small_landmarks():
+    """The bundled scan's 68 landmarks (cm), which lie on the small face: a small face can be fitted."""
+    from pdeface.assets import DEFAULT
+    from pdeface.surface.scan import load_scan
+
+    return load_scan(DEFAULT)[1]
+
+
+#: A small fit (a quarter of a second): what the fuzzer fits a read mesh or landmarks with.
+SMALL_FIT = {"unit": "cm", "n_curves": 12, "n_points": 15, "n_modes": 3}
 
 
 def corpus() -> dict:
@@ -50,12 +85,15 @@ def corpus() -> dict:
     from pdeface.animation.timeline import sequence_timeline, timeline_to_json
     from pdeface.au.descriptorfile import descriptor_to_bytes, descriptor_to_json
     from pdeface.au.modelfile import load_face, model_to_bytes
+    from pdeface.fdt.table import load_fdt
     from pdeface.io.meshio import write_obj, write_ply
     from pdeface.presets import PRESETS, preset_to_json
     from pdeface.stream.rules import DEFAULT_RULES
 
     face = load_face("default")
     small = _small_mesh()
+    L = _small_landmarks()
+    nearest = np.linalg.norm(small.vertices[None] - L[:, None], axis=2).argmin(axis=1)
     with tempfile.TemporaryDirectory() as tmp:
         write_obj(Path(tmp) / "m.obj", small)
         write_ply(Path(tmp) / "m.ply", small)
@@ -69,10 +107,11 @@ def corpus() -> dict:
         "descriptor_json": (".json", [json.dumps(descriptor_to_json(d)).encode() for d in descriptors]),
         "descriptor_pdd": (".pdd", [descriptor_to_bytes(d) for d in descriptors]),
         "presets": (".json", [json.dumps(preset_to_json(p)).encode() for p in list(PRESETS.values())[:3]]),
-        "landmarks": (".json", [json.dumps({"indices": list(range(0, 680, 10))}).encode(),
-                                json.dumps({"points": [[i * 0.1, -i * 0.2, 1.5] for i in range(68)]}).encode()]),
+        "landmarks": (".json", [json.dumps({"indices": nearest.tolist()}).encode(),
+                                json.dumps({"points": np.round(L, 4).tolist()}).encode()]),
         "timeline": (".json", [json.dumps(timeline_to_json(sequence_timeline(["happy", "sad"], 12))).encode()]),
         "rules": (".json", [Path(DEFAULT_RULES).read_bytes()]),
+        "fdt": (".fdt.json", [json.dumps(load_fdt(n).to_json()).encode() for n in ("happy", "12L")]),
         "openface": (".csv", [b"frame, face_id, timestamp, confidence, success, AU01_r, AU12_r, AU12_c, AU28_c\n"
                               + b"".join(f"{i}, 0, {i / 30:.3f}, 0.98, 1, {i % 5}.0, 2.5, 1, 0\n".encode()
                                          for i in range(1, 30))]),
@@ -92,6 +131,7 @@ def readers() -> dict:
     from pdeface.animation.trackers import import_au
     from pdeface.au.descriptorfile import load_descriptor
     from pdeface.au.modelfile import load_model
+    from pdeface.fdt.table import read_fdt
     from pdeface.io.meshio import read_mesh
     from pdeface.presets import load_presets
     from pdeface.stream.rules import AUBlender
@@ -106,7 +146,7 @@ def readers() -> dict:
 
     return {"obj": read_mesh, "ply": read_mesh, "model": load_model, "descriptor_json": load_descriptor,
             "descriptor_pdd": load_descriptor, "presets": load_presets, "landmarks": read_landmarks,
-            "timeline": load_timeline, "rules": AUBlender.load,
+            "timeline": load_timeline, "rules": AUBlender.load, "fdt": read_fdt,
             "openface": lambda p: import_au(p, "openface", smooth_window=3),
             "pyfeat": lambda p: import_au(p, "pyfeat"), "livelink": lambda p: import_au(p, "livelink"),
             "fas": lambda p: import_au(p, "fas"), "packets": packets}
@@ -146,36 +186,430 @@ def mutate(data: bytes, rng: random.Random) -> bytes:
     return bytes(b)
 
 
+# ------------------------------------------------------------------ mutations by structure
+
+#: Numbers at the limits, as JSON text (a JSON tree is written with these spliced in).
+LIMIT_NUMBERS = ["NaN", "Infinity", "-Infinity", "1e308", "-1e308", "-0", "-0.0", "0", "-1", "1e-320",
+                 str(2**63), str(-2**63 - 1), "9" * 16, "1" * 5000, "0.1", "4294967296", "1e15"]
+_SPLICE = "\u2063pdeface-number-{}\u2063"  # a placeholder string replaced by a number's text after json.dumps
+
+
+def _random_value(rng, depth=0):
+    kind = rng.randrange(9)
+    if kind == 0:
+        return _SPLICE.format(rng.randrange(len(LIMIT_NUMBERS)))
+    if kind == 1:
+        return rng.choice(["", "x" * rng.randint(1, 300), "12", "AU12", "happy", "sum", "3d", "\x00", "\u00e9", "NaN"])
+    if kind == 2:
+        return rng.choice([None, True, False])
+    if kind == 3:
+        return []
+    if kind == 4:
+        return {}
+    if kind == 5 and depth < 3:
+        return [_random_value(rng, depth + 1) for _ in range(rng.randint(1, 4))]
+    if kind == 6 and depth < 3:
+        return {rng.choice(["", "12", "x", "frame", "aus", "format"]): _random_value(rng, depth + 1)}
+    return rng.choice([0, 1, -1, 0.5, 1.5, 68, 1000])
+
+
+def _nodes(tree, path=()):
+    """Every (path, value) of a JSON tree, the root included."""
+    yield path, tree
+    if isinstance(tree, dict):
+        for k, v in tree.items():
+            yield from _nodes(v, (*path, k))
+    elif isinstance(tree, list):
+        for i, v in enumerate(tree):
+            yield from _nodes(v, (*path, i))
+
+
+def _replace(tree, path, value):
+    if not path:
+        return value
+    parent = tree
+    for p in path[:-1]:
+        parent = parent[p]
+    parent[path[-1]] = value
+    return tree
+
+
+def mutate_json(data: bytes, rng: random.Random) -> bytes:
+    """One to three mutations of a JSON document as a tree: a node's type swapped, a number at a limit,
+    a list emptied, nested or repeated, a key dropped or added."""
+    tree = copy.deepcopy(json.loads(data))
+    for _ in range(rng.randint(1, 3)):
+        path, node = rng.choice(list(_nodes(tree)))
+        kind = rng.randrange(7)
+        if kind == 0 or (kind == 1 and not isinstance(node, (int, float))):
+            tree = _replace(tree, path, _random_value(rng))
+        elif kind == 1:
+            tree = _replace(tree, path, _SPLICE.format(rng.randrange(len(LIMIT_NUMBERS))))
+        elif kind == 2 and isinstance(node, (list, dict)):
+            node.clear()
+        elif kind == 3:
+            tree = _replace(tree, path, [node] if rng.random() < 0.5 else [[[[node]]]])
+        elif kind == 4 and isinstance(node, list) and node:
+            node.extend(copy.deepcopy(node) * rng.randint(1, 20))
+        elif kind == 5 and isinstance(node, dict) and node:
+            node.pop(rng.choice(list(node)))
+        elif kind == 6 and isinstance(node, dict):
+            node[rng.choice(["", "extra", "12", "fps", "frame", "aus", "presets", "mixer"])] = _random_value(rng)
+    text = json.dumps(tree)
+    for i, number in enumerate(LIMIT_NUMBERS):
+        text = text.replace(json.dumps(_SPLICE.format(i)), number)
+    return text.encode()
+
+
+CELLS = [b"", b"nan", b"inf", b"-inf", b"1e308", b"-0", b"-1", b"1" * 5000, b"x", b'"', b'"a,b"', b"0x10", b" ",
+         b"99999999999999999999", b"1e-320", b"\xff\xfe", b"10:00:00:99.999"]
+
+
+def mutate_csv(data: bytes, rng: random.Random) -> bytes:
+    """One to three mutations of a CSV by its grammar: a cell at a limit, a column dropped or repeated,
+    a row dropped, repeated or made ragged, the header renamed, the separator changed."""
+    rows = [r.split(b",") for r in data.split(b"\n")]
+    for _ in range(rng.randint(1, 3)):
+        r = rng.randrange(len(rows))
+        kind = rng.randrange(6)
+        if kind == 0 and rows[r]:
+            rows[r][rng.randrange(len(rows[r]))] = rng.choice(CELLS)
+        elif kind == 1:
+            c = rng.randrange(max(len(rows[0]), 1))
+            drop = rng.random() < 0.5
+            for row in rows:
+                if c < len(row):
+                    row[c:c + 1] = [] if drop else [row[c]] * 2
+        elif kind == 2:
+            rows[r:r + 1] = [] if rng.random() < 0.5 else [rows[r]] * rng.randint(2, 200)
+        elif kind == 3:
+            rows[r] = rows[r][:rng.randrange(len(rows[r]) + 1)] + [rng.choice(CELLS)] * rng.randint(0, 3)
+        elif kind == 4 and rows[0]:
+            rows[0][rng.randrange(len(rows[0]))] = rng.choice([b"AU99_r", b"AU12_r", b"timestamp", b"frame",
+                                                              b"", b"AU" + b"1" * 5000 + b"_r", b"Timecode"])
+        elif kind == 5:
+            return b"\n".join(b";".join(row) for row in rows)
+    return b"\n".join(b",".join(row) for row in rows)
+
+
+TOKENS = [b"nan", b"inf", b"-inf", b"1e308", b"-1e308", b"-0", b"0", b"-1", b"1" * 5000, b"x", b"",
+          b"4294967296", b"-99999999", b"1e-320", b"3/3/3", b"1//", b"0.5"]
+
+
+def mutate_lines(data: bytes, rng: random.Random) -> bytes:
+    """One to three mutations of a line-based mesh file (OBJ, ASCII PLY) by its grammar: a token (a
+    coordinate, a face index, a header count or type) at a limit or removed, a line dropped or repeated."""
+    lines = data.split(b"\n")
+    for _ in range(rng.randint(1, 3)):
+        i = rng.randrange(len(lines))
+        words = lines[i].split(b" ")
+        kind = rng.randrange(5)
+        if kind == 0 and len(words) > 1:
+            words[rng.randrange(1, len(words))] = rng.choice(TOKENS)
+        elif kind == 1 and len(words) > 1:
+            del words[rng.randrange(1, len(words))]
+        elif kind == 2:
+            words.extend(rng.choice(TOKENS) for _ in range(rng.randint(1, 5)))
+        elif kind == 3:
+            lines[i:i + 1] = [] if rng.random() < 0.5 else [lines[i]] * rng.randint(2, 100)
+            continue
+        elif kind == 4:
+            words = [rng.choice([b"f", b"v", b"vt", b"vn", b"element", b"property", b"format", b"end_header"])] \
+                + [rng.choice(TOKENS) for _ in range(rng.randint(0, 4))]
+        lines[i] = b" ".join(words)
+    return b"\n".join(lines)
+
+
+def _npz(arrays) -> bytes:
+    out = io.BytesIO()
+    with zipfile.ZipFile(out, "w", zipfile.ZIP_DEFLATED) as zf:
+        for name, value in arrays.items():
+            if isinstance(value, bytes):
+                zf.writestr(name + ".npy", value)
+            else:
+                buf = io.BytesIO()
+                np.lib.format.write_array(buf, np.asarray(value), allow_pickle=False)
+                zf.writestr(name + ".npy", buf.getvalue())
+    return out.getvalue()
+
+
+def mutate_zip(data: bytes, rng: random.Random) -> bytes:
+    """One or two members of an ``.npz`` replaced: by NaNs or infs, values times 1e300, another dtype or
+    shape, an empty array, text, garbage bytes, or dropped; or a junk member added."""
+    with zipfile.ZipFile(io.BytesIO(data)) as zf:
+        arrays = {n[:-4]: np.load(io.BytesIO(zf.read(n)), allow_pickle=False) for n in zf.namelist()}
+    for _ in range(rng.randint(1, 2)):
+        name = rng.choice(list(arrays))
+        a = arrays[name]
+        kind = rng.randrange(9)
+        if isinstance(a, bytes) or a.dtype.kind not in "fiub":  # already garbage or text
+            continue
+        if kind == 0 and a.dtype.kind == "f":
+            a = a.copy()
+            a.flat[rng.randrange(max(a.size, 1)) if a.size else 0:] = rng.choice([np.nan, np.inf, -np.inf])
+        elif kind == 1 and a.dtype.kind in "fiu":
+            a = a.astype(np.float64) * rng.choice([1e300, -1e300, 0.0, -1.0, 1e-300])
+        elif kind == 2:
+            a = a.astype(rng.choice([np.float32, np.int64, np.uint8, np.bool_, "U4"]))
+        elif kind == 3:
+            a = a.reshape(-1)[:rng.randint(0, max(a.size, 1))]
+        elif kind == 4:
+            a = np.zeros((0,) * max(a.ndim, 1))
+        elif kind == 5:
+            a = np.array("garbage" if rng.random() < 0.5 else '{"format": ' + "[" * 5000)
+        elif kind == 6:
+            a = bytes(rng.randrange(256) for _ in range(rng.randint(0, 200)))
+        elif kind == 7:
+            arrays.pop(name)
+            continue
+        elif kind == 8:
+            arrays["junk" + str(rng.randrange(9))] = np.zeros(rng.choice([1, 10**6]), np.uint8)
+            continue
+        arrays[name] = a
+    return _npz(arrays)
+
+
+#: Reader name → its structure-aware mutation (the others are mutated by bytes alone).
+STRUCTURED = {"descriptor_json": mutate_json, "presets": mutate_json, "landmarks": mutate_json,
+              "timeline": mutate_json, "rules": mutate_json, "fdt": mutate_json,
+              "openface": mutate_csv, "pyfeat": mutate_csv, "livelink": mutate_csv,
+              "obj": mutate_lines, "model": mutate_zip}
+
+
+def mutate_any(name, data: bytes, rng: random.Random) -> bytes:
+    """Half by structure (where the reader has a grammar), half by bytes."""
+    structured = STRUCTURED.get(name)
+    if name == "ply" and rng.random() < 0.5:
+        return mutate_lines(data, rng)
+    if structured is not None and rng.random() < 0.5:
+        return structured(data, rng)
+    return mutate(data, rng)
+
+
+# ------------------------------------------------------------------ consumers of what was read
+
+def consumers() -> dict:
+    """Reader name → function(what it read) running the code that uses it on a small face."""
+    from pdeface.au.descriptor import replace_descriptors
+    from pdeface.au.modelfile import load_face
+    from pdeface.au.retarget import retarget
+    from pdeface.fdt.deform import fdt_curves
+    from pdeface.posing import pose_curves
+    from pdeface.presets import merged_presets, resolve_preset
+    from pdeface.surface.fit import face_mesh, fit_face
+    from pdeface.surface.frame import landmark_points
+
+    face = load_face("default")
+
+    def posed(model, weights, mixer="sum"):
+        C, R = pose_curves(model, weights, mixer)
+        face_mesh(model, (1, 1), coefficients=C, residual=R)
+
+    small, L = _small_mesh(), _small_landmarks()
+
+    def mesh(m):
+        T, _ = m.triangles()
+        fit_face(m.vertices, T, L, **SMALL_FIT)
+
+    fit_face(small.vertices, small.triangles()[0], L, **SMALL_FIT)  # once before the clock: scipy's imports
+
+    def landmarks(read):
+        fit_face(small.vertices, small.triangles()[0], landmark_points(small.vertices, *read), **SMALL_FIT)
+
+    def model(m):
+        face_mesh(m, (1, 1))
+        if m.descriptors:
+            posed(m, {m.descriptors[0].key: 1.0})
+        retarget(face, m, descriptors=face.descriptors[:2])
+
+    def descriptor(d):
+        m = copy.copy(face)
+        m.descriptors = replace_descriptors(face.descriptors, [d])
+        posed(m, {d.key: 1.0})
+
+    def presets(items):
+        have = {d.key for d in face.descriptors}
+        for p in items[:3]:
+            weights, _ = resolve_preset(p, have)
+            if weights:
+                posed(face, weights, p.mixer)
+
+    def timeline(t):
+        t.channels()
+        t.frame_end  # noqa: B018 - the property is the consumer
+        known = merged_presets()
+        have = {d.key for d in face.descriptors}
+        for k in t.keys[:2]:
+            weights = {a: w for a, w in k.aus.items() if a in have}
+            for name, w in k.presets.items():
+                if name in known:
+                    pw, _ = resolve_preset(known[name], have)
+                    weights.update({a: x * w for a, x in pw.items()})
+            if weights:
+                posed(face, weights)
+
+    def fdt(table):
+        C, R = fdt_curves(face, table, 1.0)
+        face_mesh(face, (1, 1), coefficients=face.coefficients + C, residual=face.residual + R)
+
+    def tracker(result):
+        result.timeline.channels()
+
+    return {"obj": mesh, "ply": mesh, "landmarks": landmarks, "model": model, "descriptor_json": descriptor, "descriptor_pdd": descriptor,
+            "presets": presets, "timeline": timeline, "fdt": fdt, "openface": tracker, "pyfeat": tracker,
+            "livelink": tracker, "fas": tracker}
+
+
+_CONSUMERS = {}
+
+
 def fuzz(name, n, seed=0, slow_s=2.0, keep=5):
-    """Run reader ``name`` on ``n`` mutated inputs; returns a summary dict."""
+    """Run reader ``name`` (and its consumer) on ``n`` mutated inputs; returns a summary dict."""
     from pdeface.errors import PdeFaceError
 
     suffix, seeds = corpus_cache()[name]
     read = readers()[name]
+    if not _CONSUMERS:
+        _CONSUMERS.update(consumers())
+    consume = _CONSUMERS.get(name)
     rng = random.Random(f"{seed}:{name}")
-    failures, slowest = [], (0.0, None)
+    failures, slowest, consumed, slow, known = [], (0.0, None), 0, 0, 0
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / f"input{suffix}"
         for k in range(n):
-            data = mutate(rng.choice(seeds), rng)
+            data = mutate_any(name, rng.choice(seeds), rng)
             path.write_bytes(data)
             t = time.perf_counter()
             try:
-                read(path)
+                result = read(path)
+                if consume is not None:
+                    consume(result)
+                    consumed += 1
             except PdeFaceError:
                 pass
             except Exception as exc:  # noqa: BLE001 - what the fuzzer is for
-                if len(failures) < keep:
-                    failures.append({"input": k, "error": f"{type(exc).__name__}: {str(exc)[:120]}",
-                                     "where": traceback.extract_tb(exc.__traceback__)[-1][:2]})
+                if _known(exc):
+                    known += 1
                 else:
-                    failures.append(None)
+                    _keep(failures, keep, k, exc)
             dt = time.perf_counter() - t
+            slow += dt > slow_s
             if dt > slowest[0]:
                 slowest = (dt, k)
-    return {"reader": name, "inputs": n, "failures": len(failures),
-            "examples": [f for f in failures if f], "slowest_s": slowest[0],
-            "over_2s": int(slowest[0] > slow_s), "peak_rss_mb": peak_rss_mb()}
+    return {"reader": name, "inputs": n, "consumed": consumed, "failures": len(failures), "known": known,
+            "examples": [f for f in failures if f], "slowest_s": slowest[0], "slowest_input": slowest[1],
+            "over_limit": slow, "over_2s": slow, "peak_rss_mb": peak_rss_mb()}
+
+
+#: Escapes issue #38 lists, fixed on the readers' branch (bad-readers): (exception, the file it escapes from, a
+#: piece of its message). The presets' and timeline's wrong types; a PLY count of 5,000 digits; a mesh vertex
+#: so far away that the fit's face frame overflows (the skin's KD-tree) or its ray grid is sized from it
+#: (np.repeat: negative counts, or gigabytes). Counted as ``known``, not as failures, until that branch is
+#: merged: then drop them.
+KNOWN = {("TypeError", "presets.py", ""), ("TypeError", "timeline.py", ""),
+         ("ValueError", "_ckdtree.pyx", "must be finite"), ("ValueError", "_ckdtree.pyx", "overflow"),
+         ("ValueError", "fromnumeric.py", "repeats may not"), ("MemoryError", "fromnumeric.py", ""),
+         ("ValueError", "meshio.py", "Exceeds the limit")}
+
+
+def _known(exc) -> bool:
+    where = Path(traceback.extract_tb(exc.__traceback__)[-1].filename).name
+    return any(type(exc).__name__ == e and where == f and m in str(exc) for e, f, m in KNOWN)
+
+
+def _keep(failures, keep, k, exc):
+    if len(failures) < keep:
+        failures.append({"input": k, "error": f"{type(exc).__name__}: {str(exc)[:120]}",
+                         "where": traceback.extract_tb(exc.__traceback__)[-1][:2]})
+    else:
+        failures.append(None)
+
+
+# ------------------------------------------------------------------ the command line's arguments
+
+#: Values an option is given: numbers at the limits, wrong types, and (per kind of file) bad and good files.
+ARG_VALUES = ["-1", "0", "1", "0.5", "nan", "inf", "-inf", "1e308", "-0", "1e-300", "1" * 5000, "", "x", "12=1",
+              "12", "AU12L=C", "5000=1", "99999,99999", "2,2", "default", "head", "happy", ":99999", "-",
+              "/dev/null", "/nonexistent/file.obj", "1x1", "0x0", "65536x2"]
+#: Commands run to the end when their arguments parse (quick on the bundled face); the rest are only parsed.
+RUN_COMMANDS = {"mesh", "pose", "aus", "muscles", "import-au", "fdt apply", "fdt mean", "retarget"}
+
+
+def cli_module():
+    """The module of the ``pdeface`` console entry point: the command as installed (scripts import no CLI
+    module by name; see tests/core/test_rooms.py)."""
+    from importlib.metadata import entry_points
+
+    main = entry_points(group="console_scripts")["pdeface"].load()
+    return sys.modules[main.__module__]
+
+
+def cli_inputs(rng, files):
+    """One command line: a (sub)command, a few of its options with values from :data:`ARG_VALUES` or
+    ``files`` (bad and good files of each kind), its positionals, and ``-o`` into a scratch folder."""
+    cli = cli_module()
+    commands = {n: p for n, p in cli.subcommands(cli.build_parser()).items() if n not in ("fdt", "stream", "render")}
+    name = rng.choice(sorted(commands))
+    parser = commands[name]
+    argv = name.split()
+    values = ARG_VALUES + files
+    for action in parser._actions:
+        if isinstance(action, argparse._HelpAction):
+            continue
+        if not action.option_strings:  # positional
+            argv += [rng.choice(["default"] * 3 + values)] * (2 if action.nargs == "+" and rng.random() < 0.3 else 1)
+        elif action.dest == "output":
+            argv += [action.option_strings[0], files[0]]
+        elif rng.random() < 0.35:
+            argv.append(action.option_strings[-1])
+            if action.nargs != 0:
+                argv.append(rng.choice(list(action.choices) + values if action.choices else values))
+    return name, argv
+
+
+def fuzz_cli(n, seed=0, slow_s=2.0, keep=5):
+    """``n`` command lines through the ``pdeface`` command's ``main``; returns a summary dict like :func:`fuzz`'s."""
+    from pdeface.errors import PdeFaceError
+
+    cli = cli_module()
+    build_parser, main = cli.build_parser, cli.main
+    rng = random.Random(f"{seed}:cli")
+    failures, slowest, ran, slow = [], (0.0, None), 0, 0
+    with tempfile.TemporaryDirectory() as tmp:
+        files = [str(Path(tmp) / "out.obj")]
+        for reader, (suffix, seeds) in corpus_cache().items():
+            for i, data in enumerate(seeds[:1] + [mutate_any(reader, seeds[0], rng)]):
+                path = Path(tmp) / f"{reader}{i}{suffix}"
+                path.write_bytes(data)
+                files.append(str(path))
+        for k in range(n):
+            name, argv = cli_inputs(rng, files)
+            t = time.perf_counter()
+            with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
+                try:
+                    if name in RUN_COMMANDS:
+                        code = main(argv)
+                        ran += 1
+                    else:
+                        build_parser().parse_known_args(argv)
+                        code = 0
+                    if code not in (0, 2):
+                        raise RuntimeError(f"exit status {code}")
+                except SystemExit as exc:
+                    if exc.code not in (0, 2):
+                        _keep(failures, keep, k, RuntimeError(f"SystemExit({exc.code}) for {argv}"))
+                except PdeFaceError:
+                    pass  # a command run outside main: its error
+                except Exception as exc:  # noqa: BLE001 - what the fuzzer is for
+                    exc.args = (f"{exc} for {' '.join(a[:40] for a in argv)}",)
+                    _keep(failures, keep, k, exc)
+            dt = time.perf_counter() - t
+            slow += dt > slow_s
+            if dt > slowest[0]:
+                slowest = (dt, k)
+    return {"reader": "cli", "inputs": n, "consumed": ran, "failures": len(failures), "known": 0,
+            "examples": [f for f in failures if f], "slowest_s": slowest[0], "slowest_input": slowest[1],
+            "over_limit": slow, "over_2s": slow, "peak_rss_mb": peak_rss_mb()}
 
 
 _CORPUS = {}
@@ -191,25 +625,68 @@ def peak_rss_mb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 
 
+def cap_memory(extra_mb):
+    """Cap the address space at its size now plus ``extra_mb``: a bigger allocation is a MemoryError."""
+    with open("/proc/self/status") as f:
+        size_kb = next(int(line.split()[1]) for line in f if line.startswith("VmSize:"))
+    limit = (size_kb * 1024) + extra_mb * 2**20
+    resource.setrlimit(resource.RLIMIT_AS, (limit, resource.getrlimit(resource.RLIMIT_AS)[1]))
+    return limit
+
+
+def markdown(results, args, seconds) -> str:
+    """The campaign's table for docs/measurements."""
+    lines = [f"# The readers' fuzzer: {args.inputs} inputs per target", "",
+             (f"`python -m scripts.bench.fuzz_readers --inputs {args.inputs} --cli --seed {args.seed}` "
+             f"({seconds / 60:.0f} min, load {os.getloadavg()[0]:.1f}; each input limited to {args.time_limit:g} s "
+             f"and the process to {args.memory_mb} MB past its warm-up size)."), "",
+             ("| target | inputs | read and consumed | failures | known (#38, bad-readers) | over the time limit "
+             "| slowest (s) |"), "|---|---:|---:|---:|---:|---:|---:|"]
+    for r in results:
+        lines.append(f"| {r['reader']} | {r['inputs']} | {r['consumed']} | {r['failures']} | {r['known']} | "
+                     f"{r['over_limit']} | "
+                     f"{r['slowest_s']:.2f} |")
+    lines += ["", (f"Peak RSS {max(r['peak_rss_mb'] for r in results):.0f} MB. *Read and consumed*: inputs the reader "
+              "accepted whose consumer then ran (the rules and packets have none; the CLI's: command lines run to the "
+              "end). *Known*: escapes issue #38 lists, fixed on the readers' branch (`KNOWN` in the script).")]
+    for r in results:
+        for f in r["examples"]:
+            lines.append(f"- {r['reader']} input {f['input']}: `{f['error']}` at {f['where']}")
+    return "\n".join(lines) + "\n"
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--inputs", type=int, default=100_000, help="mutated inputs per reader")
+    ap.add_argument("--inputs", type=int, default=100_000, help="mutated inputs per target")
     ap.add_argument("--readers", default="", help="comma-separated reader names (default: all)")
+    ap.add_argument("--cli", action="store_true", help="also fuzz the command line's arguments")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--time-limit", type=float, default=5.0, help="seconds an input may take")
+    ap.add_argument("--memory-mb", type=int, default=500, help="address space past the warm-up size")
     ap.add_argument("--json", help="write the summaries here")
+    ap.add_argument("--markdown", help="write the table here (docs/measurements/fuzz_readers.md)")
     args = ap.parse_args(argv)
     names = [r for r in args.readers.split(",") if r] or list(readers())
+    corpus_cache()
+    _CONSUMERS.update(consumers())
+    cap_memory(args.memory_mb)
+    t0 = time.perf_counter()
     out = []
-    for name in names:
-        r = fuzz(name, args.inputs, args.seed)
+    for name in names + (["cli"] if args.cli else []):
+        r = fuzz_cli(args.inputs, args.seed, args.time_limit) if name == "cli" else \
+            fuzz(name, args.inputs, args.seed, args.time_limit)
         out.append(r)
-        print(f"{name:16s} {r['inputs']:>7d} inputs  {r['failures']} failures  slowest {r['slowest_s']:.3f} s  "
+        print(f"{name:16s} {r['inputs']:>7d} inputs  {r['consumed']:>7d} consumed  {r['failures']} failures  "
+              f"{r['known']} known  "
+              f"{r['over_limit']} over {args.time_limit:g} s  slowest {r['slowest_s']:.3f} s  "
               f"peak RSS {r['peak_rss_mb']:.0f} MB", flush=True)
         for f in r["examples"]:
             print(f"    input {f['input']}: {f['error']} at {f['where']}")
     if args.json:
         Path(args.json).write_text(json.dumps(out, indent=1))
-    return 1 if any(r["failures"] or r["over_2s"] for r in out) else 0
+    if args.markdown:
+        Path(args.markdown).write_text(markdown(out, args, time.perf_counter() - t0))
+    return 1 if any(r["failures"] or r["over_limit"] for r in out) else 0
 
 
 if __name__ == "__main__":

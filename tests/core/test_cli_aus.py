@@ -79,7 +79,11 @@ def test_pose_command(tmp_path, capsys, files):
     assert code == 0 and "AU45L=1" in err
     code, _, _ = run(capsys, "pose", "default", "--au", "12=1", "--descriptor", "nope.json", "-o", tmp_path / "x.obj")
     assert code == 2
-    for bad in (["--au", "12"], ["--au", "3=1"], ["--au", "8=1"], ["--preset", "grumpy"], []):
+    for bad in (["--au", "12"], ["--au", "3=1"]):  # refused at parse time: argparse's usage error
+        with pytest.raises(SystemExit) as exc:
+            run(capsys, "pose", "default", *bad, "-o", tmp_path / "x.obj")
+        assert exc.value.code == 2 and "pdeface pose: error: argument --au" in capsys.readouterr().err
+    for bad in (["--au", "8=1"], ["--preset", "grumpy"], []):  # a FACS AU this face lacks, no such preset
         code, _, err = run(capsys, "pose", "default", *bad, "-o", tmp_path / "x.obj")
         assert code == 2 and "pdeface: error:" in err
 

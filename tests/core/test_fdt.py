@@ -320,8 +320,9 @@ def test_cli_fit_mean_apply_classify(tmp_path, capsys, scan):
     assert code == 0 and json.loads(out)["best"] == "happy"
     code, _, err = run(capsys, "fdt", "apply", "default", "nonsense", "-o", tmp_path / "x.obj")
     assert code == 2 and "neither an FDT file nor a bundled FDT" in err
-    code, _, err = run(capsys, "fdt", "apply", "default", "happy", "--weight", "2", "-o", tmp_path / "x.obj")
-    assert code == 2 and "[0, 1]" in err
+    with pytest.raises(SystemExit) as exc:  # refused at parse time
+        run(capsys, "fdt", "apply", "default", "happy", "--weight", "2", "-o", tmp_path / "x.obj")
+    assert exc.value.code == 2 and "argument --weight: '2' is not in [0, 1]" in capsys.readouterr().err
     (tmp_path / "bad.fdt.json").write_text("[]")
     code, _, err = run(capsys, "fdt", "apply", "default", tmp_path / "bad.fdt.json", "-o", tmp_path / "x.obj")
     assert code == 2 and "JSON object" in err

@@ -135,6 +135,10 @@ def save_model(path, model: FaceModel) -> int:
     return write_bytes(path, model_to_bytes(model))
 
 
+#: The closest two curves' parameters (in [0, 1]) may lie: closer, the surface's equations are singular.
+MIN_KNOT_GAP = 1e-6
+
+
 def model_from_bytes(data: bytes, where: str = "model") -> FaceModel:
     """Read a face model from the bytes of a model file."""
     return load_model(io.BytesIO(data), where)
@@ -238,6 +242,9 @@ def _read_model(fileobj, path) -> FaceModel:
             if not (v is None and name == "w") and (isinstance(v, bool) or not isinstance(v, (int, float))
                                                     or not 0 < v < 1e6):
                 raise ModelFormatError(f"{path}: meta {name!r} must be a positive number, got {str(v)[:20]!r}")
+        if (knots.ndim != 1 or len(knots) < 2 or abs(knots[0]) > 1e-6 or abs(knots[-1] - 1) > 1e-6
+                or not np.diff(knots).min() >= MIN_KNOT_GAP):
+            raise ModelFormatError(f"{path}: field 'knots' must rise from 0 to 1, at least {MIN_KNOT_GAP:g} apart")
         scale = float(np.cbrt(np.linalg.det(M[:3, :3])))
         if not scale > 0:
             raise ModelFormatError(f"{path}: field 'frame' is not a proper rotation and scale")

@@ -19,7 +19,7 @@ import argparse
 import sys
 
 from .. import __version__
-from ..errors import PdeFaceError
+from ..errors import PdeFaceError, one_line
 from ..threads import bounded_threads
 from . import au, aus, batch, demo, face, fdt, landmarks, muscles, render, rig, stream
 from .common import HelpFormatter
@@ -52,7 +52,11 @@ def subcommands(parser, prefix="") -> dict:
 
 
 def main(argv=None):
-    """Run one ``pdeface`` command; returns its exit status (2 for a :class:`PdeFaceError` or a file error)."""
+    """Run one ``pdeface`` command; returns its exit status (2 for a :class:`PdeFaceError` or a file error).
+
+    A bad argument is argparse's usage error (``SystemExit(2)``); any other exception is a bug and shows
+    its traceback.
+    """
     ap = build_parser()
     args, extra = ap.parse_known_args(argv)
     if extra and not getattr(args, "passes_arguments_on", False):
@@ -62,11 +66,11 @@ def main(argv=None):
         with bounded_threads():  # BLAS threads that do not spin beside other work (pdeface.threads)
             args.func(args)
     except PdeFaceError as exc:
-        print(f"pdeface: error: {exc}", file=sys.stderr)
+        print(f"pdeface: error: {one_line(exc)}", file=sys.stderr)
         return 2
     except BrokenPipeError:  # output piped into head & co.
         return 1
     except OSError as exc:
-        print(f"pdeface: error: {exc.filename or ''}: {exc.strerror}", file=sys.stderr)
+        print(f"pdeface: error: {one_line(str(exc.filename or '') + ': ' + str(exc.strerror or exc))}", file=sys.stderr)
         return 2
     return 0

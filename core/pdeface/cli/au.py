@@ -19,6 +19,7 @@ from ..au.retarget import SCALINGS, retarget
 from ..errors import FileError, PdeFaceError
 from ..facs import SIDES, parse_au_weights
 from ..head.bind import bind_file
+from ..io.arguments import non_negative_float, positive_float, positive_int, unit_float
 from ..io.files import check_output
 from ..io.meshio import WRITE_FORMATS, read_mesh, write_mesh, write_posed, write_posed_many
 from ..posing import MUSCLE_MIXERS, pose_curves
@@ -26,7 +27,17 @@ from ..presets import MIXERS, choose_mixer, key_poses, merged_presets, resolve_p
 from ..surface.fit import face_mesh, fit_face
 from ..surface.frame import landmark_points, read_landmarks
 from ..surface.scan import load_scan
-from .common import json_option, log, meshing_options, output_option, turns, unit_option, weights_text
+from .common import (
+    au_number,
+    au_weight,
+    json_option,
+    log,
+    meshing_options,
+    output_option,
+    turns,
+    unit_option,
+    weights_text,
+)
 
 
 def cmd_descriptor(args):
@@ -224,7 +235,7 @@ def register(sub):
     p.add_argument("au_mesh", help="the same face showing the AU")
     p.add_argument("--landmarks", help="68 landmarks of the neutral (JSON; required unless NEUTRAL is 'default')")
     p.add_argument("--au-landmarks", help="68 landmarks of the AU mesh, when its topology differs")
-    p.add_argument("--au", type=int, required=True, help="the FACS AU number the AU mesh shows")
+    p.add_argument("--au", type=au_number, required=True, help="the FACS AU number the AU mesh shows")
     p.add_argument("--side", choices=SIDES, default="both", help="the subject's side(s) the AU acts on")
     unit_option(p)
     output_option(p, ".json (readable) or .pdd (compact binary)")
@@ -232,7 +243,7 @@ def register(sub):
 
     p = sub.add_parser("pose", help="mesh a face with AU weights or an expression preset")
     p.add_argument("face", help="face model with descriptors (.npz) or 'default'")
-    p.add_argument("--au", action="append", metavar="AU=W", help="AU weight, e.g. 12=1, 12L=0.5, 4=C (repeatable)")
+    p.add_argument("--au", action="append", metavar="AU=W", type=au_weight, help="AU weight, e.g. 12=1, 12L=0.5, 4=C (repeatable)")
     p.add_argument("--preset", help="expression preset (happy, sad, ... or one from --presets; "
                                     "'pdeface aus FACE' lists them)")
     p.add_argument("--presets", action="append", help="user preset JSON file(s)")
@@ -276,13 +287,13 @@ def register(sub):
     p = sub.add_parser("import-au", help="AU data from a tracker (OpenFace, Py-Feat, Live Link Face, FAS) → timeline")
     p.add_argument("file", help="the tracker's CSV or FAS text file")
     p.add_argument("--format", default="auto", choices=("auto",) + FORMATS, help="file format (auto: from its header)")
-    p.add_argument("--fps", type=float, default=30.0, help="frame rate of the timeline written")
-    p.add_argument("--hold", type=float, default=0.5, help="seconds per FAS AU set")
-    p.add_argument("--smooth", type=int, default=1, help="moving-average window (samples)")
-    p.add_argument("--reduce", type=float, default=0.0, help="keyframe reduction tolerance (weight)")
-    p.add_argument("--capture-fps", type=float,
+    p.add_argument("--fps", type=positive_float, default=30.0, help="frame rate of the timeline written")
+    p.add_argument("--hold", type=positive_float, default=0.5, help="seconds per FAS AU set")
+    p.add_argument("--smooth", type=positive_int, default=1, help="moving-average window (samples)")
+    p.add_argument("--reduce", type=non_negative_float, default=0.0, help="keyframe reduction tolerance (weight)")
+    p.add_argument("--capture-fps", type=positive_float,
                    help="rate of a Live Link Face timecode's frames (default: read off the file)")
-    p.add_argument("--min-confidence", type=float, default=0.75,
+    p.add_argument("--min-confidence", type=unit_float, default=0.75,
                    help="drop OpenFace rows below this confidence (Py-Feat: FaceScore)")
     output_option(p)
     p.set_defaults(func=cmd_import_au)

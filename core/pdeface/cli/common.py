@@ -9,12 +9,14 @@ from __future__ import annotations
 import argparse
 import sys
 
+from ..io.arguments import number_in, unit_float
 from ..surface.folds import fold_edges
 from ..surface.frame import UNITS_MM
 from ..surface.model import model_landmarks
 from ..surface.pde import ASSEMBLIES
 
 UNIT_HELP = "mesh unit (default: guessed from the eyes)"
+
 
 
 def log(msg):
@@ -40,7 +42,7 @@ def assembly_option(p):
 
 
 def meshing_options(p):
-    p.add_argument("--resolution", default="default",
+    p.add_argument("--resolution", default="default", type=resolution,
                    help="default (steps per interval chosen for the face: more where it creases), original, "
                         "fine, or ROWS,COLS subdivisions")
     assembly_option(p)
@@ -70,3 +72,55 @@ def turns(model, mesh, rest=None) -> str:
     r = fold_edges(mesh, model.frame, model_landmarks(model), rest=rest)
     return f"largest turn outside the eyes, mouth and nostrils {r['max_deg']:.0f}°, {r['count']} edges over 30°"
 
+
+
+# The argument types of AUs and meshing (the others, which the renderer shares, are pdeface.io.arguments'):
+# each checks one option's value at parse time, so a bad value is argparse's usage error (exit 2, one line
+# naming the option: "argument --au: ...") before any file is read.
+
+def au_number(text):
+    """An argparse type: the number of an AU in the FACS catalogue (``12`` or ``AU12``)."""
+    from ..errors import PdeFaceError
+    from ..facs import action_unit
+
+    digits = str(text).strip().upper().removeprefix("AU")
+    try:
+        return action_unit(number_in(kind=int)(digits)).au
+    except PdeFaceError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def au_weight(text):
+    """An argparse type: ``AU=WEIGHT`` with an AU key the catalogue has and a weight in [0, 1] or a letter A-E.
+
+    Returns the text as given (:func:`pdeface.facs.parse_au_weights` reads it).
+    """
+    from ..errors import PdeFaceError
+    from ..facs import INTENSITY, parse_au_key
+
+    key, sep, value = str(text).partition("=")
+    if not sep:
+        raise argparse.ArgumentTypeError(f"{text[:40]!r}: use AU=WEIGHT, e.g. 12=0.8 or 12L=C")
+    try:
+        parse_au_key(key)
+    except PdeFaceError:
+        raise argparse.ArgumentTypeError(f"{key[:20]!r} is not a FACS AU key (use 12, AU12, 12L or 12R)") from None
+    if value.strip().upper() not in INTENSITY:
+        try:
+            unit_float(value)
+        except argparse.ArgumentTypeError:
+            raise argparse.ArgumentTypeError(f"{text[:40]!r}: the weight is a number in [0, 1] or a letter A-E") \
+                from None
+    return text
+
+
+def resolution(text):
+    """An argparse type: a meshing resolution :func:`pdeface.surface.sampling.parse_resolution` takes."""
+    from ..errors import PdeFaceError
+    from ..surface.sampling import parse_resolution
+
+    try:
+        parse_resolution(text)
+    except PdeFaceError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return text

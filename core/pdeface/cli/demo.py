@@ -9,6 +9,7 @@ from ..assets import DEFAULT, ICT_NOTICE
 from ..au.modelfile import save_model
 from ..errors import PdeFaceError
 from ..headless import run_headless
+from ..io.arguments import positive_float, positive_int, size
 from ..io.files import write_bytes
 from ..io.meshio import write_mesh
 from ..surface.fit import face_mesh, fit_face
@@ -65,8 +66,8 @@ def register(sub):
     p = sub.add_parser("demo", help="the main job on the bundled face")
     p.add_argument("--out", default="out", help="output folder")
     p.add_argument("--no-render", action="store_true", help="fit, mesh and report only (no bpy needed)")
-    p.add_argument("--size", default="192x192", help="frame size, WIDTHxHEIGHT")
-    p.add_argument("--samples", type=int, default=16, help="Cycles samples per pixel")
-    p.add_argument("--fps", type=float, default=12, help="frames per second of the animation")
+    p.add_argument("--size", default="192x192", type=size, help="frame size, WIDTHxHEIGHT")
+    p.add_argument("--samples", type=positive_int, default=16, help="Cycles samples per pixel")
+    p.add_argument("--fps", type=positive_float, default=12, help="frames per second of the animation")
     p.add_argument("--video", action="store_true", help="also write frames.mp4")
     p.set_defaults(func=cmd_demo)

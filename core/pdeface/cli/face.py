@@ -9,10 +9,11 @@ from ..assets import DEFAULT, HEAD, ICT_NOTICE
 from ..au.modelfile import load_face, model_nbytes, save_model
 from ..errors import PdeFaceError
 from ..head.parts import classify_mesh, overrides_of, read_overrides, skin_mask
+from ..io.arguments import number_in, positive_float
 from ..io.files import check_output, write_bytes
 from ..io.meshio import write_mesh
 from ..surface.fit import face_mesh, fit_face
-from ..surface.layout import DEFAULT_CURVES
+from ..surface.layout import DEFAULT_CURVES, MAX_CURVES, MAX_MODES, MAX_POINTS
 from ..surface.pde import ASSEMBLIES
 from ..surface.report import accuracy_report
 from ..surface.scan import load_scan
@@ -107,11 +108,11 @@ def register(sub):
                                    "(default: the parts under the landmarks; see 'pdeface parts')")
     unit_option(p)
     accept_option(p)
-    p.add_argument("--curves", type=int, default=DEFAULT_CURVES,
+    p.add_argument("--curves", type=number_in(4, MAX_CURVES, int), default=DEFAULT_CURVES,
                    help=f"boundary curves (default {DEFAULT_CURVES}; 31 is the method's 10 patches of 4)")
-    p.add_argument("--points", type=int, default=37, help="points per curve (rays from the axis behind the face)")
-    p.add_argument("--modes", type=int, default=5, help="Fourier modes per curve (the rest goes to the remainder)")
-    p.add_argument("--a", type=float, default=1.0, help="PDE smoothing parameter")
+    p.add_argument("--points", type=number_in(7, MAX_POINTS, int), default=37, help="points per curve (rays from the axis behind the face)")
+    p.add_argument("--modes", type=number_in(0, MAX_MODES, int), default=5, help="Fourier modes per curve (the rest goes to the remainder)")
+    p.add_argument("--a", type=positive_float, default=1.0, help="PDE smoothing parameter")
     p.add_argument("--assembly", choices=ASSEMBLIES, default="smooth",
                    help="smooth: one C1 surface through all curves; patches: the method's patches of 4")
     p.add_argument("--straight", action="store_true",

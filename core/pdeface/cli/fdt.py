@@ -11,6 +11,7 @@ from ..fdt.quadratic import MODELS
 from ..fdt.regions import BLEND
 from ..fdt.table import generic, load_fdt, load_generic_fdts, read_fdts, write_fdts
 from ..head.bind import JAW_AUS, bind_file
+from ..io.arguments import number_in, positive_float, positive_int, unit_float
 from ..io.files import check_output
 from ..io.meshio import read_mesh, write_mesh, write_posed
 from ..presets import BASIC_EXPRESSIONS
@@ -18,6 +19,9 @@ from ..surface.fit import face_mesh
 from ..surface.frame import landmark_points, read_landmarks
 from ..surface.scan import load_scan
 from .common import json_option, log, meshing_options, output_option
+
+#: An FDT's blended border width, in pupil half-distances.
+blend_width = number_in(0.0, 2.0, what="a width in [0, 2] pupil half-distances")
 
 
 def _pair(args):
@@ -32,14 +36,8 @@ def _pair(args):
     return neutral, lm, posed.vertices, posed_lm
 
 
-def _check_blend(blend):
-    if blend is not None and not 0 <= blend <= 2:
-        raise PdeFaceError(f"--blend {blend:g}: give a width in [0, 2] pupil half-distances")
-
-
 def cmd_fit(args):
     check_output(args.output, args.neutral, args.posed, args.landmarks, args.posed_landmarks)
-    _check_blend(args.blend)
     neutral, lm, posed, posed_lm = _pair(args)
     model = "2d" if args.two_d else args.model
     name = args.name or args.posed.rsplit("/", 1)[-1].split(".")[0]
@@ -65,12 +63,9 @@ def cmd_mean(args):
 
 def cmd_apply(args):
     check_output(args.output, args.face, args.fdt, args.mesh, args.parts, args.landmarks)
-    _check_blend(args.blend)
     model = load_face(args.face)
     fdt = load_fdt(args.fdt, args.model)
-    weight = float(args.weight)
-    if not 0 <= weight <= 1:
-        raise PdeFaceError(f"--weight {weight:g}: give a weight in [0, 1]")
+    weight = args.weight
     dC, dR = fdt_curves(model, fdt, weight, args.blend)
     if args.mesh:
         mesh, binding = bind_file(model, args.mesh, args.landmarks, args.parts)
@@ -122,7 +117,7 @@ def register(sub):
     q.add_argument("--model", choices=MODELS, default="3d", help=model_help)
     q.add_argument("--2d", dest="two_d", action="store_true", help="the paper's 2-D model (same as --model 2d)")
     q.add_argument("--name", help="the expression's name or AU key (default: the posed file's name)")
-    q.add_argument("--blend", type=float, help="width of the regions' blended borders, in pupil half-distances "
+    q.add_argument("--blend", type=blend_width, help="width of the regions' blended borders, in pupil half-distances "
                                                f"(default {BLEND}); 0 fits each region alone, as the paper")
     output_option(q, ".fdt.json, or .csv (the paper's Table I layout)")
     q.set_defaults(func=cmd_fit)
@@ -138,8 +133,8 @@ def register(sub):
     q.add_argument("fdt", help="FDT file, or a bundled generic FDT: an AU key (12, 12L), a basic expression "
                                "(happy, sad, ...) or paper-smile")
     q.add_argument("--model", choices=MODELS, default="3d", help="model of a bundled FDT")
-    q.add_argument("--weight", type=float, default=1.0, help="how much of the expression, in [0, 1]")
-    q.add_argument("--blend", type=float, help="apply with this border width instead of the table's own")
+    q.add_argument("--weight", type=unit_float, default=1.0, help="how much of the expression, in [0, 1]")
+    q.add_argument("--blend", type=blend_width, help="apply with this border width instead of the table's own")
     g = q.add_argument_group("the whole head (the mesh FACE was fitted on)")
     g.add_argument("--mesh", help="pose this head mesh (.obj/.ply/.glb/.gltf or 'head') instead of the PDE face")
     g.add_argument("--parts", help="JSON of part kind → vertex indices (see 'pdeface parts')")
@@ -153,7 +148,7 @@ def register(sub):
     q.add_argument("--against", nargs="+", help="FDT files to compare with (default: the bundled six basic "
                                                 "expressions; 'bundled-aus': every bundled FDT)")
     q.add_argument("--model", choices=MODELS, default="3d", help="model of the bundled FDTs")
-    q.add_argument("--sigmas", type=float, default=1.0, help="k of the mean ± kσ range")
-    q.add_argument("--top", type=int, default=3, help="candidates to print")
+    q.add_argument("--sigmas", type=positive_float, default=1.0, help="k of the mean ± kσ range")
+    q.add_argument("--top", type=positive_int, default=3, help="candidates to print")
     json_option(q)
     q.set_defaults(func=cmd_classify)

@@ -16,7 +16,7 @@ from ..muscles.aus import (
 )
 from ..muscles.placement import MUSCLE_NAMES
 from ..surface.fit import face_mesh
-from .common import log, meshing_options, output_option, weights_text
+from .common import au_weight, log, meshing_options, output_option, weights_text
 
 
 def cmd_muscles(args):
@@ -46,7 +46,7 @@ def register(sub):
     """The ``muscles`` command."""
     p = sub.add_parser("muscles", help="pose a face with Waters muscles: AUs from the muscle table, or activations")
     p.add_argument("face", help="face model (.npz) or 'default'")
-    p.add_argument("--au", action="append", metavar="AU=W", help="AU weight from the muscle table (repeatable)")
+    p.add_argument("--au", action="append", metavar="AU=W", type=au_weight, help="AU weight from the muscle table (repeatable)")
     p.add_argument("--activation", action="append", metavar="MUSCLE=A",
                    help=f"a muscle's activation (repeatable); muscles: {', '.join(MUSCLE_NAMES)}")
     p.add_argument("--mixer", choices=ACTIVATION_MIXERS, default="sum",

@@ -8,13 +8,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import LandmarkError, MeshError
+from ..errors import LandmarkError, LayoutError, MeshError
 from ..mesh import Mesh, butterfly_step, connected_components, seam_welds
 from ..threads import bounded
 from .fourier import fit_fourier
 from .frame import FACE_REACH_MM, face_frame, feature_points
 from .grid import grid_faces, surface_grid
-from .layout import DEFAULT_CURVES, place_curves
+from .layout import DEFAULT_CURVES, check_sizes, place_curves
 from .model import FaceModel
 from .pde import output_grid
 from .rims import follow_rims
@@ -60,7 +60,12 @@ def check_landmarks_on_mesh(V_face, L_face, reach_mm=20.0):
     from scipy.spatial import cKDTree
 
 
-    dist = cKDTree(V_face).query(L_face)[0]
+    # a coordinate that overflowed into the face frame (1e308 in the file) is no vertex or landmark near anything
+    V_face = V_face[np.isfinite(V_face).all(axis=1)]
+    near = np.isfinite(L_face).all(axis=1)
+    dist = np.full(len(L_face), np.inf)
+    if len(V_face) and near.any():
+        dist[near] = cKDTree(V_face).query(L_face[near])[0]
     worst = int(np.argmax(dist))
     if dist[worst] > reach_mm:
         raise LandmarkError(f"landmark {worst} lies {dist[worst]:.3g} mm from the mesh (limit {reach_mm:g} mm): "
@@ -160,6 +165,11 @@ def fit_face(vertices, triangles, landmarks, unit=None, n_curves=DEFAULT_CURVES,
     """
     import scipy.sparse as sp
 
+    check_sizes(n_curves, n_points, n_modes, "fit")
+    if not n_modes < n_points:
+        raise LayoutError(f"fit: {n_modes} modes need more than {n_points} points per curve")
+    if not (isinstance(a, (int, float, np.floating)) and np.isfinite(a) and a > 0):
+        raise LayoutError(f"fit: the smoothing parameter a must be a positive number, got {a!r}")
     V = np.asarray(vertices, dtype=np.float64)
     T = np.asarray(triangles, dtype=np.int64)
     if V.ndim != 2 or V.shape[1] != 3 or not np.isfinite(V).all():

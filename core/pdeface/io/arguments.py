@@ -1,0 +1,101 @@
+"""Argument types: each checks one command-line option's value at parse time.
+
+A bad value is then argparse's usage error (exit 2, one line naming the option:
+``argument --modes: '-1' is not in [0, 64]``) before any file is read. Shared by
+``pdeface`` (whose AU and meshing types are in :mod:`pdeface.cli.common`) and the
+add-on's headless renderer (``pdeface render``), which may not import the CLI.
+"""
+from __future__ import annotations
+
+import argparse
+import math
+
+#: The longest number an argument may be written with: like JSON's 15-digit integers, a number of
+#: thousands of digits is no count, rate or weight, and is refused before it is converted.
+MAX_NUMBER_CHARS = 32
+
+
+def _number(text, kind):
+    text = str(text).strip()
+    if len(text) > MAX_NUMBER_CHARS:
+        raise argparse.ArgumentTypeError(f"{text[:12]}... ({len(text)} characters) is no number")
+    try:
+        value = kind(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not {'an integer' if kind is int else 'a number'}") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"{text!r} is not a finite number")
+    return value
+
+
+def number_in(low=None, high=None, kind=float, low_open=False, what=""):
+    """An argparse type: a finite ``kind`` (float or int) in [low, high] (``low_open``: low excluded).
+
+    ``what`` names the range in the message (default: the bounds).
+    """
+    def parse(text):
+        value = _number(text, kind)
+        if (low is not None and (value < low or (low_open and value == low))) or (high is not None and value > high):
+            lo, hi = ("-inf" if low is None else f"{low:g}"), ("inf" if high is None else f"{high:g}")
+            bounds = ("(" if low_open else "[") + f"{lo}, {hi}]"
+            raise argparse.ArgumentTypeError(f"{text.strip()!r} is not {what or 'in ' + bounds}")
+        return value
+
+    parse.__name__ = kind.__name__  # argparse names the type in some messages
+    return parse
+
+
+#: > 0 and finite: rates, durations, sizes.
+positive_float = number_in(0.0, low_open=True, what="a positive number")
+#: >= 0 and finite: tolerances.
+non_negative_float = number_in(0.0, what="a number >= 0")
+#: >= 1: counts.
+positive_int = number_in(1, kind=int, what="a whole number >= 1")
+#: >= 0: indices, seeds.
+non_negative_int = number_in(0, kind=int, what="a whole number >= 0")
+#: [0, 1]: weights, confidences.
+unit_float = number_in(0.0, 1.0)
+
+
+def existing_file(suffixes=(), magic=()):
+    """An argparse type: a file that exists and is a file, named with one of ``suffixes`` and starting with one
+    of the byte strings ``magic`` (where given)."""
+    def parse(text):
+        from pathlib import Path
+
+        path = Path(text)
+        if not path.is_file():
+            raise argparse.ArgumentTypeError(f"{text}: no such file")
+        if suffixes and path.suffix.lower() not in suffixes:
+            raise argparse.ArgumentTypeError(f"{text}: not a {' or '.join(suffixes)} file")
+        if magic:
+            try:
+                with open(path, "rb") as f:
+                    head = f.read(max(len(m) for m in magic))
+            except OSError as exc:
+                raise argparse.ArgumentTypeError(f"{text}: {exc.strerror}") from None
+            if not any(head.startswith(m) for m in magic):
+                raise argparse.ArgumentTypeError(f"{text}: not a {' or '.join(suffixes) or 'valid'} file "
+                                                 "(its first bytes say otherwise)")
+        return text
+
+    return parse
+
+
+#: The largest frame a renderer is asked for, per side.
+MAX_FRAME_SIDE = 16384
+
+
+def size(text):
+    """An argparse type: a frame size ``WIDTHxHEIGHT``, each 1 to :data:`MAX_FRAME_SIDE` pixels; returns the text."""
+    parts = str(text).lower().split("x")
+    side = number_in(1, MAX_FRAME_SIDE, int)
+    try:
+        if len(parts) != 2:
+            raise argparse.ArgumentTypeError("")
+        for p in parts:
+            side(p)
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(f"{text[:40]!r}: use WIDTHxHEIGHT, each 1 to {MAX_FRAME_SIDE} pixels") \
+            from None
+    return text
