@@ -31,6 +31,7 @@ from ..errors import PdeFaceError
 from ..geometry import smoothstep
 from ..landmark_scheme import FEATURE_NAMES
 from ..surface.fourier import fit_fourier
+from ..surface.layout import ANCHOR_NAMES
 
 SCALINGS = ("face", "none")
 
@@ -41,6 +42,9 @@ NARROW_FULL = 0.6
 #: every gap (no threshold) also shrinks the lids' closing where their curves
 #: converge at the eye corners (AU45 capture 0.905 -> 0.892 on identity007).
 NARROW_NONE = 0.9
+#: The lids' relative motion across the eye opening scales with the target's opening against the source's
+#: (a blink closes a wider eye as far), within these bounds.
+LID_GAP_RATIO = (0.5, 2.0)
 #: Weight of staying at the scaled source motion against matching the shrunk
 #: differences: small, so a shrunk gap's motion is taken up by the curves beside it.
 SOURCE_WEIGHT = 0.05
@@ -61,12 +65,13 @@ def face_size(model) -> np.ndarray:
 
 
 def gap_factors(source, target, scale=1.0) -> np.ndarray:
-    """(K-1, J) factors on neighbouring curves' relative motion, in (0, 1].
+    """(K-1, J) factors on neighbouring curves' relative motion, in (0, 1] (the eyes' opening up to 2).
 
     The ratio ρ of the target's gap between curves k and k+1 at point j to the
     source's (its points scaled by ``scale``, a scalar or per axis), passed through a smooth step:
     ρ itself at and below :data:`NARROW_FULL`, 1 at and above
-    :data:`NARROW_NONE`. Gaps across an opening (``layout.breaks()``) get 1.
+    :data:`NARROW_NONE`. Gaps across an opening (``layout.breaks()``) get 1, but the eyes': the ratio
+    itself within :data:`LID_GAP_RATIO` (may exceed 1).
     """
     P = source.curve_points() * scale
     where = curve_map(source.layout, target.layout)
@@ -79,6 +84,10 @@ def gap_factors(source, target, scale=1.0) -> np.ndarray:
     rho = np.clip(gap_t / np.maximum(gap_s, 1e-9), 0.0, 1.0)
     factor = 1.0 - (1.0 - rho) * smoothstep((NARROW_NONE - rho) / (NARROW_NONE - NARROW_FULL))
     factor[list(target.layout.breaks())] = 1.0
+    lids = ANCHOR_NAMES.index("lid_top")
+    for a, k in target.layout.opening_curves():
+        if a == lids:  # a blink closes the target's own opening: scaled by its height against the source's
+            factor[k] = np.clip(gap_t[k] / np.maximum(gap_s[k], 1e-9), *LID_GAP_RATIO)
     return factor
 
 
