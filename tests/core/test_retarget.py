@@ -4,7 +4,7 @@ from pdeface.assets import load_ict_shapes
 from pdeface.au.aureport import MotionProbe
 from pdeface.au.ict import au_offsets
 from pdeface.au.modelfile import load_face
-from pdeface.au.retarget import face_size, gap_factors, narrowed, retarget
+from pdeface.au.retarget import LID_GAP_RATIO, face_size, gap_factors, narrowed, retarget
 from pdeface.errors import PdeFaceError
 from pdeface.surface.fit import fit_face
 
@@ -88,7 +88,9 @@ def test_retargeting_keeps_curves_apart_where_the_target_converges(scan, tmp_pat
     source = load_face("default")
     f = gap_factors(source, target, face_size(target) / face_size(source))
     assert f.min() < 0.6
-    assert np.all(f[list(target.layout.breaks())] == 1.0)  # the lips and lids still part
+    (_, eyes), (_, mouth) = target.layout.opening_curves()
+    assert np.all(f[mouth] == 1.0)  # the lips still part
+    assert np.all((f[eyes] >= LID_GAP_RATIO[0]) & (f[eyes] <= LID_GAP_RATIO[1]))  # the lids close their own opening
     folds, captured = [], []
     for spacing in (False, True):
         rig = retarget(source, target, spacing=spacing)

@@ -14,6 +14,12 @@ motion relative to each other is shrunk in proportion to the gap, and the
 motion is recovered from those differences by least squares, staying close to
 the scaled source motion (:func:`narrowed`). Gaps across an opening keep their
 motion: the lips and lids still part.
+
+Curve i is not always the same anatomy, though: the curves are spread by density between the landmarks, so
+a face with a longer brow-to-eye distance has one curve more above the lids (MakeHuman's base: the upper
+lid's rim is curve 8, ICT-FaceKit's 9). The source's motion is first carried to the target's curves by
+anatomy (:func:`realigned`: the openings' rims onto the rims, linear in between), else the upper lid's
+closing lands on the lower lid.
 """
 from __future__ import annotations
 
@@ -25,6 +31,7 @@ from ..errors import PdeFaceError
 from ..geometry import smoothstep
 from ..landmark_scheme import FEATURE_NAMES
 from ..surface.fourier import fit_fourier
+from ..surface.layout import ANCHOR_NAMES
 
 SCALINGS = ("face", "none")
 
@@ -35,6 +42,9 @@ NARROW_FULL = 0.6
 #: every gap (no threshold) also shrinks the lids' closing where their curves
 #: converge at the eye corners (AU45 capture 0.905 -> 0.892 on identity007).
 NARROW_NONE = 0.9
+#: The lids' relative motion across the eye opening scales with the target's opening against the source's
+#: (a blink closes a wider eye as far), within these bounds.
+LID_GAP_RATIO = (0.5, 2.0)
 #: Weight of staying at the scaled source motion against matching the shrunk
 #: differences: small, so a shrunk gap's motion is taken up by the curves beside it.
 SOURCE_WEIGHT = 0.05
@@ -55,18 +65,29 @@ def face_size(model) -> np.ndarray:
 
 
 def gap_factors(source, target, scale=1.0) -> np.ndarray:
-    """(K-1, J) factors on neighbouring curves' relative motion, in (0, 1].
+    """(K-1, J) factors on neighbouring curves' relative motion, in (0, 1] (the eyes' opening up to 2).
 
     The ratio ρ of the target's gap between curves k and k+1 at point j to the
     source's (its points scaled by ``scale``, a scalar or per axis), passed through a smooth step:
     ρ itself at and below :data:`NARROW_FULL`, 1 at and above
-    :data:`NARROW_NONE`. Gaps across an opening (``layout.breaks()``) get 1.
+    :data:`NARROW_NONE`. Gaps across an opening (``layout.breaks()``) get 1, but the eyes': the ratio
+    itself within :data:`LID_GAP_RATIO` (may exceed 1).
     """
-    gap_s = np.linalg.norm(np.diff(source.curve_points() * scale, axis=0), axis=-1)
+    P = source.curve_points() * scale
+    where = curve_map(source.layout, target.layout)
+    if where is not None:  # the source's curves where the target's lie (see realigned)
+        lo = np.minimum(np.floor(where).astype(int), len(P) - 2)
+        w = (where - lo)[:, None, None]
+        P = (1 - w) * P[lo] + w * P[lo + 1]
+    gap_s = np.linalg.norm(np.diff(P, axis=0), axis=-1)
     gap_t = np.linalg.norm(np.diff(target.curve_points(), axis=0), axis=-1)
     rho = np.clip(gap_t / np.maximum(gap_s, 1e-9), 0.0, 1.0)
     factor = 1.0 - (1.0 - rho) * smoothstep((NARROW_NONE - rho) / (NARROW_NONE - NARROW_FULL))
     factor[list(target.layout.breaks())] = 1.0
+    lids = ANCHOR_NAMES.index("lid_top")
+    for a, k in target.layout.opening_curves():
+        if a == lids:  # a blink closes the target's own opening: scaled by its height against the source's
+            factor[k] = np.clip(gap_t[k] / np.maximum(gap_s[k], 1e-9), *LID_GAP_RATIO)
     return factor
 
 
@@ -106,6 +127,49 @@ def narrowed(descriptors, factors) -> list:
     return out
 
 
+def curve_map(source_layout, target_layout) -> np.ndarray | None:
+    """Each target curve's (fractional) source curve: the first and last curves and the rims of the openings
+    both layouts carry (:meth:`~pdeface.surface.layout.CurveLayout.opening_curves`) onto each other, linear
+    in between; None where every curve is already its own."""
+    K = target_layout.n_curves
+    src, tgt = dict(source_layout.opening_curves()), dict(target_layout.opening_curves())
+    ks, kt = [0.0], [0.0]
+    for a in sorted(set(src) & set(tgt), key=tgt.get):
+        ks += [src[a], src[a] + 1]
+        kt += [tgt[a], tgt[a] + 1]
+    ks.append(K - 1.0)
+    kt.append(K - 1.0)
+    if ks == kt or np.any(np.diff(ks) <= 0) or np.any(np.diff(kt) <= 0):
+        return None
+    return np.interp(np.arange(K), kt, ks)
+
+
+def realigned(descriptors, source_layout, target_layout) -> list:
+    """Descriptors carried from the source's curves to the target's by anatomy (:func:`curve_map`): each target
+    curve takes the motion of its source position, linear between the two source curves around it."""
+    descriptors = list(descriptors)
+    where = curve_map(source_layout, target_layout)
+    if where is None or not descriptors:
+        return descriptors
+    K, J, N = descriptors[0].layout
+    D0 = np.zeros((K, len(descriptors), J, 3))
+    for i, d in enumerate(descriptors):
+        D0[d.curves, i] = d.points()
+    lo = np.minimum(np.floor(where).astype(int), K - 2)
+    w = (where - lo)[:, None, None, None]
+    D = (1 - w) * D0[lo] + w * D0[lo + 1]
+    moved = np.abs(D).max(axis=(2, 3)) > NEGLIGIBLE_MM  # (K, n)
+    C, R = fit_fourier(D.reshape(K * len(descriptors), J, 3), N)
+    C, R = C.reshape(K, len(descriptors), N + 1, 3), R.reshape(K, len(descriptors), J, 3)
+    out = []
+    for i, d in enumerate(descriptors):
+        curves = np.nonzero(moved[:, i])[0]
+        if not len(curves):
+            curves = np.array([int(np.argmax(np.abs(D[:, i]).max(axis=(1, 2))))])
+        out.append(replace(d, curves=curves, coefficients=C[curves, i], residual=R[curves, i]))
+    return out
+
+
 def retarget(source, target, descriptors=None, scaling="face", spacing=True):
     """A copy of ``target`` carrying ``source``'s descriptors, scaled to it.
 
@@ -133,6 +197,8 @@ def retarget(source, target, descriptors=None, scaling="face", spacing=True):
                            f"the target face has {lay}: refit the target with that layout")
     s = face_size(target) / face_size(source) if scaling == "face" else np.ones(3)
     scaled = [d.scaled(s) for d in descriptors]
+    if source.layout.n_curves == lay[0]:
+        scaled = realigned(scaled, source.layout, target.layout)
     if spacing:
         if (source.layout.n_curves, source.layout.n_points) != lay[:2]:
             raise PdeFaceError(f"the source face's layout ({source.layout.n_curves} curves, "

@@ -437,6 +437,13 @@ class HeadBinding:
 
     # ---------------------------------------------------------------- keys and poses
 
+    def bindable(self, descriptors) -> list:
+        """The descriptors this head has keys for: the gaze AUs (61-64) left out where it has no eyeballs (an
+        empty socket or a painted eye has nothing to turn; the parts' notes say so)."""
+        if self.eyes:
+            return list(descriptors)
+        return [d for d in descriptors if au_number(d.key) not in GAZE_AUS]
+
     def descriptor_displacement(self, descriptor) -> np.ndarray:
         """One descriptor's shape key on the head (user space): its displacement at weight 1."""
         return self.displacement(*descriptor_motion_args(descriptor))

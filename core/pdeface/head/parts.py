@@ -190,8 +190,10 @@ def classify_parts(Vf, T, Lf, hinge, overrides=None) -> Parts:
     counts = parts.counts()
     parts.notes.append("parts: " + ", ".join(f"{k} {v}" for k, v in counts.items() if v))
     missing = [e for e in ("eye_L", "eye_R") if e not in eyes]
-    if missing and len(members):
-        parts.notes.append(f"no eyeball found for {', '.join(missing)} (gaze AUs will move the lids only)")
+    if missing:
+        parts.notes.append(f"no eyeball found for {', '.join(missing)}"
+                           + (": no gaze keys (AU61-64) for this head" if len(missing) == 2 else
+                              " (gaze AUs turn the other eyeball)"))
     return parts
 
 
