@@ -1,0 +1,165 @@
+"""The guided landmark editor: edit the empties, snap, re-fit and re-rig from them, the gate in the panel,
+export/import of the landmarks JSON, and the empties saved with the .blend. No landmark model needed: the
+landmarks come in through Import Landmarks (ICT's own, on ICT's head as a user's mesh)."""
+import json
+
+import numpy as np
+import pytest
+
+MODULE = "bl_ext.pdeface_test.pdeface"
+AU12 = "AU12 Lip Corner Puller"
+
+
+def addon():
+    return __import__(MODULE, fromlist=["landmarks"])
+
+
+@pytest.fixture
+def head(bpy, tmp_path):
+    """ICT's generic head as a user's mesh (Blender's axes, metres, turned 25°), its 68 landmarks imported as
+    empties from a JSON file; returns the object and the true points (object space)."""
+    from pdeface.assets import load_head
+    from pdeface.surface.frame import BLENDER_FROM_ICT
+
+    mesh, lm = load_head()
+    mesh.vertices = mesh.vertices @ BLENDER_FROM_ICT.T * 0.01
+    obj = bpy.data.objects.new("Head", addon().bridge.new_mesh("Head", mesh))
+    bpy.context.collection.objects.link(obj)
+    obj.rotation_euler = (0, 0, np.radians(25))
+    obj.location = (1, 2, 0)
+    bpy.context.view_layer.objects.active = obj
+    obj.select_set(True)
+    bpy.context.view_layer.update()
+    path = tmp_path / "truth.json"
+    path.write_text(json.dumps({"points": mesh.vertices[lm].tolist()}))
+    assert bpy.ops.pdeface.import_landmarks(filepath=str(path)) == {"FINISHED"}
+    return obj, mesh.vertices[lm]
+
+
+def key_displacement(obj, name):
+    """Per vertex, how far the key moves it from the basis (object space)."""
+    kb = obj.data.shape_keys.key_blocks
+    co = np.array([v.co for v in kb[name].data])
+    base = np.array([v.co for v in kb["Basis"].data])
+    return np.linalg.norm(co - base, axis=1), base
+
+
+def model_landmarks(face):
+    """The landmarks the fitted PDE face keeps (its model's, face frame), back in the user's object space."""
+    model = addon().bridge.face_model(face)
+    return (model.landmarks / model.frame.scale) @ model.frame.rotation + model.frame.origin
+
+
+def corner_pull(obj, at):
+    """How far the AU12 key moves the mesh's vertices nearest to the points ``at`` (object space)."""
+    d, base = key_displacement(obj, AU12)
+    return np.array([d[np.argmin(np.linalg.norm(base - p, axis=1))] for p in at])
+
+
+def test_edit_three_points_snap_refit_and_the_keys_follow(bpy, head):
+    lms_mod = addon().landmarks
+    obj, true = head
+    lms = lms_mod.empties(obj)
+    assert lms is not None and np.allclose(lms_mod.empty_points(obj), true, atol=1e-6)
+    assert bpy.ops.pdeface.fit_to_selected() == {"FINISHED"}
+    assert obj.get(lms_mod.GATE_PROP) == "" and lms_mod.failing_groups(obj) == []
+    first_face = obj.pdeface.rig_face
+    # The user drags three mouth empties: both corners 4 mm up and the lower lip's bottom 3 mm down, a little in
+    # front of the surface (a drag in a front view), then snaps them back onto it.
+    moves = {48: (0, -0.002, 0.004), 54: (0, -0.002, 0.004), 57: (0, -0.002, -0.003)}
+    for i, (dx, dy, dz) in moves.items():
+        lms[i].location.x += dx
+        lms[i].location.y += dy
+        lms[i].location.z += dz
+    bpy.context.view_layer.objects.active = lms[48]
+    assert bpy.ops.pdeface.snap_landmarks() == {"FINISHED"}
+    edited = lms_mod.empty_points(obj)
+    V = addon().bridge.vertices(obj.data)
+    for i in moves:  # on the surface (within the mesh's spacing), moved the way they were dragged
+        assert np.min(np.linalg.norm(V - edited[i], axis=1)) < 0.003
+        assert np.sign(edited[i, 2] - true[i, 2]) == np.sign(moves[i][2]) and abs(edited[i, 2] - true[i, 2]) > 0.0015
+    untouched = [i for i in range(68) if i not in moves]
+    assert np.allclose(edited[untouched], true[untouched], atol=1e-6)
+    corners = [48, 54]
+    before = corner_pull(obj, edited[corners]) - corner_pull(obj, true[corners])
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.pdeface.fit_to_selected() == {"FINISHED"}
+    face = obj.pdeface.rig_face
+    assert face is not None and face != first_face and face.pdeface.source == obj
+    # The fitted face's mouth corners and lower lip are the edited ones (its model keeps them, 0.1 mm steps)...
+    assert np.abs(model_landmarks(face)[[48, 54, 57]] - edited[[48, 54, 57]]).max() < 2e-4
+    # ...and the AU12 key on the user's mesh follows: it now pulls hardest at the edited corners.
+    after = corner_pull(obj, edited[corners]) - corner_pull(obj, true[corners])
+    assert (after > before + 0.0005).all() and (after > 0).all(), (before, after)
+    assert AU12 in obj.data.shape_keys.key_blocks
+
+
+def test_export_writes_the_empties_and_refuses_to_overwrite(bpy, head, tmp_path):
+    from pdeface.surface.frame import read_landmarks
+
+    lms_mod = addon().landmarks
+    obj, _ = head
+    lms_mod.empties(obj)[30].location.y -= 0.001
+    bpy.context.view_layer.update()
+    path = tmp_path / "edited.json"
+    assert bpy.ops.pdeface.export_landmarks(filepath=str(path)) == {"FINISHED"}
+    _, points = read_landmarks(path)  # the CLI's reader
+    assert np.allclose(points, lms_mod.empty_points(obj), atol=1e-9)
+    path.write_text("mine")
+    with pytest.raises(RuntimeError, match="exists; tick Overwrite"):
+        bpy.ops.pdeface.export_landmarks(filepath=str(path))
+    assert path.read_text() == "mine"
+    assert bpy.ops.pdeface.export_landmarks(filepath=str(path), overwrite=True, indices=True) == {"FINISHED"}
+    idx, _ = read_landmarks(path)
+    assert len(idx) == 68 and np.linalg.norm(
+        addon().bridge.vertices(obj.data)[idx] - lms_mod.empty_points(obj), axis=1).max() < 0.003
+
+
+def test_a_gate_failure_leaves_the_scene_editable_with_the_failing_group(bpy, head):
+    lms_mod = addon().landmarks
+    obj, true = head
+    lms = lms_mod.empties(obj)
+    for i in (50, 51, 52):  # three upper-lip points pushed 1 cm into the mouth (the face looks down -Y)
+        lms[i].location.y += 0.01
+    with pytest.raises(RuntimeError, match="mouth: surface"):
+        bpy.ops.pdeface.fit_to_selected()
+    assert obj.pdeface.rig_face is None and not any(o.pdeface.is_face for o in bpy.data.objects)
+    assert lms_mod.empties(obj) is not None and lms_mod.failing_groups(obj) == ["mouth"]
+    assert "mouth" in obj[lms_mod.GATE_PROP] and "surface" in obj[lms_mod.GATE_PROP]
+    mouth = bpy.data.collections[f"{lms_mod.COLLECTION} mouth"]
+    assert mouth.color_tag == lms_mod.FAILING_TAG and bpy.data.collections[f"{lms_mod.COLLECTION} eyes"].color_tag \
+        == lms_mod.GROUP_TAGS["eyes"]
+    assert all(e.select_get() and e.empty_display_type == "CUBE" for e in lms[48:68])
+    assert not any(e.select_get() for e in lms[:48])
+    # The panel shows it (drawn without errors) with Accept anyway; accepting fits with the failing points.
+    panel = bpy.types.PDEFACE_PT_landmarks
+    assert panel.poll(bpy.context)
+    assert bpy.ops.pdeface.fit_to_selected(accept=True) == {"FINISHED"}
+    assert obj.pdeface.rig_face is not None
+    # Put back and fitted again: the gate passes and the highlight goes.
+    for i in (50, 51, 52):
+        lms[i].location = true[i]
+    bpy.context.view_layer.objects.active = obj
+    assert bpy.ops.pdeface.fit_to_selected() == {"FINISHED"}
+    assert lms_mod.failing_groups(obj) == [] and mouth.color_tag == lms_mod.GROUP_TAGS["mouth"]
+
+
+def test_the_empties_are_saved_with_the_blend_and_the_scheme_shows_beside_the_head(bpy, head, tmp_path):
+    lms_mod = addon().landmarks
+    obj, _ = head
+    lms_mod.empties(obj)[8].location.z -= 0.002
+    bpy.context.view_layer.update()
+    points = lms_mod.empty_points(obj)
+    assert bpy.ops.pdeface.show_landmark_scheme() == {"FINISHED"}
+    ref = bpy.data.objects["Head landmark scheme"]
+    assert ref.empty_display_type == "IMAGE" and ref.data.size[0] > 0
+    assert ref.matrix_world.translation.x > max((obj.matrix_world @ e.matrix_world.translation).x
+                                                for e in lms_mod.empties(obj)) - 1
+    path = tmp_path / "edited.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(path))
+    bpy.ops.wm.read_homefile(use_empty=True)
+    bpy.ops.wm.open_mainfile(filepath=str(path))
+    obj = bpy.data.objects["Head"]
+    assert np.allclose(lms_mod.empty_points(obj), points, atol=1e-6)
+    assert all(e.users_collection[0].name == f"{lms_mod.COLLECTION} {lms_mod.GROUP_OF[i]}"
+               for i, e in enumerate(lms_mod.empties(obj)))
