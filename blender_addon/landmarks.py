@@ -21,12 +21,14 @@ import bpy
 import numpy as np
 from mathutils import Matrix, Vector
 from pdeface.errors import FileError, LandmarkError, MeshError, PdeFaceError
+from pdeface.geometry import ClosestPoint
 from pdeface.io.files import atomic_open
 from pdeface.landmark_scheme import eye_distance
 from pdeface.landmarks import MissingDependencyError, available, detect
 from pdeface.landmarks.detector import RUNTIME_PACKAGES
 from pdeface.landmarks.facemap import GROUPS
 from pdeface.landmarks.gate import LandmarkGateError, check
+from pdeface.landmarks.pipeline import skin_triangles
 from pdeface.surface.frame import face_frame, landmark_points
 from pdeface.surface.frame import read_landmarks as read_landmark_file
 
@@ -44,6 +46,9 @@ SCHEME = os.path.join(os.path.dirname(os.path.realpath(__file__)), "images", "la
 #: 05 blue, 06 violet); a failing group's collection turns yellow (03), its empties bigger cubes.
 GROUP_TAGS = {"jaw": "COLOR_05", "brows": "COLOR_06", "nose": "COLOR_04", "eyes": "COLOR_02", "mouth": "COLOR_01"}
 FAILING_TAG = "COLOR_03"
+#: The share of the landmarks nearest to a connected part of the mesh that makes it skin for the gate (the four
+#: upper-lid points may be nearest to lashes).
+SKIN_SHARE = 0.1
 GROUP_OF = {i: g for g, rows in GROUPS.items() for i in rows}
 
 
@@ -183,12 +188,17 @@ def snap(context, obj):
 
 
 def gate(obj, points, unit=None, skin=None):
-    """The landmark gate on ``points`` (object space) over ``obj``'s mesh (its triangles ``skin`` when given:
-    lashes in front of the skin are no face): the verdict, kept on the mesh (:data:`GATE_PROP`) and shown on
-    the empties (:func:`highlight`)."""
+    """The landmark gate on ``points`` (object space) over ``obj``'s skin: the verdict, kept on the mesh
+    (:data:`GATE_PROP`) and shown on the empties (:func:`highlight`).
+
+    ``skin``: the triangles the landmarks were found on; else the connected parts of the mesh nearest to at
+    least :data:`SKIN_SHARE` of the points (lashes and eyeballs in front of the skin are no face).
+    """
     V = bridge.vertices(obj.data)
     T, _ = bridge.triangles(obj.data)
-    verdict = check(points, V, T if skin is None else T[skin], unit)
+    if skin is None:
+        skin = skin_triangles(V, T, ClosestPoint(V, T).query(points)[1], share=SKIN_SHARE)
+    verdict = check(points, V, T[skin], unit)
     obj[GATE_PROP] = verdict.message()
     obj[GATE_GROUPS_PROP] = ",".join(verdict.failures)
     highlight(obj, list(verdict.failures))
