@@ -36,6 +36,28 @@ def head(bpy, tmp_path):
     return obj, mesh.vertices[lm]
 
 
+class Layout:
+    """A stand-in for a panel's layout that records what is drawn: labels, operators and icons."""
+
+    def __init__(self, drawn=None):
+        self.drawn = [] if drawn is None else drawn
+
+    def __getattr__(self, name):  # column, row, box, label, operator, template_icon, prop, ...
+        def draw(*args, **kwargs):
+            self.drawn.append((name, args, kwargs))
+            return Layout(self.drawn)
+        return draw
+
+    def texts(self, kind):
+        return [kw.get("text", args[0] if args else "") for name, args, kw in self.drawn if name == kind]
+
+
+def draw_panel(bpy, panel):
+    layout = Layout()
+    panel.draw(type("Panel", (), {"layout": layout})(), bpy.context)
+    return layout
+
+
 def key_displacement(obj, name):
     """Per vertex, how far the key moves it from the basis (object space)."""
     kb = obj.data.shape_keys.key_blocks
@@ -131,9 +153,20 @@ def test_a_gate_failure_leaves_the_scene_editable_with_the_failing_group(bpy, he
         == lms_mod.GROUP_TAGS["eyes"]
     assert all(e.select_get() and e.empty_display_type == "CUBE" for e in lms[48:68])
     assert not any(e.select_get() for e in lms[:48])
-    # The panel shows it (drawn without errors) with Accept anyway; accepting fits with the failing points.
+    # The Landmarks panel shows the failing group, the gate's line, the scheme and Accept anyway; also when a
+    # landmark empty is the active object (the user dragging it).
+    bpy.context.view_layer.objects.active = lms[50]
     panel = bpy.types.PDEFACE_PT_landmarks
     assert panel.poll(bpy.context)
+    layout = draw_panel(bpy, panel)
+    labels = layout.texts("label")
+    assert "Landmark gate: mouth failed" in labels and any("surface" in t for t in labels)
+    assert "Accept anyway and Fit" in layout.texts("operator")
+    assert {"pdeface.snap_landmarks", "pdeface.export_landmarks", "pdeface.import_landmarks"} <= {
+        args[0] for name, args, _ in layout.drawn if name == "operator"}
+    assert any(name == "template_icon" for name, _, _ in layout.drawn)  # the scheme (its icon id is 0 headless)
+    bpy.context.view_layer.objects.active = obj
+    assert "Accept anyway and Fit" in draw_panel(bpy, bpy.types.PDEFACE_PT_face).texts("operator")
     assert bpy.ops.pdeface.fit_to_selected(accept=True) == {"FINISHED"}
     assert obj.pdeface.rig_face is not None
     # Put back and fitted again: the gate passes and the highlight goes.
