@@ -196,3 +196,19 @@ def test_the_empties_are_saved_with_the_blend_and_the_scheme_shows_beside_the_he
     assert np.allclose(lms_mod.empty_points(obj), points, atol=1e-6)
     assert all(e.users_collection[0].name == f"{lms_mod.COLLECTION} {lms_mod.GROUP_OF[i]}"
                for i, e in enumerate(lms_mod.empties(obj)))
+
+
+def test_find_landmarks_reports_the_gate_and_leaves_the_empties_to_edit(bpy, head, monkeypatch):
+    """The detector (stood in for: the gate is what is tested) puts three lower-lip points inside the mouth."""
+    from types import SimpleNamespace
+
+    lms_mod = addon().landmarks
+    obj, true = head
+    bad = true.copy()
+    bad[[56, 57, 58], 1] += 0.01
+    found = SimpleNamespace(points=bad, confidence=dict.fromkeys(lms_mod.GROUPS, 0.9), view="-y roll 0", skin=None)
+    monkeypatch.setattr(lms_mod, "detect", lambda V, T, unit: found)
+    assert bpy.ops.pdeface.find_landmarks() == {"FINISHED"}  # a warning, not an error: the empties are the work
+    assert np.allclose(lms_mod.empty_points(obj), bad, atol=1e-6)
+    assert lms_mod.failing_groups(obj) == ["mouth"] and "mouth: surface" in obj[lms_mod.GATE_PROP]
+    assert lms_mod.empties(obj)[57].select_get()
