@@ -134,7 +134,7 @@ class PDEFACE_OT_fit_to_selected(_UserMeshOperator, Operator):
                 self.report({"INFO"}, note)
             src = context.active_object
             unit = None if s.unit == "AUTO" else s.unit
-            if s.landmark_source == "AUTO":  # found or edited as empties: the gate first (as the CLI's fit)
+            if s.landmark_source == "AUTO" and landmarks.empties(src) is not None:  # found or edited: gate first
                 note = landmarks.gated(src, points, unit, self.accept)
                 if note:
                     self.report({"WARNING"}, note)
