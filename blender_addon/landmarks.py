@@ -40,6 +40,8 @@ COLLECTION = "PDE Landmarks"
 #: Custom properties on the mesh (saved with the .blend): the gate's last one-line failure ("" when it passed)
 #: and its failing groups, comma-separated, for the panel.
 GATE_PROP, GATE_GROUPS_PROP = "pdeface_gate", "pdeface_gate_groups"
+#: Custom property on each landmark empty: its display size when its group passes (a failing one's is twice).
+SIZE_PROP = "pdeface_size"
 #: The picture of the 68-point scheme (drawn by scripts/figures/render_landmark_scheme.py).
 SCHEME = os.path.join(os.path.dirname(os.path.realpath(__file__)), "images", "landmark_scheme.png")
 #: Each group's collection colour, as in the scheme's picture (Blender's tags: 01 red, 02 orange, 04 green,
@@ -142,7 +144,7 @@ def show(context, obj, points, confidence=None):
             e.empty_display_type = "SPHERE"
         e.matrix_parent_inverse.identity()
         e.location = tuple(p)
-        e.empty_display_size = size
+        e.empty_display_size = e[SIZE_PROP] = size
         if confidence is not None:
             e["pdeface_confidence"] = round(confidence[group], 3)
     context.view_layer.update()
@@ -220,12 +222,10 @@ def highlight(obj, groups):
         coll = bpy.data.collections.get(f"{COLLECTION} {g}")
         if coll is not None:
             coll.color_tag = FAILING_TAG if g in groups else GROUP_TAGS[g]
-    base = min(e.empty_display_size for e in lms if e.empty_display_type == "SPHERE") if any(
-        e.empty_display_type == "SPHERE" for e in lms) else lms[0].empty_display_size / 2
     for i, e in enumerate(lms):
         failing = GROUP_OF[i] in groups
         e.empty_display_type = "CUBE" if failing else "SPHERE"
-        e.empty_display_size = base * (2 if failing else 1)
+        e.empty_display_size = e.get(SIZE_PROP, e.empty_display_size) * (2 if failing else 1)
         if groups and e.name in bpy.context.view_layer.objects:
             e.select_set(failing)
 

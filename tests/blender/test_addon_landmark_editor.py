@@ -173,6 +173,7 @@ def test_a_gate_failure_leaves_the_scene_editable_with_the_failing_group(bpy, he
     assert mouth.color_tag == lms_mod.FAILING_TAG and bpy.data.collections[f"{lms_mod.COLLECTION} eyes"].color_tag \
         == lms_mod.GROUP_TAGS["eyes"]
     assert all(e.select_get() and e.empty_display_type == "CUBE" for e in lms[48:68])
+    assert lms[50].empty_display_size == pytest.approx(2 * lms[36].empty_display_size)
     assert not any(e.select_get() for e in lms[:48])
     # The Landmarks panel shows the failing group, the gate's line, the scheme and Accept anyway; also when a
     # landmark empty is the active object (the user dragging it).
@@ -196,6 +197,7 @@ def test_a_gate_failure_leaves_the_scene_editable_with_the_failing_group(bpy, he
     bpy.context.view_layer.objects.active = obj
     assert bpy.ops.pdeface.fit_to_selected() == {"FINISHED"}
     assert lms_mod.failing_groups(obj) == [] and mouth.color_tag == lms_mod.GROUP_TAGS["mouth"]
+    assert lms[50].empty_display_type == "SPHERE" and lms[50].empty_display_size == lms[36].empty_display_size
 
 
 def test_the_empties_are_saved_with_the_blend_and_the_scheme_shows_beside_the_head(bpy, head, tmp_path):
