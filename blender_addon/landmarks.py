@@ -1,11 +1,17 @@
-"""Landmarks in Blender: found on the user's mesh, shown as empties to nudge, read back for the fit.
+"""Landmarks in Blender: found on the user's mesh, shown as empties to edit (guided), read back for the fit.
 
-Found landmarks become 68 empties parented to the mesh (in the collection
-``PDE Landmarks``), each tagged with its Multi-PIE index; moving one moves
-that landmark for the next fit. The face-landmark model (``mediapipe``) is
-optional: when it is missing, :func:`install` puts it in the extension's own
-user folder on request.
+Found (or imported) landmarks become 68 empties parented to the mesh, one collection per group under
+``PDE Landmarks``, each tagged with its Multi-PIE index; moving one moves that landmark for the next fit, and
+being objects they are saved with the ``.blend``. The guided editor beside them: the scheme's picture
+(:data:`SCHEME`, in the panel and as an image empty beside the head), :func:`snap` onto the surface,
+:func:`gate` (the landmark gate of :mod:`pdeface.landmarks.gate`: its failing groups highlighted and kept on
+the mesh for the panel), and the landmarks JSON out and in (:func:`export`, :func:`import_file`).
+
+The face-landmark model (``mediapipe``) is optional: when it is missing, :func:`install` puts it in the
+extension's own user folder on request.
 """
+import json
+import math
 import os
 import subprocess
 import sys
@@ -13,16 +19,39 @@ import time
 
 import bpy
 import numpy as np
-from pdeface.errors import LandmarkError, MeshError, PdeFaceError
+from mathutils import Matrix, Vector
+from pdeface.errors import FileError, LandmarkError, MeshError, PdeFaceError
+from pdeface.geometry import ClosestPoint
+from pdeface.io.files import atomic_open
+from pdeface.landmark_scheme import eye_distance
 from pdeface.landmarks import MissingDependencyError, available, detect
 from pdeface.landmarks.detector import RUNTIME_PACKAGES
 from pdeface.landmarks.facemap import GROUPS
+from pdeface.landmarks.gate import LandmarkGateError, check
+from pdeface.landmarks.pipeline import skin_triangles
+from pdeface.surface.frame import face_frame, landmark_points
+from pdeface.surface.frame import read_landmarks as read_landmark_file
 
 from . import bridge
 
 #: Custom property on each landmark empty: its Multi-PIE index (0-67).
 INDEX_PROP = "pdeface_landmark"
 COLLECTION = "PDE Landmarks"
+#: Custom properties on the mesh (saved with the .blend): the gate's last one-line failure ("" when it passed)
+#: and its failing groups, comma-separated, for the panel.
+GATE_PROP, GATE_GROUPS_PROP = "pdeface_gate", "pdeface_gate_groups"
+#: Custom property on each landmark empty: its display size when its group passes (a failing one's is twice).
+SIZE_PROP = "pdeface_size"
+#: The picture of the 68-point scheme (drawn by scripts/figures/render_landmark_scheme.py).
+SCHEME = os.path.join(os.path.dirname(os.path.realpath(__file__)), "images", "landmark_scheme.png")
+#: Each group's collection colour, as in the scheme's picture (Blender's tags: 01 red, 02 orange, 04 green,
+#: 05 blue, 06 violet); a failing group's collection turns yellow (03), its empties bigger cubes.
+GROUP_TAGS = {"jaw": "COLOR_05", "brows": "COLOR_06", "nose": "COLOR_04", "eyes": "COLOR_02", "mouth": "COLOR_01"}
+FAILING_TAG = "COLOR_03"
+#: The share of the landmarks nearest to a connected part of the mesh that makes it skin for the gate (the four
+#: upper-lid points may be nearest to lashes).
+SKIN_SHARE = 0.1
+GROUP_OF = {i: g for g, rows in GROUPS.items() for i in rows}
 
 
 def site_dir(create=False):
@@ -84,26 +113,207 @@ def empty_points(obj):
     return np.array([tuple(inv @ e.matrix_world.translation) for e in lms])
 
 
-def show(context, obj, points, found):
-    """Put (or move) the 68 landmark empties of ``obj`` at ``points`` (object space)."""
-    group_of = {i: g for g, rows in GROUPS.items() for i in rows}
-    coll = bpy.data.collections.get(COLLECTION)
+def mesh_of(obj):
+    """The user's mesh a landmark empty belongs to (or ``obj`` itself when it is a mesh); else None."""
+    if obj is not None and obj.type == "EMPTY" and INDEX_PROP in obj:
+        obj = obj.parent
+    return obj if obj is not None and obj.type == "MESH" and not obj.pdeface.is_face else None
+
+
+def _collection(context, name, parent, tag):
+    coll = bpy.data.collections.get(name)
     if coll is None:
-        coll = bpy.data.collections.new(COLLECTION)
-        context.scene.collection.children.link(coll)
+        coll = bpy.data.collections.new(name)
+        parent.children.link(coll)
+    coll.color_tag = tag
+    return coll
+
+
+def show(context, obj, points, confidence=None):
+    """Put (or move) the 68 landmark empties of ``obj`` at ``points`` (object space), a collection per group."""
+    top = bpy.data.collections.get(COLLECTION) or _collection(context, COLLECTION, context.scene.collection, "NONE")
     lms = empties(obj) or []
-    size = 1.5 / found.mm_per_unit  # 1.5 mm spheres
+    size = 0.024 * eye_distance(points)  # 1.5 mm spheres on an adult face (object space, as the empties)
     for i, p in enumerate(points):
-        e = lms[i] if lms else bpy.data.objects.new(f"{obj.name} LM{i:02d} {group_of[i]}", None)
+        group = GROUP_OF[i]
+        e = lms[i] if lms else bpy.data.objects.new(f"{obj.name} LM{i:02d} {group}", None)
         if not lms:
-            coll.objects.link(e)
+            _collection(context, f"{COLLECTION} {group}", top, GROUP_TAGS[group]).objects.link(e)
             e[INDEX_PROP] = i
             e.parent = obj
             e.empty_display_type = "SPHERE"
         e.matrix_parent_inverse.identity()
         e.location = tuple(p)
-        e.empty_display_size = size
-        e["pdeface_confidence"] = round(found.confidence[group_of[i]], 3)
+        e.empty_display_size = e[SIZE_PROP] = size
+        if confidence is not None:
+            e["pdeface_confidence"] = round(confidence[group], 3)
+    context.view_layer.update()
+
+
+#: How far (share of the eye distance) a landmark may be from where the face's forward ray meets the surface
+#: for that hit to count; farther (the jaw's contour seen edge on), the closest point of the surface counts.
+SNAP_REACH = 0.15
+#: A landmark this close to the surface (share of the eye distance) is on it: only brought onto it exactly
+#: (the ray would find lashes in front of a lid point).
+ON_SURFACE = 0.005
+
+
+def snap(context, obj):
+    """Move each landmark empty of ``obj`` onto its surface: one off it straight back along the face's forward
+    direction (where a drag in a front view meant it), else onto the closest point. Returns the farthest move
+    (object space)."""
+    lms = empties(obj)
+    if lms is None:
+        raise LandmarkError(f"{obj.name} has no landmark empties: Find Landmarks or Import Landmarks first")
+    points = empty_points(obj)
+    eyes = eye_distance(points)
+    forward = Vector(face_frame(points).rotation[2])
+    depsgraph = context.evaluated_depsgraph_get()
+    moved = 0.0
+    for e, p in zip(lms, points, strict=True):
+        p = Vector(p)
+        hit, co, _, _ = obj.closest_point_on_mesh(p, depsgraph=depsgraph)
+        ray, at, _, _ = obj.ray_cast(p + forward * SNAP_REACH * eyes, -forward, distance=2 * SNAP_REACH * eyes,
+                                     depsgraph=depsgraph)
+        if hit and (co - p).length < ON_SURFACE * eyes:
+            pass
+        elif ray and (at - p).length < SNAP_REACH * eyes:
+            co = at
+        elif not hit:
+            continue
+        m = e.matrix_world.copy()
+        m.translation = obj.matrix_world @ co
+        e.matrix_world = m
+        moved = max(moved, (co - p).length)
+    context.view_layer.update()
+    return moved
+
+
+def gate(obj, points, unit=None, skin=None):
+    """The landmark gate on ``points`` (object space) over ``obj``'s skin: the verdict, kept on the mesh
+    (:data:`GATE_PROP`) and shown on the empties (:func:`highlight`).
+
+    ``skin``: the triangles the landmarks were found on; else the connected parts of the mesh nearest to at
+    least :data:`SKIN_SHARE` of the points (lashes and eyeballs in front of the skin are no face).
+    """
+    V = bridge.vertices(obj.data)
+    T, _ = bridge.triangles(obj.data)
+    if skin is None:
+        skin = skin_triangles(V, T, ClosestPoint(V, T).query(points)[1], share=SKIN_SHARE)
+    verdict = check(points, V, T[skin], unit)
+    obj[GATE_PROP] = verdict.message()
+    obj[GATE_GROUPS_PROP] = ",".join(verdict.failures)
+    highlight(obj, list(verdict.failures))
+    return verdict
+
+
+def failing_groups(obj):
+    """The groups that failed the gate when last checked (from the .blend), or []."""
+    groups = obj.get(GATE_GROUPS_PROP, "") if obj is not None else ""
+    return [g for g in groups.split(",") if g]
+
+
+def highlight(obj, groups):
+    """Show the failing ``groups``: their collections yellow, their empties bigger cubes and selected."""
+    lms = empties(obj)
+    if lms is None:
+        return
+    for g in GROUPS:
+        coll = bpy.data.collections.get(f"{COLLECTION} {g}")
+        if coll is not None:
+            coll.color_tag = FAILING_TAG if g in groups else GROUP_TAGS[g]
+    for i, e in enumerate(lms):
+        failing = GROUP_OF[i] in groups
+        e.empty_display_type = "CUBE" if failing else "SPHERE"
+        e.empty_display_size = e.get(SIZE_PROP, e.empty_display_size) * (2 if failing else 1)
+        if groups and e.name in bpy.context.view_layer.objects:
+            e.select_set(failing)
+
+
+def gated(obj, points, unit=None, accept=False):
+    """Gate the landmarks the fit is about to use; raise :class:`LandmarkGateError` (one line, the empties left
+    as they are for editing) when a group fails, unless ``accept``. Returns a note on an accepted failure."""
+    verdict = gate(obj, points, unit)
+    if verdict.passed:
+        return None
+    if not accept:
+        raise LandmarkGateError(
+            f"the landmarks of {obj.name} fail the landmark gate: {verdict.message()}; move the highlighted "
+            f"empties ({', '.join(verdict.failures)}), Snap Landmarks to Surface and Fit again, or Accept anyway",
+            verdict)
+    return f"going on with landmarks that fail the gate (accepted): {verdict.message()}"
+
+
+def export(obj, path, overwrite=False, indices=False):
+    """Write the empties as the landmarks JSON the CLI reads (``{"points"}`` in the mesh's own coordinates, or
+    ``{"indices"}`` of the nearest vertices); an existing file only with ``overwrite``. Returns the path."""
+    points = empty_points(obj)
+    if points is None:
+        raise LandmarkError(f"{obj.name} has no landmark empties to export: Find Landmarks or Import Landmarks")
+    if not path:
+        raise FileError("choose a file to export the landmarks to")
+    if os.path.exists(path) and not overwrite:
+        raise FileError(f"{path}: exists; tick Overwrite to replace it")
+    if indices:
+        V = bridge.vertices(obj.data)
+        data = {"indices": [int(np.argmin(((V - p) ** 2).sum(1))) for p in points]}
+    else:
+        data = {"points": points.tolist()}
+    with atomic_open(path) as f:
+        json.dump(data, f, allow_nan=False)
+    return path
+
+
+def import_file(context, obj, path):
+    """Read a landmarks JSON (``indices`` or ``points``, the mesh's own coordinates) and show it as the empties."""
+    idx, pts = read_landmark_file(path)
+    points = landmark_points(bridge.vertices(obj.data), idx, pts)
+    show(context, obj, points)
+    return points
+
+
+def show_scheme(context, obj):
+    """The scheme's picture as an image empty beside ``obj`` (in the landmarks' collection), facing the front
+    (-Y), as tall as the landmarks; made once, then moved. Returns the empty."""
+    name = f"{obj.name} landmark scheme"
+    ref = bpy.data.objects.get(name)
+    if ref is None:
+        ref = bpy.data.objects.new(name, None)
+        ref.empty_display_type = "IMAGE"
+        ref.data = bpy.data.images.load(SCHEME, check_existing=True)
+        top = bpy.data.collections.get(COLLECTION) or _collection(context, COLLECTION, context.scene.collection,
+                                                                   "NONE")
+        top.objects.link(ref)
+    points = empty_points(obj)
+    world = [obj.matrix_world @ Vector(p) for p in points] if points is not None else \
+        [obj.matrix_world @ Vector(c) for c in obj.bound_box]
+    lo = Vector([min(p[k] for p in world) for k in range(3)])
+    hi = Vector([max(p[k] for p in world) for k in range(3)])
+    height = max(hi.z - lo.z, 1e-6) * 1.2
+    ref.empty_display_size = height
+    ref.matrix_world = Matrix.Translation((hi.x + 0.6 * height, (lo.y + hi.y) / 2, (lo.z + hi.z) / 2)) @ \
+        Matrix.Rotation(math.pi / 2, 4, "X")
+    return ref
+
+
+_previews = []
+
+
+def scheme_icon():
+    """The scheme's picture as an icon for the panel (loaded once per session)."""
+    if not _previews:
+        import bpy.utils.previews
+
+        pcoll = bpy.utils.previews.new()
+        pcoll.load("scheme", SCHEME, "IMAGE")
+        _previews.append(pcoll)
+    return _previews[0]["scheme"].icon_id
+
+
+def unregister():
+    for pcoll in _previews:
+        bpy.utils.previews.remove(pcoll)
+    _previews.clear()
 
 
 def find(context, obj, unit=None):
@@ -119,7 +329,7 @@ def find(context, obj, unit=None):
         raise LandmarkError("finding landmarks needs the face-landmark model: press Install Landmark Model in the "
                             "PDE Face panel, or choose Vertex group, Selected vertices or JSON file") from None
     seconds = time.perf_counter() - t
-    show(context, obj, found.points, found)
+    show(context, obj, found.points, found.confidence)
     return found.points, found, seconds
 
 

@@ -124,6 +124,8 @@ class PDEFACE_OT_fit_to_selected(_UserMeshOperator, Operator):
 
     resolution: StringProperty(name="Resolution", default="default")
     retarget: BoolProperty(name="Retarget AU descriptors", default=True)
+    accept: BoolProperty(name="Accept anyway", default=False,
+                         description="Fit with landmarks that fail the landmark gate (as the CLI's --accept)")
     keys_on_mesh: BoolProperty(name="Keys on my mesh", default=True,
                                description="Put the AU and expression keys on the selected mesh(es) themselves: "
                                            "the active one's skin and the other selected objects of the head "
@@ -143,18 +145,22 @@ class PDEFACE_OT_fit_to_selected(_UserMeshOperator, Operator):
         wm.progress_begin(0, 4)
         try:
             compat.set_status(context, "PDE Face: reading landmarks")
-            landmarks, note = face.read_landmarks(s, context.active_object)
+            points, note = face.read_landmarks(s, context.active_object)
             if note:
                 self.report({"INFO"}, note)
             src = context.active_object
             unit = None if s.unit == "AUTO" else s.unit
+            if s.landmark_source == "AUTO" and landmarks.empties(src) is not None:  # found or edited: gate first
+                note = landmarks.gated(src, points, unit, self.accept)
+                if note:
+                    self.report({"WARNING"}, note)
             r = None
             if self.keys_on_mesh:
                 parts = rigging.head_parts(context, src)
-                obj, model, sampler, r = rigging.fit_and_rig(context, src, landmarks, unit, self.resolution,
+                obj, model, sampler, r = rigging.fit_and_rig(context, src, points, unit, self.resolution,
                                                              self.retarget, progress, parts)
             else:
-                obj, model, sampler = face.fit_face_object(context, src, landmarks, unit, self.resolution,
+                obj, model, sampler = face.fit_face_object(context, src, points, unit, self.resolution,
                                                            self.retarget, progress)
             wm.progress_update(4)
         finally:
@@ -183,11 +189,98 @@ Fit then uses them"""
         s = context.scene.pdeface
         obj = context.active_object
         compat.set_status(context, "PDE Face: finding landmarks")
+        unit = None if s.unit == "AUTO" else s.unit
         try:
-            _, found, seconds = landmarks.find(context, obj, None if s.unit == "AUTO" else s.unit)
+            points, found, seconds = landmarks.find(context, obj, unit)
         finally:
             compat.set_status(context, None)
-        return landmarks.summary(obj, found, seconds)
+        verdict = landmarks.gate(obj, points, unit, found.skin)
+        if verdict.passed:
+            return landmarks.summary(obj, found, seconds)
+        self.report({"WARNING"}, f"{landmarks.summary(obj, found, seconds)}; they fail the landmark gate: "
+                                 f"{verdict.message()}: move the highlighted empties, or Accept anyway")
+
+
+class _LandmarksOperator(_ObjectModeOperator):
+    """An operator on the landmarks of the active mesh (or of the mesh the active landmark empty belongs to)."""
+
+    @classmethod
+    def poll(cls, context):
+        if not super().poll(context):
+            return False
+        if landmarks.mesh_of(context.active_object) is None:
+            cls.poll_message_set("Select the mesh (not a PDE face) or one of its landmark empties")
+            return False
+        return True
+
+
+class PDEFACE_OT_snap_landmarks(_LandmarksOperator, Operator):
+    """Move every landmark empty onto the closest point of its mesh's surface (after dragging them)"""
+
+    bl_idname = "pdeface.snap_landmarks"
+    bl_label = "Snap Landmarks to Surface"
+
+    def run(self, context):
+        obj = landmarks.mesh_of(context.active_object)
+        moved = landmarks.snap(context, obj)
+        return f"Snapped the landmarks of {obj.name} onto its surface (the farthest moved {moved:.4g})"
+
+
+class PDEFACE_OT_export_landmarks(_LandmarksOperator, Operator):
+    """Write the landmark empties as the landmarks JSON the command line reads (--landmarks)"""
+
+    bl_idname = "pdeface.export_landmarks"
+    bl_label = "Export Landmarks"
+    bl_options = {"REGISTER"}
+
+    filepath: StringProperty(name="File", subtype="FILE_PATH")
+    filter_glob: StringProperty(default="*.json", options={"HIDDEN"})
+    check_existing: BoolProperty(default=True, options={"HIDDEN"})
+    overwrite: BoolProperty(name="Overwrite", default=False, description="Replace an existing file")
+    indices: BoolProperty(name="Vertex indices", default=False,
+                          description="Write the nearest vertices' indices (hold whatever the exported file's "
+                                      "axes and scale) instead of the points in the mesh's own coordinates")
+
+    def invoke(self, context, event):
+        if not self.filepath:
+            self.filepath = f"{landmarks.mesh_of(context.active_object).name}_landmarks.json"
+        context.window_manager.fileselect_add(self)
+        return {"RUNNING_MODAL"}
+
+    def run(self, context):
+        obj = landmarks.mesh_of(context.active_object)
+        path = landmarks.export(obj, bpy.path.abspath(self.filepath), self.overwrite, self.indices)
+        return f"Wrote the 68 landmarks of {obj.name} to {path}"
+
+
+class PDEFACE_OT_import_landmarks(_LandmarksOperator, Operator):
+    """Read a landmarks JSON ('indices' or 'points' in the mesh's own coordinates) as the mesh's landmark empties"""
+
+    bl_idname = "pdeface.import_landmarks"
+    bl_label = "Import Landmarks"
+
+    filepath: StringProperty(name="File", subtype="FILE_PATH")
+    filter_glob: StringProperty(default="*.json", options={"HIDDEN"})
+
+    def invoke(self, context, event):
+        context.window_manager.fileselect_add(self)
+        return {"RUNNING_MODAL"}
+
+    def run(self, context):
+        obj = landmarks.mesh_of(context.active_object)
+        landmarks.import_file(context, obj, bpy.path.abspath(self.filepath))
+        return f"Read 68 landmarks onto {obj.name}: edit the empties, then Fit"
+
+
+class PDEFACE_OT_show_landmark_scheme(_LandmarksOperator, Operator):
+    """Show the 68-point scheme's picture (numbers, groups) beside the mesh, as an image empty"""
+
+    bl_idname = "pdeface.show_landmark_scheme"
+    bl_label = "Show Landmark Scheme"
+
+    def run(self, context):
+        ref = landmarks.show_scheme(context, landmarks.mesh_of(context.active_object))
+        return f"{ref.name}: the scheme beside the mesh"
 
 
 class PDEFACE_OT_install_landmark_model(_Operator, Operator):
@@ -474,7 +567,8 @@ class PDEFACE_OT_live_stop(_Operator, Operator):
 
 
 _classes = (PDEFACE_OT_add_default_face, PDEFACE_OT_add_ict_head, PDEFACE_OT_fit_to_selected,
-            PDEFACE_OT_find_landmarks, PDEFACE_OT_install_landmark_model,
+            PDEFACE_OT_find_landmarks, PDEFACE_OT_snap_landmarks, PDEFACE_OT_export_landmarks,
+            PDEFACE_OT_import_landmarks, PDEFACE_OT_show_landmark_scheme, PDEFACE_OT_install_landmark_model,
             PDEFACE_OT_build_shape_keys, PDEFACE_OT_apply_preset, PDEFACE_OT_load_fdt, PDEFACE_OT_record_muscle_au,
             PDEFACE_OT_load_muscle_au, PDEFACE_OT_reset_muscles, PDEFACE_OT_reset_pose, PDEFACE_OT_keyframe_pose, PDEFACE_OT_animate_sequence,
             PDEFACE_OT_import_au, PDEFACE_OT_transfer_texture, PDEFACE_OT_live_start, PDEFACE_OT_live_stop)
@@ -487,5 +581,6 @@ def register():
 
 def unregister():
     live.stop()  # sockets and timers must not outlive the add-on
+    landmarks.unregister()
     for c in reversed(_classes):
         bpy.utils.unregister_class(c)

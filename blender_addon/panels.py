@@ -59,9 +59,53 @@ class PDEFACE_PT_face(_Panel, bpy.types.Panel):
             box.prop(s, "landmark_file")
         box.prop(s, "unit")
         box.operator("pdeface.fit_to_selected", icon="MOD_MESHDEFORM")
+        mesh = landmarks.mesh_of(context.active_object)
+        if s.landmark_source == "AUTO" and landmarks.failing_groups(mesh):
+            _gate_failure(box, mesh)
         if obj is not None:
             layout.label(text=f"Face: {obj.name}", icon="OBJECT_DATA")
             layout.operator("pdeface.build_shape_keys", icon="SHAPEKEY_DATA")
+
+
+def _gate_failure(layout, mesh):
+    """The gate's failing groups, its one line, and Fit with them anyway (as the CLI's --accept)."""
+    col = layout.column()
+    col.alert = True
+    col.label(text=f"Landmark gate: {', '.join(landmarks.failing_groups(mesh))} failed", icon="ERROR")
+    for part in mesh.get(landmarks.GATE_PROP, "").split("; "):
+        col.label(text=part)
+    layout.operator("pdeface.fit_to_selected", text="Accept anyway and Fit", icon="CHECKMARK").accept = True
+
+
+class PDEFACE_PT_landmarks(_Panel, bpy.types.Panel):
+    """The guided landmark editor: the scheme's picture, the groups, the gate's verdict, snap, export, import."""
+
+    bl_label = "Landmarks"
+    bl_parent_id = "PDEFACE_PT_face"
+
+    @classmethod
+    def poll(cls, context):
+        return landmarks.mesh_of(context.active_object) is not None
+
+    def draw(self, context):
+        layout = self.layout
+        mesh = landmarks.mesh_of(context.active_object)
+        failing = landmarks.failing_groups(mesh)
+        if failing:
+            _gate_failure(layout, mesh)
+        layout.template_icon(icon_value=landmarks.scheme_icon(), scale=9.0)
+        col = layout.column(align=True)
+        for group, rows in landmarks.GROUPS.items():
+            col.label(text=f"{group} {rows.start}-{rows.stop - 1}", icon="ERROR" if group in failing else "DOT")
+        if landmarks.empties(mesh) is None:
+            layout.label(text="No landmark empties yet: Find or Import Landmarks", icon="INFO")
+        else:
+            layout.label(text="Drag the empties to the scheme's places, then Snap and Fit", icon="INFO")
+            layout.operator("pdeface.snap_landmarks", icon="SNAP_ON")
+        row = layout.row(align=True)
+        row.operator("pdeface.import_landmarks", icon="IMPORT")
+        row.operator("pdeface.export_landmarks", icon="EXPORT")
+        layout.operator("pdeface.show_landmark_scheme", icon="IMAGE_REFERENCE")
 
 
 class PDEFACE_PT_action_units(_FacePanel, bpy.types.Panel):
@@ -179,7 +223,7 @@ class PDEFACE_PT_texture(_FacePanel, bpy.types.Panel):
         layout.operator("pdeface.transfer_texture", icon="TEXTURE")
 
 
-_classes = (PDEFACE_PT_face, PDEFACE_PT_action_units, PDEFACE_PT_expressions, PDEFACE_PT_animation,
+_classes = (PDEFACE_PT_face, PDEFACE_PT_landmarks, PDEFACE_PT_action_units, PDEFACE_PT_expressions, PDEFACE_PT_animation,
             PDEFACE_PT_muscles, PDEFACE_PT_live, PDEFACE_PT_texture)
 
 
