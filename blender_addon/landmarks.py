@@ -24,7 +24,8 @@ from pdeface.errors import FileError, LandmarkError, MeshError, PdeFaceError
 from pdeface.geometry import ClosestPoint
 from pdeface.io.files import atomic_open
 from pdeface.landmark_scheme import eye_distance
-from pdeface.landmarks import MissingDependencyError, available, detect
+from pdeface.landmarks import MissingDependencyError, available
+from pdeface.landmarks.headfind import detect_anywhere
 from pdeface.landmarks.detector import RUNTIME_PACKAGES
 from pdeface.landmarks.facemap import GROUPS
 from pdeface.landmarks.gate import LandmarkGateError, check
@@ -324,7 +325,7 @@ def find(context, obj, unit=None):
         raise MeshError(f"{obj.name} has no faces")
     t = time.perf_counter()
     try:
-        found = detect(V, T, unit)
+        found = detect_anywhere(V, T, unit)  # on a body, the head first (as the CLI does)
     except MissingDependencyError:
         raise LandmarkError("finding landmarks needs the face-landmark model: press Install Landmark Model in the "
                             "PDE Face panel, or choose Vertex group, Selected vertices or JSON file") from None

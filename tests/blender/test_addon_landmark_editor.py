@@ -230,7 +230,7 @@ def test_find_landmarks_reports_the_gate_and_leaves_the_empties_to_edit(bpy, hea
     bad = true.copy()
     bad[[56, 57, 58], 1] += 0.01
     found = SimpleNamespace(points=bad, confidence=dict.fromkeys(lms_mod.GROUPS, 0.9), view="-y roll 0", skin=None)
-    monkeypatch.setattr(lms_mod, "detect", lambda V, T, unit: found)
+    monkeypatch.setattr(lms_mod, "detect_anywhere", lambda V, T, unit: found)
     assert bpy.ops.pdeface.find_landmarks() == {"FINISHED"}  # a warning, not an error: the empties are the work
     assert np.allclose(lms_mod.empty_points(obj), bad, atol=1e-6)
     assert lms_mod.failing_groups(obj) == ["mouth"] and "mouth: surface" in obj[lms_mod.GATE_PROP]
