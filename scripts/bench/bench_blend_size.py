@@ -24,10 +24,11 @@ from pathlib import Path
 import numpy as np
 
 from scripts.bench.benchlib import bench_parser, run_bench
+from scripts.devset import makehuman
 
 ROOT = Path(__file__).resolve().parents[2]
-#: Where the development data lies beside a checkout (give ``--makehuman`` from elsewhere).
-MAKEHUMAN = ROOT.parent / "shared" / "data" / "makehuman" / "base.obj"
+#: MakeHuman's base mesh where the development set finds it (give ``--makehuman`` from elsewhere).
+MAKEHUMAN = makehuman.DATA / "base.obj"
 #: ICT's head split as heads are usually exported (HEAD_PARTS prefixes per object).
 ICT_OBJECTS = {"Skin": ("face", "head_and_neck", "mouth_socket", "eye_socket", "eyelashes"), "Gums": ("gums",),
                "Teeth": ("teeth",), "Eyes": ("eyeball", "lacrimal", "eye_blend", "eye_occlusion")}

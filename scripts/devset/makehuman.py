@@ -14,9 +14,17 @@ from pathlib import Path
 
 import numpy as np
 
+
+
+def _beside_checkout() -> Path:
+    """``../shared/data/makehuman`` beside the checkout (or beside the folder of a git worktree of it)."""
+    root = Path(__file__).resolve().parents[2]
+    places = [up / "shared" / "data" / "makehuman" for up in (root.parent, root.parent.parent)]
+    return next((p for p in places if (p / "base.obj").is_file()), places[0])
+
+
 #: Where the data lies (``PDEFACE_MAKEHUMAN`` overrides): beside the checkout, as the issue names it.
-DATA = Path(os.environ.get("PDEFACE_MAKEHUMAN",
-                           Path(__file__).resolve().parents[2].parent.parent / "shared" / "data" / "makehuman"))
+DATA = Path(os.environ.get("PDEFACE_MAKEHUMAN") or _beside_checkout())
 #: Millimetres per base-mesh unit (decimetres).
 BASE_MM = 100.0
 
