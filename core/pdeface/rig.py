@@ -30,10 +30,9 @@ from .head.bind import HeadBinding
 from .head.parts import read_overrides, skin_mask
 from .headless import run_headless
 from .io.files import load_npz, npz_bytes, parse_json, write_bytes
-from .landmarks.pipeline import find_on_mesh
+from .landmarks.checked import find_checked
 from .presets import key_poses, merged_presets
 from .surface.fit import fit_face
-from .surface.frame import UNITS_MM
 from .surface.scan import load_scan
 
 KEYS_FORMAT = "pdeface.keys"
@@ -46,7 +45,8 @@ def save_keys(path, vertices, triangles, landmarks, names, deltas, unit, source=
     """Write the keys file: the rest mesh ``vertices (n, 3)``, ``triangles (t, 3)``, ``landmarks (68, 3)`` and
     each key's ``deltas (k, n, 3)`` (float32, the mesh's unit) named ``names``; returns its size in bytes."""
     meta = {"version": KEYS_VERSION, "unit": unit, "names": list(names), "source": source}
-    arrays = {"format": np.array(KEYS_FORMAT), "meta": np.frombuffer(json.dumps(meta, separators=(",", ":")).encode(), np.uint8),
+    meta_bytes = json.dumps(meta, separators=(",", ":")).encode()
+    arrays = {"format": np.array(KEYS_FORMAT), "meta": np.frombuffer(meta_bytes, np.uint8),
               "vertices": np.asarray(vertices, np.float64), "triangles": np.asarray(triangles, np.int32),
               "landmarks": np.asarray(landmarks, np.float64), "deltas": np.asarray(deltas, np.float32)}
     return write_bytes(path, npz_bytes(arrays))
@@ -65,7 +65,7 @@ def load_keys(path) -> dict:
 
 
 def rig_head(mesh_arg, out, landmarks=None, unit=None, parts=None, descriptors=DEFAULT, presets=True,
-             blend=False, log=None) -> dict:
+             blend=False, accept=False, log=None) -> dict:
     """Rig the head ``mesh_arg`` (a file, ``head`` or ``default``) into the folder ``out``; returns the report.
 
     Parameters
@@ -76,7 +76,7 @@ def rig_head(mesh_arg, out, landmarks=None, unit=None, parts=None, descriptors=D
     landmarks : str, optional
         The mesh's landmarks JSON; found on the mesh (MediaPipe) when None and the mesh is a file.
     unit : str, optional
-        The mesh's unit (guessed from the eyes when None).
+        The mesh's unit (estimated from the face's size when None: any scale).
     parts : str, optional
         JSON of part overrides (as ``pdeface parts`` writes): its skin is fitted, its parts bound.
     descriptors : str
@@ -85,6 +85,8 @@ def rig_head(mesh_arg, out, landmarks=None, unit=None, parts=None, descriptors=D
         Also a key per preset the face has AUs for (as the add-on's Fit makes).
     blend : bool
         Also ``head.blend``, rigged by the add-on (needs Blender's bpy module).
+    accept : bool
+        Go on with found landmarks that fail the landmark gate (the report records the verdict).
     log : callable, optional
         Called with each progress line.
 
@@ -112,18 +114,16 @@ def rig_head(mesh_arg, out, landmarks=None, unit=None, parts=None, descriptors=D
     report["vertices"], report["triangles"] = len(V), len(T)
     lap("read")
     if lm is None:
-        found = find_on_mesh(mesh, unit)
+        found, verdict = find_checked(mesh, unit, accept=accept, log=say)  # the head first; then the gate
         lm = found.points
-        lm_json = found.to_json()
+        lm_json = {**found.to_json(), "gate": verdict.to_json()}  # as pdeface landmarks writes it
         report["landmarks"] = {"source": "found", "detector_score": round(found.score, 3), "view": found.view,
-                               "residual_mm": round(found.residual_mm, 2),
+                               "residual_mm": round(found.residual_mm, 2), "gate": verdict.to_json(),
                                "confidence": {k: round(v, 3) for k, v in found.confidence.items()}}
-        say(f"{mesh_arg}: found the 68 landmarks (detector score {found.score:.2f}, "
-            f"{found.residual_mm:.1f} mm from the template)")
     else:
         lm_json = {"points": np.round(lm, 6).tolist()}
         report["landmarks"] = {"source": "given" if landmarks else "bundled"}
-    write_bytes(out / "landmarks.json", json.dumps(lm_json).encode())
+    write_bytes(out / "landmarks.json", json.dumps(lm_json, allow_nan=False).encode())
     lap("landmarks")
 
     overrides = read_overrides(parts) if parts else None
@@ -145,7 +145,7 @@ def rig_head(mesh_arg, out, landmarks=None, unit=None, parts=None, descriptors=D
     save_keys(out / "keys.npz", V, T, lm, list(poses), deltas, model.frame.unit, str(mesh_arg))
     report["keys"] = {"count": len(poses), "aus": sum(n.startswith("AU") for n in poses),
                       "largest_mm": round(float(np.linalg.norm(deltas, axis=2).max(initial=0.0))
-                                          * UNITS_MM[model.frame.unit], 2)}
+                                          * model.frame.scale, 2)}
     report["binding_notes"] = list(binding.notes)
     lap("keys")
 

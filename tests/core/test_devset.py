@@ -182,6 +182,9 @@ def test_cli_stops_on_a_failing_gate_with_a_picture_and_accept_goes_on(tmp_path,
     data = json.loads(out.read_text(), parse_constant=lambda c: pytest.fail(f"bare {c} in the JSON"))
     assert data["gate"]["passed"] is False and data["gate"]["failures"]
     assert main(["fit", str(src), "-o", str(tmp_path / "f.npz"), "--curves", "12", "--points", "17"]) == 2
+    capsys.readouterr()
+    assert main(["rig", str(src), "-o", str(tmp_path / "rig")]) == 2  # the one-go rig stops at the gate too
+    assert "fail the landmark gate" in capsys.readouterr().err and not (tmp_path / "rig" / "keys.npz").exists()
 
 
 @needs_makehuman

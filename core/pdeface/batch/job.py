@@ -27,7 +27,7 @@ KINDS = ("rig", "stimuli", "render")
 TASK_VERSION = 1
 COMMON = {"kind", "out", "retries"}
 KEYS = {
-    "rig": COMMON | {"meshes", "landmarks", "unit", "descriptors", "presets", "blend"},
+    "rig": COMMON | {"meshes", "landmarks", "unit", "descriptors", "presets", "blend", "accept"},
     "stimuli": COMMON | {"faces", "aus", "presets", "intensities", "views", "size", "samples", "background",
                          "sampler"},
     "render": COMMON | {"timeline", "face", "head", "blend", "chunk", "engine", "size", "samples", "seed"},
@@ -171,7 +171,8 @@ def _plan_rig(data, base, where):
             raise JobError(f"{where}: {spec!r} matches no file")
         entries += [{**entry, "mesh": f} for f in found]
     options = {"unit": data.get("unit"), "descriptors": _path(base, data.get("descriptors", DEFAULT)),
-               "presets": bool(data.get("presets", True)), "blend": bool(data.get("blend", False))}
+               "presets": bool(data.get("presets", True)), "blend": bool(data.get("blend", False)),
+               "accept": bool(data.get("accept", False))}  # found landmarks that fail the gate: go on anyway
     tasks = []
     names = _unique_names(Path(e["mesh"]).stem for e in entries)
     for entry, name in zip(entries, names):

@@ -67,7 +67,8 @@ def run_task(task, out) -> dict:
 
 def _rig(p, out, key):
     rig_head(p["mesh"], out / p["folder"], landmarks=p["landmarks"], unit=p["unit"], parts=p["parts"],
-             descriptors=p["descriptors"], presets=p["presets"], blend=p["blend"])
+             descriptors=p["descriptors"], presets=p["presets"], blend=p["blend"],
+             accept=p.get("accept", False))
 
 
 def _stimulus(p, out, key):

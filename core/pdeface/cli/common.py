@@ -15,7 +15,7 @@ from ..surface.frame import UNITS_MM
 from ..surface.model import model_landmarks
 from ..surface.pde import ASSEMBLIES
 
-UNIT_HELP = "mesh unit (default: guessed from the eyes)"
+UNIT_HELP = "mesh unit (default: estimated from the face's size, any scale)"
 
 
 

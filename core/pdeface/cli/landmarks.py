@@ -2,39 +2,18 @@
 from __future__ import annotations
 
 import json
-import time
 
 from ..io.files import atomic_open, check_output
 from ..io.png import write_png
-from ..landmarks.gate import LandmarkGateError, check, require
-from ..landmarks.headfind import detect_anywhere
+from ..landmarks.checked import find_checked
+from ..landmarks.gate import LandmarkGateError
 from ..surface.scan import load_scan
 from .common import log, output_option, unit_option, verbose_option
 
 
 def find_landmarks(mesh, unit=None, keep_images=False, verbose=False, accept=False):
-    """:func:`~pdeface.landmarks.headfind.detect_anywhere` (on a body where no face shows, the head cut out),
-    saying what it found, then the landmark gate
-    (:mod:`~pdeface.landmarks.gate`; also for ``pdeface fit``). Returns the landmarks and the gate's verdict;
-    raises :class:`~pdeface.landmarks.gate.LandmarkGateError` when a group fails, unless ``accept``."""
-    t = time.perf_counter()
-    T = mesh.triangles()[0]
-    found = detect_anywhere(mesh.vertices, T, unit, keep_images=keep_images, verbose=verbose)
-    low = found.least_sure()
-    log(f"found the 68 landmarks in {time.perf_counter() - t:.1f} s (view {found.view}, detector score "
-        f"{found.score:.2f}, {found.residual_mm:.1f} mm from the template; least sure: {low} "
-        f"{found.confidence[low]:.2f}; {found.mm_per_unit:.4g} mm per unit)")
-    # On the skin the points were cast onto: lashes and helper geometry in front of it are no face.
-    verdict = check(found.points, mesh.vertices, T if found.skin is None else T[found.skin], unit)
-    if not verdict.passed:
-        if not accept:
-            try:
-                require(verdict)
-            except LandmarkGateError as exc:
-                exc.found = found  # for the picture of what failed
-                raise
-        log(f"note: the landmarks fail the gate ({verdict.message()}); going on (--accept)")
-    return found, verdict
+    """:func:`~pdeface.landmarks.checked.find_checked` saying what it found on stderr (also for ``pdeface fit``)."""
+    return find_checked(mesh, unit, keep_images=keep_images, verbose=verbose, accept=accept, log=log)
 
 
 def cmd_landmarks(args):

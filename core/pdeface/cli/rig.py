@@ -7,13 +7,15 @@ from ..assets import DEFAULT
 from ..io.files import check_output
 from ..rig import rig_head
 from .common import log, unit_option
+from .landmarks import accept_option
 
 
 def cmd_rig(args):
     for name in ("keys.npz", "face.npz", "rigged.npz", "landmarks.json", "report.json"):
         check_output(f"{args.output}/{name}", args.mesh, args.landmarks, args.parts)
     report = rig_head(args.mesh, args.output, landmarks=args.landmarks, unit=args.unit, parts=args.parts,
-                      descriptors=args.descriptors, presets=not args.no_presets, blend=args.blend, log=log)
+                      descriptors=args.descriptors, presets=not args.no_presets, blend=args.blend,
+                      accept=args.accept, log=log)
     for note in report["binding_notes"]:
         log(note)
     print(json.dumps({"output": str(args.output), "keys": report["keys"], "timings": report["timings"],
@@ -35,6 +37,7 @@ def register(sub):
                                                              "preset, as the add-on makes)")
     p.add_argument("--blend", action="store_true", help="also head.blend, rigged by the add-on (needs Blender's "
                                                         "bpy module: pdeface[blender])")
+    accept_option(p)
     p.add_argument("-o", "--output", required=True,
                    help="folder to write: landmarks.json, face.npz, rigged.npz, keys.npz (the rest mesh and each "
                         "key's vertex deltas), report.json (what each step found and took)")
