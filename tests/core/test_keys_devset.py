@@ -80,3 +80,31 @@ def test_empty_sockets_get_no_gaze_keys_and_eyeballs_in_the_mesh_are_never_skin(
         assert len(pieces) and (b.parts.kind[np.isin(lab, pieces)] == CODE[side]).all()  # no piece half skin
         _, radius = b.parts.eyes[side]
         assert EYEBALL_IOD[0] < 2 * radius / b.eye_distance < EYEBALL_IOD[1]  # sized as an eyeball
+
+
+@needs_makehuman
+def test_rig_and_all_keys_leave_out_gaze_keys_on_a_head_without_eyeballs(tmp_path, capsys):
+    import json
+
+    from pdeface.cli import main
+    from pdeface.io.meshio import write_mesh
+    from pdeface.mesh import Mesh
+    from pdeface.rig import load_keys
+
+    V, T, L, *_ = rig("base-dm")  # empty sockets
+    write_mesh(tmp_path / "head.obj", Mesh.from_faces(V, T))
+    (tmp_path / "head.json").write_text(json.dumps({"points": L.tolist()}))
+    gaze = {f"AU{a}" for a in GAZE_AUS}
+    assert main(["rig", str(tmp_path / "head.obj"), "--landmarks", str(tmp_path / "head.json"), "--no-presets",
+                 "-o", str(tmp_path / "rig")]) == 0
+    out, err = capsys.readouterr()
+    names = load_keys(tmp_path / "rig/keys.npz")["names"]
+    assert len(names) > 50 and gaze.isdisjoint(names)
+    assert set(json.loads(out)["keys"]["left_out"]) == gaze
+    assert sum("no gaze keys" in line for line in err.splitlines()) == 1  # the one-line note
+    assert main(["pose", str(tmp_path / "rig/rigged.npz"), "--all-keys", "--mesh", str(tmp_path / "head.obj"),
+                 "--landmarks", str(tmp_path / "head.json"), "-o", str(tmp_path / "keys")]) == 0
+    out, err = capsys.readouterr()
+    written = json.loads(out)
+    assert written["aus"] == [n for n in names if n.startswith("AU")] and "no gaze keys" in err
+    assert not any((tmp_path / "keys" / f"{g}.obj").exists() for g in gaze)
