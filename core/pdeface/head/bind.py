@@ -18,7 +18,7 @@ motion to all of the user's mesh, once per fit:
   The README lists what else was tried and measured;
 - **the openings' corners** (inner lip corners, inner eye corners): where the covered skin's motion meets the
   lining's, the skin within ``SEAM_IOD`` of the lining is relaxed towards its neighbours' mean motion
-  (``SEAM_STEPS`` times): the seam's step folded the lining behind the lip corners (issue #40);
+  (``SEAM_STEPS`` times): the seam's step folded the lining there (issue #40);
 - **jaw AUs** (25, 26, 27, 29, 30) turn the jaw's parts (lower teeth, gums,
   tongue) about the hinge with the rotation recovered from the chin's own PDE
   motion (:mod:`pdeface.rigid`);
@@ -83,7 +83,7 @@ UPPER_LINING_RISE_IOD = 0.15
 #: relaxed SEAM_STEPS times towards its neighbours' mean motion after the binding (issue #40: skin folds in the
 #: worst key on the MakeHuman development set and ICT's head: see docs/measurements/keys_devset.md).
 SEAM_IOD = 0.05
-SEAM_STEPS = 10
+SEAM_STEPS = 5
 #: (landmark, radius in eye distances) of the corners relaxed: the inner lips' and the eyes' inner ones.
 SEAM_CORNERS = ((INNER_LIPS[0], 0.3), (INNER_LIPS[4], 0.3), (EYE_INNER_RIGHT, 0.15), (EYE_INNER_LEFT, 0.15))
 #: The head prior fades out over this share of the way from the covered skin to the rest region.
