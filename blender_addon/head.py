@@ -105,9 +105,10 @@ def head_keys(face, model, poses, users, au_name, expression_name):
     b, layout = binding(face, model, users)
     rests = [rest_coords(obj) for obj, *_ in layout]
     per_object = {obj.name: (obj, []) for obj, *_ in layout}
-    keys = [(au_name(d), "AU", d.key, d.label) for d in model.descriptors]
+    keyed = b.bindable(model.descriptors)  # no gaze keys on a head without eyeballs (its notes say so)
+    keys = [(au_name(d), "AU", d.key, d.label) for d in keyed]
     keys += [(expression_name(name), "EXPRESSION", "", label) for name, label, _, _ in poses]
-    motions = ([descriptor_motion_args(d) for d in model.descriptors]
+    motions = ([descriptor_motion_args(d) for d in keyed]
                + [b.pose_motion_args(weights, mixer) for _, _, weights, mixer in poses])
     for start in range(0, len(motions), KEY_BATCH):  # a few batches: each one solve, float64 only while solved
         moved = b.displacements(motions[start:start + KEY_BATCH])

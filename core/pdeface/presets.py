@@ -142,14 +142,17 @@ def choose_mixer(requested=None, preset: Preset | None = None) -> str:
     return mixer
 
 
-def key_poses(model, presets, mixer=None) -> dict:
+def key_poses(model, presets, mixer=None, descriptors=None) -> dict:
     """``{name: (AU weights, mixer)}`` of every key a face gets: each descriptor at weight 1 (``AU<key>``),
     then each of ``presets`` (name → :class:`Preset`) this face has AUs for.
 
     ``mixer`` overrides the presets' own (see :func:`choose_mixer`); the AUs' is ``mixer`` or ``sum``.
+    ``descriptors`` (default: the model's) are the ones keyed, e.g. a head's
+    :meth:`~pdeface.head.bind.HeadBinding.bindable` (no gaze keys without eyeballs).
     """
-    keys = {d.key for d in model.descriptors}
-    poses = {f"AU{d.key}": ({d.key: 1.0}, choose_mixer(mixer)) for d in model.descriptors}
+    descriptors = model.descriptors if descriptors is None else descriptors
+    keys = {d.key for d in descriptors}
+    poses = {f"AU{d.key}": ({d.key: 1.0}, choose_mixer(mixer)) for d in descriptors}
     for name, preset in presets.items():
         weights = resolve_preset(preset, keys)[0]
         if weights:

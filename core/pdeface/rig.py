@@ -139,11 +139,13 @@ def rig_head(mesh_arg, out, landmarks=None, unit=None, parts=None, descriptors=D
     lap("retarget")
 
     binding = HeadBinding(rigged, V, T, overrides=overrides)
-    poses = key_poses(rigged, merged_presets([]) if presets else {})
+    keyed = binding.bindable(rigged.descriptors)  # no gaze keys on a head without eyeballs (its notes say so)
+    poses = key_poses(rigged, merged_presets([]) if presets else {}, descriptors=keyed)
     deltas = binding.pose_displacements(list(poses.values()))
     lap("bind")
     save_keys(out / "keys.npz", V, T, lm, list(poses), deltas, model.frame.unit, str(mesh_arg))
     report["keys"] = {"count": len(poses), "aus": sum(n.startswith("AU") for n in poses),
+                      "left_out": sorted({f"AU{d.key}" for d in rigged.descriptors} - set(poses)),
                       "largest_mm": round(float(np.linalg.norm(deltas, axis=2).max(initial=0.0))
                                           * model.frame.scale, 2)}
     report["binding_notes"] = list(binding.notes)

@@ -85,6 +85,18 @@ def test_fit_puts_every_key_on_the_users_objects(bpy, ict_head, tmp_path):
     assert np.linalg.norm(up, axis=1).max() > 0.3  # cm: the eyeballs turn
 
 
+def test_a_head_without_eyeballs_gets_no_gaze_keys(bpy, ict_head):
+    head, eyes, *_ = ict_head
+    bpy.data.objects.remove(eyes)  # empty sockets
+    head.select_set(True)
+    bpy.context.view_layer.objects.active = head
+    assert bpy.ops.pdeface.fit_to_selected() == {"FINISHED"}
+    names = set(key_blocks(head).keys())
+    assert AU12 in names and not any(n.startswith(("AU61 ", "AU62 ", "AU63 ", "AU64 ")) for n in names)
+    notes = addon("face").binding_notes(head.pdeface.rig_face)
+    assert sum("no gaze keys" in n for n in notes) == 1  # the operator reports it
+
+
 def test_panel_operations_drive_the_users_mesh(bpy, ict_head):
     head, eyes, *_ = ict_head
     assert bpy.ops.pdeface.fit_to_selected() == {"FINISHED"}

@@ -1,17 +1,29 @@
 """AU keys on development characters other artists' heads stand for (issue #40)."""
+import json
 from functools import lru_cache
 
 import numpy as np
 import pytest
 from pdeface.au.modelfile import load_face
 from pdeface.au.retarget import curve_map, retarget
+from pdeface.cli import main
 from pdeface.facs import au_number
+from pdeface.head import bind
 from pdeface.head.bind import GAZE_AUS, HeadBinding, descriptor_motion_args
 from pdeface.head.parts import CODE, EYEBALL_IOD
-from pdeface.mesh import connected_components
+from pdeface.io.meshio import write_mesh
+from pdeface.mesh import Mesh, connected_components
+from pdeface.rig import load_keys
 from pdeface.surface.fit import fit_face
 
-from scripts.bench.bench_keys_devset import LIDS, eyes_of
+from scripts.bench.bench_keys_devset import (
+    LIDS,
+    LIP_LOWER_INNER,
+    LIP_UPPER_INNER,
+    edge_face_pairs,
+    eyes_of,
+    turn_degrees,
+)
 from scripts.devset import makehuman
 from scripts.devset.characters import SPECS, build
 
@@ -80,3 +92,44 @@ def test_empty_sockets_get_no_gaze_keys_and_eyeballs_in_the_mesh_are_never_skin(
         assert len(pieces) and (b.parts.kind[np.isin(lab, pieces)] == CODE[side]).all()  # no piece half skin
         _, radius = b.parts.eyes[side]
         assert EYEBALL_IOD[0] < 2 * radius / b.eye_distance < EYEBALL_IOD[1]  # sized as an eyeball
+
+
+@needs_makehuman
+def test_rig_and_all_keys_leave_out_gaze_keys_on_a_head_without_eyeballs(tmp_path, capsys):
+    V, T, L, *_ = rig("base-dm")  # empty sockets
+    write_mesh(tmp_path / "head.obj", Mesh.from_faces(V, T))
+    (tmp_path / "head.json").write_text(json.dumps({"points": L.tolist()}))
+    gaze = {f"AU{a}" for a in GAZE_AUS}
+    assert main(["rig", str(tmp_path / "head.obj"), "--landmarks", str(tmp_path / "head.json"), "--no-presets",
+                 "-o", str(tmp_path / "rig")]) == 0
+    out, err = capsys.readouterr()
+    names = load_keys(tmp_path / "rig/keys.npz")["names"]
+    assert len(names) > 50 and gaze.isdisjoint(names)
+    assert set(json.loads(out)["keys"]["left_out"]) == gaze
+    assert sum("no gaze keys" in line for line in err.splitlines()) == 1  # the one-line note
+    assert main(["pose", str(tmp_path / "rig/rigged.npz"), "--all-keys", "--mesh", str(tmp_path / "head.obj"),
+                 "--landmarks", str(tmp_path / "head.json"), "-o", str(tmp_path / "keys")]) == 0
+    out, err = capsys.readouterr()
+    written = json.loads(out)
+    assert written["aus"] == [n for n in names if n.startswith("AU")] and "no gaze keys" in err
+    assert not any((tmp_path / "keys" / f"{g}.obj").exists() for g in gaze)
+
+
+@needs_makehuman
+def test_the_lip_and_eye_corners_fold_less_and_the_mouth_opens_as_wide(monkeypatch):
+    V, T, L, model, smoothed = rig("base-dm")
+    monkeypatch.setattr(bind, "SEAM_STEPS", 0)
+    raw = HeadBinding(model, V, T, landmarks=L)
+    f = model.frame
+    Vf, Lf = f.to_face(V), f.to_face(L)
+    pairs = edge_face_pairs(T)
+    flat = (turn_degrees(Vf, T, pairs) < 20) & smoothed.parts.mask("skin")[T[pairs]].all(axis=(1, 2))
+    near = [np.argmin(np.linalg.norm(Vf - Lf[i], axis=1)) for i in (LIP_UPPER_INNER, LIP_LOWER_INNER)]
+    descr = {d.key: d for d in model.descriptors}
+    for key in ("27", "12", "45"):
+        args = descriptor_motion_args(descr[key])
+        posed = {n: f.to_face(V + b.displacement(*args)) for n, b in (("raw", raw), ("smoothed", smoothed))}
+        folds = {n: int((flat & (turn_degrees(P, T, pairs) > 40)).sum()) for n, P in posed.items()}
+        assert folds["smoothed"] < 0.8 * folds["raw"], (key, folds)
+        gap = {n: P[near[0], 1] - P[near[1], 1] for n, P in posed.items()}
+        assert abs(gap["smoothed"] - gap["raw"]) < 0.01 * smoothed.eye_distance, (key, gap)

@@ -128,13 +128,19 @@ def _pose_all_keys(args, model):
     if args.au or args.preset:
         raise PdeFaceError("--all-keys writes every AU and preset: drop --au and --preset")
     presets = merged_presets(args.presets or [])
-    poses = key_poses(model, presets, args.mixer)
-    if not poses:
+    if not model.descriptors:  # before the mesh is bound
         raise PdeFaceError(no_descriptors(args.face))
     taken = {"neutral"} | {f"AU{d.key}" for d in model.descriptors}
     clash = sorted(n for n in presets if n in taken or n.lower() in {t.lower() for t in taken})
     if clash:  # its file would replace the base or an AU's own
         raise PdeFaceError(f"preset {clash[0]!r} has the name of an AU's or the neutral's file: rename it")
+    mesh = binding = None
+    if args.mesh:  # bound first: a head without eyeballs gets no gaze keys (its notes say so)
+        mesh, binding = bind_file(model, args.mesh, args.landmarks, args.parts)
+    keyed = model.descriptors if binding is None else binding.bindable(model.descriptors)
+    poses = key_poses(model, presets, args.mixer, descriptors=keyed)
+    if not poses:
+        raise PdeFaceError(no_descriptors(args.face))
     poses = {"neutral": ({}, choose_mixer(args.mixer)), **poses}  # the base the other files are targets of
     ext = "." + (args.format or _input_format(args.mesh))
     out = Path(args.output)
@@ -153,8 +159,7 @@ def _pose_all_keys(args, model):
     for path in files.values():
         check_output(path, *inputs)
     t0 = time.perf_counter()
-    if args.mesh:
-        mesh, binding = bind_file(model, args.mesh, args.landmarks, args.parts)
+    if binding is not None:
         D = binding.pose_displacements(list(poses.values()))
         write_posed_many(((path, mesh.vertices + d) for path, d in zip(files.values(), D)), args.mesh, mesh)
         for note in binding.notes:
@@ -166,7 +171,7 @@ def _pose_all_keys(args, model):
             mesh = face_mesh(model, args.resolution, args.assembly, coefficients=C, residual=R)
             write_mesh(files[name], mesh)
         vertices = len(mesh.vertices)
-    aus = [f"AU{d.key}" for d in model.descriptors]
+    aus = [f"AU{d.key}" for d in keyed]
     log(f"wrote {len(files)} meshes of {vertices} vertices in {time.perf_counter() - t0:.1f} s: {len(aus)} AUs, "
         f"{len(files) - len(aus) - 1} presets and the neutral")
     presets = [n for n in poses if n not in aus and n != "neutral"]

@@ -16,6 +16,9 @@ motion to all of the user's mesh, once per fit:
   mouth than ``MOUTH_DEPTH_IOD`` behind the lips (in jaw AUs only its upper half), or the upper lining's
   top deeper than ``UPPER_LINING_IOD``.
   The README lists what else was tried and measured;
+- **the openings' corners** (inner lip corners, inner eye corners): where the covered skin's motion meets the
+  lining's, the skin within ``SEAM_IOD`` of the lining is relaxed towards its neighbours' mean motion
+  (``SEAM_STEPS`` times): the seam's step folded the lining there (issue #40);
 - **jaw AUs** (25, 26, 27, 29, 30) turn the jaw's parts (lower teeth, gums,
   tongue) about the hinge with the rotation recovered from the chin's own PDE
   motion (:mod:`pdeface.rigid`);
@@ -35,8 +38,18 @@ import numpy as np
 from .. import landmark_scheme
 from ..errors import MeshError, PdeFaceError
 from ..facs import au_number, normalise_weights
-from ..geometry import ClosestPoint, triangle_cross, unit_rows
-from ..landmark_scheme import CHIN, JAW_LEFT_ANGLE, JAW_RIGHT_ANGLE, LIP_LOWER_BOTTOM, LIP_MIDDLES, NOSE_BOTTOM
+from ..geometry import ClosestPoint, smoothstep, triangle_cross, unit_rows
+from ..landmark_scheme import (
+    CHIN,
+    EYE_INNER_LEFT,
+    EYE_INNER_RIGHT,
+    INNER_LIPS,
+    JAW_LEFT_ANGLE,
+    JAW_RIGHT_ANGLE,
+    LIP_LOWER_BOTTOM,
+    LIP_MIDDLES,
+    NOSE_BOTTOM,
+)
 from ..mesh import connected_components, cotan_laplacian, seam_welds, vertex_normals
 from ..posing import pose_curves
 from ..rigid import JAW_BONE_GAIN, gaze_matrix, jaw_hinge, jaw_motion, rigid_displacement, rotation_vector_matrix
@@ -66,6 +79,13 @@ MOUTH_DEPTH_IOD = 0.8
 #: top, bound to the upper jaw (ICT's stays put; free, the lips' motion spread into it: spill 0.3-0.5 mm).
 UPPER_LINING_IOD = 0.5
 UPPER_LINING_RISE_IOD = 0.15
+#: The openings' corners: skin within SEAM_IOD eye distances of the lining (skin the PDE face does not cover) is
+#: relaxed SEAM_STEPS times towards its neighbours' mean motion after the binding (issue #40: skin folds in the
+#: worst key on the MakeHuman development set and ICT's head: see docs/measurements/keys_devset.md).
+SEAM_IOD = 0.05
+SEAM_STEPS = 5
+#: (landmark, radius in eye distances) of the corners relaxed: the inner lips' and the eyes' inner ones.
+SEAM_CORNERS = ((INNER_LIPS[0], 0.3), (INNER_LIPS[4], 0.3), (EYE_INNER_RIGHT, 0.15), (EYE_INNER_LEFT, 0.15))
 #: The head prior fades out over this share of the way from the covered skin to the rest region.
 PRIOR_FADE = 0.3
 #: AUs that move the jaw, and the gaze AUs.
@@ -177,6 +197,30 @@ def _depths(P, covered, Lf, eye_distance, eyes):
     return depths
 
 
+def _seam_smoother(P, L, covered, rest, Lf, eye_distance):
+    """``(band, S, weight, steps)``: the skin at the openings' corners near their lining (skin the PDE face does not
+    cover), the map to each one's neighbours' mean motion (cotangent weights: a harmonic lining is left as it
+    is) and how far each relaxes per step (fading to 0 at the band's edges: no new step there); None when
+    SEAM_STEPS is 0 or there is no band."""
+    from scipy.sparse import diags
+    from scipy.spatial import cKDTree
+
+    lining = ~covered & ~rest
+    if not SEAM_STEPS or not lining.any():
+        return None
+    at_corner = np.zeros(len(P))
+    for i, r in SEAM_CORNERS:
+        at_corner = np.maximum(at_corner, smoothstep(1 - np.linalg.norm(P - Lf[i], axis=1) / (r * eye_distance)))
+    near = smoothstep(1 - cKDTree(P[lining]).query(P)[0] / (SEAM_IOD * eye_distance))
+    weight = at_corner * near * ~rest
+    band = np.nonzero(weight > 0)[0]
+    if not len(band):
+        return None
+    W = (diags(L.diagonal()) - L).tocsr()  # the Laplacian's (clamped, positive) neighbour weights
+    S = diags(1.0 / np.maximum(L.diagonal(), 1e-300)) @ W
+    return band, S[band].tocsr(), weight[band, None], SEAM_STEPS
+
+
 class HeadBinding:
     """The linear map from a PDE face's motion to every vertex of the user's head mesh.
 
@@ -262,6 +306,7 @@ class HeadBinding:
         self._ext = _Extension(L, covered | rest | depths, self._read_skin)
         self._jaw_fixed = covered | rest | (depths & (P[:, 1] > mouth_line(Lf)))  # the jaw moves the lower depths
         self._ext_jaw = None  # factorised on first use
+        self._seam = _seam_smoother(P, L, covered, rest, Lf, eye_distance)
 
         # Jaw: the chin that drives it, and the parts it turns.
         chin = covered & (P[:, 1] < Lf[LIP_LOWER_BOTTOM, 1] - 0.08 * eye_distance) & (np.abs(P[:, 0]) < abs(Lf[JAW_RIGHT_ANGLE, 0] - Lf[JAW_LEFT_ANGLE, 0]) / 2) \
@@ -407,6 +452,12 @@ class HeadBinding:
     def displacements(self, motions) -> np.ndarray:
         """:meth:`displacement` of several ``(delta_coefficients, delta_residual, jaw, gaze)`` at once, (k, n, 3)."""
         out = self.face_motions(motions).transpose(1, 0, 2)  # (n, k, 3)
+        if self._seam is not None:
+            band, S, w, steps = self._seam
+            flat = out[self.skin].reshape(len(self.skin), -1)
+            for _ in range(steps):
+                flat[band] += w * (S @ flat - flat[band])
+            out[self.skin] = flat.reshape(len(self.skin), -1, 3)
         for centre, radius, _, guard in self.eyes.values():
             if len(guard):
                 g = self.skin[guard]
