@@ -43,8 +43,8 @@ NARROW_FULL = 0.6
 #: converge at the eye corners (AU45 capture 0.905 -> 0.892 on identity007).
 NARROW_NONE = 0.9
 #: The lids' relative motion across the eye opening scales with the target's opening against the source's
-#: (a blink closes a wider eye as far), within these bounds.
-LID_GAP_RATIO = (0.5, 2.0)
+#: (a blink closes a wider eye as far), within these bounds (above 1.5 the low-poly face's AU45 folds its lid).
+LID_GAP_RATIO = (0.5, 1.5)
 #: Weight of staying at the scaled source motion against matching the shrunk
 #: differences: small, so a shrunk gap's motion is taken up by the curves beside it.
 SOURCE_WEIGHT = 0.05
