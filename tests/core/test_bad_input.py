@@ -262,6 +262,18 @@ def test_values_far_beyond_a_face_are_refused(tmp_path, default_face):
     refused(lambda: load_model(tmp_path / "m.npz"), "residual")
 
 
+@pytest.mark.parametrize("scale", [1e300, -1.0, 0.0])
+def test_a_model_whose_frame_is_no_rotation_and_scale(tmp_path, scale):
+    from pdeface.assets import DEFAULT_FACE, asset_path
+    from pdeface.au.modelfile import load_model
+
+    with zipfile.ZipFile(asset_path(DEFAULT_FACE)) as zf:
+        arrays = {n[:-4]: np.load(io.BytesIO(zf.read(n))) for n in zf.namelist()}
+    arrays["frame"] = arrays["frame"] * scale  # x1e300: its scale overflows to inf (was accepted, issue 38)
+    np.savez_compressed(tmp_path / "m.npz", **arrays)
+    assert "m.npz" in refused(lambda: load_model(tmp_path / "m.npz"), "field 'frame'")
+
+
 def load_model_copy(model):
     import copy
 

@@ -6,6 +6,7 @@ import contextlib
 import io
 import json
 import os
+import re
 import stat
 import tempfile
 import zipfile
@@ -90,6 +91,12 @@ def inflate(data: bytes, where, error=ModelFormatError, wbits=15, limit=MAX_BYTE
     if not stream.eof:
         raise error(f"{where}: compressed data is truncated")
     return raw
+
+
+def whole_digits(text) -> int:
+    """The digits of a number's whole part as written (``"-1234.5e6"`` → 4): what :data:`MAX_DIGITS` limits in
+    every text format, floats included (a fraction may be long; no value pdeface reads is 10**15 or more)."""
+    return sum(c.isdigit() for c in re.split("[.eE]", str(text), maxsplit=1)[0])
 
 
 def parse_int(text, where, error=ModelFormatError) -> int:
