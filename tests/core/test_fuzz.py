@@ -63,10 +63,9 @@ def refused_fast(call, error, match):
 def test_bombs_and_absurd_sizes_are_refused_before_allocating(tmp_path, fitted, scan):
     from pdeface.au.descriptorfile import MAGIC, load_descriptor
     from pdeface.au.modelfile import load_model, model_to_bytes
-    from pdeface.io.files import MAX_BYTES
     from pdeface.surface.fit import fit_face
-    # a .pdd whose body inflates past an archive's limit
-    (tmp_path / "bomb.pdd").write_bytes(MAGIC + zlib.compress(b"\0" * (MAX_BYTES["archive"] + 2**20), 9))
+    # a .pdd whose body inflates to 64 MiB of zeros
+    (tmp_path / "bomb.pdd").write_bytes(MAGIC + zlib.compress(b"\0" * 64 * 2**20, 9))
     refused_fast(lambda: load_descriptor(tmp_path / "bomb.pdd"), ModelFormatError, "inflates past")
     # a model archive whose member inflates to 128 MiB
     buf = io.BytesIO()

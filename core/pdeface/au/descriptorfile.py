@@ -44,6 +44,8 @@ VERSION = 1
 MAGIC = b"PDEDESC\0"
 #: Rounding step of point changes in binary descriptors (mm).
 POINT_STEP_MM = 0.05
+#: The most a binary descriptor's body may inflate to (a full face's points at 1 µm would be far less).
+MAX_INFLATED = 16 * 2**20
 
 
 def _meta(d: Descriptor) -> dict:
@@ -160,7 +162,7 @@ def descriptor_from_bytes(data: bytes, where="descriptor") -> Descriptor:
     """Read the compact binary form; errors name the problem."""
     if data[:8] != MAGIC:
         raise ModelFormatError(f"{where}: not a pdeface binary descriptor (bad magic)")
-    raw = inflate(data[8:], f"{where}: body")  # at most an archive's limit, io.files.MAX_BYTES
+    raw = inflate(data[8:], f"{where}: body", limit=MAX_INFLATED)
     if len(raw) < 4:
         raise ModelFormatError(f"{where}: truncated")
     (n,) = struct.unpack("<I", raw[:4])
