@@ -316,3 +316,40 @@ def test_files_past_their_kind_limit_are_refused_before_reading(tmp_path, monkey
     monkeypatch.setitem(files.MAX_BYTES, "json", 10)
     (tmp_path / "small.json").write_text('{"format": "x"}')
     refused(lambda: load_presets(tmp_path / "small.json"), "too large")
+
+
+def test_a_small_file_is_read_without_reserving_its_kind_limit(tmp_path, monkeypatch):
+    """read(n) allocates n bytes first: asking for a mesh's 1 GiB limit made every OBJ read a MemoryError
+    under a 500 MB address-space cap (the fuzz campaign's)."""
+    from pdeface.io import files
+
+    asked = []
+    real_open = files.open_file
+
+    class Recording:  # the opened file, noting what each read asks for
+        def __init__(self, fh):
+            self.fh = fh
+
+        def read(self, n=-1):
+            asked.append(n)
+            return self.fh.read(n)
+
+        def fileno(self):
+            return self.fh.fileno()
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            self.fh.close()
+
+    def recording_open(*args, **kwargs):
+        return Recording(real_open(*args, **kwargs))
+
+    monkeypatch.setattr(files, "open_file", recording_open)
+    (tmp_path / "m.obj").write_bytes(b"v 0 0 0\n" * 100)
+    assert files.read_bytes(tmp_path / "m.obj") == b"v 0 0 0\n" * 100
+    assert max(asked) <= 801
+    monkeypatch.setattr(files, "open_file", real_open)
+    if os.path.exists("/proc/self/status"):  # a regular file of size 0 that reads as text: read to its end
+        assert b"VmSize" in files.read_bytes("/proc/self/status", kind="json")

@@ -64,10 +64,15 @@ def check_readable(path, error=ModelFormatError, kind=None) -> int:
 def read_bytes(path, error=ModelFormatError, kind=None) -> bytes:
     """A whole file's bytes, at most ``MAX_BYTES[kind]`` (see :func:`open_file`)."""
     kind = kind or file_kind(path)
+    limit = MAX_BYTES[kind]
     with open_file(path, "rb", error, kind) as fh:
-        data = fh.read(MAX_BYTES[kind] + 1)  # a file growing while read is cut off too
-    if len(data) > MAX_BYTES[kind]:
-        raise error(f"{path}: larger than a {kind} file may be (limit {MAX_BYTES[kind] >> 20} MiB)")
+        # read(n) allocates n bytes first: ask for the file's size (and one more), not the limit
+        size = os.fstat(fh.fileno()).st_size
+        data = fh.read(min(size, limit) + 1)
+        if size < len(data) <= limit:  # it grew while read: on to the limit (and one more)
+            data += fh.read(limit + 1 - len(data))
+    if len(data) > limit:
+        raise error(f"{path}: larger than a {kind} file may be (limit {limit >> 20} MiB)")
     return data
 
 
