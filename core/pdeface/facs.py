@@ -79,7 +79,7 @@ def weight_to_letter(weight: float) -> str:
     return "" if w <= 0 else "ABCDE"[min(4, max(0, math.ceil(round(w * 5, 9)) - 1))]
 
 
-_KEY = re.compile(r"^(?:AU)?(\d{1,4})([LR]?)$", re.IGNORECASE)  # no AU has more digits (nor int() thousands)
+_KEY = re.compile(r"^(?:AU)?(\d{1,4})([LR]?)$", re.IGNORECASE)  # the key grammar (zero-padded to 4 digits at most)
 
 
 def parse_au_key(key) -> str:

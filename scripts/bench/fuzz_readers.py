@@ -473,7 +473,7 @@ def fuzz(name, n, seed=0, slow_s=2.0, keep=5):
         _CONSUMERS.update(consumers())
     consume = _CONSUMERS.get(name)
     rng = random.Random(f"{seed}:{name}")
-    failures, slowest, consumed, slow, known = [], (0.0, None), 0, 0, 0
+    failures, slowest, consumed, slow = [], (0.0, None), 0, 0
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / f"input{suffix}"
         for k in range(n):
@@ -488,33 +488,14 @@ def fuzz(name, n, seed=0, slow_s=2.0, keep=5):
             except PdeFaceError:
                 pass
             except Exception as exc:  # noqa: BLE001 - what the fuzzer is for
-                if _known(exc):
-                    known += 1
-                else:
-                    _keep(failures, keep, k, exc)
+                _keep(failures, keep, k, exc)
             dt = time.perf_counter() - t
             slow += dt > slow_s
             if dt > slowest[0]:
                 slowest = (dt, k)
-    return {"reader": name, "inputs": n, "consumed": consumed, "failures": len(failures), "known": known,
+    return {"reader": name, "inputs": n, "consumed": consumed, "failures": len(failures),
             "examples": [f for f in failures if f], "slowest_s": slowest[0], "slowest_input": slowest[1],
             "over_limit": slow, "over_2s": slow, "peak_rss_mb": peak_rss_mb()}
-
-
-#: Escapes issue #38 lists, fixed on the readers' branch (bad-readers): (exception, the file it escapes from, a
-#: piece of its message). The presets' and timeline's wrong types; a PLY count of 5,000 digits; a mesh vertex
-#: so far away that the fit's face frame overflows (the skin's KD-tree) or its ray grid is sized from it
-#: (np.repeat: negative counts, or gigabytes). Counted as ``known``, not as failures, until that branch is
-#: merged: then drop them.
-KNOWN = {("TypeError", "presets.py", ""), ("TypeError", "timeline.py", ""),
-         ("ValueError", "_ckdtree.pyx", "must be finite"), ("ValueError", "_ckdtree.pyx", "overflow"),
-         ("ValueError", "fromnumeric.py", "repeats may not"), ("MemoryError", "fromnumeric.py", ""),
-         ("ValueError", "meshio.py", "Exceeds the limit")}
-
-
-def _known(exc) -> bool:
-    where = Path(traceback.extract_tb(exc.__traceback__)[-1].filename).name
-    return any(type(exc).__name__ == e and where == f and m in str(exc) for e, f, m in KNOWN)
 
 
 def _keep(failures, keep, k, exc):
@@ -607,7 +588,7 @@ def fuzz_cli(n, seed=0, slow_s=2.0, keep=5):
             slow += dt > slow_s
             if dt > slowest[0]:
                 slowest = (dt, k)
-    return {"reader": "cli", "inputs": n, "consumed": ran, "failures": len(failures), "known": 0,
+    return {"reader": "cli", "inputs": n, "consumed": ran, "failures": len(failures),
             "examples": [f for f in failures if f], "slowest_s": slowest[0], "slowest_input": slowest[1],
             "over_limit": slow, "over_2s": slow, "peak_rss_mb": peak_rss_mb()}
 
@@ -640,15 +621,14 @@ def markdown(results, args, seconds) -> str:
              (f"`python -m scripts.bench.fuzz_readers --inputs {args.inputs} --cli --seed {args.seed}` "
              f"({seconds / 60:.0f} min, load {os.getloadavg()[0]:.1f}; each input limited to {args.time_limit:g} s "
              f"and the process to {args.memory_mb} MB past its warm-up size)."), "",
-             ("| target | inputs | read and consumed | failures | known (#38, bad-readers) | over the time limit "
-             "| slowest (s) |"), "|---|---:|---:|---:|---:|---:|---:|"]
+             "| target | inputs | read and consumed | failures | over the time limit | slowest (s) |",
+             "|---|---:|---:|---:|---:|---:|"]
     for r in results:
-        lines.append(f"| {r['reader']} | {r['inputs']} | {r['consumed']} | {r['failures']} | {r['known']} | "
-                     f"{r['over_limit']} | "
+        lines.append(f"| {r['reader']} | {r['inputs']} | {r['consumed']} | {r['failures']} | {r['over_limit']} | "
                      f"{r['slowest_s']:.2f} |")
     lines += ["", (f"Peak RSS {max(r['peak_rss_mb'] for r in results):.0f} MB. *Read and consumed*: inputs the reader "
               "accepted whose consumer then ran (the rules and packets have none; the CLI's: command lines run to the "
-              "end). *Known*: escapes issue #38 lists, fixed on the readers' branch (`KNOWN` in the script).")]
+              "end).")]
     for r in results:
         for f in r["examples"]:
             lines.append(f"- {r['reader']} input {f['input']}: `{f['error']}` at {f['where']}")
@@ -677,7 +657,6 @@ def main(argv=None):
             fuzz(name, args.inputs, args.seed, args.time_limit)
         out.append(r)
         print(f"{name:16s} {r['inputs']:>7d} inputs  {r['consumed']:>7d} consumed  {r['failures']} failures  "
-              f"{r['known']} known  "
               f"{r['over_limit']} over {args.time_limit:g} s  slowest {r['slowest_s']:.3f} s  "
               f"peak RSS {r['peak_rss_mb']:.0f} MB", flush=True)
         for f in r["examples"]:

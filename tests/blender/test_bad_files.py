@@ -8,8 +8,6 @@ import numpy as np
 import pytest
 
 MODULE = "bl_ext.pdeface_test.pdeface"
-#: Issue #38's magnitude checks of model values against the face's size are the readers' branch's (bad-readers).
-READER_FIX = pytest.mark.xfail(reason="issue #38: model magnitudes are checked on branch bad-readers", strict=False)
 
 
 def model_bytes(**replace):
@@ -124,7 +122,7 @@ def write(tmp_path, name, data):
     return str(path)
 
 
-@pytest.mark.parametrize("case", [pytest.param(c, marks=READER_FIX) if c == "huge frame" else c for c in MODELS])
+@pytest.mark.parametrize("case", MODELS)
 def test_bad_model_files(bpy, tmp_path, case):
     path = write(tmp_path, "face.npz", MODELS[case])
     message = refused(bpy, lambda: bpy.ops.pdeface.add_default_face(model_path=path))

@@ -262,6 +262,18 @@ def test_values_far_beyond_a_face_are_refused(tmp_path, default_face):
     refused(lambda: load_model(tmp_path / "m.npz"), "residual")
 
 
+@pytest.mark.parametrize("scale", [1e300, -1.0, 0.0])
+def test_a_model_whose_frame_is_no_rotation_and_scale(tmp_path, scale):
+    from pdeface.assets import DEFAULT_FACE, asset_path
+    from pdeface.au.modelfile import load_model
+
+    with zipfile.ZipFile(asset_path(DEFAULT_FACE)) as zf:
+        arrays = {n[:-4]: np.load(io.BytesIO(zf.read(n))) for n in zf.namelist()}
+    arrays["frame"] = arrays["frame"] * scale  # x1e300: its scale overflows to inf (was accepted, issue 38)
+    np.savez_compressed(tmp_path / "m.npz", **arrays)
+    assert "m.npz" in refused(lambda: load_model(tmp_path / "m.npz"), "field 'frame'")
+
+
 def load_model_copy(model):
     import copy
 
@@ -304,3 +316,40 @@ def test_files_past_their_kind_limit_are_refused_before_reading(tmp_path, monkey
     monkeypatch.setitem(files.MAX_BYTES, "json", 10)
     (tmp_path / "small.json").write_text('{"format": "x"}')
     refused(lambda: load_presets(tmp_path / "small.json"), "too large")
+
+
+def test_a_small_file_is_read_without_reserving_its_kind_limit(tmp_path, monkeypatch):
+    """read(n) allocates n bytes first: asking for a mesh's 1 GiB limit made every OBJ read a MemoryError
+    under a 500 MB address-space cap (the fuzz campaign's)."""
+    from pdeface.io import files
+
+    asked = []
+    real_open = files.open_file
+
+    class Recording:  # the opened file, noting what each read asks for
+        def __init__(self, fh):
+            self.fh = fh
+
+        def read(self, n=-1):
+            asked.append(n)
+            return self.fh.read(n)
+
+        def fileno(self):
+            return self.fh.fileno()
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            self.fh.close()
+
+    def recording_open(*args, **kwargs):
+        return Recording(real_open(*args, **kwargs))
+
+    monkeypatch.setattr(files, "open_file", recording_open)
+    (tmp_path / "m.obj").write_bytes(b"v 0 0 0\n" * 100)
+    assert files.read_bytes(tmp_path / "m.obj") == b"v 0 0 0\n" * 100
+    assert max(asked) <= 801
+    monkeypatch.setattr(files, "open_file", real_open)
+    if os.path.exists("/proc/self/status"):  # a regular file of size 0 that reads as text: read to its end
+        assert b"VmSize" in files.read_bytes("/proc/self/status", kind="json")

@@ -161,7 +161,8 @@ def test_silent_trickling_and_flooding_strangers_cannot_lock_out_or_delay_a_send
                                   ["play", "--hz", "nan"], ["play", "--transition", "inf"],
                                   ["play", "--duration", "-1"], ["send", "f", "--rate", "1e-300"],
                                   ["send", "f", "--rate", "-4"], ["send", "f", "--port", "70000"],
-                                  ["send", "f", "--port", "0"]])
+                                  ["send", "f", "--port", "0"], ["play", "--hz", "1" * 5000],
+                                  ["send", "f", "--port", "5000" + "0" * 12]])
 def test_bad_stream_arguments_are_usage_errors(argv, capsys):
     with pytest.raises(SystemExit) as exc:
         build_parser().parse_args(["stream", *argv])

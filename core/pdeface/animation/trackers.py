@@ -35,7 +35,7 @@ import numpy as np
 from ..au.ict import ARKIT_TO_AU
 from ..errors import ModelFormatError, PdeFaceError
 from ..facs import clamp_weight, clamp_weights, parse_au_key, split_au_key
-from ..io.files import MAX_DIGITS, open_file, read_lines
+from ..io.files import MAX_DIGITS, open_file, read_lines, whole_digits
 from ..stream.wire import PacketError, parse_packet
 from .timeline import MAX_FPS, MAX_SECONDS, Key, Timeline
 
@@ -76,7 +76,7 @@ def detect_format(path) -> str:
 
 
 def _number(text, path, lineno, column):
-    digits = len(text) > MAX_DIGITS and sum(c.isdigit() for c in re.split("[.eE]", text)[0])
+    digits = len(text) > MAX_DIGITS and whole_digits(text)
     if digits > MAX_DIGITS:  # the whole part's digits: as in JSON, no value in these files needs more
         raise ModelFormatError(f"{path}:{lineno}: column {column!r} has a number of {digits} digits "
                                f"(at most {MAX_DIGITS})")

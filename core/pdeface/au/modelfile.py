@@ -245,10 +245,11 @@ def _read_model(fileobj, path) -> FaceModel:
         if (knots.ndim != 1 or len(knots) < 2 or abs(knots[0]) > 1e-6 or abs(knots[-1] - 1) > 1e-6
                 or not np.diff(knots).min() >= MIN_KNOT_GAP):
             raise ModelFormatError(f"{path}: field 'knots' must rise from 0 to 1, at least {MIN_KNOT_GAP:g} apart")
-        scale = float(np.cbrt(np.linalg.det(M[:3, :3])))
-        if not scale > 0:
+        with np.errstate(all="ignore"):  # a frame scaled by 1e300 overflows here: refused below
+            scale = float(np.cbrt(np.linalg.det(M[:3, :3])))
+            R = M[:3, :3] / scale
+        if not (np.isfinite(scale) and scale > 0) or not np.allclose(R @ R.T, np.eye(3), atol=1e-4):
             raise ModelFormatError(f"{path}: field 'frame' is not a proper rotation and scale")
-        R = M[:3, :3] / scale
         origin = -np.linalg.solve(M[:3, :3], M[:3, 3])
         frame = FaceFrame(R, origin, scale, meta["unit"])
         model = FaceModel(layout, knots, coef, res, frame, feats,

@@ -1,12 +1,11 @@
 """``pdeface stream send`` and ``stream play``: the live AU stream's sender and headless player."""
 from __future__ import annotations
 
-import argparse
 import json
-import math
 import os
 
 from ..errors import PdeFaceError
+from ..io.arguments import address, number_in, port
 from ..stream.player import MODES, Player
 from ..stream.rules import DEFAULT_RULES, AUBlender
 from ..stream.sender import read_packets, send
@@ -15,47 +14,11 @@ from .common import log
 #: Where ``--token`` is read from when not given (a token on the command line shows in the process list).
 TOKEN_ENV = "PDEFACE_STREAM_TOKEN"
 
-
-# Argument types: a bad value is argparse's usage error (exit 2) at parse time, naming the option.
-def port(text) -> int:
-    """A TCP port, 1-65535."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text[:40]!r} is not a port number (1-65535)") from None
-    if not 1 <= value <= 65535:
-        raise argparse.ArgumentTypeError(f"{text[:40]!r} is not a port number (1-65535)")
-    return value
-
-
-def address(text, default_host="127.0.0.1") -> tuple:
-    """``HOST:PORT`` or ``PORT`` → (host, port); ``:PORT`` is the default host."""
-    host, sep, number = text.rpartition(":")
-    if sep and not host.strip("[]"):
-        host = default_host
-    try:
-        return (host.strip("[]") if sep else default_host), port(number if sep else text)
-    except argparse.ArgumentTypeError:
-        raise argparse.ArgumentTypeError(f"{text[:60]!r}: use HOST:PORT or PORT, the port 1-65535") from None
-
-
-def bounded_float(low, high, zero=False, what="a number"):
-    """An argparse type: a finite number in [low, high] (and 0 when ``zero``)."""
-    def parse(text):
-        try:
-            value = float(text)
-        except ValueError:
-            value = math.nan
-        if not (math.isfinite(value) and (low <= value <= high or (zero and value == 0))):
-            raise argparse.ArgumentTypeError(f"{text[:40]!r} is not {what}")
-        return value
-    return parse
-
-
-HZ = bounded_float(1.0, 1000.0, what="a rate of 1 to 1000 poses per second")
-RATE = bounded_float(0.01, 1e6, zero=True, what="0 (as fast as allowed) or 0.01 to 1e6 packets per second")
-SECONDS = bounded_float(0.0, 3600.0, what="a number of seconds from 0 to 3600")
-DURATION = bounded_float(0.0, 1e7, what="a number of seconds from 0 (no limit) to 1e7")
+# The stream's ranges (argparse types: a bad value is a usage error at parse time, naming the option).
+HZ = number_in(1.0, 1000.0, what="a rate of 1 to 1000 poses per second")
+RATE = number_in(0.01, 1e6, zero=True, what="0 (as fast as allowed) or 0.01 to 1e6 packets per second")
+SECONDS = number_in(0.0, 3600.0, what="a number of seconds from 0 to 3600")
+DURATION = number_in(0.0, 1e7, what="a number of seconds from 0 (no limit) to 1e7")
 
 
 def token_option(p, help):

@@ -10,35 +10,38 @@ from __future__ import annotations
 import argparse
 import math
 
-#: The longest number an argument may be written with: like JSON's 15-digit integers, a number of
-#: thousands of digits is no count, rate or weight, and is refused before it is converted.
-MAX_NUMBER_CHARS = 32
+from .files import MAX_DIGITS, whole_digits
 
 
 def _number(text, kind):
     text = str(text).strip()
-    if len(text) > MAX_NUMBER_CHARS:
-        raise argparse.ArgumentTypeError(f"{text[:12]}... ({len(text)} characters) is no number")
+    digits = len(text) > MAX_DIGITS and whole_digits(text)
+    if digits > MAX_DIGITS:  # as in every file pdeface reads: no count, rate or weight needs more
+        raise argparse.ArgumentTypeError(f"{text[:12]}... has {digits} digits (at most {MAX_DIGITS})")
     try:
         value = kind(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not {'an integer' if kind is int else 'a number'}") from None
+        raise argparse.ArgumentTypeError(f"{text[:40]!r} is not {'an integer' if kind is int else 'a number'}") \
+            from None
     if not math.isfinite(value):
-        raise argparse.ArgumentTypeError(f"{text!r} is not a finite number")
+        raise argparse.ArgumentTypeError(f"{text[:40]!r} is not a finite number")
     return value
 
 
-def number_in(low=None, high=None, kind=float, low_open=False, what=""):
-    """An argparse type: a finite ``kind`` (float or int) in [low, high] (``low_open``: low excluded).
+def number_in(low=None, high=None, kind=float, low_open=False, what="", zero=False):
+    """An argparse type: a finite ``kind`` (float or int) in [low, high] (``low_open``: low excluded; ``zero``:
+    0 too, an "off" or "no limit" outside the range).
 
     ``what`` names the range in the message (default: the bounds).
     """
     def parse(text):
         value = _number(text, kind)
+        if zero and value == 0:
+            return value
         if (low is not None and (value < low or (low_open and value == low))) or (high is not None and value > high):
             lo, hi = ("-inf" if low is None else f"{low:g}"), ("inf" if high is None else f"{high:g}")
             bounds = ("(" if low_open else "[") + f"{lo}, {hi}]"
-            raise argparse.ArgumentTypeError(f"{text.strip()!r} is not {what or 'in ' + bounds}")
+            raise argparse.ArgumentTypeError(f"{text.strip()[:40]!r} is not {what or 'in ' + bounds}")
         return value
 
     parse.__name__ = kind.__name__  # argparse names the type in some messages
@@ -55,6 +58,21 @@ positive_int = number_in(1, kind=int, what="a whole number >= 1")
 non_negative_int = number_in(0, kind=int, what="a whole number >= 0")
 #: [0, 1]: weights, confidences.
 unit_float = number_in(0.0, 1.0)
+
+
+#: A TCP port.
+port = number_in(1, 65535, int, what="a port number (1-65535)")
+
+
+def address(text, default_host="127.0.0.1") -> tuple:
+    """An argparse type: ``HOST:PORT`` or ``PORT`` → (host, port); ``:PORT`` is on ``default_host``."""
+    host, sep, number = str(text).rpartition(":")
+    if sep and not host.strip("[]"):
+        host = default_host
+    try:
+        return (host.strip("[]") if sep else default_host), port(number if sep else text)
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(f"{text[:60]!r}: use HOST:PORT or PORT, the port 1-65535") from None
 
 
 def existing_file(suffixes=(), magic=()):

@@ -6,6 +6,7 @@ import contextlib
 import io
 import json
 import os
+import re
 import stat
 import tempfile
 import zipfile
@@ -63,10 +64,15 @@ def check_readable(path, error=ModelFormatError, kind=None) -> int:
 def read_bytes(path, error=ModelFormatError, kind=None) -> bytes:
     """A whole file's bytes, at most ``MAX_BYTES[kind]`` (see :func:`open_file`)."""
     kind = kind or file_kind(path)
+    limit = MAX_BYTES[kind]
     with open_file(path, "rb", error, kind) as fh:
-        data = fh.read(MAX_BYTES[kind] + 1)  # a file growing while read is cut off too
-    if len(data) > MAX_BYTES[kind]:
-        raise error(f"{path}: larger than a {kind} file may be (limit {MAX_BYTES[kind] >> 20} MiB)")
+        # read(n) allocates n bytes first: ask for the file's size (and one more), not the limit
+        size = os.fstat(fh.fileno()).st_size
+        data = fh.read(min(size, limit) + 1)
+        if size < len(data) <= limit:  # it grew while read: on to the limit (and one more)
+            data += fh.read(limit + 1 - len(data))
+    if len(data) > limit:
+        raise error(f"{path}: larger than a {kind} file may be (limit {limit >> 20} MiB)")
     return data
 
 
@@ -90,6 +96,12 @@ def inflate(data: bytes, where, error=ModelFormatError, wbits=15, limit=MAX_BYTE
     if not stream.eof:
         raise error(f"{where}: compressed data is truncated")
     return raw
+
+
+def whole_digits(text) -> int:
+    """The digits of a number's whole part as written (``"-1234.5e6"`` → 4): what :data:`MAX_DIGITS` limits in
+    every text format, floats included (a fraction may be long; no value pdeface reads is 10**15 or more)."""
+    return sum(c.isdigit() for c in re.split("[.eE]", str(text), maxsplit=1)[0])
 
 
 def parse_int(text, where, error=ModelFormatError) -> int:
