@@ -51,6 +51,12 @@ SPREAD_MM = 1.0
 MAX_CANDIDATES, GOOD_RESIDUAL_MM = 4, 6.0
 #: Residual (mm RMS) of the 468 points against the template beyond which they are not a face.
 MAX_RESIDUAL_MM = 12.0
+#: Openings in the face seen straight on (an empty eye socket, the slit of parted lips) are pixels more than
+#: ``OPENING_DEPTH_MM`` behind the face's front closed over them (the depth map's closing by a disc of radius
+#: ``OPENING_RADIUS_MM``: wider than a lip slit or a lid opening is high, narrower than a nostril's side).
+OPENING_RADIUS_MM, OPENING_DEPTH_MM = 9.0, 4.0
+#: A landmark keeps its nearest surface point when the straight-on ray finds the outer surface this near it.
+SNAP_AGREES_MM = 2.0
 
 
 @dataclass
@@ -334,7 +340,7 @@ def detect(V, T, unit=None, landmark_map: LandmarkMap | None = None, detector: D
         skin = skin_triangles(V, T, tri)
         Ps, direct = frontal_readings(V, T, skin, detector, m, (s, R, t), first=(raster, img, px))
         P2 = np.nanmean(Ps, axis=0)
-        points, indices = snap(V, T[skin], m.apply(P2))
+        points, indices = snap(V, T[skin], m.apply(P2), raster.showing(skin), 1.0 / s)
         mm = UNITS_MM[unit] if unit else estimate_unit(points)[1]  # the fit's own estimate (one for both)
         spread = group_spread(m, Ps, mm)
         direct = direct.mean(0)
@@ -379,11 +385,74 @@ def group_spread(m: LandmarkMap, view_points, mm=1.0) -> dict:
     return {g: float(np.median(d[list(rows)])) for g, rows in GROUPS.items()}
 
 
-def snap(V, T, L):
-    """Landmarks moved onto the surface ``(V, T)`` and the nearest vertex of it to each."""
+def depth_map(V, T, raster: Raster) -> np.ndarray:
+    """Each pixel's depth towards the viewer (mesh units), -inf where the raster shows nothing."""
+    depth = np.full(raster.tri.shape, -np.inf)
+    seen = raster.tri >= 0
+    Q = np.einsum("pk,pkj->pj", raster.bary[seen], V[T[raster.tri[seen]]])
+    depth[seen] = (Q - raster.view.centre) @ raster.view.rotation[2]
+    return depth
+
+
+def outer_pixels(V, T, raster: Raster, mm_per_unit) -> np.ndarray:
+    """Pixels that show the face's outer surface, not the inside of an opening (see :data:`OPENING_DEPTH_MM`)."""
+    from scipy.ndimage import grey_closing
+
+    depth = depth_map(V, T, raster)
+    seen = np.isfinite(depth)
+    if not seen.any():
+        return seen
+    floor = depth[seen].min() - 1.0  # the background, far behind (closing must not spill it onto the face)
+    px_mm = 2 * raster.view.half / raster.view.size * mm_per_unit
+    r = max(int(round(OPENING_RADIUS_MM / px_mm)), 1)
+    yy, xx = np.mgrid[-r:r + 1, -r:r + 1]
+    closed = grey_closing(np.where(seen, depth, floor), footprint=xx ** 2 + yy ** 2 <= r * r)
+    return seen & (depth >= closed - OPENING_DEPTH_MM / mm_per_unit)
+
+
+def onto_outer_surface(V, T, raster: Raster, L, mm_per_unit):
+    """Landmarks ``L (68, 3)`` cast along the rays of ``raster``'s view through them to the first hit on the
+    outer surface ``(V, T)`` (``raster`` shows ``T``). A ray into an opening (an empty eye socket, the slit
+    between the lips) takes the outer surface seen at the nearest pixel instead: the lid margin, the lip's
+    edge, the lip commissure, not the socket's back or the inside of the mouth.
+
+    Returns points (68, 3), NaN for a landmark outside the image or where nothing was seen near it.
+    """
+    from scipy.ndimage import distance_transform_edt
+
+    outer = outer_pixels(V, T, raster, mm_per_unit)
+    n = raster.view.size
+    x, y, _ = raster.view.project(L)
+    inside = (x > -0.5) & (x < n - 0.5) & (y > -0.5) & (y < n - 0.5)
+    P = np.full((len(L), 3), np.nan)
+    if not inside.any() or not outer.any():
+        return P
+    _, (iy, ix) = distance_transform_edt(~outer, return_indices=True)
+    xi = np.clip(np.round(x[inside]).astype(int), 0, n - 1)
+    yi = np.clip(np.round(y[inside]).astype(int), 0, n - 1)
+    moved = ~outer[yi, xi]
+    xs, ys = x[inside].copy(), y[inside].copy()
+    xs[moved], ys[moved] = ix[yi[moved], xi[moved]], iy[yi[moved], xi[moved]]
+    clean = Raster(raster.view, np.where(outer, raster.tri, -1), raster.bary)
+    P[inside] = back_project(V, T, clean, xs, ys, reach=1)[0]
+    return P
+
+
+def snap(V, T, L, raster: Raster | None = None, mm_per_unit=1.0):
+    """Landmarks moved onto the surface ``(V, T)`` and the nearest vertex of it to each.
+
+    Each goes to the nearest surface point, as the map was fitted (on ICT's closed heads), unless cast along
+    ``raster``'s rays (a straight-on view showing ``T``; :func:`onto_outer_surface`) it lands more than
+    :data:`SNAP_AGREES_MM` away: the nearest point of an empty socket or of the slit between the lips is its
+    rim, off to the side, where the ray finds the lid margin or the lip.
+    """
     from scipy.spatial import cKDTree
 
-
     points = ClosestPoint(V, T).query(L)[3]
+    if raster is not None:
+        cast = onto_outer_surface(V, T, raster, L, mm_per_unit)
+        far = np.isfinite(cast).all(1)
+        far[far] = np.linalg.norm(cast[far] - points[far], axis=1) * mm_per_unit > SNAP_AGREES_MM
+        points[far] = cast[far]
     used = np.unique(T)
     return points, used[cKDTree(V[used]).query(points)[1]]
