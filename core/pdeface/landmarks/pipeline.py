@@ -404,7 +404,7 @@ def outer_pixels(V, T, raster: Raster, mm_per_unit) -> np.ndarray:
         return seen
     floor = depth[seen].min() - 1.0  # the background, far behind (closing must not spill it onto the face)
     px_mm = 2 * raster.view.half / raster.view.size * mm_per_unit
-    r = max(int(round(OPENING_RADIUS_MM / px_mm)), 1)
+    r = max(round(OPENING_RADIUS_MM / px_mm), 1)
     yy, xx = np.mgrid[-r:r + 1, -r:r + 1]
     closed = grey_closing(np.where(seen, depth, floor), footprint=xx ** 2 + yy ** 2 <= r * r)
     return seen & (depth >= closed - OPENING_DEPTH_MM / mm_per_unit)
