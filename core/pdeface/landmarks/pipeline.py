@@ -410,23 +410,24 @@ def outer_pixels(V, T, raster: Raster, mm_per_unit) -> np.ndarray:
     return seen & (depth >= closed - OPENING_DEPTH_MM / mm_per_unit)
 
 
-def onto_outer_surface(V, T, raster: Raster, L, mm_per_unit):
+def onto_outer_surface(V, T, raster: Raster, L, mm_per_unit, outer=None):
     """Landmarks ``L (68, 3)`` cast along the rays of ``raster``'s view through them to the first hit on the
     outer surface ``(V, T)`` (``raster`` shows ``T``). A ray into an opening (an empty eye socket, the slit
     between the lips) takes the outer surface seen at the nearest pixel instead: the lid margin, the lip's
     edge, the lip commissure, not the socket's back or the inside of the mouth.
 
-    Returns points (68, 3), NaN for a landmark outside the image or where nothing was seen near it.
+    Returns points (68, 3), NaN for a landmark outside the image or where nothing was seen near it, and which
+    landmarks lay over an opening. ``outer``: :func:`outer_pixels`, when already drawn.
     """
     from scipy.ndimage import distance_transform_edt
 
-    outer = outer_pixels(V, T, raster, mm_per_unit)
+    outer = outer_pixels(V, T, raster, mm_per_unit) if outer is None else outer
     n = raster.view.size
     x, y, _ = raster.view.project(L)
     inside = (x > -0.5) & (x < n - 0.5) & (y > -0.5) & (y < n - 0.5)
-    P = np.full((len(L), 3), np.nan)
+    P, over = np.full((len(L), 3), np.nan), np.zeros(len(L), bool)
     if not inside.any() or not outer.any():
-        return P
+        return P, over
     _, (iy, ix) = distance_transform_edt(~outer, return_indices=True)
     xi = np.clip(np.round(x[inside]).astype(int), 0, n - 1)
     yi = np.clip(np.round(y[inside]).astype(int), 0, n - 1)
@@ -435,24 +436,45 @@ def onto_outer_surface(V, T, raster: Raster, L, mm_per_unit):
     xs[moved], ys[moved] = ix[yi[moved], xi[moved]], iy[yi[moved], xi[moved]]
     clean = Raster(raster.view, np.where(outer, raster.tri, -1), raster.bary)
     P[inside] = back_project(V, T, clean, xs, ys, reach=1)[0]
-    return P
+    over[inside] = moved & (raster.tri[yi, xi] >= 0)  # the background beside a contour is no opening
+    return P, over
+
+
+def hidden(V, T, raster: Raster, P, outer, depth):
+    """Which points ``P`` lie over an opening (not ``outer``) or more than ``depth`` behind what every pixel
+    around them shows (the inside of closed lips behind the lips); the background hides nothing."""
+    n = raster.view.size
+    x, y, z = raster.view.project(P)
+    seen = depth_map(V, T, raster)
+    xi, yi = np.round(x).astype(int), np.round(y).astype(int)
+    behind = np.full(len(P), np.inf)
+    for dx in (-1, 0, 1):
+        for dy in (-1, 0, 1):
+            px, py = np.clip(xi + dx, 0, n - 1), np.clip(yi + dy, 0, n - 1)
+            behind = np.minimum(behind, np.where(np.isfinite(seen[py, px]), seen[py, px] - z, 0.0))
+    xi, yi = np.clip(xi, 0, n - 1), np.clip(yi, 0, n - 1)
+    return (~outer[yi, xi] & (raster.tri[yi, xi] >= 0)) | (behind > depth)
 
 
 def snap(V, T, L, raster: Raster | None = None, mm_per_unit=1.0):
     """Landmarks moved onto the surface ``(V, T)`` and the nearest vertex of it to each.
 
-    Each goes to the nearest surface point, as the map was fitted (on ICT's closed heads), unless cast along
-    ``raster``'s rays (a straight-on view showing ``T``; :func:`onto_outer_surface`) it lands more than
-    :data:`SNAP_AGREES_MM` away: the nearest point of an empty socket or of the slit between the lips is its
-    rim, off to the side, where the ray finds the lid margin or the lip.
+    Each goes to the nearest surface point, as the map was fitted (on ICT's closed heads), unless it or that
+    point lies over an opening seen in ``raster`` (a straight-on view showing ``T``), or that point is hidden
+    there (:func:`hidden`), and cast along the ray onto the outer surface (:func:`onto_outer_surface`) it
+    lands more than :data:`SNAP_AGREES_MM` away: the nearest point of an empty socket, of the slit between
+    the lips or of the inside of closed lips is its wall, where the ray finds the lid margin, the lip or the
+    commissure. Contours (the jawline), where a ray grazes the surface, keep the nearest point.
     """
     from scipy.spatial import cKDTree
 
     points = ClosestPoint(V, T).query(L)[3]
     if raster is not None:
-        cast = onto_outer_surface(V, T, raster, L, mm_per_unit)
-        far = np.isfinite(cast).all(1)
-        far[far] = np.linalg.norm(cast[far] - points[far], axis=1) * mm_per_unit > SNAP_AGREES_MM
-        points[far] = cast[far]
+        outer = outer_pixels(V, T, raster, mm_per_unit)
+        cast, over = onto_outer_surface(V, T, raster, L, mm_per_unit, outer)
+        over |= hidden(V, T, raster, points, outer, OPENING_DEPTH_MM / mm_per_unit)
+        use = over & np.isfinite(cast).all(1)
+        use[use] = np.linalg.norm(cast[use] - points[use], axis=1) * mm_per_unit > SNAP_AGREES_MM
+        points[use] = cast[use]
     used = np.unique(T)
     return points, used[cKDTree(V[used]).query(points)[1]]
