@@ -177,7 +177,7 @@ def test_the_gate_names_the_group_and_the_check_that_fail(ict):
 @needs_makehuman
 @needs_mediapipe
 def test_cli_stops_on_a_failing_gate_with_a_picture_and_accept_goes_on(tmp_path, capsys):
-    ch = build(SPECS["eyes-teeth-merged-cm"])  # its found jawline sinks and rises along the contour
+    ch = build(SPECS["stylised-chin-cheek-in"])  # its found jawline bends where no jaw does
     src = tmp_path / "mh.obj"
     write_mesh(src, Mesh.from_faces(ch.vertices, ch.triangles))
     out, img = tmp_path / "lm.json", tmp_path / "lm.png"
