@@ -22,7 +22,7 @@ from pdeface.landmarks.facemap import (
     robust_similarity,
 )
 from pdeface.landmarks.render import View, back_project, rasterise, shade
-from pdeface.landmarks.pipeline import OPENING_DEPTH_MM, outer_pixels, snap
+from pdeface.landmarks.pipeline import OPENING_DEPTH_MM, group_spread, outer_pixels, snap
 from pdeface.mesh import Mesh, connected_components
 from pdeface.rigid import rotation_vector_matrix
 from pdeface.surface.frame import BLENDER_FROM_ICT
@@ -368,3 +368,13 @@ def test_on_a_closed_face_the_cast_landmarks_are_the_nearest_points():
     outer = outer_pixels(V2, T2, r2, 1.0)
     x, y, _ = r2.view.project(np.array([[0.0, 0, -20], [0, 20, 0]]))
     assert not outer[round(y[0]), round(x[0])] and outer[round(y[1]), round(x[1])]
+
+
+def test_group_spread_leaves_out_renders_that_missed_a_landmark(rng):
+    m = read_map()
+    views = np.stack([m.template + rng.normal(0, 0.5, m.template.shape) for _ in range(4)])
+    views[1, m.indices[3]] = np.nan  # one render's rays all missed landmark 3's face-mesh points
+    spread = group_spread(m, views)
+    assert all(np.isfinite(v) and v > 0 for v in spread.values())
+    L = np.stack([m.apply(P) for P in views[[0, 2, 3]]])
+    assert spread["jaw"] >= np.median(np.linalg.norm(L[:, :17] - L[:, :17].mean(0), axis=2).max(0)) * 0.5

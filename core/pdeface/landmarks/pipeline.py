@@ -17,6 +17,7 @@
 """
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -379,10 +380,12 @@ def find_on_mesh(mesh, unit=None, keep_images=False, verbose=False) -> FoundLand
 
 def group_spread(m: LandmarkMap, view_points, mm=1.0) -> dict:
     """Each landmark group's median spread (mm): how far its landmarks from single frontal renders
-    (``view_points (views, 468, 3)``) lie at most from their mean."""
-    L = np.stack([m.apply(P) for P in view_points])
-    d = np.linalg.norm(L - L.mean(0), axis=2).max(0) * mm
-    return {g: float(np.median(d[list(rows)])) for g, rows in GROUPS.items()}
+    (``view_points (views, 468, 3)``) lie at most from their mean, over the renders that saw them."""
+    L = np.stack([m.apply(P) for P in view_points])  # NaN where a render's rays all missed a landmark's points
+    with np.errstate(invalid="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # a landmark no render saw stays NaN
+        d = np.nanmax(np.linalg.norm(L - np.nanmean(L, 0), axis=2), 0) * mm
+        return {g: float(np.nanmedian(d[list(rows)])) for g, rows in GROUPS.items()}
 
 
 def depth_map(V, T, raster: Raster) -> np.ndarray:
