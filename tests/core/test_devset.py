@@ -121,8 +121,17 @@ def test_true_landmarks_pass_the_gate_on_ict_turned_and_in_metres(ict):
     assert v.passed, v.message()
 
 
+@pytest.mark.parametrize("name", ["identity015", "identity019"])
+def test_true_landmarks_pass_the_gate_on_ict_identities_with_lashes_over_the_lids(name, ict):
+    mesh, T, lm, shapes = ict
+    V = mesh.vertices + shapes[name]
+    v = check(V[lm], V, T, "cm")  # the whole head: eyeballs and lashes, separate parts, in front of the lids
+    assert v.passed, v.message()
+
+
 @needs_makehuman
-@pytest.mark.parametrize("name", ["base-dm", "parted-lips-cm", "eyes-teeth-merged-cm", "stylised-eyes-head-m"])
+@pytest.mark.parametrize("name", ["base-dm", "parted-lips-cm", "eyes-teeth-merged-cm", "stylised-eyes-head-m",
+                                  "stylised-chin-cheek-in"])
 def test_true_landmarks_pass_the_gate_on_dev_characters(name):
     ch = build(SPECS[name])
     v = check(ch.landmarks, ch.vertices, ch.triangles)
@@ -151,6 +160,8 @@ def test_the_gate_names_the_group_and_the_check_that_fail(ict):
         # a mouth three times as wide
         ("mouth", "spacing"): np.where(np.isin(np.arange(68), range(48, 68))[:, None],
                                        L[48:68].mean(0) + 3 * (L - L[48:68].mean(0)), L),
+        # one jaw point half an eye distance back along the contour (depth a frontal detector cannot see)
+        ("jaw", "smooth"): _frame_shift(L, [3], [0, 0, -0.5 * eyes_mm]),
     }
     for (group, what), P in cases.items():
         v = check(P, V, T, "cm")
@@ -166,7 +177,7 @@ def test_the_gate_names_the_group_and_the_check_that_fail(ict):
 @needs_makehuman
 @needs_mediapipe
 def test_cli_stops_on_a_failing_gate_with_a_picture_and_accept_goes_on(tmp_path, capsys):
-    ch = build(SPECS["base-dm"])  # its empty eye sockets: the found eye points fall in (as the bust)
+    ch = build(SPECS["stylised-chin-cheek-in"])  # its found jawline bends where no jaw does
     src = tmp_path / "mh.obj"
     write_mesh(src, Mesh.from_faces(ch.vertices, ch.triangles))
     out, img = tmp_path / "lm.json", tmp_path / "lm.png"
@@ -218,3 +229,18 @@ def test_landmarks_of_a_turned_body_come_back_in_the_whole_mesh(ict):
     # Found near the truth (the nose tip), at the body's own scale.
     assert np.linalg.norm(found.points[30] - ch.landmarks[30]) < 0.2 * ch.eye_distance
     assert found.mm_per_unit == pytest.approx(ch.mm_per_unit, rel=0.1)
+
+
+@needs_makehuman
+@needs_mediapipe
+@pytest.mark.parametrize("name", ["stylised-eyes-head-m", "parted-lips-cm"])
+def test_found_eye_and_mouth_points_stay_on_the_outer_surface_over_sockets_and_parted_lips(name):
+    from pdeface.landmarks.headfind import detect_anywhere
+
+    ch = build(SPECS[name])  # empty eye sockets; lips parted
+    found = detect_anywhere(ch.vertices, ch.triangles)
+    e = np.linalg.norm(found.points - ch.landmarks, axis=1) / ch.eye_distance
+    # The nearest surface point put them in the socket or the lip slit, 0.5-1.1 eye distances off.
+    assert e[36:48].max() < 0.2 and e[48:68].max() < 0.25, (e[36:48].max(), e[48:68].max())
+    failures = check(found.points, ch.vertices, ch.triangles[found.skin]).failures  # the gate's surface check
+    assert not [c for g in ("eyes", "mouth") for c, _ in failures.get(g, []) if c == "surface"], failures

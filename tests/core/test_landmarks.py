@@ -22,6 +22,7 @@ from pdeface.landmarks.facemap import (
     robust_similarity,
 )
 from pdeface.landmarks.render import View, back_project, rasterise, shade
+from pdeface.landmarks.pipeline import OPENING_DEPTH_MM, group_spread, outer_pixels, snap
 from pdeface.mesh import Mesh, connected_components
 from pdeface.rigid import rotation_vector_matrix
 from pdeface.surface.frame import BLENDER_FROM_ICT
@@ -329,3 +330,51 @@ def test_native_logs_are_silenced_and_stderr_comes_back_after_an_error(capfd):
     with detector_module.native_logs_silenced(show=True):
         os.write(2, b"verbose\n")
     assert capfd.readouterr().err == "after\nverbose\n"
+
+
+def _face_with_a_socket(pit=True):
+    """A 100 mm square heightfield (z towards the viewer, 1 mm grid) with, where ``pit``, an opening 30 mm wide,
+    10 mm high and 20 mm deep in its middle, as an empty eye socket or parted lips seen straight on."""
+    g = np.arange(-50.0, 50.5, 1.0)
+    X, Y = np.meshgrid(g, g)
+    Z = np.where(pit & (np.abs(X) < 15) & (np.abs(Y) < 5), -20.0, 0.0)
+    V = np.stack([X.ravel(), Y.ravel(), Z.ravel()], 1)
+    n = len(g)
+    i = (np.arange(n - 1)[:, None] * n + np.arange(n - 1)[None]).ravel()
+    T = np.concatenate([np.stack([i, i + 1, i + n], 1), np.stack([i + 1, i + n + 1, i + n], 1)])
+    view = View.looking((0, 0, 1), (0, 1, 0), np.zeros(3), 60.0, 384)
+    return V, T, rasterise(V, T, view)
+
+
+def test_a_landmark_over_an_opening_lands_on_its_rim_on_the_outer_surface():
+    V, T, raster = _face_with_a_socket()
+    L = np.array([[5.0, 1.5, -10.0], [-8.0, -2.0, -15.0], [30.0, 20.0, 0.5]])  # two in the socket, one on the face
+    nearest, _ = snap(V, T, L)
+    cast, idx = snap(V, T, L, raster, mm_per_unit=1.0)
+    assert nearest[0, 2] < -5 and nearest[1, 2] < -5  # the nearest point is the socket's wall or back
+    assert np.all(cast[:2, 2] >= -OPENING_DEPTH_MM)  # cast: the outer surface, at the rim nearest in the image
+    assert abs(cast[0, 1] - 5) < 1.5 and abs(cast[1, 1] + 5) < 1.5
+    assert abs(cast[0, 0] - 5) < 1.5 and abs(cast[1, 0] + 8) < 1.5
+    np.testing.assert_allclose(cast[2], nearest[2])  # on the face: the nearest point, as the map was fitted
+    np.testing.assert_array_equal(idx, np.linalg.norm(V[None] - cast[:, None], axis=2).argmin(1))
+
+
+def test_on_a_closed_face_the_cast_landmarks_are_the_nearest_points():
+    V, T, raster = _face_with_a_socket(pit=False)
+    L = np.array([[5.0, 1.5, 0.8], [-12.0, -2.0, -0.6], [30.0, 20.0, 1.5]])
+    np.testing.assert_allclose(snap(V, T, L, raster, 1.0)[0], snap(V, T, L)[0])
+    assert outer_pixels(V, T, raster, 1.0)[raster.tri >= 0].all()
+    V2, T2, r2 = _face_with_a_socket()
+    outer = outer_pixels(V2, T2, r2, 1.0)
+    x, y, _ = r2.view.project(np.array([[0.0, 0, -20], [0, 20, 0]]))
+    assert not outer[round(y[0]), round(x[0])] and outer[round(y[1]), round(x[1])]
+
+
+def test_group_spread_leaves_out_renders_that_missed_a_landmark(rng):
+    m = read_map()
+    views = np.stack([m.template + rng.normal(0, 0.5, m.template.shape) for _ in range(4)])
+    views[1, m.indices[3]] = np.nan  # one render's rays all missed landmark 3's face-mesh points
+    spread = group_spread(m, views)
+    assert all(np.isfinite(v) and v > 0 for v in spread.values())
+    L = np.stack([m.apply(P) for P in views[[0, 2, 3]]])
+    assert spread["jaw"] >= np.median(np.linalg.norm(L[:, :17] - L[:, :17].mean(0), axis=2).max(0)) * 0.5

@@ -5,12 +5,14 @@ from the face), against the eye distance, so they hold at any scale, orientation
 
 - **finite**: no NaN or inf;
 - **surface**: each point on the outer surface, not inside a socket, the mouth or the skull: seen straight
-  on, nothing of the mesh lies more than :data:`BURIED` in front of it (the jawline, a contour, from
-  either side too);
+  on, nothing of the mesh's parts the landmarks lie on lies more than :data:`BURIED` in front of it (the
+  jawline, a contour, from either side too); separate parts (lashes, eyeballs, hair) may cover them;
 - **mirror**: left and right mirror each other across the face's midline (median of the group's pairs);
 - **order**: brows above the eyes above the nose bottom above the mouth above the chin; upper lids above
   lower lids;
-- **spacing**: the group's size, over the eye distance, within what faces have (:data:`SPACING`).
+- **spacing**: the group's size, over the eye distance, within what faces have (:data:`SPACING`);
+- **smooth**: the jawline a smooth curve: no point more than :data:`JAW_BEND` off the middle of its two
+  neighbours (a jaw point sunk or lifted along the contour, where a frontal detector cannot see depth).
 
 A group failing any check is named with the check; ``pdeface landmarks`` and ``pdeface fit`` then stop
 (exit 2) unless told ``--accept``.
@@ -24,6 +26,7 @@ import numpy as np
 
 from ..errors import LandmarkError, PdeFaceError
 from ..landmark_scheme import CHIN, INNER_LIPS, JAW, LOWER_LIDS, MIRROR, NOSE_BOTTOM, UPPER_LIDS, eye_distance
+from ..mesh import connected_components
 from ..surface.frame import face_frame
 from .facemap import GROUPS
 from .render import View, rasterise
@@ -38,6 +41,9 @@ MIRROR_TOL = 0.10
 SPACING = {"jaw": [(0, 16, 1.3, 3.2)], "brows": [(17, 26, 1.0, 2.6)],
            "nose": [(27, 33, 0.45, 1.4), (31, 35, 0.25, 0.9)],
            "eyes": [(36, 39, 0.25, 0.75), (42, 45, 0.25, 0.75)], "mouth": [(48, 54, 0.45, 1.5)]}
+#: How far (eye distances) a jaw point may lie from the middle of its neighbours: true jawlines bend 0.10 (ICT's
+#: identities) to 0.17 (MakeHuman's characters), 0.28 with MakeHuman's chin target at weight 2; found on ICT, 0.18.
+JAW_BEND = 0.32
 #: Pixels of the visibility renders.
 SIZE = 256
 
@@ -111,6 +117,16 @@ def buried(V, T, points, frame, eyes) -> np.ndarray:
     return best
 
 
+def landmark_parts(V, T, points) -> np.ndarray:
+    """The triangles of the connected parts of ``(V, T)`` that hold a landmark's nearest vertex."""
+    from scipy.spatial import cKDTree
+
+    used = np.unique(T)
+    labels = connected_components(len(V), T)
+    own = np.unique(labels[used[cKDTree(V[used]).query(points)[1]]])
+    return T[np.isin(labels[T[:, 0]], own)]
+
+
 def check(points, V=None, T=None, unit=None) -> Verdict:
     """Check 68 landmarks group by group (see the module's docstring); ``V, T`` for the surface check.
 
@@ -161,8 +177,14 @@ def check(points, V=None, T=None, unit=None) -> Verdict:
             d = float(np.linalg.norm(F[a] - F[b]))
             if not lo <= d <= hi:
                 verdict.fail(g, "spacing", f"{a}-{b} {d:.2f} eye distances (faces: {lo}-{hi})")
+    J = F[list(JAW)]
+    bend = np.linalg.norm(J[:-2] - 2 * J[1:-1] + J[2:], axis=1) / 2
+    if bend.max() > JAW_BEND:
+        verdict.fail("jaw", "smooth", f"landmark {int(np.argmax(bend)) + 1} {bend.max():.2f} eye distances off the "
+                                      f"middle of its neighbours (jawlines: {JAW_BEND})")
     if V is not None:
-        depth = buried(np.asarray(V, np.float64), np.asarray(T, np.int64), P, frame, eyes) / eyes
+        V, T = np.asarray(V, np.float64), np.asarray(T, np.int64)
+        depth = buried(V, landmark_parts(V, T, P), P, frame, eyes) / eyes
         for g, rows in GROUPS.items():
             rows = list(rows)
             worst = int(np.argmax(depth[rows]))

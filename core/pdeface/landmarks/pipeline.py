@@ -17,6 +17,7 @@
 """
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -51,6 +52,13 @@ SPREAD_MM = 1.0
 MAX_CANDIDATES, GOOD_RESIDUAL_MM = 4, 6.0
 #: Residual (mm RMS) of the 468 points against the template beyond which they are not a face.
 MAX_RESIDUAL_MM = 12.0
+#: Openings in the face seen straight on (an empty eye socket, the slit of parted lips) are pixels more than
+#: ``OPENING_DEPTH_MM`` behind the face's front closed over them (the depth map's closing by a disc of radius
+#: ``OPENING_RADIUS_MM``: wider than a lip slit or a lid opening is high); at 4 mm, the lid margins of an ICT head
+#: clustered at 3 mm counted as inside the sockets (eye corners 6 mm off).
+OPENING_RADIUS_MM, OPENING_DEPTH_MM = 9.0, 5.0
+#: A landmark keeps its nearest surface point when the straight-on ray finds the outer surface this near it.
+SNAP_AGREES_MM = 2.0
 
 
 @dataclass
@@ -334,7 +342,7 @@ def detect(V, T, unit=None, landmark_map: LandmarkMap | None = None, detector: D
         skin = skin_triangles(V, T, tri)
         Ps, direct = frontal_readings(V, T, skin, detector, m, (s, R, t), first=(raster, img, px))
         P2 = np.nanmean(Ps, axis=0)
-        points, indices = snap(V, T[skin], m.apply(P2))
+        points, indices = snap(V, T[skin], m.apply(P2), raster.showing(skin), 1.0 / s)
         mm = UNITS_MM[unit] if unit else estimate_unit(points)[1]  # the fit's own estimate (one for both)
         spread = group_spread(m, Ps, mm)
         direct = direct.mean(0)
@@ -373,17 +381,104 @@ def find_on_mesh(mesh, unit=None, keep_images=False, verbose=False) -> FoundLand
 
 def group_spread(m: LandmarkMap, view_points, mm=1.0) -> dict:
     """Each landmark group's median spread (mm): how far its landmarks from single frontal renders
-    (``view_points (views, 468, 3)``) lie at most from their mean."""
-    L = np.stack([m.apply(P) for P in view_points])
-    d = np.linalg.norm(L - L.mean(0), axis=2).max(0) * mm
-    return {g: float(np.median(d[list(rows)])) for g, rows in GROUPS.items()}
+    (``view_points (views, 468, 3)``) lie at most from their mean, over the renders that saw them."""
+    L = np.stack([m.apply(P) for P in view_points])  # NaN where a render's rays all missed a landmark's points
+    with np.errstate(invalid="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # a landmark no render saw stays NaN
+        d = np.nanmax(np.linalg.norm(L - np.nanmean(L, 0), axis=2), 0) * mm
+        return {g: float(np.nanmedian(d[list(rows)])) for g, rows in GROUPS.items()}
 
 
-def snap(V, T, L):
-    """Landmarks moved onto the surface ``(V, T)`` and the nearest vertex of it to each."""
+def depth_map(V, T, raster: Raster) -> np.ndarray:
+    """Each pixel's depth towards the viewer (mesh units), -inf where the raster shows nothing."""
+    depth = np.full(raster.tri.shape, -np.inf)
+    seen = raster.tri >= 0
+    Q = np.einsum("pk,pkj->pj", raster.bary[seen], V[T[raster.tri[seen]]])
+    depth[seen] = (Q - raster.view.centre) @ raster.view.rotation[2]
+    return depth
+
+
+def outer_pixels(V, T, raster: Raster, mm_per_unit) -> np.ndarray:
+    """Pixels that show the face's outer surface, not the inside of an opening (see :data:`OPENING_DEPTH_MM`)."""
+    from scipy.ndimage import grey_closing
+
+    depth = depth_map(V, T, raster)
+    seen = np.isfinite(depth)
+    if not seen.any():
+        return seen
+    floor = depth[seen].min() - 1.0  # the background, far behind (closing must not spill it onto the face)
+    px_mm = 2 * raster.view.half / raster.view.size * mm_per_unit
+    r = max(round(OPENING_RADIUS_MM / px_mm), 1)
+    yy, xx = np.mgrid[-r:r + 1, -r:r + 1]
+    closed = grey_closing(np.where(seen, depth, floor), footprint=xx ** 2 + yy ** 2 <= r * r)
+    return seen & (depth >= closed - OPENING_DEPTH_MM / mm_per_unit)
+
+
+def onto_outer_surface(V, T, raster: Raster, L, mm_per_unit, outer=None):
+    """Landmarks ``L (68, 3)`` cast along the rays of ``raster``'s view through them to the first hit on the
+    outer surface ``(V, T)`` (``raster`` shows ``T``). A ray into an opening (an empty eye socket, the slit
+    between the lips) takes the outer surface seen at the nearest pixel instead: the lid margin, the lip's
+    edge, the lip commissure, not the socket's back or the inside of the mouth.
+
+    Returns points (68, 3), NaN for a landmark outside the image or where nothing was seen near it, and which
+    landmarks lay over an opening. ``outer``: :func:`outer_pixels`, when already drawn.
+    """
+    from scipy.ndimage import distance_transform_edt
+
+    outer = outer_pixels(V, T, raster, mm_per_unit) if outer is None else outer
+    n = raster.view.size
+    x, y, _ = raster.view.project(L)
+    inside = (x > -0.5) & (x < n - 0.5) & (y > -0.5) & (y < n - 0.5)
+    P, over = np.full((len(L), 3), np.nan), np.zeros(len(L), bool)
+    if not inside.any() or not outer.any():
+        return P, over
+    _, (iy, ix) = distance_transform_edt(~outer, return_indices=True)
+    xi = np.clip(np.round(x[inside]).astype(int), 0, n - 1)
+    yi = np.clip(np.round(y[inside]).astype(int), 0, n - 1)
+    moved = ~outer[yi, xi]
+    xs, ys = x[inside].copy(), y[inside].copy()
+    xs[moved], ys[moved] = ix[yi[moved], xi[moved]], iy[yi[moved], xi[moved]]
+    clean = Raster(raster.view, np.where(outer, raster.tri, -1), raster.bary)
+    P[inside] = back_project(V, T, clean, xs, ys, reach=1)[0]
+    over[inside] = moved & (raster.tri[yi, xi] >= 0)  # the background beside a contour is no opening
+    return P, over
+
+
+def hidden(V, T, raster: Raster, P, outer, depth):
+    """Which points ``P`` lie over an opening (not ``outer``) or more than ``depth`` behind what every pixel
+    around them shows (the inside of closed lips behind the lips); the background hides nothing."""
+    n = raster.view.size
+    x, y, z = raster.view.project(P)
+    seen = depth_map(V, T, raster)
+    xi, yi = np.round(x).astype(int), np.round(y).astype(int)
+    behind = np.full(len(P), np.inf)
+    for dx in (-1, 0, 1):
+        for dy in (-1, 0, 1):
+            px, py = np.clip(xi + dx, 0, n - 1), np.clip(yi + dy, 0, n - 1)
+            behind = np.minimum(behind, np.where(np.isfinite(seen[py, px]), seen[py, px] - z, 0.0))
+    xi, yi = np.clip(xi, 0, n - 1), np.clip(yi, 0, n - 1)
+    return (~outer[yi, xi] & (raster.tri[yi, xi] >= 0)) | (behind > depth)
+
+
+def snap(V, T, L, raster: Raster | None = None, mm_per_unit=1.0):
+    """Landmarks moved onto the surface ``(V, T)`` and the nearest vertex of it to each.
+
+    Each goes to the nearest surface point, as the map was fitted (on ICT's closed heads), unless it or that
+    point lies over an opening seen in ``raster`` (a straight-on view showing ``T``), or that point is hidden
+    there (:func:`hidden`), and cast along the ray onto the outer surface (:func:`onto_outer_surface`) it
+    lands more than :data:`SNAP_AGREES_MM` away: the nearest point of an empty socket, of the slit between
+    the lips or of the inside of closed lips is its wall, where the ray finds the lid margin, the lip or the
+    commissure. Contours (the jawline), where a ray grazes the surface, keep the nearest point.
+    """
     from scipy.spatial import cKDTree
 
-
     points = ClosestPoint(V, T).query(L)[3]
+    if raster is not None:
+        outer = outer_pixels(V, T, raster, mm_per_unit)
+        cast, over = onto_outer_surface(V, T, raster, L, mm_per_unit, outer)
+        over |= hidden(V, T, raster, points, outer, OPENING_DEPTH_MM / mm_per_unit)
+        use = over & np.isfinite(cast).all(1)
+        use[use] = np.linalg.norm(cast[use] - points[use], axis=1) * mm_per_unit > SNAP_AGREES_MM
+        points[use] = cast[use]
     used = np.unique(T)
     return points, used[cKDTree(V[used]).query(points)[1]]
