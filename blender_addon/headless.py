@@ -65,7 +65,7 @@ def build_parser(prog="render_sequence.py"):
     ap.add_argument("--sheet-samples", type=int, default=4, help="contact sheet samples (denoised)")
     ap.add_argument("--sheet-band-vertices", type=int, default=None,
                     help="contact sheet rendered in bands of whole rows of at most about this many vertices of "
-                         "posed meshes (default: 500000; 0: the whole sheet in one render, as memory allows)")
+                         "posed meshes (default: 250000; 0: the whole sheet in one render, as memory allows)")
     ap.add_argument("--plain-sheet", action="store_true", help="a contact sheet without its rows coloured by "
                                                                "how far each vertex moved (mm)")
     ap.add_argument("--no-frames", action="store_true", help="render no animation frames")

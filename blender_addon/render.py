@@ -246,9 +246,10 @@ def _legend(scene, left, top, length, size, z, motion_mat, text_mat):
           text_mat, align="LEFT")
 
 
-#: The contact sheet is rendered in bands of whole rows, each holding at most about this many vertices of posed
-#: meshes (faces and motion rows): 83 poses of a 27k-vertex head in one scene took 3.2 GB (issue #35).
-SHEET_BAND_VERTICES = 500_000
+#: The contact sheet is rendered in bands of whole rows (of faces, or of motion), each holding at most about this
+#: many vertices of posed meshes (at least one row): 83 poses of a 27k-vertex head in one scene took 3.2 GB
+#: (issue #35).
+SHEET_BAND_VERTICES = 250_000
 
 
 def contact_sheet(obj, path, items=None, cell=256, columns=8, samples=16, resolution="2,2", motion=True,
@@ -263,10 +264,11 @@ def contact_sheet(obj, path, items=None, cell=256, columns=8, samples=16, resolu
     where AUs too subtle to see in the shading show, and a colour bar in mm
     closes the sheet.
 
-    The sheet is rendered in horizontal bands of whole rows through the same
-    camera (a render border each), with only the meshes a band shows in the
-    scene, at most about ``band_vertices`` vertices of them (``None``: the whole
-    sheet in one render); the bands are joined into one PNG.
+    The sheet is rendered in horizontal bands of whole rows (of faces with their
+    labels, or of motion) through the same camera (a render border each), with
+    only the meshes a band shows in the scene, at most about ``band_vertices``
+    vertices of them but a row at least (``None``: the whole sheet in one
+    render); the bands are joined into one PNG.
     """
     pde = obj if obj.pdeface.is_face else obj.pdeface.rig_face
     model = bridge.face_model(pde)
@@ -385,10 +387,11 @@ def contact_sheet(obj, path, items=None, cell=256, columns=8, samples=16, resolu
                                          scene.render.resolution_y / scene.render.resolution_x)
         image_top = cam.location.y + view_h / 2
         height_px = scene.render.resolution_y
-        per_row = columns * len(cell_mesh.vertices) * (2 if motion else 1)
-        rows_per_band = rows if not band_vertices else max(1, int(band_vertices // per_row))
-        cuts = [0] + [min(height_px, max(0, round((image_top - (sheet_top - r * block)) / view_h * height_px)))
-                      for r in range(rows_per_band, rows, rows_per_band)] + [height_px]
+        # Strips: each row of faces with its labels, and each motion row; a band is a few whole strips.
+        strip_tops = [sheet_top - r * block - m for r in range(rows) for m in ((0.0, pitch_y) if motion else (0.0,))]
+        per_band = len(strip_tops) if not band_vertices else max(1, band_vertices // (columns * len(cell_mesh.vertices)))
+        cuts = [0] + [min(height_px, max(0, round((image_top - y) / view_h * height_px)))
+                      for y in strip_tops[per_band::per_band]] + [height_px]
         bands = []
         with tempfile.TemporaryDirectory(prefix="pdeface_sheet_") as tmp:
             for b, (p0, p1) in enumerate(itertools.pairwise(cuts)):
