@@ -80,6 +80,9 @@ def build_parser(prog="render_sequence.py"):
     ap.add_argument("--contact-sheet", action="store_true", help="also write contact_sheet.png")
     ap.add_argument("--sheet-cell", type=number_in(1, 4096, int), default=256, help="contact sheet cell width in pixels")
     ap.add_argument("--sheet-samples", type=positive_int, default=4, help="contact sheet samples (denoised)")
+    ap.add_argument("--sheet-band-vertices", type=number_in(0, 10**9, int), default=None,
+                    help="contact sheet rendered in bands of whole rows of at most about this many vertices of "
+                         "posed meshes (default: 250000; 0: the whole sheet in one render, as memory allows)")
     ap.add_argument("--plain-sheet", action="store_true", help="a contact sheet without its rows coloured by "
                                                                "how far each vertex moved (mm)")
     ap.add_argument("--no-frames", action="store_true", help="render no animation frames")
@@ -215,6 +218,8 @@ def main(argv=None, prog="render_sequence.py"):
         ap.error("--mesh renders your head: drop --face, --head and --blend")
     if not args.mesh and (args.landmarks or args.unit):
         ap.error("--landmarks and --unit are for --mesh")
+    if (args.sheet_band_vertices or 0) < 0:
+        ap.error(f"--sheet-band-vertices {args.sheet_band_vertices}: use 0 (one render) or a positive count")
     # Blender's own lines (a Saved line per frame, its warnings) to stderr; none with --quiet.
     with blender_output_aside(shown=not args.quiet) as stdout:
         return render_job(args, prog, stdout)
@@ -308,7 +313,9 @@ def render_job(args, prog, stdout):
         if args.contact_sheet:
             progress_bar(0, 1, "contact sheet", args.quiet)
             path, cells = render.contact_sheet(shown, out / "contact_sheet.png", cell=args.sheet_cell,
-                                               samples=args.sheet_samples, motion=not args.plain_sheet)
+                                               samples=args.sheet_samples, motion=not args.plain_sheet,
+                                               band_vertices=render.SHEET_BAND_VERTICES if args.sheet_band_vertices
+                                               is None else args.sheet_band_vertices or None)
             progress_bar(1, 1, "contact sheet", args.quiet)
             summary["contact_sheet"], summary["contact_sheet_cells"] = str(path), cells
         if args.save_blend:

@@ -5,7 +5,9 @@ bpy), which keyframes its timeline with ``animation.apply_timeline``. Camera and
 lights depend only on the face at rest, and Cycles' seed is fixed, so frame
 ranges rendered apart join seamlessly.
 """
+import itertools
 import math
+import tempfile
 from pathlib import Path
 
 import bpy
@@ -13,6 +15,7 @@ import numpy as np
 from mathutils import Matrix, Vector
 from pdeface.au.expressions import ShapeBasis
 from pdeface.facs import split_au_key
+from pdeface.io.png import write_png
 from pdeface.presets import resolve_preset
 from pdeface.surface.fit import face_mesh
 
@@ -243,16 +246,29 @@ def _legend(scene, left, top, length, size, z, motion_mat, text_mat):
           text_mat, align="LEFT")
 
 
-def contact_sheet(obj, path, items=None, cell=256, columns=8, samples=16, resolution="2,2", motion=True):
+#: The contact sheet is rendered in bands of whole rows (of faces, or of motion), each holding at most about this
+#: many vertices of posed meshes (at least one row): 83 poses of a 27k-vertex head in one scene took 3.2 GB
+#: (issue #35).
+SHEET_BAND_VERTICES = 250_000
+
+
+def contact_sheet(obj, path, items=None, cell=256, columns=8, samples=16, resolution="2,2", motion=True,
+                  band_vertices=SHEET_BAND_VERTICES):
     """One PNG grid of the neutral, every AU (in numeric order) and every preset at weight 1, labelled.
 
-    All cells are posed copies of the face rendered together in one orthographic
-    view (Cycles, denoised where Blender has OpenImageDenoise), each labelled by
-    a text object in a strip below the lowest chin of any cell. With ``motion``,
+    All cells are posed copies of the face laid out in one orthographic view
+    (Cycles, denoised where Blender has OpenImageDenoise), each labelled by a
+    text object in a strip below the lowest chin of any cell. With ``motion``,
     each row of faces has a row below it of the same poses coloured by how far
     each vertex moved from neutral (:func:`set_motion`, :data:`MOTION_RAMP`),
     where AUs too subtle to see in the shading show, and a colour bar in mm
     closes the sheet.
+
+    The sheet is rendered in horizontal bands of whole rows (of faces with their
+    labels, or of motion) through the same camera (a render border each), with
+    only the meshes a band shows in the scene, at most about ``band_vertices``
+    vertices of them but a row at least (``None``: the whole sheet in one
+    render); the bands are joined into one PNG.
     """
     pde = obj if obj.pdeface.is_face else obj.pdeface.rig_face
     model = bridge.face_model(pde)
@@ -282,6 +298,7 @@ def contact_sheet(obj, path, items=None, cell=256, columns=8, samples=16, resolu
         # Faces in the face frame (mm), looking +z, each centred on its cell by the neutral's
         # bounding box; the labels go in a strip below the lowest point any pose reaches (an open jaw).
         posed = [model.frame.to_face(V) for V in user_space]
+        del user_space
         neutral = posed[0]
         lo, hi = neutral.min(axis=0), neutral.max(axis=0)
         centre = (lo + hi) / 2
@@ -302,31 +319,11 @@ def contact_sheet(obj, path, items=None, cell=256, columns=8, samples=16, resolu
         bsdf = text_mat.node_tree.nodes.get("Principled BSDF")
         if bsdf is not None:
             bsdf.inputs["Base Color"].default_value = (0.9, 0.9, 0.9, 1)
-        for i, ((label, _), V) in enumerate(zip(cells, posed)):
-            cell_mesh.vertices = V - centre
-            me = bridge.new_mesh(f"sheet {label}", cell_mesh)
-            if pde is obj:
-                me.materials.append(bridge.skin_material())
-            else:  # the user's own materials, per polygon
-                for m in obj.data.materials:
-                    me.materials.append(m)
-                me.polygons.foreach_set("material_index", bridge.polygon_materials(obj.data))
-                me.polygons.foreach_set("use_smooth", np.ones(len(me.polygons), bool))
-            o = bpy.data.objects.new(f"sheet {label}", me)
-            r, c = divmod(i, columns)
-            cx, cy = c * pitch_x, -r * block
-            o.location = (cx, cy, 0)
-            scene.collection.objects.link(o)
-            _text(scene, f"label {label}", label.replace("_", " "), label_size, (cx, cy + label_y, hi[2] - centre[2]),
-                  text_mat)
-            if motion:
-                mm = bridge.new_mesh(f"motion {label}", cell_mesh)
-                set_motion(mm, V - neutral)
-                mm.materials.append(motion_mat)
-                m_obj = bpy.data.objects.new(f"motion {label}", mm)
-                m_obj.location = (cx, cy - pitch_y, 0)
-                _camera_only(m_obj)
-                scene.collection.objects.link(m_obj)
+        skin = bridge.skin_material() if pde is obj else None
+        places = [divmod(i, columns) for i in range(len(cells))]
+        for (label, _), (r, c) in zip(cells, places):  # labels are light: all of them, in every band
+            _text(scene, f"label {label}", label.replace("_", " "), label_size,
+                  (c * pitch_x, -r * block + label_y, hi[2] - centre[2]), text_mat)
         if motion:
             _legend(scene, -width / 2, top + 0.04 * height - rows * block - 0.5 * label_size,
                     max(1.0, min(3.0, columns - 1.5)) * pitch_x, label_size, hi[2] - centre[2], motion_mat, text_mat)
@@ -357,9 +354,58 @@ def contact_sheet(obj, path, items=None, cell=256, columns=8, samples=16, resolu
         scene.render.resolution_y = int(round(columns * cell * sheet_h / sheet_w))
         scene.render.resolution_percentage = 100
         cam_data.sensor_fit = "HORIZONTAL" if sheet_w >= sheet_h else "VERTICAL"
-        compat.set_image_output(scene, path)
-        with bpy.context.temp_override(scene=scene):
-            bpy.ops.render.render(write_still=True, scene=scene.name)
+        # A mesh's world y extent: its cell's place plus the pose's own extent.
+        extents = [(float(V[:, 1].min()) - centre[1], float(V[:, 1].max()) - centre[1]) for V in posed]
+        meshes = []  # (label, vertices, x, y, y extent, motion)
+        for i, ((label, _), V, (r, c)) in enumerate(zip(cells, posed, places)):
+            cy, (y0, y1) = -r * block, extents[i]
+            meshes.append((label, V, c * pitch_x, cy, (cy + y0, cy + y1), False))
+            if motion:
+                meshes.append((label, V, c * pitch_x, cy - pitch_y, (cy - pitch_y + y0, cy - pitch_y + y1), True))
+
+        def add_mesh(label, V, x, y, moved):
+            cell_mesh.vertices = V - centre
+            me = bridge.new_mesh(f"{'motion' if moved else 'sheet'} {label}", cell_mesh)
+            if moved:
+                set_motion(me, V - neutral)
+                me.materials.append(motion_mat)
+            elif pde is obj:
+                me.materials.append(skin)
+            else:  # the user's own materials, per polygon
+                for m in obj.data.materials:
+                    me.materials.append(m)
+                me.polygons.foreach_set("material_index", bridge.polygon_materials(obj.data))
+                me.polygons.foreach_set("use_smooth", np.ones(len(me.polygons), bool))
+            o = bpy.data.objects.new(me.name, me)
+            o.location = (x, y, 0)
+            if moved:
+                _camera_only(o)
+            scene.collection.objects.link(o)
+            return o
+
+        view_h = cam_data.ortho_scale * (1.0 if cam_data.sensor_fit == "VERTICAL" else
+                                         scene.render.resolution_y / scene.render.resolution_x)
+        image_top = cam.location.y + view_h / 2
+        height_px = scene.render.resolution_y
+        # Strips: each row of faces with its labels, and each motion row; a band is a few whole strips.
+        strip_tops = [sheet_top - r * block - m for r in range(rows) for m in ((0.0, pitch_y) if motion else (0.0,))]
+        per_band = len(strip_tops) if not band_vertices else max(1, band_vertices // (columns * len(cell_mesh.vertices)))
+        cuts = [0] + [min(height_px, max(0, round((image_top - y) / view_h * height_px)))
+                      for y in strip_tops[per_band::per_band]] + [height_px]
+        bands = []
+        with tempfile.TemporaryDirectory(prefix="pdeface_sheet_") as tmp:
+            for b, (p0, p1) in enumerate(itertools.pairwise(cuts)):
+                if p1 <= p0:
+                    continue
+                band_top, band_bottom = (image_top - p * view_h / height_px for p in (p0, p1))
+                shown = [add_mesh(label, V, x, y, moved) for label, V, x, y, (y0, y1), moved in meshes
+                         if y1 >= band_bottom and y0 <= band_top]
+                bands.append(_render_band(scene, Path(tmp) / f"band_{b:03d}.png", p0, p1, len(cuts) > 2))
+                for o in shown:
+                    data = o.data
+                    bpy.data.objects.remove(o, do_unlink=True)
+                    bpy.data.meshes.remove(data)
+        write_png(path, np.concatenate(bands))
     finally:
         for o in list(scene.collection.objects):
             data = o.data
@@ -372,3 +418,29 @@ def contact_sheet(obj, path, items=None, cell=256, columns=8, samples=16, resolu
         for m in materials:
             bpy.data.materials.remove(m)
     return Path(path), [c[0] for c in cells]
+
+
+def _render_band(scene, path, top, bottom, border):
+    """Render pixel rows ``top`` to ``bottom`` (from the top) of ``scene``'s image to ``path`` (a render border
+    cropped to them, with ``border``); returns them as (rows, width, 3) uint8, top row first."""
+    height = scene.render.resolution_y
+    scene.render.use_border = scene.render.use_crop_to_border = border
+    # Blender truncates border × height to whole pixels: a quarter pixel up keeps a float's error off the edge.
+    scene.render.border_min_x, scene.render.border_max_x = 0.0, 1.0
+    scene.render.border_min_y = min(1.0, (height - bottom + 0.25) / height)
+    scene.render.border_max_y = min(1.0, (height - top + 0.25) / height)
+    compat.set_image_output(scene, path)
+    with bpy.context.temp_override(scene=scene):
+        bpy.ops.render.render(write_still=True, scene=scene.name)
+    im = bpy.data.images.load(str(path))
+    try:
+        w, h = im.size
+        px = np.empty(w * h * im.channels, np.float32)
+        im.pixels.foreach_get(px)
+        rgb = px.reshape(h, w, im.channels)[::-1, :, :3]  # Blender's rows run bottom-up
+    finally:
+        bpy.data.images.remove(im)
+    if h != bottom - top or w != scene.render.resolution_x:
+        raise RuntimeError(f"contact sheet band rendered {w}x{h} pixels, not {scene.render.resolution_x}x"
+                           f"{bottom - top}")
+    return np.round(rgb * 255).astype(np.uint8)

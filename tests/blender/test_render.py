@@ -149,6 +149,22 @@ def test_contact_sheet_motion_rows(bpy, face, tmp_path):
     assert saturation[0] < 0.05 < saturation[1] and saturation[2] > 0.2  # neutral grey; AU1's brows, AU12 coloured
 
 
+def test_a_sheet_rendered_in_bands_is_the_sheet_in_one_render(bpy, face, tmp_path):
+    """Bands of one row each (a few meshes per render) join into the same image as one render of the whole sheet."""
+    render = __import__("bl_ext.pdeface_test.pdeface.render", fromlist=["render"])
+    items = ["neutral", "AU1", "AU12", "AU27", "happy"]
+    whole, cells = render.contact_sheet(face, tmp_path / "whole.png", items=items, cell=40, columns=2, samples=2,
+                                        band_vertices=None)
+    banded, banded_cells = render.contact_sheet(face, tmp_path / "banded.png", items=items, cell=40, columns=2,
+                                                samples=2, band_vertices=1)
+    assert banded_cells == cells
+    a, b = pixels(bpy, whole), pixels(bpy, banded)
+    assert a.shape == b.shape and a.shape[1] == 80 and a.shape[0] > 3 * 80  # three rows of faces, motion, legend
+    assert np.abs(a - b).mean() < 0.01 and np.abs(a - b).max() < 0.5  # the same sheet, but for denoising at seams
+    cols = [b[::-1][:60, i * 40:(i + 1) * 40] for i in range(2)]  # the first row: neutral and AU1, both drawn
+    assert all(c.mean() > b[:2].mean() for c in cols)
+
+
 def test_motion_attribute_is_the_keys_displacement_in_mm(bpy, face):
     addon = __import__("bl_ext.pdeface_test.pdeface", fromlist=["bridge", "keys", "render"])
     model = addon.bridge.face_model(face)

@@ -72,7 +72,7 @@ class HeadPrior:
         AU keys of the samples.
     features : (S, K, J, 3) array
         Each sample's curve-point motion (face frame of the prior face, mm).
-    residuals : (S, n, 3) array
+    residuals : (S, n, 3) float32 array
         Truth minus the prior-free binding at every vertex of the prior head (mm).
     vertices : (n, 3) array
         The prior head in its face frame (mm), with ``triangles`` (t, 3) and part ``kind`` (n,).
@@ -181,8 +181,8 @@ class HeadPrior:
         S = len(self.keys)
         used = np.unique(mix.indices)
         # (used, 3, S): gathered, not a cached per-vertex copy of every residual (40 MB held for good; issue #35)
-        residuals = (self.residuals[:, used].transpose(1, 2, 0) * ratio[:, None]).reshape(len(used), 3 * S)
-        residuals = np.asarray(mix[:, used] @ residuals).reshape(-1, S)
+        residuals = (self.residuals[:, used].transpose(1, 2, 0) * ratio[:, None].astype(np.float32))
+        residuals = np.asarray(mix[:, used] @ residuals.reshape(len(used), 3 * S), np.float32).reshape(-1, S)
         return PriorOnHead(idx[keep], residuals, self.solver(), ratio)
 
 
@@ -203,7 +203,7 @@ def _warp(src, dst, smoothing=1.0):
 @dataclass
 class PriorOnHead:
     """A :class:`HeadPrior` on one user's head: ``vertices`` (q,) take the samples' residuals
-    (``residuals`` (q·3, S) mm: the prior head's nearest vertices mixed, faded, scaled per axis by
+    (``residuals`` (q·3, S) float32 mm: the prior head's nearest vertices mixed, faded, scaled per axis by
     ``ratio`` to the user's face) weighted by a curve-point motion's sample weights (``solver``)."""
 
     vertices: np.ndarray
@@ -224,7 +224,8 @@ class PriorOnHead:
     def many(self, curve_motions) -> np.ndarray:
         """:meth:`__call__` of several curve-point motions, (q, k, 3): two matrix products."""
         X = np.stack([(np.asarray(x, np.float64) / self.ratio).ravel() for x in curve_motions], axis=1)
-        return (self.residuals @ (self.solver @ X)).reshape(len(self.vertices), 3, -1).transpose(0, 2, 1)
+        weights = (self.solver @ X).astype(self.residuals.dtype)  # the small factor: the big one stays as it is
+        return (self.residuals @ weights).reshape(len(self.vertices), 3, -1).transpose(0, 2, 1)
 
 
 def load_prior(path, head_vertices, head_triangles) -> HeadPrior:
@@ -259,8 +260,9 @@ def load_prior(path, head_vertices, head_triangles) -> HeadPrior:
         problems.append("'face_size' must be 3 positive numbers (mm) and 'step_mm' positive")
     if problems:
         raise ModelFormatError(f"{path}: " + "; ".join(problems))
-    residuals = np.zeros((S, n, 3))
-    residuals[:, carried] = Q * step
+    # float32: the file's 0.01 mm steps need no more, and the 63 samples on the 27k-vertex head halve to 20 MB
+    residuals = np.zeros((S, n, 3), np.float32)
+    residuals[:, carried] = Q * np.float32(step)
     V = np.asarray(head_vertices, np.float64) @ M[:3, :3].T + M[:3, 3]
     return HeadPrior(keys, F, residuals, V, np.asarray(head_triangles, np.int64), kind, C, size,
                      float(data.get("ridge", RIDGE)), str(data.get("notice", "")),
