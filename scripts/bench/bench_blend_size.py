@@ -16,14 +16,13 @@ from __future__ import annotations
 
 import contextlib
 import io
-import os
 import sys
 import tempfile
 from pathlib import Path
 
 import numpy as np
 
-from scripts.bench.benchlib import bench_parser, run_bench
+from scripts.bench.benchlib import disable_addon, enable_addon, bench_parser, run_bench
 from scripts.devset import makehuman
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -117,16 +116,9 @@ def main(argv=None):
     ap.add_argument("--heads", default="2700,8000,26719", help="about how many vertices each ICT head has")
     ap.add_argument("--makehuman", default=str(MAKEHUMAN), help="MakeHuman's base.obj ('' to skip)")
     args = ap.parse_args(argv)
-    os.environ["BLENDER_USER_RESOURCES"] = tempfile.mkdtemp()
-    import bpy  # noqa: I001 - first: addon_utils exists only once bpy is imported
-    import addon_utils
+    addon = enable_addon()
+    import bpy
     from pdeface.landmarks.detector import available
-
-    repo = Path(tempfile.mkdtemp())
-    os.symlink(ROOT / "blender_addon", repo / "pdeface")
-    bpy.context.preferences.extensions.repos.new(name="bench", module="bench", custom_directory=str(repo), source="USER")
-    addon_utils.enable("bl_ext.bench.pdeface", default_set=True)
-    addon = sys.modules["bl_ext.bench.pdeface"]
     now = addon.face.REFERENCE_RESOLUTION
     ict, ict_landmarks = ict_head()
     heads = [("ICT" if v >= 26719 else "ICT decimated", ict, ict_landmarks, v) for v in map(int, args.heads.split(","))]
@@ -150,7 +142,7 @@ def main(argv=None):
                   f"{moved['Skin']:.2f} / {moved['Teeth']:.2f} cm |")
     finally:
         addon.face.REFERENCE_RESOLUTION = now
-        addon_utils.disable("bl_ext.bench.pdeface", default_set=True)
+        disable_addon()
     n, after = min(rows, key=lambda r: abs(r[0] - 8000))
     print(f"\ntarget: a rigged 8 k-vertex head <= 40 MB; the {n}-vertex head: {after / 1e6:.1f} MB "
           f"(ratio to the target {after / 40e6:.2f})")

@@ -21,7 +21,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from scripts.bench.benchlib import bench_parser, clustered, run_bench
+from scripts.bench.benchlib import enable_addon, bench_parser, clustered, run_bench
 
 ROOT = Path(__file__).resolve().parents[2]
 TARGET_S = 3.0
@@ -78,17 +78,11 @@ def main(argv=None):
     ap = bench_parser(__doc__)
     ap.add_argument("--profile", type=int, default=8, help="functions listed per step")
     args = ap.parse_args(argv)
-    os.environ["BLENDER_USER_RESOURCES"] = tempfile.mkdtemp()
-    import bpy  # noqa: I001 - first: addon_utils exists only once bpy is imported
-    import addon_utils
+    enable_addon()
+    import bpy
     from pdeface.assets import load_head
     from pdeface.io.meshio import write_obj
     from pdeface.mesh import Mesh
-
-    repo = Path(tempfile.mkdtemp())
-    os.symlink(ROOT / "blender_addon", repo / "pdeface")
-    bpy.context.preferences.extensions.repos.new(name="bench", module="bench", custom_directory=str(repo), source="USER")
-    addon_utils.enable("bl_ext.bench.pdeface", default_set=True)
     head, _ = load_head()
     tmp = Path(tempfile.mkdtemp())
     V, T = head.vertices, head.triangles()[0]

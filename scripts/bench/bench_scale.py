@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from scripts.bench.benchlib import bench_parser, run_bench
+from scripts.bench.benchlib import enable_addon, bench_parser, run_bench
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -281,14 +281,8 @@ def sheet_memory(env):
 
 def rig_child():
     """In a child: bpy, the add-on, then Add ICT Head (rigged); prints its peak RSS as JSON."""
-    os.environ["BLENDER_USER_RESOURCES"] = tempfile.mkdtemp()
-    import bpy  # noqa: I001 - first: addon_utils exists only once bpy is imported
-    import addon_utils
-
-    repo = Path(tempfile.mkdtemp())
-    os.symlink(ROOT / "blender_addon", repo / "pdeface")
-    bpy.context.preferences.extensions.repos.new(name="bench", module="bench", custom_directory=str(repo), source="USER")
-    addon_utils.enable("bl_ext.bench.pdeface", default_set=True)
+    enable_addon()
+    import bpy
     bpy.ops.wm.read_homefile(use_empty=True)
     base = high_water_mb()
     t = time.perf_counter()

@@ -149,3 +149,29 @@ def body_character(V, T):
         Ts.append(Tp + n)
         n += len(Vp)
     return np.concatenate(Vs), np.concatenate(Ts), M, np.array([0, 0, 1.55])
+
+
+def enable_addon():
+    """bpy with the add-on enabled as a real extension (a local repo in a temp dir); returns the add-on module.
+
+    ``BLENDER_USER_RESOURCES`` goes to a temp dir before bpy is imported, so the user's Blender is untouched.
+    """
+    import tempfile
+
+    os.environ["BLENDER_USER_RESOURCES"] = tempfile.mkdtemp()
+    import bpy  # noqa: I001 - first: addon_utils exists only once bpy is imported
+    import addon_utils
+
+    repo = Path(tempfile.mkdtemp())
+    os.symlink(Path(__file__).resolve().parents[2] / "blender_addon", repo / "pdeface")
+    bpy.context.preferences.extensions.repos.new(name="bench", module="bench", custom_directory=str(repo),
+                                                 source="USER")
+    addon_utils.enable("bl_ext.bench.pdeface", default_set=True)
+    return sys.modules["bl_ext.bench.pdeface"]
+
+
+def disable_addon():
+    """Unregister the add-on :func:`enable_addon` enabled (at the session's end, as Blender expects)."""
+    import addon_utils
+
+    addon_utils.disable("bl_ext.bench.pdeface", default_set=True)
