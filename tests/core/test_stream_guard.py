@@ -1,6 +1,5 @@
 """The stream player against strangers (issue 38): who may end or stop it, slots, fair turns, arguments."""
 import os
-import socket
 import time
 
 import pytest
@@ -10,23 +9,12 @@ from pdeface.stream.sender import send
 from pdeface.stream.wire import Auth, Control, Garbage, Packet, StreamParser
 
 from scripts.bench.bench_stream import guard
+from test_stream import connect, until  # the stream tests' own client helpers
 
 STOPS = [b"-4 ", b"-4x ", b"-4\n", b"-2\n", b"\n-4\t", b"-04 ", b"-4{12}", b'{"au_r": {"AU12": 1}}\n-4 ']
 CONTROLS = len(STOPS) - 1  # "-4x" is garbage, not a control
 
 
-def connect(address):
-    s = socket.create_connection(address, timeout=5)
-    s.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-    return s
-
-
-def until(cond, timeout=5.0):
-    end = time.monotonic() + timeout
-    while not cond():
-        if time.monotonic() > end:
-            raise AssertionError("timed out")
-        time.sleep(0.005)
 
 
 def closed_by_peer(sock, timeout=5.0) -> bool:
