@@ -151,12 +151,17 @@ def _unique_names(stems):
     return names
 
 
+def _listed(data, key, what, where) -> list:
+    """The job's ``key``: one string or a non-empty list (``what`` names what it must list)."""
+    value = data.get(key)
+    value = [value] if isinstance(value, str) else value
+    if not isinstance(value, list) or not value:
+        raise JobError(f"{where}: '{key}' must list {what}")
+    return value
+
+
 def _plan_rig(data, base, where):
-    meshes = data.get("meshes")
-    if isinstance(meshes, str):
-        meshes = [meshes]
-    if not isinstance(meshes, list) or not meshes:
-        raise JobError(f"{where}: 'meshes' must list head meshes (paths or globs)")
+    meshes = _listed(data, "meshes", "head meshes (paths or globs)", where)
     entries = []
     for m in meshes:
         entry = dict(m) if isinstance(m, dict) else {"mesh": m}
@@ -232,12 +237,7 @@ def _combos(data, where):
 
 
 def _plan_stimuli(data, base, where):
-    faces = data.get("faces")
-    if isinstance(faces, str):
-        faces = [faces]
-    if not isinstance(faces, list) or not faces:
-        raise JobError(f"{where}: 'faces' must list face models, rigged heads, 'default' or 'head'")
-    faces = [_path(base, f) for f in faces]
+    faces = [_path(base, f) for f in _listed(data, "faces", "face models, rigged heads, 'default' or 'head'", where)]
     names = _unique_names(Path(f).stem if Path(f).name != "keys.npz" else Path(f).parent.name for f in faces)
     combos = _combos(data, where)
     intensities = [_intensity(v, where) for v in data.get("intensities", ["C"])]
