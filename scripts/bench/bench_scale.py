@@ -32,7 +32,8 @@ from pathlib import Path
 
 import numpy as np
 
-from scripts.bench.benchlib import enable_addon, bench_parser, run_bench
+from scripts.bench.bench_head import per_part_clustered
+from scripts.bench.benchlib import bench_parser, enable_addon, run_bench
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -94,17 +95,8 @@ class OldSearch:
 
 
 def clustered(V, T, cell):
-    """``V, T`` remeshed by clustering each connected piece on a grid of ``cell`` (cm)."""
-    from pdeface.mesh import connected_components
-
-    key = np.c_[np.floor(V / cell).astype(np.int64), connected_components(len(V), T)]
-    _, inv, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
-    inv = inv.ravel()
-    Vc = np.zeros((len(counts), 3))
-    np.add.at(Vc, inv, V)
-    Tc = inv[T]
-    Tc = np.unique(Tc[(Tc[:, 0] != Tc[:, 1]) & (Tc[:, 1] != Tc[:, 2]) & (Tc[:, 0] != Tc[:, 2])], axis=0)
-    return Vc / counts[:, None], Tc
+    """``V, T`` remeshed by clustering each connected piece on a grid of ``cell`` (cm): bench_head's remesher."""
+    return per_part_clustered(V, T, cell)[:2]
 
 
 def test_heads():
