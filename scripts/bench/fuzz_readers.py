@@ -1,7 +1,7 @@
 """Fuzz every pdeface reader, what consumes what it read, and every CLI command's arguments (seeded).
 
 Usage: python -m scripts.bench.fuzz_readers [--inputs 100000] [--readers obj,model,...] [--seed 0]
-       [--cli] [--time-limit 5] [--memory-mb 500] [--json OUT] [--markdown OUT]
+       [--cli] [--commands all|fit,pose,...] [--time-limit 5] [--memory-mb 500] [--json OUT] [--markdown OUT]
 
 Each reader gets a corpus of valid files made from the project's own data (the
 default face, its descriptors, presets, a timeline, FDTs, tracker CSVs, packets)
@@ -17,7 +17,8 @@ pose, retarget; descriptor → pose; presets → resolve and pose; timeline →
 channels and its first key posed; FDT → apply; tracker CSV → timeline).
 ``--cli`` fuzzes every command's arguments in-process (the ``pdeface`` entry point's ``main``):
 each option given a value at the limits, a wrong type, a bad file or a good
-one; the cheap commands run, the rest are parsed.
+one; the cheap commands run, the rest are parsed. ``--commands`` gives each named command (``all``: every
+one) ``--inputs`` command lines of its own; without ``--readers`` it fuzzes only those commands.
 
 An input passes when it is read or refused with ``PdeFaceError`` (the CLI:
 exit 0 or 2, or argparse's ``SystemExit(2)``); anything else escaping is a
@@ -525,12 +526,18 @@ def cli_module():
     return sys.modules[main.__module__]
 
 
-def cli_inputs(rng, files):
-    """One command line: a (sub)command, a few of its options with values from :data:`ARG_VALUES` or
-    ``files`` (bad and good files of each kind), its positionals, and ``-o`` into a scratch folder."""
+def cli_commands() -> dict:
+    """The commands fuzzed: every (sub)command parser but the groups and ``render`` (which runs Blender)."""
     cli = cli_module()
-    commands = {n: p for n, p in cli.subcommands(cli.build_parser()).items() if n not in ("fdt", "stream", "render")}
-    name = rng.choice(sorted(commands))
+    return {n: p for n, p in cli.subcommands(cli.build_parser()).items() if n not in ("fdt", "stream", "render")}
+
+
+def cli_inputs(rng, files, name=None):
+    """One command line: a (sub)command (``name``, or one drawn), a few of its options with values from
+    :data:`ARG_VALUES` or ``files`` (bad and good files of each kind), its positionals, and ``-o`` into a
+    scratch folder."""
+    commands = cli_commands()
+    name = name or rng.choice(sorted(commands))
     parser = commands[name]
     argv = name.split()
     values = ARG_VALUES + files
@@ -548,13 +555,32 @@ def cli_inputs(rng, files):
     return name, argv
 
 
-def fuzz_cli(n, seed=0, slow_s=2.0, keep=5):
-    """``n`` command lines through the ``pdeface`` command's ``main``; returns a summary dict like :func:`fuzz`'s."""
+@contextlib.contextmanager
+def one_parser(cli):
+    """The ``pdeface`` parser built once for a campaign (building it takes longer than most inputs do);
+    parsing leaves an argparse parser as it was, so each input still meets a fresh one."""
+    build = cli.build_parser
+    parser = build()
+    cli.build_parser = lambda: parser
+    try:
+        yield parser
+    finally:
+        cli.build_parser = build
+
+
+def fuzz_cli(n, seed=0, slow_s=2.0, keep=5, command=None):
+    """``n`` command lines through the ``pdeface`` command's ``main`` (all of ``command``'s, or commands drawn
+    at random); returns a summary dict like :func:`fuzz`'s."""
+    cli = cli_module()
+    with one_parser(cli):
+        return _fuzz_cli(cli, n, seed, slow_s, keep, command)
+
+
+def _fuzz_cli(cli, n, seed, slow_s, keep, command):
     from pdeface.errors import PdeFaceError
 
-    cli = cli_module()
     build_parser, main = cli.build_parser, cli.main
-    rng = random.Random(f"{seed}:cli")
+    rng = random.Random(f"{seed}:cli" + (f":{command}" if command else ""))
     failures, slowest, ran, slow = [], (0.0, None), 0, 0
     with tempfile.TemporaryDirectory() as tmp:
         files = [str(Path(tmp) / "out.obj")]
@@ -564,7 +590,7 @@ def fuzz_cli(n, seed=0, slow_s=2.0, keep=5):
                 path.write_bytes(data)
                 files.append(str(path))
         for k in range(n):
-            name, argv = cli_inputs(rng, files)
+            name, argv = cli_inputs(rng, files, command)
             t = time.perf_counter()
             with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
                 try:
@@ -588,7 +614,7 @@ def fuzz_cli(n, seed=0, slow_s=2.0, keep=5):
             slow += dt > slow_s
             if dt > slowest[0]:
                 slowest = (dt, k)
-    return {"reader": "cli", "inputs": n, "consumed": ran, "failures": len(failures),
+    return {"reader": f"cli {command}" if command else "cli", "inputs": n, "consumed": ran, "failures": len(failures),
             "examples": [f for f in failures if f], "slowest_s": slowest[0], "slowest_input": slowest[1],
             "over_limit": slow, "over_2s": slow, "peak_rss_mb": peak_rss_mb()}
 
@@ -639,22 +665,27 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--inputs", type=int, default=100_000, help="mutated inputs per target")
     ap.add_argument("--readers", default="", help="comma-separated reader names (default: all)")
-    ap.add_argument("--cli", action="store_true", help="also fuzz the command line's arguments")
+    ap.add_argument("--cli", action="store_true", help="also fuzz the command line's arguments (commands drawn)")
+    ap.add_argument("--commands", default="",
+                    help="comma-separated commands ('all': every one) each given --inputs command lines of its own")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--time-limit", type=float, default=5.0, help="seconds an input may take")
     ap.add_argument("--memory-mb", type=int, default=500, help="address space past the warm-up size")
     ap.add_argument("--json", help="write the summaries here")
     ap.add_argument("--markdown", help="write the table here (docs/measurements/fuzz_readers.md)")
     args = ap.parse_args(argv)
-    names = [r for r in args.readers.split(",") if r] or list(readers())
+    names = [r for r in args.readers.split(",") if r] or ([] if args.commands else list(readers()))
     corpus_cache()
     _CONSUMERS.update(consumers())
     cap_memory(args.memory_mb)
     t0 = time.perf_counter()
     out = []
-    for name in names + (["cli"] if args.cli else []):
-        r = fuzz_cli(args.inputs, args.seed, args.time_limit) if name == "cli" else \
+    commands = sorted(cli_commands()) if args.commands == "all" else [c for c in args.commands.split(",") if c]
+    targets = [("reader", n) for n in names] + ([("cli", None)] if args.cli else []) + [("cli", c) for c in commands]
+    for kind, name in targets:
+        r = fuzz_cli(args.inputs, args.seed, args.time_limit, command=name) if kind == "cli" else \
             fuzz(name, args.inputs, args.seed, args.time_limit)
+        name = r["reader"]
         out.append(r)
         print(f"{name:16s} {r['inputs']:>7d} inputs  {r['consumed']:>7d} consumed  {r['failures']} failures  "
               f"{r['over_limit']} over {args.time_limit:g} s  slowest {r['slowest_s']:.3f} s  "
