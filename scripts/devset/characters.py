@@ -84,14 +84,19 @@ class Character:
         return float(eye_distance(self.landmarks))
 
 
+def race_of(spec: Spec) -> str:
+    """The race whose expression units MakeHuman gives ``spec``'s character: its first identity's (caucasian
+    for the base, which has none)."""
+    race = next(iter(spec.identity), "caucasian").split("-")[0]
+    return race if race in ("caucasian", "african", "asian") else "caucasian"
+
+
 def _identity(spec: Spec) -> np.ndarray:
     V = read_base().vertices
     weights = {f"macrodetails/{k}": w for k, w in spec.identity.items()}
     weights.update(spec.style)
     if spec.mouth_open:
-        race = next(iter(spec.identity)).split("-")[0]
-        race = race if race in ("caucasian", "african", "asian") else "caucasian"
-        weights[f"expression/units/{race}/mouth-open"] = spec.mouth_open
+        weights[f"expression/units/{race_of(spec)}/mouth-open"] = spec.mouth_open
     return apply_targets(V, weights)
 
 
