@@ -2,7 +2,7 @@
 
 Each :class:`Character` is what a user would hand over (a head or a whole body, one mesh, in some unit and
 axis convention, eyes/teeth/tongue merged in or as separate objects) plus the truth: the 68 landmarks
-(the vertices annotated once on the base mesh, ``makehuman_landmarks.json``, carried through every
+(the skin points annotated once on the base mesh, ``makehuman_landmarks.json``, carried through every
 deformation; on a remeshed character, the nearest point of the new surface) and millimetres per unit.
 
     from scripts.devset.characters import SPECS, build
@@ -40,9 +40,20 @@ EYES, MOUTH_PARTS = ("helper-l-eye", "helper-r-eye"), ("helper-upper-teeth", "he
 
 
 @lru_cache(maxsize=1)
+def _annotation() -> dict:
+    return json.loads(ANNOTATION.read_text())
+
+
 def annotated_indices() -> np.ndarray:
-    """The 68 annotated base-mesh vertices (iBUG-68 order)."""
-    return np.array(json.loads(ANNOTATION.read_text())["indices"], np.int64)
+    """The base-mesh vertex nearest each of the 68 annotated landmarks (iBUG-68 order)."""
+    return np.array(_annotation()["indices"], np.int64)
+
+
+def annotated_points(V) -> np.ndarray:
+    """The 68 annotated landmarks on the base mesh or a character made from it (``V``, its vertices): each a
+    point of a skin triangle (``corners``, ``weights`` of the annotation), carried by every deformation."""
+    a = _annotation()
+    return np.einsum("ij,ijk->ik", np.array(a["weights"]), np.asarray(V)[np.array(a["corners"], np.int64)])
 
 
 @dataclass(frozen=True)
@@ -234,8 +245,7 @@ def build(spec: Spec) -> Character:
         V = _t_pose(V)
     if spec.head_turn:
         V = _turn_head(V, spec.head_turn)
-    idx = annotated_indices()
-    L = V[idx]
+    L = annotated_points(V)
     cut = base.joint("neck", V)[1] - HEAD_CUT
 
     def keep(T):

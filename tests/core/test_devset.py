@@ -16,7 +16,7 @@ from pdeface.surface.fit import fit_face
 from pdeface.surface.frame import UNITS_MM, estimate_unit, face_frame
 
 from scripts.devset import makehuman
-from scripts.devset.characters import SPECS, UNIT_MM, annotated_indices, build
+from scripts.devset.characters import SPECS, UNIT_MM, annotated_indices, annotated_points, build
 
 needs_makehuman = pytest.mark.skipif(not makehuman.available(), reason="needs ../shared/data/makehuman")
 needs_mediapipe = pytest.mark.skipif(not mediapipe_available(), reason='needs pip install "pdeface[landmarks]"')
@@ -29,15 +29,23 @@ def ict():
 
 
 @needs_makehuman
-def test_the_annotated_vertices_are_skin_mirror_each_other_and_read_top_down():
+def test_the_annotated_points_are_on_the_skin_mirror_each_other_and_read_top_down():
+    from pdeface.geometry import ClosestPoint
+
     base = makehuman.read_base()
     idx = annotated_indices()
     assert len(idx) == 68 and len(set(idx.tolist())) == 68
-    assert np.isin(idx, np.unique(base.group_quads("body"))).all()
-    L = base.vertices[idx]
-    assert np.abs(L - L[list(MIRROR)] * [-1, 1, 1]).max() < 1e-6  # the base mesh is symmetric in x
-    y = base.vertices[:, 1]
-    assert y[idx[17:27]].mean() > y[idx[36:48]].mean() > y[idx[33]] > y[idx[48:68]].mean() > y[idx[8]]
+    skin = makehuman.triangles(base.group_quads("body"))
+    assert np.isin(idx, np.unique(skin)).all()
+    L = annotated_points(base.vertices)
+    assert ClosestPoint(base.vertices, skin).query(L)[0].max() < 1e-3  # on the skin (decimetres)
+    assert np.linalg.norm(L - base.vertices[idx], axis=1).max() < 0.1  # near their vertices
+    off = np.abs(L - L[list(MIRROR)] * [-1, 1, 1]).max(1)  # the base mesh is symmetric in x
+    midline = np.array(MIRROR) == np.arange(68)
+    assert off[~midline].max() < 1e-6  # a left point is its right partner's mirror
+    assert off[midline].max() < 0.002  # 0.2 mm: the skin's quads are not split into mirrored triangles
+    y = L[:, 1]
+    assert y[17:27].mean() > y[36:48].mean() > y[33] > y[48:68].mean() > y[8]
     assert L[45, 0] > L[42, 0] > 0 > L[39, 0] > L[36, 0]  # +x is the subject's left (the scheme's left eye)
 
 
@@ -57,19 +65,19 @@ def test_the_set_covers_what_the_issue_asks():
 def test_a_character_carries_its_landmarks_through_units_axes_and_remeshing():
     base = makehuman.read_base()
     dm = build(SPECS["base-dm"])
-    assert np.allclose(dm.landmarks, base.vertices[annotated_indices()])
+    assert np.allclose(dm.landmarks, annotated_points(base.vertices))
     assert dm.mm_per_unit == 100.0 and 55 < dm.eye_distance * dm.mm_per_unit < 70
     sep = build(SPECS["eyes-teeth-separate-in"])
     assert set(sep.parts) == {"l-eye", "r-eye", "upper-teeth", "lower-teeth", "tongue"}
     assert sep.mm_per_unit == UNIT_MM["in"]
-    # The landmarks sit on the character's own mesh: on vertices, or on the new surface of a remeshed one.
+    # The landmarks sit on the character's own surface, remeshed or not.
     from pdeface.geometry import ClosestPoint
 
     dec = build(SPECS["decimated-cm"])
     assert 2500 < len(dec.vertices) < 3500
     d = ClosestPoint(dec.vertices, dec.triangles).query(dec.landmarks)[0]
     assert d.max() < 1e-9
-    assert np.isin(dm.landmarks.view([("", float)] * 3), dm.vertices.view([("", float)] * 3)).all()
+    assert ClosestPoint(dm.vertices, dm.triangles).query(dm.landmarks)[0].max() < 1e-3
     body = build(SPECS["body-A-turn40-m"])
     assert np.ptp(body.vertices[:, 1]) * body.mm_per_unit > 1400  # a whole body, metres, +y up
     # The head turned 40°: the eye line turns 40° about the vertical.
