@@ -1,6 +1,6 @@
 """The MakeHuman annotation re-derived in ICT-FaceKit's landmark convention, independently of the detector.
 
-Usage: python -m scripts.devset.annotate [--write] [--ict DIR]
+Usage: python -m scripts.devset.annotate [--write] [--ict DIR] [--old OLD.json]
 
 The detector's map was fitted on ICT-FaceKit heads, so the development set's truth must put each of the 68
 landmarks where ICT puts it. ICT's generic neutral face (its 68 landmark vertices, ``vertex_indices.json``)
@@ -9,10 +9,10 @@ is registered onto MakeHuman's base skin:
 1. **similarity** (scale, rotation, shift) from unambiguous points: eye corners, nose tip, mouth corners
    (the points any annotator places alike);
 2. **non-rigid ICP**: control points spread over ICT's face move to their closest points on the MakeHuman
-   skin (pairs whose normals disagree or that lie far apart are dropped), a thin-plate spline from the
-   control points carries the whole face along, its stiffness lowered step by step (coarse to fine);
-   the eye openings (the mesh's hole boundaries in the sockets) are matched curve to curve, so the lid
-   margins land on the lid margins;
+   skin, closest in position and normal (:data:`NORMAL_WEIGHT`: plain closest points let a smooth spline slide
+   the brow ridge, the lip border or the jaw's angle along the surface); pairs whose normals disagree or that
+   lie far apart are dropped; a thin-plate spline from the control points carries the whole face along, its
+   stiffness lowered step by step (coarse to fine);
 3. each ICT landmark, once registered, left and right averaged across the midline (the base is symmetric
    in x), is taken to its closest skin point (a triangle and weights: a vertex would be up to 5 % of the eye
    distance off where the coarse skin's vertices are sparse, brows and jaw); the left side is the right's mirror.
@@ -38,15 +38,19 @@ from pdeface.landmarks.facemap import GROUPS
 from pdeface.mesh import vertex_normals
 from pdeface.surface.frame import face_frame
 
-from .characters import ANNOTATION, annotated_indices
+from .characters import ANNOTATION
 from .makehuman import DATA, read_base, triangles
 
 #: ICT-FaceKit beside MakeHuman's data (``PDEFACE_ICT`` overrides).
 ICT = Path(os.environ.get("PDEFACE_ICT") or DATA.parent / "ict-facekit")
-#: Points every annotator places alike: eye corners, nose tip, mouth corners.
-ANCHORS = [36, 39, 42, 45, 30, 48, 54]
+#: Points every annotator places alike (eye corners, nose tip, mouth corners): landmark → base vertex, picked
+#: by eye on close-up renders; they only start the registration.
+ANCHORS = {36: 1062, 39: 6767, 42: 13363, 45: 7754, 30: 297, 48: 3737, 54: 10405}
 #: Thin-plate smoothing of each ICP step (coarse to fine) and the farthest a pair may lie apart (eye distances).
 SCHEDULE = [(3.0, 0.30), (1.0, 0.20), (0.3, 0.12), (0.1, 0.08), (0.03, 0.05), (0.01, 0.05), (0.003, 0.04)]
+#: How much a unit of normal difference counts against distance when pairing points (eye distances): pairs
+#: follow creases and ridges (the brow ridge, the lip border, the jaw's angle) instead of sliding along them.
+NORMAL_WEIGHT = 0.15
 #: Control points of the spline.
 CONTROLS = 900
 
@@ -79,28 +83,41 @@ def spread(P, n, seed=0):
     return np.array(chosen)
 
 
-def register(Vs, Ts, Ls, Vt, Tt, Lt_anchors, log=print):
-    """ICT's face ``(Vs, Ts)`` with landmark vertices ``Ls`` registered onto the skin ``(Vt, Tt)``.
+def surface_samples(V, T, n=3):
+    """Points spread over the triangles ``T`` (a barycentric grid of ``n`` steps a side) and their unit normals
+    (interpolated vertex normals)."""
+    grid = np.array([(i, j, n - i - j) for i in range(n + 1) for j in range(n + 1 - i)], np.float64) / n
+    N = vertex_normals(V, T)
+    P = np.einsum("gk,tkj->tgj", grid, V[T]).reshape(-1, 3)
+    Pn = np.einsum("gk,tkj->tgj", grid, N[T]).reshape(-1, 3)
+    return P, Pn / np.linalg.norm(Pn, axis=1, keepdims=True)
+
+
+def register(Vs, Ts, Ls, Vt, Tt, log=print):
+    """ICT's face ``(Vs, Ts)`` with landmark vertices ``Ls`` registered onto the skin ``(Vt, Tt)`` (MakeHuman's:
+    :data:`ANCHORS` start it).
 
     Returns the registered vertices and the per-step residuals (median, p95 of the controls' distances to
     the skin, eye distances)."""
     from scipy.interpolate import RBFInterpolator
+    from scipy.spatial import cKDTree
 
-    s, R, t = similarity(Vs[Ls[ANCHORS]], Lt_anchors)
+    s, R, t = similarity(Vs[Ls[list(ANCHORS)]], Vt[list(ANCHORS.values())])
     X0 = s * Vs @ R.T + t
     eyes = eye_distance(X0[Ls])
     used = np.unique(Ts)
     target = ClosestPoint(Vt, Tt)
-    Nt = vertex_normals(Vt, Tt)
+    P, Pn = surface_samples(Vt, Tt)
+    tree = cKDTree(np.hstack([P, NORMAL_WEIGHT * eyes * Pn]))
     controls = np.unique(np.concatenate([used[spread(X0[used], CONTROLS)], Ls]))
     X, residuals = X0.copy(), []
     for smoothing, reach in SCHEDULE:
         for _ in range(3):
-            N = vertex_normals(X, Ts)
-            d, tri, bary, Q = target.query(X[controls])
-            n_t = np.einsum("ij,ijk->ik", bary, Nt[Tt[tri]])
-            ok = (d < reach * eyes) & (np.einsum("ij,ij->i", N[controls], n_t) > 0.5)
-            src, dst = X0[controls[ok]], Q[ok]
+            N = vertex_normals(X, Ts)[controls]
+            _, k = tree.query(np.hstack([X[controls], NORMAL_WEIGHT * eyes * N]))
+            d = np.linalg.norm(P[k] - X[controls], axis=1)
+            ok = (d < reach * eyes) & (np.einsum("ij,ij->i", N, Pn[k]) > 0.5)
+            src, dst = X0[controls[ok]], P[k[ok]]
             warp = RBFInterpolator(src / eyes, (dst - src) / eyes, kernel="thin_plate_spline",
                                    smoothing=smoothing * len(src) / 1000, degree=1)
             X = X0 + eyes * warp(X0 / eyes)
@@ -179,13 +196,14 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--ict", default=str(ICT), help="ICT-FaceKit folder")
     ap.add_argument("--write", action="store_true", help=f"rewrite {ANNOTATION.name}")
+    ap.add_argument("--old", default=str(ANNOTATION), help="the annotation to compare with (its vertex 'indices')")
     args = ap.parse_args(argv)
     Vs, Ts, Ls, ict = ict_face(args.ict)
     Vt, Tt, head = makehuman_head()
     Th = Tt[head[Tt].all(1)]
-    old = annotated_indices()
+    old = np.array(json.loads(Path(args.old).read_text())["indices"], np.int64)
     print("== registration of ICT's generic neutral face onto MakeHuman's base skin (head)")
-    X, _ = register(Vs, Ts, Ls, Vt, Th, Vt[old[ANCHORS]])
+    X, _ = register(Vs, Ts, Ls, Vt, Th)
     corners, weights, idx, snap = symmetric_points(X[Ls], Vt, Th)
     new = np.einsum("ij,ijk->ik", weights, Vt[corners])
     eyes = eye_distance(new)
