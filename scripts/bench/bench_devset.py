@@ -75,6 +75,7 @@ def main(argv=None):
                 continue
             r["seconds"] = time.perf_counter() - t
             r["found"] = True
+            r["points"], r["truth"] = found.points.tolist(), ch.landmarks.tolist()  # for the --json reader
             r.update(errors_pct(found.points, ch.landmarks, eyes))
             r["unit_error_pct"] = 100 * (found.mm_per_unit / ch.mm_per_unit - 1)
             verdict = check(found.points, ch.vertices, ch.triangles[found.skin])

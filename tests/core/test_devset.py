@@ -163,6 +163,8 @@ def test_the_gate_names_the_group_and_the_check_that_fail(ict):
         ("eyes", "surface"): _frame_shift(L, LOWER_LIDS, [0, 0, -15]),
         # the right brow 25 % of the eye distance higher than the left
         ("brows", "mirror"): _frame_shift(L, list(range(17, 22)), [0, 0.25 * eyes_mm, 0]),
+        # the brows 10 % of the eye distance lower, on the upper lids' fold (found so on hairless heads)
+        ("brows", "height"): _frame_shift(L, list(range(17, 27)), [0, -0.1 * eyes_mm, 0]),
         # the mouth above the nose
         ("mouth", "order"): _frame_shift(L, list(range(48, 68)), [0, 60, 0]),
         # a mouth three times as wide
