@@ -15,7 +15,7 @@ from pdeface.rigid import rotation_vector_matrix
 from pdeface.surface.fit import fit_face
 from pdeface.surface.frame import UNITS_MM, estimate_unit, face_frame
 
-from scripts.devset import makehuman
+from scripts.devset import annotate, makehuman
 from scripts.devset.characters import SPECS, UNIT_MM, annotated_indices, annotated_points, build
 
 needs_makehuman = pytest.mark.skipif(not makehuman.available(), reason="needs ../shared/data/makehuman")
@@ -254,3 +254,29 @@ def test_found_eye_and_mouth_points_stay_on_the_outer_surface_over_sockets_and_p
     assert e[36:48].max() < 0.2 and e[48:68].max() < 0.25, (e[36:48].max(), e[48:68].max())
     failures = check(found.points, ch.vertices, ch.triangles[found.skin]).failures  # the gate's surface check
     assert not [c for g in ("eyes", "mouth") for c, _ in failures.get(g, []) if c == "surface"], failures
+
+
+@needs_makehuman
+@pytest.mark.skipif(not annotate.ICT.joinpath("generic_neutral_mesh.obj").is_file(), reason="needs ICT-FaceKit")
+def test_the_annotation_is_icts_generic_face_registered_onto_the_base():
+    """The committed annotation is what scripts/devset/annotate.py makes, and sits where ICT's heads have them."""
+    Vs, Ts, Ls, ict = annotate.ict_face()
+    Vt, Tt, head = annotate.makehuman_head()
+    Th = Tt[head[Tt].all(1)]
+    X, residuals = annotate.register(Vs, Ts, Ls, Vt, Th, log=lambda *_: None)
+    assert residuals[-1][1] < 0.002 and residuals[-1][1] < residuals[0][1]  # the face lies on the skin
+    corners, weights, _, to_skin = annotate.symmetric_points(X[Ls], Vt, Th)
+    assert to_skin.max() < 0.02 * annotate.eye_distance(X[Ls])  # the registered landmarks lie on the skin
+    made = np.einsum("ij,ijk->ik", weights, Vt[corners])
+    committed = annotated_points(makehuman.read_base().vertices)
+    assert np.linalg.norm(made - committed, axis=1).max() < 1e-4  # decimetres: the same points
+    # Where the conventions differed, the annotation now lies among ICT's own heads (eye distances, ±0.02).
+    heads = [Vs[Ls]] + [(Vs + ict.shape(f"identity{i:03d}"))[Ls] for i in range(20)]
+    ict_stats = [annotate.statistics(L) for L in heads]
+    ours = annotate.statistics(committed)
+    for name in ["inner brows above the eye centres", "upper lids above the eye corners",
+                 "lower lids below the eye corners", "upper-lid points' spread over eye width",
+                 "inner lip line width (60-64)", "inner lip corners inside the mouth corners",
+                 "jaw ends (0, 16) behind the eye centres"]:
+        vals = [s[name] for s in ict_stats]
+        assert min(vals) - 0.02 <= ours[name] <= max(vals) + 0.02, (name, ours[name], min(vals), max(vals))
