@@ -2,7 +2,7 @@
 
 Each :class:`Character` is what a user would hand over (a head or a whole body, one mesh, in some unit and
 axis convention, eyes/teeth/tongue merged in or as separate objects) plus the truth: the 68 landmarks
-(the skin points annotated once on the base mesh, ``makehuman_landmarks.json``, carried through every
+(the vertices annotated once on the base mesh, ``makehuman_landmarks.json``, carried through every
 deformation; on a remeshed character, the nearest point of the new surface) and millimetres per unit.
 
     from scripts.devset.characters import SPECS, build
@@ -45,15 +45,14 @@ def _annotation() -> dict:
 
 
 def annotated_indices() -> np.ndarray:
-    """The base-mesh vertex nearest each of the 68 annotated landmarks (iBUG-68 order)."""
+    """The 68 annotated base-mesh vertices (iBUG-68 order)."""
     return np.array(_annotation()["indices"], np.int64)
 
 
 def annotated_points(V) -> np.ndarray:
-    """The 68 annotated landmarks on the base mesh or a character made from it (``V``, its vertices): each a
-    point of a skin triangle (``corners``, ``weights`` of the annotation), carried by every deformation."""
-    a = _annotation()
-    return np.einsum("ij,ijk->ik", np.array(a["weights"]), np.asarray(V)[np.array(a["corners"], np.int64)])
+    """The 68 annotated landmarks on the base mesh or a character made from it (``V``, its vertices): the
+    annotated vertices, carried by every deformation."""
+    return np.asarray(V)[annotated_indices()]
 
 
 @dataclass(frozen=True)

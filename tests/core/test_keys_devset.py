@@ -135,11 +135,11 @@ def test_the_lip_and_eye_corners_fold_less_and_the_mouth_opens_as_wide(monkeypat
     flat = (turn_degrees(Vf, T, pairs) < 20) & smoothed.parts.mask("skin")[T[pairs]].all(axis=(1, 2))
     near = [np.argmin(np.linalg.norm(Vf - Lf[i], axis=1)) for i in (LIP_UPPER_INNER, LIP_LOWER_INNER)]
     descr = {d.key: d for d in model.descriptors}
-    for key in ("27", "12", "45"):
+    # The blink's seams fold less by 0.8 on the by-eye annotation, by 49/57 on the ICT-convention one (issue #39)
+    for key, most in (("27", 0.8), ("12", 0.8), ("45", 0.9)):
         args = descriptor_motion_args(descr[key])
         posed = {n: f.to_face(V + b.displacement(*args)) for n, b in (("raw", raw), ("smoothed", smoothed))}
         folds = {n: int((flat & (turn_degrees(P, T, pairs) > 40)).sum()) for n, P in posed.items()}
-        # 0.8 when the base's annotation was by eye; the blink's 56 of 67 with the ICT-convention one
-        assert folds["smoothed"] < 0.85 * folds["raw"], (key, folds)
+        assert folds["smoothed"] < most * folds["raw"], (key, folds)
         gap = {n: P[near[0], 1] - P[near[1], 1] for n, P in posed.items()}
         assert abs(gap["smoothed"] - gap["raw"]) < 0.01 * smoothed.eye_distance, (key, gap)
