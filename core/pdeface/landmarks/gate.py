@@ -44,9 +44,9 @@ SPACING = {"jaw": [(0, 16, 1.3, 3.2)], "brows": [(17, 26, 1.0, 2.6)],
            "nose": [(27, 33, 0.45, 1.4), (31, 35, 0.25, 0.9)],
            "eyes": [(36, 39, 0.25, 0.75), (42, 45, 0.25, 0.75)], "mouth": [(48, 54, 0.45, 1.5)]}
 #: The brows' mean height above the eye centres (eye distances): rows, least, most. True brows: ICT's 21 heads
-#: outer 0.31-0.33, inner 0.40-0.41 (found by the detector: 0.31-0.33, 0.39-0.41); MakeHuman's 24 characters
-#: 0.35-0.46 and 0.37-0.54. The least lie below every true head of both families; brows found too low on
-#: MakeHuman's hairless heads (outer 0.27-0.30, 10-16 % of the eye distance off) fall under them.
+#: outer 0.31-0.33, inner 0.40-0.41 (found by the detector, also turned: 0.31-0.33, 0.39-0.41); MakeHuman's 24
+#: characters 0.35-0.46 and 0.39-0.56. The least lie below every true head of both families; brows found too
+#: low on MakeHuman's hairless heads (outer 0.27-0.30, 11-19 % of the eye distance off) fall under them.
 BROW_HEIGHT = {"outer": ([17, 18, 25, 26], 0.30, 0.65), "inner": ([20, 21, 22, 23], 0.35, 0.70)}
 #: How far (eye distances) a jaw point may lie from the middle of its neighbours: true jawlines bend 0.10 (ICT's
 #: identities) to 0.17 (MakeHuman's characters), 0.28 with MakeHuman's chin target at weight 2; found on ICT, 0.18.
