@@ -25,11 +25,12 @@ from pdeface.geometry import ClosestPoint
 from pdeface.io.files import atomic_open
 from pdeface.landmark_scheme import eye_distance
 from pdeface.landmarks import MissingDependencyError, available
-from pdeface.landmarks.headfind import detect_anywhere
 from pdeface.landmarks.detector import RUNTIME_PACKAGES
 from pdeface.landmarks.facemap import GROUPS
 from pdeface.landmarks.gate import LandmarkGateError, check
-from pdeface.landmarks.pipeline import skin_triangles
+from pdeface.landmarks.headfind import detect_anywhere
+from pdeface.landmarks.pipeline import onto_outer_surface, skin_triangles
+from pdeface.landmarks.render import View, rasterise
 from pdeface.surface.frame import face_frame, landmark_points
 from pdeface.surface.frame import read_landmarks as read_landmark_file
 
@@ -157,37 +158,37 @@ SNAP_REACH = 0.15
 #: A landmark this close to the surface (share of the eye distance) is on it: only brought onto it exactly
 #: (the ray would find lashes in front of a lid point).
 ON_SURFACE = 0.005
+#: Pixels of the straight-on view the snap casts its rays in (about 0.3 mm on an adult face).
+SNAP_SIZE = 512
 
 
 def snap(context, obj):
     """Move each landmark empty of ``obj`` onto its surface: one off it straight back along the face's forward
-    direction (where a drag in a front view meant it), else onto the closest point. Returns the farthest move
-    (object space)."""
+    direction (where a drag in a front view meant it: core's
+    :func:`~pdeface.landmarks.pipeline.onto_outer_surface`, which takes the lid margin or the lip's edge over an
+    opening), else onto the closest point. Returns the farthest move (object space)."""
     lms = empties(obj)
     if lms is None:
         raise LandmarkError(f"{obj.name} has no landmark empties: Find Landmarks or Import Landmarks first")
     points = empty_points(obj)
+    V = bridge.vertices(obj.data)
+    T, _ = bridge.triangles(obj.data)
     eyes = eye_distance(points)
-    forward = Vector(face_frame(points).rotation[2])
-    depsgraph = context.evaluated_depsgraph_get()
-    moved = 0.0
-    for e, p in zip(lms, points, strict=True):
-        p = Vector(p)
-        hit, co, _, _ = obj.closest_point_on_mesh(p, depsgraph=depsgraph)
-        ray, at, _, _ = obj.ray_cast(p + forward * SNAP_REACH * eyes, -forward, distance=2 * SNAP_REACH * eyes,
-                                     depsgraph=depsgraph)
-        if hit and (co - p).length < ON_SURFACE * eyes:
-            pass
-        elif ray and (at - p).length < SNAP_REACH * eyes:
-            co = at
-        elif not hit:
-            continue
+    frame = face_frame(points)
+    R = frame.rotation
+    view = View.looking(R[2], R[1], points.mean(0), 1.6 * eyes, SNAP_SIZE)
+    cast, _ = onto_outer_surface(V, T, rasterise(V, T, view), points, frame.scale)
+    closest = ClosestPoint(V, T).query(points)[3]
+    to_closest = np.linalg.norm(closest - points, axis=1)
+    to_cast = np.linalg.norm(cast - points, axis=1)  # NaN where the ray found no outer surface
+    use_cast = (to_closest >= ON_SURFACE * eyes) & (to_cast < SNAP_REACH * eyes)
+    target = np.where(use_cast[:, None], cast, closest)
+    for e, p in zip(lms, target, strict=True):
         m = e.matrix_world.copy()
-        m.translation = obj.matrix_world @ co
+        m.translation = obj.matrix_world @ Vector(p)
         e.matrix_world = m
-        moved = max(moved, (co - p).length)
     context.view_layer.update()
-    return moved
+    return float(np.linalg.norm(target - points, axis=1).max())
 
 
 def gate(obj, points, unit=None, skin=None):

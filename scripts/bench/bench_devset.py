@@ -7,7 +7,8 @@ mesh: identities, stylised, remeshed, eyes/teeth merged or separate, parted lips
 with the head turned, in mm, cm, dm, m, inches and a game's 168 mm units) is given to
 ``pdeface landmarks``'s search (``pdeface.landmarks.headfind.detect_anywhere``: on a body where no face
 shows, the head cut out) as a user would give it, unit unknown. Per character: found?; the error of the
-found landmarks against the annotated vertices in % of the true eye distance (inner points 17-67: median
+found landmarks against the annotated points (ICT's convention: ``scripts/devset/annotate.py``) in % of the
+true eye distance (inner points 17-67: median
 and p95; jaw 0-16: median, and its median seen straight on ("front": without the depth along the contour,
 which the jawline leaves open); the worst group's median); the landmark gate's verdict on the found points
 (on the skin they were cast onto) and on the true ones; the unit: millimetres per unit estimated from the
@@ -54,6 +55,8 @@ def main(argv=None):
     args = ap.parse_args(argv)
     names = args.only.split(",") if args.only else list(SPECS)
     rows = {}
+    print("== truth: the annotation in ICT-FaceKit's convention, ICT's face registered onto the base "
+          "(scripts/devset/annotate.py; method and residuals: devset_annotation.md)")
     print(f"== {len(names)} characters (errors in % of the true eye distance; unit: estimated / true mm per unit)")
     print(f"  {'character':32s} {'found':5s} {'inner med':>9s} {'p95':>6s} {'jaw med':>7s} {'worst grp':>14s} "
           f"{'front':>5s} {'unit err':>8s} {'s':>5s}  gate (found; truth)")
@@ -75,6 +78,7 @@ def main(argv=None):
                 continue
             r["seconds"] = time.perf_counter() - t
             r["found"] = True
+            r["points"], r["truth"] = found.points.tolist(), ch.landmarks.tolist()  # for the --json reader
             r.update(errors_pct(found.points, ch.landmarks, eyes))
             r["unit_error_pct"] = 100 * (found.mm_per_unit / ch.mm_per_unit - 1)
             verdict = check(found.points, ch.vertices, ch.triangles[found.skin])

@@ -40,9 +40,19 @@ EYES, MOUTH_PARTS = ("helper-l-eye", "helper-r-eye"), ("helper-upper-teeth", "he
 
 
 @lru_cache(maxsize=1)
+def _annotation() -> dict:
+    return json.loads(ANNOTATION.read_text())
+
+
 def annotated_indices() -> np.ndarray:
     """The 68 annotated base-mesh vertices (iBUG-68 order)."""
-    return np.array(json.loads(ANNOTATION.read_text())["indices"], np.int64)
+    return np.array(_annotation()["indices"], np.int64)
+
+
+def annotated_points(V) -> np.ndarray:
+    """The 68 annotated landmarks on the base mesh or a character made from it (``V``, its vertices): the
+    annotated vertices, carried by every deformation."""
+    return np.asarray(V)[annotated_indices()]
 
 
 @dataclass(frozen=True)
@@ -239,8 +249,7 @@ def build(spec: Spec) -> Character:
         V = _t_pose(V)
     if spec.head_turn:
         V = _turn_head(V, spec.head_turn)
-    idx = annotated_indices()
-    L = V[idx]
+    L = annotated_points(V)
     cut = base.joint("neck", V)[1] - HEAD_CUT
 
     def keep(T):

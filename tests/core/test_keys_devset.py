@@ -56,9 +56,9 @@ def lid_closure(V, L, model, binding, key="45"):
 
 @needs_makehuman
 def test_descriptors_reach_the_lids_on_a_face_whose_curves_are_spread_otherwise():
-    # MakeHuman's base has its upper lid's rim on another curve than ICT's: the blink must still close the
-    # lids (it opened them, -0.15, when curve i was carried onto curve i).
-    V, _, L, model, b = rig("base-dm")
+    # This MakeHuman identity has its upper lid's rim on another curve than ICT's: the blink must still close
+    # the lids (it opened them, -0.15, when curve i was carried onto curve i).
+    V, _, L, model, b = rig("asian-male-young-blender-m")
     source = load_face("default")
     where = curve_map(source.layout, model.layout)
     assert where is not None
@@ -66,6 +66,15 @@ def test_descriptors_reach_the_lids_on_a_face_whose_curves_are_spread_otherwise(
         assert a == a_s and where[k] == k_s and where[k + 1] == k_s + 1  # rims onto rims
     closure = lid_closure(V, L, model, b)
     assert min(closure.values()) >= 0.8, closure  # issue #40's target
+    assert abs(closure["L"] - closure["R"]) < 0.1 * max(closure.values())
+
+
+@needs_makehuman
+def test_the_base_annotated_in_icts_convention_has_icts_curves_and_blinks():
+    V, _, L, model, b = rig("base-dm")  # its landmarks placed as ICT's are: its rims on ICT's curves
+    assert curve_map(load_face("default").layout, model.layout) is None
+    closure = lid_closure(V, L, model, b)
+    assert min(closure.values()) >= 0.8, closure
     assert abs(closure["L"] - closure["R"]) < 0.1 * max(closure.values())
 
 
@@ -126,10 +135,11 @@ def test_the_lip_and_eye_corners_fold_less_and_the_mouth_opens_as_wide(monkeypat
     flat = (turn_degrees(Vf, T, pairs) < 20) & smoothed.parts.mask("skin")[T[pairs]].all(axis=(1, 2))
     near = [np.argmin(np.linalg.norm(Vf - Lf[i], axis=1)) for i in (LIP_UPPER_INNER, LIP_LOWER_INNER)]
     descr = {d.key: d for d in model.descriptors}
-    for key in ("27", "12", "45"):
+    # The blink's seams fold less by 0.8 on the by-eye annotation, by 49/57 on the ICT-convention one (issue #39)
+    for key, most in (("27", 0.8), ("12", 0.8), ("45", 0.9)):
         args = descriptor_motion_args(descr[key])
         posed = {n: f.to_face(V + b.displacement(*args)) for n, b in (("raw", raw), ("smoothed", smoothed))}
         folds = {n: int((flat & (turn_degrees(P, T, pairs) > 40)).sum()) for n, P in posed.items()}
-        assert folds["smoothed"] < 0.8 * folds["raw"], (key, folds)
+        assert folds["smoothed"] < most * folds["raw"], (key, folds)
         gap = {n: P[near[0], 1] - P[near[1], 1] for n, P in posed.items()}
         assert abs(gap["smoothed"] - gap["raw"]) < 0.01 * smoothed.eye_distance, (key, gap)

@@ -11,6 +11,8 @@ from the face), against the eye distance, so they hold at any scale, orientation
 - **order**: brows above the eyes above the nose bottom above the mouth above the chin; upper lids above
   lower lids;
 - **spacing**: the group's size, over the eye distance, within what faces have (:data:`SPACING`);
+- **height**: the brows' height above the eyes within what faces have (:data:`BROW_HEIGHT`): on a hairless
+  head a brow line may be found on the upper lid's fold;
 - **smooth**: the jawline a smooth curve: no point more than :data:`JAW_BEND` off the middle of its two
   neighbours (a jaw point sunk or lifted along the contour, where a frontal detector cannot see depth).
 
@@ -41,6 +43,11 @@ MIRROR_TOL = 0.10
 SPACING = {"jaw": [(0, 16, 1.3, 3.2)], "brows": [(17, 26, 1.0, 2.6)],
            "nose": [(27, 33, 0.45, 1.4), (31, 35, 0.25, 0.9)],
            "eyes": [(36, 39, 0.25, 0.75), (42, 45, 0.25, 0.75)], "mouth": [(48, 54, 0.45, 1.5)]}
+#: The brows' mean height above the eye centres (eye distances): rows, least, most. True brows: ICT's 21 heads
+#: outer 0.31-0.33, inner 0.40-0.41 (found by the detector, also turned: 0.31-0.33, 0.39-0.41); MakeHuman's 24
+#: characters 0.35-0.46 and 0.39-0.56. The least lie below every true head of both families; brows found too
+#: low on MakeHuman's hairless heads (outer 0.27-0.30, 11-19 % of the eye distance off) fall under them.
+BROW_HEIGHT = {"outer": ([17, 18, 25, 26], 0.30, 0.65), "inner": ([20, 21, 22, 23], 0.35, 0.70)}
 #: How far (eye distances) a jaw point may lie from the middle of its neighbours: true jawlines bend 0.10 (ICT's
 #: identities) to 0.17 (MakeHuman's characters), 0.28 with MakeHuman's chin target at weight 2; found on ICT, 0.18.
 JAW_BEND = 0.32
@@ -177,6 +184,11 @@ def check(points, V=None, T=None, unit=None) -> Verdict:
             d = float(np.linalg.norm(F[a] - F[b]))
             if not lo <= d <= hi:
                 verdict.fail(g, "spacing", f"{a}-{b} {d:.2f} eye distances (faces: {lo}-{hi})")
+    eye_y = F[36:48, 1].mean()
+    for name, (rows, lo, hi) in BROW_HEIGHT.items():
+        h = float(F[rows, 1].mean() - eye_y)
+        if not lo <= h <= hi:
+            verdict.fail("brows", "height", f"{name} brows {h:.3f} eye distances above the eyes (faces: {lo}-{hi})")
     J = F[list(JAW)]
     bend = np.linalg.norm(J[:-2] - 2 * J[1:-1] + J[2:], axis=1) / 2
     if bend.max() > JAW_BEND:

@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import LandmarkError, LayoutError, MeshError
+from ..geometry import ClosestPoint
 from ..mesh import Mesh, butterfly_step, connected_components, seam_welds
 from ..threads import bounded
 from .fourier import fit_fourier
@@ -27,7 +28,9 @@ def skin_vertices(V: np.ndarray, T: np.ndarray, points: np.ndarray) -> np.ndarra
     Separate pieces (eyeballs, teeth) are left out; copies an exporter split along
     seams join their piece (:func:`pdeface.mesh.seam_welds`). Eyelashes and other strips often
     share the lids' vertex positions: where several pieces are equally near a
-    point, the largest is the skin.
+    point, the largest is the skin. A point on the skin between its vertices (a lid margin's point)
+    may lie nearer to an eyeball's vertex than to the skin's: the piece of the nearest triangle
+    counts too, the largest again.
     """
     from scipy.spatial import cKDTree  # scipy is heavy: only fitting and reports need it
 
@@ -39,10 +42,11 @@ def skin_vertices(V: np.ndarray, T: np.ndarray, points: np.ndarray) -> np.ndarra
     sizes = np.bincount(lab)
     tree = cKDTree(V[used])
     dist, _ = tree.query(points)
+    on = T[ClosestPoint(V, T).query(points)[1], 0]
     scale = float(extent.max()) or 1.0
     labels = set()
-    for p, d in zip(points, dist):
-        near = used[tree.query_ball_point(p, d + 1e-6 * scale)]
+    for p, d, t in zip(points, dist, on):
+        near = [*used[tree.query_ball_point(p, d + 1e-6 * scale)], t]
         labels.add(int(lab[max(near, key=lambda i: sizes[lab[i]])]))
     return np.isin(lab, list(labels))
 
