@@ -171,7 +171,9 @@ def _run(job, todo, status, summary, workers, scheduler, stream):
 
 def _write_results(job, status, summary):
     """``manifest.json`` (and a stimulus set's ``labels.csv``), each written atomically."""
-    tasks = [{"key": t.key, "name": t.name, "outputs": t.outputs, **status[t.key]} for t in job.tasks]
+    shown = ("identity", "view", "light", "intensity")  # a stimulus's label, as in labels.csv
+    tasks = [{"key": t.key, "name": t.name, "outputs": t.outputs, **{k: t.label[k] for k in shown if k in t.label},
+              **status[t.key]} for t in job.tasks]
     manifest = {"job": job.path, "kind": job.kind, "summary": summary.as_dict(), "tasks": tasks}
     write_bytes(job.out / MANIFEST, json.dumps(manifest, indent=1).encode())
     if job.kind == "stimuli":
@@ -181,11 +183,11 @@ def _write_results(job, status, summary):
 
 
 def labels_csv(job, status) -> str:
-    """One row per image made: ``file``, ``face``, ``identity``, ``view``, ``intensity`` (FACS letter), then
+    """One row per image made: ``file``, ``face``, ``identity``, ``view``, ``light``, ``intensity`` (FACS letter), then
     ``AUxx_r`` (0-5) and ``AUxx_c`` (0/1) for every AU in the job, as OpenFace writes them."""
     from .stimuli import label_row
 
-    cols = ["file", "face", "identity", "view", "intensity"]
+    cols = ["file", "face", "identity", "view", "light", "intensity"]
     cols += [f"AU{n:02d}_r" for n in job.aus] + [f"AU{n:02d}_c" for n in job.aus]
     buf = io.StringIO()
     w = csv.DictWriter(buf, cols, lineterminator="\n")
@@ -193,5 +195,5 @@ def labels_csv(job, status) -> str:
     for t in job.tasks:
         if status[t.key]["status"] in ("done", "skipped"):
             lab = t.label
-            w.writerow({k: lab[k] for k in cols[:5]} | label_row(lab["weights"], job.aus))
+            w.writerow({k: lab[k] for k in cols[:6]} | label_row(lab["weights"], job.aus))
     return buf.getvalue()

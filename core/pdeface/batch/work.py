@@ -73,7 +73,8 @@ def _rig(p, out, key):
 
 def _stimulus(p, out, key):
     identity = load_identity(p["face"], tuple(p["keys"]))
-    img = render_identity(identity, p["weights"], p["view"], p["size"], p["samples"], p["background"])
+    img = render_identity(identity, p["weights"], p["view"], p["size"], p["samples"], p["background"],
+                          p.get("lights"))
     out.mkdir(parents=True, exist_ok=True)
     write_png(out / p["file"], img)
 
