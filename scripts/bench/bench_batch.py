@@ -51,14 +51,14 @@ class PeakMemory:
         self._thread = threading.Thread(target=self._watch, daemon=True)
 
     def _watch(self):
-        me = psutil.Process()
+        from pdeface.batch.run import local_workers
+
         while not self._stop.is_set():
-            for p in me.children(recursive=True):
+            for p in local_workers():
                 try:
-                    if any("spawn_main" in part for part in p.cmdline()):
-                        self.peak[p.pid] = max(self.peak.get(p.pid, 0), p.memory_info().rss)
-                        t = p.cpu_times()
-                        self.cpu[p.pid] = t.user + t.system
+                    self.peak[p.pid] = max(self.peak.get(p.pid, 0), p.memory_info().rss)
+                    t = p.cpu_times()
+                    self.cpu[p.pid] = t.user + t.system
                 except psutil.Error:
                     pass
             self._stop.wait(self.every)

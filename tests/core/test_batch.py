@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from pdeface.assets import load_ict_shapes, load_neutral_scan
 from pdeface.batch.job import JobError, plan_job
-from pdeface.batch.run import labels_csv
+from pdeface.batch.run import labels_csv, local_workers
 from pdeface.batch.work import RECORDS, one_line
 from pdeface.errors import LandmarkError
 from pdeface.io.meshio import write_mesh
@@ -64,11 +64,10 @@ def _outputs(folder):
 
 
 def _workers(proc):
-    """The job's Dask worker processes (spawned by the nannies, which run in the job's process), once both are
+    """The job's Dask worker processes (started by the nannies, which run in the job's process), once both are
     up."""
     for _ in range(1200):
-        workers = [k for k in psutil.Process(proc.pid).children(recursive=True)
-                   if any("spawn_main" in part for part in k.cmdline())]
+        workers = local_workers(proc.pid)
         if len(workers) >= 2:
             return workers
         time.sleep(0.1)
