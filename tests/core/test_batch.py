@@ -282,3 +282,24 @@ def test_stimuli_of_a_rigged_head_and_a_broken_face(tmp_path):
         [("bob", "A", "1.0", "1"), ("bob", "E", "5.0", "1")]
     manifest = json.loads((tmp_path / "out" / "manifest.json").read_text())
     assert sorted(t["status"] for t in manifest["tasks"]) == ["done", "done", "failed", "failed"]
+
+
+def test_the_head_is_bound_once_per_job_and_its_images_are_the_same(tmp_path):
+    """The bundled head (seconds to bind) is made once for the job, by one worker, and loaded by every stimulus
+    task: the images are those of the head bound in this process."""
+    from pdeface.batch.job import load_job
+    from pdeface.batch.run import run_job
+    from pdeface.batch.stimuli import load_identity, render_identity
+    from pdeface.io.png import write_png
+
+    job = load_job(_job(tmp_path, 'kind = "stimuli"\nout = "out"\nfaces = ["head", "default"]\naus = [[12], [1, 2]]\n'
+                                  'intensities = ["B", "E"]\nsize = 40\n'))
+    with open(os.devnull, "w") as quiet:
+        summary = run_job(job, workers=2, stream=quiet)
+    assert summary.done == len(job.tasks) == 8 and not summary.failed
+    assert len(list((tmp_path / "out" / RECORDS / "faces").glob("*.npz"))) == 1
+    head = load_identity("head", tuple(job.tasks[0].params["keys"]))
+    for t in job.tasks:
+        if t.params["face"] == "head":
+            write_png(tmp_path / "expected.png", render_identity(head, t.params["weights"], t.params["view"], 40))
+            assert (tmp_path / "out" / t.outputs[0]).read_bytes() == (tmp_path / "expected.png").read_bytes(), t.name

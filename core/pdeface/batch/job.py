@@ -98,6 +98,11 @@ def task_key(kind, params, inputs) -> str:
     return hashlib.sha256(json.dumps(body, sort_keys=True, default=str).encode()).hexdigest()[:24]
 
 
+def identity_key(face, keys) -> str:
+    """The hash of an identity posed by AU ``keys`` (see :func:`pdeface.batch.work.prepare_identity`)."""
+    return task_key("identity", {"keys": sorted(keys)}, {"face": face})
+
+
 def load_job(path) -> Job:
     """Read and plan the job file ``path``; a :class:`JobError` names what is wrong."""
     try:

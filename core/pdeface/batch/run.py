@@ -20,7 +20,9 @@ from dataclasses import dataclass, field
 
 from ..errors import PdeFaceError
 from ..io.files import write_bytes
-from .work import RECORDS, is_done, one_line, run_task
+from .job import identity_key
+from .stimuli import bound_once
+from .work import RECORDS, is_done, one_line, prepare_identity, run_task
 
 #: Dask's settings for a local cluster. Its workers are forked from a fork server that imported Dask once, where
 #: the platform has one (POSIX), instead of spawned, each a fresh interpreter importing it again: that took about
@@ -190,7 +192,20 @@ def _run_on(distributed, job, todo, status, summary, workers, scheduler, stream)
                      f"{summary.dashboard or 'none (pip install bokeh for it)'}\n")
         progress = Progress(len(todo), stream)
         by_key = {t.key: t for t in todo}
-        futures = [client.submit(run_task, t, str(job.out), key=f"pdeface-{job.kind}-{t.key}", pure=False,
+        prepared = {}
+
+        def after(t):
+            """What ``t`` waits for: its identity, made once for the job by whichever worker is free (a worker
+            that binds the head while the other renders the other faces), not by every worker again."""
+            if t.kind != "stimuli" or not bound_once(t.params["face"]):
+                return ()
+            k = identity_key(t.params["face"], t.params["keys"])
+            if k not in prepared:
+                prepared[k] = client.submit(prepare_identity, t.params["face"], t.params["keys"], str(job.out), k,
+                                            key=f"pdeface-identity-{k}", pure=False, retries=job.retries)
+            return (prepared[k],)
+
+        futures = [client.submit(run_task, t, str(job.out), *after(t), key=f"pdeface-{job.kind}-{t.key}", pure=False,
                                  retries=job.retries) for t in todo]
         for fut in distributed.as_completed(futures):
             key = fut.key.rsplit("-", 1)[1]

@@ -140,6 +140,33 @@ def load_identity(face: str, aus: tuple = ()) -> Identity:
     return Identity(face, rest, data["triangles"], frame.to_face(data["landmarks"]), keys=keys)
 
 
+def bound_once(face: str) -> bool:
+    """Whether the identity ``face`` is worth preparing once for a whole job (:func:`save_identity`): binding the
+    bundled head takes seconds, which each worker would spend again."""
+    return face == HEAD
+
+
+def save_identity(identity: Identity, path) -> None:
+    """Write an identity posed by its keys to ``path`` (``.npz``, atomically), as :func:`load_saved` reads it."""
+    from ..io.files import npz_bytes, write_bytes
+
+    names = sorted(identity.keys)
+    deltas = np.stack([identity.keys[k] for k in names]) if names else np.zeros((0, *identity.vertices.shape))
+    write_bytes(path, npz_bytes({"format": "pdeface-identity", "name": identity.name, "vertices": identity.vertices,
+                                 "triangles": identity.triangles, "landmarks": identity.landmarks,
+                                 "names": np.array(names, dtype=str), "deltas": deltas}, compress=False))
+
+
+@lru_cache(maxsize=8)
+def load_saved(path) -> Identity:
+    """The identity :func:`save_identity` wrote to ``path`` (cached per process)."""
+    from ..io.files import load_npz
+
+    z = load_npz(path, "pdeface-identity", "prepared identity")
+    return Identity(str(z["name"]), z["vertices"], z["triangles"], z["landmarks"],
+                    keys={str(k): d for k, d in zip(z["names"], z["deltas"])})
+
+
 def _is_keys_file(path) -> bool:
     """Whether ``path`` is a keys file (``pdeface rig``'s ``keys.npz``) rather than a face model."""
     try:
