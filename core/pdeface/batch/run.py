@@ -214,7 +214,7 @@ def _run_on(distributed, job, todo, status, summary, workers, scheduler, stream)
             except Exception as exc:  # noqa: BLE001 - retries spent or the worker died too often: record it
                 res = {"status": "failed", "error": one_line(exc)}
             status[key] = {"status": res["status"], "error": res.get("error"),
-                           "seconds": round(res.get("seconds", 0.0), 3)}
+                           "seconds": round(res.get("seconds", 0.0), 3), "worker": res.get("pid")}
             if res["status"] == "failed":
                 stream.write(f"\nbatch: {by_key[key].name}: {res['error']}\n" if progress.tty else
                              f"batch: {by_key[key].name}: {res['error']}\n")

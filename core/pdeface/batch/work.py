@@ -10,12 +10,11 @@ from __future__ import annotations
 import json
 import os
 import shutil
-import subprocess
 import time
 from pathlib import Path
 
 from ..errors import PdeFaceError
-from ..headless import headless_command
+from ..headless import blender_here
 from ..io.files import write_bytes
 from ..io.png import write_png
 from ..rig import rig_head
@@ -103,8 +102,9 @@ def _stimulus(p, out, key, prepared=None):
 
 
 def _render_chunk(p, out, key, *after):
-    """Frames ``frame_start``-``frame_end`` by the add-on's headless renderer (a child Python with bpy, one
-    Blender per task), rendered aside and moved into ``out/frames`` one by one (a rename: atomic)."""
+    """Frames ``frame_start``-``frame_end`` by the add-on's headless renderer, run in this worker's own Blender
+    (imported by its first chunk, kept for the next: each render resets the scene), rendered aside and moved into
+    ``out/frames`` one by one (a rename: atomic)."""
     aside = out / RECORDS / "chunks" / key
     shutil.rmtree(aside, ignore_errors=True)
     argv = ["--timeline", p["timeline"], "--out", aside, "--frame-start", p["frame_start"],
@@ -116,11 +116,11 @@ def _render_chunk(p, out, key, *after):
         argv += ["--head"]
     else:
         argv += ["--face", p["face"]]
-    res = subprocess.run(headless_command(argv, prog="pdeface batch"), capture_output=True, text=True, check=False)
-    if res.returncode:
-        lines = [ln for ln in res.stderr.splitlines() if ln.strip()]
+    status, stderr = blender_here().render_here(argv, prog="pdeface batch")
+    if status:
+        lines = [ln for ln in stderr.splitlines() if ln.strip()]
         raise PdeFaceError(f"frames {p['frame_start']}-{p['frame_end']}: "
-                           f"{lines[-1] if lines else f'the renderer exited with {res.returncode}'}")
+                           f"{lines[-1] if lines else f'the renderer exited with {status}'}")
     frames = out / "frames"
     frames.mkdir(parents=True, exist_ok=True)
     for f in range(p["frame_start"], p["frame_end"] + 1):
