@@ -1,7 +1,9 @@
 """Stimulus images: a face posed with AU weights, seen from a view, rendered by the core's numpy renderer.
 
 A face (an *identity*) is ``default`` (the bundled PDE face), ``head`` (the bundled ICT head with every key on
-it), a face model (``.npz``: its PDE face), or a head rigged by ``pdeface rig`` (its folder or its ``keys.npz``).
+it), a face model (``.npz``: its PDE face), a head rigged by ``pdeface rig`` (its folder or its ``keys.npz``), or
+a ``.blend`` made by the add-on (its rigged head, posed by its shape keys named by AU; read by the worker's own
+Blender, :func:`pdeface.headless.blender_here`).
 Each is posed as its shape keys are in Blender: the rest mesh plus the sum of each AU key times its weight.
 Images are grey, lit from the viewer's side (:func:`pdeface.landmarks.render.shade`), framed on the face's
 landmarks at rest, so every pose of an identity is seen through the same camera; the same inputs give the same
@@ -112,6 +114,14 @@ def load_identity(face: str, aus: tuple = ()) -> Identity:
 
     ``aus`` are the AU keys a job poses (a head's keys are made for those only).
     """
+    if is_blend(face):
+        from ..headless import blender_here
+
+        data = blender_here().blend_identity(face)
+        # the add-on names a key by its AU and what it does ("AU12 Lip Corner Puller")
+        keys = {name.split()[0][2:]: d for name, d in zip(data["names"], data["deltas"]) if name.startswith("AU")}
+        keys = {k: d for k, d in keys.items() if k in aus or not aus}  # the job's: a head has ~80 keys
+        return Identity(face, data["vertices"], data["triangles"], data["landmarks"], keys=keys)
     if face == DEFAULT or (Path(face).is_file() and not _is_keys_file(face)):
         model = load_face(face)
         mesh = face_mesh(model)
@@ -140,10 +150,14 @@ def load_identity(face: str, aus: tuple = ()) -> Identity:
     return Identity(face, rest, data["triangles"], frame.to_face(data["landmarks"]), keys=keys)
 
 
+def is_blend(face: str) -> bool:
+    return str(face).lower().endswith(".blend")
+
+
 def bound_once(face: str) -> bool:
     """Whether the identity ``face`` is worth preparing once for a whole job (:func:`save_identity`): binding the
-    bundled head takes seconds, which each worker would spend again."""
-    return face == HEAD
+    bundled head, or starting Blender to read a ``.blend``, takes seconds each worker would spend again."""
+    return face == HEAD or is_blend(face)
 
 
 def save_identity(identity: Identity, path) -> None:
