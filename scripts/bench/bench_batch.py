@@ -19,6 +19,7 @@ import json
 import os
 import tempfile
 import threading
+import time
 from pathlib import Path
 
 import numpy as np
@@ -74,17 +75,22 @@ def make_characters(folder: Path, n: int) -> list:
 
 class PeakMemory:
     """The peak resident memory and the CPU time of each child process of this one (the local cluster's
-    workers)."""
+    workers). The workers are looked for every 2 s, their memory read every 0.2 s: looking through every process
+    of the machine each time took this process (which also holds the scheduler) 5% of a core."""
 
-    def __init__(self, every=0.2):
-        self.every, self.peak, self.cpu, self._stop = every, {}, {}, threading.Event()
+    def __init__(self, every=0.2, look_every=2.0):
+        self.every, self.look_every, self.peak, self.cpu = every, look_every, {}, {}
+        self._stop = threading.Event()
         self._thread = threading.Thread(target=self._watch, daemon=True)
 
     def _watch(self):
         from pdeface.batch.run import local_workers
 
+        workers, looked = [], -self.look_every
         while not self._stop.is_set():
-            for p in local_workers():
+            if time.perf_counter() - looked >= self.look_every:
+                workers, looked = local_workers(), time.perf_counter()
+            for p in workers:
                 try:
                     self.peak[p.pid] = max(self.peak.get(p.pid, 0), p.memory_info().rss)
                     t = p.cpu_times()

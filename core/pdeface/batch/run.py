@@ -27,9 +27,11 @@ from .work import RECORDS, is_done, one_line, prepare_identity, run_task
 #: Dask's settings for a local cluster. Its workers are forked from a fork server that imported Dask once, where
 #: the platform has one (POSIX), instead of spawned, each a fresh interpreter importing it again: that took about
 #: 1 s of CPU per worker to start and as long to close, a fixed cost the job's second worker could not share.
-#: The processes' monitors sample every 2 s (not 0.5 s; a worker's memory every 1 s, not 0.1 s): the client's
-#: process, which holds the scheduler and the nannies, spent 5% of a core on them, taken from the workers.
-LOCAL_DASK = {"distributed.admin.system-monitor.interval": "2s", "distributed.worker.memory.monitor-interval": "1s"}
+#: The processes' monitors sample every 2 s (not 0.5 s; a worker's memory every 1 s, not 0.1 s) and their event
+#: loops' watchdog ticks every 0.5 s (not 20 ms): the client's process, which holds the scheduler and the
+#: nannies, spent 5% of a core on them, taken from the workers.
+LOCAL_DASK = {"distributed.admin.system-monitor.interval": "2s", "distributed.worker.memory.monitor-interval": "1s",
+              "distributed.admin.tick.interval": "500ms"}
 NO_DASK = "pdeface batch needs Dask distributed: python -m pip install 'pdeface[cluster]'"
 MANIFEST = "manifest.json"
 LABELS = "labels.csv"
