@@ -282,6 +282,7 @@ def test_stimuli_of_a_rigged_head_and_a_broken_face(tmp_path):
         [("bob", "A", "1.0", "1"), ("bob", "E", "5.0", "1")]
     manifest = json.loads((tmp_path / "out" / "manifest.json").read_text())
     assert sorted(t["status"] for t in manifest["tasks"]) == ["done", "done", "failed", "failed"]
+    assert {(t["identity"], t["light"]) for t in manifest["tasks"]} == {("bob", "front"), ("broken", "front")}
 
 
 def test_the_head_is_bound_once_per_job_and_its_images_are_the_same(tmp_path):
