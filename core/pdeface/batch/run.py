@@ -194,18 +194,21 @@ def _run_on(distributed, job, todo, status, summary, workers, scheduler, stream)
                      f"{summary.dashboard or 'none (pip install bokeh for it)'}\n")
         progress = Progress(len(todo), stream)
         by_key = {t.key: t for t in todo}
+        # Identities made once for the job, submitted first so that Dask starts them first: one worker binds the
+        # head while the other renders the other faces, rather than every worker binding it again.
         prepared = {}
+        for t in todo:
+            if t.kind == "stimuli" and bound_once(t.params["face"]):
+                k = identity_key(t.params["face"], t.params["keys"])
+                if k not in prepared:
+                    prepared[k] = client.submit(prepare_identity, t.params["face"], t.params["keys"], str(job.out), k,
+                                                key=f"pdeface-identity-{k}", pure=False, retries=job.retries)
 
         def after(t):
-            """What ``t`` waits for: its identity, made once for the job by whichever worker is free (a worker
-            that binds the head while the other renders the other faces), not by every worker again."""
+            """What ``t`` waits for: its identity made once, if it is one of those."""
             if t.kind != "stimuli" or not bound_once(t.params["face"]):
                 return ()
-            k = identity_key(t.params["face"], t.params["keys"])
-            if k not in prepared:
-                prepared[k] = client.submit(prepare_identity, t.params["face"], t.params["keys"], str(job.out), k,
-                                            key=f"pdeface-identity-{k}", pure=False, retries=job.retries)
-            return (prepared[k],)
+            return (prepared[identity_key(t.params["face"], t.params["keys"])],)
 
         futures = [client.submit(run_task, t, str(job.out), *after(t), key=f"pdeface-{job.kind}-{t.key}", pure=False,
                                  retries=job.retries) for t in todo]
