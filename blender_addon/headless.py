@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import io
 import json
 import os
 import sys
@@ -153,6 +154,66 @@ def enable_addon(bpy, repo_name="pdeface_render"):
     return module
 
 
+#: Keep Blender and the add-on as they are after a render (:func:`render_here`: the next call reuses them).
+_KEEP = False
+
+
+def render_here(argv, prog="pdeface batch"):
+    """Run :func:`main` with ``argv`` in this process, keeping Blender (the bpy module, imported once) and the
+    add-on enabled for the next call: a batch worker's one Blender, each render starting from a scene reset by
+    ``read_homefile`` or ``open_mainfile``. Returns (exit status, the lines it wrote to ``sys.stderr``)."""
+    global _KEEP
+    _KEEP = True
+    err = io.StringIO()
+    try:
+        with contextlib.redirect_stderr(err):
+            status = main(["--", *map(str, argv)], prog=prog, summary=io.StringIO())
+    except SystemExit as exc:  # argparse's error, or a check of main's
+        status = exc.code if isinstance(exc.code, int) else 2
+        if not isinstance(exc.code, int) and exc.code:
+            err.write(f"{exc.code}\n")
+    return status, err.getvalue()
+
+
+def blend_identity(path):
+    """The user's head in an add-on's ``.blend`` (``pdeface rig --blend``, the add-on's Fit): its first PDE face
+    and the mesh it drives (else the face itself), opened in this process's Blender (kept, as
+    :func:`render_here`). Returns a dict of numpy arrays in the face model's frame (mm, +z front, +y up):
+    ``vertices`` (the mesh's basis), ``triangles``, ``landmarks`` (the model's 68), ``names`` and ``deltas`` of
+    its shape keys (each key minus the basis); and ``object``, the mesh's name."""
+    global _KEEP
+    _KEEP = True
+    if "bpy" not in sys.modules:
+        os.environ.setdefault("BLENDER_USER_RESOURCES", tempfile.mkdtemp(prefix="pdeface_blender_"))
+    import bpy
+    import numpy as np
+    from pdeface.errors import PdeFaceError
+    from pdeface.surface.model import model_landmarks
+
+    module = enable_addon(bpy)
+    addon = __import__(module, fromlist=["bridge", "face"])
+    try:
+        with blender_output_aside(shown=False):
+            bpy.ops.wm.open_mainfile(filepath=str(Path(path).resolve()), load_ui=False)
+    except RuntimeError as exc:
+        raise PdeFaceError(f"{path}: cannot open ({str(exc).strip().splitlines()[-1]})") from None
+    faces = [o for o in bpy.data.objects if o.type == "MESH" and o.pdeface.is_face]
+    if not faces:
+        raise PdeFaceError(f"{path}: no PDE face in it (make one with the add-on's Fit or pdeface rig --blend)")
+    face = faces[0]
+    shown = next(iter(addon.face.user_objects(face)), face)
+    frame = addon.bridge.face_model(face).frame  # the model was fitted to this mesh's object space
+    keys = shown.data.shape_keys
+    blocks = list(keys.key_blocks) if keys is not None else []
+    basis = (addon.bridge.key_coords(blocks[0]) if blocks else addon.bridge.vertices(shown.data)).astype(np.float64)
+    rest = frame.to_face(basis)
+    names = [b.name for b in blocks[1:]]
+    deltas = [frame.to_face(addon.bridge.key_coords(b).astype(np.float64)) - rest for b in blocks[1:]]
+    return {"vertices": rest, "triangles": addon.bridge.triangles(shown.data)[0],
+            "landmarks": model_landmarks(addon.bridge.face_model(face)), "names": names,
+            "deltas": np.array(deltas).reshape(len(names), *rest.shape), "object": shown.name}
+
+
 #: Stages whose start line went out and whose end line has not (stderr not a terminal).
 _STAGES_BEGUN = set()
 
@@ -211,7 +272,8 @@ def blender_output_aside(shown=True):
             os.close(aside)
 
 
-def main(argv=None, prog="render_sequence.py"):
+def main(argv=None, prog="render_sequence.py", summary=None):
+    """Render as the arguments say; the JSON summary goes to the real stdout, or to the text stream ``summary``."""
     ap = build_parser(prog)
     args = ap.parse_args(script_args(sys.argv if argv is None else argv))
     if args.mesh and (args.blend or args.head or args.face != "default"):
@@ -222,7 +284,7 @@ def main(argv=None, prog="render_sequence.py"):
         ap.error(f"--sheet-band-vertices {args.sheet_band_vertices}: use 0 (one render) or a positive count")
     # Blender's own lines (a Saved line per frame, its warnings) to stderr; none with --quiet.
     with blender_output_aside(shown=not args.quiet) as stdout:
-        return render_job(args, prog, stdout)
+        return render_job(args, prog, summary or stdout)
 
 
 def render_job(args, prog, stdout):
@@ -326,7 +388,7 @@ def render_job(args, prog, stdout):
         return 2
     finally:
         import addon_utils
-        if module == MODULE:
+        if module == MODULE and not _KEEP:
             addon_utils.disable(module, default_set=True)
     summary.update({"frame_start": start, "frame_end": end, "engine": args.engine})
     print(json.dumps(summary), file=stdout)

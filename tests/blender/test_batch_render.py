@@ -1,5 +1,6 @@
 """``pdeface batch`` render jobs: a timeline in frame chunks across 2 worker processes, each chunk rendered by
-the add-on's headless renderer; the frames are those of one single-process render."""
+the add-on's headless renderer in each worker's own Blender (kept between its chunks); the frames are those of one
+single-process render."""
 import json
 import subprocess
 import sys
@@ -24,12 +25,15 @@ def test_a_render_job_in_chunks_matches_one_render(bpy, tmp_path):
     timeline = tmp_path / "smile.json"
     save_timeline(timeline, sequence_timeline(["happy"], 4, 0.5, 0.5))
     (tmp_path / "job.toml").write_text('kind = "render"\nout = "out"\ntimeline = "smile.json"\nface = "default"\n'
-                                       'chunk = 3\nengine = "WORKBENCH"\nsize = "48x48"\n')
+                                       'chunk = 2\nengine = "WORKBENCH"\nsize = "48x48"\n')
     res = subprocess.run([sys.executable, "-m", "pdeface.cli", "batch", str(tmp_path / "job.toml"), "--workers", "2"],
                          capture_output=True, text=True, timeout=900, check=False)
     assert res.returncode == 0, res.stderr[-2000:]
     summary = json.loads(res.stdout)
-    assert summary["failed"] == 0 and summary["done"] >= 2
+    assert summary["failed"] == 0 and summary["done"] >= 3
+    manifest = json.loads((tmp_path / "out" / "manifest.json").read_text())
+    chunks = [t["worker"] for t in manifest["tasks"]]
+    assert max(chunks.count(w) for w in set(chunks)) >= 2  # a worker rendered chunks one after another in its Blender
     one = subprocess.run([sys.executable, "-m", "pdeface.cli", "render", "--timeline", str(timeline), *ARGS,
                           "--out", str(tmp_path / "one")], capture_output=True, text=True, timeout=900, check=False)
     assert one.returncode == 0, one.stderr[-2000:]

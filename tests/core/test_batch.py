@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from pdeface.assets import load_ict_shapes, load_neutral_scan
 from pdeface.batch.job import JobError, plan_job
-from pdeface.batch.run import labels_csv
+from pdeface.batch.run import labels_csv, local_workers
 from pdeface.batch.work import RECORDS, one_line
 from pdeface.errors import LandmarkError
 from pdeface.io.meshio import write_mesh
@@ -64,11 +64,10 @@ def _outputs(folder):
 
 
 def _workers(proc):
-    """The job's Dask worker processes (spawned by the nannies, which run in the job's process), once both are
+    """The job's Dask worker processes (started by the nannies, which run in the job's process), once both are
     up."""
     for _ in range(1200):
-        workers = [k for k in psutil.Process(proc.pid).children(recursive=True)
-                   if any("spawn_main" in part for part in k.cmdline())]
+        workers = local_workers(proc.pid)
         if len(workers) >= 2:
             return workers
         time.sleep(0.1)
@@ -97,7 +96,11 @@ def test_job_files_are_checked(tmp_path):
                           ({"kind": "stimuli", "out": "o", "faces": ["default"], "aus": [[12]], "samples": 3},
                            "a square"),
                           ({"kind": "stimuli", "out": "o", "faces": ["default"], "aus": [[12]], "views": ["up"]},
-                           "view 'up'")]:
+                           "view 'up'"),
+                          ({"kind": "stimuli", "out": "o", "faces": ["default"], "aus": [[12]], "lights": ["disco"]},
+                           "light 'disco'"),
+                          ({"kind": "stimuli", "out": "o", "faces": ["default"], "aus": [[12]],
+                            "lights": [{"direction": [0, 0]}]}, "a custom light")]:
         with pytest.raises(JobError, match=message) as info:
             plan_job(data, tmp_path)
         assert "\n" not in str(info.value)
@@ -121,6 +124,42 @@ def test_stimulus_tasks_are_keyed_by_their_inputs_and_labelled(tmp_path):
     sampled = plan_job({**data, "sampler": {"count": 7, "seed": 3}}, tmp_path)
     again = plan_job({**data, "sampler": {"count": 7, "seed": 3}}, tmp_path)
     assert [t.outputs for t in sampled.tasks] == [t.outputs for t in again.tasks] and len(sampled.tasks) == 7
+
+
+def test_lights_are_crossed_with_views_keyed_labelled_and_seen(tmp_path):
+    from pdeface.batch.stimuli import load_identity, render_identity
+
+    data = {"kind": "stimuli", "out": "o", "faces": ["default"], "aus": [[12]], "intensities": ["E"],
+            "views": ["front", "left"], "size": 48}
+    plain = plan_job(data, tmp_path)
+    lit = plan_job({**data, "lights": ["studio", "top", {"direction": [0, -1, 1], "strength": 0.8, "name": "low"},
+                                       "front"]}, tmp_path)
+    assert len(lit.tasks) == 2 * len(plain.tasks) * 2
+    assert len({t.key for t in lit.tasks}) == len(lit.tasks) == len({t.outputs[0] for t in lit.tasks})
+    assert not {t.key for t in lit.tasks} & {t.key for t in plain.tasks}
+    assert "default_AU12_E_left_low.png" in {t.outputs[0] for t in lit.tasks}
+    assert all("light" not in t.params for t in plain.tasks)  # a job without lights: its keys and names as before
+    rows = list(csv.DictReader(labels_csv(lit, {t.key: {"status": "done"} for t in lit.tasks}).splitlines()))
+    assert sorted({(r["view"], r["light"]) for r in rows}) == sorted(
+        (v, x) for v in ("front", "left") for x in ("front", "low", "studio", "top"))
+    assert {r["light"] for r in csv.DictReader(labels_csv(plain, {t.key: {"status": "done"} for t in plain.tasks})
+                                                .splitlines())} == {"front"}
+    face = load_identity("default", ("12",))
+    by_light = {t.label["light"]: render_identity(face, t.params["weights"], "front", 48, 1, 0.0, t.params.get("lights"))
+                for t in lit.tasks if t.label["view"] == "front"}
+    assert np.array_equal(by_light["front"], render_identity(face, {"12": 1.0}, "front", 48))
+    grey = {name: img[..., 0].astype(float) for name, img in by_light.items()}
+    seen = grey["front"] > 0
+    for a in grey:
+        for b in grey:
+            if a < b:  # the same face, lit otherwise: clearly other shading on the face
+                assert np.abs(grey[a] - grey[b])[seen].mean() > 5, (a, b)
+    # lit from above: the brow (upper half) brighter than under the chin and nose in the lower half
+    rows_seen = np.nonzero(seen.any(axis=1))[0]
+    mid = (rows_seen[0] + rows_seen[-1]) // 2
+    top, low = grey["top"], grey["low"]
+    assert top[:mid][seen[:mid]].mean() - top[mid:][seen[mid:]].mean() > \
+        low[:mid][seen[:mid]].mean() - low[mid:][seen[mid:]].mean()
 
 
 def test_one_line_errors():
@@ -243,3 +282,25 @@ def test_stimuli_of_a_rigged_head_and_a_broken_face(tmp_path):
         [("bob", "A", "1.0", "1"), ("bob", "E", "5.0", "1")]
     manifest = json.loads((tmp_path / "out" / "manifest.json").read_text())
     assert sorted(t["status"] for t in manifest["tasks"]) == ["done", "done", "failed", "failed"]
+    assert {(t["identity"], t["light"]) for t in manifest["tasks"]} == {("bob", "front"), ("broken", "front")}
+
+
+def test_the_head_is_bound_once_per_job_and_its_images_are_the_same(tmp_path):
+    """The bundled head (seconds to bind) is made once for the job, by one worker, and loaded by every stimulus
+    task: the images are those of the head bound in this process."""
+    from pdeface.batch.job import load_job
+    from pdeface.batch.run import run_job
+    from pdeface.batch.stimuli import load_identity, render_identity
+    from pdeface.io.png import write_png
+
+    job = load_job(_job(tmp_path, 'kind = "stimuli"\nout = "out"\nfaces = ["head", "default"]\naus = [[12], [1, 2]]\n'
+                                  'intensities = ["B", "E"]\nsize = 40\n'))
+    with open(os.devnull, "w") as quiet:
+        summary = run_job(job, workers=2, stream=quiet)
+    assert summary.done == len(job.tasks) == 8 and not summary.failed
+    assert len(list((tmp_path / "out" / RECORDS / "faces").glob("*.npz"))) == 1
+    head = load_identity("head", tuple(job.tasks[0].params["keys"]))
+    for t in job.tasks:
+        if t.params["face"] == "head":
+            write_png(tmp_path / "expected.png", render_identity(head, t.params["weights"], t.params["view"], 40))
+            assert (tmp_path / "out" / t.outputs[0]).read_bytes() == (tmp_path / "expected.png").read_bytes(), t.name

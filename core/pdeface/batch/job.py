@@ -2,7 +2,7 @@
 
 The contract (issue #37): ``kind`` (``rig`` | ``stimuli`` | ``render``) and ``out`` (a folder); ``rig``:
 ``meshes`` (paths or globs); ``stimuli``: ``faces``, ``aus`` and/or ``presets``, ``intensities`` (FACS letters
-A-E, or weights), ``size``, ``samples``; ``render``: ``timeline``, ``face``/``head``/``blend``, ``chunk``.
+A-E, or weights), ``size``, ``samples`` (and ``views``, ``lights``); ``render``: ``timeline``, ``face``/``head``/``blend``, ``chunk``.
 The other keys are listed in ``docs/user/batch.md``. Paths are relative to the job file's folder.
 """
 from __future__ import annotations
@@ -20,7 +20,7 @@ from ..assets import DEFAULT, HEAD
 from ..errors import PdeFaceError
 from ..facs import au_number, letter_to_weight, parse_au_key, weight_to_letter
 from ..presets import merged_presets, normalise_weights
-from .stimuli import view_yaw
+from .stimuli import light_spec, view_yaw
 
 KINDS = ("rig", "stimuli", "render")
 #: Bumped when a task's outputs change for the same inputs (old outputs are then made again on --resume).
@@ -28,8 +28,8 @@ TASK_VERSION = 1
 COMMON = {"kind", "out", "retries"}
 KEYS = {
     "rig": COMMON | {"meshes", "landmarks", "unit", "descriptors", "presets", "blend", "accept"},
-    "stimuli": COMMON | {"faces", "aus", "presets", "intensities", "views", "size", "samples", "background",
-                         "sampler"},
+    "stimuli": COMMON | {"faces", "aus", "presets", "intensities", "views", "lights", "size", "samples",
+                         "background", "sampler"},
     "render": COMMON | {"timeline", "face", "head", "blend", "chunk", "engine", "size", "samples", "seed"},
 }
 
@@ -96,6 +96,11 @@ def task_key(kind, params, inputs) -> str:
     body = {"kind": kind, "version": TASK_VERSION, "params": params,
             "inputs": {k: _input_hash(v) for k, v in inputs.items()}}
     return hashlib.sha256(json.dumps(body, sort_keys=True, default=str).encode()).hexdigest()[:24]
+
+
+def identity_key(face, keys) -> str:
+    """The hash of an identity posed by AU ``keys`` (see :func:`pdeface.batch.work.prepare_identity`)."""
+    return task_key("identity", {"keys": sorted(keys)}, {"face": face})
 
 
 def load_job(path) -> Job:
@@ -247,6 +252,7 @@ def _plan_stimuli(data, base, where):
             view_yaw(v)
         except PdeFaceError as exc:
             raise JobError(f"{where}: views: {exc}") from None
+    lights = _lights(data, where)
     size, samples = data.get("size", 256), data.get("samples", 1)
     if not isinstance(size, int) or not 16 <= size <= 4096:
         raise JobError(f"{where}: 'size' must be an integer number of pixels, 16-4096")
@@ -254,7 +260,7 @@ def _plan_stimuli(data, base, where):
         raise JobError(f"{where}: 'samples' (per pixel) must be a square: 1, 4, 9, 16 ...")
     background = float(data.get("background", 0.0))
     every_key = sorted({k for _, w in combos for k in w})
-    items = list(product(range(len(faces)), range(len(combos)), range(len(intensities)), views))
+    items = list(product(range(len(faces)), range(len(combos)), range(len(intensities)), views, lights or [None]))
     sampler = data.get("sampler")
     if sampler is not None:
         import numpy as np
@@ -264,23 +270,41 @@ def _plan_stimuli(data, base, where):
             raise JobError(f"{where}: sampler: 'count' (the number of images) must be a positive integer")
         rng = np.random.default_rng(seed)
         items = [(int(rng.integers(len(faces))), int(rng.integers(len(combos))), int(rng.integers(len(intensities))),
-                  views[int(rng.integers(len(views)))]) for _ in range(count)]
+                  views[int(rng.integers(len(views)))], lights[int(rng.integers(len(lights)))] if lights else None)
+                 for _ in range(count)]  # a job without lights draws as it did before they were added
     tasks = []
-    for i, (f, c, n, view) in enumerate(items):
+    for i, (f, c, n, view, light) in enumerate(items):
         combo, weights = combos[c]
         w, letter, tag = intensities[n]
         posed = {k: round(v * w, 6) for k, v in weights.items()}
         safe = re.sub(r"[^\w.+-]", "_", combo)
-        stem = f"{names[f]}_{safe}_{tag}_{view}"
+        stem = f"{names[f]}_{safe}_{tag}_{view}" + (f"_{light[0]}" if light else "")
         file = (f"{i:05d}_{stem}" if sampler is not None else stem) + ".png"
         params = {"face": faces[f], "keys": every_key, "weights": posed, "view": view, "size": size,
                   "samples": samples, "background": background, "file": file}
+        if light:  # a job without lights keeps the keys (and file names) it had before they were added
+            params |= {"light": light[0], "lights": light[1]}
         key = task_key("stimuli", {k: v for k, v in params.items() if k != "face"}, {"face": faces[f]})
-        label = {"file": file, "face": faces[f], "identity": names[f], "view": view, "intensity": letter,
-                 "weights": posed}
+        label = {"file": file, "face": faces[f], "identity": names[f], "view": view,
+                 "light": light[0] if light else "front", "intensity": letter, "weights": posed}
         tasks.append(Task("stimuli", file, params, [file], key, label))
     aus = sorted({au_number(k) for k in every_key})
     return tasks, aus
+
+
+def _lights(data, where) -> list:
+    """The job's lights as ``(unique name, what shade takes)``; [] when it names none (the default lighting)."""
+    if "lights" not in data:
+        return []
+    given = data["lights"]
+    given = [given] if isinstance(given, (str, dict)) else given
+    if not isinstance(given, list) or not given:
+        raise JobError(f"{where}: 'lights' must list lights (names or {{direction, strength}} tables)")
+    try:
+        specs = [light_spec(x) for x in given]
+    except PdeFaceError as exc:
+        raise JobError(f"{where}: {exc}") from None
+    return list(zip(_unique_names(n for n, _ in specs), (s for _, s in specs)))
 
 
 def _plan_render(data, base, where):

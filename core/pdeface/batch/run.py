@@ -20,8 +20,18 @@ from dataclasses import dataclass, field
 
 from ..errors import PdeFaceError
 from ..io.files import write_bytes
-from .work import RECORDS, is_done, one_line, run_task
+from .job import identity_key
+from .stimuli import bound_once
+from .work import RECORDS, is_done, one_line, prepare_identity, run_task
 
+#: Dask's settings for a local cluster. Its workers are forked from a fork server that imported Dask once, where
+#: the platform has one (POSIX), instead of spawned, each a fresh interpreter importing it again: that took about
+#: 1 s of CPU per worker to start and as long to close, a fixed cost the job's second worker could not share.
+#: The processes' monitors sample every 2 s (not 0.5 s; a worker's memory every 1 s, not 0.1 s) and their event
+#: loops' watchdog ticks every 0.5 s (not 20 ms): the client's process, which holds the scheduler and the
+#: nannies, spent 5% of a core on them, taken from the workers.
+LOCAL_DASK = {"distributed.admin.system-monitor.interval": "2s", "distributed.worker.memory.monitor-interval": "1s",
+              "distributed.admin.tick.interval": "500ms"}
 NO_DASK = "pdeface batch needs Dask distributed: python -m pip install 'pdeface[cluster]'"
 MANIFEST = "manifest.json"
 LABELS = "labels.csv"
@@ -139,8 +149,43 @@ def run_job(job, workers=None, scheduler=None, resume=False, stream=None) -> Sum
     return summary
 
 
+def _local_dask(scheduler):
+    """The Dask settings this job's cluster runs with (:data:`LOCAL_DASK`; none for a cluster of its own)."""
+    import multiprocessing
+
+    import dask
+
+    _dask()  # Dask's own defaults first: leaving the block puts back what was there before it
+    if scheduler:
+        return dask.config.set({})
+    fork = {"distributed.worker.multiprocessing-method": "forkserver"} \
+        if "forkserver" in multiprocessing.get_all_start_methods() else {}
+    return dask.config.set({**LOCAL_DASK, **fork})
+
+
+def local_workers(pid=None) -> list:
+    """The worker processes (psutil) of the local clusters that process ``pid`` (default: this one) started: spawned
+    ones, and those the fork server forked (see :data:`LOCAL_DASK`)."""
+    import psutil
+
+    found = []
+    for p in psutil.Process(pid).children(recursive=True):
+        try:
+            if any("spawn_main" in part for part in p.cmdline()) or \
+                    any("multiprocessing.forkserver" in part for part in psutil.Process(p.ppid()).cmdline()):
+                found.append(p)
+        except psutil.Error:  # gone meanwhile
+            pass
+    return found
+
+
 def _run(job, todo, status, summary, workers, scheduler, stream):
     distributed = _dask()
+    with _local_dask(scheduler):  # for the cluster's lifetime: a nanny restarting a lost worker reads it again
+        _run_on(distributed, job, todo, status, summary, workers, scheduler, stream)
+
+
+def _run_on(distributed, job, todo, status, summary, workers, scheduler, stream):
     client, cluster, summary.dashboard = open_client(workers, scheduler)
     try:
         summary.workers = len(client.scheduler_info()["workers"])
@@ -149,7 +194,23 @@ def _run(job, todo, status, summary, workers, scheduler, stream):
                      f"{summary.dashboard or 'none (pip install bokeh for it)'}\n")
         progress = Progress(len(todo), stream)
         by_key = {t.key: t for t in todo}
-        futures = [client.submit(run_task, t, str(job.out), key=f"pdeface-{job.kind}-{t.key}", pure=False,
+        # Identities made once for the job, submitted first so that Dask starts them first: one worker binds the
+        # head while the other renders the other faces, rather than every worker binding it again.
+        prepared = {}
+        for t in todo:
+            if t.kind == "stimuli" and bound_once(t.params["face"]):
+                k = identity_key(t.params["face"], t.params["keys"])
+                if k not in prepared:
+                    prepared[k] = client.submit(prepare_identity, t.params["face"], t.params["keys"], str(job.out), k,
+                                                key=f"pdeface-identity-{k}", pure=False, retries=job.retries)
+
+        def after(t):
+            """What ``t`` waits for: its identity made once, if it is one of those."""
+            if t.kind != "stimuli" or not bound_once(t.params["face"]):
+                return ()
+            return (prepared[identity_key(t.params["face"], t.params["keys"])],)
+
+        futures = [client.submit(run_task, t, str(job.out), *after(t), key=f"pdeface-{job.kind}-{t.key}", pure=False,
                                  retries=job.retries) for t in todo]
         for fut in distributed.as_completed(futures):
             key = fut.key.rsplit("-", 1)[1]
@@ -158,7 +219,7 @@ def _run(job, todo, status, summary, workers, scheduler, stream):
             except Exception as exc:  # noqa: BLE001 - retries spent or the worker died too often: record it
                 res = {"status": "failed", "error": one_line(exc)}
             status[key] = {"status": res["status"], "error": res.get("error"),
-                           "seconds": round(res.get("seconds", 0.0), 3)}
+                           "seconds": round(res.get("seconds", 0.0), 3), "worker": res.get("pid")}
             if res["status"] == "failed":
                 stream.write(f"\nbatch: {by_key[key].name}: {res['error']}\n" if progress.tty else
                              f"batch: {by_key[key].name}: {res['error']}\n")
@@ -171,7 +232,9 @@ def _run(job, todo, status, summary, workers, scheduler, stream):
 
 def _write_results(job, status, summary):
     """``manifest.json`` (and a stimulus set's ``labels.csv``), each written atomically."""
-    tasks = [{"key": t.key, "name": t.name, "outputs": t.outputs, **status[t.key]} for t in job.tasks]
+    shown = ("identity", "view", "light", "intensity")  # a stimulus's label, as in labels.csv
+    tasks = [{"key": t.key, "name": t.name, "outputs": t.outputs, **{k: t.label[k] for k in shown if k in t.label},
+              **status[t.key]} for t in job.tasks]
     manifest = {"job": job.path, "kind": job.kind, "summary": summary.as_dict(), "tasks": tasks}
     write_bytes(job.out / MANIFEST, json.dumps(manifest, indent=1).encode())
     if job.kind == "stimuli":
@@ -181,11 +244,11 @@ def _write_results(job, status, summary):
 
 
 def labels_csv(job, status) -> str:
-    """One row per image made: ``file``, ``face``, ``identity``, ``view``, ``intensity`` (FACS letter), then
+    """One row per image made: ``file``, ``face``, ``identity``, ``view``, ``light``, ``intensity`` (FACS letter), then
     ``AUxx_r`` (0-5) and ``AUxx_c`` (0/1) for every AU in the job, as OpenFace writes them."""
     from .stimuli import label_row
 
-    cols = ["file", "face", "identity", "view", "intensity"]
+    cols = ["file", "face", "identity", "view", "light", "intensity"]
     cols += [f"AU{n:02d}_r" for n in job.aus] + [f"AU{n:02d}_c" for n in job.aus]
     buf = io.StringIO()
     w = csv.DictWriter(buf, cols, lineterminator="\n")
@@ -193,5 +256,5 @@ def labels_csv(job, status) -> str:
     for t in job.tasks:
         if status[t.key]["status"] in ("done", "skipped"):
             lab = t.label
-            w.writerow({k: lab[k] for k in cols[:5]} | label_row(lab["weights"], job.aus))
+            w.writerow({k: lab[k] for k in cols[:6]} | label_row(lab["weights"], job.aus))
     return buf.getvalue()

@@ -1,11 +1,14 @@
 """Stimulus images: a face posed with AU weights, seen from a view, rendered by the core's numpy renderer.
 
 A face (an *identity*) is ``default`` (the bundled PDE face), ``head`` (the bundled ICT head with every key on
-it), a face model (``.npz``: its PDE face), or a head rigged by ``pdeface rig`` (its folder or its ``keys.npz``).
+it), a face model (``.npz``: its PDE face), a head rigged by ``pdeface rig`` (its folder or its ``keys.npz``), or
+a ``.blend`` made by the add-on (its rigged head, posed by its shape keys named by AU; read by the worker's own
+Blender, :func:`pdeface.headless.blender_here`).
 Each is posed as its shape keys are in Blender: the rest mesh plus the sum of each AU key times its weight.
 Images are grey, lit from the viewer's side (:func:`pdeface.landmarks.render.shade`), framed on the face's
 landmarks at rest, so every pose of an identity is seen through the same camera; the same inputs give the same
-pixels.
+pixels. A job's ``lights`` light them with directional lights fixed to the face instead (:data:`LIGHTS`), so a
+view turns the camera, not the lights.
 """
 from __future__ import annotations
 
@@ -31,6 +34,15 @@ from ..surface.model import model_landmarks
 #: Named views: the yaw (degrees) of the camera about the face's vertical, positive towards the subject's left.
 VIEWS = {"front": 0.0, "left": 30.0, "right": -30.0}
 _YAW = re.compile(r"^yaw(-?\d+(?:\.\d+)?)$")
+#: Named lightings: (direction towards the light in the face frame: x to the subject's left, y up, z to the front;
+#: strength). ``front`` is the default one, lit from the viewer's side (:func:`pdeface.landmarks.render.shade`).
+LIGHTS = {
+    "front": None,
+    "studio": [((-0.6, 0.5, 1.0), 0.75), ((0.8, 0.1, 0.8), 0.3), ((0.3, 0.8, -1.0), 0.35)],  # key, fill, rim
+    "top": [((0.0, 1.0, 0.3), 0.95)],
+    "left": [((1.0, 0.15, 0.35), 0.95)],  # from the subject's left
+    "right": [((-1.0, 0.15, 0.35), 0.95)],
+}
 #: Half the image's width, in units of the landmarks' largest extent at rest.
 FRAMING = 0.75
 
@@ -43,6 +55,25 @@ def view_yaw(name: str) -> float:
     if not m:
         raise PdeFaceError(f"view {name!r}: use {', '.join(VIEWS)} or yawDEG (e.g. yaw45)")
     return float(m.group(1))
+
+
+def light_spec(light, where="lights"):
+    """``(name, lights)`` of a job's light: a name of :data:`LIGHTS`, or a table ``{direction = [x, y, z],
+    strength = s, name = "..."}`` (the name defaults to ``custom``); ``lights`` is what
+    :func:`pdeface.landmarks.render.shade` takes (None: the default lighting)."""
+    if isinstance(light, str):
+        if light not in LIGHTS:
+            raise PdeFaceError(f"{where}: light {light!r}: use {', '.join(LIGHTS)} or {{direction, strength}}")
+        return light, LIGHTS[light]
+    d = light.get("direction") if isinstance(light, dict) else None
+    strength = light.get("strength", 1.0) if isinstance(light, dict) else None
+    if (not isinstance(d, list) or len(d) != 3 or not all(isinstance(x, (int, float)) for x in d)
+            or not any(d) or not isinstance(strength, (int, float)) or not 0 < strength <= 4):
+        raise PdeFaceError(f"{where}: light {light!r}: a custom light is {{direction = [x, y, z], strength = 0-4}}")
+    name = str(light.get("name", "custom"))
+    if not re.fullmatch(r"[\w.+-]+", name):
+        raise PdeFaceError(f"{where}: light name {name!r}: letters, digits, '.', '+' and '-' only")
+    return name, [(tuple(float(x) for x in d), float(strength))]
 
 
 @dataclass
@@ -83,6 +114,14 @@ def load_identity(face: str, aus: tuple = ()) -> Identity:
 
     ``aus`` are the AU keys a job poses (a head's keys are made for those only).
     """
+    if is_blend(face):
+        from ..headless import blender_here
+
+        data = blender_here().blend_identity(face)
+        # the add-on names a key by its AU and what it does ("AU12 Lip Corner Puller")
+        keys = {name.split()[0][2:]: d for name, d in zip(data["names"], data["deltas"]) if name.startswith("AU")}
+        keys = {k: d for k, d in keys.items() if k in aus or not aus}  # the job's: a head has ~80 keys
+        return Identity(face, data["vertices"], data["triangles"], data["landmarks"], keys=keys)
     if face == DEFAULT or (Path(face).is_file() and not _is_keys_file(face)):
         model = load_face(face)
         mesh = face_mesh(model)
@@ -111,6 +150,37 @@ def load_identity(face: str, aus: tuple = ()) -> Identity:
     return Identity(face, rest, data["triangles"], frame.to_face(data["landmarks"]), keys=keys)
 
 
+def is_blend(face: str) -> bool:
+    return str(face).lower().endswith(".blend")
+
+
+def bound_once(face: str) -> bool:
+    """Whether the identity ``face`` is worth preparing once for a whole job (:func:`save_identity`): binding the
+    bundled head, or starting Blender to read a ``.blend``, takes seconds each worker would spend again."""
+    return face == HEAD or is_blend(face)
+
+
+def save_identity(identity: Identity, path) -> None:
+    """Write an identity posed by its keys to ``path`` (``.npz``, atomically), as :func:`load_saved` reads it."""
+    from ..io.files import npz_bytes, write_bytes
+
+    names = sorted(identity.keys)
+    deltas = np.stack([identity.keys[k] for k in names]) if names else np.zeros((0, *identity.vertices.shape))
+    write_bytes(path, npz_bytes({"format": "pdeface-identity", "name": identity.name, "vertices": identity.vertices,
+                                 "triangles": identity.triangles, "landmarks": identity.landmarks,
+                                 "names": np.array(names, dtype=str), "deltas": deltas}, compress=False))
+
+
+@lru_cache(maxsize=8)
+def load_saved(path) -> Identity:
+    """The identity :func:`save_identity` wrote to ``path`` (cached per process)."""
+    from ..io.files import load_npz
+
+    z = load_npz(path, "pdeface-identity", "prepared identity")
+    return Identity(str(z["name"]), z["vertices"], z["triangles"], z["landmarks"],
+                    keys={str(k): d for k, d in zip(z["names"], z["deltas"])})
+
+
 def _is_keys_file(path) -> bool:
     """Whether ``path`` is a keys file (``pdeface rig``'s ``keys.npz``) rather than a face model."""
     try:
@@ -121,8 +191,9 @@ def _is_keys_file(path) -> bool:
 
 
 def render_identity(identity: Identity, weights: dict, view: str, size: int, samples: int = 1,
-                    background: float = 0.0) -> np.ndarray:
-    """An (size, size, 3) uint8 image of ``identity`` posed with ``weights`` seen from ``view``.
+                    background: float = 0.0, lights=None) -> np.ndarray:
+    """An (size, size, 3) uint8 image of ``identity`` posed with ``weights`` seen from ``view``, lit by
+    ``lights`` (see :func:`light_spec`; None: from the viewer's side).
 
     ``samples`` per pixel (1, 4, 9, ...: a square) are rendered on a finer grid and averaged (anti-aliasing).
     """
@@ -134,7 +205,7 @@ def render_identity(identity: Identity, weights: dict, view: str, size: int, sam
                           FRAMING * float((hi - lo).max()), size * sub)
     V = identity.posed(weights)
     T = identity.triangles
-    img = shade(V, T, rasterise(V, T, camera), background=background).astype(np.float64)
+    img = shade(V, T, rasterise(V, T, camera), background=background, lights=lights).astype(np.float64)
     if sub > 1:
         img = img.reshape(size, sub, size, sub).mean(axis=(1, 3))
     grey = np.round(img).astype(np.uint8)

@@ -10,17 +10,16 @@ from __future__ import annotations
 import json
 import os
 import shutil
-import subprocess
 import time
 from pathlib import Path
 
 from ..errors import PdeFaceError
-from ..headless import headless_command
+from ..headless import blender_here
 from ..io.files import write_bytes
 from ..io.png import write_png
 from ..rig import rig_head
 from ..threads import bounded_threads
-from .stimuli import load_identity, render_identity
+from .stimuli import load_identity, load_saved, render_identity, save_identity
 
 RECORDS = ".pdeface-batch"
 
@@ -44,18 +43,41 @@ def one_line(exc) -> str:
     return text if isinstance(exc, PdeFaceError) else f"{type(exc).__name__}: {text}".rstrip(": ")
 
 
-def run_task(task, out) -> dict:
+def identity_path(out, key) -> Path:
+    """Where a job's identity prepared once (:func:`prepare_identity`) is kept."""
+    return Path(out) / RECORDS / "faces" / f"{key}.npz"
+
+
+def prepare_identity(face, keys, out, key):
+    """The identity ``face`` posed by its AU ``keys``, made once for the whole job and saved under the job's records
+    (:func:`identity_path`); its stimulus tasks (which Dask runs after this) load it rather than each worker making
+    it again. Returns the file's path, or None where it cannot be made (then each task fails with the reason)."""
+    path = identity_path(out, key)
+    if path.is_file():  # an earlier run's, same key: the same identity
+        return str(path)
+    try:
+        with bounded_threads():
+            identity = load_identity(face, tuple(keys))
+        path.parent.mkdir(parents=True, exist_ok=True)
+        save_identity(identity, path)
+    except (PdeFaceError, OSError):
+        return None
+    return str(path)
+
+
+def run_task(task, out, *after) -> dict:
     """Run ``task`` into the folder ``out``; returns ``{"key", "status": "done" | "failed", "error", "seconds"}``.
 
     A :class:`PdeFaceError` or a file error (a broken mesh, the landmark gate refusing) is the task's result,
     ``failed`` with its one-line message: run again, it would fail again. Anything else propagates, and the
-    scheduler retries the task (a bounded number of times).
+    scheduler retries the task (a bounded number of times). ``after``: the results of the tasks it waited for
+    (a stimulus: its identity's file made by :func:`prepare_identity`, or None).
     """
     t0 = time.perf_counter()
     out = Path(out)
     try:
         with bounded_threads():  # workers share the machine's cores: BLAS threads that do not spin
-            RUNNERS[task.kind](task.params, out, task.key)
+            RUNNERS[task.kind](task.params, out, task.key, *after)
     except (PdeFaceError, OSError) as exc:
         return {"key": task.key, "status": "failed", "error": one_line(exc), "seconds": time.perf_counter() - t0}
     seconds = time.perf_counter() - t0
@@ -65,22 +87,24 @@ def run_task(task, out) -> dict:
     return {"key": task.key, "status": "done", "error": None, "seconds": seconds, "pid": os.getpid()}
 
 
-def _rig(p, out, key):
+def _rig(p, out, key, *after):
     rig_head(p["mesh"], out / p["folder"], landmarks=p["landmarks"], unit=p["unit"], parts=p["parts"],
              descriptors=p["descriptors"], presets=p["presets"], blend=p["blend"],
              accept=p.get("accept", False))
 
 
-def _stimulus(p, out, key):
-    identity = load_identity(p["face"], tuple(p["keys"]))
-    img = render_identity(identity, p["weights"], p["view"], p["size"], p["samples"], p["background"])
+def _stimulus(p, out, key, prepared=None):
+    identity = load_saved(prepared) if prepared else load_identity(p["face"], tuple(p["keys"]))
+    img = render_identity(identity, p["weights"], p["view"], p["size"], p["samples"], p["background"],
+                          p.get("lights"))
     out.mkdir(parents=True, exist_ok=True)
     write_png(out / p["file"], img)
 
 
-def _render_chunk(p, out, key):
-    """Frames ``frame_start``-``frame_end`` by the add-on's headless renderer (a child Python with bpy, one
-    Blender per task), rendered aside and moved into ``out/frames`` one by one (a rename: atomic)."""
+def _render_chunk(p, out, key, *after):
+    """Frames ``frame_start``-``frame_end`` by the add-on's headless renderer, run in this worker's own Blender
+    (imported by its first chunk, kept for the next: each render resets the scene), rendered aside and moved into
+    ``out/frames`` one by one (a rename: atomic)."""
     aside = out / RECORDS / "chunks" / key
     shutil.rmtree(aside, ignore_errors=True)
     argv = ["--timeline", p["timeline"], "--out", aside, "--frame-start", p["frame_start"],
@@ -92,11 +116,11 @@ def _render_chunk(p, out, key):
         argv += ["--head"]
     else:
         argv += ["--face", p["face"]]
-    res = subprocess.run(headless_command(argv, prog="pdeface batch"), capture_output=True, text=True, check=False)
-    if res.returncode:
-        lines = [ln for ln in res.stderr.splitlines() if ln.strip()]
+    status, stderr = blender_here().render_here(argv, prog="pdeface batch")
+    if status:
+        lines = [ln for ln in stderr.splitlines() if ln.strip()]
         raise PdeFaceError(f"frames {p['frame_start']}-{p['frame_end']}: "
-                           f"{lines[-1] if lines else f'the renderer exited with {res.returncode}'}")
+                           f"{lines[-1] if lines else f'the renderer exited with {status}'}")
     frames = out / "frames"
     frames.mkdir(parents=True, exist_ok=True)
     for f in range(p["frame_start"], p["frame_end"] + 1):

@@ -194,18 +194,26 @@ def _resolved(view: View, pix, z, tri, l0, l1) -> Raster:
     return Raster(view, out_tri.reshape(n, n), bary.reshape(n, n, 3))
 
 
-def shade(V, T, raster: Raster, background=0.0) -> np.ndarray:
+def shade(V, T, raster: Raster, background=0.0, lights=None) -> np.ndarray:
     """An 8-bit grey image (h, w) of the raster: smooth normals lit from the viewer's side, a little from above.
 
-    Back faces are shaded as front ones (a mesh's normals may point either way).
+    Back faces are shaded as front ones (a mesh's normals may point either way). ``lights``, a list of
+    ``(direction towards the light in mesh coordinates, strength)``, lights the surface facing the viewer with
+    those directional lights instead (Lambert's cosine, plus the same ambient).
     """
     N = vertex_normals(np.asarray(V, np.float64), np.asarray(T, np.int64))
     seen = raster.tri >= 0
-    n = np.einsum("pk,pkj->pj", raster.bary[seen], N[T[raster.tri[seen]]])
+    n = unit_rows(np.einsum("pk,pkj->pj", raster.bary[seen], N[T[raster.tri[seen]]]))
     R = raster.view.rotation
-    # Left-right symmetric light: a sideways light would shift what the face mesh sees as the midline.
-    light = unit_rows((R[2] + 0.35 * R[1])[None])[0]
-    lit = np.abs(unit_rows(n) @ light)
+    if lights is None:
+        # Left-right symmetric light: a sideways light would shift what the face mesh sees as the midline.
+        light = unit_rows((R[2] + 0.35 * R[1])[None])[0]
+        lit = np.abs(n @ light)
+    else:
+        n *= np.where(n @ R[2] < 0, -1.0, 1.0)[:, None]  # the side the viewer sees
+        lit = np.zeros(len(n))
+        for direction, strength in lights:
+            lit += float(strength) * np.maximum(n @ unit_rows(np.asarray(direction, np.float64)[None])[0], 0.0)
     img = np.full(raster.tri.shape, float(background))
     img[seen] = 0.12 + 0.88 * lit
     return np.round(np.clip(img, 0, 1) * 255).astype(np.uint8)
