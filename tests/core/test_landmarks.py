@@ -21,8 +21,8 @@ from pdeface.landmarks.facemap import (
     read_map,
     robust_similarity,
 )
+from pdeface.landmarks.pipeline import OPENING_DEPTH_MM, disc_closing, group_spread, outer_pixels, snap
 from pdeface.landmarks.render import View, back_project, rasterise, shade
-from pdeface.landmarks.pipeline import OPENING_DEPTH_MM, group_spread, outer_pixels, snap
 from pdeface.mesh import Mesh, connected_components
 from pdeface.rigid import rotation_vector_matrix
 from pdeface.surface.frame import BLENDER_FROM_ICT
@@ -368,6 +368,16 @@ def test_on_a_closed_face_the_cast_landmarks_are_the_nearest_points():
     outer = outer_pixels(V2, T2, r2, 1.0)
     x, y, _ = r2.view.project(np.array([[0.0, 0, -20], [0, 20, 0]]))
     assert not outer[round(y[0]), round(x[0])] and outer[round(y[1]), round(x[1])]
+
+
+@pytest.mark.parametrize("r", [1, 2, 5, 13])
+def test_the_disc_closing_is_scipys_grey_closing_value_for_value(rng, r):
+    from scipy.ndimage import grey_closing
+
+    depth = rng.normal(size=(97, 120))
+    depth[rng.random(depth.shape) < 0.3] = -5.0  # background pixels and holes, as in a depth map
+    yy, xx = np.mgrid[-r:r + 1, -r:r + 1]
+    np.testing.assert_array_equal(disc_closing(depth, r), grey_closing(depth, footprint=xx ** 2 + yy ** 2 <= r * r))
 
 
 def test_group_spread_leaves_out_renders_that_missed_a_landmark(rng):

@@ -194,12 +194,13 @@ def _resolved(view: View, pix, z, tri, l0, l1) -> Raster:
     return Raster(view, out_tri.reshape(n, n), bary.reshape(n, n, 3))
 
 
-def shade(V, T, raster: Raster, background=0.0) -> np.ndarray:
+def shade(V, T, raster: Raster, background=0.0, normals=None) -> np.ndarray:
     """An 8-bit grey image (h, w) of the raster: smooth normals lit from the viewer's side, a little from above.
 
-    Back faces are shaded as front ones (a mesh's normals may point either way).
+    Back faces are shaded as front ones (a mesh's normals may point either way). ``normals``: the mesh's
+    :func:`~pdeface.mesh.vertex_normals`, when several renders of one mesh share them.
     """
-    N = vertex_normals(np.asarray(V, np.float64), np.asarray(T, np.int64))
+    N = vertex_normals(np.asarray(V, np.float64), np.asarray(T, np.int64)) if normals is None else normals
     seen = raster.tri >= 0
     n = np.einsum("pk,pkj->pj", raster.bary[seen], N[T[raster.tri[seen]]])
     R = raster.view.rotation
