@@ -275,19 +275,42 @@ def _plain_decimals(text: bytes, b, at, end):
     if (len(dot) != np.count_nonzero(has_dot) or not _DIGIT[b[dot - 1]].all() or not _DIGIT[b[dot + 1]].all()
             or (digits > 15).any()):
         return bad
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", DeprecationWarning)  # fromstring stops early on a bad token: counted
-        ints = np.fromstring(text.translate(_DOT_TO_SPACE), np.int64, sep=" ")
-    if len(ints) != len(at) + len(dot):
-        return bad
-    first = np.arange(len(at)) + np.cumsum(has_dot) - has_dot
     frac_digits = np.zeros(len(at), np.int64)
     frac_digits[of] = end[of] - dot - 1
-    mantissa = np.abs(ints[first]) * _IPOW10[frac_digits]
-    mantissa[has_dot] += ints[first[has_dot] + 1]
+    if len(dot) == len(at) and text.count(b"-") == np.count_nonzero(minus):
+        # -digits.digits each (a sign only in front): the two runs of digits read digit by digit.
+        mantissa = _digit_values(b, at + minus, dot) * _IPOW10[frac_digits] + _digit_values(b, dot + 1, end)
+    else:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", DeprecationWarning)  # fromstring stops early on a bad token: counted
+            ints = np.fromstring(text.translate(_DOT_TO_SPACE), np.int64, sep=" ")
+        if len(ints) != len(at) + len(dot):
+            return bad
+        first = np.arange(len(at)) + np.cumsum(has_dot) - has_dot
+        mantissa = np.abs(ints[first]) * _IPOW10[frac_digits]
+        mantissa[has_dot] += ints[first[has_dot] + 1]
     values = mantissa / _POW10[frac_digits]
     values[minus] *= -1
     return values
+
+
+def _digit_values(b, at, end):
+    """The integers written at ``b[at:end]`` (``b``: bytes as uint8), each 1 to 15 decimal digits and nothing else.
+
+    Digit by digit from the right, all numbers at once: a few passes over the numbers, where parsing the text
+    (``np.fromstring``) is a pass over its bytes.
+    """
+    length = end - at
+    width = int(length.max(initial=1))
+    kind = np.int32 if width <= 9 else np.int64  # half the memory to go through, where the numbers fit
+    values = b[end - 1].astype(kind) - 48
+    at_digit = end - 1
+    for j in range(1, width):
+        at_digit = at_digit - 1
+        digit = b[at_digit].astype(kind) - 48
+        digit *= length > j
+        values += digit * kind(10 ** j)
+    return values.astype(np.int64)
 
 
 _DIGIT = _chars(b"0123456789")
@@ -348,26 +371,37 @@ def _faces(lines: _Lines, rows: dict):
     double = slash[b[slash + 1] == ord("/")]
     if (counts < 3).any() or _SEP[b[slash - 1]].any() or _SEP[b[slash + 1]].any() or (b[double + 2] == ord("/")).any():
         return None
-    slashes = np.bincount(np.searchsorted(corner_at, slash, side="right") - 1, minlength=len(corner_at))
-    no_uv = np.zeros(len(corner_at), bool)
-    no_uv[np.searchsorted(corner_at, double, side="right") - 1] = True
-    fields = slashes + 1 - no_uv
-    if (slashes > 2).any():
-        return None
-    if (np.diff(at).max() > 16):  # a long corner: has it a field too long to be an index (of 15 digits at most)?
-        field_at, field_end = _tokens(text, (text <= 32) | (text == ord("/")))
-        if (field_end - field_at).max() > 16:
+    f = 0
+    if b"-" not in block:  # no relative index: every field is digits alone
+        field_at, field_end = _tokens(text, (text <= 32) | (text == ord("/")) | (text == ord("f")))
+        if (field_end - field_at).max() > 15:  # more digits than an index has
             return None
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", DeprecationWarning)  # fromstring stops early on a bad token: counted
-        values = np.fromstring(block.translate(_SLASH_TO_SPACE), np.int64, sep=" ")
-    if len(values) != fields.sum():
-        return None
-    if (fields == fields[0]).all() and not len(double):  # every corner alike, v, v/vt or v/vt/vn (the usual file)
-        f = int(fields[0])
-        columns = [*values.reshape(-1, f).T, *[None] * (3 - f)]
+        f = len(field_at) // len(corner_at)
+        if not (1 <= f <= 3 and len(field_at) == f * len(corner_at) and not len(double)
+                and (field_at[::f] == corner_at).all()):
+            f = 0
+    if f:  # every corner f fields, v, v/vt or v/vt/vn (the usual file): the values as columns
+        columns = [*_digit_values(b, field_at, field_end).reshape(-1, f).T, *[None] * (3 - f)]
         given = [np.ones(len(corner_at), bool)] * f + [np.zeros(len(corner_at), bool)] * (3 - f)
     else:
+        slashes = np.bincount(np.searchsorted(corner_at, slash, side="right") - 1, minlength=len(corner_at))
+        no_uv = np.zeros(len(corner_at), bool)
+        no_uv[np.searchsorted(corner_at, double, side="right") - 1] = True
+        fields = slashes + 1 - no_uv
+        if (slashes > 2).any():
+            return None
+        if b"-" not in block:
+            values = _digit_values(b, field_at, field_end)
+        else:
+            if (np.diff(at).max() > 16):  # a long corner: has it a field too long to be an index (15 digits at most)?
+                field_at, field_end = _tokens(text, (text <= 32) | (text == ord("/")))
+                if (field_end - field_at).max() > 16:
+                    return None
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", DeprecationWarning)  # fromstring stops early on a bad token: counted
+                values = np.fromstring(block.translate(_SLASH_TO_SPACE), np.int64, sep=" ")
+        if len(values) != fields.sum():
+            return None
         first = np.cumsum(fields) - fields
         has_uv = (slashes >= 1) & ~no_uv
         given = [slashes >= 0, has_uv, slashes == 2]
