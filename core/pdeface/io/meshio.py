@@ -305,10 +305,12 @@ def _digit_values(b, at, end):
     kind = np.int32 if width <= 9 else np.int64  # half the memory to go through, where the numbers fit
     values = b[end - 1].astype(kind) - 48
     at_digit = end - 1
+    alike = (length == width).all()  # as fractions written with a fixed count of decimals are
     for j in range(1, width):
         at_digit = at_digit - 1
         digit = b[at_digit].astype(kind) - 48
-        digit *= length > j
+        if not alike:
+            digit *= length > j
         values += digit * kind(10 ** j)
     return values.astype(np.int64)
 
