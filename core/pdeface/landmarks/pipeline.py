@@ -249,8 +249,8 @@ def on_skin(V, Ts, skin_raster: Raster, px, P_any, reach, closest):
 def frontal_readings(V, T, skin, detector: Detector, m: LandmarkMap, pose, first=None, closest=None, normals=None):
     """The face mesh's points on the skin from each frontal render (:data:`FRONTAL_TURNS`), each read as it
     is and mirrored (the mirrored reading's points renumbered by ``m.mirror``, which cancels any left-right
-    bias of the face mesh). ``first``: a straight-on render's raster (with its fragments), image and pixels,
-    already read. ``closest``: a :class:`~pdeface.geometry.ClosestPoint` on the skin triangles, when already
+    bias of the face mesh). ``first``: a straight-on render's raster, image, pixels (already read) and skin
+    raster (:meth:`~pdeface.landmarks.render.Raster.showing` the skin). ``closest``: a :class:`~pdeface.geometry.ClosestPoint` on the skin triangles, when already
     built; ``normals``: the mesh's vertex normals, for :func:`~pdeface.landmarks.render.shade`.
     Returns points (readings, 468, 3) and which rays hit skin directly (readings, 468)."""
 
@@ -261,11 +261,11 @@ def frontal_readings(V, T, skin, detector: Detector, m: LandmarkMap, pose, first
     for k, turn in enumerate(FRONTAL_TURNS):
         view = frontal(m.template, *pose, rotation_vector_matrix(np.radians(turn)))
         if k == 0 and first is not None:
-            raster, img, px = first
+            raster, img, px, skin_raster = first
         else:
             raster, img, px = rasterise(V, T, view, keep_fragments=True), None, None
+            skin_raster = raster.showing(skin)  # the skin alone, from the same pass
         img = shade(V, T, raster, normals=normals) if img is None else img
-        skin_raster = raster.showing(skin)  # the skin alone, from the same pass
         for mirrored in (False, True) if m.mirror is not None else (False,):
             r, sr = (raster.flipped(), skin_raster.flipped()) if mirrored else (raster, skin_raster)
             if px is None or mirrored:
@@ -342,11 +342,11 @@ def detect(V, T, unit=None, landmark_map: LandmarkMap | None = None, detector: D
             raise LandmarkError(f"the points found in view {name} do not make a face (RMS {residual:.1f} mm from "
                                 f"the template, over {MAX_RESIDUAL_MM} mm): give the landmarks by hand")
         skin = skin_triangles(V, T, tri)
-        closest = ClosestPoint(V, T[skin])
-        Ps, direct = frontal_readings(V, T, skin, detector, m, (s, R, t), first=(raster, img, px), closest=closest,
-                                      normals=normals)
+        closest, skin_raster = ClosestPoint(V, T[skin]), raster.showing(skin)
+        Ps, direct = frontal_readings(V, T, skin, detector, m, (s, R, t), first=(raster, img, px, skin_raster),
+                                      closest=closest, normals=normals)
         P2 = np.nanmean(Ps, axis=0)
-        points, indices = snap(V, T[skin], m.apply(P2), raster.showing(skin), 1.0 / s, closest)
+        points, indices = snap(V, T[skin], m.apply(P2), skin_raster, 1.0 / s, closest)
         mm = UNITS_MM[unit] if unit else estimate_unit(points)[1]  # the fit's own estimate (one for both)
         spread = group_spread(m, Ps, mm)
         direct = direct.mean(0)

@@ -134,6 +134,7 @@ def rasterise(V, T, view: View, keep_fragments=False) -> Raster:
     px, py, pz = view.project(V)
     # Corners a, b, c of each triangle; np.minimum of columns, as .min(1) over three is several times slower.
     (ax, bx, cx), (ay, by, cy) = (px[T[:, k]] for k in range(3)), (py[T[:, k]] for k in range(3))
+    za, zb, zc = (pz[T[:, k]] for k in range(3))
     x0 = np.maximum(np.ceil(np.minimum(np.minimum(ax, bx), cx)), 0).astype(np.int32)
     y0 = np.maximum(np.ceil(np.minimum(np.minimum(ay, by), cy)), 0).astype(np.int32)
     x1 = np.minimum(np.floor(np.maximum(np.maximum(ax, bx), cx)), n - 1).astype(np.int32)
@@ -161,7 +162,7 @@ def rasterise(V, T, view: View, keep_fragments=False) -> Raster:
         inside = np.nonzero((l0 >= 0) & (l1 >= 0) & (1 - l0 - l1 >= 0))[0]
         tt = np.repeat(t, c)[inside]
         l0, l1 = l0[inside], l1[inside]
-        z = l0 * pz[T[tt, 0]] + l1 * pz[T[tt, 1]] + (1 - l0 - l1) * pz[T[tt, 2]]
+        z = l0 * za[tt] + l1 * zb[tt] + (1 - l0 - l1) * zc[tt]
         pieces.append((gy[inside] * n + gx[inside], z, tt, l0, l1))
         lo = hi
     if pieces:
