@@ -250,8 +250,9 @@ def frontal_readings(V, T, skin, detector: Detector, m: LandmarkMap, pose, first
     """The face mesh's points on the skin from each frontal render (:data:`FRONTAL_TURNS`), each read as it
     is and mirrored (the mirrored reading's points renumbered by ``m.mirror``, which cancels any left-right
     bias of the face mesh). ``first``: a straight-on render's raster, image, pixels (already read) and skin
-    raster (:meth:`~pdeface.landmarks.render.Raster.showing` the skin). ``closest``: a :class:`~pdeface.geometry.ClosestPoint` on the skin triangles, when already
-    built; ``normals``: the mesh's vertex normals, for :func:`~pdeface.landmarks.render.shade`.
+    raster (:meth:`~pdeface.landmarks.render.Raster.showing` the skin). ``closest``: a
+    :class:`~pdeface.geometry.ClosestPoint` on the skin triangles, when already built; ``normals``: the mesh's
+    vertex normals, for :func:`~pdeface.landmarks.render.shade`.
     Returns points (readings, 468, 3) and which rays hit skin directly (readings, 468)."""
 
     Ts = T[skin]
