@@ -2,8 +2,9 @@
 
 :func:`before_path` swaps it into :mod:`pdeface.landmarks` for a block: the power-of-two block rasteriser with
 a lexsort z-buffer, every skin raster rendered again from the skin triangles, ``np.cross`` normals summed by
-``np.add.at`` (once per detect now: the renders share them), scipy's grey closing by a disc footprint; and :func:`cold_seconds` times a fresh process finding landmarks both ways, the old one importing
-all of ``mediapipe.solutions`` (matplotlib with it). The landmarks found are the same, bit for bit.
+``np.add.at`` (once per detect now: the renders share them), scipy's grey closing by a disc footprint; and
+:func:`cold_seconds` times a fresh process finding landmarks both ways, the old one importing all of
+``mediapipe.solutions`` (matplotlib with it). The landmarks found are the same, bit for bit.
 """
 from __future__ import annotations
 
