@@ -348,6 +348,9 @@ def test_obj_blocks_read_random_meshes_exactly(tmp_path, rng):
     "v 0.5 0.25 -0.125\nv 1.5 0.0 -0.0\nv 0.0 1.0 0.0\nf 1 2 0000000003\n",  # ten digits: 3
     "v 0.0 0.0 0.0\nv 1.0 0.0 0.0\nv 0.0 1.0 0.0\nvt 0.5 0.5\nf 1/1 2 3/1\n",  # corners unlike
     "v 0.0 0.0 0.0\nv 1.0 0.0 0.0\nv 0.0 1.0 0.0\nvt 0.5 0.5\nf 1/1 2/1 3/1234567890123456\n",
+    "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 -\n",                      # a sign alone
+    "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 --1\n",
+    "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf -3/-1 -2/1 -1/-1\n",      # relative and absolute, read as columns
     "v 0 0 0\n",
     "f 1 2 3\n",
     "",

@@ -317,7 +317,6 @@ def _digit_values(b, at, end):
 
 _DIGIT = _chars(b"0123456789")
 _DOT_TO_SPACE = bytes.maketrans(b".vtnf", b"     ")
-_SLASH_TO_SPACE = bytes.maketrans(b"/f", b"  ")
 
 
 def _numbers(lines: _Lines, rows, tag: bytes, n: int):
@@ -373,36 +372,25 @@ def _faces(lines: _Lines, rows: dict):
     double = slash[b[slash + 1] == ord("/")]
     if (counts < 3).any() or _SEP[b[slash - 1]].any() or _SEP[b[slash + 1]].any() or (b[double + 2] == ord("/")).any():
         return None
-    f = 0
-    if b"-" not in block:  # no relative index: every field is digits alone
-        field_at, field_end = _tokens(text, (text <= 32) | (text == ord("/")) | (text == ord("f")))
-        if (field_end - field_at).max() > 15:  # more digits than an index has
-            return None
-        f = len(field_at) // len(corner_at)
-        if not (1 <= f <= 3 and len(field_at) == f * len(corner_at) and not len(double)
-                and (field_at[::f] == corner_at).all()):
-            f = 0
-    if f:  # every corner f fields, v, v/vt or v/vt/vn (the usual file): the values as columns
-        columns = [*_digit_values(b, field_at, field_end).reshape(-1, f).T, *[None] * (3 - f)]
+    field_at, field_end = _tokens(text, (text <= 32) | (text == ord("/")) | (text == ord("f")))
+    minus = b[field_at] == ord("-")  # a relative index
+    digits_at = field_at + minus
+    length = field_end - digits_at
+    if block.count(b"-") != np.count_nonzero(minus) or length.min() < 1 or length.max() > 15:
+        return None  # a sign inside an index, a sign alone, or more digits than an index has
+    values = _digit_values(b, digits_at, field_end)
+    values[minus] *= -1
+    f = len(field_at) // len(corner_at)
+    if 1 <= f <= 3 and len(field_at) == f * len(corner_at) and not len(double) and (field_at[::f] == corner_at).all():
+        # Every corner f fields, v, v/vt or v/vt/vn (the usual file): the values as columns.
+        columns = [*values.reshape(-1, f).T, *[None] * (3 - f)]
         given = [np.ones(len(corner_at), bool)] * f + [np.zeros(len(corner_at), bool)] * (3 - f)
     else:
         slashes = np.bincount(np.searchsorted(corner_at, slash, side="right") - 1, minlength=len(corner_at))
         no_uv = np.zeros(len(corner_at), bool)
         no_uv[np.searchsorted(corner_at, double, side="right") - 1] = True
         fields = slashes + 1 - no_uv
-        if (slashes > 2).any():
-            return None
-        if b"-" not in block:
-            values = _digit_values(b, field_at, field_end)
-        else:
-            if (np.diff(at).max() > 16):  # a long corner: has it a field too long to be an index (15 digits at most)?
-                field_at, field_end = _tokens(text, (text <= 32) | (text == ord("/")))
-                if (field_end - field_at).max() > 16:
-                    return None
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore", DeprecationWarning)  # fromstring stops early on a bad token: counted
-                values = np.fromstring(block.translate(_SLASH_TO_SPACE), np.int64, sep=" ")
-        if len(values) != fields.sum():
+        if (slashes > 2).any() or len(values) != fields.sum():
             return None
         first = np.cumsum(fields) - fields
         has_uv = (slashes >= 1) & ~no_uv
