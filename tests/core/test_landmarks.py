@@ -92,6 +92,19 @@ def test_a_subset_drawn_from_one_pass_is_that_subset_rendered(heads):
         alone.showing(np.ones(skin.sum(), bool))
 
 
+def test_a_render_near_some_pixels_is_the_whole_render_there(heads, rng):
+    # The gate looks at a few pixels around each landmark: only the triangles over them are drawn.
+    mesh, T, lm, _ = heads
+    view = View.looking([0.3, 0.1, 1], [0, 1, 0], mesh.vertices[lm].mean(0), 12.0, 128)
+    whole = rasterise(mesh.vertices, T, view)
+    near = np.zeros((128, 128), bool)
+    near[rng.integers(0, 128, 40), rng.integers(0, 128, 40)] = True
+    near[60:63, 70:73] = True
+    part = rasterise(mesh.vertices, T, view, near=near)
+    assert np.array_equal(part.tri[near], whole.tri[near]) and np.array_equal(part.bary[near], whole.bary[near])
+    assert (part.tri[~near] >= 0).sum() < (whole.tri[~near] >= 0).sum() / 2  # far fewer triangles drawn
+
+
 def test_on_a_tie_the_lowest_numbered_triangle_wins(heads):
     mesh, T, _, _ = heads
     view = View.looking([0, 0, 1], [0, 1, 0], mesh.vertices.mean(0), 15.0, 96)

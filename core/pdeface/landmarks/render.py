@@ -122,12 +122,14 @@ class _Fragments:
     l1: np.ndarray
 
 
-def rasterise(V, T, view: View, keep_fragments=False) -> Raster:
+def rasterise(V, T, view: View, keep_fragments=False, near=None) -> Raster:
     """The nearest triangle and barycentric weights at every pixel centre.
 
     Every triangle's pixel box is enumerated exactly (in chunks of :data:`_CHUNK` candidates), the centres
     inside it are its fragments, and the nearest fragment wins each pixel (the first triangle on a tie).
-    ``keep_fragments`` keeps them on the raster for :meth:`Raster.showing`.
+    ``keep_fragments`` keeps them on the raster for :meth:`Raster.showing`. ``near`` (a bool image): only the
+    triangles whose box meets one of its pixels are drawn, so those pixels are as in the whole render (the
+    others may lack triangles), for a look at a few points.
     """
     V, T = np.asarray(V, np.float64), np.asarray(T, np.int64)
     n = view.size
@@ -142,7 +144,13 @@ def rasterise(V, T, view: View, keep_fragments=False) -> Raster:
     # The barycentric weights of (x, y): l0 = (e0x (x - cx) + e0y (y - cy)) / d, l1 likewise, l2 = 1 - l0 - l1.
     d = (by - cy) * (ax - cx) + (cx - bx) * (ay - cy)
     width, height = x1 - x0 + 1, y1 - y0 + 1
-    ids = np.nonzero((width > 0) & (height > 0) & (np.abs(d) > 1e-12))[0]
+    drawn = (width > 0) & (height > 0) & (np.abs(d) > 1e-12)
+    if near is not None:  # the pixels of near in each box, by the image's summed-area table
+        area = np.zeros((n + 1, n + 1), np.int32)
+        area[1:, 1:] = np.asarray(near, bool).cumsum(0, dtype=np.int32).cumsum(1, dtype=np.int32)
+        xa, xb, ya, yb = (np.clip(e, 0, n) for e in (x0, x1 + 1, y0, y1 + 1))
+        drawn &= area[yb, xb] - area[ya, xb] - area[yb, xa] + area[ya, xa] > 0
+    ids = np.nonzero(drawn)[0]
     count = width[ids] * height[ids]
     ends = np.cumsum(count, dtype=np.int64)
     pieces = []
