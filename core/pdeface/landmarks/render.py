@@ -198,8 +198,8 @@ def _resolved(view: View, pix, z, tri, l0, l1) -> Raster:
     out_tri = np.full(n * n, -1, np.int64)
     bary = np.zeros((n * n, 3))
     out_tri[seen] = tri[w]
-    bary[seen, 0], bary[seen, 1] = l0[w], l1[w]
-    bary[seen, 2] = 1 - l0[w] - l1[w]
+    a, b, flat = l0[w], l1[w], bary.reshape(-1)  # flat indices: several times faster than bary[seen, k]
+    flat[3 * seen], flat[3 * seen + 1], flat[3 * seen + 2] = a, b, 1 - a - b
     return Raster(view, out_tri.reshape(n, n), bary.reshape(n, n, 3))
 
 
