@@ -160,9 +160,13 @@ def rasterise(V, T, view: View, keep_fragments=False, near=None) -> Raster:
         hi = max(int(np.searchsorted(ends, (ends[lo - 1] if lo else 0) + _CHUNK, side="right")), lo + 1)
         t = ids[lo:hi]
         c = count[lo:hi]
-        local = np.arange(int(c.sum()), dtype=np.int32) - np.repeat(np.cumsum(c, dtype=np.int32) - c, c)
-        ry, rx = np.divmod(local, np.repeat(width[t], c))
-        gx, gy = rx + np.repeat(x0[t], c), ry + np.repeat(y0[t], c)
+        # Each box row by row: a row's pixels are its first column onwards (no division to find them).
+        h, w = height[t], width[t]
+        row_w = np.repeat(w, h)
+        row_y = np.arange(len(row_w), dtype=np.int32) - np.repeat(np.cumsum(h, dtype=np.int32) - h - y0[t], h)
+        row_start = np.cumsum(row_w, dtype=np.int32) - row_w - np.repeat(x0[t], h)
+        gx = np.arange(int(c.sum()), dtype=np.int32) - np.repeat(row_start, row_w)
+        gy = np.repeat(row_y, row_w)
         dx, dy = gx - np.repeat(cx[t], c), gy - np.repeat(cy[t], c)
         dt = np.repeat(d[t], c)
         l0 = (np.repeat((by - cy)[t], c) * dx + np.repeat((cx - bx)[t], c) * dy) / dt
