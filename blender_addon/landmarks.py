@@ -191,15 +191,21 @@ def snap(context, obj):
     return float(np.linalg.norm(target - points, axis=1).max())
 
 
-def gate(obj, points, unit=None, skin=None):
+def mesh_arrays(obj):
+    """Vertices (object space) and triangles of mesh object ``obj``, read from Blender once for a find and its
+    gate."""
+    return bridge.vertices(obj.data), bridge.triangles(obj.data)[0]
+
+
+def gate(obj, points, unit=None, skin=None, arrays=None):
     """The landmark gate on ``points`` (object space) over ``obj``'s skin: the verdict, kept on the mesh
     (:data:`GATE_PROP`) and shown on the empties (:func:`highlight`).
 
     ``skin``: the triangles the landmarks were found on; else the connected parts of the mesh nearest to at
     least :data:`SKIN_SHARE` of the points (lashes and eyeballs in front of the skin are no face).
+    ``arrays``: :func:`mesh_arrays` of ``obj``, when already read.
     """
-    V = bridge.vertices(obj.data)
-    T, _ = bridge.triangles(obj.data)
+    V, T = mesh_arrays(obj) if arrays is None else arrays
     if skin is None:
         skin = skin_triangles(V, T, ClosestPoint(V, T).query(points)[1], share=SKIN_SHARE)
     verdict = check(points, V, T[skin], unit)
@@ -318,10 +324,10 @@ def unregister():
     _previews.clear()
 
 
-def find(context, obj, unit=None):
-    """Find the landmarks of mesh object ``obj`` and show them as empties; returns (points, found, seconds)."""
-    V = bridge.vertices(obj.data)
-    T, _ = bridge.triangles(obj.data)
+def find(context, obj, unit=None, arrays=None):
+    """Find the landmarks of mesh object ``obj`` and show them as empties; returns (points, found, seconds).
+    ``arrays``: :func:`mesh_arrays` of ``obj``, when already read."""
+    V, T = mesh_arrays(obj) if arrays is None else arrays
     if len(T) == 0:
         raise MeshError(f"{obj.name} has no faces")
     t = time.perf_counter()

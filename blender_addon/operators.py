@@ -190,11 +190,12 @@ Fit then uses them"""
         obj = context.active_object
         compat.set_status(context, "PDE Face: finding landmarks")
         unit = None if s.unit == "AUTO" else s.unit
+        arrays = landmarks.mesh_arrays(obj)  # read once for the find and its gate
         try:
-            points, found, seconds = landmarks.find(context, obj, unit)
+            points, found, seconds = landmarks.find(context, obj, unit, arrays)
         finally:
             compat.set_status(context, None)
-        verdict = landmarks.gate(obj, points, unit, found.skin)
+        verdict = landmarks.gate(obj, points, unit, found.skin, arrays)
         if verdict.passed:
             return landmarks.summary(obj, found, seconds)
         self.report({"WARNING"}, f"{landmarks.summary(obj, found, seconds)}; they fail the landmark gate: "

@@ -2,8 +2,9 @@
 
 :func:`before_path` swaps it into :mod:`pdeface.landmarks` for a block: the power-of-two block rasteriser with
 a lexsort z-buffer, every skin raster rendered again from the skin triangles, ``np.cross`` normals summed by
-``np.add.at``; and :func:`cold_seconds` times a fresh process finding landmarks both ways, the old one importing
-all of ``mediapipe.solutions`` (matplotlib with it). The landmarks found are the same, bit for bit.
+``np.add.at`` (once per detect now: the renders share them), scipy's grey closing by a disc footprint; and
+:func:`cold_seconds` times a fresh process finding landmarks both ways, the old one importing all of
+``mediapipe.solutions`` (matplotlib with it). The landmarks found are the same, bit for bit.
 """
 from __future__ import annotations
 
@@ -30,6 +31,14 @@ def vertex_normals(V, T):
     for c in range(3):
         np.add.at(out, T[:, c], n)
     return unit_rows(out)
+
+
+def disc_closing(img, r):
+    """scipy's grey closing by the disc's footprint, as before."""
+    from scipy.ndimage import grey_closing
+
+    yy, xx = np.mgrid[-r:r + 1, -r:r + 1]
+    return grey_closing(img, footprint=xx ** 2 + yy ** 2 <= r * r)
 
 
 class _TwoPassRaster(Raster):
@@ -95,7 +104,8 @@ def rasterise(V, T, view, keep_fragments=False):
 def before_path():
     """:mod:`pdeface.landmarks` renders as before #35 inside the block."""
     swaps = [(pipeline, "rasterise", rasterise), (render, "vertex_normals", vertex_normals),
-             (render, "triangle_cross", triangle_cross)]
+             (pipeline, "vertex_normals", vertex_normals), (render, "triangle_cross", triangle_cross),
+             (pipeline, "disc_closing", disc_closing)]
     saved = [(mod, name, getattr(mod, name)) for mod, name, _ in swaps]
     try:
         for mod, name, fn in swaps:

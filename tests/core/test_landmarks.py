@@ -21,8 +21,8 @@ from pdeface.landmarks.facemap import (
     read_map,
     robust_similarity,
 )
+from pdeface.landmarks.pipeline import OPENING_DEPTH_MM, disc_closing, group_spread, outer_pixels, snap
 from pdeface.landmarks.render import View, back_project, rasterise, shade
-from pdeface.landmarks.pipeline import OPENING_DEPTH_MM, group_spread, outer_pixels, snap
 from pdeface.mesh import Mesh, connected_components
 from pdeface.rigid import rotation_vector_matrix
 from pdeface.surface.frame import BLENDER_FROM_ICT
@@ -90,6 +90,19 @@ def test_a_subset_drawn_from_one_pass_is_that_subset_rendered(heads):
     assert np.array_equal(shade(V, T[skin], drawn), shade(V, T[skin], alone))
     with pytest.raises(ValueError, match="keep_fragments"):
         alone.showing(np.ones(skin.sum(), bool))
+
+
+def test_a_render_near_some_pixels_is_the_whole_render_there(heads, rng):
+    # The gate looks at a few pixels around each landmark: only the triangles over them are drawn.
+    mesh, T, lm, _ = heads
+    view = View.looking([0.3, 0.1, 1], [0, 1, 0], mesh.vertices[lm].mean(0), 12.0, 128)
+    whole = rasterise(mesh.vertices, T, view)
+    near = np.zeros((128, 128), bool)
+    near[rng.integers(0, 128, 40), rng.integers(0, 128, 40)] = True
+    near[60:63, 70:73] = True
+    part = rasterise(mesh.vertices, T, view, near=near)
+    assert np.array_equal(part.tri[near], whole.tri[near]) and np.array_equal(part.bary[near], whole.bary[near])
+    assert (part.tri[~near] >= 0).sum() < (whole.tri[~near] >= 0).sum() / 2  # far fewer triangles drawn
 
 
 def test_on_a_tie_the_lowest_numbered_triangle_wins(heads):
@@ -368,6 +381,16 @@ def test_on_a_closed_face_the_cast_landmarks_are_the_nearest_points():
     outer = outer_pixels(V2, T2, r2, 1.0)
     x, y, _ = r2.view.project(np.array([[0.0, 0, -20], [0, 20, 0]]))
     assert not outer[round(y[0]), round(x[0])] and outer[round(y[1]), round(x[1])]
+
+
+@pytest.mark.parametrize("r", [1, 2, 5, 13])
+def test_the_disc_closing_is_scipys_grey_closing_value_for_value(rng, r):
+    from scipy.ndimage import grey_closing
+
+    depth = rng.normal(size=(97, 120))
+    depth[rng.random(depth.shape) < 0.3] = -5.0  # background pixels and holes, as in a depth map
+    yy, xx = np.mgrid[-r:r + 1, -r:r + 1]
+    np.testing.assert_array_equal(disc_closing(depth, r), grey_closing(depth, footprint=xx ** 2 + yy ** 2 <= r * r))
 
 
 def test_group_spread_leaves_out_renders_that_missed_a_landmark(rng):

@@ -341,6 +341,16 @@ def test_obj_blocks_read_random_meshes_exactly(tmp_path, rng):
     "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 2 3\n",
     "v 0 0 0\nv 1 0 0\nv 0 1 0\nf -0 2 3\n",
     "v 0 \xff 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",                  # undecodable: replaced, then a bad number
+    # Numbers of one dot each and indices without a sign, read digit by digit: what else they meet.
+    "v 0.5 0.25 -0.125\nv 1.5 0.0 1-2.5\nv 0.0 1.0 0.0\nf 1 2 3\n",    # a sign inside a number
+    "v 0.5 0.25 -0.125\nv 1.5 -.5 0.0\nv 0.0 1.0 0.0\nf 1 2 3\n",      # no digit before the dot
+    "v 0.5 0.25 -0.125\nv 1.5 0.0 1.\nv 0.0 1.0 0.0\nf 1 2 3\n",       # none after it
+    "v 0.5 0.25 -0.125\nv 1.5 0.0 -0.0\nv 0.0 1.0 0.0\nf 1 2 0000000003\n",  # ten digits: 3
+    "v 0.0 0.0 0.0\nv 1.0 0.0 0.0\nv 0.0 1.0 0.0\nvt 0.5 0.5\nf 1/1 2 3/1\n",  # corners unlike
+    "v 0.0 0.0 0.0\nv 1.0 0.0 0.0\nv 0.0 1.0 0.0\nvt 0.5 0.5\nf 1/1 2/1 3/1234567890123456\n",
+    "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 -\n",                      # a sign alone
+    "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 --1\n",
+    "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf -3/-1 -2/1 -1/-1\n",      # relative and absolute, read as columns
     "v 0 0 0\n",
     "f 1 2 3\n",
     "",

@@ -216,8 +216,9 @@ def _chars(*groups: bytes):
     return table
 
 
-_NUMBER_CHARS = _chars(b"0123456789+-.eE \t\n\x0b\x0c")
-_CORNER_CHARS = _chars(b"0123456789-/ \t\n\x0b\x0c")
+#: The bytes of number lines and of face lines but their tags (``bytes.translate`` deletes them in one C pass).
+_NUMBER_BYTES = b"0123456789+-.eE \t\n\x0b\x0c"
+_CORNER_BYTES = b"0123456789-/ \t\n\x0b\x0c"
 _POW10 = 10.0 ** np.arange(16)
 _IPOW10 = 10 ** np.arange(16, dtype=np.int64)
 
@@ -232,7 +233,10 @@ def _decimals(text: bytes, b, at, end):
     digits) are read by float() itself.
     """
     t = b[:len(text)]
-    other = np.flatnonzero((t == ord("+")) | ((t | 32) == ord("e")))  # + e E: the only other letters allowed
+    if b"+" in text or b"e" in text or b"E" in text:  # + e E: the only other letters allowed
+        other = np.flatnonzero((t == ord("+")) | ((t | 32) == ord("e")))
+    else:
+        other = np.zeros(0, np.int64)
     other = np.union1d(np.searchsorted(at, other, side="right") - 1, np.flatnonzero(end - at > 15))
     if len(other) > 1000:
         return None
@@ -259,33 +263,60 @@ def _decimals(text: bytes, b, at, end):
 def _plain_decimals(text: bytes, b, at, end):
     """:func:`_decimals` of numbers ``-?digits[.digits]`` of at most 15 digits; NaN everywhere if any is not."""
     dot = np.flatnonzero(b == ord("."))
-    has_dot = np.zeros(len(at), bool)
-    of = np.searchsorted(at, dot, side="right") - 1
-    has_dot[of] = True
+    if len(dot) == len(at) and (at < dot).all() and (dot < end).all():  # a dot in every number (the usual file)
+        has_dot, of = np.ones(len(at), bool), np.arange(len(at))
+    else:
+        has_dot = np.zeros(len(at), bool)
+        of = np.searchsorted(at, dot, side="right") - 1
+        has_dot[of] = True
     minus = b[at] == ord("-")
     digits = end - at - minus - has_dot
     bad = np.full(len(at), np.nan)
     if (len(dot) != np.count_nonzero(has_dot) or not _DIGIT[b[dot - 1]].all() or not _DIGIT[b[dot + 1]].all()
             or (digits > 15).any()):
         return bad
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", DeprecationWarning)  # fromstring stops early on a bad token: counted
-        ints = np.fromstring(text.translate(_DOT_TO_SPACE), np.int64, sep=" ")
-    if len(ints) != len(at) + len(dot):
-        return bad
-    first = np.arange(len(at)) + np.cumsum(has_dot) - has_dot
     frac_digits = np.zeros(len(at), np.int64)
     frac_digits[of] = end[of] - dot - 1
-    mantissa = np.abs(ints[first]) * _IPOW10[frac_digits]
-    mantissa[has_dot] += ints[first[has_dot] + 1]
+    if len(dot) == len(at) and text.count(b"-") == np.count_nonzero(minus):
+        # -digits.digits each (a sign only in front): the two runs of digits read digit by digit.
+        mantissa = _digit_values(b, at + minus, dot) * _IPOW10[frac_digits] + _digit_values(b, dot + 1, end)
+    else:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", DeprecationWarning)  # fromstring stops early on a bad token: counted
+            ints = np.fromstring(text.translate(_DOT_TO_SPACE), np.int64, sep=" ")
+        if len(ints) != len(at) + len(dot):
+            return bad
+        first = np.arange(len(at)) + np.cumsum(has_dot) - has_dot
+        mantissa = np.abs(ints[first]) * _IPOW10[frac_digits]
+        mantissa[has_dot] += ints[first[has_dot] + 1]
     values = mantissa / _POW10[frac_digits]
     values[minus] *= -1
     return values
 
 
+def _digit_values(b, at, end):
+    """The integers written at ``b[at:end]`` (``b``: bytes as uint8), each 1 to 15 decimal digits and nothing else.
+
+    Digit by digit from the right, all numbers at once: a few passes over the numbers, where parsing the text
+    (``np.fromstring``) is a pass over its bytes.
+    """
+    length = end - at
+    width = int(length.max(initial=1))
+    kind = np.int32 if width <= 9 else np.int64  # half the memory to go through, where the numbers fit
+    values = b[end - 1].astype(kind) - 48
+    at_digit = end - 1
+    alike = (length == width).all()  # as fractions written with a fixed count of decimals are
+    for j in range(1, width):
+        at_digit = at_digit - 1
+        digit = b[at_digit].astype(kind) - 48
+        if not alike:
+            digit *= length > j
+        values += digit * kind(10 ** j)
+    return values.astype(np.int64)
+
+
 _DIGIT = _chars(b"0123456789")
 _DOT_TO_SPACE = bytes.maketrans(b".vtnf", b"     ")
-_SLASH_TO_SPACE = bytes.maketrans(b"/f", b"  ")
 
 
 def _numbers(lines: _Lines, rows, tag: bytes, n: int):
@@ -295,16 +326,23 @@ def _numbers(lines: _Lines, rows, tag: bytes, n: int):
         return np.zeros((0, n))
     block = b"\n" + lines.block(rows) + b"\n"
     b = np.frombuffer(block + b"\0" * 18, np.uint8)
-    if np.count_nonzero(~_NUMBER_CHARS[b[:len(block)]]) != len(rows) * len(tag):  # letters other than the tags'
+    if len(block.translate(None, _NUMBER_BYTES)) != len(rows) * len(tag):  # letters other than the tags'
         return None
     at, end = _tokens(b[:len(block)], b[:len(block)] <= 32)  # only whitespace is below '+' now
-    first = np.searchsorted(at, np.flatnonzero(b == 10))  # each line's first token: its tag
-    is_tag = np.zeros(len(at), bool)
-    is_tag[first[:-1]] = True
-    per_line = np.diff(first) - 1
-    if (per_line < n).any():
-        return None
-    values = _decimals(block, b, at[~is_tag], end[~is_tag])
+    if len(at) == len(rows) * (n + 1) and (b[at[::n + 1]] == tag[0]).all():
+        # n numbers on every line (the usual file): the tags are every (n+1)th token, as the tag letters are
+        # only at the lines' starts.
+        per_line = np.full(len(rows), n)
+        at, end = at.reshape(-1, n + 1)[:, 1:].ravel(), end.reshape(-1, n + 1)[:, 1:].ravel()
+    else:
+        first = np.searchsorted(at, np.flatnonzero(b == 10))  # each line's first token: its tag
+        is_tag = np.zeros(len(at), bool)
+        is_tag[first[:-1]] = True
+        per_line = np.diff(first) - 1
+        if (per_line < n).any():
+            return None
+        at, end = at[~is_tag], end[~is_tag]
+    values = _decimals(block, b, at, end)
     if values is None or np.isnan(values).any():  # not numbers, or many digits: numpy's float parser
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", DeprecationWarning)  # fromstring stops early on a bad token: counted
@@ -324,7 +362,7 @@ def _faces(lines: _Lines, rows: dict):
     block = b"\n" + lines.block(rows[_F]) + b"\n"
     b = np.frombuffer(block + b"\0" * 18, np.uint8)
     text = b[:len(block)]
-    if np.count_nonzero(~_CORNER_CHARS[text]) != len(rows[_F]):  # anything but the tags, indices and slashes
+    if len(block.translate(None, _CORNER_BYTES)) != len(rows[_F]):  # anything but the tags, indices and slashes
         return None
     at, _ = _tokens(text, text <= 32)  # only whitespace is below '-' now
     corner_at = at[b[at] != ord("f")]
@@ -334,38 +372,58 @@ def _faces(lines: _Lines, rows: dict):
     double = slash[b[slash + 1] == ord("/")]
     if (counts < 3).any() or _SEP[b[slash - 1]].any() or _SEP[b[slash + 1]].any() or (b[double + 2] == ord("/")).any():
         return None
-    slashes = np.bincount(np.searchsorted(corner_at, slash, side="right") - 1, minlength=len(corner_at))
-    no_uv = np.zeros(len(corner_at), bool)
-    no_uv[np.searchsorted(corner_at, double, side="right") - 1] = True
-    fields = slashes + 1 - no_uv
-    if (slashes > 2).any():
-        return None
-    if (np.diff(at).max() > 16):  # a long corner: has it a field too long to be an index (of 15 digits at most)?
-        field_at, field_end = _tokens(text, (text <= 32) | (text == ord("/")))
-        if (field_end - field_at).max() > 16:
+    field_at, field_end = _tokens(text, (text <= 32) | (text == ord("/")) | (text == ord("f")))
+    minus = b[field_at] == ord("-")  # a relative index
+    digits_at = field_at + minus
+    length = field_end - digits_at
+    if block.count(b"-") != np.count_nonzero(minus) or length.min() < 1 or length.max() > 15:
+        return None  # a sign inside an index, a sign alone, or more digits than an index has
+    values = _digit_values(b, digits_at, field_end)
+    values[minus] *= -1
+    f = len(field_at) // len(corner_at)
+    if 1 <= f <= 3 and len(field_at) == f * len(corner_at) and not len(double) and (field_at[::f] == corner_at).all():
+        # Every corner f fields, v, v/vt or v/vt/vn (the usual file): the values as columns.
+        columns = [*values.reshape(-1, f).T, *[None] * (3 - f)]
+        given = [np.ones(len(corner_at), bool)] * f + [np.zeros(len(corner_at), bool)] * (3 - f)
+    else:
+        slashes = np.bincount(np.searchsorted(corner_at, slash, side="right") - 1, minlength=len(corner_at))
+        no_uv = np.zeros(len(corner_at), bool)
+        no_uv[np.searchsorted(corner_at, double, side="right") - 1] = True
+        fields = slashes + 1 - no_uv
+        if (slashes > 2).any() or len(values) != fields.sum():
             return None
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", DeprecationWarning)  # fromstring stops early on a bad token: counted
-        values = np.fromstring(block.translate(_SLASH_TO_SPACE), np.int64, sep=" ")
-    if len(values) != fields.sum():
-        return None
-    first = np.cumsum(fields) - fields
-    has_uv = (slashes >= 1) & ~no_uv
-    corner_line = np.repeat(np.arange(len(counts)), counts)
+        first = np.cumsum(fields) - fields
+        has_uv = (slashes >= 1) & ~no_uv
+        given = [slashes >= 0, has_uv, slashes == 2]
+        columns = [values[col[has]] for col, has in zip((first, first + 1, first + 1 + has_uv), given)]
     out = []
-    for k, has, col in ((_V, slashes >= 0, first), (_VT, has_uv, first + 1), (_VN, slashes == 2, first + 1 + has_uv)):
-        i = values[col[has]]
+    for k, has, i in zip((_V, _VT, _VN), given, columns):
+        if not has.any():
+            out.append(np.full(len(corner_at), -1, np.int64))
+            continue
         # OBJ indices are 1-based; negative ones count back from the last element read before the face.
         if not len(rows[k]) or rows[k][-1] < rows[_F][0]:
             count = len(rows[k])  # all read before the first face (the usual layout)
+            if i.min() > 0:  # no relative index (the usual file)
+                if i.max() > count:
+                    return None
+                j = i - 1
+            else:
+                j = np.where(i > 0, i - 1, count + i)
+                if ((i == 0) | (j < 0) | (j >= count)).any():
+                    return None
         else:
+            corner_line = np.repeat(np.arange(len(counts)), counts)
             count = np.searchsorted(rows[k], rows[_F])[corner_line[has]]
-        j = np.where(i > 0, i - 1, count + i)
-        if ((i == 0) | (j < 0) | (j >= count)).any():
-            return None
-        idx = np.full(len(corner_at), -1, np.int64)
-        idx[has] = j
-        out.append(idx)
+            j = np.where(i > 0, i - 1, count + i)
+            if ((i == 0) | (j < 0) | (j >= count)).any():
+                return None
+        if has.all():
+            out.append(np.ascontiguousarray(j))
+        else:
+            idx = np.full(len(corner_at), -1, np.int64)
+            idx[has] = j
+            out.append(idx)
     return counts, out
 
 

@@ -107,9 +107,13 @@ def buried(V, T, points, frame, eyes) -> np.ndarray:
     for forward, rows in looks:
         side = np.cross(R[1], forward)
         view = View.looking(forward, np.cross(forward, side), centre, 1.6 * eyes, SIZE)
-        r = rasterise(V, T, view)
         x, y, z = view.project(points[rows])
         xi, yi = np.round(x).astype(int), np.round(y).astype(int)
+        near = np.zeros((SIZE, SIZE), bool)  # the pixels looked at: only the triangles over them are drawn
+        for dx in (-1, 0, 1):
+            for dy in (-1, 0, 1):
+                near[np.clip(yi + dy, 0, SIZE - 1), np.clip(xi + dx, 0, SIZE - 1)] = True
+        r = rasterise(V, T, view, near=near)
         ahead = np.full(len(rows), np.inf)
         for dx in (-1, 0, 1):
             for dy in (-1, 0, 1):

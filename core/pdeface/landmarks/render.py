@@ -122,18 +122,21 @@ class _Fragments:
     l1: np.ndarray
 
 
-def rasterise(V, T, view: View, keep_fragments=False) -> Raster:
+def rasterise(V, T, view: View, keep_fragments=False, near=None) -> Raster:
     """The nearest triangle and barycentric weights at every pixel centre.
 
     Every triangle's pixel box is enumerated exactly (in chunks of :data:`_CHUNK` candidates), the centres
     inside it are its fragments, and the nearest fragment wins each pixel (the first triangle on a tie).
-    ``keep_fragments`` keeps them on the raster for :meth:`Raster.showing`.
+    ``keep_fragments`` keeps them on the raster for :meth:`Raster.showing`. ``near`` (a bool image): only the
+    triangles whose box meets one of its pixels are drawn, so those pixels are as in the whole render (the
+    others may lack triangles), for a look at a few points.
     """
     V, T = np.asarray(V, np.float64), np.asarray(T, np.int64)
     n = view.size
     px, py, pz = view.project(V)
     # Corners a, b, c of each triangle; np.minimum of columns, as .min(1) over three is several times slower.
     (ax, bx, cx), (ay, by, cy) = (px[T[:, k]] for k in range(3)), (py[T[:, k]] for k in range(3))
+    za, zb, zc = (pz[T[:, k]] for k in range(3))
     x0 = np.maximum(np.ceil(np.minimum(np.minimum(ax, bx), cx)), 0).astype(np.int32)
     y0 = np.maximum(np.ceil(np.minimum(np.minimum(ay, by), cy)), 0).astype(np.int32)
     x1 = np.minimum(np.floor(np.maximum(np.maximum(ax, bx), cx)), n - 1).astype(np.int32)
@@ -141,7 +144,13 @@ def rasterise(V, T, view: View, keep_fragments=False) -> Raster:
     # The barycentric weights of (x, y): l0 = (e0x (x - cx) + e0y (y - cy)) / d, l1 likewise, l2 = 1 - l0 - l1.
     d = (by - cy) * (ax - cx) + (cx - bx) * (ay - cy)
     width, height = x1 - x0 + 1, y1 - y0 + 1
-    ids = np.nonzero((width > 0) & (height > 0) & (np.abs(d) > 1e-12))[0]
+    drawn = (width > 0) & (height > 0) & (np.abs(d) > 1e-12)
+    if near is not None:  # the pixels of near in each box, by the image's summed-area table
+        area = np.zeros((n + 1, n + 1), np.int32)
+        area[1:, 1:] = np.asarray(near, bool).cumsum(0, dtype=np.int32).cumsum(1, dtype=np.int32)
+        xa, xb, ya, yb = (np.clip(e, 0, n) for e in (x0, x1 + 1, y0, y1 + 1))
+        drawn &= area[yb, xb] - area[ya, xb] - area[yb, xa] + area[ya, xa] > 0
+    ids = np.nonzero(drawn)[0]
     count = width[ids] * height[ids]
     ends = np.cumsum(count, dtype=np.int64)
     pieces = []
@@ -151,9 +160,13 @@ def rasterise(V, T, view: View, keep_fragments=False) -> Raster:
         hi = max(int(np.searchsorted(ends, (ends[lo - 1] if lo else 0) + _CHUNK, side="right")), lo + 1)
         t = ids[lo:hi]
         c = count[lo:hi]
-        local = np.arange(int(c.sum()), dtype=np.int32) - np.repeat(np.cumsum(c, dtype=np.int32) - c, c)
-        ry, rx = np.divmod(local, np.repeat(width[t], c))
-        gx, gy = rx + np.repeat(x0[t], c), ry + np.repeat(y0[t], c)
+        # Each box row by row: a row's pixels are its first column onwards (no division to find them).
+        h, w = height[t], width[t]
+        row_w = np.repeat(w, h)
+        row_y = np.arange(len(row_w), dtype=np.int32) - np.repeat(np.cumsum(h, dtype=np.int32) - h - y0[t], h)
+        row_start = np.cumsum(row_w, dtype=np.int32) - row_w - np.repeat(x0[t], h)
+        gx = np.arange(int(c.sum()), dtype=np.int32) - np.repeat(row_start, row_w)
+        gy = np.repeat(row_y, row_w)
         dx, dy = gx - np.repeat(cx[t], c), gy - np.repeat(cy[t], c)
         dt = np.repeat(d[t], c)
         l0 = (np.repeat((by - cy)[t], c) * dx + np.repeat((cx - bx)[t], c) * dy) / dt
@@ -161,7 +174,7 @@ def rasterise(V, T, view: View, keep_fragments=False) -> Raster:
         inside = np.nonzero((l0 >= 0) & (l1 >= 0) & (1 - l0 - l1 >= 0))[0]
         tt = np.repeat(t, c)[inside]
         l0, l1 = l0[inside], l1[inside]
-        z = l0 * pz[T[tt, 0]] + l1 * pz[T[tt, 1]] + (1 - l0 - l1) * pz[T[tt, 2]]
+        z = l0 * za[tt] + l1 * zb[tt] + (1 - l0 - l1) * zc[tt]
         pieces.append((gy[inside] * n + gx[inside], z, tt, l0, l1))
         lo = hi
     if pieces:
@@ -189,19 +202,20 @@ def _resolved(view: View, pix, z, tri, l0, l1) -> Raster:
     out_tri = np.full(n * n, -1, np.int64)
     bary = np.zeros((n * n, 3))
     out_tri[seen] = tri[w]
-    bary[seen, 0], bary[seen, 1] = l0[w], l1[w]
-    bary[seen, 2] = 1 - l0[w] - l1[w]
+    a, b, flat = l0[w], l1[w], bary.reshape(-1)  # flat indices: several times faster than bary[seen, k]
+    flat[3 * seen], flat[3 * seen + 1], flat[3 * seen + 2] = a, b, 1 - a - b
     return Raster(view, out_tri.reshape(n, n), bary.reshape(n, n, 3))
 
 
-def shade(V, T, raster: Raster, background=0.0, lights=None) -> np.ndarray:
+def shade(V, T, raster: Raster, background=0.0, lights=None, normals=None) -> np.ndarray:
     """An 8-bit grey image (h, w) of the raster: smooth normals lit from the viewer's side, a little from above.
 
     Back faces are shaded as front ones (a mesh's normals may point either way). ``lights``, a list of
     ``(direction towards the light in mesh coordinates, strength)``, lights the surface facing the viewer with
-    those directional lights instead (Lambert's cosine, plus the same ambient).
+    those directional lights instead (Lambert's cosine, plus the same ambient). ``normals``: the mesh's
+    :func:`~pdeface.mesh.vertex_normals`, when several renders of one mesh share them.
     """
-    N = vertex_normals(np.asarray(V, np.float64), np.asarray(T, np.int64))
+    N = vertex_normals(np.asarray(V, np.float64), np.asarray(T, np.int64)) if normals is None else normals
     seen = raster.tri >= 0
     n = unit_rows(np.einsum("pk,pkj->pj", raster.bary[seen], N[T[raster.tri[seen]]]))
     R = raster.view.rotation
