@@ -406,17 +406,17 @@ class HeadBinding:
         jaws = np.array([bool(jaw) and self.chin is not None for _, _, jaw, _ in motions])
         out = np.zeros((len(self.V), k, 3))  # vertex-major: the parts below are row blocks
         flat = out.reshape(len(self.V), 3 * k)
-        for flag in (False, True):
-            members = np.nonzero(jaws == flag)[0]
-            if len(members) == k:  # all alike: whole rows, no column gather
-                ext = self._extension(flag)
-                flat[self.skin[ext.fixed]], flat[self.skin[ext.free]] = ext.solve(G)
-            elif len(members):
-                cols = (3 * members[:, None] + np.arange(3)).ravel()
-                ext = self._extension(flag)
-                fixed, free = ext.solve(G.take(cols, axis=1))  # C-ordered (G[:, cols] is not: sparse @ copies it)
-                flat[np.ix_(self.skin[ext.fixed], cols)] = fixed
-                flat[np.ix_(self.skin[ext.free], cols)] = free
+        # Every key through the skin's extension, whole rows (a column gather and scatter of most keys cost more
+        # than solving the few jaw keys twice); the jaw keys then again through the jaw's, every skin row.
+        ext = self._extension(jaws.all())
+        flat[self.skin[ext.fixed]], flat[self.skin[ext.free]] = ext.solve(G)
+        members = np.nonzero(jaws)[0]
+        if 0 < len(members) < k:
+            cols = (3 * members[:, None] + np.arange(3)).ravel()
+            ext = self._extension(True)
+            fixed, free = ext.solve(G.take(cols, axis=1))  # C-ordered (G[:, cols] is not: sparse @ copies it)
+            flat[np.ix_(self.skin[ext.fixed], cols)] = fixed
+            flat[np.ix_(self.skin[ext.free], cols)] = free
         if len(self.follow):
             out[self.follow] = self._follow(out)
         jaw_keys = np.nonzero(jaws)[0] if len(self.jaw_parts) else ()
