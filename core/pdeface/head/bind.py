@@ -131,9 +131,6 @@ def _check_on_skin(Lf, skin_points, eye_distance):
 
 def _read_pde(model, P, N, eye_distance, resolution):
     """Which skin points the PDE face covers, and the sparse map reading its grid at their closest points."""
-    from scipy.spatial import cKDTree
-
-
     X0 = surface_grid(model, *resolution, break_slope=READ_BREAK_SLOPE, confine=False)
     nu, nv, _ = X0.shape
     X0 = X0.reshape(-1, 3)
@@ -141,10 +138,11 @@ def _read_pde(model, P, N, eye_distance, resolution):
     Tp = np.concatenate([Q[:, [0, 1, 2]], Q[:, [0, 2, 3]]])
     # Only skin near the grid can be under it (the back of a head, a body: skip the exact query).
     edge = np.linalg.norm(X0[Tp[:, 0]] - X0[Tp[:, 1]], axis=1).max()
-    near = cKDTree(X0).query(P, distance_upper_bound=COVER_IOD * eye_distance + edge)[0] < np.inf
+    closest = ClosestPoint(X0, Tp)
+    near = closest.vtree.query(P, distance_upper_bound=COVER_IOD * eye_distance + edge)[0] < np.inf  # its grid's tree
     dist, tri, bary = np.full(len(P), np.inf), np.zeros(len(P), np.int64), np.zeros((len(P), 3))
     if near.any():
-        dist[near], tri[near], bary[near], _ = ClosestPoint(X0, Tp).query(P[near])
+        dist[near], tri[near], bary[near], _ = closest.query(P[near])
     r, c = Tp[tri] // nv, Tp[tri] % nv
     inside = (r.min(1) > 0) & (r.max(1) < nu - 1) & (c.min(1) > 0) & (c.max(1) < nv - 1)
     sub_u = resolution[0]  # curve k is grid row k * sub_u
@@ -198,10 +196,11 @@ def _depths(P, covered, Lf, eye_distance, eyes):
 
 
 def _seam_smoother(P, L, covered, rest, Lf, eye_distance):
-    """``(band, S, weight, steps)``: the skin at the openings' corners near their lining (skin the PDE face does not
-    cover), the map to each one's neighbours' mean motion (cotangent weights: a harmonic lining is left as it
-    is) and how far each relaxes per step (fading to 0 at the band's edges: no new step there); None when
-    SEAM_STEPS is 0 or there is no band."""
+    """``(band, reads, S, at, weight, steps)``: the skin at the openings' corners near their lining (skin the PDE
+    face does not cover), the skin those steps read (the band and its neighbours), the map from the read skin to
+    each band vertex's neighbours' mean motion (cotangent weights: a harmonic lining is left as it is), the band's
+    rows among the read ones, and how far each relaxes per step (fading to 0 at the band's edges: no new step
+    there); None when SEAM_STEPS is 0 or there is no band."""
     from scipy.sparse import diags
     from scipy.spatial import cKDTree
 
@@ -217,8 +216,9 @@ def _seam_smoother(P, L, covered, rest, Lf, eye_distance):
     if not len(band):
         return None
     W = (diags(L.diagonal()) - L).tocsr()  # the Laplacian's (clamped, positive) neighbour weights
-    S = diags(1.0 / np.maximum(L.diagonal(), 1e-300)) @ W
-    return band, S[band].tocsr(), weight[band, None], SEAM_STEPS
+    S = (diags(1.0 / np.maximum(L.diagonal(), 1e-300)) @ W)[band].tocsr()
+    reads = np.union1d(band, S.indices)  # a few hundred rows of the skin's, not all of it for every key
+    return band, reads, S[:, reads].tocsr(), np.searchsorted(reads, band), weight[band, None], SEAM_STEPS
 
 
 class HeadBinding:
@@ -453,11 +453,11 @@ class HeadBinding:
         """:meth:`displacement` of several ``(delta_coefficients, delta_residual, jaw, gaze)`` at once, (k, n, 3)."""
         out = self.face_motions(motions).transpose(1, 0, 2)  # (n, k, 3)
         if self._seam is not None:
-            band, S, w, steps = self._seam
-            flat = out[self.skin].reshape(len(self.skin), -1)
+            band, reads, S, at, w, steps = self._seam
+            flat = out[self.skin[reads]].reshape(len(reads), -1)
             for _ in range(steps):
-                flat[band] += w * (S @ flat - flat[band])
-            out[self.skin] = flat.reshape(len(self.skin), -1, 3)
+                flat[at] += w * (S @ flat - flat[at])
+            out[self.skin[band]] = flat[at].reshape(len(band), -1, 3)
         for centre, radius, _, guard in self.eyes.values():
             if len(guard):
                 g = self.skin[guard]
