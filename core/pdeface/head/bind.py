@@ -131,9 +131,6 @@ def _check_on_skin(Lf, skin_points, eye_distance):
 
 def _read_pde(model, P, N, eye_distance, resolution):
     """Which skin points the PDE face covers, and the sparse map reading its grid at their closest points."""
-    from scipy.spatial import cKDTree
-
-
     X0 = surface_grid(model, *resolution, break_slope=READ_BREAK_SLOPE, confine=False)
     nu, nv, _ = X0.shape
     X0 = X0.reshape(-1, 3)
@@ -141,10 +138,11 @@ def _read_pde(model, P, N, eye_distance, resolution):
     Tp = np.concatenate([Q[:, [0, 1, 2]], Q[:, [0, 2, 3]]])
     # Only skin near the grid can be under it (the back of a head, a body: skip the exact query).
     edge = np.linalg.norm(X0[Tp[:, 0]] - X0[Tp[:, 1]], axis=1).max()
-    near = cKDTree(X0).query(P, distance_upper_bound=COVER_IOD * eye_distance + edge)[0] < np.inf
+    closest = ClosestPoint(X0, Tp)
+    near = closest.vtree.query(P, distance_upper_bound=COVER_IOD * eye_distance + edge)[0] < np.inf  # its grid's tree
     dist, tri, bary = np.full(len(P), np.inf), np.zeros(len(P), np.int64), np.zeros((len(P), 3))
     if near.any():
-        dist[near], tri[near], bary[near], _ = ClosestPoint(X0, Tp).query(P[near])
+        dist[near], tri[near], bary[near], _ = closest.query(P[near])
     r, c = Tp[tri] // nv, Tp[tri] % nv
     inside = (r.min(1) > 0) & (r.max(1) < nu - 1) & (c.min(1) > 0) & (c.max(1) < nv - 1)
     sub_u = resolution[0]  # curve k is grid row k * sub_u
@@ -198,10 +196,11 @@ def _depths(P, covered, Lf, eye_distance, eyes):
 
 
 def _seam_smoother(P, L, covered, rest, Lf, eye_distance):
-    """``(band, S, weight, steps)``: the skin at the openings' corners near their lining (skin the PDE face does not
-    cover), the map to each one's neighbours' mean motion (cotangent weights: a harmonic lining is left as it
-    is) and how far each relaxes per step (fading to 0 at the band's edges: no new step there); None when
-    SEAM_STEPS is 0 or there is no band."""
+    """``(band, reads, S, at, weight, steps)``: the skin at the openings' corners near their lining (skin the PDE
+    face does not cover), the skin those steps read (the band and its neighbours), the map from the read skin to
+    each band vertex's neighbours' mean motion (cotangent weights: a harmonic lining is left as it is), the band's
+    rows among the read ones, and how far each relaxes per step (fading to 0 at the band's edges: no new step
+    there); None when SEAM_STEPS is 0 or there is no band."""
     from scipy.sparse import diags
     from scipy.spatial import cKDTree
 
@@ -211,14 +210,16 @@ def _seam_smoother(P, L, covered, rest, Lf, eye_distance):
     at_corner = np.zeros(len(P))
     for i, r in SEAM_CORNERS:
         at_corner = np.maximum(at_corner, smoothstep(1 - np.linalg.norm(P - Lf[i], axis=1) / (r * eye_distance)))
-    near = smoothstep(1 - cKDTree(P[lining]).query(P)[0] / (SEAM_IOD * eye_distance))
+    near = smoothstep(1 - cKDTree(P[lining]).query(P, distance_upper_bound=SEAM_IOD * eye_distance)[0]
+                      / (SEAM_IOD * eye_distance))  # inf (0) beyond the band
     weight = at_corner * near * ~rest
     band = np.nonzero(weight > 0)[0]
     if not len(band):
         return None
     W = (diags(L.diagonal()) - L).tocsr()  # the Laplacian's (clamped, positive) neighbour weights
-    S = diags(1.0 / np.maximum(L.diagonal(), 1e-300)) @ W
-    return band, S[band].tocsr(), weight[band, None], SEAM_STEPS
+    S = (diags(1.0 / np.maximum(L.diagonal(), 1e-300)) @ W)[band].tocsr()
+    reads = np.union1d(band, S.indices)  # a few hundred rows of the skin's, not all of it for every key
+    return band, reads, S[:, reads].tocsr(), np.searchsorted(reads, band), weight[band, None], SEAM_STEPS
 
 
 class HeadBinding:
@@ -296,7 +297,10 @@ class HeadBinding:
         self.skin_normals = vertex_normals(P, Ts)
         covered, self.read_grid = _read_pde(model, P, self.skin_normals, eye_distance, resolution)
         self.covered = covered
-        from_covered = cKDTree(P[covered]).query(Vf)[0]  # every vertex's distance to the covered skin
+        # every vertex's distance to the covered skin, as far as the rest region and the prior's fade read it (inf
+        # beyond). The covered skin is a sheet, most queries far from it: a tree without shrunk boxes answers 2× faster.
+        from_covered = cKDTree(P[covered], balanced_tree=False, compact_nodes=False).query(
+            Vf, distance_upper_bound=REST_IOD * eye_distance * (1 + 1e-9))[0]  # exact up to the edge
         self.rest = rest = _rest_region(P, Ts, covered, from_covered[si], Lf, eye_distance)
         depths = _depths(P, covered, Lf, eye_distance, parts.eyes)
         self._L = L = cotan_laplacian(P, Ts)
@@ -406,17 +410,17 @@ class HeadBinding:
         jaws = np.array([bool(jaw) and self.chin is not None for _, _, jaw, _ in motions])
         out = np.zeros((len(self.V), k, 3))  # vertex-major: the parts below are row blocks
         flat = out.reshape(len(self.V), 3 * k)
-        for flag in (False, True):
-            members = np.nonzero(jaws == flag)[0]
-            if len(members) == k:  # all alike: whole rows, no column gather
-                ext = self._extension(flag)
-                flat[self.skin[ext.fixed]], flat[self.skin[ext.free]] = ext.solve(G)
-            elif len(members):
-                cols = (3 * members[:, None] + np.arange(3)).ravel()
-                ext = self._extension(flag)
-                fixed, free = ext.solve(G.take(cols, axis=1))  # C-ordered (G[:, cols] is not: sparse @ copies it)
-                flat[np.ix_(self.skin[ext.fixed], cols)] = fixed
-                flat[np.ix_(self.skin[ext.free], cols)] = free
+        # Every key through the skin's extension, whole rows (a column gather and scatter of most keys cost more
+        # than solving the few jaw keys twice); the jaw keys then again through the jaw's, every skin row.
+        ext = self._extension(jaws.all())
+        flat[self.skin[ext.fixed]], flat[self.skin[ext.free]] = ext.solve(G)
+        members = np.nonzero(jaws)[0]
+        if 0 < len(members) < k:
+            cols = (3 * members[:, None] + np.arange(3)).ravel()
+            ext = self._extension(True)
+            fixed, free = ext.solve(G.take(cols, axis=1))  # C-ordered (G[:, cols] is not: sparse @ copies it)
+            flat[np.ix_(self.skin[ext.fixed], cols)] = fixed
+            flat[np.ix_(self.skin[ext.free], cols)] = free
         if len(self.follow):
             out[self.follow] = self._follow(out)
         jaw_keys = np.nonzero(jaws)[0] if len(self.jaw_parts) else ()
@@ -453,11 +457,11 @@ class HeadBinding:
         """:meth:`displacement` of several ``(delta_coefficients, delta_residual, jaw, gaze)`` at once, (k, n, 3)."""
         out = self.face_motions(motions).transpose(1, 0, 2)  # (n, k, 3)
         if self._seam is not None:
-            band, S, w, steps = self._seam
-            flat = out[self.skin].reshape(len(self.skin), -1)
+            band, reads, S, at, w, steps = self._seam
+            flat = out[self.skin[reads]].reshape(len(reads), -1)
             for _ in range(steps):
-                flat[band] += w * (S @ flat - flat[band])
-            out[self.skin] = flat.reshape(len(self.skin), -1, 3)
+                flat[at] += w * (S @ flat - flat[at])
+            out[self.skin[band]] = flat[at].reshape(len(band), -1, 3)
         for centre, radius, _, guard in self.eyes.values():
             if len(guard):
                 g = self.skin[guard]

@@ -112,6 +112,19 @@ class HeadPrior:
         lam = self.ridge * np.trace(G) / max(len(G), 1)
         return np.linalg.solve(G + lam * np.eye(len(G)), X)
 
+    def _kind_tree(self, name):
+        """``(vertices, tree)``: the prior head's vertices of part kind ``name`` on its triangles of that kind, and
+        a k-d tree of them (None when there are none); built once per prior (every head bound reads them)."""
+        from scipy.spatial import cKDTree
+
+        trees = self.__dict__.setdefault("_kind_trees", {})  # not a field: replace() starts without it
+        built_on = (self.vertices, self.triangles, self.kind)
+        if name not in trees or any(a is not b for a, b in zip(trees[name][0], built_on)):
+            tri = self.triangles[(self.kind[self.triangles] == CODE[name]).all(axis=1)]
+            verts = np.unique(tri)
+            trees[name] = built_on, verts, (cKDTree(self.vertices[verts]) if len(verts) else None)
+        return trees[name][1:]
+
     def on(self, model, vertices, kind, reach=None, eye_distance=None):
         """The prior carried to a user's head; None when its face has another curve layout.
 
@@ -133,8 +146,6 @@ class HeadPrior:
         PriorOnHead or None
         """
         from scipy.sparse import csr_matrix
-        from scipy.spatial import cKDTree
-
 
         X_user = model.curve_points()
         if X_user.shape[:2] != self.layout:
@@ -158,13 +169,12 @@ class HeadPrior:
         weight = np.zeros(len(idx))
         for name in CARRIED_KINDS:
             mine = np.nonzero(kind[idx] == CODE[name])[0]
-            tri = self.triangles[(self.kind[self.triangles] == CODE[name]).all(axis=1)]
-            if not len(mine) or not len(tri):
+            verts, tree = self._kind_tree(name)
+            if not len(mine) or tree is None:
                 continue
             # Inverse-distance weights of the 4 nearest vertices: as good as the closest point on the
             # triangles (face median within 0.004 on three identities) at a third of the time.
-            verts = np.unique(tri)
-            dist, near_k = cKDTree(self.vertices[verts]).query(W[mine], k=NEAREST)
+            dist, near_k = tree.query(W[mine], k=NEAREST)
             w = 1.0 / np.maximum(dist, 1e-3) ** 2
             rows.append(np.repeat(mine, NEAREST))
             cols.append(verts[near_k].ravel())

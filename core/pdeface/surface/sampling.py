@@ -107,8 +107,9 @@ def mesh_resolution(model, resolution=ADAPTIVE):
     return rows, cols
 
 
-def quad_turns(X):
-    """Turns (degrees) across a grid mesh's inner edges: ``(across rows, across columns)``.
+def quad_turn_cosines(X):
+    """Cosines of the turns across a grid mesh's inner edges: ``(across rows, across columns)`` (the turns'
+    arccos costs more than the rest: callers compare cosines first).
 
     ``X`` (n_u, n_v, 3). Quad normals are their diagonals' cross product (Newell's for a quad);
     across rows: (n_u - 2, n_v - 1), the edge on row r + 1; across columns: (n_u - 1, n_v - 2).
@@ -121,9 +122,7 @@ def quad_turns(X):
     length = np.sqrt(N[0] ** 2 + N[1] ** 2 + N[2] ** 2)
     length[length == 0] = 1.0
     N = [c / length for c in N]
-    across_rows = sum(c[:-1] * c[1:] for c in N)
-    across_cols = sum(c[:, :-1] * c[:, 1:] for c in N)
-    return degrees_from_cos(across_rows), degrees_from_cos(across_cols)
+    return sum(c[:-1] * c[1:] for c in N), sum(c[:, :-1] * c[:, 1:] for c in N)
 
 
 #: The steps chosen for the models met so far, by :func:`model_fingerprint` (and aim): a model is meshed many
@@ -206,6 +205,7 @@ def interval_turns(model, rows, cols, W, floor=0.0):
     flat0 = X0.reshape(-1, 3)
     open_at_rest = [opening_mask(0.5 * (flat0[a] + flat0[b]).reshape(-1, 3), L).reshape(a.shape) for a, b in ends]
     need = [np.zeros(K - 1), np.zeros(J - 1)]
+    floor_cos = np.cos(np.radians(floor)) + 1e-9
     D = D.reshape(n, n_u, n_v, 3)
     known = nearest >= 0
     at_landmarks = np.where(known, nearest, 0)  # the posed grid is read only here and in the moved block
@@ -222,10 +222,12 @@ def interval_turns(model, rows, cols, W, floor=0.0):
         r1, c1 = r_moved[-1] + 3, c_moved[-1] + 3
         X = X0[r0:r1, c0:c1] + np.tensordot(w[keys], D[keys, r0:r1, c0:c1], axes=1)  # the block, posed
         edges = []  # (interval before, interval after, turn, midpoint) per axis, of edges that raise a need
-        for axis, turns in enumerate(quad_turns(X)):
-            opened = open_at_rest[axis][r0:r0 + turns.shape[0], c0:c0 + turns.shape[1]]
-            r, c = np.nonzero((turns > floor) & ~opened)
-            t = turns[r, c]
+        for axis, cos in enumerate(quad_turn_cosines(X)):
+            opened = open_at_rest[axis][r0:r0 + cos.shape[0], c0:c0 + cos.shape[1]]
+            r, c = np.nonzero((cos < floor_cos) & ~opened)  # a few more than turn past the floor (rounding)
+            t = degrees_from_cos(cos[r, c])
+            over = t > floor
+            r, c, t = r[over], c[over], t[over]
             first = (r + r0, c + c0)[axis]  # the quad before the edge; the one after is first + 1
             before, after = interval[axis][first], interval[axis][first + 1]
             keep = (t > need[axis][before]) | (t > need[axis][after])
