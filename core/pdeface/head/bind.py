@@ -57,6 +57,7 @@ from ..surface.grid import grid_faces, surface_grid
 from ..surface.model import KEPT_LANDMARKS
 from ..surface.scan import load_scan
 from ..threads import bounded
+from .folds import FoldRelax
 from .parts import TOUCH_IOD, classify_parts, mouth_line, read_overrides
 from .prior import load_head_prior
 
@@ -307,6 +308,8 @@ class HeadBinding:
         self._jaw_fixed = covered | rest | (depths & (P[:, 1] > mouth_line(Lf)))  # the jaw moves the lower depths
         self._ext_jaw = None  # factorised on first use
         self._seam = _seam_smoother(P, L, covered, rest, Lf, eye_distance)
+        # Each key relaxed where it would fold the mesh (rigid eyeballs and parts that never move kept).
+        self._folds = FoldRelax(Vf, T, parts.mask("eye_L", "eye_R", "rest") | ~original)
 
         # Jaw: the chin that drives it, and the parts it turns.
         chin = covered & (P[:, 1] < Lf[LIP_LOWER_BOTTOM, 1] - 0.08 * eye_distance) & (np.abs(P[:, 0]) < abs(Lf[JAW_RIGHT_ANGLE, 0] - Lf[JAW_LEFT_ANGLE, 0]) / 2) \
@@ -458,6 +461,7 @@ class HeadBinding:
             for _ in range(steps):
                 flat[band] += w * (S @ flat - flat[band])
             out[self.skin] = flat.reshape(len(self.skin), -1, 3)
+        self._folds.relax(out)
         for centre, radius, _, guard in self.eyes.values():
             if len(guard):
                 g = self.skin[guard]
