@@ -58,6 +58,7 @@ from ..surface.model import KEPT_LANDMARKS
 from ..surface.scan import load_scan
 from ..threads import bounded
 from .folds import FoldRelax
+from .lids import LidClosure
 from .parts import TOUCH_IOD, classify_parts, mouth_line, read_overrides
 from .prior import load_head_prior
 
@@ -308,8 +309,11 @@ class HeadBinding:
         self._jaw_fixed = covered | rest | (depths & (P[:, 1] > mouth_line(Lf)))  # the jaw moves the lower depths
         self._ext_jaw = None  # factorised on first use
         self._seam = _seam_smoother(P, L, covered, rest, Lf, eye_distance)
-        # Each key relaxed where it would fold the mesh (rigid eyeballs and parts that never move kept).
-        self._folds = FoldRelax(Vf, T, parts.mask("eye_L", "eye_R", "rest") | ~original)
+        # Each key relaxed where it would fold the mesh: the PDE face's own motion (the covered skin), rigid
+        # eyeballs, parts and skin that never move kept.
+        pinned = parts.mask("eye_L", "eye_R", "rest") | ~original
+        pinned[si[rest | depths]] = True
+        self._folds = FoldRelax(Vf, T, pinned)
 
         # Jaw: the chin that drives it, and the parts it turns.
         chin = covered & (P[:, 1] < Lf[LIP_LOWER_BOTTOM, 1] - 0.08 * eye_distance) & (np.abs(P[:, 0]) < abs(Lf[JAW_RIGHT_ANGLE, 0] - Lf[JAW_LEFT_ANGLE, 0]) / 2) \
@@ -333,6 +337,11 @@ class HeadBinding:
             self._ring_vertices, ring_local = np.unique(si[ring], return_inverse=True)  # head indices
             self._ring = ring_local.reshape(ring.shape)
             self._ring_sum = csr_matrix((np.ones(len(r)), (slot[ring[r, c]], r)), shape=(len(anchors), len(ring)))
+
+        # Keys that close the eyes close them (the lashes along).
+        moving = parts.mask("follow") & original
+        moving[si[~(rest | depths)]] = True
+        self._lids = LidClosure(Vf, Lf, moving, eye_distance)
 
         # Lids stay outside the eyeballs.
         self.eyes = {}
@@ -462,6 +471,7 @@ class HeadBinding:
                 flat[band] += w * (S @ flat - flat[band])
             out[self.skin] = flat.reshape(len(self.skin), -1, 3)
         self._folds.relax(out)
+        self._lids.apply(out)
         for centre, radius, _, guard in self.eyes.values():
             if len(guard):
                 g = self.skin[guard]

@@ -18,7 +18,11 @@ from ..mesh import cotan_laplacian, edge_face_pairs, turn_degrees
 #: Edges turning by less than this at rest are flat; a key folds one that then turns by more than FOLD_DEG
 #: (below the issue's 40°: a margin for the other keys' shapes and poses that mix them).
 FLAT_DEG = 20.0
-FOLD_DEG = 30.0
+FOLD_DEG = 35.0
+#: A key is left as bound while it folds at most this share of the mesh's edges, or FOLD_MIN edges (half the
+#: issue's 0.1 % and 2): every sweep smooths the key's own motion too (a lid's closure, a lip's lift).
+FOLD_SHARE = 0.0005
+FOLD_MIN = 1
 #: Most relaxation sweeps per key, and how far each moves a vertex towards its neighbours' mean.
 RELAX_STEPS = 60
 RELAX_RATE = 0.5
@@ -49,6 +53,7 @@ class FoldRelax:
         self.faces, local = np.unique(pairs, return_inverse=True)  # the triangles at flat edges
         self.pairs = local.reshape(pairs.shape)
         self.cos_fold = np.cos(np.radians(FOLD_DEG))
+        self.budget = max(FOLD_MIN, int(FOLD_SHARE * len(edge_face_pairs(self.T))))
         # Cotangent weights (clamped positive): on ICT's dense, stretched lip and lid rims the plain mean of
         # the neighbours folded them further (AU27's skin folds 22 -> 82); these follow the surface's shape.
         L = cotan_laplacian(V, self.T)
@@ -82,7 +87,8 @@ class FoldRelax:
         worst = 0
         for start in range(0, D.shape[1], chunk):  # which keys fold (several at once: one gather)
             e, k = self.folded(D[:, start:start + chunk])
-            for key in np.unique(k) + start:
+            keys, counts = np.unique(k, return_counts=True)
+            for key in keys[counts > self.budget] + start:
                 worst = max(worst, self._relax_key(D[:, key], e[k == key - start]))
         return worst
 
@@ -101,8 +107,8 @@ class FoldRelax:
             e = self.folded(d, pairs)[0]
             if len(e) < best:
                 best, best_d = len(e), d[rows].copy()
-            if not len(e):
-                return 0
+            if len(e) <= self.budget:
+                return len(e)
             hit[:] = False
             hit[self.T[self.faces[pairs[e]]].ravel()] = True
             region |= self._grow(hit) & self.free
