@@ -58,7 +58,7 @@ from ..surface.model import KEPT_LANDMARKS
 from ..surface.scan import load_scan
 from ..threads import bounded
 from .folds import FoldRelax
-from .lids import LidClosure
+from .lids import LidClosure, eyes_closed_by
 from .parts import TOUCH_IOD, classify_parts, mouth_line, read_overrides
 from .prior import load_head_prior
 
@@ -447,7 +447,7 @@ class HeadBinding:
             out[self.prior.vertices] += self.prior.many([m.curve_points(c, r) for c, r, _, _ in motions])
         return out.transpose(1, 0, 2)
 
-    def displacement(self, delta_coefficients, delta_residual, jaw=False, gaze=None) -> np.ndarray:
+    def displacement(self, delta_coefficients, delta_residual, jaw=False, gaze=None, lids=None) -> np.ndarray:
         """Displacement of every vertex (user space and unit) for a change of the PDE curves.
 
         Parameters
@@ -458,12 +458,16 @@ class HeadBinding:
             Move the jaw's parts with the rotation the chin's motion shows (jaw AUs).
         gaze : dict, optional
             Gaze AU weights ``{61: w, ...}``: turn the eyeballs.
+        lids : dict, optional
+            How far the motion closes each eye (:func:`pdeface.head.lids.eyes_closed_by`): the lids meet.
         """
-        return self.displacements([(delta_coefficients, delta_residual, jaw, gaze)])[0]
+        return self.displacements([(delta_coefficients, delta_residual, jaw, gaze, lids)])[0]
 
     def displacements(self, motions) -> np.ndarray:
-        """:meth:`displacement` of several ``(delta_coefficients, delta_residual, jaw, gaze)`` at once, (k, n, 3)."""
-        out = self.face_motions(motions).transpose(1, 0, 2)  # (n, k, 3)
+        """:meth:`displacement` of several ``(delta_coefficients, delta_residual, jaw, gaze[, lids])`` at once,
+        (k, n, 3)."""
+        closing = [m[4] if len(m) > 4 else None for m in motions]
+        out = self.face_motions([tuple(m[:4]) for m in motions]).transpose(1, 0, 2)  # (n, k, 3)
         if self._seam is not None:
             band, S, w, steps = self._seam
             flat = out[self.skin].reshape(len(self.skin), -1)
@@ -471,7 +475,7 @@ class HeadBinding:
                 flat[band] += w * (S @ flat - flat[band])
             out[self.skin] = flat.reshape(len(self.skin), -1, 3)
         self._folds.relax(out)
-        self._lids.apply(out)
+        self._lids.apply(out, closing)
         for centre, radius, _, guard in self.eyes.values():
             if len(guard):
                 g = self.skin[guard]
@@ -526,7 +530,7 @@ class HeadBinding:
         return self.displacements([self.pose_motion_args(w, m) for w, m in poses])
 
     def pose_motion_args(self, weights, mixer) -> tuple:
-        """``(delta_coefficients, delta_residual, jaw, gaze)`` of AU ``weights`` mixed by ``mixer``."""
+        """``(delta_coefficients, delta_residual, jaw, gaze, lids)`` of AU ``weights`` mixed by ``mixer``."""
 
         weights = normalise_weights(weights)
         C, R = pose_curves(self.model, weights, mixer)
@@ -536,14 +540,15 @@ class HeadBinding:
             if a in GAZE_AUS:
                 gaze[a] = gaze.get(a, 0.0) + weights[k]
         jaw = any(a in JAW_AUS for a in numbers.values())
-        return C - self.model.coefficients, R - self.model.residual, jaw, gaze or None
+        return C - self.model.coefficients, R - self.model.residual, jaw, gaze or None, eyes_closed_by(weights)
 
 
 def descriptor_motion_args(descriptor) -> tuple:
-    """``(delta_coefficients, delta_residual, jaw, gaze)`` of one descriptor at weight 1."""
+    """``(delta_coefficients, delta_residual, jaw, gaze, lids)`` of one descriptor at weight 1."""
 
     au = au_number(descriptor.key)
-    return (*descriptor.dense(), au in JAW_AUS, {au: 1.0} if au in GAZE_AUS else None)
+    return (*descriptor.dense(), au in JAW_AUS, {au: 1.0} if au in GAZE_AUS else None,
+            eyes_closed_by({descriptor.key: 1.0}))
 
 
 def bind_file(model, mesh_arg, landmarks=None, parts=None):

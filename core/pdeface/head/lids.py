@@ -1,25 +1,29 @@
 """Keys that close the eyes close them on any head: the upper lid taken down onto the lower one (issue #40).
 
 On ICT's head the PDE face's blink closes the lids 0.87; on older, narrow or remeshed heads the retargeted
-motion stops short (0.44-0.8 of the gap on the MakeHuman development set): the upper margin lags the lid.
-:class:`LidClosure` measures, per key and eye, how far the key closes the gap between the upper and lower
-lid middles (the vertices at the landmarks); a key that closes it more than ``CLOSING`` is taken the rest of
-the way, to ``LEFT_OPEN`` of the rest gap, by moving the upper lid (its margin fully, fading out above it
-over ``LID_IOD`` eye distances and along the margin as the opening's height does) towards the lower lid's
-keyed middle. Keys that narrow the eye less (AU6, AU7, a smile) are left as bound.
+motion stops short (0.23-0.8 of the gap on the MakeHuman development set). How far a key narrows an eye
+does not tell a blink from a smile there (a voxel head's AU45 closes one eye 0.23, a smile 0.35), so the
+keys' AUs do: AU43 (eyes closed), AU45 (blink) and AU46 (wink) at weight w close the eye (its side's, both
+for AU43/45 without one, the one the motion closes more for a wink without one) to ``1 - w (1 - LEFT_OPEN)``
+of the rest gap between the upper and lower lid middles (the vertices at the landmarks).
+:class:`LidClosure` takes the upper lid the rest of the way towards the lower lid's keyed middle: the margin
+fully, fading out above it over ``LID_IOD`` eye distances, along the margin as the opening's height does,
+and what lies in the opening (a lid's lining, an occlusion mesh) shared out between the two margins.
 """
 from __future__ import annotations
 
 import numpy as np
 
+from ..facs import split_au_key
 from ..geometry import smoothstep
 
 #: Upper and lower lid landmarks (iBUG-68, 0-based) per eye, each from one corner to the other.
 LIDS = {"R": ((36, 37, 38, 39), (36, 41, 40, 39)), "L": ((42, 43, 44, 45), (42, 47, 46, 45))}
 #: The lid middles (the issue's closure measure): upper pair, lower pair.
 MIDDLES = {"R": ((37, 38), (40, 41)), "L": ((43, 44), (46, 47))}
-#: A key closing an eye's gap by CLOSING[0] starts to be taken further; by CLOSING[1], all the way.
-CLOSING = (0.35, 0.6)
+#: AUs that close the eyes, and the wink (one eye).
+CLOSING_AUS = frozenset({43, 45, 46})
+WINK = 46
 #: The gap left (share of the rest gap): lids meeting exactly would cross on the next frame's blend.
 LEFT_OPEN = 0.03
 #: How far above the margin (eye distances) the upper lid moves with it, and how deep behind it.
@@ -68,20 +72,38 @@ class LidClosure:
             idx = np.nonzero(w > 0)[0]
             self.eyes.append((np.array(at[:2]), np.array(at[2:]), idx, w[idx]))
 
-    def apply(self, out):
-        """Close the eyes further in the keys that close them (``out`` (n, k, 3), face frame, in place);
-        whether any key was changed."""
-        changed = False
-        for j, (up, lo, idx, w) in enumerate(self.eyes):
+    def apply(self, out, closing):
+        """Close the eyes in the keys that close them, in place.
+
+        ``out`` (n, k, 3): the keys' displacements (face frame); ``closing``: per key, :func:`eyes_closed_by`
+        its AUs (None: left as it is).
+        """
+        keys = [i for i, c in enumerate(closing) if c]
+        if not keys:
+            return
+        sub = out[:, keys]
+        ends = []
+        for up, lo, _, _ in self.eyes:
             U0, L0 = self.Vf[up].mean(0), self.Vf[lo].mean(0)
-            U1 = U0 + out[up].mean(0)  # (k, 3)
-            L1 = L0 + out[lo].mean(0)
-            gap0 = np.linalg.norm(U0 - L0)
-            gap1 = np.linalg.norm(U1 - L1, axis=1)
-            closed = 1 - gap1 / max(gap0, 1e-12)
-            gain = smoothstep((closed - CLOSING[0]) / (CLOSING[1] - CLOSING[0]))
-            rest_of_way = np.clip(1 - LEFT_OPEN * gap0 / np.maximum(gap1, 1e-12), 0, 1)
-            step = (L1 - U1) * (gain * rest_of_way)[:, None]  # (k, 3)
-            out[idx] += w[:, None, None] * step[None]
-            changed |= bool((gain > 0).any())
-        return changed
+            ends.append((U0 + sub[up].mean(0), L0 + sub[lo].mean(0), np.linalg.norm(U0 - L0)))  # (k, 3) each
+        gaps = np.array([np.linalg.norm(U - L, axis=1) / max(gap0, 1e-12) for U, L, gap0 in ends])  # (eyes, k)
+        for j, (side, (U1, L1, gap0)) in enumerate(zip(LIDS, ends)):
+            w = np.array([closing[i].get(side, 0.0) for i in keys])
+            wink = np.array([closing[i].get("?", 0.0) for i in keys])
+            w = np.minimum(w + wink * (gaps[j] <= gaps.min(0)), 1.0)  # a wink: the eye its motion closes more
+            to_go = np.clip(1 - (1 - w * (1 - LEFT_OPEN)) / np.maximum(gaps[j], 1e-12), 0, 1)
+            _, _, idx, weight = self.eyes[j]
+            sub[idx] += weight[:, None, None] * ((L1 - U1) * to_go[:, None])[None]
+        out[:, keys] = sub
+
+
+def eyes_closed_by(weights) -> dict | None:
+    """``{"R": w, "L": w, "?": w}``: how far normalised AU ``weights`` close each eye ("?": a wink's, on the eye
+    its motion closes more); None where they close none."""
+    out = {}
+    for key, w in weights.items():
+        au, side = split_au_key(key)
+        if au in CLOSING_AUS and w:
+            for s in (side,) if side else ("?",) if au == WINK else ("R", "L"):
+                out[s] = min(1.0, out.get(s, 0.0) + w)
+    return out or None
