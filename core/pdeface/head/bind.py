@@ -309,10 +309,10 @@ class HeadBinding:
         self._jaw_fixed = covered | rest | (depths & (P[:, 1] > mouth_line(Lf)))  # the jaw moves the lower depths
         self._ext_jaw = None  # factorised on first use
         self._seam = _seam_smoother(P, L, covered, rest, Lf, eye_distance)
-        # Each key relaxed where it would fold the mesh: the PDE face's own motion (the covered skin), rigid
-        # eyeballs, parts and skin that never move kept.
+        # Each key relaxed where it would fold the mesh; rigid eyeballs, parts and skin that never move kept (the
+        # mouth's lower depths move with the jaw).
         pinned = parts.mask("eye_L", "eye_R", "rest") | ~original
-        pinned[si[rest | depths]] = True
+        pinned[si[rest | (depths & (P[:, 1] > mouth_line(Lf)))]] = True
         self._folds = FoldRelax(Vf, T, pinned)
 
         # Jaw: the chin that drives it, and the parts it turns.
