@@ -341,7 +341,7 @@ class HeadBinding:
         # Keys that close the eyes close them (the lashes along).
         moving = parts.mask("follow") & original
         moving[si[~(rest | depths)]] = True
-        self._lids = LidClosure(Vf, Lf, moving, eye_distance)
+        self._lids = LidClosure(Vf, Lf, moving, eye_distance, parts.eyes)
 
         # Lids stay outside the eyeballs.
         self.eyes = {}
@@ -476,6 +476,16 @@ class HeadBinding:
             out[self.skin] = flat.reshape(len(self.skin), -1, 3)
         self._folds.relax(out)
         self._lids.apply(out, closing)
+        self._keep_out_of_eyeballs(out)
+        # The closed lids relaxed where the eyeballs folded them, past the issue's limit alone (each sweep opens
+        # them a little).
+        if self.eyes and self._folds.relax(out, keys=[i for i, c in enumerate(closing) if c], budget=self._folds.limit):
+            self._keep_out_of_eyeballs(out)
+        out[self._copies] = out[self._copy_of]
+        return self.frame.to_user_vectors(out.transpose(1, 0, 2))  # key-major: each key's rows contiguous
+
+    def _keep_out_of_eyeballs(self, out):
+        """Lids that a key takes into an eyeball put back on its surface (``out`` (n, k, 3), in place)."""
         for centre, radius, _, guard in self.eyes.values():
             if len(guard):
                 g = self.skin[guard]
@@ -483,8 +493,6 @@ class HeadBinding:
                 rho = np.linalg.norm(p - centre, axis=-1, keepdims=True)
                 pushed = centre + (p - centre) * (radius / np.maximum(rho, 1e-12)) - self.Vf[g, None]
                 out[g] = np.where(rho < radius, pushed, out[g])
-        out[self._copies] = out[self._copy_of]
-        return self.frame.to_user_vectors(out.transpose(1, 0, 2))  # key-major: each key's rows contiguous
 
     def _follow(self, out):
         """Attached vertices: their anchor's motion, their offset turned as the anchor's normal turns.

@@ -53,7 +53,9 @@ class FoldRelax:
         self.faces, local = np.unique(pairs, return_inverse=True)  # the triangles at flat edges
         self.pairs = local.reshape(pairs.shape)
         self.cos_fold = np.cos(np.radians(FOLD_DEG))
-        self.budget = max(FOLD_MIN, int(FOLD_SHARE * len(edge_face_pairs(self.T))))
+        edges = len(edge_face_pairs(self.T))
+        self.budget = max(FOLD_MIN, int(FOLD_SHARE * edges))
+        self.limit = max(2, int(0.001 * edges))  # the issue's
         # Cotangent weights (clamped positive): on ICT's dense, stretched lip and lid rims the plain mean of
         # the neighbours folded them further (AU27's skin folds 22 -> 82); these follow the surface's shape.
         L = cotan_laplacian(V, self.T)
@@ -82,17 +84,22 @@ class FoldRelax:
             mask = mask | (self.ring @ mask.astype(np.float64) > 0)
         return mask
 
-    def relax(self, D, chunk=16):
-        """Relax displacements ``D`` (n, k, 3) in place where they fold; the keys' worst remaining fold count."""
-        worst = 0
-        for start in range(0, D.shape[1], chunk):  # which keys fold (several at once: one gather)
-            e, k = self.folded(D[:, start:start + chunk])
-            keys, counts = np.unique(k, return_counts=True)
-            for key in keys[counts > self.budget] + start:
-                worst = max(worst, self._relax_key(D[:, key], e[k == key - start]))
-        return worst
+    def relax(self, D, keys=None, budget=None, chunk=16):
+        """Relax displacements ``D`` (n, k, 3) in place where they fold more than ``budget`` edges (default:
+        :attr:`budget`), only ``keys`` (indices) if given; whether any key was changed."""
+        budget = self.budget if budget is None else budget
+        keys = np.arange(D.shape[1]) if keys is None else np.asarray(keys, np.int64)
+        changed = False
+        for start in range(0, len(keys), chunk):  # which keys fold (several at once: one gather)
+            some = keys[start:start + chunk]
+            e, k = self.folded(D[:, some])
+            over, counts = np.unique(k, return_counts=True)
+            for j in over[counts > budget]:
+                self._relax_key(D[:, some[j]], e[k == j], budget)
+                changed = True
+        return changed
 
-    def _relax_key(self, d, edges):
+    def _relax_key(self, d, edges, budget):
         """Relax one key's displacement ``d`` (n, 3) in place, starting from its folded ``edges``."""
         n = len(self.V)
         hit = np.zeros(n, bool)
@@ -107,7 +114,7 @@ class FoldRelax:
             e = self.folded(d, pairs)[0]
             if len(e) < best:
                 best, best_d = len(e), d[rows].copy()
-            if len(e) <= self.budget:
+            if len(e) <= budget:
                 return len(e)
             hit[:] = False
             hit[self.T[self.faces[pairs[e]]].ravel()] = True

@@ -6,8 +6,8 @@ does not tell a blink from a smile there (a voxel head's AU45 closes one eye 0.2
 keys' AUs do: AU43 (eyes closed), AU45 (blink) and AU46 (wink) at weight w close the eye (its side's, both
 for AU43/45 without one, the one the motion closes more for a wink without one) to ``1 - w (1 - LEFT_OPEN)``
 of the rest gap between the upper and lower lid middles (the vertices at the landmarks).
-:class:`LidClosure` takes the upper lid the rest of the way towards the lower lid's keyed middle: the margin
-fully, fading out above it over ``LID_IOD`` eye distances, along the margin as the opening's height does,
+:class:`LidClosure` turns the upper lid the rest of the way about the eye's centre (over the eyeball, which
+it never enters) onto the lower lid's keyed middle: the margin fully, fading out above it over ``LID_IOD`` eye distances, along the margin as the opening's height does,
 and what lies in the opening (a lid's lining, an occlusion mesh) shared out between the two margins.
 """
 from __future__ import annotations
@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..facs import split_au_key
-from ..geometry import smoothstep
+from ..geometry import smoothstep, unit_rows
 
 #: Upper and lower lid landmarks (iBUG-68, 0-based) per eye, each from one corner to the other.
 LIDS = {"R": ((36, 37, 38, 39), (36, 41, 40, 39)), "L": ((42, 43, 44, 45), (42, 47, 46, 45))}
@@ -29,6 +29,8 @@ LEFT_OPEN = 0.03
 #: How far above the margin (eye distances) the upper lid moves with it, and how deep behind it.
 LID_IOD = 0.2
 DEPTH_IOD = 0.25
+#: An eyeball's centre behind its lids' landmarks (eye distances: 12 mm of 63) where the head has none.
+EYE_DEPTH_IOD = 0.19
 
 
 class LidClosure:
@@ -43,9 +45,12 @@ class LidClosure:
     lid : (n,) bool array
         Vertices that may move with the upper lid (skin that moves at all, lashes and other attached parts).
     eye_distance : float
+    eyeballs : dict, optional
+        ``"eye_R"``/``"eye_L"`` → (centre, radius) of the eyeballs found; an eye without one turns its lid
+        about a centre ``EYE_DEPTH_IOD`` behind its landmarks.
     """
 
-    def __init__(self, Vf, Lf, lid, eye_distance):
+    def __init__(self, Vf, Lf, lid, eye_distance, eyeballs=None):
         self.Vf = Vf
         self.eyes = []
         for side, (upper, lower) in LIDS.items():
@@ -70,7 +75,10 @@ class LidClosure:
             z_margin = Lf[list(upper), 2].max()
             w = along * share * inside * lid * (Vf[:, 2] > z_margin - DEPTH_IOD * eye_distance)
             idx = np.nonzero(w > 0)[0]
-            self.eyes.append((np.array(at[:2]), np.array(at[2:]), idx, w[idx]))
+            ball = (eyeballs or {}).get(f"eye_{side}")
+            centre = ball[0] if ball is not None else \
+                Lf[list(upper) + list(lower)].mean(0) - [0, 0, EYE_DEPTH_IOD * eye_distance]
+            self.eyes.append((np.array(at[:2]), np.array(at[2:]), idx, w[idx], np.asarray(centre, np.float64)))
 
     def apply(self, out, closing):
         """Close the eyes in the keys that close them, in place.
@@ -83,17 +91,29 @@ class LidClosure:
             return
         sub = out[:, keys]
         ends = []
-        for up, lo, _, _ in self.eyes:
+        for up, lo, _, _, _ in self.eyes:
             U0, L0 = self.Vf[up].mean(0), self.Vf[lo].mean(0)
             ends.append((U0 + sub[up].mean(0), L0 + sub[lo].mean(0), np.linalg.norm(U0 - L0)))  # (k, 3) each
         gaps = np.array([np.linalg.norm(U - L, axis=1) / max(gap0, 1e-12) for U, L, gap0 in ends])  # (eyes, k)
-        for j, (side, (U1, L1, gap0)) in enumerate(zip(LIDS, ends)):
+        for j, (side, (U1, L1, _)) in enumerate(zip(LIDS, ends)):
             w = np.array([closing[i].get(side, 0.0) for i in keys])
             wink = np.array([closing[i].get("?", 0.0) for i in keys])
             w = np.minimum(w + wink * (gaps[j] <= gaps.min(0)), 1.0)  # a wink: the eye its motion closes more
-            to_go = np.clip(1 - (1 - w * (1 - LEFT_OPEN)) / np.maximum(gaps[j], 1e-12), 0, 1)
-            _, _, idx, weight = self.eyes[j]
-            sub[idx] += weight[:, None, None] * ((L1 - U1) * to_go[:, None])[None]
+            to_go = np.clip(1 - (1 - w * (1 - LEFT_OPEN)) / np.maximum(gaps[j], 1e-12), 0, 1)  # (k,)
+            _, _, idx, weight, centre = self.eyes[j]
+            # Turned about the eye's centre (the lid slides over the eyeball, never into it), the upper middle
+            # onto the lower one; its distance from the centre blended to the lower's.
+            a, b = U1 - centre, L1 - centre
+            axis = unit_rows(np.cross(a, b))
+            ra, rb = np.linalg.norm(a, axis=1), np.linalg.norm(b, axis=1)
+            angle = np.arccos(np.clip((a * b).sum(1) / np.maximum(ra * rb, 1e-300), -1, 1))
+            share = weight[:, None] * to_go[None]  # (m, k)
+            v = self.Vf[idx, None] + sub[idx] - centre  # (m, k, 3)
+            phi = share * angle[None]
+            cos, sin = np.cos(phi)[..., None], np.sin(phi)[..., None]
+            turned = v * cos + np.cross(axis[None], v) * sin + axis[None] * (v * axis[None]).sum(-1, keepdims=True) * (1 - cos)
+            turned *= (1 + share * (rb / np.maximum(ra, 1e-300) - 1)[None])[..., None]
+            sub[idx] += turned - v
         out[:, keys] = sub
 
 
