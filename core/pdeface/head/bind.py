@@ -309,10 +309,14 @@ class HeadBinding:
         self._jaw_fixed = covered | rest | (depths & (P[:, 1] > mouth_line(Lf)))  # the jaw moves the lower depths
         self._ext_jaw = None  # factorised on first use
         self._seam = _seam_smoother(P, L, covered, rest, Lf, eye_distance)
-        # Each key relaxed where it would fold the mesh; rigid eyeballs, parts and skin that never move kept (the
-        # mouth's lower depths move with the jaw).
-        pinned = parts.mask("eye_L", "eye_R", "rest") | ~original
+        # Each key relaxed where it would fold the mesh; rigid eyeballs, the jaw's and the skull's parts and the skin
+        # that never moves kept (the mouth's lower depths move with the jaw).
+        pinned = parts.mask("eye_L", "eye_R", "skull", "rest") | ~original
         pinned[si[rest | (depths & (P[:, 1] > mouth_line(Lf)))]] = True
+        jaw = parts.mask("jaw")  # turned whole, but where a piece is split between the jaw and the skull (gums)
+        skull_ring = np.zeros(len(V), bool)
+        skull_ring[T[parts.mask("skull")[T].any(axis=1)]] = True
+        pinned |= jaw & ~skull_ring
         self._folds = FoldRelax(Vf, T, pinned)
 
         # Jaw: the chin that drives it, and the parts it turns.
@@ -477,9 +481,8 @@ class HeadBinding:
         self._folds.relax(out)
         self._lids.apply(out, closing)
         self._keep_out_of_eyeballs(out)
-        # The closed lids relaxed where the eyeballs folded them, past the issue's limit alone (each sweep opens
-        # them a little).
-        if self.eyes and self._folds.relax(out, keys=[i for i, c in enumerate(closing) if c], budget=self._folds.limit):
+        # Lids the eyeballs' surface folded (a blink, a glance down) relaxed again.
+        if self.eyes and self._folds.relax(out):
             self._keep_out_of_eyeballs(out)
         out[self._copies] = out[self._copy_of]
         return self.frame.to_user_vectors(out.transpose(1, 0, 2))  # key-major: each key's rows contiguous

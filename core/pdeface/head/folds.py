@@ -13,16 +13,16 @@ from __future__ import annotations
 import numpy as np
 
 from ..geometry import triangle_cross
-from ..mesh import cotan_laplacian, edge_face_pairs, turn_degrees
+from ..mesh import connected_components, cotan_laplacian, edge_face_pairs, turn_degrees
 
 #: Edges turning by less than this at rest are flat; a key folds one that then turns by more than FOLD_DEG
 #: (below the issue's 40°: a margin for the other keys' shapes and poses that mix them).
 FLAT_DEG = 20.0
 FOLD_DEG = 35.0
-#: A key is left as bound while it folds at most this share of the mesh's edges, or FOLD_MIN edges (half the
-#: issue's 0.1 % and 2): every sweep smooths the key's own motion too (a lid's closure, a lip's lift).
-FOLD_SHARE = 0.0005
-FOLD_MIN = 1
+#: A key is left as bound while it folds at most this share of the mesh's edges, or FOLD_MIN edges (the issue's
+#: 0.1 % and 2, counted over FOLD_DEG: every sweep smooths the key's own motion too, a lid's closing, a lip's lift).
+FOLD_SHARE = 0.001
+FOLD_MIN = 2
 #: Most relaxation sweeps per key, and how far each moves a vertex towards its neighbours' mean.
 RELAX_STEPS = 60
 RELAX_RATE = 0.5
@@ -53,9 +53,7 @@ class FoldRelax:
         self.faces, local = np.unique(pairs, return_inverse=True)  # the triangles at flat edges
         self.pairs = local.reshape(pairs.shape)
         self.cos_fold = np.cos(np.radians(FOLD_DEG))
-        edges = len(edge_face_pairs(self.T))
-        self.budget = max(FOLD_MIN, int(FOLD_SHARE * edges))
-        self.limit = max(2, int(0.001 * edges))  # the issue's
+        self.budget = max(FOLD_MIN, int(FOLD_SHARE * len(edge_face_pairs(self.T))))
         # Cotangent weights (clamped positive): on ICT's dense, stretched lip and lid rims the plain mean of
         # the neighbours folded them further (AU27's skin folds 22 -> 82); these follow the surface's shape.
         L = cotan_laplacian(V, self.T)
@@ -64,6 +62,8 @@ class FoldRelax:
         self.ring.data[:] = 1.0
         self.mean = (diags(1.0 / np.maximum(np.asarray(W.sum(axis=1)).ravel(), 1e-300)) @ W).tocsr()
         self.free = ~np.asarray(pinned, bool)
+        self.edge_piece = connected_components(len(V), self.T)[self.T[self.faces[self.pairs[:, 0]], 0]]
+        self.piece_edges = np.bincount(self.edge_piece)
 
     def folded(self, D, pairs=None):
         """``(edge, key)`` indices (into ``pairs``, default all flat edges) of the flat edges folded by
@@ -95,9 +95,19 @@ class FoldRelax:
             e, k = self.folded(D[:, some])
             over, counts = np.unique(k, return_counts=True)
             for j in over[counts > budget]:
-                self._relax_key(D[:, some[j]], e[k == j], budget)
+                self._relax_pieces(D[:, some[j]], e[k == j], budget)
                 changed = True
         return changed
+
+    def _relax_pieces(self, d, edges, budget):
+        """Relax one key's folds piece by piece of the mesh, each piece to its share of ``budget`` (by its flat
+        edges): a lash strip folding does not smooth the lid under it."""
+        piece = self.edge_piece[edges]
+        share = budget * self.piece_edges / max(self.piece_edges.sum(), 1)
+        labels, counts = np.unique(piece, return_counts=True)
+        for label, count in zip(labels, counts):
+            if count > share[label]:
+                self._relax_key(d, edges[piece == label], int(share[label]))
 
     def _relax_key(self, d, edges, budget):
         """Relax one key's displacement ``d`` (n, 3) in place, starting from its folded ``edges``."""
@@ -109,7 +119,7 @@ class FoldRelax:
         pairs = self.pairs[zone[corners].any(axis=1)]
         region = self._grow(hit) & self.free
         rows = np.nonzero(zone)[0]
-        best, best_d = len(edges), d[rows].copy()  # never worse than as bound
+        best, best_d = len(self.folded(d, pairs)[0]), d[rows].copy()  # never worse than as bound
         for step in range(RELAX_STEPS):
             e = self.folded(d, pairs)[0]
             if len(e) < best:
