@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..geometry import triangle_cross
+from ..geometry import triangle_cross, unit_rows
 from ..mesh import connected_components, cotan_laplacian, edge_face_pairs, turn_degrees
 
 #: Edges turning by less than this at rest are flat; a key folds one that then turns by more than FOLD_DEG
@@ -29,6 +29,9 @@ RELAX_RATE = 0.5
 #: While a key still folds, its relaxed set grows by a ring every GROW_EVERY sweeps, up to ZONE_RINGS rings
 #: from the first folded edges.
 GROW_EVERY = 8
+#: Folds are looked for only at vertices whose motion is off their neighbours' mean by this share of their
+#: edges' length (a crease of 35° across an edge puts its ends about 0.3 off).
+SCREEN = 0.05
 ZONE_RINGS = 10
 
 
@@ -49,11 +52,11 @@ class FoldRelax:
 
         self.V, self.T = V, np.asarray(T, np.int64)
         pairs = edge_face_pairs(self.T)
+        self.budget = max(FOLD_MIN, int(FOLD_SHARE * len(pairs)))
         pairs = pairs[turn_degrees(V, self.T, pairs) < FLAT_DEG]
         self.faces, local = np.unique(pairs, return_inverse=True)  # the triangles at flat edges
         self.pairs = local.reshape(pairs.shape)
         self.cos_fold = np.cos(np.radians(FOLD_DEG))
-        self.budget = max(FOLD_MIN, int(FOLD_SHARE * len(edge_face_pairs(self.T))))
         # Cotangent weights (clamped positive): on ICT's dense, stretched lip and lid rims the plain mean of
         # the neighbours folded them further (AU27's skin folds 22 -> 82); these follow the surface's shape.
         L = cotan_laplacian(V, self.T)
@@ -62,40 +65,41 @@ class FoldRelax:
         self.ring.data[:] = 1.0
         self.mean = (diags(1.0 / np.maximum(np.asarray(W.sum(axis=1)).ravel(), 1e-300)) @ W).tocsr()
         self.free = ~np.asarray(pinned, bool)
+        self.corners = self.T[self.faces[self.pairs]].reshape(len(self.pairs), 6)
+        length = np.linalg.norm(V[self.T] - V[np.roll(self.T, 1, axis=1)], axis=2).ravel()  # each corner's edge
+        self.edge_length = np.bincount(self.T.ravel(), length, len(V)) / np.maximum(np.bincount(self.T.ravel(), minlength=len(V)), 1)
         self.edge_piece = connected_components(len(V), self.T)[self.T[self.faces[self.pairs[:, 0]], 0]]
         self.piece_edges = np.bincount(self.edge_piece)
 
-    def folded(self, D, pairs=None):
-        """``(edge, key)`` indices (into ``pairs``, default all flat edges) of the flat edges folded by
-        displacements ``D`` (n, k, 3)."""
-        pairs = self.pairs if pairs is None else pairs
-        if not len(pairs):
-            return np.zeros((0,), np.int64), np.zeros((0,), np.int64)
-        faces, local = np.unique(pairs, return_inverse=True)
-        tri = self.T[self.faces[faces]]
-        nrm = triangle_cross(self.V[:, None] + D, tri) if D.ndim == 3 else triangle_cross(self.V + D, tri)
-        nrm /= np.maximum(np.linalg.norm(nrm, axis=-1, keepdims=True), 1e-300)
-        local = local.reshape(pairs.shape)
-        cos = (nrm[local[:, 0]] * nrm[local[:, 1]]).sum(-1)  # (e, k) or (e,)
-        return np.nonzero(cos < self.cos_fold)
+    def folded(self, d):
+        """The flat edges (indices into :attr:`pairs`) that displacement ``d`` (n, 3) folds.
+
+        Only edges at a vertex whose motion is off its neighbours' mean by SCREEN of its edges' length are
+        measured: a fold is a crease in the motion, a smooth motion (most of every key) folds nothing.
+        """
+        bent = np.linalg.norm(self.mean @ d - d, axis=1) > SCREEN * self.edge_length
+        some = np.nonzero(bent[self.corners].any(axis=1))[0]
+        if not len(some):
+            return some
+        faces, at = np.unique(self.pairs[some], return_inverse=True)
+        nrm = unit_rows(triangle_cross(self.V + d, self.T[self.faces[faces]]))
+        at = at.reshape(-1, 2)
+        return some[(nrm[at[:, 0]] * nrm[at[:, 1]]).sum(-1) < self.cos_fold]
 
     def _grow(self, mask, rings=1):
         for _ in range(rings):
             mask = mask | (self.ring @ mask.astype(np.float64) > 0)
         return mask
 
-    def relax(self, D, keys=None, budget=None, chunk=16):
+    def relax(self, D, keys=None, budget=None):
         """Relax displacements ``D`` (n, k, 3) in place where they fold more than ``budget`` edges (default:
         :attr:`budget`), only ``keys`` (indices) if given; whether any key was changed."""
         budget = self.budget if budget is None else budget
-        keys = np.arange(D.shape[1]) if keys is None else np.asarray(keys, np.int64)
         changed = False
-        for start in range(0, len(keys), chunk):  # which keys fold (several at once: one gather)
-            some = keys[start:start + chunk]
-            e, k = self.folded(D[:, some])
-            over, counts = np.unique(k, return_counts=True)
-            for j in over[counts > budget]:
-                self._relax_pieces(D[:, some[j]], e[k == j], budget)
+        for key in range(D.shape[1]) if keys is None else keys:
+            edges = self.folded(D[:, key])
+            if len(edges) > budget:
+                self._relax_pieces(D[:, key], edges, budget)
                 changed = True
         return changed
 
@@ -110,29 +114,46 @@ class FoldRelax:
                 self._relax_key(d, edges[piece == label], int(share[label]))
 
     def _relax_key(self, d, edges, budget):
-        """Relax one key's displacement ``d`` (n, 3) in place, starting from its folded ``edges``."""
-        n = len(self.V)
-        hit = np.zeros(n, bool)
+        """Relax one key's displacement ``d`` (n, 3) in place, starting from its folded ``edges``; the folds
+        left. Works on the vertices within ZONE_RINGS of them alone (and the rings around, read only)."""
+        hit = np.zeros(len(self.V), bool)
         hit[self.T[self.faces[self.pairs[edges]]].ravel()] = True
-        zone = self._grow(hit, ZONE_RINGS)  # the flat edges that the relaxation can change
-        corners = self.T[self.faces[self.pairs]].reshape(len(self.pairs), 6)
-        pairs = self.pairs[zone[corners].any(axis=1)]
-        region = self._grow(hit) & self.free
-        rows = np.nonzero(zone)[0]
-        best, best_d = len(self.folded(d, pairs)[0]), d[rows].copy()  # never worse than as bound
+        zone = self._grow(hit, ZONE_RINGS)
+        cols = np.nonzero(self._grow(zone, 2))[0]  # the zone and two rings around it (its edges' far corners)
+        local = np.full(len(self.V), -1)
+        local[cols] = np.arange(len(cols))
+        ring, mean = self.ring[cols][:, cols], self.mean[cols][:, cols]
+        movable = self.free[cols] & zone[cols]
+        faces, pair_faces = np.unique(self.pairs[zone[self.corners].any(axis=1)], return_inverse=True)
+        tri = local[self.T[self.faces[faces]]]  # the triangles at the zone's flat edges
+        pair_faces = pair_faces.reshape(-1, 2)
+        X, dl = self.V[cols], d[cols]
+
+        def folded():
+            nrm = triangle_cross(X + dl, tri)
+            nrm /= np.maximum(np.linalg.norm(nrm, axis=-1, keepdims=True), 1e-300)
+            return np.nonzero((nrm[pair_faces[:, 0]] * nrm[pair_faces[:, 1]]).sum(-1) < self.cos_fold)[0]
+
+        def grow(mask):
+            return mask | (ring @ mask.astype(np.float64) > 0)
+
+        at = np.zeros(len(cols), bool)
+        at[local[self.T[self.faces[self.pairs[edges]]].ravel()]] = True
+        region = grow(at) & movable
+        e = folded()
+        best, best_d = len(e), dl.copy()  # never worse than as bound
         for step in range(RELAX_STEPS):
-            e = self.folded(d, pairs)[0]
-            if len(e) < best:
-                best, best_d = len(e), d[rows].copy()
             if len(e) <= budget:
-                return len(e)
-            hit[:] = False
-            hit[self.T[self.faces[pairs[e]]].ravel()] = True
-            region |= self._grow(hit) & self.free
+                break
+            at[:] = False
+            at[tri[pair_faces[e]].ravel()] = True
+            region |= grow(at) & movable
             if step and not step % GROW_EVERY:  # still folding: relax a wider ring
-                region = self._grow(region) & self.free & zone
+                region = grow(region) & movable
             moved = np.nonzero(region)[0]
-            d[moved] += RELAX_RATE * (self.mean[moved] @ d - d[moved])
-        if len(self.folded(d, pairs)[0]) > best:
-            d[rows] = best_d
+            dl[moved] += RELAX_RATE * (mean @ dl - dl)[moved]
+            e = folded()
+            if len(e) < best:
+                best, best_d = len(e), dl.copy()
+        d[cols] = best_d
         return best
