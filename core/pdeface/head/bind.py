@@ -25,8 +25,11 @@ motion to all of the user's mesh, once per fit:
 - **gaze AUs** (61-64) turn the eyeballs about their fitted centres;
 - **attached parts** (lashes, brows, hair cards, lacrimal meshes) ride on their
   nearest skin vertex, turning with its normal;
+- **keys that close the eyes** (AU43, AU45, AU46) turn the upper lid about the eye's centre onto the lower
+  lid (:mod:`pdeface.head.lids`);
 - lids never end inside an eyeball: skin outside the eyeball sphere at rest is
-  kept outside it.
+  kept outside it;
+- **no new folds**: each key is relaxed where it would fold the mesh (:mod:`pdeface.head.folds`).
 
 Each key is the binding of one descriptor's PDE displacement at weight 1: still
 one linear shape key per AU or expression, as on the PDE face.
