@@ -487,8 +487,9 @@ class HeadBinding:
         self._folds.relax(out)
         self._lids.apply(out, closing)
         self._keep_out_of_eyeballs(out)
-        # Relaxed again where the lids' closing or the eyeballs' surface folded them (a blink, a glance down).
-        if self._folds.relax(out, keys=[i for i, c in enumerate(closing) if c or self.eyes]):
+        # Relaxed again where the lids' closing or the eyeballs' surface folded them (a blink, a glance down), past
+        # the limit alone (each sweep opens a closed lid a little).
+        if self._folds.relax(out, keys=[i for i, c in enumerate(closing) if c or self.eyes], budget=self._folds.limit):
             self._keep_out_of_eyeballs(out)
         out[self._copies] = out[self._copy_of]
         return self.frame.to_user_vectors(out.transpose(1, 0, 2))  # key-major: each key's rows contiguous

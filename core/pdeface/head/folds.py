@@ -19,10 +19,13 @@ from ..mesh import connected_components, cotan_laplacian, edge_face_pairs, turn_
 #: (below the issue's 40°: a margin for the other keys' shapes and poses that mix them).
 FLAT_DEG = 20.0
 FOLD_DEG = 35.0
-#: A key is left as bound while it folds at most this share of the mesh's edges, or FOLD_MIN edges (the issue's
-#: 0.1 % and 2, counted over FOLD_DEG: every sweep smooths the key's own motion too, a lid's closing, a lip's lift).
-FOLD_SHARE = 0.001
-FOLD_MIN = 2
+#: The issue's limit: a key may fold this share of the mesh's edges, or LIMIT_MIN edges (over 40°).
+LIMIT_SHARE = 0.001
+LIMIT_MIN = 2
+#: A key over it is relaxed until it folds at most this share, or FOLD_MIN edges (over FOLD_DEG: a margin for
+#: the poses that mix keys); every sweep smooths the key's own motion too (a lid's closing, a lip's lift).
+FOLD_SHARE = 0.0005
+FOLD_MIN = 1
 #: Most relaxation sweeps per key, and how far each moves a vertex towards its neighbours' mean.
 RELAX_STEPS = 60
 RELAX_RATE = 0.5
@@ -53,6 +56,7 @@ class FoldRelax:
         self.V, self.T = V, np.asarray(T, np.int64)
         pairs = edge_face_pairs(self.T)
         self.budget = max(FOLD_MIN, int(FOLD_SHARE * len(pairs)))
+        self.limit = max(LIMIT_MIN, int(LIMIT_SHARE * len(pairs)))
         pairs = pairs[turn_degrees(V, self.T, pairs) < FLAT_DEG]
         self.faces, local = np.unique(pairs, return_inverse=True)  # the triangles at flat edges
         self.pairs = local.reshape(pairs.shape)
