@@ -128,6 +128,26 @@ def vertex_normals(V: np.ndarray, T: np.ndarray) -> np.ndarray:
     return unit_rows(out.reshape((len(V),) + n.shape[1:]))
 
 
+def edge_face_pairs(T: np.ndarray) -> np.ndarray:
+    """The two triangles at each interior edge of a triangle mesh, (e, 2) (edges with other than two
+    triangles are left out)."""
+    T = np.asarray(T, np.int64)
+    E = np.sort(np.concatenate([T[:, [0, 1]], T[:, [1, 2]], T[:, [2, 0]]]), axis=1)
+    face = np.tile(np.arange(len(T)), 3)
+    key = E[:, 0] * (int(T.max()) + 1) + E[:, 1]
+    order = np.argsort(key, kind="stable")
+    key, face = key[order], face[order]
+    _, start, count = np.unique(key, return_index=True, return_counts=True)
+    two = count == 2
+    return np.stack([face[start[two]], face[start[two] + 1]], 1)
+
+
+def turn_degrees(V: np.ndarray, T: np.ndarray, pairs: np.ndarray) -> np.ndarray:
+    """The angle (degrees) the two triangles of each pair (:func:`edge_face_pairs`) turn by at their edge."""
+    n = unit_rows(triangle_cross(V, T))
+    return np.degrees(np.arccos(np.clip((n[pairs[:, 0]] * n[pairs[:, 1]]).sum(1), -1, 1)))
+
+
 def connected_components(n_vertices: int, T: np.ndarray) -> np.ndarray:
     """Label of the edge-connected component of every vertex."""
     from scipy.sparse import coo_matrix

@@ -34,6 +34,7 @@ from pdeface.au.retarget import retarget
 from pdeface.errors import PdeFaceError
 from pdeface.head.bind import HeadBinding, descriptor_motion_args
 from pdeface.landmark_scheme import CHIN
+from pdeface.mesh import edge_face_pairs, turn_degrees
 from pdeface.presets import every_pose
 from pdeface.surface.fit import fit_face
 
@@ -46,27 +47,6 @@ TARGETS = {"lid_shrink": 0.80, "lr_diff": 0.25, "lip_gap_ed": 0.25, "upper_lip_r
 LIDS = {"R": ((37, 38), (40, 41)), "L": ((43, 44), (46, 47))}
 LIP_UPPER_INNER, LIP_LOWER_INNER, CORNERS = 62, 66, {"R": 48, "L": 54}
 QUICK = ("AU12", "AU27", "AU45", "happy")
-
-
-def edge_face_pairs(T):
-    """The two triangles at each interior edge of a triangle mesh, (e, 2) (edges with other than two faces
-    are left out)."""
-    E = np.sort(np.concatenate([T[:, [0, 1]], T[:, [1, 2]], T[:, [2, 0]]]), axis=1)
-    face = np.tile(np.arange(len(T)), 3)
-    key = E[:, 0].astype(np.int64) * (int(T.max()) + 1) + E[:, 1]
-    order = np.argsort(key, kind="stable")
-    key, face = key[order], face[order]
-    _, start, count = np.unique(key, return_index=True, return_counts=True)
-    two = count == 2
-    return np.stack([face[start[two]], face[start[two] + 1]], 1)
-
-
-def turn_degrees(V, T, pairs):
-    """The angle (degrees) the two faces of each pair turn by."""
-    n = np.cross(V[T[:, 1]] - V[T[:, 0]], V[T[:, 2]] - V[T[:, 0]])
-    n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-30)
-    c = np.clip((n[pairs[:, 0]] * n[pairs[:, 1]]).sum(1), -1, 1)
-    return np.degrees(np.arccos(c))
 
 
 def eyes_of(L):

@@ -56,7 +56,7 @@ def head_samples(V, T, lm, shapes, source, unit="cm"):
     for d in model.descriptors:
         if d.key not in AU_SHAPES:
             continue
-        dC, dR, jaw, gaze = descriptor_motion_args(d)
+        dC, dR, jaw, gaze, _ = descriptor_motion_args(d)
         truth = b.frame.scale * au_offsets(d.key, shapes) @ b.frame.rotation.T
         r = truth - b.face_motion(dC, dR, jaw, gaze, with_prior=False)
         r[eyes] = 0.0

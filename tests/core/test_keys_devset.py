@@ -9,6 +9,7 @@ from pdeface.au.retarget import curve_map, retarget
 from pdeface.cli import main
 from pdeface.facs import au_number
 from pdeface.head import bind
+from pdeface.head import folds as fold_relax
 from pdeface.head.bind import GAZE_AUS, HeadBinding, descriptor_motion_args
 from pdeface.head.parts import CODE, EYEBALL_IOD
 from pdeface.io.meshio import write_mesh
@@ -127,6 +128,7 @@ def test_rig_and_all_keys_leave_out_gaze_keys_on_a_head_without_eyeballs(tmp_pat
 @needs_makehuman
 def test_the_lip_and_eye_corners_fold_less_and_the_mouth_opens_as_wide(monkeypatch):
     V, T, L, model, smoothed = rig("base-dm")
+    monkeypatch.setattr(fold_relax, "RELAX_STEPS", 0)  # the seam smoother alone (the folds' relaxation: test_head_folds)
     monkeypatch.setattr(bind, "SEAM_STEPS", 0)
     raw = HeadBinding(model, V, T, landmarks=L)
     f = model.frame

@@ -25,8 +25,11 @@ motion to all of the user's mesh, once per fit:
 - **gaze AUs** (61-64) turn the eyeballs about their fitted centres;
 - **attached parts** (lashes, brows, hair cards, lacrimal meshes) ride on their
   nearest skin vertex, turning with its normal;
+- **keys that close the eyes** (AU43, AU45, AU46) turn the upper lid about the eye's centre onto the lower
+  lid (:mod:`pdeface.head.lids`);
 - lids never end inside an eyeball: skin outside the eyeball sphere at rest is
-  kept outside it.
+  kept outside it;
+- **no new folds**: each key is relaxed where it would fold the mesh (:mod:`pdeface.head.folds`).
 
 Each key is the binding of one descriptor's PDE displacement at weight 1: still
 one linear shape key per AU or expression, as on the PDE face.
@@ -57,6 +60,8 @@ from ..surface.grid import grid_faces, surface_grid
 from ..surface.model import KEPT_LANDMARKS
 from ..surface.scan import load_scan
 from ..threads import bounded
+from .folds import FoldRelax
+from .lids import LidClosure, eyes_closed_by
 from .parts import TOUCH_IOD, classify_parts, mouth_line, read_overrides
 from .prior import load_head_prior
 
@@ -86,6 +91,9 @@ SEAM_IOD = 0.05
 SEAM_STEPS = 5
 #: (landmark, radius in eye distances) of the corners relaxed: the inner lips' and the eyes' inner ones.
 SEAM_CORNERS = ((INNER_LIPS[0], 0.3), (INNER_LIPS[4], 0.3), (EYE_INNER_RIGHT, 0.15), (EYE_INNER_LEFT, 0.15))
+#: Rings of the jaw's parts next to the skull's (a piece split between them) that the folds' relaxation moves
+#: (ICT's AU27: 110 folds at 1 ring, 96 at 2, 65 at 4, but its jaw's capture 0.94, 0.92, 0.90).
+SPLIT_RINGS = 2
 #: The head prior fades out over this share of the way from the covered skin to the rest region.
 PRIOR_FADE = 0.3
 #: AUs that move the jaw, and the gaze AUs.
@@ -311,6 +319,15 @@ class HeadBinding:
         self._jaw_fixed = covered | rest | (depths & (P[:, 1] > mouth_line(Lf)))  # the jaw moves the lower depths
         self._ext_jaw = None  # factorised on first use
         self._seam = _seam_smoother(P, L, covered, rest, Lf, eye_distance)
+        # Each key relaxed where it would fold the mesh; rigid eyeballs, the jaw's and the skull's parts and the skin
+        # that never moves kept (the mouth's lower depths move with the jaw).
+        pinned = parts.mask("eye_L", "eye_R", "skull", "rest") | ~original
+        pinned[si[rest | (depths & (P[:, 1] > mouth_line(Lf)))]] = True
+        near_skull = parts.mask("skull")  # the jaw turned whole, but near a split with the skull (ICT's gums)
+        for _ in range(SPLIT_RINGS):
+            near_skull[T[near_skull[T].any(axis=1)]] = True
+        pinned |= parts.mask("jaw") & ~near_skull
+        self._folds = FoldRelax(Vf, T, pinned)
 
         # Jaw: the chin that drives it, and the parts it turns.
         chin = covered & (P[:, 1] < Lf[LIP_LOWER_BOTTOM, 1] - 0.08 * eye_distance) & (np.abs(P[:, 0]) < abs(Lf[JAW_RIGHT_ANGLE, 0] - Lf[JAW_LEFT_ANGLE, 0]) / 2) \
@@ -334,6 +351,11 @@ class HeadBinding:
             self._ring_vertices, ring_local = np.unique(si[ring], return_inverse=True)  # head indices
             self._ring = ring_local.reshape(ring.shape)
             self._ring_sum = csr_matrix((np.ones(len(r)), (slot[ring[r, c]], r)), shape=(len(anchors), len(ring)))
+
+        # Keys that close the eyes close them (the lashes along).
+        moving = parts.mask("follow") & original
+        moving[si[~(rest | depths)]] = True
+        self._lids = LidClosure(Vf, Lf, moving, eye_distance, parts.eyes)
 
         # Lids stay outside the eyeballs.
         self.eyes = {}
@@ -439,7 +461,7 @@ class HeadBinding:
             out[self.prior.vertices] += self.prior.many([m.curve_points(c, r) for c, r, _, _ in motions])
         return out.transpose(1, 0, 2)
 
-    def displacement(self, delta_coefficients, delta_residual, jaw=False, gaze=None) -> np.ndarray:
+    def displacement(self, delta_coefficients, delta_residual, jaw=False, gaze=None, lids=None) -> np.ndarray:
         """Displacement of every vertex (user space and unit) for a change of the PDE curves.
 
         Parameters
@@ -450,18 +472,34 @@ class HeadBinding:
             Move the jaw's parts with the rotation the chin's motion shows (jaw AUs).
         gaze : dict, optional
             Gaze AU weights ``{61: w, ...}``: turn the eyeballs.
+        lids : dict, optional
+            How far the motion closes each eye (:func:`pdeface.head.lids.eyes_closed_by`): the lids meet.
         """
-        return self.displacements([(delta_coefficients, delta_residual, jaw, gaze)])[0]
+        return self.displacements([(delta_coefficients, delta_residual, jaw, gaze, lids)])[0]
 
     def displacements(self, motions) -> np.ndarray:
-        """:meth:`displacement` of several ``(delta_coefficients, delta_residual, jaw, gaze)`` at once, (k, n, 3)."""
-        out = self.face_motions(motions).transpose(1, 0, 2)  # (n, k, 3)
+        """:meth:`displacement` of several ``(delta_coefficients, delta_residual, jaw, gaze[, lids])`` at once,
+        (k, n, 3)."""
+        closing = [m[4] if len(m) > 4 else None for m in motions]
+        out = self.face_motions([tuple(m[:4]) for m in motions]).transpose(1, 0, 2)  # (n, k, 3)
         if self._seam is not None:
             band, reads, S, at, w, steps = self._seam
             flat = out[self.skin[reads]].reshape(len(reads), -1)
             for _ in range(steps):
                 flat[at] += w * (S @ flat - flat[at])
             out[self.skin[band]] = flat[at].reshape(len(band), -1, 3)
+        self._folds.relax(out)
+        self._lids.apply(out, closing)
+        self._keep_out_of_eyeballs(out)
+        # Relaxed again where the lids' closing or the eyeballs' surface folded them (a blink, a glance down), past
+        # the issue's limit alone (each sweep opens a closed lid a little).
+        if self._folds.relax(out, keys=[i for i, c in enumerate(closing) if c or self.eyes], budget=self._folds.limit):
+            self._keep_out_of_eyeballs(out)
+        out[self._copies] = out[self._copy_of]
+        return self.frame.to_user_vectors(out.transpose(1, 0, 2))  # key-major: each key's rows contiguous
+
+    def _keep_out_of_eyeballs(self, out):
+        """Lids that a key takes into an eyeball put back on its surface (``out`` (n, k, 3), in place)."""
         for centre, radius, _, guard in self.eyes.values():
             if len(guard):
                 g = self.skin[guard]
@@ -469,8 +507,6 @@ class HeadBinding:
                 rho = np.linalg.norm(p - centre, axis=-1, keepdims=True)
                 pushed = centre + (p - centre) * (radius / np.maximum(rho, 1e-12)) - self.Vf[g, None]
                 out[g] = np.where(rho < radius, pushed, out[g])
-        out[self._copies] = out[self._copy_of]
-        return self.frame.to_user_vectors(out.transpose(1, 0, 2))  # key-major: each key's rows contiguous
 
     def _follow(self, out):
         """Attached vertices: their anchor's motion, their offset turned as the anchor's normal turns.
@@ -516,7 +552,7 @@ class HeadBinding:
         return self.displacements([self.pose_motion_args(w, m) for w, m in poses])
 
     def pose_motion_args(self, weights, mixer) -> tuple:
-        """``(delta_coefficients, delta_residual, jaw, gaze)`` of AU ``weights`` mixed by ``mixer``."""
+        """``(delta_coefficients, delta_residual, jaw, gaze, lids)`` of AU ``weights`` mixed by ``mixer``."""
 
         weights = normalise_weights(weights)
         C, R = pose_curves(self.model, weights, mixer)
@@ -526,14 +562,15 @@ class HeadBinding:
             if a in GAZE_AUS:
                 gaze[a] = gaze.get(a, 0.0) + weights[k]
         jaw = any(a in JAW_AUS for a in numbers.values())
-        return C - self.model.coefficients, R - self.model.residual, jaw, gaze or None
+        return C - self.model.coefficients, R - self.model.residual, jaw, gaze or None, eyes_closed_by(weights)
 
 
 def descriptor_motion_args(descriptor) -> tuple:
-    """``(delta_coefficients, delta_residual, jaw, gaze)`` of one descriptor at weight 1."""
+    """``(delta_coefficients, delta_residual, jaw, gaze, lids)`` of one descriptor at weight 1."""
 
     au = au_number(descriptor.key)
-    return (*descriptor.dense(), au in JAW_AUS, {au: 1.0} if au in GAZE_AUS else None)
+    return (*descriptor.dense(), au in JAW_AUS, {au: 1.0} if au in GAZE_AUS else None,
+            eyes_closed_by({descriptor.key: 1.0}))
 
 
 def bind_file(model, mesh_arg, landmarks=None, parts=None):
