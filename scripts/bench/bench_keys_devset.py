@@ -47,6 +47,8 @@ TARGETS = {"lid_shrink": 0.80, "lr_diff": 0.25, "lip_gap_ed": 0.25, "upper_lip_r
 LIDS = {"R": ((37, 38), (40, 41)), "L": ((43, 44), (46, 47))}
 LIP_UPPER_INNER, LIP_LOWER_INNER, CORNERS = 62, 66, {"R": 48, "L": 54}
 QUICK = ("AU12", "AU27", "AU45", "happy")
+#: The back of the head starts this many head depths behind the nose tip (the issue's spill rule).
+SPILL_BEHIND = 0.6
 
 
 def eyes_of(L):
@@ -112,17 +114,42 @@ def measure(V, T, L, body, source, quick):
         n for n, c in folds.items() if c > max(TARGETS["new_fold_share"] * len(pairs), TARGETS["new_fold_min"]))}
     r["folds_au"] = {n: folds[n] for n in QUICK}
     # Spill: the back of the head and, on a body, what lies below the chin.
-    chin_y, nose_z = Lf[CHIN, 1], Lf[30, 2]
-    head = (Vf[:, 1] > chin_y) & (np.abs(Vf[:, 0] - Lf[30, 0]) < 1.5 * ed)
-    depth = nose_z - Vf[head, 2].min()
-    below = Vf[:, 1] < chin_y - 1.5 * ed
-    back = (Vf[:, 2] < nose_z - 0.6 * depth) & ~below
-    region = back | below if body else back
+    region = spill_region(Vf, Lf, ed, body)
     moved = {n: float(np.linalg.norm(P[region] - Vf[region], axis=1).max()) if region.any() else 0.0
              for n, P in posed.items()}
     worst = max(moved, key=moved.get)
     r["spill"] = {"worst_key": worst, "max_mm": moved[worst], "vertices": int(region.sum())}
     return r
+
+
+def spill_region(Vf, Lf, ed, body=False, behind=SPILL_BEHIND):
+    """The issue's still region (face frame): the back of the head (more than ``behind`` head depths behind the
+    nose tip) and, on a body, everything more than 1.5 eye distances below the chin."""
+    chin_y, nose_z = Lf[CHIN, 1], Lf[30, 2]
+    head = (Vf[:, 1] > chin_y) & (np.abs(Vf[:, 0] - Lf[30, 0]) < 1.5 * ed)
+    depth = nose_z - Vf[head, 2].min()
+    below = Vf[:, 1] < chin_y - 1.5 * ed
+    back = (Vf[:, 2] < nose_z - behind * depth) & ~below
+    return back | below if body else back
+
+
+def ict_truth_spill():
+    """ICT-FaceKit's own scan-derived AU shapes, measured by the same spill rule on its skin (face, head and neck):
+    ``{AU: max mm}`` at the issue's depth, and a little further back."""
+    from pdeface.assets import HEAD_PARTS, load_head_shapes
+    from pdeface.au.ict import au_offsets
+    from pdeface.landmark_scheme import eye_distance
+
+    head, lm = load_head()
+    V, shapes = head.vertices, load_head_shapes()
+    skin = np.arange(len(V)) < HEAD_PARTS["mouth_socket"]
+    L = V[lm]
+    out = {}
+    for behind in (SPILL_BEHIND, 0.75):
+        region = spill_region(V, L, eye_distance(L), behind=behind) & skin
+        out[behind] = {au: float(np.linalg.norm(au_offsets(au, shapes)[region], axis=1).max() * 10)
+                       for au in ("12", "27", "26", "45")}
+    return out
 
 
 def verdicts(r):
@@ -208,6 +235,10 @@ def main(argv=None):
             print(f"  fails {f}: {k}/{len(done)}")
         shrink = [min(r["lid_shrink"].values()) for r in done.values()]
         print(f"  AU45 closure (worse eye): median {np.median(shrink):.2f}, worst {min(shrink):.2f}")
+        truth = ict_truth_spill()
+        print("  spill of ICT-FaceKit's own scan-derived AU shapes by the same rule (its face, head and neck skin): "
+              + "; ".join(f"{b:g} head depths behind the nose: " + ", ".join(f"AU{k} {v:.2f} mm" for k, v in t.items())
+                          for b, t in truth.items()))
         print(f"  eyeballs found: {sum(len(r['eyeballs']) == 2 for r in done.values())} heads with both; parts "
               f"of the eyeball specs: " + ", ".join(f"{n}: {r['eyeballs'] or 'none'}" for n, r in done.items()
                                                   if SPECS[n].eyeballs != "none"))

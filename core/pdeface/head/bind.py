@@ -96,6 +96,8 @@ SEAM_CORNERS = ((INNER_LIPS[0], 0.3), (INNER_LIPS[4], 0.3), (EYE_INNER_RIGHT, 0.
 SPLIT_RINGS = 2
 #: The head prior fades out over this share of the way from the covered skin to the rest region.
 PRIOR_FADE = 0.3
+#: How near the inner lips' middle line (eye distances) the folds' relaxation leaves the skin as bound.
+LIP_LINE_IOD = 0.03
 #: AUs that move the jaw, and the gaze AUs.
 JAW_AUS = frozenset({25, 26, 27, 29, 30})
 GAZE_AUS = frozenset({61, 62, 63, 64})
@@ -186,6 +188,18 @@ def _prior_reach(Vf, from_covered, skin_rest, Lf, eye_distance):
     reach[skin_rest] = 0.0
     reach[_below_chin(Vf, Lf, eye_distance)] = 0.0
     return reach
+
+
+def _inner_lip_middles(P, Lf, eye_distance):
+    """Skin on the inner lips' middle thirds (landmarks 61-63, 65-67): kept by the folds' relaxation, which would
+    otherwise smooth a mouth whose lips meet in one row of vertices (a decimated head) shut in AU27."""
+    from scipy.spatial import cKDTree
+
+    t = np.linspace(0, 1, 8, endpoint=False)[:, None]
+    lines = [(61, 62), (62, 63), (65, 66), (66, 67)]
+    along = np.concatenate([Lf[a] + t * (Lf[b] - Lf[a]) for a, b in lines] + [Lf[[63, 67]]])
+    near = cKDTree(along).query(P, distance_upper_bound=LIP_LINE_IOD * eye_distance)[0]
+    return np.isfinite(near)
 
 
 def _depths(P, covered, Lf, eye_distance, eyes):
@@ -327,6 +341,7 @@ class HeadBinding:
         for _ in range(SPLIT_RINGS):
             near_skull[T[near_skull[T].any(axis=1)]] = True
         pinned |= parts.mask("jaw") & ~near_skull
+        pinned[si[_inner_lip_middles(P, Lf, eye_distance)]] = True
         self._folds = FoldRelax(Vf, T, pinned)
 
         # Jaw: the chin that drives it, and the parts it turns.
