@@ -198,6 +198,9 @@ def _inner_lip_middles(P, Lf, eye_distance):
     t = np.linspace(0, 1, 8, endpoint=False)[:, None]
     lines = [(61, 62), (62, 63), (65, 66), (66, 67)]
     along = np.concatenate([Lf[a] + t * (Lf[b] - Lf[a]) for a, b in lines] + [Lf[[63, 67]]])
+    along = along[np.isfinite(along).all(axis=1)]  # a landmark may be missing
+    if not len(along):
+        return np.zeros(len(P), bool)
     near = cKDTree(along).query(P, distance_upper_bound=LIP_LINE_IOD * eye_distance)[0]
     return np.isfinite(near)
 
