@@ -49,6 +49,9 @@ VERIFY_ROUNDS = 2
 MAX_VERTICES = 60_000
 #: Skin a pose moves less than this (mm) turns its edges as at rest (by under 0.3° on 1 mm edges).
 MOVED_MM = 0.005
+#: Poses whose edges are tested against the openings together (the test costs the same for a few edges or many;
+#: an edge under the needs found so far is not tested).
+SETTLE_POSES = 16
 #: Largest explicit steps per interval.
 MAX_STEPS = 64
 
@@ -210,7 +213,28 @@ def interval_turns(model, rows, cols, W, floor=0.0):
     known = nearest >= 0
     at_landmarks = np.where(known, nearest, 0)  # the posed grid is read only here and in the moved block
     rest_at_landmarks = flat0[at_landmarks]
-    for w in W:
+    at_nearest = np.where(known, np.arange(len(nearest)), -1)
+    on_grid = D.reshape(n, n_u * n_v, 3)
+    found = []  # per pose with edges that may raise a need: (pose, [(before, after, turn, midpoint) per axis])
+
+    def settle():  # the edges found outside the openings raise their intervals' needs: one test for many poses
+        if not found:
+            return
+        poses = [p for p, _ in found]
+        posed_L = np.stack([carried(rest_at_landmarks, rest_at_landmarks + np.tensordot(
+            W[p][keys], on_grid[keys[:, None], at_landmarks], axes=1), L, nearest=at_nearest)
+            for p, keys in ((p, np.nonzero(W[p])[0]) for p in poses)])
+        parts = [e for _, edges in found for e in edges]
+        mid = np.concatenate([e[3] for e in parts])
+        which = np.repeat(np.arange(len(poses)), [sum(len(e[2]) for e in edges) for _, edges in found])
+        shut = ~(opening_mask(mid, L) | opening_mask(mid, posed_L, which=which))
+        for axis, (before, after, t, _) in zip([0, 1] * len(found), parts):
+            s, shut = shut[:len(t)], shut[len(t):]
+            np.maximum.at(need[axis], before[s], t[s])
+            np.maximum.at(need[axis], after[s], t[s])
+        found.clear()
+
+    for p, w in enumerate(W):
         keys = np.nonzero(w)[0]
         if len(keys):
             r_moved, c_moved = (np.nonzero(m[keys].any(axis=0))[0] for m in (rows_moved, cols_moved))
@@ -220,8 +244,11 @@ def interval_turns(model, rows, cols, W, floor=0.0):
             continue
         r0, c0 = max(r_moved[0] - 2, 0), max(c_moved[0] - 2, 0)
         r1, c1 = r_moved[-1] + 3, c_moved[-1] + 3
-        X = X0[r0:r1, c0:c1] + np.tensordot(w[keys], D[keys, r0:r1, c0:c1], axes=1)  # the block, posed
-        edges = []  # (interval before, interval after, turn, midpoint) per axis, of edges that raise a need
+        if len(keys) == 1:  # the block, posed (one key: no stacked copy of its grids)
+            X = X0[r0:r1, c0:c1] + w[keys[0]] * D[keys[0], r0:r1, c0:c1]
+        else:
+            X = X0[r0:r1, c0:c1] + np.tensordot(w[keys], D[keys, r0:r1, c0:c1], axes=1)
+        edges = []  # (interval before, interval after, turn, midpoint) per axis, of edges that may raise a need
         for axis, cos in enumerate(quad_turn_cosines(X)):
             opened = open_at_rest[axis][r0:r0 + cos.shape[0], c0:c0 + cos.shape[1]]
             r, c = np.nonzero((cos < floor_cos) & ~opened)  # a few more than turn past the floor (rounding)
@@ -236,17 +263,11 @@ def interval_turns(model, rows, cols, W, floor=0.0):
             # and (r + 1, c + 1)
             mid = 0.5 * (X[r + 1, c] + X[r + 1, c + 1]) if axis == 0 else 0.5 * (X[r, c + 1] + X[r + 1, c + 1])
             edges.append((before[keep], after[keep], t[keep], mid))
-        if not sum(len(e[2]) for e in edges):
-            continue
-        mid = np.concatenate([e[3] for e in edges])
-        moved = np.tensordot(w[keys], D.reshape(n, n_u * n_v, 3)[keys[:, None], at_landmarks], axes=1)
-        posed_L = carried(rest_at_landmarks, rest_at_landmarks + moved, L,
-                          nearest=np.where(known, np.arange(len(nearest)), -1))
-        shut = ~(opening_mask(mid, L) | opening_mask(mid, posed_L))
-        for axis, (before, after, t, _) in enumerate(edges):
-            s, shut = shut[:len(t)], shut[len(t):]
-            np.maximum.at(need[axis], before[s], t[s])
-            np.maximum.at(need[axis], after[s], t[s])
+        if sum(len(e[2]) for e in edges):
+            found.append((p, edges))
+        if len(found) == SETTLE_POSES or p == 0:  # the rest's needs first: they spare most poses' edges the test
+            settle()
+    settle()
     return need
 
 
