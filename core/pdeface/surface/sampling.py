@@ -155,18 +155,21 @@ def _check_steps(model, rows, cols):
                             f"{len(steps)}: {list(steps)}")
 
 
-def remember_resolution(model, rows, cols, max_turn=MAX_TURN_DEG):
+def remember_resolution(model, rows, cols, max_turn=MAX_TURN_DEG, fingerprint=None):
     """Record ``rows``, ``cols`` (steps per interval) as ``model``'s adaptive resolution: what a model file
-    read back carries (:mod:`pdeface.au.modelfile`), so it is not chosen again."""
+    read back carries (:mod:`pdeface.au.modelfile`), so it is not chosen again. ``fingerprint``: the model's
+    :func:`model_fingerprint`, when known."""
     _check_steps(model, rows, cols)
     while len(_CHOSEN) >= _CHOSEN_MAX:
         del _CHOSEN[next(iter(_CHOSEN))]
-    _CHOSEN[model_fingerprint(model), max_turn] = (tuple(int(s) for s in rows), tuple(int(s) for s in cols))
+    steps = (tuple(int(s) for s in rows), tuple(int(s) for s in cols))
+    _CHOSEN[fingerprint or model_fingerprint(model), max_turn] = steps
+    return steps
 
 
-def known_resolution(model, max_turn=MAX_TURN_DEG):
+def known_resolution(model, max_turn=MAX_TURN_DEG, fingerprint=None):
     """``model``'s adaptive steps if they were chosen or read already, else None."""
-    return _CHOSEN.get((model_fingerprint(model), max_turn))
+    return _CHOSEN.get((fingerprint or model_fingerprint(model), max_turn))
 
 
 def pose_weights(model) -> np.ndarray:
@@ -177,6 +180,39 @@ def pose_weights(model) -> np.ndarray:
     return np.array(W, dtype=np.float64).reshape(len(W), len(keys))
 
 
+def _moved_block(rows_moved, cols_moved):
+    """The grid block a pose is measured on: the rows and columns its keys move, and two more around them (the
+    quads beside a moved vertex turn); None where it moves nothing."""
+    r, c = np.nonzero(rows_moved)[0], np.nonzero(cols_moved)[0]
+    if not len(r):
+        return None
+    return np.s_[max(r[0] - 2, 0):r[-1] + 3, max(c[0] - 2, 0):c[-1] + 3]
+
+
+def _edges_over(X, block, open_at_rest, interval, need, floor):
+    """(interval before, interval after, turn, midpoint) per axis, of the edges of ``X`` (the grid's ``block``,
+    posed) that turn past ``floor`` and past a need of their intervals found so far, outside the openings at
+    rest (the openings where the pose carries them are tested later, for many poses at once)."""
+    r0, c0 = block[0].start, block[1].start
+    floor_cos = np.cos(np.radians(floor)) + 1e-9
+    edges = []
+    for axis, cos in enumerate(quad_turn_cosines(X)):
+        opened = open_at_rest[axis][r0:r0 + cos.shape[0], c0:c0 + cos.shape[1]]
+        r, c = np.nonzero((cos < floor_cos) & ~opened)  # a few more than turn past the floor (rounding)
+        t = degrees_from_cos(cos[r, c])
+        over = t > floor
+        r, c, t = r[over], c[over], t[over]
+        first = (r + r0, c + c0)[axis]  # the quad before the edge; the one after is first + 1
+        before, after = interval[axis][first], interval[axis][first + 1]
+        keep = (t > need[axis][before]) | (t > need[axis][after])
+        r, c = r[keep], c[keep]
+        # the edge's ends in the block: across rows (r + 1, c) and (r + 1, c + 1), across columns (r, c + 1)
+        # and (r + 1, c + 1)
+        mid = 0.5 * (X[r + 1, c] + X[r + 1, c + 1]) if axis == 0 else 0.5 * (X[r, c + 1] + X[r + 1, c + 1])
+        edges.append((before[keep], after[keep], t[keep], mid))
+    return edges
+
+
 def interval_turns(model, rows, cols, W, floor=0.0):
     """Largest turn (degrees) of the edges in each curve interval and each point interval, outside the
     openings, over the poses ``W`` (:func:`pose_weights`), on the mesh of ``rows``, ``cols`` steps.
@@ -184,20 +220,12 @@ def interval_turns(model, rows, cols, W, floor=0.0):
     An edge across rows belongs to the curve intervals of the quads on both its sides, one across columns
     to their point intervals. Turns under ``floor`` are not looked at. The openings are those
     :func:`pdeface.surface.folds.fold_edges` allows: the landmark polygons at rest, where the pose carries
-    them, and the edges that lie in them at rest.
+    them, and the edges that lie in them at rest. A pose turns edges as the rest does where it does not move
+    the skin: only its moved block is measured. A pose of one key is measured as its key's batch is solved;
+    only the keys of poses of several are kept.
     """
-
     X0 = surface_grid(model, rows, cols)
     n_u, n_v, _ = X0.shape
-    n = W.shape[1]
-    D = np.zeros((n, n_u * n_v * 3))  # (keys, n_u · n_v · 3)
-    rows_moved, cols_moved = np.zeros((n, n_u), bool), np.zeros((n, n_v), bool)
-    # a pose turns edges as the rest does where it does not move the skin: only its moved block is measured
-    for first, grids in key_grids(model, rows, cols):
-        keys = np.s_[first:first + grids.shape[2]]
-        D[keys] = np.moveaxis(grids, 2, 0).reshape(grids.shape[2], -1)
-        moves = (np.abs(D[keys]) > MOVED_MM).reshape(-1, n_u, n_v * 3)
-        rows_moved[keys], cols_moved[keys] = moves.any(axis=2), moves.any(axis=1).reshape(-1, n_v, 3).any(axis=2)
     K, J = len(model.knots), model.layout.n_points
     interval = [np.repeat(np.arange(K - 1), rows), np.repeat(np.arange(J - 1), cols)]  # of each quad row, column
     L = model_landmarks(model)
@@ -208,25 +236,20 @@ def interval_turns(model, rows, cols, W, floor=0.0):
     flat0 = X0.reshape(-1, 3)
     open_at_rest = [opening_mask(0.5 * (flat0[a] + flat0[b]).reshape(-1, 3), L).reshape(a.shape) for a, b in ends]
     need = [np.zeros(K - 1), np.zeros(J - 1)]
-    floor_cos = np.cos(np.radians(floor)) + 1e-9
-    D = D.reshape(n, n_u, n_v, 3)
     known = nearest >= 0
     at_landmarks = np.where(known, nearest, 0)  # the posed grid is read only here and in the moved block
     rest_at_landmarks = flat0[at_landmarks]
     at_nearest = np.where(known, np.arange(len(nearest)), -1)
-    on_grid = D.reshape(n, n_u * n_v, 3)
-    found = []  # per pose with edges that may raise a need: (pose, [(before, after, turn, midpoint) per axis])
+    found = []  # per pose with edges that may raise a need: (its landmarks' displacement, its edges)
 
     def settle():  # the edges found outside the openings raise their intervals' needs: one test for many poses
         if not found:
             return
-        poses = [p for p, _ in found]
-        posed_L = np.stack([carried(rest_at_landmarks, rest_at_landmarks + np.tensordot(
-            W[p][keys], on_grid[keys[:, None], at_landmarks], axes=1), L, nearest=at_nearest)
-            for p, keys in ((p, np.nonzero(W[p])[0]) for p in poses)])
+        posed_L = np.stack([carried(rest_at_landmarks, rest_at_landmarks + moved, L, nearest=at_nearest)
+                            for moved, _ in found])
         parts = [e for _, edges in found for e in edges]
         mid = np.concatenate([e[3] for e in parts])
-        which = np.repeat(np.arange(len(poses)), [sum(len(e[2]) for e in edges) for _, edges in found])
+        which = np.repeat(np.arange(len(found)), [sum(len(e[2]) for e in edges) for _, edges in found])
         shut = ~(opening_mask(mid, L) | opening_mask(mid, posed_L, which=which))
         for axis, (before, after, t, _) in zip([0, 1] * len(found), parts):
             s, shut = shut[:len(t)], shut[len(t):]
@@ -234,39 +257,44 @@ def interval_turns(model, rows, cols, W, floor=0.0):
             np.maximum.at(need[axis], after[s], t[s])
         found.clear()
 
-    for p, w in enumerate(W):
-        keys = np.nonzero(w)[0]
-        if len(keys):
-            r_moved, c_moved = (np.nonzero(m[keys].any(axis=0))[0] for m in (rows_moved, cols_moved))
-        else:
-            r_moved, c_moved = np.arange(n_u), np.arange(n_v)
-        if not len(r_moved):
-            continue
-        r0, c0 = max(r_moved[0] - 2, 0), max(c_moved[0] - 2, 0)
-        r1, c1 = r_moved[-1] + 3, c_moved[-1] + 3
-        if len(keys) == 1:  # the block, posed (one key: no stacked copy of its grids)
-            X = X0[r0:r1, c0:c1] + w[keys[0]] * D[keys[0], r0:r1, c0:c1]
-        else:
-            X = X0[r0:r1, c0:c1] + np.tensordot(w[keys], D[keys, r0:r1, c0:c1], axes=1)
-        edges = []  # (interval before, interval after, turn, midpoint) per axis, of edges that may raise a need
-        for axis, cos in enumerate(quad_turn_cosines(X)):
-            opened = open_at_rest[axis][r0:r0 + cos.shape[0], c0:c0 + cos.shape[1]]
-            r, c = np.nonzero((cos < floor_cos) & ~opened)  # a few more than turn past the floor (rounding)
-            t = degrees_from_cos(cos[r, c])
-            over = t > floor
-            r, c, t = r[over], c[over], t[over]
-            first = (r + r0, c + c0)[axis]  # the quad before the edge; the one after is first + 1
-            before, after = interval[axis][first], interval[axis][first + 1]
-            keep = (t > need[axis][before]) | (t > need[axis][after])
-            r, c = r[keep], c[keep]
-            # the edge's ends in the block: across rows (r + 1, c) and (r + 1, c + 1), across columns (r, c + 1)
-            # and (r + 1, c + 1)
-            mid = 0.5 * (X[r + 1, c] + X[r + 1, c + 1]) if axis == 0 else 0.5 * (X[r, c + 1] + X[r + 1, c + 1])
-            edges.append((before[keep], after[keep], t[keep], mid))
+    def measure(X, block, moved_landmarks):
+        edges = _edges_over(X, block, open_at_rest, interval, need, floor)
         if sum(len(e[2]) for e in edges):
-            found.append((p, edges))
-        if len(found) == SETTLE_POSES or p == 0:  # the rest's needs first: they spare most poses' edges the test
+            found.append((moved_landmarks, edges))
+        if len(found) == SETTLE_POSES:
             settle()
+
+    counts = np.count_nonzero(W, axis=1)
+    if (counts == 0).any():  # the rest first: its needs spare most poses' edges the openings' test
+        measure(X0, np.s_[0:n_u, 0:n_v], np.zeros_like(rest_at_landmarks))
+        settle()
+    single = {}  # key → the poses of it alone
+    for p in np.nonzero(counts == 1)[0]:
+        single.setdefault(int(np.nonzero(W[p])[0][0]), []).append(p)
+    several = np.nonzero(counts > 1)[0]
+    kept = {int(k): None for k in np.nonzero(W[several].any(axis=0))[0]}  # key → its grid, for poses of several
+    n = W.shape[1]
+    rows_moved, cols_moved = np.zeros((n, n_u), bool), np.zeros((n, n_v), bool)
+    for first, grids in key_grids(model, rows, cols):
+        m = grids.shape[2]
+        moves = (np.abs(grids) > MOVED_MM).any(axis=3)  # (n_u, n_v, m)
+        rows_moved[first:first + m], cols_moved[first:first + m] = moves.any(axis=1).T, moves.any(axis=0).T
+        at_landmarks_moved = grids.reshape(n_u * n_v, m, 3)[at_landmarks]
+        for j, k in enumerate(range(first, first + m)):
+            if k in kept:
+                kept[k] = np.ascontiguousarray(grids[:, :, j])
+            block = _moved_block(rows_moved[k], cols_moved[k])
+            for p in single.get(k, ()) if block is not None else ():
+                w = W[p, k]
+                measure(X0[block] + w * grids[block + (j,)], block, w * at_landmarks_moved[:, j])
+    for p in several:
+        keys = np.nonzero(W[p])[0]
+        block = _moved_block(rows_moved[keys].any(axis=0), cols_moved[keys].any(axis=0))
+        if block is None:
+            continue
+        X = X0[block] + np.tensordot(W[p, keys], np.stack([kept[k][block] for k in keys]), axes=1)
+        moved = np.tensordot(W[p, keys], np.stack([kept[k].reshape(-1, 3)[at_landmarks] for k in keys]), axes=1)
+        measure(X, block, moved)
     settle()
     return need
 
@@ -292,7 +320,8 @@ def adaptive_resolution(model, max_turn=MAX_TURN_DEG):
     to its measured turn (up to :data:`VERIFY_ROUNDS` times). The mesh is kept under :data:`MAX_VERTICES`
     (:func:`capped_steps`); a capped choice is not verified again (more steps are what it would ask for).
     """
-    known = known_resolution(model, max_turn)
+    fingerprint = model_fingerprint(model)  # a digest of the descriptors: taken once
+    known = known_resolution(model, max_turn, fingerprint)
     if known is not None:
         return known
     K, J = len(model.knots), model.layout.n_points
@@ -311,5 +340,4 @@ def adaptive_resolution(model, max_turn=MAX_TURN_DEG):
                                       for s, t, o in zip(steps, turns, over)])
         if capped:
             break
-    remember_resolution(model, *steps, max_turn=max_turn)
-    return known_resolution(model, max_turn)
+    return remember_resolution(model, *steps, max_turn=max_turn, fingerprint=fingerprint)
