@@ -114,11 +114,11 @@ def quad_turn_cosines(X):
     """Cosines of the turns across a grid mesh's inner edges: ``(across rows, across columns)`` (the turns'
     arccos costs more than the rest: callers compare cosines first).
 
-    ``X`` (n_u, n_v, 3). Quad normals are their diagonals' cross product (Newell's for a quad);
-    across rows: (n_u - 2, n_v - 1), the edge on row r + 1; across columns: (n_u - 1, n_v - 2).
-    Worked on one coordinate plane at a time: reductions over an axis of 3 are slow in numpy.
+    ``X`` (n_u, n_v, 3), or its three coordinate planes (n_u, n_v). Quad normals are their diagonals' cross
+    product (Newell's for a quad); across rows: (n_u - 2, n_v - 1), the edge on row r + 1; across columns:
+    (n_u - 1, n_v - 2). Worked on one coordinate plane at a time: reductions over an axis of 3 are slow in numpy.
     """
-    x, y, z = (np.ascontiguousarray(X[..., i]) for i in range(3))
+    x, y, z = (np.ascontiguousarray(p) for p in (X if isinstance(X, (list, tuple)) else np.moveaxis(X, 2, 0)))
     d1 = [p[1:, 1:] - p[:-1, :-1] for p in (x, y, z)]
     d2 = [p[:-1, 1:] - p[1:, :-1] for p in (x, y, z)]
     N = [d2[1] * d1[2] - d2[2] * d1[1], d2[2] * d1[0] - d2[0] * d1[2], d2[0] * d1[1] - d2[1] * d1[0]]
@@ -191,8 +191,9 @@ def _moved_block(rows_moved, cols_moved):
 
 def _edges_over(X, block, open_at_rest, interval, need, floor):
     """(interval before, interval after, turn, midpoint) per axis, of the edges of ``X`` (the grid's ``block``,
-    posed) that turn past ``floor`` and past a need of their intervals found so far, outside the openings at
-    rest (the openings where the pose carries them are tested later, for many poses at once)."""
+    posed: its three coordinate planes) that turn past ``floor`` and past a need of their intervals found so
+    far, outside the openings at rest (the openings where the pose carries them are tested later, for many
+    poses at once)."""
     r0, c0 = block[0].start, block[1].start
     floor_cos = np.cos(np.radians(floor)) + 1e-9
     edges = []
@@ -208,7 +209,8 @@ def _edges_over(X, block, open_at_rest, interval, need, floor):
         r, c = r[keep], c[keep]
         # the edge's ends in the block: across rows (r + 1, c) and (r + 1, c + 1), across columns (r, c + 1)
         # and (r + 1, c + 1)
-        mid = 0.5 * (X[r + 1, c] + X[r + 1, c + 1]) if axis == 0 else 0.5 * (X[r, c + 1] + X[r + 1, c + 1])
+        mid = np.stack([0.5 * (p[r + 1, c] + p[r + 1, c + 1]) if axis == 0 else 0.5 * (p[r, c + 1] + p[r + 1, c + 1])
+                        for p in X], axis=1)
         edges.append((before[keep], after[keep], t[keep], mid))
     return edges
 
@@ -264,9 +266,10 @@ def interval_turns(model, rows, cols, W, floor=0.0):
         if len(found) == SETTLE_POSES:
             settle()
 
+    planes0 = [np.ascontiguousarray(X0[..., i]) for i in range(3)]
     counts = np.count_nonzero(W, axis=1)
     if (counts == 0).any():  # the rest first: its needs spare most poses' edges the openings' test
-        measure(X0, np.s_[0:n_u, 0:n_v], np.zeros_like(rest_at_landmarks))
+        measure(planes0, np.s_[0:n_u, 0:n_v], np.zeros_like(rest_at_landmarks))
         settle()
     single = {}  # key → the poses of it alone
     for p in np.nonzero(counts == 1)[0]:
@@ -288,9 +291,8 @@ def interval_turns(model, rows, cols, W, floor=0.0):
             block = _moved_block(rows_moved[k], cols_moved[k])
             for p in single.get(k, ()) if block is not None else ():
                 w = W[p, k]
-                X = w * grids[block + (j,)]
-                X += X0[block]
-                measure(X, block, w * at_landmarks_moved[:, j])
+                measure([w * grids[block + (j, i)] + planes0[i][block] for i in range(3)], block,
+                        w * at_landmarks_moved[:, j])
     for p in several:
         keys = np.nonzero(W[p])[0]
         block = _moved_block(rows_moved[keys].any(axis=0), cols_moved[keys].any(axis=0))
@@ -298,7 +300,7 @@ def interval_turns(model, rows, cols, W, floor=0.0):
             continue
         X = X0[block] + np.tensordot(W[p, keys], np.stack([kept[k][block] for k in keys]), axes=1)
         moved = np.tensordot(W[p, keys], np.stack([kept[k].reshape(-1, 3)[at_landmarks] for k in keys]), axes=1)
-        measure(X, block, moved)
+        measure([X[..., i] for i in range(3)], block, moved)
     settle()
     return need
 
