@@ -189,7 +189,7 @@ def _moved_block(rows_moved, cols_moved):
     return np.s_[max(r[0] - 2, 0):r[-1] + 3, max(c[0] - 2, 0):c[-1] + 3]
 
 
-def _edges_over(X, block, open_at_rest, interval, need, floor):
+def _edges_over(X, block, shut_at_rest, interval, need, floor):
     """(interval before, interval after, turn, midpoint) per axis, of the edges of ``X`` (the grid's ``block``,
     posed: its three coordinate planes) that turn past ``floor`` and past a need of their intervals found so
     far, outside the openings at rest (the openings where the pose carries them are tested later, for many
@@ -198,8 +198,9 @@ def _edges_over(X, block, open_at_rest, interval, need, floor):
     floor_cos = np.cos(np.radians(floor)) + 1e-9
     edges = []
     for axis, cos in enumerate(quad_turn_cosines(X)):
-        opened = open_at_rest[axis][r0:r0 + cos.shape[0], c0:c0 + cos.shape[1]]
-        r, c = np.nonzero((cos < floor_cos) & ~opened)  # a few more than turn past the floor (rounding)
+        looked = cos < floor_cos  # a few more than turn past the floor (rounding)
+        looked &= shut_at_rest[axis][r0:r0 + cos.shape[0], c0:c0 + cos.shape[1]]
+        r, c = np.nonzero(looked)
         t = degrees_from_cos(cos[r, c])
         over = t > floor
         r, c, t = r[over], c[over], t[over]
@@ -232,11 +233,10 @@ def interval_turns(model, rows, cols, W, floor=0.0):
     interval = [np.repeat(np.arange(K - 1), rows), np.repeat(np.arange(J - 1), cols)]  # of each quad row, column
     L = model_landmarks(model)
     nearest = nearest_vertices(X0.reshape(-1, 3), L)
-    # each inner edge's ends, across rows (on row r + 1) and across columns (on column c + 1), as flat indices
-    grid = np.arange(n_u * n_v).reshape(n_u, n_v)
-    ends = [(grid[1:-1, :-1], grid[1:-1, 1:]), (grid[:-1, 1:-1], grid[1:, 1:-1])]
+    # each inner edge's midpoint at rest: across rows (on row r + 1), across columns (on column c + 1)
+    mids = (0.5 * (X0[1:-1, :-1] + X0[1:-1, 1:]), 0.5 * (X0[:-1, 1:-1] + X0[1:, 1:-1]))
+    shut_at_rest = [~opening_mask(m.reshape(-1, 3), L).reshape(m.shape[:2]) for m in mids]
     flat0 = X0.reshape(-1, 3)
-    open_at_rest = [opening_mask(0.5 * (flat0[a] + flat0[b]).reshape(-1, 3), L).reshape(a.shape) for a, b in ends]
     need = [np.zeros(K - 1), np.zeros(J - 1)]
     known = nearest >= 0
     at_landmarks = np.where(known, nearest, 0)  # the posed grid is read only here and in the moved block
@@ -260,7 +260,7 @@ def interval_turns(model, rows, cols, W, floor=0.0):
         found.clear()
 
     def measure(X, block, moved_landmarks):
-        edges = _edges_over(X, block, open_at_rest, interval, need, floor)
+        edges = _edges_over(X, block, shut_at_rest, interval, need, floor)
         if sum(len(e[2]) for e in edges):
             found.append((moved_landmarks, edges))
         if len(found) == SETTLE_POSES:
