@@ -329,3 +329,25 @@ def test_an_opening_is_made_of_the_landmarks_a_model_keeps():
     np.testing.assert_array_equal(opening_mask(P, kept), [True, True, False])
     kept[[51, 57]] = np.nan  # two left: no polygon
     np.testing.assert_array_equal(opening_mask(P, kept), [False, False, False])
+
+
+def test_many_landmark_sets_at_once_are_each_set_alone():
+    """opening_mask with a landmark set per point (a face's poses, tested together) marks each point as its
+    own set alone does, the landmarks some sets lack included."""
+    from pdeface.surface.folds import opening_mask
+
+    rng = np.random.default_rng(3)
+    L = np.zeros((68, 3))
+    for idx in OPENINGS.values():  # each opening a ring of radius 5 mm about its own centre
+        a = np.linspace(0, 2 * np.pi, len(idx), endpoint=False)
+        L[idx, :2] = rng.uniform(-30, 30, 2) + 5 * np.stack([np.cos(a), np.sin(a)], 1)
+    L[OPENINGS["nostrils"][:4]] = np.nan  # a model file keeps a few: too few for the nostrils' polygon
+    sets = L + rng.normal(0, 2, (4, 68, 3))
+    points = rng.uniform(-40, 40, (3000, 3))
+    which = rng.integers(0, len(sets), len(points))
+    together = opening_mask(points, sets, which=which)
+    alone = np.zeros(len(points), bool)
+    for s in range(len(sets)):
+        alone[which == s] = opening_mask(points[which == s], sets[s])
+    assert together.any() and (~together).any()
+    np.testing.assert_array_equal(together, alone)

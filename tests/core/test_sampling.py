@@ -169,3 +169,68 @@ def test_descriptors_solved_in_batches_are_those_solved_at_once(model):
                                    atol=1e-10)
         seen += grids.shape[2]
     assert seen == len(model.descriptors)
+
+
+def reference_interval_turns(model, rows, cols, W, floor=0.0):
+    """interval_turns written straightforwardly: every key's grid kept, each pose posed on the whole grid and
+    its turns and openings measured alone; an edge counts where both its quads lie in the pose's moved block."""
+    from pdeface.geometry import degrees_from_cos
+    from pdeface.surface.folds import carried, opening_mask
+    from pdeface.surface.grid import key_grids
+    from pdeface.surface.model import model_landmarks
+
+    X0 = surface_grid(model, rows, cols)
+    n_u, n_v, _ = X0.shape
+    D = np.concatenate([g for _, g in key_grids(model, rows, cols)], axis=2)  # (n_u, n_v, keys, 3)
+    L, rest = model_landmarks(model), X0.reshape(-1, 3)
+    interval = [np.repeat(np.arange(len(model.knots) - 1), rows), np.repeat(np.arange(model.layout.n_points - 1), cols)]
+    need = [np.zeros(len(rows)), np.zeros(len(cols))]
+    for w in W:
+        keys = np.nonzero(w)[0]
+        X = X0 + np.tensordot(D[:, :, keys], w[keys], axes=([2], [0]))
+        moved = (np.abs(D[:, :, keys]) > sampling.MOVED_MM).any(axis=(2, 3)) if len(keys) else np.ones((n_u, n_v), bool)
+        if not moved.any():
+            continue
+        r, c = np.nonzero(moved.any(axis=1))[0], np.nonzero(moved.any(axis=0))[0]
+        r0, r1, c0, c1 = max(r[0] - 2, 0), min(r[-1] + 3, n_u), max(c[0] - 2, 0), min(c[-1] + 3, n_v)
+        posed_L = carried(rest, X.reshape(-1, 3), L)
+        for axis, cos in enumerate(sampling.quad_turn_cosines(X)):
+            R, C = np.meshgrid(np.arange(cos.shape[0]), np.arange(cos.shape[1]), indexing="ij")
+            # the edge's quads (and the edge) in the block: across rows R, R + 1 and the edge on row R + 1
+            inside = (R >= r0) & (C >= c0) & (R + 2 + (axis == 0) <= r1) & (C + 2 + (axis == 1) <= c1)
+            if axis == 0:
+                a, b = (R + 1) * n_v + C, (R + 1) * n_v + C + 1
+            else:
+                a, b = R * n_v + C + 1, (R + 1) * n_v + C + 1
+            opened = (opening_mask(0.5 * (rest[a.ravel()] + rest[b.ravel()]), L)
+                      | opening_mask(0.5 * (X.reshape(-1, 3)[a.ravel()] + X.reshape(-1, 3)[b.ravel()]), L)
+                      | opening_mask(0.5 * (X.reshape(-1, 3)[a.ravel()] + X.reshape(-1, 3)[b.ravel()]), posed_L))
+            t = degrees_from_cos(cos).ravel()
+            counted = inside.ravel() & ~opened & (t > floor)
+            first = (R, C)[axis].ravel()[counted]
+            for side in (first, first + 1):
+                np.maximum.at(need[axis], interval[axis][side], t[counted])
+    return need
+
+
+def test_the_choice_is_the_straightforward_ones(model, monkeypatch):
+    """The choice's turns (poses of one key measured as their batch is solved, the openings tested for many
+    poses at once) are those of a pose-at-a-time measurement on the whole grid, at the probe's steps and at
+    the chosen ones, and so is the choice; on a smaller face (a quarter of the bundled descriptors)."""
+    import copy
+
+    small = copy.deepcopy(model)
+    small.descriptors = small.descriptors[::4]
+    W = sampling.pose_weights(small)
+    assert (np.count_nonzero(W, axis=1) > 1).any() and (np.count_nonzero(W, axis=1) == 1).any()
+    chosen = sampling.adaptive_resolution(small)
+    K, J = len(small.knots), small.layout.n_points
+    for steps, floor in ((((sampling.PROBE,) * (K - 1), (sampling.PROBE,) * (J - 1)), 10.0), (chosen, 10.0)):
+        fast, slow = sampling.interval_turns(small, *steps, W, floor), reference_interval_turns(small, *steps, W, floor)
+        assert max(s.max() for s in slow) > floor
+        for f, s in zip(fast, slow):
+            np.testing.assert_allclose(f, s, atol=1e-9)
+    monkeypatch.setattr(sampling, "interval_turns", reference_interval_turns)
+    small.descriptors = small.descriptors[:]  # the same model: its choice is made again, the reference's way
+    sampling._CHOSEN.pop((sampling.model_fingerprint(small), sampling.MAX_TURN_DEG))
+    assert sampling.adaptive_resolution(small) == chosen

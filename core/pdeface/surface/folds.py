@@ -24,9 +24,12 @@ CREASE_MM = 3.0
 
 
 def _inside(points, polygon) -> np.ndarray:
-    """Even-odd test of 2-D ``points`` against a closed ``polygon`` (vectorised over points)."""
+    """Even-odd test of 2-D ``points`` against a closed ``polygon`` (m, 2), or each point against its own
+    (points, m, 2) (vectorised over points)."""
     x, y = points[:, :1], points[:, 1:2]
-    (x0, y0), (x1, y1) = polygon.T, np.roll(polygon, -1, axis=0).T  # each edge, as a row over the points
+    x0, y0 = polygon[..., 0], polygon[..., 1]
+    following = np.roll(polygon, -1, axis=-2)  # each edge, as a row over the points
+    x1, y1 = following[..., 0], following[..., 1]
     crosses = (y0 > y) != (y1 > y)
     with np.errstate(divide="ignore", invalid="ignore"):
         xc = x0 + (y - y0) * (x1 - x0) / (y1 - y0)
@@ -42,7 +45,9 @@ def nearest_vertices(rest_vertices, points) -> np.ndarray:
     if not known.any():
         return nearest
     if known.sum() <= 100:  # landmarks: a brute-force search (|v|² - 2 v·p per pair) is cheaper than a tree
-        nearest[known] = np.argmin((V ** 2).sum(axis=1)[:, None] - 2 * V @ P[known].T, axis=0)
+        # (a sum over the axis of 3 is slow in numpy; the same additions in the same order)
+        square = V[:, 0] ** 2 + V[:, 1] ** 2 + V[:, 2] ** 2
+        nearest[known] = np.argmin(square - 2 * P[known] @ V.T, axis=1)
     else:
         from scipy.spatial import cKDTree
         nearest[known] = cKDTree(V).query(P[known])[1]
@@ -66,23 +71,28 @@ def carried(rest_vertices, posed_vertices, points, nearest=None) -> np.ndarray:
     return P
 
 
-def opening_mask(points_face, landmarks_face, grow=GROW) -> np.ndarray:
+def opening_mask(points_face, landmarks_face, grow=GROW, which=None) -> np.ndarray:
     """Which face-frame points lie inside an opening's grown landmark polygon (frontal view).
 
     A polygon is made of the landmarks that are known (a model file keeps some only: the mouth's
-    corners and midpoints); an opening with fewer than 3 known is left out.
+    corners and midpoints); an opening with fewer than 3 known is left out. ``which``: each point's
+    landmark set, when ``landmarks_face`` is (sets, 68, 3) (a face's poses, tested at once; the known
+    landmarks are those known in every set).
     """
     mask = np.zeros(len(points_face), bool)
+    sets = np.asarray(landmarks_face)[None] if which is None else np.asarray(landmarks_face)
+    which = np.zeros(len(points_face), np.int64) if which is None else np.asarray(which)
     for idx in OPENINGS.values():
-        poly = landmarks_face[idx, :2]
-        poly = poly[np.isfinite(poly).all(axis=1)]
-        if len(poly) < 3:
+        poly = sets[:, idx, :2]
+        poly = poly[:, np.isfinite(poly).all(axis=(0, 2))]
+        if poly.shape[1] < 3:
             continue
-        centre = poly.mean(axis=0)
-        grown = centre + (1 + grow) * (poly - centre)
-        near = np.nonzero(((points_face[:, :2] >= grown.min(axis=0)) & (points_face[:, :2] <= grown.max(axis=0)))
-                          .all(axis=1))[0]  # only points in its bounding box can be inside
-        mask[near] |= _inside(points_face[near, :2], grown)
+        centre = poly.mean(axis=1, keepdims=True)
+        grown = centre + (1 + grow) * (poly - centre)  # (sets, m, 2)
+        lo, hi = grown.min(axis=1)[which], grown.max(axis=1)[which]
+        xy = points_face[:, :2]
+        near = np.nonzero(((xy >= lo) & (xy <= hi)).all(axis=1))[0]  # only points in its bounding box can be inside
+        mask[near] |= _inside(xy[near], grown[0] if len(grown) == 1 else grown[which[near]])
     return mask
 
 

@@ -49,6 +49,9 @@ VERIFY_ROUNDS = 2
 MAX_VERTICES = 60_000
 #: Skin a pose moves less than this (mm) turns its edges as at rest (by under 0.3° on 1 mm edges).
 MOVED_MM = 0.005
+#: Poses whose edges are tested against the openings together (the test costs the same for a few edges or many;
+#: an edge under the needs found so far is not tested).
+SETTLE_POSES = 16
 #: Largest explicit steps per interval.
 MAX_STEPS = 64
 
@@ -111,11 +114,11 @@ def quad_turn_cosines(X):
     """Cosines of the turns across a grid mesh's inner edges: ``(across rows, across columns)`` (the turns'
     arccos costs more than the rest: callers compare cosines first).
 
-    ``X`` (n_u, n_v, 3). Quad normals are their diagonals' cross product (Newell's for a quad);
-    across rows: (n_u - 2, n_v - 1), the edge on row r + 1; across columns: (n_u - 1, n_v - 2).
-    Worked on one coordinate plane at a time: reductions over an axis of 3 are slow in numpy.
+    ``X`` (n_u, n_v, 3), or its three coordinate planes (n_u, n_v). Quad normals are their diagonals' cross
+    product (Newell's for a quad); across rows: (n_u - 2, n_v - 1), the edge on row r + 1; across columns:
+    (n_u - 1, n_v - 2). Worked on one coordinate plane at a time: reductions over an axis of 3 are slow in numpy.
     """
-    x, y, z = (np.ascontiguousarray(X[..., i]) for i in range(3))
+    x, y, z = (np.ascontiguousarray(p) for p in (X if isinstance(X, (list, tuple)) else np.moveaxis(X, 2, 0)))
     d1 = [p[1:, 1:] - p[:-1, :-1] for p in (x, y, z)]
     d2 = [p[:-1, 1:] - p[1:, :-1] for p in (x, y, z)]
     N = [d2[1] * d1[2] - d2[2] * d1[1], d2[2] * d1[0] - d2[0] * d1[2], d2[0] * d1[1] - d2[1] * d1[0]]
@@ -152,18 +155,21 @@ def _check_steps(model, rows, cols):
                             f"{len(steps)}: {list(steps)}")
 
 
-def remember_resolution(model, rows, cols, max_turn=MAX_TURN_DEG):
+def remember_resolution(model, rows, cols, max_turn=MAX_TURN_DEG, fingerprint=None):
     """Record ``rows``, ``cols`` (steps per interval) as ``model``'s adaptive resolution: what a model file
-    read back carries (:mod:`pdeface.au.modelfile`), so it is not chosen again."""
+    read back carries (:mod:`pdeface.au.modelfile`), so it is not chosen again. ``fingerprint``: the model's
+    :func:`model_fingerprint`, when known."""
     _check_steps(model, rows, cols)
     while len(_CHOSEN) >= _CHOSEN_MAX:
         del _CHOSEN[next(iter(_CHOSEN))]
-    _CHOSEN[model_fingerprint(model), max_turn] = (tuple(int(s) for s in rows), tuple(int(s) for s in cols))
+    steps = (tuple(int(s) for s in rows), tuple(int(s) for s in cols))
+    _CHOSEN[fingerprint or model_fingerprint(model), max_turn] = steps
+    return steps
 
 
-def known_resolution(model, max_turn=MAX_TURN_DEG):
+def known_resolution(model, max_turn=MAX_TURN_DEG, fingerprint=None):
     """``model``'s adaptive steps if they were chosen or read already, else None."""
-    return _CHOSEN.get((model_fingerprint(model), max_turn))
+    return _CHOSEN.get((fingerprint or model_fingerprint(model), max_turn))
 
 
 def pose_weights(model) -> np.ndarray:
@@ -174,6 +180,42 @@ def pose_weights(model) -> np.ndarray:
     return np.array(W, dtype=np.float64).reshape(len(W), len(keys))
 
 
+def _moved_block(rows_moved, cols_moved):
+    """The grid block a pose is measured on: the rows and columns its keys move, and two more around them (the
+    quads beside a moved vertex turn); None where it moves nothing."""
+    r, c = np.nonzero(rows_moved)[0], np.nonzero(cols_moved)[0]
+    if not len(r):
+        return None
+    return np.s_[max(r[0] - 2, 0):r[-1] + 3, max(c[0] - 2, 0):c[-1] + 3]
+
+
+def _edges_over(X, block, shut_at_rest, interval, need, floor):
+    """(interval before, interval after, turn, midpoint) per axis, of the edges of ``X`` (the grid's ``block``,
+    posed: its three coordinate planes) that turn past ``floor`` and past a need of their intervals found so
+    far, outside the openings at rest (the openings where the pose carries them are tested later, for many
+    poses at once)."""
+    r0, c0 = block[0].start, block[1].start
+    floor_cos = np.cos(np.radians(floor)) + 1e-9
+    edges = []
+    for axis, cos in enumerate(quad_turn_cosines(X)):
+        looked = cos < floor_cos  # a few more than turn past the floor (rounding)
+        looked &= shut_at_rest[axis][r0:r0 + cos.shape[0], c0:c0 + cos.shape[1]]
+        r, c = np.nonzero(looked)
+        t = degrees_from_cos(cos[r, c])
+        over = t > floor
+        r, c, t = r[over], c[over], t[over]
+        first = (r + r0, c + c0)[axis]  # the quad before the edge; the one after is first + 1
+        before, after = interval[axis][first], interval[axis][first + 1]
+        keep = (t > need[axis][before]) | (t > need[axis][after])
+        r, c = r[keep], c[keep]
+        # the edge's ends in the block: across rows (r + 1, c) and (r + 1, c + 1), across columns (r, c + 1)
+        # and (r + 1, c + 1)
+        mid = np.stack([0.5 * (p[r + 1, c] + p[r + 1, c + 1]) if axis == 0 else 0.5 * (p[r, c + 1] + p[r + 1, c + 1])
+                        for p in X], axis=1)
+        edges.append((before[keep], after[keep], t[keep], mid))
+    return edges
+
+
 def interval_turns(model, rows, cols, W, floor=0.0):
     """Largest turn (degrees) of the edges in each curve interval and each point interval, outside the
     openings, over the poses ``W`` (:func:`pose_weights`), on the mesh of ``rows``, ``cols`` steps.
@@ -181,72 +223,85 @@ def interval_turns(model, rows, cols, W, floor=0.0):
     An edge across rows belongs to the curve intervals of the quads on both its sides, one across columns
     to their point intervals. Turns under ``floor`` are not looked at. The openings are those
     :func:`pdeface.surface.folds.fold_edges` allows: the landmark polygons at rest, where the pose carries
-    them, and the edges that lie in them at rest.
+    them, and the edges that lie in them at rest. A pose turns edges as the rest does where it does not move
+    the skin: only its moved block is measured. A pose of one key is measured as its key's batch is solved;
+    only the keys of poses of several are kept.
     """
-
     X0 = surface_grid(model, rows, cols)
     n_u, n_v, _ = X0.shape
-    n = W.shape[1]
-    D = np.zeros((n, n_u * n_v * 3))  # (keys, n_u · n_v · 3)
-    rows_moved, cols_moved = np.zeros((n, n_u), bool), np.zeros((n, n_v), bool)
-    # a pose turns edges as the rest does where it does not move the skin: only its moved block is measured
-    for first, grids in key_grids(model, rows, cols):
-        keys = np.s_[first:first + grids.shape[2]]
-        D[keys] = np.moveaxis(grids, 2, 0).reshape(grids.shape[2], -1)
-        moves = (np.abs(D[keys]) > MOVED_MM).reshape(-1, n_u, n_v * 3)
-        rows_moved[keys], cols_moved[keys] = moves.any(axis=2), moves.any(axis=1).reshape(-1, n_v, 3).any(axis=2)
     K, J = len(model.knots), model.layout.n_points
     interval = [np.repeat(np.arange(K - 1), rows), np.repeat(np.arange(J - 1), cols)]  # of each quad row, column
     L = model_landmarks(model)
     nearest = nearest_vertices(X0.reshape(-1, 3), L)
-    # each inner edge's ends, across rows (on row r + 1) and across columns (on column c + 1), as flat indices
-    grid = np.arange(n_u * n_v).reshape(n_u, n_v)
-    ends = [(grid[1:-1, :-1], grid[1:-1, 1:]), (grid[:-1, 1:-1], grid[1:, 1:-1])]
+    # each inner edge's midpoint at rest: across rows (on row r + 1), across columns (on column c + 1)
+    mids = (0.5 * (X0[1:-1, :-1] + X0[1:-1, 1:]), 0.5 * (X0[:-1, 1:-1] + X0[1:, 1:-1]))
+    shut_at_rest = [~opening_mask(m.reshape(-1, 3), L).reshape(m.shape[:2]) for m in mids]
     flat0 = X0.reshape(-1, 3)
-    open_at_rest = [opening_mask(0.5 * (flat0[a] + flat0[b]).reshape(-1, 3), L).reshape(a.shape) for a, b in ends]
     need = [np.zeros(K - 1), np.zeros(J - 1)]
-    floor_cos = np.cos(np.radians(floor)) + 1e-9
-    D = D.reshape(n, n_u, n_v, 3)
     known = nearest >= 0
     at_landmarks = np.where(known, nearest, 0)  # the posed grid is read only here and in the moved block
     rest_at_landmarks = flat0[at_landmarks]
-    for w in W:
-        keys = np.nonzero(w)[0]
-        if len(keys):
-            r_moved, c_moved = (np.nonzero(m[keys].any(axis=0))[0] for m in (rows_moved, cols_moved))
-        else:
-            r_moved, c_moved = np.arange(n_u), np.arange(n_v)
-        if not len(r_moved):
-            continue
-        r0, c0 = max(r_moved[0] - 2, 0), max(c_moved[0] - 2, 0)
-        r1, c1 = r_moved[-1] + 3, c_moved[-1] + 3
-        X = X0[r0:r1, c0:c1] + np.tensordot(w[keys], D[keys, r0:r1, c0:c1], axes=1)  # the block, posed
-        edges = []  # (interval before, interval after, turn, midpoint) per axis, of edges that raise a need
-        for axis, cos in enumerate(quad_turn_cosines(X)):
-            opened = open_at_rest[axis][r0:r0 + cos.shape[0], c0:c0 + cos.shape[1]]
-            r, c = np.nonzero((cos < floor_cos) & ~opened)  # a few more than turn past the floor (rounding)
-            t = degrees_from_cos(cos[r, c])
-            over = t > floor
-            r, c, t = r[over], c[over], t[over]
-            first = (r + r0, c + c0)[axis]  # the quad before the edge; the one after is first + 1
-            before, after = interval[axis][first], interval[axis][first + 1]
-            keep = (t > need[axis][before]) | (t > need[axis][after])
-            r, c = r[keep], c[keep]
-            # the edge's ends in the block: across rows (r + 1, c) and (r + 1, c + 1), across columns (r, c + 1)
-            # and (r + 1, c + 1)
-            mid = 0.5 * (X[r + 1, c] + X[r + 1, c + 1]) if axis == 0 else 0.5 * (X[r, c + 1] + X[r + 1, c + 1])
-            edges.append((before[keep], after[keep], t[keep], mid))
-        if not sum(len(e[2]) for e in edges):
-            continue
-        mid = np.concatenate([e[3] for e in edges])
-        moved = np.tensordot(w[keys], D.reshape(n, n_u * n_v, 3)[keys[:, None], at_landmarks], axes=1)
-        posed_L = carried(rest_at_landmarks, rest_at_landmarks + moved, L,
-                          nearest=np.where(known, np.arange(len(nearest)), -1))
-        shut = ~(opening_mask(mid, L) | opening_mask(mid, posed_L))
-        for axis, (before, after, t, _) in enumerate(edges):
+    at_nearest = np.where(known, np.arange(len(nearest)), -1)
+    found = []  # per pose with edges that may raise a need: (its landmarks' displacement, its edges)
+
+    def settle():  # the edges found outside the openings raise their intervals' needs: one test for many poses
+        if not found:
+            return
+        posed_L = np.stack([carried(rest_at_landmarks, rest_at_landmarks + moved, L, nearest=at_nearest)
+                            for moved, _ in found])
+        parts = [e for _, edges in found for e in edges]
+        mid = np.concatenate([e[3] for e in parts])
+        which = np.repeat(np.arange(len(found)), [sum(len(e[2]) for e in edges) for _, edges in found])
+        shut = ~(opening_mask(mid, L) | opening_mask(mid, posed_L, which=which))
+        for axis, (before, after, t, _) in zip([0, 1] * len(found), parts):
             s, shut = shut[:len(t)], shut[len(t):]
             np.maximum.at(need[axis], before[s], t[s])
             np.maximum.at(need[axis], after[s], t[s])
+        found.clear()
+
+    def measure(X, block, moved_landmarks):
+        edges = _edges_over(X, block, shut_at_rest, interval, need, floor)
+        if sum(len(e[2]) for e in edges):
+            found.append((moved_landmarks, edges))
+        if len(found) == SETTLE_POSES:
+            settle()
+
+    planes0 = [np.ascontiguousarray(X0[..., i]) for i in range(3)]
+    counts = np.count_nonzero(W, axis=1)
+    if (counts == 0).any():  # the rest first: its needs spare most poses' edges the openings' test
+        measure(planes0, np.s_[0:n_u, 0:n_v], np.zeros_like(rest_at_landmarks))
+        settle()
+    single = {}  # key → the poses of it alone
+    for p in np.nonzero(counts == 1)[0]:
+        single.setdefault(int(np.nonzero(W[p])[0][0]), []).append(p)
+    several = np.nonzero(counts > 1)[0]
+    kept = {int(k): None for k in np.nonzero(W[several].any(axis=0))[0]}  # key → its grid, for poses of several
+    n = W.shape[1]
+    rows_moved, cols_moved = np.zeros((n, n_u), bool), np.zeros((n, n_v), bool)
+    for first, grids in key_grids(model, rows, cols):
+        m = grids.shape[2]
+        size = np.abs(grids.reshape(n_u, n_v, m * 3))  # the largest per row and per column (a reduction over the
+        # axis of 3 is slow in numpy: over the grid's first)
+        rows_moved[first:first + m] = size.max(axis=1).reshape(n_u, m, 3).max(axis=2).T > MOVED_MM
+        cols_moved[first:first + m] = size.max(axis=0).reshape(n_v, m, 3).max(axis=2).T > MOVED_MM
+        at_landmarks_moved = grids.reshape(n_u * n_v, m, 3)[at_landmarks]
+        for j, k in enumerate(range(first, first + m)):
+            if k in kept:
+                kept[k] = np.ascontiguousarray(grids[:, :, j])
+            block = _moved_block(rows_moved[k], cols_moved[k])
+            for p in single.get(k, ()) if block is not None else ():
+                w = W[p, k]
+                measure([w * grids[block + (j, i)] + planes0[i][block] for i in range(3)], block,
+                        w * at_landmarks_moved[:, j])
+    for p in several:
+        keys = np.nonzero(W[p])[0]
+        block = _moved_block(rows_moved[keys].any(axis=0), cols_moved[keys].any(axis=0))
+        if block is None:
+            continue
+        X = X0[block] + np.tensordot(W[p, keys], np.stack([kept[k][block] for k in keys]), axes=1)
+        moved = np.tensordot(W[p, keys], np.stack([kept[k].reshape(-1, 3)[at_landmarks] for k in keys]), axes=1)
+        measure([X[..., i] for i in range(3)], block, moved)
+    settle()
     return need
 
 
@@ -271,7 +326,8 @@ def adaptive_resolution(model, max_turn=MAX_TURN_DEG):
     to its measured turn (up to :data:`VERIFY_ROUNDS` times). The mesh is kept under :data:`MAX_VERTICES`
     (:func:`capped_steps`); a capped choice is not verified again (more steps are what it would ask for).
     """
-    known = known_resolution(model, max_turn)
+    fingerprint = model_fingerprint(model)  # a digest of the descriptors: taken once
+    known = known_resolution(model, max_turn, fingerprint)
     if known is not None:
         return known
     K, J = len(model.knots), model.layout.n_points
@@ -290,5 +346,4 @@ def adaptive_resolution(model, max_turn=MAX_TURN_DEG):
                                       for s, t, o in zip(steps, turns, over)])
         if capped:
             break
-    remember_resolution(model, *steps, max_turn=max_turn)
-    return known_resolution(model, max_turn)
+    return remember_resolution(model, *steps, max_turn=max_turn, fingerprint=fingerprint)
