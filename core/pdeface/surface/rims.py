@@ -103,7 +103,10 @@ def _rims(V, T, axis_z, th, y_above, y_top, y_bottom, y_below, gap):
         while j > 0 and ok[j - 1] and step_ok[j - 1]:
             j -= 1
         if ys[i] - ys[j] >= gap:
-            up[c], lo[c] = ys[i], ys[j]
+            # Each rim stays on its side of the opening's middle line (the landmarks'): on lips that touch at rest,
+            # one lip's skin running on into the other's at the same depth, the lower walk went on up the upper
+            # lip, and AU27 pulled the upper lip down with the jaw (a stylised chin: issue #40).
+            up[c], lo[c] = max(ys[i], up[c]), min(ys[j], lo[c])
         else:  # no slit here: the lips meet
             m = 0.5 * (ys[i] + ys[j])
             up[c], lo[c] = m + 0.5 * gap, m - 0.5 * gap
