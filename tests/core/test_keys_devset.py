@@ -26,7 +26,7 @@ from scripts.bench.bench_keys_devset import (
     turn_degrees,
 )
 from scripts.devset import makehuman
-from scripts.devset.characters import SPECS, build
+from scripts.devset.characters import SPECS, Spec, build
 
 needs_makehuman = pytest.mark.skipif(not makehuman.available(), reason="needs ../shared/data/makehuman")
 
@@ -145,3 +145,32 @@ def test_the_lip_and_eye_corners_fold_less_and_the_mouth_opens_as_wide(monkeypat
         assert folds["smoothed"] < most * folds["raw"], (key, folds)
         gap = {n: P[near[0], 1] - P[near[1], 1] for n, P in posed.items()}
         assert abs(gap["smoothed"] - gap["raw"]) < 0.01 * smoothed.eye_distance, (key, gap)
+
+
+@needs_makehuman
+def test_a_prominent_chin_opens_the_mouth_below_the_upper_lip():
+    """AU27 on a stylised chin of an identity the fix was not tuned on (asian-male-old's was): the lips touch at
+    rest, and the lower lip's rim once climbed onto the upper lip, which then dropped with the jaw (issue #40)."""
+    from pdeface.surface.layout import ANCHOR_NAMES
+
+    ch = build(Spec("stylised-chin-asian-female-old", {"asian-female-old": 1.0}, unit="cm",
+                    style={"chin/chin-prominent-incr": 2.0, "cheek/l-cheek-bones-incr": 2.0,
+                           "cheek/r-cheek-bones-incr": 2.0}))
+    V, T, L = ch.vertices, ch.triangles, ch.landmarks
+    model = retarget(load_face("default"), fit_face(V, T, L)[0])
+    binding = HeadBinding(model, V, T, landmarks=L)
+    f = model.frame
+    Vf, Lf = f.to_face(V), f.to_face(L)
+    middle = Lf[[LIP_UPPER_INNER, LIP_LOWER_INNER], 1].mean()
+    # Each lip's rim curve on its own side of the mouth's middle line, at the face's midline.
+    C = model.curve_points(model.coefficients, model.residual)
+    k = next(k for a, k in model.layout.opening_curves() if ANCHOR_NAMES[a] == "mouth_top")
+    j = np.argmin(np.abs(C[k, :, 0]))
+    assert C[k, j, 1] > middle > C[k + 1, j, 1], (C[k:k + 2, j, 1], middle)
+    # The upper lip stays, the lower one follows the jaw.
+    d = {x.key: x for x in model.descriptors}["27"]
+    posed = f.to_face(V + binding.displacement(*descriptor_motion_args(d)))
+    up, lo = (np.argmin(np.linalg.norm(Vf - Lf[i], axis=1)) for i in (LIP_UPPER_INNER, LIP_LOWER_INNER))
+    ed = binding.eye_distance
+    assert abs(posed[up, 1] - Vf[up, 1]) <= 0.08 * ed
+    assert (posed[up, 1] - posed[lo, 1]) - (Vf[up, 1] - Vf[lo, 1]) >= 0.25 * ed
