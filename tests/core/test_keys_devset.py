@@ -174,3 +174,29 @@ def test_a_prominent_chin_opens_the_mouth_below_the_upper_lip():
     ed = binding.eye_distance
     assert abs(posed[up, 1] - Vf[up, 1]) <= 0.08 * ed
     assert (posed[up, 1] - posed[lo, 1]) - (Vf[up, 1] - Vf[lo, 1]) >= 0.25 * ed
+
+
+@needs_makehuman
+def test_lips_joined_in_the_mesh_open_below_the_upper_lip_and_say_so():
+    """A voxel remesh of an identity the fix was not tuned on (voxel-m's was): the lips are one surface, so AU27
+    cannot part them; the lower lip follows the jaw, the upper lip stays, the skin between stretches without new
+    folds, and a binding note says why (issue #40)."""
+    ch = build(Spec("voxel-caucasian-female-young", {"caucasian-female-young": 1.0}, remesh="voxel"))
+    V, T, L = ch.vertices, ch.triangles, ch.landmarks
+    model = retarget(load_face("default"), fit_face(V, T, L)[0])
+    binding = HeadBinding(model, V, T, landmarks=L)
+    assert binding.lips_one_line
+    assert any("lips are joined" in n for n in binding.notes)
+    f = model.frame
+    Vf, Lf = f.to_face(V), f.to_face(L)
+    ed = binding.eye_distance
+    d = {x.key: x for x in model.descriptors}["27"]
+    posed = f.to_face(V + binding.displacement(*descriptor_motion_args(d)))
+    middle = Lf[[LIP_UPPER_INNER, LIP_LOWER_INNER], 1].mean()
+    upper = np.argmin(np.linalg.norm(Vf - [0, middle + 0.08 * ed, Lf[LIP_UPPER_INNER, 2]], axis=1))
+    lower = np.argmin(np.linalg.norm(Vf - Lf[57], axis=1))  # the lower lip's outer middle
+    assert abs(posed[upper, 1] - Vf[upper, 1]) <= 0.08 * ed
+    assert Vf[lower, 1] - posed[lower, 1] >= 0.25 * ed
+    pairs = edge_face_pairs(T)
+    new_folds = (turn_degrees(Vf, T, pairs) < 20) & (turn_degrees(posed, T, pairs) > 40)
+    assert new_folds.sum() <= 0.001 * len(pairs)
