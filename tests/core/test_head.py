@@ -9,7 +9,6 @@ from pdeface.au.modelfile import load_face
 from pdeface.au.retarget import retarget
 from pdeface.cli import main
 from pdeface.errors import MeshError, PdeFaceError
-from pdeface.head import folds as fold_relax
 from pdeface.head.bind import HeadBinding
 from pdeface.head.parts import CODE, parse_overrides, skin_mask
 from pdeface.head.report import head_report
@@ -62,7 +61,7 @@ def test_parts_of_an_ict_head(head, generic):
     assert 10 < radius < 16 and centre[0] > 0  # mm; the subject's left is +x
 
 
-def test_keys_are_one_pose_each_and_linear_on_the_skin(generic, monkeypatch):
+def test_keys_are_one_pose_each_and_linear_on_the_skin(generic):
     model, b = generic
     by_key = {d.key: d for d in model.descriptors}
     for key in ("12", "27", "45L", "63"):
@@ -75,9 +74,6 @@ def test_keys_are_one_pose_each_and_linear_on_the_skin(generic, monkeypatch):
     for (w, mixer), many in zip(poses, b.pose_displacements(poses)):
         np.testing.assert_allclose(many, b.pose_displacement(w, mixer), atol=1e-6)
     skin = b.skin[np.setdiff1d(np.arange(len(b.skin)), np.concatenate([g for *_, g in b.eyes.values()]))]
-    # the folds' relaxation is not linear (it smooths only where a key folds: AU12 at 1 folds a lower-lip edge, at
-    # 0.5 it does not); the binding under it is
-    monkeypatch.setattr(fold_relax, "RELAX_STEPS", 0)
     half = b.pose_displacement({"12": 0.5, "4": 1.0})[skin]
     both = 0.5 * b.descriptor_displacement(by_key["12"]) + b.descriptor_displacement(by_key["4"])
     np.testing.assert_allclose(half, both[skin], atol=1e-6)  # the skin's binding is linear (lids: kept off the eyes)
