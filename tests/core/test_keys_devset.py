@@ -148,12 +148,14 @@ def test_the_lip_and_eye_corners_fold_less_and_the_mouth_opens_as_wide(monkeypat
 
 
 @needs_makehuman
-def test_a_prominent_chin_opens_the_mouth_below_the_upper_lip():
-    """AU27 on a stylised chin of an identity the fix was not tuned on (asian-male-old's was): the lips touch at
-    rest, and the lower lip's rim once climbed onto the upper lip, which then dropped with the jaw (issue #40)."""
+@pytest.mark.parametrize("identity", ["asian-female-old", "african-male-old"])
+def test_a_prominent_chin_opens_the_mouth_below_the_upper_lip(identity):
+    """AU27 on a stylised chin of identities the fix was not tuned on (asian-male-old's was): the lips touch at
+    rest, and a lip's rim once climbed onto the other lip (asian-female-old's upper rim), or the head prior gave the
+    upper inner lip ICT's lower lip's drop (african-male-old: 0.12 eye distances) (issue #40)."""
     from pdeface.surface.layout import ANCHOR_NAMES
 
-    ch = build(Spec("stylised-chin-asian-female-old", {"asian-female-old": 1.0}, unit="cm",
+    ch = build(Spec(f"stylised-chin-{identity}", {identity: 1.0}, unit="cm",
                     style={"chin/chin-prominent-incr": 2.0, "cheek/l-cheek-bones-incr": 2.0,
                            "cheek/r-cheek-bones-incr": 2.0}))
     V, T, L = ch.vertices, ch.triangles, ch.landmarks
