@@ -26,7 +26,7 @@ from scripts.bench.bench_keys_devset import (
     turn_degrees,
 )
 from scripts.devset import makehuman
-from scripts.devset.characters import SPECS, build
+from scripts.devset.characters import SPECS, Spec, build
 
 needs_makehuman = pytest.mark.skipif(not makehuman.available(), reason="needs ../shared/data/makehuman")
 
@@ -145,3 +145,60 @@ def test_the_lip_and_eye_corners_fold_less_and_the_mouth_opens_as_wide(monkeypat
         assert folds["smoothed"] < most * folds["raw"], (key, folds)
         gap = {n: P[near[0], 1] - P[near[1], 1] for n, P in posed.items()}
         assert abs(gap["smoothed"] - gap["raw"]) < 0.01 * smoothed.eye_distance, (key, gap)
+
+
+@needs_makehuman
+@pytest.mark.parametrize("identity", ["asian-female-old", "african-male-old"])
+def test_a_prominent_chin_opens_the_mouth_below_the_upper_lip(identity):
+    """AU27 on a stylised chin of identities the fix was not tuned on (asian-male-old's was): the lips touch at
+    rest, and a lip's rim once climbed onto the other lip (asian-female-old's upper rim), or the head prior gave the
+    upper inner lip ICT's lower lip's drop (african-male-old: 0.12 eye distances) (issue #40)."""
+    from pdeface.surface.layout import ANCHOR_NAMES
+
+    ch = build(Spec(f"stylised-chin-{identity}", {identity: 1.0}, unit="cm",
+                    style={"chin/chin-prominent-incr": 2.0, "cheek/l-cheek-bones-incr": 2.0,
+                           "cheek/r-cheek-bones-incr": 2.0}))
+    V, T, L = ch.vertices, ch.triangles, ch.landmarks
+    model = retarget(load_face("default"), fit_face(V, T, L)[0])
+    binding = HeadBinding(model, V, T, landmarks=L)
+    f = model.frame
+    Vf, Lf = f.to_face(V), f.to_face(L)
+    middle = Lf[[LIP_UPPER_INNER, LIP_LOWER_INNER], 1].mean()
+    # Each lip's rim curve on its own side of the mouth's middle line, at the face's midline.
+    C = model.curve_points(model.coefficients, model.residual)
+    k = next(k for a, k in model.layout.opening_curves() if ANCHOR_NAMES[a] == "mouth_top")
+    j = np.argmin(np.abs(C[k, :, 0]))
+    assert C[k, j, 1] > middle > C[k + 1, j, 1], (C[k:k + 2, j, 1], middle)
+    # The upper lip stays, the lower one follows the jaw.
+    d = {x.key: x for x in model.descriptors}["27"]
+    posed = f.to_face(V + binding.displacement(*descriptor_motion_args(d)))
+    up, lo = (np.argmin(np.linalg.norm(Vf - Lf[i], axis=1)) for i in (LIP_UPPER_INNER, LIP_LOWER_INNER))
+    ed = binding.eye_distance
+    assert abs(posed[up, 1] - Vf[up, 1]) <= 0.08 * ed
+    assert (posed[up, 1] - posed[lo, 1]) - (Vf[up, 1] - Vf[lo, 1]) >= 0.25 * ed
+
+
+@needs_makehuman
+def test_lips_joined_in_the_mesh_open_below_the_upper_lip_and_say_so():
+    """A voxel remesh of an identity the fix was not tuned on (voxel-m's was): the lips are one surface, so AU27
+    cannot part them; the lower lip follows the jaw, the upper lip stays, the skin between stretches without new
+    folds, and a binding note says why (issue #40)."""
+    ch = build(Spec("voxel-caucasian-female-young", {"caucasian-female-young": 1.0}, remesh="voxel"))
+    V, T, L = ch.vertices, ch.triangles, ch.landmarks
+    model = retarget(load_face("default"), fit_face(V, T, L)[0])
+    binding = HeadBinding(model, V, T, landmarks=L)
+    assert binding.lips_one_line
+    assert any("lips are joined" in n for n in binding.notes)
+    f = model.frame
+    Vf, Lf = f.to_face(V), f.to_face(L)
+    ed = binding.eye_distance
+    d = {x.key: x for x in model.descriptors}["27"]
+    posed = f.to_face(V + binding.displacement(*descriptor_motion_args(d)))
+    middle = Lf[[LIP_UPPER_INNER, LIP_LOWER_INNER], 1].mean()
+    upper = np.argmin(np.linalg.norm(Vf - [0, middle + 0.08 * ed, Lf[LIP_UPPER_INNER, 2]], axis=1))
+    lower = np.argmin(np.linalg.norm(Vf - Lf[57], axis=1))  # the lower lip's outer middle
+    assert abs(posed[upper, 1] - Vf[upper, 1]) <= 0.08 * ed
+    assert Vf[lower, 1] - posed[lower, 1] >= 0.25 * ed
+    pairs = edge_face_pairs(T)
+    new_folds = (turn_degrees(Vf, T, pairs) < 20) & (turn_degrees(posed, T, pairs) > 40)
+    assert new_folds.sum() <= 0.001 * len(pairs)

@@ -19,6 +19,10 @@ motion to all of the user's mesh, once per fit:
 - **the openings' corners** (inner lip corners, inner eye corners): where the covered skin's motion meets the
   lining's, the skin within ``SEAM_IOD`` of the lining is relaxed towards its neighbours' mean motion
   (``SEAM_STEPS`` times): the seam's step folded the lining there (issue #40);
+- **lips joined in the mesh** (no opening between them: a voxel remesh, a decimated mouth) cannot part without a
+  new topology: the binding notes it; where they are one row of vertices, the skin under the PDE face's strip
+  between the lips' rims reads the strip (it stretches from the upper rim's motion to the lower's) and the folds'
+  relaxation keeps the upper lip, so AU27 moves the lower lip and stretches the skin joining them;
 - **jaw AUs** (25, 26, 27, 29, 30) turn the jaw's parts (lower teeth, gums,
   tongue) about the hinge with the rotation recovered from the chin's own PDE
   motion (:mod:`pdeface.rigid`);
@@ -50,13 +54,17 @@ from ..landmark_scheme import (
     JAW_LEFT_ANGLE,
     JAW_RIGHT_ANGLE,
     LIP_LOWER_BOTTOM,
+    LIP_LOWER_INNER,
     LIP_MIDDLES,
+    LIP_UPPER_INNER,
+    MOUTH_CORNERS,
     NOSE_BOTTOM,
 )
 from ..mesh import connected_components, cotan_laplacian, seam_welds, vertex_normals
 from ..posing import pose_curves
 from ..rigid import JAW_BONE_GAIN, gaze_matrix, jaw_hinge, jaw_motion, rigid_displacement, rotation_vector_matrix
 from ..surface.grid import grid_faces, surface_grid
+from ..surface.layout import ANCHOR_NAMES
 from ..surface.model import KEPT_LANDMARKS
 from ..surface.scan import load_scan
 from ..threads import bounded
@@ -98,6 +106,15 @@ SPLIT_RINGS = 2
 PRIOR_FADE = 0.3
 #: How near the inner lips' middle line (eye distances) the folds' relaxation leaves the skin as bound.
 LIP_LINE_IOD = 0.03
+#: Lips joined in the mesh (a voxel remesh, a decimated mouth): the inner lips' middles (landmarks 62, 66) are joined
+#: by skin no longer than FUSED_PATH times their distance apart plus FUSED_IOD eye distances (touching lips with a mouth behind them:
+#: the shortest way runs round a corner or through the mouth).
+FUSED_PATH = 3.0
+FUSED_IOD = 0.05
+#: On joined lips the skin under the strip between the rims within this share of the mouth's width reads it.
+JOINED_WIDTH = 0.6
+#: On joined lips the folds' relaxation keeps the upper lip's skin this far (eye distances) above the mouth's middle.
+UPPER_LIP_IOD = 0.03
 #: AUs that move the jaw, and the gaze AUs.
 JAW_AUS = frozenset({25, 26, 27, 29, 30})
 GAZE_AUS = frozenset({61, 62, 63, 64})
@@ -139,8 +156,13 @@ def _check_on_skin(Lf, skin_points, eye_distance):
                         "on its face (not inside it)?")
 
 
-def _read_pde(model, P, N, eye_distance, resolution):
-    """Which skin points the PDE face covers, and the sparse map reading its grid at their closest points."""
+def _read_pde(model, P, N, eye_distance, resolution, skin_strips=(), on_strip=None):
+    """Which skin points the PDE face covers, and the sparse map reading its grid at their closest points.
+
+    ``skin_strips``: the breaks (:meth:`~pdeface.surface.layout.CurveLayout.breaks`) whose strip is skin (lips
+    joined in the mesh): what lies under it (and where ``on_strip``, an (n,) bool array) reads the strip, which
+    stretches from one rim's motion to the other's.
+    """
     X0 = surface_grid(model, *resolution, break_slope=READ_BREAK_SLOPE, confine=False)
     nu, nv, _ = X0.shape
     X0 = X0.reshape(-1, 3)
@@ -156,14 +178,40 @@ def _read_pde(model, P, N, eye_distance, resolution):
     r, c = Tp[tri] // nv, Tp[tri] % nv
     inside = (r.min(1) > 0) & (r.max(1) < nu - 1) & (c.min(1) > 0) & (c.max(1) < nv - 1)
     sub_u = resolution[0]  # curve k is grid row k * sub_u
+    facing_free = np.zeros(len(P), bool)
     for k in model.layout.breaks():  # the strip between the rims is no skin: what lies under it follows its rim
-        inside &= ~((r.min(1) >= k * sub_u) & (r.max(1) <= (k + 1) * sub_u))
+        strip = (r.min(1) >= k * sub_u) & (r.max(1) <= (k + 1) * sub_u)
+        if k in skin_strips:  # a joined mouth's skin, its rims (a row either side) facing otherwise than the strip
+            reads = (r.min(1) >= k * sub_u - 1) & (r.max(1) <= (k + 1) * sub_u + 1)
+            facing_free |= reads & (True if on_strip is None else on_strip)
+            strip &= ~facing_free
+        inside &= ~strip
     n_pde = unit_rows(triangle_cross(X0, Tp[tri]))
-    covered = inside & (dist < COVER_IOD * eye_distance) & ((N * n_pde).sum(1) > COVER_COS)
+    covered = inside & (dist < COVER_IOD * eye_distance) & (facing_free | ((N * n_pde).sum(1) > COVER_COS))
     if covered.sum() < 100:
         raise MeshError(f"only {int(covered.sum())} skin vertices lie under the PDE face: "
                         "was the model fitted on this mesh, in this unit?")
     return covered, _barycentric_matrix(Tp[tri[covered]], bary[covered], len(X0))
+
+
+def _lips_joined(P, Ts, Lf, eye_distance) -> tuple:
+    """``(joined, one_line)``: whether skin joins the inner lips' middles (landmarks 62 and 66) by a way about as
+    short as the gap between them (no opening between the lips: a voxel remesh, a decimated mouth), and whether
+    they are one row of vertices there (nearest the same vertex, or within LIP_LINE_IOD: a voxel remesh's)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import dijkstra
+    from scipy.spatial import cKDTree
+
+    ends = Lf[[LIP_UPPER_INNER, LIP_LOWER_INNER]]
+    if not np.isfinite(ends).all():
+        return False, False
+    a, b = cKDTree(P).query(ends)[1]
+    apart = np.linalg.norm(P[a] - P[b])
+    i, j = Ts.ravel(), np.roll(Ts, -1, axis=1).ravel()
+    graph = coo_matrix((np.linalg.norm(P[i] - P[j], axis=1), (i, j)), shape=(len(P), len(P))).tocsr()
+    reach = FUSED_PATH * apart + FUSED_IOD * eye_distance
+    joined = a == b or bool(np.isfinite(dijkstra(graph, directed=False, indices=a, limit=reach)[b]))
+    return joined, joined and apart < LIP_LINE_IOD * eye_distance  # touching lips (ICT's) are as near, not joined
 
 
 def _rest_region(P, Ts, covered, from_covered, Lf, eye_distance):
@@ -203,6 +251,24 @@ def _inner_lip_middles(P, Lf, eye_distance):
         return np.zeros(len(P), bool)
     near = cKDTree(along).query(P, distance_upper_bound=LIP_LINE_IOD * eye_distance)[0]
     return np.isfinite(near)
+
+
+def _mouth_middle(P, Lf):
+    """Skin within the middle of the mouth's width (JOINED_WIDTH of it): on joined lips it reads the stretching
+    strip between the rims (towards the corners it folded a decimated head's lips)."""
+    corners = Lf[MOUTH_CORNERS, 0]
+    return np.abs(P[:, 0] - corners.mean()) < 0.5 * JOINED_WIDTH * np.ptp(corners)
+
+
+def _upper_lip(P, Lf, eye_distance):
+    """Skin between the nose's base and the mouth's middle line, no wider than the mouth (half an eye distance
+    beyond each corner): kept by the folds' relaxation on joined lips, which would otherwise spread the stretch of
+    the skin joining them up into the upper lip."""
+    corners = Lf[MOUTH_CORNERS, 0]
+    middle = Lf[[LIP_UPPER_INNER, LIP_LOWER_INNER], 1].mean()
+    return ((P[:, 1] > middle + UPPER_LIP_IOD * eye_distance) & (P[:, 1] < Lf[NOSE_BOTTOM, 1])
+            & (P[:, 0] > corners.min() - 0.05 * eye_distance) & (P[:, 0] < corners.max() + 0.05 * eye_distance)
+            & (P[:, 2] > Lf[LIP_MIDDLES, 2].min() - 0.1 * eye_distance))
 
 
 def _depths(P, covered, Lf, eye_distance, eyes):
@@ -320,7 +386,15 @@ class HeadBinding:
             raise MeshError("the skin has no triangles")
         P = Vf[si]
         self.skin_normals = vertex_normals(P, Ts)
-        covered, self.read_grid = _read_pde(model, P, self.skin_normals, eye_distance, resolution)
+        mouth_strip = [k for a, k in model.layout.opening_curves() if ANCHOR_NAMES[a] == "mouth_top"]
+        lips_joined, self.lips_one_line = _lips_joined(P, Ts, Lf, eye_distance) if mouth_strip else (False, False)
+        if lips_joined:
+            self.notes.append("the lips are joined in the mesh (no opening between them): keys that open the mouth "
+                              "move the lower lip and stretch the skin joining it to the upper one; cut the mouth "
+                              "open (and add a mouth inside) for lips that part")
+        # Lips one row of vertices have no rims of their own: the strip between the PDE face's rims is their skin.
+        covered, self.read_grid = _read_pde(model, P, self.skin_normals, eye_distance, resolution,
+                                            mouth_strip if self.lips_one_line else (), _mouth_middle(P, Lf))
         self.covered = covered
         # every vertex's distance to the covered skin, as far as the rest region and the prior's fade read it (inf
         # beyond). The covered skin is a sheet, most queries far from it: a tree without shrunk boxes answers 2× faster.
@@ -345,6 +419,8 @@ class HeadBinding:
             near_skull[T[near_skull[T].any(axis=1)]] = True
         pinned |= parts.mask("jaw") & ~near_skull
         pinned[si[_inner_lip_middles(P, Lf, eye_distance)]] = True
+        if self.lips_one_line:  # the skin joining the lips stretches; the upper lip keeps its (still) motion
+            pinned[si[_upper_lip(P, Lf, eye_distance)]] = True
         self._folds = FoldRelax(Vf, T, pinned)
 
         # Jaw: the chin that drives it, and the parts it turns.

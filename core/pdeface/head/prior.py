@@ -41,6 +41,7 @@ from ..assets import ICT_HEAD_PRIOR, asset_path, load_head
 from ..au.retarget import face_size
 from ..errors import ModelFormatError
 from ..io.files import load_npz
+from ..surface.layout import ANCHOR_NAMES
 from .parts import CODE
 
 FORMAT = "pdeface.head-prior"
@@ -56,6 +57,10 @@ NEAR_IOD, FAR_IOD = 0.05, 0.15
 CARRIED_KINDS = ("skin", "follow")
 #: A user vertex takes the residual of this many nearest vertices of the prior head, by inverse distance.
 NEAREST = 4
+#: Near the mouth a vertex is lifted this many eye distances along a fourth axis, up for the upper lip's side of
+#: the mouth's middle line, down for the lower's, so it takes the residual of its own lip's prior vertices (an upper
+#: inner lip deeper than ICT's took the lower lip's AU27 drop: issue #40).
+LIP_SIDE_IOD = 0.1
 #: Storage step of the residuals (mm).
 STEP_MM = 0.01
 #: Curve points the warp is anchored on: every WARP_STRIDE-th curve and point.
@@ -112,18 +117,22 @@ class HeadPrior:
         lam = self.ridge * np.trace(G) / max(len(G), 1)
         return np.linalg.solve(G + lam * np.eye(len(G)), X)
 
-    def _kind_tree(self, name):
+    def _kind_tree(self, name, mouth, lift):
         """``(vertices, tree)``: the prior head's vertices of part kind ``name`` on its triangles of that kind, and
-        a k-d tree of them (None when there are none); built once per prior (every head bound reads them)."""
+        a k-d tree of them lifted by their side of the mouth (``mouth``: its top rim curve, ``lift`` mm; see
+        :func:`_lip_side`) (None when there are none); built once per prior and mouth (every head bound reads them)."""
         from scipy.spatial import cKDTree
 
         trees = self.__dict__.setdefault("_kind_trees", {})  # not a field: replace() starts without it
         built_on = (self.vertices, self.triangles, self.kind)
-        if name not in trees or any(a is not b for a, b in zip(trees[name][0], built_on)):
+        key = (name, mouth, lift)
+        if key not in trees or any(a is not b for a, b in zip(trees[key][0], built_on)):
             tri = self.triangles[(self.kind[self.triangles] == CODE[name]).all(axis=1)]
             verts = np.unique(tri)
-            trees[name] = built_on, verts, (cKDTree(self.vertices[verts]) if len(verts) else None)
-        return trees[name][1:]
+            X = self.vertices[verts]
+            X = np.c_[X, lift * _lip_side(X, self.curve_points, mouth)]
+            trees[key] = built_on, verts, (cKDTree(X) if len(verts) else None)
+        return trees[key][1:]
 
     def on(self, model, vertices, kind, reach=None, eye_distance=None):
         """The prior carried to a user's head; None when its face has another curve layout.
@@ -165,11 +174,14 @@ class HeadPrior:
         candidate &= ((V > np.minimum(lo, hi)) & (V < np.maximum(lo, hi))).all(axis=1)
         idx = np.nonzero(candidate)[0]
         W = V[idx] + warp(V[idx]) if len(idx) else np.zeros((0, 3))
+        mouth = next((k for a, k in model.layout.opening_curves() if ANCHOR_NAMES[a] == "mouth_top"), None)
+        lift = LIP_SIDE_IOD * eye_distance / float(np.mean(ratio))  # in the prior head's size
+        W = np.c_[W, lift * _lip_side(V[idx], X_user, mouth)]
         rows, cols, vals = [], [], []
         weight = np.zeros(len(idx))
         for name in CARRIED_KINDS:
             mine = np.nonzero(kind[idx] == CODE[name])[0]
-            verts, tree = self._kind_tree(name)
+            verts, tree = self._kind_tree(name, mouth, lift)
             if not len(mine) or tree is None:
                 continue
             # Inverse-distance weights of the 4 nearest vertices: as good as the closest point on the
@@ -194,6 +206,24 @@ class HeadPrior:
         residuals = (self.residuals[:, used].transpose(1, 2, 0) * ratio[:, None].astype(np.float32))
         residuals = np.asarray(mix[:, used] @ residuals.reshape(len(used), 3 * S), np.float32).reshape(-1, S)
         return PriorOnHead(idx[keep], residuals, self.solver(), ratio)
+
+
+def _lip_side(P, curve_points, mouth):
+    """+1 for points ``P`` above the mouth's middle line (midway between its rim curves ``mouth`` and ``mouth + 1``
+    of ``curve_points``) within its width and a rim row's height (K·J grid's gap) of it, -1 below, 0 elsewhere or
+    without a mouth."""
+    if mouth is None:
+        return np.zeros(len(P))
+    top, bottom = curve_points[mouth], curve_points[mouth + 1]
+    middle = 0.5 * (top + bottom)
+    middle = middle[np.argsort(middle[:, 0])]
+    height = np.interp(P[:, 0], middle[:, 0], middle[:, 1])
+    span = middle[np.sort(np.nonzero(np.abs(top[:, 1] - bottom[:, 1]) > 0.05)[0]), 0]  # apart between the corners
+    if not len(span):
+        return np.zeros(len(P))
+    reach = np.abs(curve_points[mouth - 1, :, 1] - curve_points[mouth + 2, :, 1]).max()
+    inside = (P[:, 0] > span.min()) & (P[:, 0] < span.max()) & (np.abs(P[:, 1] - height) < reach)
+    return np.where(inside, np.sign(P[:, 1] - height), 0.0)
 
 
 def _warp(src, dst, smoothing=1.0):

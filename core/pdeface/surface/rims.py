@@ -24,6 +24,9 @@ FACING_MIN_COS = 0.3
 RIM_STEP_MM = 0.05
 #: A radius change larger than this (mm) between two steps leaves the lip's skin.
 RIM_JUMP_MM = 0.5
+#: A rim may lie this far (mm) past the opening's middle line (ICT's touching lips: 0.15 mm; a stylised chin's
+#: lower rim on the upper lip: 1.7 mm).
+RIM_CROSS_MM = 0.3
 
 
 def follow_rims(layout: CurveLayout, V_face: np.ndarray, T: np.ndarray) -> CurveLayout:
@@ -103,7 +106,11 @@ def _rims(V, T, axis_z, th, y_above, y_top, y_bottom, y_below, gap):
         while j > 0 and ok[j - 1] and step_ok[j - 1]:
             j -= 1
         if ys[i] - ys[j] >= gap:
-            up[c], lo[c] = ys[i], ys[j]
+            # A rim past the opening's middle line (the landmarks') by more than RIM_CROSS_MM stops on it: on lips
+            # that touch at rest, one lip's skin running on into the other's at the same depth, the lower walk went
+            # on up the upper lip, and AU27 pulled the upper lip down with the jaw (a stylised chin: issue #40).
+            up[c] = ys[i] if ys[i] >= up[c] - RIM_CROSS_MM else up[c]
+            lo[c] = ys[j] if ys[j] <= lo[c] + RIM_CROSS_MM else lo[c]
         else:  # no slit here: the lips meet
             m = 0.5 * (ys[i] + ys[j])
             up[c], lo[c] = m + 0.5 * gap, m - 0.5 * gap
