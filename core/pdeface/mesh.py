@@ -183,6 +183,16 @@ def cotan_laplacian(V: np.ndarray, T: np.ndarray):
     return (diags(np.asarray(W.sum(axis=1)).ravel()) - W).tocsr()
 
 
+def border_vertices(n, T) -> np.ndarray:
+    """The vertices (sorted indices) on a border of triangles ``T`` over ``n`` vertices: on an edge that only one
+    triangle has."""
+    T = np.asarray(T, np.int64)
+    edges = np.sort(np.concatenate([T[:, [0, 1]], T[:, [1, 2]], T[:, [2, 0]]]), axis=1)
+    keys, counts = np.unique(edges[:, 0] * n + edges[:, 1], return_counts=True)  # 1-D: much faster
+    once = keys[counts == 1]
+    return np.unique(np.concatenate([once // n, once % n]))
+
+
 def seam_welds(V: np.ndarray, T: np.ndarray, tol: float | None = None, min_piece: int | None = None) -> np.ndarray:
     """Representative of every vertex, joining copies split along open seams.
 
@@ -206,10 +216,7 @@ def seam_welds(V: np.ndarray, T: np.ndarray, tol: float | None = None, min_piece
     rep = np.arange(n)
     if len(T) == 0:
         return rep
-    edges = np.sort(np.concatenate([T[:, [0, 1]], T[:, [1, 2]], T[:, [2, 0]]]), axis=1).astype(np.int64)
-    keys, counts = np.unique(edges[:, 0] * n + edges[:, 1], return_counts=True)  # 1-D: much faster
-    once = keys[counts == 1]
-    border = np.unique(np.concatenate([once // n, once % n]))
+    border = border_vertices(n, T)
     if len(border) < 2:
         return rep
     if tol is None:

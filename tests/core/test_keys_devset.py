@@ -202,3 +202,20 @@ def test_lips_joined_in_the_mesh_open_below_the_upper_lip_and_say_so():
     pairs = edge_face_pairs(T)
     new_folds = (turn_degrees(Vf, T, pairs) < 20) & (turn_degrees(posed, T, pairs) > 40)
     assert new_folds.sum() <= 0.001 * len(pairs)
+
+
+@needs_makehuman
+def test_a_fit_that_leaves_the_mesh_is_refused_not_rigged():
+    # A stylised head (prominent chin, cheek bones, forehead forward on an older man) whose curves run off the
+    # face below the brows: the fit says so instead of rigging keys on a surface that is not the mesh's. The
+    # same style on another identity fits (its face stays on the mesh).
+    from pdeface.errors import LayoutError
+
+    style = {"chin/chin-prominent-incr": 2.0, "cheek/l-cheek-bones-incr": 2.0, "cheek/r-cheek-bones-incr": 2.0,
+             "forehead/forehead-trans-forward": 1.5}
+    broken = build(Spec("chin-cheek-old-man", {"caucasian-male-old": 1.0}, style=style))
+    with pytest.raises(LayoutError, match="leaves the mesh"):
+        fit_face(broken.vertices, broken.triangles, broken.landmarks)
+    fine = build(SPECS["stylised-chin-cheek-in"])
+    model, _ = fit_face(fine.vertices, fine.triangles, fine.landmarks)
+    assert model.coefficients.shape[0] > 0
