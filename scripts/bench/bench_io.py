@@ -84,6 +84,8 @@ def main(argv=None):
                   f"{cpu_new:7.4f} {cpu_old:7.4f} {cpu_old / cpu_new:5.1f}×  "
                   f"{'yes' if same else 'NO'}{'' if in_blocks else ' (read line by line)'}")
             ok &= same and in_blocks and old / new >= TARGETS["ratio"]
+            if name.endswith("(as ICT ships it)"):  # the file: its time is the target
+                ok &= new <= TARGETS["seconds"]
     print(f"load average at the end: {', '.join(f'{x:.2f}' for x in os.getloadavg())}")
     print(f"targets: ≤ {TARGETS['seconds']} s on a quiet machine, ≥ {TARGETS['ratio']:.0f}× the line-by-line "
           f"reader in the same run: {'met' if ok else 'NOT met'}")
