@@ -188,7 +188,11 @@ def test_a_killed_worker_loses_nothing(tmp_path):
 
 
 def test_an_interrupted_job_resumes_with_only_the_missing_outputs(tmp_path):
-    job = _job(tmp_path, STIMULI.format(out="out"))
+    # 60 images (12 finish before an interrupt lands since the workers start from a fork server)
+    n = 60
+    job = _job(tmp_path, STIMULI.format(out="out").replace('aus = [[12], [1, 2], [4]]',
+                                                           'aus = [[12], [1, 2], [4], [6], [15], [9, 10]]')
+               .replace('intensities = ["B", "E"]', 'intensities = ["A", "B", "C", "D", "E"]'))
     out = tmp_path / "out"
     proc = _pdeface("batch", job, "--workers", 2)
     _wait_for_records(out, 3, proc)
@@ -196,16 +200,16 @@ def test_an_interrupted_job_resumes_with_only_the_missing_outputs(tmp_path):
     _finish(proc)
     before = {p: p.stat().st_mtime_ns for p in out.glob("*.png")}
     records = len(list((out / RECORDS).glob("*.json")))
-    assert 3 <= records < 12, "interrupted too late: nothing left to resume"
+    assert 3 <= records < n, "interrupted too late: nothing left to resume"
     code, stdout, err = _finish(_pdeface("batch", job, "--workers", 2, "--resume"))
     assert code == 0, err
     summary = json.loads(stdout)
-    assert summary["skipped"] == records and summary["done"] == 12 - records
-    assert len(list(out.glob("*.png"))) == 12
+    assert summary["skipped"] == records and summary["done"] == n - records
+    assert len(list(out.glob("*.png"))) == n
     kept = [p for p in before if (out / RECORDS).exists() and p.stat().st_mtime_ns == before[p]]
     assert len(kept) >= records  # the done ones were not made again
     with open(out / "labels.csv") as f:
-        assert len(list(csv.DictReader(f))) == 12
+        assert len(list(csv.DictReader(f))) == n
 
 
 def test_a_rig_job_rigs_each_head_and_records_a_broken_one(tmp_path):

@@ -1,4 +1,5 @@
 import numpy as np
+import pytest
 from pdeface.surface.grid import grid_faces
 from pdeface.surface.report import PIT_DEPTH_MM, _in_pit, weighted_percentile
 
@@ -69,7 +70,11 @@ def test_api_and_cli_measure_the_same_skin_on_a_head_with_separate_parts(tmp_pat
     # the same files through the README's Python API (the model file holds µm codes, the OBJ 6 digits)
     read = read_mesh(tmp_path / "head.obj")
     api = accuracy_report(load_model(tmp_path / "face.npz"), read.vertices, read.triangles()[0])
-    assert cli == {**api, "model_bytes": cli["model_bytes"]}
+    # the same figures; the CLI sums under one BLAS thread (pdeface.threads), so the last bit may differ
+    api = {**api, "model_bytes": cli["model_bytes"]}
+    assert cli.keys() == api.keys()
+    for k, v in api.items():
+        assert cli[k] == (pytest.approx(v, rel=1e-12) if isinstance(v, float) else v), k
     assert abs(api["p95_mm"] - head["p95_mm"]) < 0.01
 
 

@@ -42,7 +42,8 @@ def skin_vertices(V: np.ndarray, T: np.ndarray, points: np.ndarray) -> np.ndarra
     sizes = np.bincount(lab)
     tree = cKDTree(V[used])
     dist, _ = tree.query(points)
-    on = T[ClosestPoint(V, T).query(points)[1], 0]
+    local = np.searchsorted(used, T)  # the triangles' own vertices: a stray one (even non-finite) is not searched
+    on = T[ClosestPoint(V[used], local).query(points)[1], 0]
     scale = float(extent.max()) or 1.0
     labels = set()
     for p, d, t in zip(points, dist, on):
