@@ -643,10 +643,15 @@ def cap_memory(extra_mb):
 
 def markdown(results, args, seconds) -> str:
     """The campaign's table for docs/measurements."""
-    lines = [f"# The readers' fuzzer: {args.inputs} inputs per target", "",
-             (f"`python -m scripts.bench.fuzz_readers --inputs {args.inputs} --cli --seed {args.seed}` "
-             f"({seconds / 60:.0f} min, load {os.getloadavg()[0]:.1f}; each input limited to {args.time_limit:g} s "
-             f"and the process to {args.memory_mb} MB past its warm-up size)."), "",
+    if args.gather:  # targets run one process each (--readers NAME --json FILE), their summaries gathered
+        how = (f"Each target run in a process of its own, `python -m scripts.bench.fuzz_readers --inputs N --readers "
+               f"NAME --json FILE` (or `--commands NAME`), seed {args.seed}, each input limited to {args.time_limit:g} s "
+               f"and the process to {args.memory_mb} MB past its warm-up size; gathered with `--gather FILE...`.")
+    else:
+        how = (f"`python -m scripts.bench.fuzz_readers --inputs {args.inputs} --cli --seed {args.seed}` "
+               f"({seconds / 60:.0f} min, load {os.getloadavg()[0]:.1f}; each input limited to {args.time_limit:g} s "
+               f"and the process to {args.memory_mb} MB past its warm-up size).")
+    lines = [f"# The readers' fuzzer: {max(r['inputs'] for r in results)} inputs per target", "", how, "",
              "| target | inputs | read and consumed | failures | over the time limit | slowest (s) |",
              "|---|---:|---:|---:|---:|---:|"]
     for r in results:
@@ -673,7 +678,13 @@ def main(argv=None):
     ap.add_argument("--memory-mb", type=int, default=500, help="address space past the warm-up size")
     ap.add_argument("--json", help="write the summaries here")
     ap.add_argument("--markdown", help="write the table here (docs/measurements/fuzz_readers.md)")
+    ap.add_argument("--gather", nargs="+", metavar="JSON", help="write --markdown from these runs' --json summaries")
     args = ap.parse_args(argv)
+    if args.gather:
+        out = [r for f in args.gather for r in json.loads(Path(f).read_text())]
+        if args.markdown:
+            Path(args.markdown).write_text(markdown(out, args, None))
+        return 1 if any(r["failures"] or r["over_limit"] for r in out) else 0
     names = [r for r in args.readers.split(",") if r] or ([] if args.commands else list(readers()))
     corpus_cache()
     _CONSUMERS.update(consumers())
