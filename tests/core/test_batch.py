@@ -188,11 +188,12 @@ def test_a_killed_worker_loses_nothing(tmp_path):
 
 
 def test_an_interrupted_job_resumes_with_only_the_missing_outputs(tmp_path):
-    # 60 images (12 finish before an interrupt lands since the workers start from a fork server)
+    # 60 images of 192 px (12 small ones finish before an interrupt lands: the workers start from a fork server)
     n = 60
     job = _job(tmp_path, STIMULI.format(out="out").replace('aus = [[12], [1, 2], [4]]',
                                                            'aus = [[12], [1, 2], [4], [6], [15], [9, 10]]')
-               .replace('intensities = ["B", "E"]', 'intensities = ["A", "B", "C", "D", "E"]'))
+               .replace('intensities = ["B", "E"]', 'intensities = ["A", "B", "C", "D", "E"]')
+               .replace("size = 48", "size = 192"))
     out = tmp_path / "out"
     proc = _pdeface("batch", job, "--workers", 2)
     _wait_for_records(out, 3, proc)
