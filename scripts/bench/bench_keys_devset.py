@@ -208,10 +208,7 @@ def main(argv=None):
             L = V[lm]
         else:
             ch = build(SPECS[name])
-            V, T, L, body = ch.vertices, ch.triangles, ch.landmarks, ch.spec.body
-            for Vp, Tp in ch.parts.values():  # the add-on joins a head's objects
-                T = np.concatenate([T, Tp + len(V)])
-                V = np.concatenate([V, Vp])
+            (V, T), L, body = ch.joined(), ch.landmarks, ch.spec.body  # as the add-on joins a head's objects
         try:
             r = measure(V, T, L, body, source, args.quick)
         except PdeFaceError as exc:

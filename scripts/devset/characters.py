@@ -86,6 +86,14 @@ class Character:
     parts: dict  # separate objects: name → (V, T)
     spec: Spec
 
+    def joined(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(V, T)``: the mesh with its separate objects appended, as the add-on joins a head's objects."""
+        V, T = self.vertices, self.triangles
+        for Vp, Tp in self.parts.values():
+            T = np.concatenate([T, Tp + len(V)])
+            V = np.concatenate([V, Vp])
+        return V, T
+
     @property
     def eye_distance(self) -> float:
         """The true distance between the eye centres (the character's unit)."""

@@ -61,10 +61,7 @@ def test_the_aus_that_close_the_eyes_say_which():
 
 def rig(name):
     ch = build(SPECS[name])
-    V, T, L = ch.vertices, ch.triangles, ch.landmarks
-    for Vp, Tp in ch.parts.values():
-        T = np.concatenate([T, Tp + len(V)])
-        V = np.concatenate([V, Vp])
+    (V, T), L = ch.joined(), ch.landmarks
     from pdeface.au.retarget import retarget
 
     model, _ = fit_face(V, T, L)

@@ -35,10 +35,7 @@ needs_makehuman = pytest.mark.skipif(not makehuman.available(), reason="needs ..
 def rig(name):
     """(character's joined V, T, L, retargeted model, binding), as bench_keys_devset rigs it."""
     ch = build(SPECS[name])
-    V, T, L = ch.vertices, ch.triangles, ch.landmarks
-    for Vp, Tp in ch.parts.values():
-        T = np.concatenate([T, Tp + len(V)])
-        V = np.concatenate([V, Vp])
+    (V, T), L = ch.joined(), ch.landmarks
     model, _ = fit_face(V, T, L)
     model = retarget(load_face("default"), model)
     return V, T, L, model, HeadBinding(model, V, T, landmarks=L)
