@@ -45,7 +45,20 @@ def errors_pct(found, true, eyes):
     d = (frame.to_face(found) - frame.to_face(true))[:, :2] / (eyes * frame.scale) * 100
     return {"inner_median": float(np.median(e[17:])), "inner_p95": float(np.percentile(e[17:], 95)),
             "jaw_median": float(np.median(e[:17])), "jaw_median_front": float(np.median(np.linalg.norm(d[:17], axis=1))),
-            "groups": {g: float(np.median(e[list(r)])) for g, r in GROUPS.items()}}
+            "groups": {g: float(np.median(e[list(r)])) for g, r in GROUPS.items()},
+            "groups_p95": {g: float(np.percentile(e[list(r)], 95)) for g, r in GROUPS.items()}}
+
+
+def print_groups(rows):
+    """Where the errors are: each group's median / p95 per character, and over the characters."""
+    print("== per group: median / p95 of the error (% of the true eye distance)")
+    print(f"  {'character':32s} " + " ".join(f"{g:>11s}" for g in GROUPS))
+    for name, r in rows.items():
+        print(f"  {name:32s} " + " ".join(f"{r['groups'][g]:5.1f}/{r['groups_p95'][g]:5.1f}" for g in GROUPS))
+    if rows:
+        print(f"  {'median over characters':32s} " + " ".join(
+            f"{np.median([r['groups'][g] for r in rows.values()]):5.1f}/"
+            f"{np.median([r['groups_p95'][g] for r in rows.values()]):5.1f}" for g in GROUPS))
 
 
 def main(argv=None):
@@ -92,6 +105,7 @@ def main(argv=None):
             rows[name] = r
     ok = [r for r in rows.values() if r["found"]]
     share = len(ok) / len(rows)
+    print_groups({n: r for n, r in rows.items() if r["found"]})
     print("== summary")
     print(f"  found {len(ok)}/{len(rows)} = {share:.0%} (target >= {TARGETS['found_share']:.0%})")
     if ok:

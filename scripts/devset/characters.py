@@ -233,7 +233,9 @@ def voxel_remesh(V, T, voxel):
             full[others[0]], full[others[1]] = c[1], c[2]
             ids.append(corner(*full))
         q = np.stack([ids[o] for o in order], 1)
-        q[flip] = q[flip][:, ::-1]
+        # Corners go round (axis, first other, second other): an odd permutation of (x, y, z) for the y axis,
+        # whose quads would otherwise face inwards (their vertex normals, and any shading, turned inside out).
+        q[flip != (axis == 1)] = q[flip != (axis == 1)][:, ::-1]
         quads.append(q)
     Q = np.concatenate(quads)
     grid = np.stack(np.meshgrid(*[np.arange(k + 1) for k in shape], indexing="ij"), -1).reshape(-1, 3)
