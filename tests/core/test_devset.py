@@ -105,6 +105,20 @@ def test_a_voxel_remeshed_face_faces_the_way_its_original_does():
 
 
 @needs_makehuman
+@needs_mediapipe
+def test_on_the_voxel_remeshed_character_the_found_landmarks_give_its_unit():
+    """Found on the voxel remesh as on the original mesh (its inside-out quads had put the nose and mouth
+    a quarter of the eye distance off and the unit 38 % off)."""
+    from pdeface.landmarks.headfind import detect_anywhere
+
+    ch = build(SPECS["voxel-m"])
+    found = detect_anywhere(ch.vertices, ch.triangles)
+    assert found.mm_per_unit == pytest.approx(ch.mm_per_unit, rel=0.1)
+    err = np.linalg.norm(found.points - ch.landmarks, axis=1) / ch.eye_distance
+    assert np.median(err[27:36]) < 0.1 and np.median(err[48:68]) < 0.1  # nose, mouth
+
+
+@needs_makehuman
 @pytest.mark.parametrize("name", ["base-dm", "asian-female-old-in", "stylised-nose-mouth-cm", "game-unit-168mm",
                                   "african-asian-female-young-mm", "african-male-old-m"])
 def test_the_unit_is_estimated_from_the_face_at_any_scale(name):
