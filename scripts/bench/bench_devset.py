@@ -23,6 +23,7 @@ import time
 
 import numpy as np
 from pdeface.errors import PdeFaceError
+from pdeface.landmark_scheme import eye_distance
 from pdeface.landmarks.detector import Detector
 from pdeface.landmarks.facemap import GROUPS
 from pdeface.landmarks.gate import check
@@ -46,15 +47,30 @@ def errors_pct(found, true, eyes):
     return {"inner_median": float(np.median(e[17:])), "inner_p95": float(np.percentile(e[17:], 95)),
             "jaw_median": float(np.median(e[:17])), "jaw_median_front": float(np.median(np.linalg.norm(d[:17], axis=1))),
             "groups": {g: float(np.median(e[list(r)])) for g, r in GROUPS.items()},
-            "groups_p95": {g: float(np.percentile(e[list(r)], 95)) for g, r in GROUPS.items()}}
+            "groups_p95": {g: float(np.percentile(e[list(r)], 95)) for g, r in GROUPS.items()},
+            "brows_up": [shape_figures(true)[0], shape_figures(found)[0]],
+            "jaw_angles_back": [shape_figures(true)[1], shape_figures(found)[1]]}
+
+
+def shape_figures(L):
+    """Two figures (eye distances, in the landmarks' face frame) of where the two largest errors lie: the inner
+    brows' (20-23) height above the eye centres (on ICT's identities 0.40-0.41, truth and found alike), and how
+    far the jaw angles (5, 11) lie behind the eye centres (ICT 0.24-0.25, truth and found alike)."""
+    f = face_frame(L)
+    F = f.to_face(L) / (f.scale * eye_distance(L))
+    eyes = F[36:48].mean(0)
+    return float(F[20:24, 1].mean() - eyes[1]), float(eyes[2] - F[[5, 11], 2].mean())
 
 
 def print_groups(rows):
     """Where the errors are: each group's median / p95 per character, and over the characters."""
     print("== per group: median / p95 of the error (% of the true eye distance)")
-    print(f"  {'character':32s} " + " ".join(f"{g:>11s}" for g in GROUPS))
+    print("  then, true / found (eye distances): the inner brows' height above the eye centres and how far the jaw "
+          "angles lie behind them (shape_figures)")
+    print(f"  {'character':32s} " + " ".join(f"{g:>11s}" for g in GROUPS) + "  brows up  jaw angles back")
     for name, r in rows.items():
-        print(f"  {name:32s} " + " ".join(f"{r['groups'][g]:5.1f}/{r['groups_p95'][g]:5.1f}" for g in GROUPS))
+        print(f"  {name:32s} " + " ".join(f"{r['groups'][g]:5.1f}/{r['groups_p95'][g]:5.1f}" for g in GROUPS)
+              + "  {:.2f}/{:.2f}".format(*r["brows_up"]) + "   {:.2f} / {:.2f}".format(*r["jaw_angles_back"]))
     if rows:
         print(f"  {'median over characters':32s} " + " ".join(
             f"{np.median([r['groups'][g] for r in rows.values()]):5.1f}/"
