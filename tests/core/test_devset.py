@@ -205,6 +205,8 @@ def test_the_gate_names_the_group_and_the_check_that_fail(ict):
                                        L[48:68].mean(0) + 3 * (L - L[48:68].mean(0)), L),
         # one jaw point half an eye distance back along the contour (depth a frontal detector cannot see)
         ("jaw", "smooth"): _frame_shift(L, [3], [0, 0, -0.5 * eyes_mm]),
+        # the jaw angles slid forward along the contour, level with the eyes (found so on MakeHuman heads)
+        ("jaw", "depth"): _frame_shift(L, [5, 11], [0, 0, 0.2 * eyes_mm]),
     }
     for (group, what), P in cases.items():
         v = check(P, V, T, "cm")

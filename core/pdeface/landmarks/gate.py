@@ -14,7 +14,9 @@ from the face), against the eye distance, so they hold at any scale, orientation
 - **height**: the brows' height above the eyes within what faces have (:data:`BROW_HEIGHT`): on a hairless
   head a brow line may be found on the upper lid's fold;
 - **smooth**: the jawline a smooth curve: no point more than :data:`JAW_BEND` off the middle of its two
-  neighbours (a jaw point sunk or lifted along the contour, where a frontal detector cannot see depth).
+  neighbours (a jaw point sunk or lifted along the contour, where a frontal detector cannot see depth);
+- **depth**: the jaw angles behind the eyes (:data:`JAW_ANGLES_BACK`): a jaw slid forward along its
+  contour, level with the eyes, is no face's.
 
 A group failing any check is named with the check; ``pdeface landmarks`` and ``pdeface fit`` then stop
 (exit 2) unless told ``--accept``.
@@ -51,6 +53,10 @@ BROW_HEIGHT = {"outer": ([17, 18, 25, 26], 0.30, 0.65), "inner": ([20, 21, 22, 2
 #: How far (eye distances) a jaw point may lie from the middle of its neighbours: true jawlines bend 0.10 (ICT's
 #: identities) to 0.17 (MakeHuman's characters), 0.28 with MakeHuman's chin target at weight 2; found on ICT, 0.18.
 JAW_BEND = 0.32
+#: How far (eye distances) the jaw angles (5, 11) lie at least behind the eye centres, in the face frame. True
+#: jaws: ICT's identities 0.24-0.25; MakeHuman's 24 characters 0.22-0.97. Found by the detector: ICT 0.24-0.26;
+#: on MakeHuman down to 0.01, the angles slid forward along the contour (error 11-15 % of the eye distance).
+JAW_ANGLES_BACK = 0.15
 #: Pixels of the visibility renders.
 SIZE = 256
 
@@ -198,6 +204,10 @@ def check(points, V=None, T=None, unit=None) -> Verdict:
     if bend.max() > JAW_BEND:
         verdict.fail("jaw", "smooth", f"landmark {int(np.argmax(bend)) + 1} {bend.max():.2f} eye distances off the "
                                       f"middle of its neighbours (jawlines: {JAW_BEND})")
+    back = float(F[36:48, 2].mean() - F[[5, 11], 2].mean())
+    if back < JAW_ANGLES_BACK:
+        verdict.fail("jaw", "depth", f"jaw angles {back:.2f} eye distances behind the eyes (faces: at least "
+                                     f"{JAW_ANGLES_BACK})")
     if V is not None:
         V, T = np.asarray(V, np.float64), np.asarray(T, np.int64)
         depth = buried(V, landmark_parts(V, T, P), P, frame, eyes) / eyes
