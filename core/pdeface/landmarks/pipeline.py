@@ -346,7 +346,7 @@ def detect(V, T, unit=None, landmark_map: LandmarkMap | None = None, detector: D
         closest, skin_raster = ClosestPoint(V, T[skin]), raster.showing(skin)
         Ps, direct = frontal_readings(V, T, skin, detector, m, (s, R, t), first=(raster, img, px, skin_raster),
                                       closest=closest, normals=normals)
-        P2 = consensus(Ps)
+        P2 = np.nanmean(Ps, axis=0)
         points, indices = snap(V, T[skin], m.apply(P2), skin_raster, 1.0 / s, closest)
         mm = UNITS_MM[unit] if unit else estimate_unit(points)[1]  # the fit's own estimate (one for both)
         spread = group_spread(m, Ps, mm)
@@ -382,13 +382,6 @@ def find_on_mesh(mesh, unit=None, keep_images=False, verbose=False) -> FoundLand
     FoundLandmarks
     """
     return detect(mesh.vertices, mesh.triangles()[0], unit, keep_images=keep_images, verbose=verbose)
-
-
-def consensus(view_points):
-    """The face mesh's points (468, 3) agreed by the frontal readings ``view_points (readings, 468, 3)``: their mean."""
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)  # a point no reading saw stays NaN
-        return np.nanmean(view_points, axis=0)
 
 
 def group_spread(m: LandmarkMap, view_points, mm=1.0) -> dict:
