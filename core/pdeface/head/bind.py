@@ -590,7 +590,8 @@ class HeadBinding:
         if self._folds.relax(out, keys=[i for i, c in enumerate(closing) if c or self.eyes], budget=self._folds.limit):
             self._keep_out_of_eyeballs(out)
         out[self._copies] = out[self._copy_of]
-        return self.frame.to_user_vectors(out.transpose(1, 0, 2))  # key-major: each key's rows contiguous
+        out = self.frame.to_user_vectors(out.reshape(-1, 3)).reshape(out.shape)  # one product (a transposed view's is slow)
+        return np.ascontiguousarray(out.transpose(1, 0, 2))  # key-major: each key's rows contiguous
 
     def _keep_out_of_eyeballs(self, out):
         """Lids that a key takes into an eyeball put back on its surface (``out`` (n, k, 3), in place)."""
