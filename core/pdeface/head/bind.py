@@ -239,8 +239,10 @@ def _prior_reach(Vf, from_covered, skin_rest, Lf, eye_distance):
 
 
 def _inner_lip_middles(P, Lf, eye_distance):
-    """Skin on the inner lips' middle thirds (landmarks 61-63, 65-67): kept by the folds' relaxation, which would
-    otherwise smooth a mouth whose lips meet in one row of vertices (a decimated head) shut in AU27."""
+    """Skin on the inner lips' middle thirds (landmarks 61-63, 65-67): kept by the folds' relaxation on lips joined
+    in the mesh, which it would otherwise smooth shut in AU27 where they meet in one row of vertices (a decimated
+    head). Lips apart are not kept: the step between a kept middle and its relaxed neighbours folded parted lips'
+    AU27 (36 edges on parted-lips-cm, 4 without)."""
     from scipy.spatial import cKDTree
 
     t = np.linspace(0, 1, 8, endpoint=False)[:, None]
@@ -418,7 +420,8 @@ class HeadBinding:
         for _ in range(SPLIT_RINGS):
             near_skull[T[near_skull[T].any(axis=1)]] = True
         pinned |= parts.mask("jaw") & ~near_skull
-        pinned[si[_inner_lip_middles(P, Lf, eye_distance)]] = True
+        if lips_joined:  # lips apart (parted, touching) part by themselves: pinned, their middles folded AU27 (issue #40)
+            pinned[si[_inner_lip_middles(P, Lf, eye_distance)]] = True
         if self.lips_one_line:  # the skin joining the lips stretches; the upper lip keeps its (still) motion
             pinned[si[_upper_lip(P, Lf, eye_distance)]] = True
         self._folds = FoldRelax(Vf, T, pinned)
