@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..geometry import triangle_cross, unit_rows
+from ..geometry import unit_rows
 from ..mesh import connected_components, cotan_laplacian, edge_face_pairs, turn_degrees
 
 #: Edges turning by less than this at rest are flat; a key folds one that then turns by more than FOLD_DEG
@@ -75,6 +75,7 @@ class FoldRelax:
         self.mean = (diags(1.0 / np.maximum(np.asarray(W.sum(axis=1)).ravel(), 1e-300)) @ W).tocsr()
         self.mean.sort_indices()
         self.free = ~np.asarray(pinned, bool)
+        self.ball_centre, self.ball_radius = np.zeros((len(V), 3)), np.zeros(len(V))  # none: keep_outside
         self.corners = self.T[self.faces[self.pairs]].reshape(len(self.pairs), 6)
         # Each vertex's flat edges (the screen's and the zones' look-up), and each edge's triangles' corners.
         self.vertex_pairs = csr_matrix((np.ones(self.corners.size, bool), (self.corners.ravel(), np.repeat(
@@ -96,8 +97,8 @@ class FoldRelax:
         measured: a fold is a crease in the motion, a smooth motion (most of every key) folds nothing. All keys
         are screened at once (one sparse product), and only the edges at creased vertices measured.
         """
-        every = keys is None
-        keys = np.arange(D.shape[1]) if every else np.asarray(keys, np.int64)
+        keys = np.arange(D.shape[1]) if keys is None else np.asarray(keys, np.int64)
+        every = len(keys) == D.shape[1] and (keys == np.arange(D.shape[1])).all()
         n, k, n_pairs = len(self.V), len(keys), len(self.pairs)
         Dk = D if every else D.take(keys, axis=1)  # (D[:, keys] is laid out key-major: slow to flatten)
         Dk = np.ascontiguousarray(Dk).reshape(n, 3 * k)
@@ -155,8 +156,8 @@ class FoldRelax:
         budgets = np.array([b for _, _, b in jobs])
         seeds = [j * n + self.T[self.faces[self.pairs[e]]].ravel() for j, (_, e, _) in enumerate(jobs)]
         hit = np.unique(np.concatenate(seeds))
-        zone = self._rings(hit, ZONE_RINGS)
-        cols = self._rings(zone, 2)  # the zone and two rings around it (its edges' far corners), sorted
+        zone = self._rings(hit, ZONE_RINGS, len(jobs))
+        cols = self._rings(zone, 2, len(jobs))  # the zone and two rings around it (its edges' far corners), sorted
         job, vertex = np.divmod(cols, n)
         m = len(cols)
         # The neighbours' mean among the jobs' vertices: each job's block of the mesh's.
@@ -180,17 +181,26 @@ class FoldRelax:
         X, dl = self.V[vertex], D[vertex, key_of[job]]
         nrm = np.zeros((len(faces), 3))
         fold = np.zeros(len(pair_job), bool)
+        row_faces = csr_matrix((np.ones(tri.size), (tri.ravel(), np.repeat(np.arange(len(faces)), 3))),
+                               shape=(m, len(faces)))
+        face_pairs = csr_matrix((np.ones(pair_faces.size), (pair_faces.ravel(), np.repeat(np.arange(len(pair_job)), 2))),
+                                shape=(len(faces), len(pair_job)))
 
-        def folded(faces, pairs):  # of the live jobs' edges alone (the others' motion is as it was)
-            nrm[faces] = unit_rows(triangle_cross(X + dl, tri[faces]))
-            f0, f1 = pair_faces[pairs, 0], pair_faces[pairs, 1]
-            fold[pairs] = (nrm[f0] * nrm[f1]).sum(-1) < self.cos_fold
+        def folded(rows):  # the folds once ``rows`` moved: only their triangles' edges measured again
+            at = _once(_rows_gather(row_faces, rows)[0], len(nrm))
+            P = X[tri[at]] + dl[tri[at]]
+            nrm[at] = unit_rows(np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]))
+            at = _once(_rows_gather(face_pairs, at)[0], len(fold))
+            fold[at] = (nrm[pair_faces[at, 0]] * nrm[pair_faces[at, 1]]).sum(-1) < self.cos_fold
             return np.bincount(pair_job[fold], minlength=len(jobs))
 
+        ball = np.nonzero(self.ball_radius[vertex] > 0)[0]  # rows kept out of an eyeball
+        in_ball = np.zeros(m, bool)
+        in_ball[ball] = True
         mark = np.zeros(m, bool)
         mark[np.searchsorted(cols, np.concatenate(seeds))] = True
         region = (mark | (ring @ mark.astype(np.float64) > 0)) & movable
-        count = folded(np.arange(len(faces)), np.arange(len(pair_job)))
+        count = folded(np.arange(m))
         best, best_d = count.copy(), dl.copy()  # never worse than as bound
         since = np.zeros(len(jobs), np.int64)  # sweeps since each job's best
         was = None
@@ -202,15 +212,16 @@ class FoldRelax:
                 was = live
                 rows = np.nonzero(live[job])[0]
                 ring_live, mean_live = ring[rows], mean[rows]
-                live_faces, live_pairs = np.nonzero(live[face_job])[0], np.nonzero(live[pair_job])[0]
             mark[:] = False
-            mark[tri[pair_faces[live_pairs[fold[live_pairs]]]].ravel()] = True
+            mark[tri[pair_faces[fold & live[pair_job]]].ravel()] = True
             region[rows] |= (mark[rows] | (ring_live @ mark.astype(np.float64) > 0)) & movable[rows]
             if step and not step % GROW_EVERY:  # still folding: relax a wider ring
                 region[rows] |= (ring_live @ region.astype(np.float64) > 0) & movable[rows]
             moved = region[rows]
             dl[rows[moved]] += RELAX_RATE * (mean_live[moved] @ dl - dl[rows[moved]])
-            count = folded(live_faces, live_pairs)
+            moved = rows[moved]
+            self._keep_out(X, dl, vertex, moved[in_ball[moved]])
+            count = folded(moved)
             better = count < best
             since = np.where(better, 0, since + live)
             if better.any():
@@ -220,17 +231,40 @@ class FoldRelax:
         D[vertex, key_of[job]] = best_d
         return best
 
-    def _rings(self, ids, rings):
+    def keep_outside(self, vertices, centre, radius):
+        """Keep ``vertices`` (indices) out of the ball ``centre``, ``radius`` (an eyeball: the lids over it) while
+        relaxing: a relaxed lid folded again where the eyeball's guard pushed it back out (a glance down)."""
+        self.ball_centre[vertices] = centre
+        self.ball_radius[vertices] = radius
+
+    def _keep_out(self, X, d, vertex, rows):
+        """Rows ``rows`` of displacements ``d`` (of vertices ``vertex``, at rest ``X``) inside their ball put back on
+        its surface, in place."""
+        c, r = self.ball_centre[vertex[rows]], self.ball_radius[vertex[rows], None]
+        p = X[rows] + d[rows] - c
+        rho = np.linalg.norm(p, axis=1, keepdims=True)
+        d[rows] = np.where(rho < r, c + p * (r / np.maximum(rho, 1e-12)) - X[rows], d[rows])
+
+    def _rings(self, ids, rings, jobs):
         """(job, vertex) ids ``ids`` and every id within ``rings`` rings of them (the same job's), sorted."""
         n = len(self.V)
-        out = frontier = np.unique(ids)
+        seen = np.zeros(jobs * n, bool)
+        seen[ids] = True
+        frontier = ids
         for _ in range(rings):
             nb, row = _rows_gather(self.mean, frontier % n)
-            new = np.setdiff1d(frontier[row] // n * n + nb, out, assume_unique=False)
-            if not len(new):
-                break
-            out, frontier = np.union1d(out, new), new
-        return out
+            new = frontier[row] // n * n + nb
+            new = new[~seen[new]]
+            seen[new] = True
+            frontier = _once(new, len(seen))
+        return np.flatnonzero(seen)
+
+
+def _once(idx, size):
+    """The distinct values of ``idx`` (all below ``size``), sorted: a mask's, no sort."""
+    mask = np.zeros(size, bool)
+    mask[idx] = True
+    return np.flatnonzero(mask)
 
 
 def _rows_entries(A, rows):
