@@ -239,8 +239,10 @@ def _prior_reach(Vf, from_covered, skin_rest, Lf, eye_distance):
 
 
 def _inner_lip_middles(P, Lf, eye_distance):
-    """Skin on the inner lips' middle thirds (landmarks 61-63, 65-67): kept by the folds' relaxation, which would
-    otherwise smooth a mouth whose lips meet in one row of vertices (a decimated head) shut in AU27."""
+    """Skin on the inner lips' middle thirds (landmarks 61-63, 65-67): kept by the folds' relaxation on lips joined
+    in the mesh, which it would otherwise smooth shut in AU27 where they meet in one row of vertices (a decimated
+    head). Lips apart are not kept: the step between a kept middle and its relaxed neighbours folded parted lips'
+    AU27 (36 edges on parted-lips-cm, 4 without)."""
     from scipy.spatial import cKDTree
 
     t = np.linspace(0, 1, 8, endpoint=False)[:, None]
@@ -418,7 +420,8 @@ class HeadBinding:
         for _ in range(SPLIT_RINGS):
             near_skull[T[near_skull[T].any(axis=1)]] = True
         pinned |= parts.mask("jaw") & ~near_skull
-        pinned[si[_inner_lip_middles(P, Lf, eye_distance)]] = True
+        if lips_joined:  # lips apart (parted, touching) part by themselves: pinned, their middles folded AU27 (issue #40)
+            pinned[si[_inner_lip_middles(P, Lf, eye_distance)]] = True
         if self.lips_one_line:  # the skin joining the lips stretches; the upper lip keeps its (still) motion
             pinned[si[_upper_lip(P, Lf, eye_distance)]] = True
         self._folds = FoldRelax(Vf, T, pinned)
@@ -458,6 +461,7 @@ class HeadBinding:
             rho = np.linalg.norm(P - centre, axis=1)
             guard = (rho >= radius) & (rho < radius + 0.15 * eye_distance) & (P[:, 2] > centre[2])
             self.eyes[name] = (centre, radius, idx, np.nonzero(guard)[0])
+            self._folds.keep_outside(si[guard], centre, radius)
 
         # What the PDE face and its extension miss, learned from scans; nothing in the rest region.
         self.prior = None
@@ -584,16 +588,18 @@ class HeadBinding:
             out[self.skin[band]] = flat[at].reshape(len(band), -1, 3)
         self._folds.relax(out)
         self._lids.apply(out, closing)
-        self._keep_out_of_eyeballs(out)
+        pushed = self._keep_out_of_eyeballs(out)
         # Relaxed again where the lids' closing or the eyeballs' surface folded them (a blink, a glance down), past
-        # the issue's limit alone (each sweep opens a closed lid a little).
-        if self._folds.relax(out, keys=[i for i, c in enumerate(closing) if c or self.eyes], budget=self._folds.limit):
-            self._keep_out_of_eyeballs(out)
+        # the issue's limit alone (each sweep opens a closed lid a little), the lids kept out of the eyeballs.
+        self._folds.relax(out, keys=[i for i, c in enumerate(closing) if c or pushed[i]], budget=self._folds.limit)
         out[self._copies] = out[self._copy_of]
-        return self.frame.to_user_vectors(out.transpose(1, 0, 2))  # key-major: each key's rows contiguous
+        out = self.frame.to_user_vectors(out.reshape(-1, 3)).reshape(out.shape)  # one product (a transposed view's is slow)
+        return np.ascontiguousarray(out.transpose(1, 0, 2))  # key-major: each key's rows contiguous
 
     def _keep_out_of_eyeballs(self, out):
-        """Lids that a key takes into an eyeball put back on its surface (``out`` (n, k, 3), in place)."""
+        """Lids that a key takes into an eyeball put back on its surface (``out`` (n, k, 3), in place); which keys
+        it changed, (k,) bool."""
+        changed = np.zeros(out.shape[1], bool)
         for centre, radius, _, guard in self.eyes.values():
             if len(guard):
                 g = self.skin[guard]
@@ -601,6 +607,8 @@ class HeadBinding:
                 rho = np.linalg.norm(p - centre, axis=-1, keepdims=True)
                 pushed = centre + (p - centre) * (radius / np.maximum(rho, 1e-12)) - self.Vf[g, None]
                 out[g] = np.where(rho < radius, pushed, out[g])
+                changed |= (rho < radius).any(axis=(0, 2))
+        return changed
 
     def _follow(self, out):
         """Attached vertices: their anchor's motion, their offset turned as the anchor's normal turns.
