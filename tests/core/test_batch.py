@@ -187,27 +187,54 @@ def test_a_killed_worker_loses_nothing(tmp_path):
     assert not [p for p in (tmp_path / "par").rglob("*.part")]
 
 
+def _as_a_terminal_job():
+    """In the child, before it runs: its own process group with SIGINT at its default, as a shell's foreground job
+    has it. A job started in the background by a shell without job control (CI runs pytest so) inherits SIGINT
+    ignored, and a Ctrl-C could not reach it."""
+    os.setpgid(0, 0)
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
+def _records(out):
+    return len(list((out / RECORDS).glob("*.json"))) if (out / RECORDS).exists() else 0
+
+
 def test_an_interrupted_job_resumes_with_only_the_missing_outputs(tmp_path):
-    # 60 images of 192 px (12 small ones finish before an interrupt lands: the workers start from a fork server)
-    n = 60
+    """Ctrl-C (SIGINT to the job's process group, workers included) stops the job: no task starts after it (those
+    running may finish), its worker processes are gone when it exits 130 saying how to resume, and ``--resume``
+    makes only the missing outputs. However fast the machine, at most 2 tasks per worker finish after the
+    interrupt, far fewer than the 60 images of the job."""
+    n, workers = 60, 2
     job = _job(tmp_path, STIMULI.format(out="out").replace('aus = [[12], [1, 2], [4]]',
                                                            'aus = [[12], [1, 2], [4], [6], [15], [9, 10]]')
                .replace('intensities = ["B", "E"]', 'intensities = ["A", "B", "C", "D", "E"]')
                .replace("size = 48", "size = 192"))
     out = tmp_path / "out"
-    proc = _pdeface("batch", job, "--workers", 2)
+    proc = _pdeface("batch", job, "--workers", workers, preexec_fn=_as_a_terminal_job)
+    job_workers = _workers(proc)
     _wait_for_records(out, 3, proc)
-    proc.send_signal(signal.SIGINT)
-    _finish(proc)
+    os.killpg(proc.pid, signal.SIGINT)
+    at_interrupt = _records(out)
+    t0 = time.time()
+    try:
+        code, _, err = _finish(proc, timeout=120)
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGKILL)
+        raise AssertionError("the job did not stop within 120 s of the interrupt") from None
+    stopped_in = time.time() - t0
+    assert code == 130, err
+    assert "--resume" in err and "Traceback" not in err, err
+    _, alive = psutil.wait_procs(job_workers, timeout=5)
+    assert not alive, "the job's workers outlived it"
+    records = _records(out)  # final: nothing is left that could write one
+    assert at_interrupt <= records <= at_interrupt + 2 * workers < n, (at_interrupt, records, stopped_in)
     before = {p: p.stat().st_mtime_ns for p in out.glob("*.png")}
-    records = len(list((out / RECORDS).glob("*.json")))
-    assert 3 <= records < n, "interrupted too late: nothing left to resume"
-    code, stdout, err = _finish(_pdeface("batch", job, "--workers", 2, "--resume"))
+    code, stdout, err = _finish(_pdeface("batch", job, "--workers", workers, "--resume"))
     assert code == 0, err
     summary = json.loads(stdout)
     assert summary["skipped"] == records and summary["done"] == n - records
     assert len(list(out.glob("*.png"))) == n
-    kept = [p for p in before if (out / RECORDS).exists() and p.stat().st_mtime_ns == before[p]]
+    kept = [p for p in before if p.stat().st_mtime_ns == before[p]]
     assert len(kept) >= records  # the done ones were not made again
     with open(out / "labels.csv") as f:
         assert len(list(csv.DictReader(f))) == n

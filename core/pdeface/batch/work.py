@@ -10,6 +10,8 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import signal
+import threading
 import time
 from pathlib import Path
 
@@ -63,6 +65,15 @@ def prepare_identity(face, keys, out, key):
     except (PdeFaceError, OSError):
         return None
     return str(path)
+
+
+def dask_setup(worker):
+    """Run by each worker process of a local cluster as it starts (Dask's preload, see
+    :func:`pdeface.batch.run.open_client`): it ignores SIGINT. Ctrl-C in a terminal reaches the job's whole process
+    group; the job's own process answers it, closing the cluster so that no task starts after it, where a worker
+    stopped by it would print its traceback and be started again by its nanny."""
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 def run_task(task, out, *after) -> dict:
