@@ -74,15 +74,27 @@ def _workers(proc):
     raise AssertionError("the local cluster's workers did not start")
 
 
+def _records(out):
+    """How many tasks of the job in ``out`` are done (their records written)."""
+    return len(list((out / RECORDS).glob("*.json"))) if (out / RECORDS).exists() else 0
+
+
 def _wait_for_records(out, n, proc, timeout=300):
     t0 = time.time()
     while time.time() - t0 < timeout:
-        records = list((out / RECORDS).glob("*.json")) if (out / RECORDS).exists() else []
-        if len(records) >= n:
-            return records
+        if _records(out) >= n:
+            return
         assert proc.poll() is None, proc.communicate()
         time.sleep(0.05)
     raise AssertionError("the job made no progress")
+
+
+def _as_a_terminal_job():
+    """In the child, before it runs: its own process group with SIGINT at its default, as a shell's foreground job
+    has it. A job started in the background by a shell without job control (CI runs pytest so) inherits SIGINT
+    ignored, and a Ctrl-C could not reach it."""
+    os.setpgid(0, 0)
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 def test_job_files_are_checked(tmp_path):
@@ -167,6 +179,17 @@ def test_one_line_errors():
     assert one_line(ValueError("bad\nvalue")) == "ValueError: bad"
 
 
+def test_a_local_worker_prints_on_stderr_and_leaves_ctrl_c_to_the_job():
+    """What a local worker runs as it starts (:func:`~pdeface.batch.work.dask_setup`): what it prints, through
+    Python or not, goes to stderr (the job's stdout is its JSON summary), and SIGINT is ignored."""
+    code = ("import os, signal\nfrom pdeface.batch.work import dask_setup\ndask_setup(None)\n"
+            "print('python', signal.getsignal(signal.SIGINT) is signal.SIG_IGN, flush=True)\nos.write(1, b'raw')\n")
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=False,
+                         preexec_fn=_as_a_terminal_job)
+    assert res.returncode == 0, res.stderr
+    assert res.stdout == "" and res.stderr == "python True\nraw"
+
+
 def test_a_killed_worker_loses_nothing(tmp_path):
     """Kill one of the 2 workers mid-job: the job completes, each image exists once, byte-identical to a serial
     run's (1 worker), and the labels too."""
@@ -185,18 +208,6 @@ def test_a_killed_worker_loses_nothing(tmp_path):
     assert len(expected) == 12 and made == expected
     assert (tmp_path / "par" / "labels.csv").read_bytes() == (tmp_path / "ser" / "labels.csv").read_bytes()
     assert not [p for p in (tmp_path / "par").rglob("*.part")]
-
-
-def _as_a_terminal_job():
-    """In the child, before it runs: its own process group with SIGINT at its default, as a shell's foreground job
-    has it. A job started in the background by a shell without job control (CI runs pytest so) inherits SIGINT
-    ignored, and a Ctrl-C could not reach it."""
-    os.setpgid(0, 0)
-    signal.signal(signal.SIGINT, signal.SIG_DFL)
-
-
-def _records(out):
-    return len(list((out / RECORDS).glob("*.json"))) if (out / RECORDS).exists() else 0
 
 
 def test_an_interrupted_job_resumes_with_only_the_missing_outputs(tmp_path):

@@ -111,7 +111,7 @@ def open_client(workers=None, scheduler=None):
     except ImportError:
         dashboard = False
     # a free port for the scheduler's web server (another job's cluster may hold the usual 8787); each worker runs
-    # dask_setup as it starts (Ctrl-C is for this process alone)
+    # dask_setup as it starts (its stdout to stderr, Ctrl-C for this process alone)
     cluster = distributed.LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
                                        silence_logs=logging.CRITICAL, preload=[dask_setup.__module__])
     client = distributed.Client(cluster)
