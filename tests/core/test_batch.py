@@ -251,6 +251,29 @@ def test_an_interrupted_job_resumes_with_only_the_missing_outputs(tmp_path):
         assert len(list(csv.DictReader(f))) == n
 
 
+def test_a_terminated_job_stops_as_an_interrupted_one(tmp_path):
+    """SIGTERM (``kill``, a cluster's time limit; a job started in the background ignores Ctrl-C) stops a job as
+    Ctrl-C does: no task starts after it, its workers are gone when it exits 143 saying how to resume, and its
+    manifest lists every task."""
+    n, workers = 12, 2
+    job = _job(tmp_path, STIMULI.format(out="out").replace("size = 48", "size = 192"))
+    out = tmp_path / "out"
+    proc = _pdeface("batch", job, "--workers", workers)
+    job_workers = _workers(proc)
+    _wait_for_records(out, 1, proc)
+    proc.terminate()
+    at_signal = _records(out)
+    code, _, err = _finish(proc, timeout=120)
+    assert code == 143, err
+    assert "--resume" in err and "Traceback" not in err, err
+    _, alive = psutil.wait_procs(job_workers, timeout=5)
+    assert not alive, "the job's workers outlived it"
+    records = _records(out)
+    assert at_signal <= records <= at_signal + 2 * workers < n, (at_signal, records)
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert len(manifest["tasks"]) == n and [t["status"] for t in manifest["tasks"]].count("not run") >= n - records
+
+
 def test_a_rig_job_rigs_each_head_and_records_a_broken_one(tmp_path):
     """2 ICT identities and a broken mesh: both heads get their keys, the broken one is failed in the manifest
     with its one-line error, and the job exits 2 naming the manifest."""
