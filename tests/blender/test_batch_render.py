@@ -28,7 +28,7 @@ def test_a_render_job_in_chunks_matches_one_render(bpy, tmp_path):
                                        'chunk = 2\nengine = "WORKBENCH"\nsize = "48x48"\n')
     res = subprocess.run([sys.executable, "-m", "pdeface.cli", "batch", str(tmp_path / "job.toml"), "--workers", "2"],
                          capture_output=True, text=True, timeout=900, check=False)
-    assert res.returncode == 0, res.stderr[-2000:]
+    assert res.returncode == 0 and res.stdout.strip(), f"exit {res.returncode}, stderr:\n{res.stderr[-3000:]}"
     summary = json.loads(res.stdout)
     assert summary["failed"] == 0 and summary["done"] >= 3
     manifest = json.loads((tmp_path / "out" / "manifest.json").read_text())

@@ -74,15 +74,27 @@ def _workers(proc):
     raise AssertionError("the local cluster's workers did not start")
 
 
+def _records(out):
+    """How many tasks of the job in ``out`` are done (their records written)."""
+    return len(list((out / RECORDS).glob("*.json"))) if (out / RECORDS).exists() else 0
+
+
 def _wait_for_records(out, n, proc, timeout=300):
     t0 = time.time()
     while time.time() - t0 < timeout:
-        records = list((out / RECORDS).glob("*.json")) if (out / RECORDS).exists() else []
-        if len(records) >= n:
-            return records
+        if _records(out) >= n:
+            return
         assert proc.poll() is None, proc.communicate()
         time.sleep(0.05)
     raise AssertionError("the job made no progress")
+
+
+def _as_a_terminal_job():
+    """In the child, before it runs: its own process group with SIGINT at its default, as a shell's foreground job
+    has it. A job started in the background by a shell without job control (CI runs pytest so) inherits SIGINT
+    ignored, and a Ctrl-C could not reach it."""
+    os.setpgid(0, 0)
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 def test_job_files_are_checked(tmp_path):
@@ -167,6 +179,17 @@ def test_one_line_errors():
     assert one_line(ValueError("bad\nvalue")) == "ValueError: bad"
 
 
+def test_a_local_worker_prints_on_stderr_and_leaves_ctrl_c_to_the_job():
+    """What a local worker runs as it starts (:func:`~pdeface.batch.work.dask_setup`): what it prints, through
+    Python or not, goes to stderr (the job's stdout is its JSON summary), and SIGINT is ignored."""
+    code = ("import os, signal\nfrom pdeface.batch.work import dask_setup\ndask_setup(None)\n"
+            "print('python', signal.getsignal(signal.SIGINT) is signal.SIG_IGN, flush=True)\nos.write(1, b'raw')\n")
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=False,
+                         preexec_fn=_as_a_terminal_job)
+    assert res.returncode == 0, res.stderr
+    assert res.stdout == "" and res.stderr == "python True\nraw"
+
+
 def test_a_killed_worker_loses_nothing(tmp_path):
     """Kill one of the 2 workers mid-job: the job completes, each image exists once, byte-identical to a serial
     run's (1 worker), and the labels too."""
@@ -188,29 +211,67 @@ def test_a_killed_worker_loses_nothing(tmp_path):
 
 
 def test_an_interrupted_job_resumes_with_only_the_missing_outputs(tmp_path):
-    # 60 images of 192 px (12 small ones finish before an interrupt lands: the workers start from a fork server)
-    n = 60
+    """Ctrl-C (SIGINT to the job's process group, workers included) stops the job: no task starts after it (those
+    running may finish), its worker processes are gone when it exits 130 saying how to resume, and ``--resume``
+    makes only the missing outputs. However fast the machine, at most 2 tasks per worker finish after the
+    interrupt, far fewer than the 60 images of the job."""
+    n, workers = 60, 2
     job = _job(tmp_path, STIMULI.format(out="out").replace('aus = [[12], [1, 2], [4]]',
                                                            'aus = [[12], [1, 2], [4], [6], [15], [9, 10]]')
                .replace('intensities = ["B", "E"]', 'intensities = ["A", "B", "C", "D", "E"]')
                .replace("size = 48", "size = 192"))
     out = tmp_path / "out"
-    proc = _pdeface("batch", job, "--workers", 2)
+    proc = _pdeface("batch", job, "--workers", workers, preexec_fn=_as_a_terminal_job)
+    job_workers = _workers(proc)
     _wait_for_records(out, 3, proc)
-    proc.send_signal(signal.SIGINT)
-    _finish(proc)
+    os.killpg(proc.pid, signal.SIGINT)
+    at_interrupt = _records(out)
+    t0 = time.time()
+    try:
+        code, _, err = _finish(proc, timeout=120)
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGKILL)
+        raise AssertionError("the job did not stop within 120 s of the interrupt") from None
+    stopped_in = time.time() - t0
+    assert code == 130, err
+    assert "--resume" in err and "Traceback" not in err, err
+    _, alive = psutil.wait_procs(job_workers, timeout=5)
+    assert not alive, "the job's workers outlived it"
+    records = _records(out)  # final: nothing is left that could write one
+    assert at_interrupt <= records <= at_interrupt + 2 * workers < n, (at_interrupt, records, stopped_in)
     before = {p: p.stat().st_mtime_ns for p in out.glob("*.png")}
-    records = len(list((out / RECORDS).glob("*.json")))
-    assert 3 <= records < n, "interrupted too late: nothing left to resume"
-    code, stdout, err = _finish(_pdeface("batch", job, "--workers", 2, "--resume"))
+    code, stdout, err = _finish(_pdeface("batch", job, "--workers", workers, "--resume"))
     assert code == 0, err
     summary = json.loads(stdout)
     assert summary["skipped"] == records and summary["done"] == n - records
     assert len(list(out.glob("*.png"))) == n
-    kept = [p for p in before if (out / RECORDS).exists() and p.stat().st_mtime_ns == before[p]]
+    kept = [p for p in before if p.stat().st_mtime_ns == before[p]]
     assert len(kept) >= records  # the done ones were not made again
     with open(out / "labels.csv") as f:
         assert len(list(csv.DictReader(f))) == n
+
+
+def test_a_terminated_job_stops_as_an_interrupted_one(tmp_path):
+    """SIGTERM (``kill``, a cluster's time limit; a job started in the background ignores Ctrl-C) stops a job as
+    Ctrl-C does: no task starts after it, its workers are gone when it exits 143 saying how to resume, and its
+    manifest lists every task."""
+    n, workers = 12, 2
+    job = _job(tmp_path, STIMULI.format(out="out").replace("size = 48", "size = 192"))
+    out = tmp_path / "out"
+    proc = _pdeface("batch", job, "--workers", workers)
+    job_workers = _workers(proc)
+    _wait_for_records(out, 1, proc)
+    proc.terminate()
+    at_signal = _records(out)
+    code, _, err = _finish(proc, timeout=120)
+    assert code == 143, err
+    assert "--resume" in err and "Traceback" not in err, err
+    _, alive = psutil.wait_procs(job_workers, timeout=5)
+    assert not alive, "the job's workers outlived it"
+    records = _records(out)
+    assert at_signal <= records <= at_signal + 2 * workers < n, (at_signal, records)
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert len(manifest["tasks"]) == n and [t["status"] for t in manifest["tasks"]].count("not run") >= n - records
 
 
 def test_a_rig_job_rigs_each_head_and_records_a_broken_one(tmp_path):

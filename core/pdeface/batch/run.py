@@ -22,7 +22,7 @@ from ..errors import PdeFaceError
 from ..io.files import write_bytes
 from .job import identity_key
 from .stimuli import bound_once
-from .work import RECORDS, is_done, one_line, prepare_identity, run_task
+from .work import RECORDS, dask_setup, is_done, one_line, prepare_identity, run_task
 
 #: Dask's settings for a local cluster. Its workers are forked from a fork server that imported Dask once, where
 #: the platform has one (POSIX), instead of spawned, each a fresh interpreter importing it again: that took about
@@ -110,9 +110,10 @@ def open_client(workers=None, scheduler=None):
         dashboard = True
     except ImportError:
         dashboard = False
-    # a free port for the scheduler's web server (another job's cluster may hold the usual 8787)
+    # a free port for the scheduler's web server (another job's cluster may hold the usual 8787); each worker runs
+    # dask_setup as it starts (its stdout to stderr, Ctrl-C for this process alone)
     cluster = distributed.LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
-                                       silence_logs=logging.CRITICAL)
+                                       silence_logs=logging.CRITICAL, preload=[dask_setup.__module__])
     client = distributed.Client(cluster)
     return client, cluster, client.dashboard_link if dashboard else None
 

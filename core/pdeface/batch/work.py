@@ -10,6 +10,8 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import signal
+import threading
 import time
 from pathlib import Path
 
@@ -63,6 +65,22 @@ def prepare_identity(face, keys, out, key):
     except (PdeFaceError, OSError):
         return None
     return str(path)
+
+
+def dask_setup(worker):
+    """Run by each worker process of a local cluster as it starts (Dask's preload, see
+    :func:`pdeface.batch.run.open_client`).
+
+    Its standard output goes to the job's standard error: the workers share the job's stdout, which carries
+    ``pdeface batch``'s JSON summary alone, and what a worker's Blender prints there (its extension cache's
+    ``reading cache failed`` line, when another Blender was writing that cache) would spoil it. It ignores SIGINT:
+    Ctrl-C in a terminal reaches the job's whole process group, and the job's own process answers it, closing the
+    cluster so that no task starts after it but those already handed to a worker, where a worker stopped by it would print its traceback and be started
+    again by its nanny.
+    """
+    os.dup2(2, 1)  # what sys.stdout holds is written there too
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 def run_task(task, out, *after) -> dict:
