@@ -123,7 +123,8 @@ UPPER_LIP_IOD = 0.03
 #: body's neck: the under-jaw the jaw keys move lies above it). A head depth is at least MIN_HEAD_DEPTH_IOD eye
 #: distances (a face mask has no back: its cheeks keep their motion). ICT's own scanned AU12 and AU27 move the skin
 #: in front of its ears 1.8 and 2.3 mm past 0.6: on its generic head the fade costs face capture 0.960 -> 0.957 and
-#: AU12 0.956 -> 0.89 (from 0.5: 0.956, 0.88; a step at 0.6: 0.958, 0.91; bench_head).
+#: AU12 0.956 -> 0.89 (from 0.5: 0.956, 0.88; a step at 0.6: 0.958, 0.91), on the unseen identities face 0.949 ->
+#: 0.944, head 0.926 -> 0.915 (bench_head's prior figures).
 STILL_BEHIND = (0.55, 0.6)
 STILL_BELOW_CHIN_IOD = (1.0, 1.4)
 MIN_HEAD_DEPTH_IOD = 2.5
