@@ -10,7 +10,8 @@ eye distances (ED: between the two eyes' lid-middle midpoints, each the midpoint
 lid's middle landmarks), each landmark followed by its nearest vertex:
 
 - AU45: the gap between the upper and lower lid middles shrinks ≥ 80 % per eye; L/R differ ≤ 25 %;
-- AU27: the inner lips' middle gap grows ≥ 0.25 ED; the upper lip rises ≤ 0.08 ED;
+- AU27: the inner lips' middle gap grows ≥ 0.25 ED; the upper lip rises ≤ 0.08 ED (not measurable, n/m, where
+  both inner lips' middles are one vertex: lips fused in the mesh); beside them (27out) the outer lips' middles' gap;
 - AU12: each mouth corner rises ≥ 0.04 ED; L/R differ ≤ 25 %;
 - folds: edges of the user's mesh over 40° in a key that were under 20° at rest, ≤ 0.1 % of the edges
   or 2, for every key (the worst key is named); beside it the same over edges between skin faces alone
@@ -40,15 +41,21 @@ from pdeface.surface.fit import fit_face
 
 from scripts.bench.benchlib import bench_parser, run_bench
 from scripts.devset.characters import SPECS, build
+from scripts.figures.render_keys_devset import HARDEST
 
 TARGETS = {"lid_shrink": 0.80, "lr_diff": 0.25, "lip_gap_ed": 0.25, "upper_lip_rise_ed": 0.08,
            "corner_lift_ed": 0.04, "new_fold_share": 0.001, "new_fold_min": 2, "spill_mm": 0.5}
 #: Lid middles (iBUG-68, 0-based): (upper pair, lower pair) per eye.
 LIDS = {"R": ((37, 38), (40, 41)), "L": ((43, 44), (46, 47))}
 LIP_UPPER_INNER, LIP_LOWER_INNER, CORNERS = 62, 66, {"R": 48, "L": 54}
+#: The outer lips' middles (upper, lower).
+OUTER_LIPS = (51, 57)
 QUICK = ("AU12", "AU27", "AU45", "happy")
 #: The back of the head starts this many head depths behind the nose tip (the issue's spill rule).
 SPILL_BEHIND = 0.6
+#: Linked from the page: Workbench close-ups of the hardest heads (``python -m scripts.figures.render_keys_devset``).
+SEE_ALSO = tuple((f"{name}: neutral, AU12, AU27, AU45 and happy, front and 3/4 (Workbench)",
+                  f"../images/keys_devset_{name}.png") for name in HARDEST)
 
 
 def eyes_of(L):
@@ -90,11 +97,14 @@ def measure(V, T, L, body, source, quick):
     m45, _ = eyes_of(lm(posed["AU45"]))
     r["lid_shrink"] = {s: 1 - np.linalg.norm(m45[s][0] - m45[s][1]) / np.linalg.norm(mids0[s][0] - mids0[s][1])
                        for s in LIDS}
-    # AU27: the inner lips' gap and the upper lip's rise.
+    # AU27: the inner lips' gap and the upper lip's rise; not measurable where both inner lips' middles are one
+    # vertex (lips fused in the mesh: a voxel remesh). The outer lips' middles' gap beside it, on every head.
     P27, P0 = lm(posed["AU27"]), lm(Vf)
-    gap = lambda P: P[LIP_UPPER_INNER, 1] - P[LIP_LOWER_INNER, 1]
-    r["lip_gap_ed"] = (gap(P27) - gap(P0)) / ed
-    r["upper_lip_rise_ed"] = (P27[LIP_UPPER_INNER, 1] - P0[LIP_UPPER_INNER, 1]) / ed
+    gap = lambda P, a=LIP_UPPER_INNER, b=LIP_LOWER_INNER: P[a, 1] - P[b, 1]
+    fused = near[LIP_UPPER_INNER] == near[LIP_LOWER_INNER]
+    r["lip_gap_ed"] = None if fused else (gap(P27) - gap(P0)) / ed
+    r["upper_lip_rise_ed"] = None if fused else (P27[LIP_UPPER_INNER, 1] - P0[LIP_UPPER_INNER, 1]) / ed
+    r["outer_lip_gap_ed"] = (gap(P27, *OUTER_LIPS) - gap(P0, *OUTER_LIPS)) / ed
     P12 = lm(posed["AU12"])
     r["corner_lift_ed"] = {s: (P12[i, 1] - P0[i, 1]) / ed for s, i in CORNERS.items()}
     # Folds: new edges over 40° per key.
@@ -159,9 +169,9 @@ def verdicts(r):
         fails.append("AU45 closure")
     if lr_diff(*r["lid_shrink"].values()) > t["lr_diff"]:
         fails.append("AU45 L/R")
-    if r["lip_gap_ed"] < t["lip_gap_ed"]:
+    if r["lip_gap_ed"] is not None and r["lip_gap_ed"] < t["lip_gap_ed"]:
         fails.append("AU27 gap")
-    if r["upper_lip_rise_ed"] > t["upper_lip_rise_ed"]:
+    if r["upper_lip_rise_ed"] is not None and r["upper_lip_rise_ed"] > t["upper_lip_rise_ed"]:
         fails.append("AU27 upper lip")
     if min(r["corner_lift_ed"].values()) < t["corner_lift_ed"]:
         fails.append("AU12 lift")
@@ -176,11 +186,15 @@ def verdicts(r):
 
 def row(name, r):
     s, c, nf = r["lid_shrink"], r["corner_lift_ed"], r["new_folds"]
-    return (f"  {name:30s} {s['R']:6.2f} {s['L']:6.2f} {r['lip_gap_ed']:6.2f} {r['upper_lip_rise_ed']:+6.2f} "
+    gap, up = r["lip_gap_ed"], r["upper_lip_rise_ed"]
+    gap, up = ("   n/m", "   n/m") if gap is None else (f"{gap:6.2f}", f"{up:+6.2f}")
+    return (f"  {name:30s} {s['R']:6.2f} {s['L']:6.2f} {gap} {up} {r['outer_lip_gap_ed']:6.2f} "
             f"{c['R']:6.3f} {c['L']:6.3f} {nf['worst']:5d} {nf['worst_key']:>7s} {r['spill']['max_mm']:6.2f} {r['spill']['worst_key']:>7s} "
             f"{''.join('LR'[i] for i, e in enumerate(('eye_L', 'eye_R')) if e in r['eyeballs']) or '-':>4s} "
             f"{r['seconds']:5.0f}  skin folds {r['new_folds_skin']['worst']} in {r['new_folds_skin']['worst_key']} "
-            f"({r['new_folds_skin']['keys_over']} keys over); {', '.join(r['fails']) or 'ok'}")
+            f"({r['new_folds_skin']['keys_over']} keys over); {', '.join(r['fails']) or 'ok'}"
+            + ("; AU27's inner lip gap not measurable: both inner lips' middles are one vertex (fused lips)"
+               if r["lip_gap_ed"] is None else ""))
 
 
 def main(argv=None):
@@ -196,7 +210,7 @@ def main(argv=None):
     print(f"  targets: lid shrink >= {TARGETS['lid_shrink']:.0%}, L/R <= {TARGETS['lr_diff']:.0%}; AU27 gap >= "
           f"{TARGETS['lip_gap_ed']} ED, upper lip <= {TARGETS['upper_lip_rise_ed']} ED; AU12 >= "
           f"{TARGETS['corner_lift_ed']} ED; new folds <= 0.1 % or 2; spill <= {TARGETS['spill_mm']} mm")
-    print(f"  {'character':30s} {'45 R':>6s} {'45 L':>6s} {'27gap':>6s} {'27up':>6s} {'12 R':>6s} {'12 L':>6s} "
+    print(f"  {'character':30s} {'45 R':>6s} {'45 L':>6s} {'27gap':>6s} {'27up':>6s} {'27out':>6s} {'12 R':>6s} {'12 L':>6s} "
           f"{'folds':>5s} {'in':>7s} {'spill':>6s} {'in':>7s} {'eyes':>4s} {'s':>5s}  skin only; fails")
     rows = {}
     cases = [] if args.no_ict else [("ICT head (reference)", None)]
@@ -226,10 +240,14 @@ def main(argv=None):
             for f in r["fails"]:
                 counts[f.split(" in ")[0] if f.startswith("folds") else f] = counts.get(
                     f.split(" in ")[0] if f.startswith("folds") else f, 0) + 1
+        unmeasured = [n for n, r in done.items() if r["lip_gap_ed"] is None]
         print(f"  all targets met: {sum(not r['fails'] for r in done.values())}/{len(done)}; refused: "
               f"{len(rows) - len(done) - (0 if args.no_ict else 1)}")
         for f, k in sorted(counts.items(), key=lambda x: -x[1]):
             print(f"  fails {f}: {k}/{len(done)}")
+        if unmeasured:
+            print(f"  AU27's inner lip gap not measurable (fused lips): {', '.join(unmeasured)}; their outer lips' "
+                  "gap (27out) grows " + ", ".join(f"{done[n]['outer_lip_gap_ed']:.2f}" for n in unmeasured) + " ED")
         shrink = [min(r["lid_shrink"].values()) for r in done.values()]
         print(f"  AU45 closure (worse eye): median {np.median(shrink):.2f}, worst {min(shrink):.2f}")
         truth = ict_truth_spill()

@@ -1,96 +1,170 @@
 """Close-ups of the development set's hardest heads in neutral, AU12, AU27, AU45 and happy (issue #40).
 
-Usage: python -m scripts.figures.render_keys_devset [-o docs/images/keys_devset.png] [--size 260]
-       [--only NAME,...] [--as-bound]
+Usage: python -m scripts.figures.render_keys_devset [-o docs/images] [--size 512] [--only NAME,...]
+       (with the bpy module; Blender's Workbench engine renders headless)
 
-Each row a character of ``scripts.devset.characters`` rigged as ``bench_keys_devset`` rigs it (true
-landmarks, the add-on's joined objects, :class:`pdeface.head.bind.HeadBinding`); each panel a front view
-in the face frame, grey-shaded, every new fold (an edge under 20° at rest and over 40° in the key) a red dot
-and its count in the title. ``--as-bound``: the keys without the fold relaxation and the lids' closing
-(:mod:`pdeface.head.folds`, :mod:`pdeface.head.lids`), as they were before them.
+Each character of ``scripts.devset.characters`` is rigged as ``bench_keys_devset`` rigs it (true landmarks,
+the add-on's joined objects, :class:`pdeface.head.bind.HeadBinding`) and rendered with Blender's Workbench
+(studio light, smooth shading) in a front and a three-quarter view, one ``keys_devset_<name>.png`` per character:
+a row per view, a column per key. Vertices of a new fold (an edge under 20° at rest and over 40° in the key) are
+red, and each panel's title counts those edges.
 """
 from __future__ import annotations
 
 import argparse
+import math
+import tempfile
 from pathlib import Path
 
 import numpy as np
 from pdeface.au.modelfile import load_face
 from pdeface.au.retarget import retarget
-from pdeface.head import folds
 from pdeface.head.bind import HeadBinding, descriptor_motion_args
 from pdeface.io.png import draw_text, write_png
-from pdeface.landmarks.render import marked
 from pdeface.mesh import edge_face_pairs, turn_degrees
 from pdeface.presets import every_pose
 from pdeface.surface.fit import fit_face
 
 from scripts.devset.characters import SPECS, build
-from scripts.figures.drawlib import rasterise, shade, to_pixel
 
-#: The hardest heads of the development set before issue #40's fixes: lids closing 0.32-0.65, 25-110 folds.
-HARDEST = ("stylised-chin-cheek-in", "voxel-m", "stylised-parted-decimated-dm", "decimated-cm",
-           "eyes-teeth-separate-in")
+OUT = Path(__file__).resolve().parents[2] / "docs" / "images"
+#: The hardest heads of the development set after issue #40's first fixes: fused lips (voxel-m), the mouth curves
+#: once on the chin (body-A-cm), the most keys folding (eyes-teeth-separate-in), the least closed lids and smallest
+#: smile (stylised-parted-decimated-dm, stylised-chin-cheek-in).
+HARDEST = ("voxel-m", "body-A-cm", "eyes-teeth-separate-in", "stylised-parted-decimated-dm", "stylised-chin-cheek-in")
 KEYS = ("neutral", "AU12", "AU27", "AU45", "happy")
+#: The views: the camera turned this many degrees about the face's vertical axis (towards the subject's left).
+VIEWS = {"front": 0.0, "3/4": 40.0}
+SKIN = (0.80, 0.74, 0.68, 1.0)
+FOLD = (0.9, 0.05, 0.05, 1.0)
+#: The PNGs' colour levels are this many apart (smooth shading's gradients compress three times smaller).
+LEVEL_STEP = 8
 
 
-def rigged(name, as_bound=False):
-    """(face-frame vertices, triangles, face-frame landmarks, {key: face-frame displacements}, eye distance)."""
+def rigged(name, keys=KEYS):
+    """(face-frame vertices / eye distance, triangles, face-frame landmarks / eye distance, {key: moved vertices})."""
     ch = build(SPECS[name])
-    V, T, L = ch.vertices, ch.triangles, ch.landmarks
-    for Vp, Tp in ch.parts.values():  # the add-on joins a head's objects
-        T = np.concatenate([T, Tp + len(V)])
-        V = np.concatenate([V, Vp])
-    model, _ = fit_face(V, T, L)
-    model = retarget(load_face("default"), model)
+    (V, T), L = ch.joined(), ch.landmarks
+    model = retarget(load_face("default"), fit_face(V, T, L)[0])
     b = HeadBinding(model, V, T, landmarks=L)
     descr = {f"AU{d.key}": d for d in model.descriptors}
     poses = every_pose(model)
-    names = KEYS[1:]
+    names = [k for k in keys if k != "neutral"]
     motions = [descriptor_motion_args(descr[n]) if n in descr else b.pose_motion_args(poses[n], "sum") for n in names]
-    if as_bound:  # no lids' closing; the relaxation is off (main)
-        motions = [m[:4] for m in motions]
-    f = model.frame
-    D = {n: f.to_face(V + d) - f.to_face(V) for n, d in zip(names, b.displacements(motions))}
-    return f.to_face(V), T, f.to_face(L), D, b.eye_distance
+    f, ed = model.frame, b.eye_distance
+    posed = {n: f.to_face(V + d) / ed for n, d in zip(names, b.displacements(motions))}
+    return f.to_face(V) / ed, T, f.to_face(L) / ed, {"neutral": f.to_face(V) / ed, **posed}
 
 
-def row(name, size, as_bound):
-    Vf, T, Lf, D, ed = rigged(name, as_bound)
-    centre = Lf[17:68].mean(0)
-    half = 1.05 * ed
-    box = ((centre[0] - half, centre[0] + half), (centre[1] - 1.25 * half, centre[1] + 0.75 * half))
-    (x0, x1), (y0, y1) = box
-    seen = ((Vf[T, 0] > x0) & (Vf[T, 0] < x1) & (Vf[T, 1] > y0) & (Vf[T, 1] < y1)).any(axis=1)
+def new_fold_vertices(V0, P, T, pairs):
+    """(vertices of edges that newly fold in ``P``, how many edges)."""
+    new = (turn_degrees(V0, T, pairs) < 20) & (turn_degrees(P, T, pairs) > 40)
+    return np.unique(T[pairs[new]]), int(new.sum())
+
+
+def _scene(size):
+    import bpy
+
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    scene.render.engine = "BLENDER_WORKBENCH"
+    scene.render.resolution_x = scene.render.resolution_y = size
+    scene.render.film_transparent = False
+    shading = scene.display.shading
+    shading.light, shading.color_type = "STUDIO", "VERTEX"
+    shading.show_cavity = False  # its ridges drew a voxel remesh's steps as dark diamonds
+    shading.show_specular_highlight = False
+    scene.world = bpy.data.worlds.new("pdeface renders")
+    scene.world.color = (1.0, 1.0, 1.0)
+    scene.view_settings.view_transform = "Standard"
+    cam = bpy.data.objects.new("camera", bpy.data.cameras.new("camera"))
+    cam.data.type, cam.data.ortho_scale = "ORTHO", 2.6  # eye distances across
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+    return scene, cam
+
+
+def _panel(scene, cam, centre, degrees, path):
+    """Render the scene from ``degrees`` about the face's vertical axis through ``centre``: (size, size, 3) uint8."""
+    import bpy
+    from mathutils import Euler, Vector
+
+    a = math.radians(degrees)
+    cam.location = Vector(centre) + 10.0 * Vector((math.sin(a), 0.0, math.cos(a)))
+    cam.rotation_euler = Euler((0.0, a, 0.0), "XYZ")  # the camera looks down its -z
+    cam.data.clip_start, cam.data.clip_end = 0.1, 30.0
+    scene.render.filepath = str(path)
+    bpy.ops.render.render(write_still=True)
+    img = bpy.data.images.load(str(path))
+    w, h = img.size
+    px = np.empty(w * h * 4, np.float32)
+    img.pixels.foreach_get(px)
+    bpy.data.images.remove(img)
+    rgb = px.reshape(h, w, 4)[::-1, :, :3]
+    return (np.clip(rgb, 0, 1) * 255).astype(np.uint8)
+
+
+def _one_winding(me):
+    """Turn ``me``'s triangles one way (the voxel remesh's winding is mixed: its flipped triangles shaded as dark
+    diamonds). bmesh comes with bpy, imported first."""
+    import bmesh
+
+    bm = bmesh.new()
+    bm.from_mesh(me)
+    bmesh.ops.recalc_face_normals(bm, faces=bm.faces)
+    bm.to_mesh(me)
+    bm.free()
+
+
+def sheet(name, size, tmp, keys=KEYS):
+    """One character's (views × keys) panels as one image, and its new folds per key."""
+    import bpy
+
+    V0, T, Lf, posed = rigged(name, keys)
     pairs = edge_face_pairs(T)
-    flat = turn_degrees(Vf, T, pairs) < 20
-    panels = []
-    for key in KEYS:
-        P = Vf + D.get(key, 0.0)
-        grey = 40 + 200 * shade(P, T)
-        img = rasterise(P, T[seen], np.repeat(grey[:, None], 3, axis=1), size, box)
-        new = flat & (turn_degrees(P, T, pairs) > 40)
-        where = P[T[pairs[new]]].mean(axis=(1, 2))
-        if len(where):
-            img = marked(img, np.stack(to_pixel(where[:, :2], size, box), 1), 1)
-        draw_text(img, 4, 4, f"{name[:24]}" if key == "neutral" else f"{key}: {int(new.sum())} folds", (0, 0, 0), 1)
-        panels.append(img)
-    return np.concatenate(panels, axis=1)
+    scene, cam = _scene(size)
+    me = bpy.data.meshes.new(name)
+    me.from_pydata(V0.tolist(), [], T.tolist())
+    _one_winding(me)
+    me.shade_smooth() if hasattr(me, "shade_smooth") else None
+    colours = me.color_attributes.new("folds", "FLOAT_COLOR", "POINT")
+    me.color_attributes.active_color = colours
+    me.color_attributes.default_color_name = colours.name
+    scene.collection.objects.link(bpy.data.objects.new(name, me))
+    centre = (Lf[17:68, 0].mean(), Lf[17:68, 1].mean() - 0.35, Lf[17:68, 2].mean())
+    rows, folds = {v: [] for v in VIEWS}, {}
+    for key in keys:
+        P = posed[key]
+        me.vertices.foreach_set("co", P.astype(np.float32).ravel())
+        at, folds[key] = new_fold_vertices(V0, P, T, pairs)
+        c = np.tile(SKIN, (len(P), 1))
+        c[at] = FOLD
+        colours.data.foreach_set("color", c.astype(np.float32).ravel())
+        me.update()
+        for view, degrees in VIEWS.items():
+            img = _panel(scene, cam, centre, degrees, Path(tmp) / "panel.png")
+            title = name[:30] if key == "neutral" and view == "front" else key if view == "front" else view
+            draw_text(img, 6, 6, title + (f": {folds[key]} new folds" if key != "neutral" and view == "front" else ""),
+                      (0, 0, 0), 2 if size >= 400 else 1)
+            rows[view].append(img)
+    return np.concatenate([np.concatenate(r, axis=1) for r in rows.values()], axis=0), folds
 
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("-o", "--out", default=str(Path(__file__).resolve().parents[2] / "docs" / "images" / "keys_devset.png"))
-    ap.add_argument("--size", type=int, default=260)
+    ap.add_argument("-o", "--out", default=str(OUT), help="folder of the keys_devset_<name>.png files")
+    ap.add_argument("--size", type=int, default=512, help="pixels per panel")
     ap.add_argument("--only", help="comma-separated character names (default: the five hardest)")
-    ap.add_argument("--as-bound", action="store_true", help="without the fold relaxation and the lids' closing")
+    ap.add_argument("--keys", default=",".join(KEYS), help="comma-separated keys (default: %(default)s)")
     args = ap.parse_args(argv)
-    if args.as_bound:
-        folds.RELAX_STEPS = 0
     names = args.only.split(",") if args.only else HARDEST
-    rows = [row(n, args.size, args.as_bound) for n in names]
-    write_png(args.out, np.concatenate(rows, axis=0).astype(np.uint8))
-    print(f"wrote {args.out}")
+    with tempfile.TemporaryDirectory() as tmp:
+        for name in names:
+            img, folds = sheet(name, args.size, tmp, args.keys.split(","))
+            path = Path(args.out) / f"keys_devset_{name}.png"
+            write_png(path, (img // LEVEL_STEP) * LEVEL_STEP + LEVEL_STEP // 2)  # a third of the bytes
+            print(f"wrote {path} ({path.stat().st_size / 1e3:.0f} kB); new folds: "
+                  + ", ".join(f"{k} {n}" for k, n in folds.items() if k != "neutral"), flush=True)
 
 
 if __name__ == "__main__":

@@ -93,6 +93,24 @@ def test_rest_region_never_moves(head, generic):
         assert np.abs(D[below]).max() == 0 and np.abs(D[rest]).max() == 0, d.key
 
 
+def test_the_back_of_the_head_fades_still_but_a_face_mask_keeps_its_motion(head, generic):
+    from pdeface.head.bind import STILL_BELOW_CHIN_IOD, still_weight
+
+    _, _, lm, _ = head
+    _, b = generic
+    P, Lf, ed = b.Vf[b.skin], b.Vf[lm], b.eye_distance
+    w = still_weight(b.Vf, P, Lf, ed)
+    assert np.isfinite(w).all() and (w[lm] == 1).all()
+    depth = P[:, 2].max() - P[:, 2].min()
+    assert (w[b.Vf[:, 2] < P[:, 2].max() - 0.6 * depth] == 0).all()  # the back of the skull
+    assert (w[b.Vf[:, 1] < Lf[8, 1] - STILL_BELOW_CHIN_IOD[1] * ed] == 0).all()  # the neck
+    # The bundled face model keeps no nose tip landmark: its binding's keys are finite and fade as well.
+    assert np.isfinite(b.descriptor_displacement(b.model.descriptors[0])).all()
+    # A face mask (no back of the head) keeps every vertex's motion.
+    mask = P[P[:, 2] > Lf[33, 2] - 0.8 * ed]
+    assert (still_weight(mask, mask, Lf, ed) == 1).all()
+
+
 def test_jaw_turns_the_lower_teeth_and_gaze_the_eyeballs(generic):
     model, b = generic
     by_key = {d.key: d for d in model.descriptors}
@@ -135,8 +153,9 @@ def test_figures_on_ict_heads(head, identity):
     keys = ("12", "4", "27", "20", "45")
     rep = head_report(b, {k: au_offsets(k, shapes) for k in keys}, {"face": face, "head": np.ones(len(V), bool)})
     # Measured with the bundled head prior (bench_head.py), generic / identity007 over the face region:
-    # AU12 0.97 / 0.94, AU4 1.00 / 0.97, AU27 0.96 / 0.84 (without the prior AU12 0.86, AU27 0.69-0.76).
-    assert rep["12"]["face"] > 0.9 and rep["4"]["face"] > 0.95 and rep["27"]["face"] > 0.8
+    # AU12 0.97 / 0.94, AU4 1.00 / 0.97, AU27 0.96 / 0.84 (without the prior AU12 0.86, AU27 0.69-0.76). The still
+    # back of the head (issue #40) takes the generic head's AU12 to 0.89: ICT's smile moves the skin before its ears.
+    assert rep["12"]["face"] > 0.85 and rep["4"]["face"] > 0.95 and rep["27"]["face"] > 0.8
     assert np.median([r["face"] for r in rep.values()]) > 0.9 and np.median([r["head"] for r in rep.values()]) > 0.85
     # The old way, reading the mask at each vertex's closest point, got AU27 0.54 over the same vertices.
     jaw = {"jaw": b.parts.mask("jaw")}

@@ -202,17 +202,78 @@ def test_lips_joined_in_the_mesh_open_below_the_upper_lip_and_say_so():
 
 
 @needs_makehuman
-def test_a_fit_that_leaves_the_mesh_is_refused_not_rigged():
-    # A stylised head (prominent chin, cheek bones, forehead forward on an older man) whose curves run off the
-    # face below the brows: the fit says so instead of rigging keys on a surface that is not the mesh's. The
-    # same style on another identity fits (its face stays on the mesh).
+def test_a_fit_that_leaves_the_mesh_is_refused_not_rigged(monkeypatch):
+    # A stylised head (prominent chin, cheek bones, forehead forward on an older man) whose curves ran off the face
+    # below the brows (a rim's knot 0.001 rad inside an inner eye corner swung the eye line down): such a fit says
+    # so instead of rigging keys on a surface that is not the mesh's. With the rims' knots clear of the corners it
+    # fits.
     from pdeface.errors import LayoutError
+    from pdeface.surface import rims
 
     style = {"chin/chin-prominent-incr": 2.0, "cheek/l-cheek-bones-incr": 2.0, "cheek/r-cheek-bones-incr": 2.0,
              "forehead/forehead-trans-forward": 1.5}
-    broken = build(Spec("chin-cheek-old-man", {"caucasian-male-old": 1.0}, style=style))
-    with pytest.raises(LayoutError, match="leaves the mesh"):
-        fit_face(broken.vertices, broken.triangles, broken.landmarks)
-    fine = build(SPECS["stylised-chin-cheek-in"])
-    model, _ = fit_face(fine.vertices, fine.triangles, fine.landmarks)
+    head = build(Spec("chin-cheek-old-man", {"caucasian-male-old": 1.0}, style=style))
+    model, _ = fit_face(head.vertices, head.triangles, head.landmarks)
     assert model.coefficients.shape[0] > 0
+    monkeypatch.setattr(rims, "RIM_KNOT_GAP", 0.0)  # the knots as they were
+    with pytest.raises(LayoutError, match="leaves the mesh"):
+        fit_face(head.vertices, head.triangles, head.landmarks)
+
+
+@needs_makehuman
+def test_a_rim_knot_next_to_an_eye_corner_leaves_the_mouth_curves_on_the_mouth():
+    """body-A-cm's head (caucasian-male-young): a ray 0.0009 rad inside the inner eye corner gave the lid line a
+    near-double knot; its spline swung 213 mm down between the eyes, every anchor below it with it, and the mouth's
+    curves lay on the chin: AU27 left the lips shut (gap 0.00 eye distances, issue #40)."""
+    from pdeface.surface.layout import ANCHOR_NAMES
+
+    ch = build(Spec("caucasian-male-young", {"caucasian-male-young": 1.0}))
+    V, T, L = ch.vertices, ch.triangles, ch.landmarks
+    model = retarget(load_face("default"), fit_face(V, T, L)[0])
+    f = model.frame
+    Vf, Lf = f.to_face(V), f.to_face(L)
+    ed = eyes_of(Lf)[1]
+    C = model.curve_points(model.coefficients, model.residual)
+    k = next(k for a, k in model.layout.opening_curves() if ANCHOR_NAMES[a] == "mouth_top")
+    j = np.argmin(np.abs(C[k, :, 0]))
+    assert np.abs(C[k:k + 2, j, 1] - Lf[[LIP_UPPER_INNER, LIP_LOWER_INNER], 1]).max() < 0.05 * ed  # on the lips
+    binding = HeadBinding(model, V, T, landmarks=L)
+    posed = f.to_face(V + binding.displacement(*descriptor_motion_args({x.key: x for x in model.descriptors}["27"])))
+    up, lo = (np.argmin(np.linalg.norm(Vf - Lf[i], axis=1)) for i in (LIP_UPPER_INNER, LIP_LOWER_INNER))
+    assert (posed[up, 1] - posed[lo, 1]) - (Vf[up, 1] - Vf[lo, 1]) >= 0.25 * ed
+    assert abs(posed[up, 1] - Vf[up, 1]) <= 0.08 * ed
+
+
+@needs_makehuman
+@pytest.mark.parametrize("name", ["body-T-turn40-blender-cm", "african-asian-female-young-mm"])
+def test_the_back_of_the_head_and_a_bodys_neck_keep_still_but_the_jaw_opens(name, monkeypatch):
+    """Every key and preset moves the back of the head (more than 0.6 head depths behind the nose tip) and a body
+    below the neck (1.5 eye distances under the chin) at most 0.5 mm (these moved up to 0.95 and 0.71 mm); the jaw
+    keys still move the chin and the skin under the jaw as before (issue #40)."""
+    from pdeface.landmark_scheme import JAW_LEFT_ANGLE, JAW_RIGHT_ANGLE
+    from pdeface.presets import every_pose
+
+    from scripts.bench.bench_keys_devset import TARGETS, spill_region
+
+    V, T, L, model, b = rig(name)
+    f = model.frame
+    Vf, Lf = f.to_face(V), f.to_face(L)
+    ed = eyes_of(Lf)[1]
+    poses = every_pose(model)
+    D = b.displacements([descriptor_motion_args(d) for d in model.descriptors]
+                        + [b.pose_motion_args(w, "sum") for n, w in poses.items() if n != "neutral"])
+    region = spill_region(Vf, Lf, ed, body=SPECS[name].body)
+    assert region.sum() > 100
+    moved = max(np.linalg.norm(f.to_face(V + d)[region] - Vf[region], axis=1).max() for d in D)
+    assert moved <= TARGETS["spill_mm"]
+    # The jaw keys: the chin and the skin under the jaw (down to 0.75 eye distances under the chin, in front of the
+    # jaw's angle) move as without the falloff.
+    monkeypatch.setattr(bind, "still_weight", lambda X, *a: np.ones(len(X)))
+    free = HeadBinding(model, V, T, landmarks=L)
+    under_jaw = ((Vf[:, 1] < Lf[8, 1]) & (Vf[:, 1] > Lf[8, 1] - 0.75 * ed)
+                 & (Vf[:, 2] > Lf[[JAW_RIGHT_ANGLE, JAW_LEFT_ANGLE], 2].max()) & b.parts.mask("skin"))
+    for key in ("26", "27"):
+        args = descriptor_motion_args({x.key: x for x in model.descriptors}[key])
+        kept, before = b.displacement(*args), free.displacement(*args)
+        assert np.linalg.norm(before[under_jaw], axis=1).max() > 0.1 * ed / f.scale
+        np.testing.assert_allclose(kept[under_jaw], before[under_jaw], atol=1e-9)

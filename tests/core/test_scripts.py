@@ -43,3 +43,18 @@ def test_a_page_holds_the_command_the_machine_and_what_was_printed(tmp_path, mon
     assert "```text\ncaptured 0.953 (target 0.95); no page: False\n```" in page
     assert benchlib.run_bench(main, "quiet", ["--no-page"]) == 0
     assert not (tmp_path / "quiet.md").exists()
+
+
+def test_a_page_links_what_its_benchmark_names_in_see_also(tmp_path, monkeypatch):
+    import sys
+
+    monkeypatch.setattr(benchlib, "PAGES", tmp_path)
+    monkeypatch.setattr(sys.modules[__name__], "SEE_ALSO", (("close-ups", "../images/x.png"),), raising=False)
+
+    def main(argv):
+        print("measured")
+        return 0
+
+    main.__module__ = __name__
+    benchlib.run_bench(main, "linked", [])
+    assert (tmp_path / "linked.md").read_text().endswith("## See also\n\n- [close-ups](../images/x.png)\n")

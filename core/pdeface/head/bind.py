@@ -33,7 +33,10 @@ motion to all of the user's mesh, once per fit:
   lid (:mod:`pdeface.head.lids`);
 - lids never end inside an eyeball: skin outside the eyeball sphere at rest is
   kept outside it;
-- **no new folds**: each key is relaxed where it would fold the mesh (:mod:`pdeface.head.folds`).
+- **no new folds**: each key is relaxed where it would fold the mesh (:mod:`pdeface.head.folds`);
+- **the back of the head and the neck keep still**: every key's motion but the rigid parts' fades to zero from
+  STILL_BEHIND[0] to STILL_BEHIND[1] head depths behind the nose tip and from STILL_BELOW_CHIN_IOD[0] to [1] eye
+  distances below the chin (issue #40: the skin before the ears and a body's neck moved 0.5-1.2 mm).
 
 Each key is the binding of one descriptor's PDE displacement at weight 1: still
 one linear shape key per AU or expression, as on the PDE face.
@@ -115,6 +118,16 @@ FUSED_IOD = 0.05
 JOINED_WIDTH = 0.6
 #: On joined lips the folds' relaxation keeps the upper lip's skin this far (eye distances) above the mouth's middle.
 UPPER_LIP_IOD = 0.03
+#: Every key's motion fades to zero from the first to the second share of the head's depth behind the nose tip (the
+#: issue's still back of the head starts at 0.6), and from the first to the second eye distance below the chin (a
+#: body's neck: the under-jaw the jaw keys move lies above it). A head depth is at least MIN_HEAD_DEPTH_IOD eye
+#: distances (a face mask has no back: its cheeks keep their motion). ICT's own scanned AU12 and AU27 move the skin
+#: in front of its ears 1.8 and 2.3 mm past 0.6: on its generic head the fade costs face capture 0.960 -> 0.957 and
+#: AU12 0.956 -> 0.89 (from 0.5: 0.956, 0.88; a step at 0.6: 0.958, 0.91), on the unseen identities face 0.949 ->
+#: 0.944, head 0.926 -> 0.915 (bench_head's prior figures).
+STILL_BEHIND = (0.55, 0.6)
+STILL_BELOW_CHIN_IOD = (1.0, 1.4)
+MIN_HEAD_DEPTH_IOD = 2.5
 #: AUs that move the jaw, and the gaze AUs.
 JAW_AUS = frozenset({25, 26, 27, 29, 30})
 GAZE_AUS = frozenset({61, 62, 63, 64})
@@ -236,6 +249,25 @@ def _prior_reach(Vf, from_covered, skin_rest, Lf, eye_distance):
     reach[skin_rest] = 0.0
     reach[_below_chin(Vf, Lf, eye_distance)] = 0.0
     return reach
+
+
+def still_weight(X, P, Lf, eye_distance) -> np.ndarray:
+    """How much of every key's motion each point ``X`` (face frame) keeps: 1 on the face, fading to 0 at the back of
+    the head (STILL_BEHIND head depths behind the nose tip) and down a body's neck (STILL_BELOW_CHIN_IOD).
+
+    The nose tip is the skin's foremost point within half an eye distance of the nose's base (landmark 33: a model
+    file keeps no tip); the head's depth its distance in front of the farthest skin ``P`` above the chin and within
+    1.5 eye distances of the nose sideways (a body's arms and a hair card's tips left out).
+    """
+    nose, chin_y = Lf[NOSE_BOTTOM], Lf[CHIN, 1]
+    near_nose = np.linalg.norm(P - nose, axis=1) < 0.5 * eye_distance
+    tip_z = P[near_nose, 2].max() if near_nose.any() else nose[2]
+    head = (P[:, 1] > chin_y) & (np.abs(P[:, 0] - nose[0]) < 1.5 * eye_distance)
+    depth = max(tip_z - P[head, 2].min() if head.any() else 0.0, MIN_HEAD_DEPTH_IOD * eye_distance)
+    (a, b), (c, d) = STILL_BEHIND, STILL_BELOW_CHIN_IOD
+    behind = smoothstep((b - (tip_z - X[:, 2]) / depth) / (b - a))
+    below = smoothstep((d - (chin_y - X[:, 1]) / eye_distance) / (d - c))
+    return behind * below
 
 
 def _inner_lip_middles(P, Lf, eye_distance):
@@ -412,6 +444,10 @@ class HeadBinding:
         self._jaw_fixed = covered | rest | (depths & (P[:, 1] > mouth_line(Lf)))  # the jaw moves the lower depths
         self._ext_jaw = None  # factorised on first use
         self._seam = _seam_smoother(P, L, covered, rest, Lf, eye_distance)
+        # The back of the head and the neck keep still; the rigid parts turn whole.
+        self._still = still_weight(Vf, P, Lf, eye_distance)
+        self._still[parts.mask("eye_L", "eye_R", "jaw")] = 1.0
+        self._still = self._still[:, None, None]
         # Each key relaxed where it would fold the mesh; rigid eyeballs, the jaw's and the skull's parts and the skin
         # that never moves kept (the mouth's lower depths move with the jaw).
         pinned = parts.mask("eye_L", "eye_R", "skull", "rest") | ~original
@@ -592,6 +628,7 @@ class HeadBinding:
         # Relaxed again where the lids' closing or the eyeballs' surface folded them (a blink, a glance down), past
         # the issue's limit alone (each sweep opens a closed lid a little), the lids kept out of the eyeballs.
         self._folds.relax(out, keys=[i for i, c in enumerate(closing) if c or pushed[i]], budget=self._folds.limit)
+        out *= self._still
         out[self._copies] = out[self._copy_of]
         out = self.frame.to_user_vectors(out.reshape(-1, 3)).reshape(out.shape)  # one product (a transposed view's is slow)
         return np.ascontiguousarray(out.transpose(1, 0, 2))  # key-major: each key's rows contiguous

@@ -27,6 +27,10 @@ RIM_JUMP_MM = 0.5
 #: A rim may lie this far (mm) past the opening's middle line (ICT's touching lips: 0.15 mm; a stylised chin's
 #: lower rim on the upper lip: 1.7 mm).
 RIM_CROSS_MM = 0.3
+#: A rim's knot nearer a span's end knot (a corner) than this share of the rays' spacing there is left out: a ray a
+#: thousandth of a radian inside an inner eye corner made a near-double knot whose spline swung the eye line 213 mm
+#: down between the eyes, and every anchor below with it (a MakeHuman head's mouth curves on its chin, issue #40).
+RIM_KNOT_GAP = 0.25
 
 
 def follow_rims(layout: CurveLayout, V_face: np.ndarray, T: np.ndarray) -> CurveLayout:
@@ -71,7 +75,8 @@ def follow_rims(layout: CurveLayout, V_face: np.ndarray, T: np.ndarray) -> Curve
         th_k, theta, up, lo = layout.angles()[k], [], [], []
         for s0, s1 in spans[a]:
             keep[s0 + 1:s1] = False
-            th = th_k[(th_k > line.theta[s0]) & (th_k < line.theta[s1])]
+            clear = RIM_KNOT_GAP * np.gradient(th_k)  # the rays' spacing there
+            th = th_k[(th_k > line.theta[s0] + clear) & (th_k < line.theta[s1] - clear)]
             Y = layout.anchor_heights(th)
             rims = _rims(V_face, T, layout.axis_z, th, Y[a - 1], Y[a], Y[a + 1], Y[a + 2],
                          OPENING_GAPS[ANCHOR_NAMES[a]])
