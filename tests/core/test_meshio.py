@@ -351,6 +351,11 @@ def test_obj_blocks_read_random_meshes_exactly(tmp_path, rng):
     "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 -\n",                      # a sign alone
     "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 --1\n",
     "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf -3/-1 -2/1 -1/-1\n",      # relative and absolute, read as columns
+    # Slashes the usual corners' count of them lets through only where each joins two fields of one corner.
+    "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1 /1 2/1 3/1\n",        # a slash after a space: as many in all
+    "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/1/ 2/1/ 3/1/\n",      # trailing
+    "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/1 2/1 3/1 /\n",       # alone
+    "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/1 2/1 3\nf 1 2 3/1\n",  # corners of two forms
     "v 0 0 0\n",
     "f 1 2 3\n",
     "",

@@ -68,3 +68,25 @@ def test_a_blas_loaded_inside_a_bound_is_bounded_by_the_next_nested_one():
              " len([p for p in threadpool_info() if p['user_api'] == 'blas']))\n")
     out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True).stdout.split()
     assert out[0] == "[1]" and int(out[1]) >= 2  # numpy's and scipy's pools, both at the outer limit
+
+
+def test_the_resolution_choice_runs_bounded(monkeypatch, default_face):
+    """Choosing a face's mesh resolution (small solves: more threads only spin) runs inside the bound, called
+    from anywhere (the add-on, the API), not only from a command."""
+    import copy
+
+    from pdeface.surface import sampling
+
+    seen, measure = [], sampling.interval_turns
+
+    def spy(*args, **kwargs):
+        seen.append(blas_threads())
+        return measure(*args, **kwargs)
+
+    monkeypatch.setattr(sampling, "interval_turns", spy)
+    model = copy.deepcopy(default_face)
+    model.descriptors = model.descriptors[:3]  # another model: chosen afresh
+    with threadpoolctl.threadpool_limits(limits=2, user_api="blas"):
+        sampling.adaptive_resolution(model)
+        assert set(blas_threads()) == {2}
+    assert seen and all(set(s) == {THREADS} for s in seen)

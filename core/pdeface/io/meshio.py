@@ -356,6 +356,25 @@ def _numbers(lines: _Lines, rows, tag: bytes, n: int):
     return out if np.isfinite(out).all() else None
 
 
+def _usual_corners(block: bytes, text, space):
+    """The face lines' fields (where each starts and ends), corners per line and fields per corner ``f``, where
+    every corner is ``f`` fields (1 to 3) joined by single slashes, as in nearly every file; None for any other.
+
+    A corner's first field follows whitespace (the tag ``f`` is followed by it), each other field the slash
+    just after the field before it; with no other slash in the lines, none is doubled, leading or trailing.
+    """
+    field_at, field_end = _tokens(text, space | (text == ord("/")) | (text == ord("f")))
+    first = np.flatnonzero(space[field_at - 1])
+    f = len(field_at) // max(len(first), 1)
+    if (not len(first) or not 1 <= f <= 3 or len(field_at) != f * len(first)
+            or block.count(b"/") != (f - 1) * len(first)):
+        return None
+    if f > 1 and not ((first == np.arange(0, len(field_at), f)).all()
+                      and (field_at.reshape(-1, f)[:, 1:] == field_end.reshape(-1, f)[:, :-1] + 1).all()):
+        return None
+    return field_at, field_end, np.diff(np.searchsorted(field_at[first], np.flatnonzero(text == 10))), f
+
+
 def _faces(lines: _Lines, rows: dict):
     """The faces' corner counts and their vertex, texture and normal indices, 0-based (-1: none given);
     None if a face has fewer than 3 corners or a corner is not 1 to 3 fields of valid indices."""
@@ -364,15 +383,24 @@ def _faces(lines: _Lines, rows: dict):
     text = b[:len(block)]
     if len(block.translate(None, _CORNER_BYTES)) != len(rows[_F]):  # anything but the tags, indices and slashes
         return None
-    at, _ = _tokens(text, text <= 32)  # only whitespace is below '-' now
-    corner_at = at[b[at] != ord("f")]
-    counts = np.diff(np.searchsorted(at, np.flatnonzero(text == 10))) - 1  # tokens per line but the tag
-    slash = np.flatnonzero(text == ord("/"))
-    # A slash stands between two fields, or is the first of "//" (no texture index).
-    double = slash[b[slash + 1] == ord("/")]
-    if (counts < 3).any() or _SEP[b[slash - 1]].any() or _SEP[b[slash + 1]].any() or (b[double + 2] == ord("/")).any():
-        return None
-    field_at, field_end = _tokens(text, (text <= 32) | (text == ord("/")) | (text == ord("f")))
+    space = text <= 32  # only whitespace is below '-' now
+    usual = _usual_corners(block, text, space)
+    if usual is not None:  # no slash to check: the fields are as the usual file has them
+        field_at, field_end, counts, f = usual
+        corner_at, slash, double = field_at[::f], None, ()
+        if (counts < 3).any():
+            return None
+    else:
+        at, _ = _tokens(text, space)
+        corner_at = at[b[at] != ord("f")]
+        counts = np.diff(np.searchsorted(at, np.flatnonzero(text == 10))) - 1  # tokens per line but the tag
+        slash = np.flatnonzero(text == ord("/"))
+        # A slash stands between two fields, or is the first of "//" (no texture index).
+        double = slash[b[slash + 1] == ord("/")]
+        if ((counts < 3).any() or _SEP[b[slash - 1]].any() or _SEP[b[slash + 1]].any()
+                or (b[double + 2] == ord("/")).any()):
+            return None
+        field_at, field_end = _tokens(text, space | (text == ord("/")) | (text == ord("f")))
     minus = b[field_at] == ord("-")  # a relative index
     digits_at = field_at + minus
     length = field_end - digits_at

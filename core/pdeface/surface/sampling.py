@@ -23,6 +23,7 @@ import numpy as np
 from ..errors import MeshError
 from ..geometry import degrees_from_cos
 from ..presets import every_pose
+from ..threads import bounded
 from .folds import carried, nearest_vertices, opening_mask
 from .grid import key_grids, surface_grid
 from .model import model_landmarks
@@ -315,6 +316,7 @@ def capped_steps(steps):
     return out, any((o != s).any() for o, s in zip(out, steps))
 
 
+@bounded  # its solves are small: more BLAS threads only spin, the more so on a busy machine (issue #35)
 def adaptive_resolution(model, max_turn=MAX_TURN_DEG):
     """Steps per curve interval and per point interval (two tuples) keeping each edge's turn outside the
     openings under about ``max_turn`` at rest, at weight 1 of each descriptor and in each built-in preset.
