@@ -464,39 +464,103 @@ def consumers() -> dict:
 _CONSUMERS = {}
 
 
-def fuzz(name, n, seed=0, slow_s=2.0, keep=5):
-    """Run reader ``name`` (and its consumer) on ``n`` mutated inputs; returns a summary dict."""
-    from pdeface.errors import PdeFaceError
+def reader_inputs(name, seed=0):
+    """Reader ``name``'s mutated inputs, in order, endlessly: input ``k`` of a seed is always the same bytes."""
+    seeds = corpus_cache()[name][1]
+    rng = random.Random(f"{seed}:{name}")
+    while True:
+        yield mutate_any(name, rng.choice(seeds), rng)
 
-    suffix, seeds = corpus_cache()[name]
+
+def reader_call(name):
+    """function(path) reading ``path`` with reader ``name`` and feeding what it read to its consumer; returns
+    whether the consumer ran."""
     read = readers()[name]
     if not _CONSUMERS:
         _CONSUMERS.update(consumers())
     consume = _CONSUMERS.get(name)
-    rng = random.Random(f"{seed}:{name}")
-    failures, slowest, consumed, slow = [], (0.0, None), 0, 0
+
+    def call(path):
+        result = read(path)
+        if consume is not None:
+            consume(result)
+            return True
+        return False
+
+    return call
+
+
+def timed(call, *args):
+    """``call(*args)`` → (its result or None, wall seconds, CPU seconds of this process, the exception escaping
+    other than a ``PdeFaceError`` or None)."""
+    from pdeface.errors import PdeFaceError
+
+    result, error = None, None
+    t, c = time.perf_counter(), time.process_time()
+    try:
+        result = call(*args)
+    except PdeFaceError:
+        pass
+    except Exception as exc:  # noqa: BLE001 - what the fuzzer is for
+        error = exc
+    return result, time.perf_counter() - t, time.process_time() - c, error
+
+
+class Clock:
+    """The time limit, robust to a paused or loaded machine: an input is over the limit when its CPU time is,
+    or when its wall time is twice (it is run once more when its wall time alone is over: a process
+    stopped or starved by others is not the input's fault). Keeps the slowest input by wall and by CPU."""
+
+    def __init__(self, limit_s):
+        self.limit_s, self.over, self.reruns = limit_s, [], []
+        self.slowest, self.slowest_cpu = (0.0, None), (0.0, None)
+
+    def check(self, k, wall, cpu, again):
+        """Record input ``k``'s times; ``again()`` reruns it and returns (wall, CPU)."""
+        if wall > self.limit_s and cpu <= self.limit_s:
+            wall2, cpu2 = again()
+            self.reruns.append({"input": k, "wall_s": wall, "cpu_s": cpu, "rerun_wall_s": wall2, "rerun_cpu_s": cpu2})
+            if wall2 <= self.limit_s:
+                wall = wall2  # the first run's wall time was the machine's, not the input's
+            cpu = max(cpu, cpu2)
+        if cpu > self.limit_s or wall > self.limit_s:
+            self.over.append({"input": k, "wall_s": wall, "cpu_s": cpu})
+        self.slowest = max(self.slowest, (wall, k), key=lambda x: x[0])
+        self.slowest_cpu = max(self.slowest_cpu, (cpu, k), key=lambda x: x[0])
+
+    def summary(self):
+        return {"slowest_s": self.slowest[0], "slowest_input": self.slowest[1], "slowest_cpu_s": self.slowest_cpu[0],
+                "slowest_cpu_input": self.slowest_cpu[1], "over_limit": len(self.over),
+                "over_limit_inputs": self.over[:20], "wall_reruns": self.reruns[:20], "wall_rerun_count": len(self.reruns),
+                "time_limit_s": self.limit_s, "limit_on": "cpu, or wall twice"}
+
+
+def fuzz(name, n, seed=0, slow_s=5.0, keep=5, progress=None):
+    """Run reader ``name`` (and its consumer) on ``n`` mutated inputs; returns a summary dict. ``progress``:
+    a function called with the summary so far every 1,000 inputs."""
+    suffix, _ = corpus_cache()[name]
+    call = reader_call(name)
+    failures, consumed, clock = [], 0, Clock(slow_s)
+    t0 = time.perf_counter(), time.process_time()
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / f"input{suffix}"
+        inputs = reader_inputs(name, seed)
         for k in range(n):
-            data = mutate_any(name, rng.choice(seeds), rng)
-            path.write_bytes(data)
-            t = time.perf_counter()
-            try:
-                result = read(path)
-                if consume is not None:
-                    consume(result)
-                    consumed += 1
-            except PdeFaceError:
-                pass
-            except Exception as exc:  # noqa: BLE001 - what the fuzzer is for
-                _keep(failures, keep, k, exc)
-            dt = time.perf_counter() - t
-            slow += dt > slow_s
-            if dt > slowest[0]:
-                slowest = (dt, k)
+            path.write_bytes(next(inputs))
+            ran, wall, cpu, error = timed(call, path)
+            consumed += bool(ran)
+            if error is not None:
+                _keep(failures, keep, k, error)
+            clock.check(k, wall, cpu, lambda: timed(call, path)[1:3])
+            if progress and (k + 1) % 1000 == 0:
+                progress(_summary(name, k + 1, consumed, failures, clock, t0))
+    return _summary(name, n, consumed, failures, clock, t0)
+
+
+def _summary(name, n, consumed, failures, clock, t0):
     return {"reader": name, "inputs": n, "consumed": consumed, "failures": len(failures),
-            "examples": [f for f in failures if f], "slowest_s": slowest[0], "slowest_input": slowest[1],
-            "over_limit": slow, "over_2s": slow, "peak_rss_mb": peak_rss_mb()}
+            "examples": [f for f in failures if f], **clock.summary(), "peak_rss_mb": peak_rss_mb(),
+            "wall_s": time.perf_counter() - t0[0], "cpu_s": time.process_time() - t0[1]}
 
 
 def _keep(failures, keep, k, exc):
@@ -568,55 +632,66 @@ def one_parser(cli):
         cli.build_parser = build
 
 
-def fuzz_cli(n, seed=0, slow_s=2.0, keep=5, command=None):
+def fuzz_cli(n, seed=0, slow_s=5.0, keep=5, command=None, progress=None):
     """``n`` command lines through the ``pdeface`` command's ``main`` (all of ``command``'s, or commands drawn
     at random); returns a summary dict like :func:`fuzz`'s."""
     cli = cli_module()
-    with one_parser(cli):
-        return _fuzz_cli(cli, n, seed, slow_s, keep, command)
+    with one_parser(cli), tempfile.TemporaryDirectory() as tmp:
+        call = cli_call(cli)
+        failures, ran, clock = [], 0, Clock(slow_s)
+        t0 = time.perf_counter(), time.process_time()
+        lines = cli_lines(tmp, seed, command)
+        for k in range(n):
+            name, argv = next(lines)
+            code, wall, cpu, error = timed(call, name, argv)
+            ran += code == "ran"
+            if error is not None:
+                error.args = (f"{error} for {' '.join(a[:40] for a in argv)}",)
+                _keep(failures, keep, k, error)
+            clock.check(k, wall, cpu, lambda name=name, argv=argv: timed(call, name, argv)[1:3])
+            if progress and (k + 1) % 1000 == 0:
+                progress(_summary(f"cli {command}" if command else "cli", k + 1, ran, failures, clock, t0))
+        return _summary(f"cli {command}" if command else "cli", n, ran, failures, clock, t0)
 
 
-def _fuzz_cli(cli, n, seed, slow_s, keep, command):
+def cli_lines(tmp, seed=0, command=None):
+    """Command lines, in order, endlessly (all of ``command``'s, or commands drawn): line ``k`` of a seed is always
+    the same; the files they name (good and mutated ones of each reader's kind) are written into ``tmp``."""
+    rng = random.Random(f"{seed}:cli" + (f":{command}" if command else ""))
+    files = [str(Path(tmp) / "out.obj")]
+    for reader, (suffix, seeds) in corpus_cache().items():
+        for i, data in enumerate(seeds[:1] + [mutate_any(reader, seeds[0], rng)]):
+            path = Path(tmp) / f"{reader}{i}{suffix}"
+            path.write_bytes(data)
+            files.append(str(path))
+    while True:
+        yield cli_inputs(rng, files, command)
+
+
+def cli_call(cli):
+    """function(name, argv) running a command line as the campaign does: the quick commands through ``main`` to
+    the end (returns "ran"), the rest parsed; an exit status other than 0 or 2 raises ``RuntimeError``."""
     from pdeface.errors import PdeFaceError
 
     build_parser, main = cli.build_parser, cli.main
-    rng = random.Random(f"{seed}:cli" + (f":{command}" if command else ""))
-    failures, slowest, ran, slow = [], (0.0, None), 0, 0
-    with tempfile.TemporaryDirectory() as tmp:
-        files = [str(Path(tmp) / "out.obj")]
-        for reader, (suffix, seeds) in corpus_cache().items():
-            for i, data in enumerate(seeds[:1] + [mutate_any(reader, seeds[0], rng)]):
-                path = Path(tmp) / f"{reader}{i}{suffix}"
-                path.write_bytes(data)
-                files.append(str(path))
-        for k in range(n):
-            name, argv = cli_inputs(rng, files, command)
-            t = time.perf_counter()
-            with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
-                try:
-                    if name in RUN_COMMANDS:
-                        code = main(argv)
-                        ran += 1
-                    else:
-                        build_parser().parse_known_args(argv)
-                        code = 0
-                    if code not in (0, 2):
-                        raise RuntimeError(f"exit status {code}")
-                except SystemExit as exc:
-                    if exc.code not in (0, 2):
-                        _keep(failures, keep, k, RuntimeError(f"SystemExit({exc.code}) for {argv}"))
-                except PdeFaceError:
-                    pass  # a command run outside main: its error
-                except Exception as exc:  # noqa: BLE001 - what the fuzzer is for
-                    exc.args = (f"{exc} for {' '.join(a[:40] for a in argv)}",)
-                    _keep(failures, keep, k, exc)
-            dt = time.perf_counter() - t
-            slow += dt > slow_s
-            if dt > slowest[0]:
-                slowest = (dt, k)
-    return {"reader": f"cli {command}" if command else "cli", "inputs": n, "consumed": ran, "failures": len(failures),
-            "examples": [f for f in failures if f], "slowest_s": slowest[0], "slowest_input": slowest[1],
-            "over_limit": slow, "over_2s": slow, "peak_rss_mb": peak_rss_mb()}
+
+    def call(name, argv):
+        with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
+            try:
+                if name in RUN_COMMANDS:
+                    code, ran = main(argv), "ran"
+                else:
+                    build_parser().parse_known_args(argv)
+                    code, ran = 0, "parsed"
+            except SystemExit as exc:
+                code, ran = exc.code, "parsed"
+            except PdeFaceError:
+                code, ran = 2, "refused"  # a command run outside main: its error
+        if code not in (0, 2):
+            raise RuntimeError(f"exit status {code}")
+        return ran
+
+    return call
 
 
 _CORPUS = {}
@@ -639,6 +714,46 @@ def cap_memory(extra_mb):
     limit = (size_kb * 1024) + extra_mb * 2**20
     resource.setrlimit(resource.RLIMIT_AS, (limit, resource.getrlimit(resource.RLIMIT_AS)[1]))
     return limit
+
+
+def replay(kind, name, k, seed=0, limit_s=5.0, save=None):
+    """Run input ``k`` of a target again (``kind`` "reader" or "cli"; ``name`` the reader or command, None for
+    the commands drawn): the inputs before it are made (not run) to reach it. Returns a dict of what it did."""
+    with tempfile.TemporaryDirectory() as tmp:
+        if kind == "reader":
+            inputs = reader_inputs(name, seed)
+            for _ in range(k):
+                next(inputs)
+            data = next(inputs)
+            path = Path(tmp) / f"input{corpus_cache()[name][0]}"
+            path.write_bytes(data)
+            if save:
+                Path(save).write_bytes(data)
+            call, args, what = reader_call(name), (path,), f"{len(data)} bytes"
+        else:
+            cli = cli_module()
+            with one_parser(cli):
+                lines = cli_lines(tmp, seed, name)
+                for _ in range(k):
+                    next(lines)
+                command, argv = next(lines)
+                if save:
+                    Path(save).write_text(json.dumps(argv))
+                return _replayed(name, k, timed(cli_call(cli), command, argv), limit_s, " ".join(a[:40] for a in argv))
+        return _replayed(name, k, timed(call, *args), limit_s, what)
+
+
+def _replayed(name, k, run, limit_s, what):
+    ran, wall, cpu, error = run
+    return {"target": name, "input": k, "what": what, "result": repr(ran) if error is None else None,
+            "error": None if error is None else f"{type(error).__name__}: {str(error)[:200]}",
+            "wall_s": wall, "cpu_s": cpu, "over_limit": max(wall, cpu) > limit_s, "peak_rss_mb": peak_rss_mb()}
+
+
+def _write_json(path, results):
+    tmp = Path(str(path) + ".tmp")
+    tmp.write_text(json.dumps(results, indent=1))
+    tmp.replace(path)
 
 
 def markdown(results, args, seconds) -> str:
@@ -678,6 +793,9 @@ def main(argv=None):
     ap.add_argument("--memory-mb", type=int, default=500, help="address space past the warm-up size")
     ap.add_argument("--json", help="write the summaries here")
     ap.add_argument("--markdown", help="write the table here (docs/measurements/fuzz_readers.md)")
+    ap.add_argument("--replay", type=int, metavar="N",
+                    help="run input N of one target again (--readers NAME, --commands NAME or --cli) and print it")
+    ap.add_argument("--save", metavar="FILE", help="with --replay: write the input (a command line: as JSON) here")
     ap.add_argument("--gather", nargs="+", metavar="JSON", help="write --markdown from these runs' --json summaries")
     args = ap.parse_args(argv)
     if args.gather:
@@ -685,26 +803,38 @@ def main(argv=None):
         if args.markdown:
             Path(args.markdown).write_text(markdown(out, args, None))
         return 1 if any(r["failures"] or r["over_limit"] for r in out) else 0
-    names = [r for r in args.readers.split(",") if r] or ([] if args.commands else list(readers()))
+    names = [r for r in args.readers.split(",") if r] or ([] if args.commands or args.replay is not None
+                                                         else list(readers()))
+    commands = sorted(cli_commands()) if args.commands == "all" else [c for c in args.commands.split(",") if c]
+    if args.replay is not None:
+        if len(names) + len(commands) + args.cli != 1:
+            ap.error("--replay N needs one target: --readers NAME, --commands NAME or --cli")
+        kind, name = ("reader", names[0]) if names else ("cli", commands[0] if commands else None)
+        r = replay(kind, name, args.replay, args.seed, args.time_limit, args.save)
+        print(json.dumps(r, indent=1))
+        return 1 if r["error"] or r["over_limit"] else 0
     corpus_cache()
     _CONSUMERS.update(consumers())
     cap_memory(args.memory_mb)
     t0 = time.perf_counter()
     out = []
-    commands = sorted(cli_commands()) if args.commands == "all" else [c for c in args.commands.split(",") if c]
     targets = [("reader", n) for n in names] + ([("cli", None)] if args.cli else []) + [("cli", c) for c in commands]
     for kind, name in targets:
-        r = fuzz_cli(args.inputs, args.seed, args.time_limit, command=name) if kind == "cli" else \
-            fuzz(name, args.inputs, args.seed, args.time_limit)
-        name = r["reader"]
-        out.append(r)
-        print(f"{name:16s} {r['inputs']:>7d} inputs  {r['consumed']:>7d} consumed  {r['failures']} failures  "
-              f"{r['over_limit']} over {args.time_limit:g} s  slowest {r['slowest_s']:.3f} s  "
-              f"peak RSS {r['peak_rss_mb']:.0f} MB", flush=True)
+        def progress(r):  # the summary so far, so a campaign stopped early still says how far it got
+            if args.json:
+                _write_json(args.json, [*out, {**r, "done": False}])
+
+        r = fuzz_cli(args.inputs, args.seed, args.time_limit, command=name, progress=progress) if kind == "cli" else \
+            fuzz(name, args.inputs, args.seed, args.time_limit, progress=progress)
+        out.append({**r, "done": True})
+        print(f"{r['reader']:16s} {r['inputs']:>7d} inputs  {r['consumed']:>7d} consumed  {r['failures']} failures  "
+              f"{r['over_limit']} over {args.time_limit:g} s  slowest {r['slowest_s']:.3f} s "
+              f"(CPU {r['slowest_cpu_s']:.3f} s)  {r['wall_rerun_count']} rerun  peak RSS {r['peak_rss_mb']:.0f} MB",
+              flush=True)
         for f in r["examples"]:
             print(f"    input {f['input']}: {f['error']} at {f['where']}")
-    if args.json:
-        Path(args.json).write_text(json.dumps(out, indent=1))
+        if args.json:
+            _write_json(args.json, out)
     if args.markdown:
         Path(args.markdown).write_text(markdown(out, args, time.perf_counter() - t0))
     return 1 if any(r["failures"] or r["over_limit"] for r in out) else 0
