@@ -509,18 +509,18 @@ def reader_call(name):
 
 def timed(call, *args):
     """``call(*args)`` → (its result or None, wall seconds, CPU seconds of this process, the exception escaping
-    other than a ``PdeFaceError`` or None)."""
+    other than a ``PdeFaceError`` or None, the ``PdeFaceError`` refusing the input or None)."""
     from pdeface.errors import PdeFaceError
 
-    result, error = None, None
+    result, error, refusal = None, None, None
     t, c = time.perf_counter(), time.process_time()
     try:
         result = call(*args)
-    except PdeFaceError:
-        pass
+    except PdeFaceError as exc:
+        refusal = exc
     except Exception as exc:  # noqa: BLE001 - what the fuzzer is for
         error = exc
-    return result, time.perf_counter() - t, time.process_time() - c, error
+    return result, time.perf_counter() - t, time.process_time() - c, error, refusal
 
 
 class Clock:
@@ -564,7 +564,7 @@ def fuzz(name, n, seed=0, slow_s=5.0, keep=5, progress=None):
         inputs = reader_inputs(name, seed)
         for k in range(n):
             path.write_bytes(next(inputs))
-            ran, wall, cpu, error = timed(call, path)
+            ran, wall, cpu, error, _ = timed(call, path)
             consumed += bool(ran)
             if error is not None:
                 _keep(failures, keep, k, error)
@@ -662,7 +662,7 @@ def fuzz_cli(n, seed=0, slow_s=5.0, keep=5, command=None, progress=None):
         lines = cli_lines(tmp, seed, command)
         for k in range(n):
             name, argv = next(lines)
-            code, wall, cpu, error = timed(call, name, argv)
+            code, wall, cpu, error, _ = timed(call, name, argv)
             ran += code == "ran"
             if error is not None:
                 error.args = (f"{error} for {' '.join(a[:40] for a in argv)}",)
@@ -764,10 +764,15 @@ def replay(kind, name, k, seed=0, limit_s=5.0, save=None):
 
 
 def _replayed(name, k, run, limit_s, what):
-    ran, wall, cpu, error = run
-    return {"target": name, "input": k, "what": what, "result": repr(ran) if error is None else None,
-            "error": None if error is None else f"{type(error).__name__}: {str(error)[:200]}",
-            "wall_s": wall, "cpu_s": cpu, "over_limit": max(wall, cpu) > limit_s, "peak_rss_mb": peak_rss_mb()}
+    result, wall, cpu, error, refusal = run
+    if error is not None:
+        outcome = f"FAILURE {type(error).__name__}: {str(error)[:200]}"
+    elif refusal is not None:
+        outcome = f"refused: {str(refusal)[:200]}"
+    else:
+        outcome = {True: "read and consumed", False: "read", "ran": "ran to the end"}.get(result, str(result))
+    return {"target": name, "input": k, "what": what, "outcome": outcome, "failure": error is not None,
+            "wall_s": wall, "cpu_s": cpu, "over_limit": cpu > limit_s, "peak_rss_mb": peak_rss_mb()}
 
 
 def _write_json(path, results):
@@ -832,7 +837,7 @@ def main(argv=None):
         kind, name = ("reader", names[0]) if names else ("cli", commands[0] if commands else None)
         r = replay(kind, name, args.replay, args.seed, args.time_limit, args.save)
         print(json.dumps(r, indent=1))
-        return 1 if r["error"] or r["over_limit"] else 0
+        return 1 if r["failure"] or r["over_limit"] else 0
     corpus_cache()
     _CONSUMERS.update(consumers())
     cap_memory(args.memory_mb)

@@ -132,3 +132,24 @@ def test_a_model_whose_curve_parameters_coincide_is_refused(tmp_path):
         (tmp_path / f"{name}.npz").write_bytes(out.getvalue())
         with pytest.raises(ModelFormatError):  # the surface's equations would be singular
             load_model(tmp_path / f"{name}.npz")
+
+
+def test_an_input_replays_by_seed_and_index(tmp_path):
+    inputs = fuzz_readers.reader_inputs("fas", seed=3)
+    made = [next(inputs) for _ in range(40)]
+    r = fuzz_readers.replay("reader", "fas", 37, seed=3, save=tmp_path / "in.txt")
+    assert (tmp_path / "in.txt").read_bytes() == made[37]  # the same bytes the campaign fed the reader
+    assert not r["failure"] and r["outcome"] and r["cpu_s"] < 5.0
+    r = fuzz_readers.replay("cli", "pose", 12, seed=3, save=tmp_path / "argv.json")
+    assert not r["failure"] and (tmp_path / "argv.json").read_text().startswith('["pose"')
+
+
+def test_the_time_limit_counts_cpu_time_and_reruns_wall_time_outliers():
+    clock = fuzz_readers.Clock(5.0)
+    clock.check(0, 1559.0, 0.1, lambda: (0.2, 0.1))  # paused by the machine: run again, fast
+    clock.check(1, 6.0, 5.5, lambda: (0.0, 0.0))  # over on CPU: counted, not run again
+    clock.check(2, 9.0, 1.0, lambda: (8.0, 1.0))  # slow on the wall twice: counted
+    s = clock.summary()
+    assert [o["input"] for o in clock.over] == [1, 2] and s["over_limit"] == 2
+    assert [r["input"] for r in s["wall_reruns"]] == [0, 2] and s["slowest_s"] == 9.0
+    assert s["slowest_cpu_s"] == 5.5 and s["slowest_cpu_input"] == 1
