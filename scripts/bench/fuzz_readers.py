@@ -2,15 +2,17 @@
 
 Usage: python -m scripts.bench.fuzz_readers [--inputs 100000] [--readers obj,model,...] [--seed 0]
        [--cli] [--commands all|fit,pose,...] [--time-limit 5] [--memory-mb 500] [--json OUT] [--markdown OUT]
+       python -m scripts.bench.fuzz_readers --replay N (--readers NAME | --commands NAME | --cli) [--save FILE]
+       python -m scripts.bench.fuzz_readers --gather JSON... --markdown OUT
 
 Each reader gets a corpus of valid files made from the project's own data (the
-default face, its descriptors, presets, a timeline, FDTs, tracker CSVs, packets)
-and ``--inputs`` mutations of them, half by bytes (bit flips, runs inserted,
-deleted or repeated, truncation, absurd numbers, deep nesting) and half by
-structure: JSON is parsed and mutated as a tree (types swapped, numbers at the
-limits: NaN, inf, 1e308, -0, 2**63, 5,000 digits; lists emptied, nested or
-repeated; keys dropped), CSV, OBJ and PLY by their grammar (cells, columns,
-rows, header counts, face indices), model archives member by member (a member
+default face, its descriptors, presets, a timeline, FDTs, tracker CSVs, packets;
+small OBJ and PLY files beside the face's) and ``--inputs`` mutations of them, half
+by bytes (bit flips, runs inserted, deleted or repeated, truncation, absurd numbers,
+deep nesting) and half by structure: JSON is parsed and mutated as a tree (types
+swapped, numbers at the limits: NaN, inf, 1e308, -0, 2**63, 5,000 digits; lists
+emptied, nested or repeated; keys dropped), CSV, OBJ and PLY by their grammar (cells,
+columns, rows, header counts, face indices), model archives member by member (a member
 replaced by NaNs, the wrong type or shape, garbage bytes, dropped). What a
 reader returns is fed to its consumers (mesh and landmarks → a small fit; model → surface,
 pose, retarget; descriptor → pose; presets → resolve and pose; timeline →
@@ -22,11 +24,17 @@ one) ``--inputs`` command lines of its own; without ``--readers`` it fuzzes only
 
 An input passes when it is read or refused with ``PdeFaceError`` (the CLI:
 exit 0 or 2, or argparse's ``SystemExit(2)``); anything else escaping is a
-failure, and so is an input slower than ``--time-limit`` seconds. The process's
-address space is capped at its size after warm-up plus ``--memory-mb``, so an
-allocation past that is a ``MemoryError`` failure. Prints per target: inputs,
-failures (the first few, replayable by seed and index), slowest input, peak
-RSS. The test suite runs a short, fixed slice (tests/core/test_fuzz.py).
+failure, and so is an input over ``--time-limit`` seconds of CPU time, or of wall
+time twice (an input over it on the wall clock alone is run once more: a process
+paused or starved by others is not the input's fault). The process's address space
+is capped at its size after warm-up plus ``--memory-mb``, so an allocation past that
+is a ``MemoryError`` failure. Prints per target: inputs, failures (the first few),
+slowest input by wall and CPU time, peak RSS; ``--json`` is rewritten every 1,000
+inputs, so a campaign stopped early says how far it got. Input N of a target is the
+same for a seed on every run: ``--replay N`` makes inputs 0..N-1 (without running
+them) and runs N, printing how it ended and its times (``--save``: the input itself).
+``--gather`` writes the table of a campaign run one process per target. The test
+suite runs a short, fixed slice (tests/core/test_fuzz.py).
 """
 from __future__ import annotations
 
@@ -840,7 +848,8 @@ def main(argv=None):
     ap.add_argument("--commands", default="",
                     help="comma-separated commands ('all': every one) each given --inputs command lines of its own")
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--time-limit", type=float, default=5.0, help="seconds an input may take")
+    ap.add_argument("--time-limit", type=float, default=5.0,
+                    help="CPU seconds an input may take (or wall seconds, twice running)")
     ap.add_argument("--memory-mb", type=int, default=500, help="address space past the warm-up size")
     ap.add_argument("--json", help="write the summaries here (every 1,000 inputs, and at the end); with --replay: its record")
     ap.add_argument("--markdown", help="write the table here (docs/measurements/fuzz_readers.md)")
