@@ -146,10 +146,18 @@ def test_an_input_replays_by_seed_and_index(tmp_path):
 
 def test_the_time_limit_counts_cpu_time_and_reruns_wall_time_outliers():
     clock = fuzz_readers.Clock(5.0)
-    clock.check(0, 1559.0, 0.1, lambda: (0.2, 0.1))  # paused by the machine: run again, fast
-    clock.check(1, 6.0, 5.5, lambda: (0.0, 0.0))  # over on CPU: counted, not run again
-    clock.check(2, 9.0, 1.0, lambda: (8.0, 1.0))  # slow on the wall twice: counted
+    clock.check(0, 1559.0, 0.1, 0.0, lambda: (0.2, 0.1, 0.0))  # stopped while it ran: run again, fast
+    clock.check(1, 6.0, 5.5, 0.0, lambda: (0.0, 0.0, 0.0))  # over on CPU: counted, not run again
+    clock.check(2, 9.0, 0.1, 0.0, lambda: (9.0, 0.1, 0.0))  # blocked (a read that never ends): counted
+    clock.check(3, 8.2, 0.4, 7.7, lambda: (8.4, 0.4, 7.9))  # waiting for a CPU on a loaded machine: not counted
     s = clock.summary()
     assert [o["input"] for o in clock.over] == [1, 2] and s["over_limit"] == 2
-    assert [r["input"] for r in s["wall_reruns"]] == [0, 2] and s["slowest_s"] == 9.0
+    assert [r["input"] for r in s["wall_reruns"]] == [0, 2, 3] and s["slowest_s"] == 1559.0
     assert s["slowest_cpu_s"] == 5.5 and s["slowest_cpu_input"] == 1
+
+
+def test_a_blocked_input_is_timed_on_the_wall_and_a_busy_one_on_the_cpu():
+    _, wall, cpu, error, refusal, waited = fuzz_readers.timed(time.sleep, 0.2)
+    assert wall >= 0.2 and cpu < 0.1 and wall - waited >= 0.2 and error is None and refusal is None
+    _, wall, cpu, *_ = fuzz_readers.timed(lambda: sum(range(3_000_000)))
+    assert cpu > 0.01 and cpu <= wall + 0.01
