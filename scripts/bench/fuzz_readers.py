@@ -574,34 +574,38 @@ class Clock:
                 "time_limit_s": self.limit_s, "limit_on": "cpu, or wall less the wait for a CPU (wall outliers rerun)"}
 
 
-def fuzz(name, n, seed=0, slow_s=5.0, keep=5, progress=None):
-    """Run reader ``name`` (and its consumer) on ``n`` mutated inputs; returns a summary dict. ``progress``:
+def fuzz(name, n, seed=0, slow_s=5.0, keep=5, progress=None, first=0):
+    """Run reader ``name`` (and its consumer) on ``n`` mutated inputs, from input ``first`` on (the ones
+    before it are made, not run: a campaign split between processes); returns a summary dict. ``progress``:
     a function called with the summary so far every 1,000 inputs."""
     suffix, _ = corpus_cache()[name]
     call = reader_call(name)
     failures, consumed, clock = [], 0, Clock(slow_s)
-    t0 = time.perf_counter(), time.process_time()
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / f"input{suffix}"
         inputs = reader_inputs(name, seed)
-        for k in range(n):
+        for _ in range(first):
+            next(inputs)
+        t0 = time.perf_counter(), time.process_time()
+        for k in range(first, first + n):
             path.write_bytes(next(inputs))
             ran, wall, cpu, error, _, waited = timed(call, path)
             consumed += bool(ran)
             if error is not None:
                 _keep(failures, keep, k, error)
             clock.check(k, wall, cpu, waited, lambda: _times(timed(call, path)))
-            if progress and (k + 1) % 1000 == 0:
-                progress(_summary(name, k + 1, consumed, failures, clock, t0))
-    return _summary(name, n, consumed, failures, clock, t0)
+            if progress and (k + 1 - first) % 1000 == 0:
+                progress(_summary(name, k + 1 - first, consumed, failures, clock, t0, first))
+    return _summary(name, n, consumed, failures, clock, t0, first)
 
 
 def _times(run):
     return run[1], run[2], run[5]
 
 
-def _summary(name, n, consumed, failures, clock, t0):
-    return {"reader": name, "inputs": n, "consumed": consumed, "failures": len(failures),
+def _summary(name, n, consumed, failures, clock, t0, first=0):
+    return {"reader": name, "inputs": n, **({"first": first} if first else {}), "consumed": consumed,
+            "failures": len(failures),
             "examples": [f for f in failures if f], **clock.summary(), "peak_rss_mb": peak_rss_mb(),
             "wall_s": time.perf_counter() - t0[0], "cpu_s": time.process_time() - t0[1]}
 
@@ -809,6 +813,36 @@ def _write_json(path, results):
     tmp.replace(path)
 
 
+def join_parts(records) -> list:
+    """Records of one target run in parts (``--first``) joined into one when they follow each other from input
+    0 without a gap or an overlap; any other record as it is."""
+    by_target = {}
+    for r in records:
+        by_target.setdefault(r["reader"], []).append(r)
+    out = []
+    for parts in by_target.values():
+        parts.sort(key=lambda r: r.get("first", 0))
+        starts = [r.get("first", 0) for r in parts]
+        if len(parts) == 1 or starts != [0] + [r.get("first", 0) + r["inputs"] for r in parts[:-1]]:
+            out += parts
+            continue
+        joined = {"reader": parts[0]["reader"], "parts": [[s, r["inputs"]] for s, r in zip(starts, parts)],
+                  "done": parts[-1].get("done", True),
+                  "slowest_s": 0.0, "slowest_input": None, "slowest_cpu_s": 0.0, "slowest_cpu_input": None,
+                  "examples": [], "over_limit_inputs": [], "wall_reruns": []}
+        for r in parts:
+            for key in ("inputs", "consumed", "failures", "over_limit", "wall_rerun_count", "wall_s", "cpu_s"):
+                joined[key] = joined.get(key, 0) + r[key]
+            for key in ("examples", "over_limit_inputs", "wall_reruns"):
+                joined[key] += r[key]
+            for key in ("slowest_s", "slowest_cpu_s"):
+                if r[key] >= joined[key]:
+                    joined[key], joined[key.replace("_s", "_input")] = r[key], r[key.replace("_s", "_input")]
+            joined["peak_rss_mb"] = max(joined.get("peak_rss_mb", 0), r["peak_rss_mb"])
+        out.append(joined)
+    return out
+
+
 def markdown(results, args, seconds, replays=()) -> str:
     """The campaign's table for docs/measurements. With ``--gather``: a line for every reader and command, those
     without a finished run of ``--inputs`` inputs saying how far they got; ``replays`` (``--replay --json``
@@ -858,6 +892,9 @@ def markdown(results, args, seconds, replays=()) -> str:
                      f"{r['slowest_s']:.2f} | {cpu} |")
         for f in r["examples"]:
             notes.append(f"- {r['reader']} input {f['input']}: `{f['error']}` at {f['where']}")
+        if "parts" in r:
+            notes.append(f"- {r['reader']}: run in {len(r['parts'])} processes, " + ", ".join(
+                f"inputs {a:,} to {a + n - 1:,}" for a, n in r["parts"]) + " (`--first`).")
     lines += ["", (f"{sum(r['inputs'] for r in ran):,} inputs in all. Peak RSS {max(r['peak_rss_mb'] for r in ran):.0f}"
               " MB. *Read and consumed*: inputs the reader accepted whose consumer then ran (the rules and packets "
               "have none; a command's: command lines run to the end). *Slowest CPU*: \u2014 where the run predates "
@@ -873,6 +910,8 @@ def main(argv=None):
     ap.add_argument("--commands", default="",
                     help="comma-separated commands ('all': every one) each given --inputs command lines of its own")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--first", type=int, default=0, metavar="K",
+                    help="with --readers: start at input K (a target split between processes; --gather joins them)")
     ap.add_argument("--time-limit", type=float, default=5.0,
                     help="CPU seconds an input may take (or wall seconds, twice running)")
     ap.add_argument("--memory-mb", type=int, default=500, help="address space past the warm-up size")
@@ -886,7 +925,7 @@ def main(argv=None):
     if args.gather:
         records = [json.loads(Path(f).read_text()) for f in args.gather]
         replays = [r for r in records if isinstance(r, dict)]  # --replay N --json FILE
-        out = [r for rs in records if isinstance(rs, list) for r in rs]
+        out = join_parts([r for rs in records if isinstance(rs, list) for r in rs])
         if args.markdown:
             Path(args.markdown).write_text(markdown(out, args, None, replays))
         return 1 if any(r["failures"] or r["over_limit"] for r in out) else 0
@@ -914,7 +953,7 @@ def main(argv=None):
                 _write_json(args.json, [*out, {**r, "done": False}])
 
         r = fuzz_cli(args.inputs, args.seed, args.time_limit, command=name, progress=progress) if kind == "cli" else \
-            fuzz(name, args.inputs, args.seed, args.time_limit, progress=progress)
+            fuzz(name, args.inputs, args.seed, args.time_limit, progress=progress, first=args.first)
         out.append({**r, "done": True})
         print(f"{r['reader']:16s} {r['inputs']:>7d} inputs  {r['consumed']:>7d} consumed  {r['failures']} failures  "
               f"{r['over_limit']} over {args.time_limit:g} s  slowest {r['slowest_s']:.3f} s "

@@ -161,3 +161,12 @@ def test_a_blocked_input_is_timed_on_the_wall_and_a_busy_one_on_the_cpu():
     assert wall >= 0.2 and cpu < 0.1 and wall - waited >= 0.2 and error is None and refusal is None
     _, wall, cpu, *_ = fuzz_readers.timed(lambda: sum(range(3_000_000)))
     assert cpu > 0.01 and cpu <= wall + 0.01
+
+
+def test_a_target_split_between_processes_joins_into_one_record():
+    whole = fuzz_readers.fuzz("fas", 40, seed=5)
+    parts = [fuzz_readers.fuzz("fas", 25, seed=5), fuzz_readers.fuzz("fas", 15, seed=5, first=25)]
+    [joined] = fuzz_readers.join_parts(parts)
+    assert joined["inputs"] == 40 and joined["parts"] == [[0, 25], [25, 15]]
+    assert joined["consumed"] == whole["consumed"] and joined["failures"] == whole["failures"] == 0
+    assert len(fuzz_readers.join_parts([parts[0], {**parts[1], "first": 30}])) == 2  # a gap: not joined
