@@ -681,16 +681,19 @@ def one_parser(cli):
         cli.build_parser = build
 
 
-def fuzz_cli(n, seed=0, slow_s=5.0, keep=5, command=None, progress=None):
+def fuzz_cli(n, seed=0, slow_s=5.0, keep=5, command=None, progress=None, first=0):
     """``n`` command lines through the ``pdeface`` command's ``main`` (all of ``command``'s, or commands drawn
-    at random); returns a summary dict like :func:`fuzz`'s."""
+    at random), from line ``first`` on; returns a summary dict like :func:`fuzz`'s."""
     cli = cli_module()
+    target = f"cli {command}" if command else "cli"
     with one_parser(cli), tempfile.TemporaryDirectory() as tmp:
         call = cli_call(cli)
         failures, ran, clock = [], 0, Clock(slow_s)
-        t0 = time.perf_counter(), time.process_time()
         lines = cli_lines(tmp, seed, command)
-        for k in range(n):
+        for _ in range(first):
+            next(lines)
+        t0 = time.perf_counter(), time.process_time()
+        for k in range(first, first + n):
             name, argv = next(lines)
             code, wall, cpu, error, _, waited = timed(call, name, argv)
             ran += code == "ran"
@@ -698,9 +701,9 @@ def fuzz_cli(n, seed=0, slow_s=5.0, keep=5, command=None, progress=None):
                 error.args = (f"{error} for {' '.join(a[:40] for a in argv)}",)
                 _keep(failures, keep, k, error)
             clock.check(k, wall, cpu, waited, lambda name=name, argv=argv: _times(timed(call, name, argv)))
-            if progress and (k + 1) % 1000 == 0:
-                progress(_summary(f"cli {command}" if command else "cli", k + 1, ran, failures, clock, t0))
-        return _summary(f"cli {command}" if command else "cli", n, ran, failures, clock, t0)
+            if progress and (k + 1 - first) % 1000 == 0:
+                progress(_summary(target, k + 1 - first, ran, failures, clock, t0, first))
+        return _summary(target, n, ran, failures, clock, t0, first)
 
 
 def cli_lines(tmp, seed=0, command=None):
@@ -911,7 +914,7 @@ def main(argv=None):
                     help="comma-separated commands ('all': every one) each given --inputs command lines of its own")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--first", type=int, default=0, metavar="K",
-                    help="with --readers: start at input K (a target split between processes; --gather joins them)")
+                    help="start at input K (a target split between processes; --gather joins them)")
     ap.add_argument("--time-limit", type=float, default=5.0,
                     help="CPU seconds an input may take (or wall seconds, twice running)")
     ap.add_argument("--memory-mb", type=int, default=500, help="address space past the warm-up size")
@@ -942,7 +945,7 @@ def main(argv=None):
             _write_json(args.json, r)
         return 1 if r["failure"] or r["over_limit"] else 0
     # argparse looks each message up through gettext, which searches the locale folders every time: a third of
-    # a command line's parse. Messages in C are what the fuzzer's own checks see anyway.
+    # a command line's parse; the fuzzer checks exit statuses, not the messages' language.
     os.environ.setdefault("LANGUAGE", "C")
     corpus_cache()
     _CONSUMERS.update(consumers())
@@ -955,7 +958,8 @@ def main(argv=None):
             if args.json:
                 _write_json(args.json, [*out, {**r, "done": False}])
 
-        r = fuzz_cli(args.inputs, args.seed, args.time_limit, command=name, progress=progress) if kind == "cli" else \
+        r = fuzz_cli(args.inputs, args.seed, args.time_limit, command=name, progress=progress, first=args.first) \
+            if kind == "cli" else \
             fuzz(name, args.inputs, args.seed, args.time_limit, progress=progress, first=args.first)
         out.append({**r, "done": True})
         print(f"{r['reader']:16s} {r['inputs']:>7d} inputs  {r['consumed']:>7d} consumed  {r['failures']} failures  "
