@@ -817,8 +817,8 @@ def _write_json(path, results):
 
 
 def join_parts(records) -> list:
-    """Records of one target run in parts (``--first``) joined into one when they follow each other from input
-    0 without a gap or an overlap; any other record as it is."""
+    """Records of one target run in parts (``--first``) joined into one when they do not overlap: done when they
+    follow each other from input 0 without a gap and the last is done; any other record as it is."""
     by_target = {}
     for r in records:
         by_target.setdefault(r["reader"], []).append(r)
@@ -826,11 +826,12 @@ def join_parts(records) -> list:
     for parts in by_target.values():
         parts.sort(key=lambda r: r.get("first", 0))
         starts = [r.get("first", 0) for r in parts]
-        if len(parts) == 1 or starts != [0] + [r.get("first", 0) + r["inputs"] for r in parts[:-1]]:
+        ends = [a + r["inputs"] for a, r in zip(starts, parts)]
+        if len(parts) == 1 or any(e > a for e, a in zip(ends, starts[1:])):
             out += parts
             continue
         joined = {"reader": parts[0]["reader"], "parts": [[s, r["inputs"]] for s, r in zip(starts, parts)],
-                  "done": parts[-1].get("done", True),
+                  "done": starts == [0, *ends[:-1]] and parts[-1].get("done", True),
                   "slowest_s": 0.0, "slowest_input": None, "slowest_cpu_s": 0.0, "slowest_cpu_input": None,
                   "examples": [], "over_limit_inputs": [], "wall_reruns": []}
         for r in parts:

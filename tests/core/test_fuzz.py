@@ -169,4 +169,6 @@ def test_a_target_split_between_processes_joins_into_one_record():
     [joined] = fuzz_readers.join_parts(parts)
     assert joined["inputs"] == 40 and joined["parts"] == [[0, 25], [25, 15]]
     assert joined["consumed"] == whole["consumed"] and joined["failures"] == whole["failures"] == 0
-    assert len(fuzz_readers.join_parts([parts[0], {**parts[1], "first": 30}])) == 2  # a gap: not joined
+    [gap] = fuzz_readers.join_parts([parts[0], {**parts[1], "first": 30}])  # inputs 25 to 29 not run: not done
+    assert gap["inputs"] == 40 and not gap["done"]
+    assert len(fuzz_readers.join_parts([parts[0], {**parts[1], "first": 20}])) == 2  # an overlap: not joined
