@@ -858,9 +858,9 @@ def markdown(results, args, seconds, replays=()) -> str:
                f"NAME --json FILE` (or `--commands NAME`), seed {args.seed}, each input limited to {args.time_limit:g} s "
                "of CPU time (or of wall time twice: an input over it on the wall clock alone is run once more) and "
                f"the process to {args.memory_mb} MB past its warm-up size; gathered with `--gather FILE...`.")
-        done = {r["reader"]: r for r in results}
         names = list(readers()) + [f"cli {c}" for c in sorted(cli_commands())]
-        results = [done.get(n, {"reader": n}) for n in names] + [r for r in results if r["reader"] not in names]
+        results = [r for n in names for r in ([r for r in results if r["reader"] == n] or [{"reader": n}])] + \
+            [r for r in results if r["reader"] not in names]
     else:
         how = (f"`python -m scripts.bench.fuzz_readers --inputs {args.inputs} --cli --seed {args.seed}` "
                f"({seconds / 60:.0f} min, load {os.getloadavg()[0]:.1f}; each input limited to {args.time_limit:g} s "
