@@ -149,10 +149,11 @@ def test_the_time_limit_counts_cpu_time_and_reruns_wall_time_outliers():
     clock.check(0, 1559.0, 0.1, 0.0, lambda: (0.2, 0.1, 0.0))  # stopped while it ran: run again, fast
     clock.check(1, 6.0, 5.5, 0.0, lambda: (0.0, 0.0, 0.0))  # over on CPU: counted, not run again
     clock.check(2, 9.0, 0.1, 0.0, lambda: (9.0, 0.1, 0.0))  # blocked (a read that never ends): counted
-    clock.check(3, 8.2, 0.4, 7.7, lambda: (8.4, 0.4, 7.9))  # waiting for a CPU on a loaded machine: not counted
+    clock.check(3, 8.2, 0.4, 7.7, lambda: 1 / 0)  # waiting for a CPU on a loaded machine: not counted, not rerun
     s = clock.summary()
     assert [o["input"] for o in clock.over] == [1, 2] and s["over_limit"] == 2
-    assert [r["input"] for r in s["wall_reruns"]] == [0, 2, 3] and s["slowest_s"] == 1559.0
+    assert [r["input"] for r in s["wall_reruns"]] == [0, 2] and s["slowest_s"] == 1559.0
+    assert s["over_limit_on_wall"] == 4
     assert s["slowest_cpu_s"] == 5.5 and s["slowest_cpu_input"] == 1
 
 
