@@ -894,6 +894,10 @@ def markdown(results, args, seconds, replays=()) -> str:
                 notes.append(f"- {r['reader']} input {o['input']}: over the limit on the wall clock alone ({first}); "
                              f"replayed ({how}): {again['outcome']} in {again['wall_s']:.2f} s wall, "
                              f"{again['cpu_s']:.2f} s CPU: not counted.")
+            elif again:
+                notes.append(f"- {r['reader']} input {o['input']} over the limit: {first}; replayed ({how}): "
+                             f"{again['outcome']} in {again['wall_s']:.2f} s wall, {again['cpu_s']:.2f} s CPU "
+                             f"(`{again['what']}`).")
             else:
                 notes.append(f"- {r['reader']} input {o['input']} over the limit: {first} ({how} replays it)")
         cpu = f"{r['slowest_cpu_s']:.2f}" if "slowest_cpu_s" in r else "—"

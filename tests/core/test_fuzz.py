@@ -54,10 +54,10 @@ def test_command_line_arguments_fuzzed_in_process():
 
 
 def refused_fast(call, error, match):
-    t = time.perf_counter()
+    t = time.process_time()  # CPU time: a loaded machine's wall clock says nothing of what was allocated
     with pytest.raises(error, match=match):
         call()
-    assert time.perf_counter() - t < 1.0
+    assert time.process_time() - t < 1.0
 
 
 def test_bombs_and_absurd_sizes_are_refused_before_allocating(tmp_path, fitted, scan):
