@@ -854,25 +854,26 @@ def join_parts(records) -> list:
 
 def markdown(results, args, seconds, replays=()) -> str:
     """The campaign's table for docs/measurements. With ``--gather``: a line for every reader and command, those
-    without a finished run of ``--inputs`` inputs saying how far they got; ``replays`` (``--replay --json``
-    records) of an input over the limit on wall time alone in a record older than the CPU clock settle it as
-    the rerun would have."""
+    without a finished run of ``--inputs`` inputs saying how far they got. A ``--replay --json`` record of an
+    input over the limit is noted beside it, and settles it when under the limit (the rerun the clock makes)."""
     replayed = {(r["target"], r["input"]): r for r in replays}
     if args.gather:  # targets run one process each (--readers NAME --json FILE), their summaries gathered
         how = (f"Each target run in a process of its own, `python -m scripts.bench.fuzz_readers --inputs N --readers "
-               f"NAME --json FILE` (or `--commands NAME`), seed {args.seed}, each input limited to {args.time_limit:g} s "
-               "of CPU time (or of wall time twice: an input over it on the wall clock alone is run once more) and "
-               f"the process to {args.memory_mb} MB past its warm-up size; gathered with `--gather FILE...`.")
+               f"NAME --json FILE` (or `--commands NAME`; `--first K` for a part), seed {args.seed}, each input "
+               f"limited to {args.time_limit:g} s of CPU time and of wall time less the wait for a CPU that other "
+               "processes held (an input over it with less CPU time is run once more), the process to "
+               f"{args.memory_mb} MB past its warm-up size; gathered with `--gather FILE...`.")
         names = list(readers()) + [f"cli {c}" for c in sorted(cli_commands())]
         results = [r for n in names for r in ([r for r in results if r["reader"] == n] or [{"reader": n}])] + \
             [r for r in results if r["reader"] not in names]
     else:
         how = (f"`python -m scripts.bench.fuzz_readers --inputs {args.inputs} --cli --seed {args.seed}` "
                f"({seconds / 60:.0f} min, load {os.getloadavg()[0]:.1f}; each input limited to {args.time_limit:g} s "
-               f"of CPU time, or of wall time twice, and the process to {args.memory_mb} MB past its warm-up size).")
+               f"of CPU time and of wall time less the wait for a CPU, the process to {args.memory_mb} MB past its "
+               "warm-up size).")
     ran = [r for r in results if "inputs" in r]
     full = [r for r in ran if r["inputs"] >= args.inputs and r.get("done", True)]
-    lines = [f"# The readers' fuzzer: {len(full)} of {len(results)} targets at {args.inputs:,} inputs", "", how, "",
+    lines = [f"# The fuzzer: {len(full)} of {len(results)} targets at {args.inputs:,} inputs", "", how, "",
              ("| target | inputs | read and consumed | failures | over the time limit | wall outliers re-run | "
              "slowest wall (s) | slowest CPU (s) |"), "|---|---:|---:|---:|---:|---:|---:|---:|"]
     notes = []
@@ -911,7 +912,8 @@ def markdown(results, args, seconds, replays=()) -> str:
     older = [r["reader"] for r in ran if "cpu, or wall twice" in str(r.get("limit_on"))]
     if older:
         notes.append(f"- {', '.join(older)}: (some) inputs run before the clock subtracted the wait for a CPU: "
-                     "over the limit meant CPU time over it, or wall time over it twice.")
+                     "over the limit meant CPU time over it, or wall time over it twice (the first run's wall time "
+                     "alone sends an input to the rerun).")
     lines += ["", (f"{sum(r['inputs'] for r in ran):,} inputs in all. Peak RSS {max(r['peak_rss_mb'] for r in ran):.0f}"
               " MB. *Read and consumed*: inputs the reader accepted whose consumer then ran (the rules and packets "
               "have none; a command's: command lines run to the end). *Slowest CPU*: \u2014 where the run predates "
