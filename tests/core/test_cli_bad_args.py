@@ -43,6 +43,9 @@ BAD = [
     (["fdt", "classify", "default", "x.obj", "--top", "0"], "--top"),
     (["fdt", "apply", "default", "happy", "--weight", "1e308"], "--weight"),
     (["fdt", "fit", "default", "x.obj", "--blend", "nan"], "--blend"),
+    (["pose", "default", "--all-keys", "--mesh", ""], "--mesh"),  # an empty name was taken as "no mesh"
+    (["pose", "default", "--au", "12=1", "--mesh", "head", "--parts", " "], "--parts"),
+    (["fdt", "apply", "default", "happy", "--landmarks", ""], "--landmarks"),
     (["demo", "--size", "0x5"], "--size"),
     (["demo", "--samples", "-1"], "--samples"),
     (["demo", "--fps", "nan"], "--fps"),

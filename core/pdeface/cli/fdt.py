@@ -11,7 +11,7 @@ from ..fdt.quadratic import MODELS
 from ..fdt.regions import BLEND
 from ..fdt.table import generic, load_fdt, load_generic_fdts, read_fdts, write_fdts
 from ..head.bind import JAW_AUS, bind_file
-from ..io.arguments import number_in, positive_float, positive_int, unit_float
+from ..io.arguments import file_name, number_in, positive_float, positive_int, unit_float
 from ..io.files import check_output
 from ..io.meshio import read_mesh, write_mesh, write_posed
 from ..presets import BASIC_EXPRESSIONS
@@ -136,9 +136,9 @@ def register(sub):
     q.add_argument("--weight", type=unit_float, default=1.0, help="how much of the expression, in [0, 1]")
     q.add_argument("--blend", type=blend_width, help="apply with this border width instead of the table's own")
     g = q.add_argument_group("the whole head (the mesh FACE was fitted on)")
-    g.add_argument("--mesh", help="pose this head mesh (.obj/.ply/.glb/.gltf or 'head') instead of the PDE face")
-    g.add_argument("--parts", help="JSON of part kind → vertex indices (see 'pdeface parts')")
-    g.add_argument("--landmarks", help="the mesh's 68 landmarks (JSON), for a face model made by pdeface 0.1")
+    g.add_argument("--mesh", type=file_name, help="pose this head mesh (.obj/.ply/.glb/.gltf or 'head') instead of the PDE face")
+    g.add_argument("--parts", type=file_name, help="JSON of part kind → vertex indices (see 'pdeface parts')")
+    g.add_argument("--landmarks", type=file_name, help="the mesh's 68 landmarks (JSON), for a face model made by pdeface 0.1")
     meshing_options(q)
     output_option(q)
     q.set_defaults(func=cmd_apply)

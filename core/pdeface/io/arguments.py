@@ -75,6 +75,13 @@ def address(text, default_host="127.0.0.1") -> tuple:
         raise argparse.ArgumentTypeError(f"{text[:60]!r}: use HOST:PORT or PORT, the port 1-65535") from None
 
 
+def file_name(text):
+    """An argparse type: a file's name that is not blank (an option given ``""`` is refused, not taken as absent)."""
+    if not str(text).strip():
+        raise argparse.ArgumentTypeError("an empty file name (leave the option out instead)")
+    return text
+
+
 def existing_file(suffixes=(), magic=()):
     """An argparse type: a file that exists and is a file, named with one of ``suffixes`` and starting with one
     of the byte strings ``magic`` (where given)."""
