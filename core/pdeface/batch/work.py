@@ -75,8 +75,8 @@ def dask_setup(worker):
     ``pdeface batch``'s JSON summary alone, and what a worker's Blender prints there (its extension cache's
     ``reading cache failed`` line, when another Blender was writing that cache) would spoil it. It ignores SIGINT:
     Ctrl-C in a terminal reaches the job's whole process group, and the job's own process answers it, closing the
-    cluster so that no task starts after it but those already handed to a worker, where a worker stopped by it would print its traceback and be started
-    again by its nanny.
+    cluster so that no task starts after it but those already handed to a worker, where a worker stopped by it
+    would print its traceback and be started again by its nanny.
     """
     os.dup2(2, 1)  # what sys.stdout holds is written there too
     if threading.current_thread() is threading.main_thread():

@@ -256,12 +256,15 @@ def register(sub):
     p.add_argument("--mixer", choices=MIXERS, help="how AUs on the same curves combine (default: the preset's "
                                                    "own, else sum)")
     g = p.add_argument_group("the whole head (the mesh FACE was fitted on)")
-    g.add_argument("--mesh", type=file_name, help="pose this head or body mesh (.obj/.ply/.glb/.gltf, or 'head': the bundled ICT "
-                                  "head) instead of the PDE face: same vertices, order, faces, UVs, groups and "
-                                  "materials")
-    g.add_argument("--parts", type=file_name, help="JSON of part kind → vertex indices overriding the automatic parts "
-                                   "(see 'pdeface parts')")
-    g.add_argument("--landmarks", type=file_name, help="the mesh's 68 landmarks (JSON), for a face model made by pdeface 0.1")
+    g.add_argument("--mesh", type=file_name,
+                   help="pose this head or body mesh (.obj/.ply/.glb/.gltf, or 'head': the bundled ICT "
+                        "head) instead of the PDE face: same vertices, order, faces, UVs, groups and "
+                        "materials")
+    g.add_argument("--parts", type=file_name,
+                   help="JSON of part kind → vertex indices overriding the automatic parts "
+                        "(see 'pdeface parts')")
+    g.add_argument("--landmarks", type=file_name,
+                   help="the mesh's 68 landmarks (JSON), for a face model made by pdeface 0.1")
     g = p.add_argument_group("every key as a mesh file (for other DCC tools)")
     g.add_argument("--all-keys", action="store_true",
                    help="write the neutral (neutral.obj), one mesh per AU (AU12.obj ...) and one per preset "

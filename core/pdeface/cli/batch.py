@@ -38,7 +38,8 @@ def cmd_batch(args):
 @contextlib.contextmanager
 def _stopped_by_sigterm(came):
     """SIGTERM (``kill``, a cluster's time limit) stops the job as Ctrl-C does: the cluster is closed (no task
-    starts after it but those already handed to a worker), the manifest is written. A job started in the background by a shell ignores Ctrl-C's SIGINT; this is how it stops.
+    starts after it but those already handed to a worker), the manifest is written.
+    A job started in the background by a shell ignores Ctrl-C's SIGINT; this is how it stops.
     The signal's number goes into the list ``came``."""
 
     def stop(signum, frame):

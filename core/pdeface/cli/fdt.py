@@ -136,9 +136,11 @@ def register(sub):
     q.add_argument("--weight", type=unit_float, default=1.0, help="how much of the expression, in [0, 1]")
     q.add_argument("--blend", type=blend_width, help="apply with this border width instead of the table's own")
     g = q.add_argument_group("the whole head (the mesh FACE was fitted on)")
-    g.add_argument("--mesh", type=file_name, help="pose this head mesh (.obj/.ply/.glb/.gltf or 'head') instead of the PDE face")
+    g.add_argument("--mesh", type=file_name,
+                   help="pose this head mesh (.obj/.ply/.glb/.gltf or 'head') instead of the PDE face")
     g.add_argument("--parts", type=file_name, help="JSON of part kind → vertex indices (see 'pdeface parts')")
-    g.add_argument("--landmarks", type=file_name, help="the mesh's 68 landmarks (JSON), for a face model made by pdeface 0.1")
+    g.add_argument("--landmarks", type=file_name,
+                   help="the mesh's 68 landmarks (JSON), for a face model made by pdeface 0.1")
     meshing_options(q)
     output_option(q)
     q.set_defaults(func=cmd_apply)

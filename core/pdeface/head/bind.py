@@ -456,7 +456,8 @@ class HeadBinding:
         for _ in range(SPLIT_RINGS):
             near_skull[T[near_skull[T].any(axis=1)]] = True
         pinned |= parts.mask("jaw") & ~near_skull
-        if lips_joined:  # lips apart (parted, touching) part by themselves: pinned, their middles folded AU27 (issue #40)
+        # Lips apart (parted, touching) part by themselves: pinned, their middles folded AU27 (issue #40).
+        if lips_joined:
             pinned[si[_inner_lip_middles(P, Lf, eye_distance)]] = True
         if self.lips_one_line:  # the skin joining the lips stretches; the upper lip keeps its (still) motion
             pinned[si[_upper_lip(P, Lf, eye_distance)]] = True
@@ -630,7 +631,8 @@ class HeadBinding:
         self._folds.relax(out, keys=[i for i, c in enumerate(closing) if c or pushed[i]], budget=self._folds.limit)
         out *= self._still
         out[self._copies] = out[self._copy_of]
-        out = self.frame.to_user_vectors(out.reshape(-1, 3)).reshape(out.shape)  # one product (a transposed view's is slow)
+        # One product (a transposed view's is slow).
+        out = self.frame.to_user_vectors(out.reshape(-1, 3)).reshape(out.shape)
         return np.ascontiguousarray(out.transpose(1, 0, 2))  # key-major: each key's rows contiguous
 
     def _keep_out_of_eyeballs(self, out):

@@ -183,7 +183,8 @@ class FoldRelax:
         fold = np.zeros(len(pair_job), bool)
         row_faces = csr_matrix((np.ones(tri.size), (tri.ravel(), np.repeat(np.arange(len(faces)), 3))),
                                shape=(m, len(faces)))
-        face_pairs = csr_matrix((np.ones(pair_faces.size), (pair_faces.ravel(), np.repeat(np.arange(len(pair_job)), 2))),
+        pair_of = np.repeat(np.arange(len(pair_job)), 2)
+        face_pairs = csr_matrix((np.ones(pair_faces.size), (pair_faces.ravel(), pair_of)),
                                 shape=(len(faces), len(pair_job)))
 
         def folded(rows):  # the folds once ``rows`` moved: only their triangles' edges measured again

@@ -230,9 +230,9 @@ def check_on_mesh(model, Vf, T, Lf):
     A face whose curves could not follow the mesh (on a few stylised heads they run off tens of millimetres
     below the brows) would rig keys on the wrong surface without a word. Over ICT-FaceKit's heads, its
     468-vertex face mask and the MakeHuman development set the 95th percentile of the PDE face's distance to
-    its mesh is at most 0.016 eye distances (openings included); the broken fits seen were 0.18 and 1.36. Where the nearest mesh point is
-    on a border (a face mask's edge, an unlined opening) only the distance off that triangle's plane counts:
-    there the face goes on past a mesh that has ended.
+    its mesh is at most 0.016 eye distances (openings included); the broken fits seen were 0.18 and 1.36.
+    Where the nearest mesh point is on a border (a face mask's edge, an unlined opening) only the distance off
+    that triangle's plane counts: there the face goes on past a mesh that has ended.
     """
     from ..landmark_scheme import eye_distance
 
