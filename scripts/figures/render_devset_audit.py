@@ -45,7 +45,7 @@ def panels(V, T, point_sets, size):
         view = View.looking(forward, f.rotation[1], centre, 1.6 * eyes, size)
         img = shade(V, T, rasterise(V, T, view))
         for P, colour in point_sets:
-            x, y, depth = view.project(P)
+            x, y, _ = view.project(P)
             near = np.ones(len(P), bool) if name == "front" else (f.to_face(P)[:, 0] - f.to_face(L)[:, 0].mean()
                                                                    <= 1e-6 * f.scale)
             img = marked(img, np.stack([x, y], 1)[near], r=2, colour=colour)

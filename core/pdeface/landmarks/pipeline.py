@@ -2,7 +2,8 @@
 
 1. **Search.** The mesh is rendered from the six axis directions; each image
    is read in four rolls (0, 90, 180, 270°) by the face detector, so heads in
-   any axis convention, turned or lying, and whole bodies are found.
+   any axis convention, turned or lying, and whole bodies are found; where
+   none shows a face, from the 20 directions between them (a head pitched 45°).
 2. **Zoom.** The best face is rendered again, filling the image; the face
    mesh's 468 points are cast back onto the mesh.
    Each roll of the zoom is read, and the reading that best fits the map's
@@ -17,6 +18,7 @@
 """
 from __future__ import annotations
 
+import itertools
 import warnings
 from dataclasses import dataclass, field
 
@@ -34,6 +36,20 @@ from .render import Raster, View, back_project, marked, rasterise, shade
 #: The search's view directions (towards the viewer) with an up vector each.
 SEARCH_AXES = {"+z": ((0, 0, 1), (0, 1, 0)), "-y": ((0, -1, 0), (0, 0, 1)), "+x": ((1, 0, 0), (0, 1, 0)),
                "-x": ((-1, 0, 0), (0, 1, 0)), "-z": ((0, 0, -1), (0, 1, 0)), "+y": ((0, 1, 0), (0, 0, 1))}
+
+
+def _between_axes() -> dict:
+    """The view directions between :data:`SEARCH_AXES`: the cube's 12 edges, then its 8 corners (named by their
+    axes, ``+y+z``), each with an up vector across it."""
+    dirs = [d for d in itertools.product((-1, 0, 1), repeat=3) if sorted(map(abs, d)) in ([0, 1, 1], [1, 1, 1])]
+    return {"".join(f"{'+-'[v < 0]}{axis}" for v, axis in zip(d, "xyz") if v):
+            (np.array(d) / np.linalg.norm(d), min(((0, 1, 0), (0, 0, 1), (1, 0, 0)), key=lambda u: abs(np.dot(u, d))))
+            for d in sorted(dirs, key=lambda d: sum(map(abs, d)))}
+
+
+#: Where no axis view shows a face (a head pitched 45° between two axes: the face detector misses a face
+#: turned ~40° from the view), the views between them; the four rolls of each cover the rest.
+SEARCH_BETWEEN = _between_axes()
 #: Pixels of the search renders and of the zoomed and frontal face renders.
 SEARCH_SIZE, FACE_SIZE = 512, 384
 #: Half-width of the frontal render in the template's mm (the face about half the image across).
@@ -128,7 +144,9 @@ def search(V, T, detector: Detector, size=SEARCH_SIZE, normals=None):
         When no view shows a face, or the best view shows two.
     """
     tried, found = [], []
-    for name, (forward, up) in SEARCH_AXES.items():
+    for name, (forward, up) in [*SEARCH_AXES.items(), *SEARCH_BETWEEN.items()]:
+        if name in SEARCH_BETWEEN and found:
+            break  # the in-between views only where no axis view showed a face
         base = _framing(V, forward, up, size)
         img = shade(V, T, rasterise(V, T, base), normals=normals)
         for k in range(4):
