@@ -9,7 +9,7 @@ import pytest
 from pdeface.assets import load_head, load_head_shapes
 from pdeface.cli import main
 from pdeface.errors import LandmarkError, MeshError
-from pdeface.geometry import similarity
+from pdeface.geometry import ClosestPoint, similarity
 from pdeface.io.meshio import read_mesh, write_mesh
 from pdeface.landmarks import MissingDependencyError, available, detect
 from pdeface.landmarks import detector as detector_module
@@ -414,3 +414,30 @@ def test_group_spread_leaves_out_renders_that_missed_a_landmark(rng):
     assert all(np.isfinite(v) and v > 0 for v in spread.values())
     L = np.stack([m.apply(P) for P in views[[0, 2, 3]]])
     assert spread["jaw"] >= np.median(np.linalg.norm(L[:, :17] - L[:, :17].mean(0), axis=2).max(0)) * 0.5
+
+
+@pytest.mark.parametrize("name", ["identity015", "identity019"])
+def test_upper_jaw_points_slid_along_the_contour_come_back_to_the_templates_depth(heads, name):
+    # A frontal detector's upper jaw points lie where a ray grazing the cheek met it: anywhere along the contour.
+    # Slid 0.15 eye distances forward or back on the skin, they come back to ICT's own: median within 0.05 (the
+    # template's depths, its 468 points mapped, lie up to 0.05 from ICT's own landmarks'), each within 0.10.
+    from pdeface.landmark_scheme import eye_distance
+    from pdeface.landmarks.contour import UPPER_JAW, upper_jaw_at_template_depth
+    from pdeface.surface.frame import face_frame
+
+    mesh, T, lm, shapes = heads
+    V = mesh.vertices + shapes[name]
+    L = V[lm]
+    f, eyes = face_frame(L), eye_distance(L)
+    moved = L.copy()
+    for j, shift in zip(UPPER_JAW, [0.15, -0.15] * 4):
+        F = f.to_face(L[[j]])
+        F[0, 2] += shift * eyes * f.scale
+        moved[j] = f.to_user(F)[0]
+    moved[list(UPPER_JAW)] = ClosestPoint(V, T).query(moved[list(UPPER_JAW)])[3]  # back onto the skin
+    before = np.linalg.norm(moved - L, axis=1)[list(UPPER_JAW)] / eyes
+    back = upper_jaw_at_template_depth(V, T, moved, read_map().apply(read_map().template))
+    after = np.linalg.norm(back - L, axis=1)[list(UPPER_JAW)] / eyes
+    assert np.median(before) > 0.1 and np.median(after) < 0.05 and after.max() < 0.10, (before, after)
+    others = np.setdiff1d(np.arange(68), list(UPPER_JAW))
+    assert np.array_equal(back[others], moved[others])  # only the upper jaw moves

@@ -29,6 +29,7 @@ from ..geometry import ClosestPoint
 from ..mesh import connected_components, vertex_normals
 from ..rigid import rotation_vector_matrix
 from ..surface.frame import UNITS_MM, estimate_unit
+from .contour import upper_jaw_at_template_depth
 from .detector import Detector
 from .facemap import GROUPS, LandmarkMap, read_map, robust_similarity
 from .render import Raster, View, back_project, marked, rasterise, shade
@@ -365,7 +366,10 @@ def detect(V, T, unit=None, landmark_map: LandmarkMap | None = None, detector: D
         Ps, direct = frontal_readings(V, T, skin, detector, m, (s, R, t), first=(raster, img, px, skin_raster),
                                       closest=closest, normals=normals)
         P2 = np.nanmean(Ps, axis=0)
-        points, indices = snap(V, T[skin], m.apply(P2), skin_raster, 1.0 / s, closest)
+        points, _ = snap(V, T[skin], m.apply(P2), skin_raster, 1.0 / s, closest)
+        # The upper jaw's depth along the contour from the template, not from where a grazing ray met the cheek.
+        points = upper_jaw_at_template_depth(V, T[skin], points, m.apply(m.template))
+        indices = nearest_vertices(V, T[skin], points)
         mm = UNITS_MM[unit] if unit else estimate_unit(points)[1]  # the fit's own estimate (one for both)
         spread = group_spread(m, Ps, mm)
         direct = direct.mean(0)
@@ -517,8 +521,6 @@ def snap(V, T, L, raster: Raster | None = None, mm_per_unit=1.0, closest: Closes
     commissure. Contours (the jawline), where a ray grazes the surface, keep the nearest point.
     ``closest``: a :class:`~pdeface.geometry.ClosestPoint` on ``(V, T)``, when already built.
     """
-    from scipy.spatial import cKDTree
-
     points = (ClosestPoint(V, T) if closest is None else closest).query(L)[3]
     if raster is not None:
         depth = depth_map(V, T, raster)
@@ -528,5 +530,12 @@ def snap(V, T, L, raster: Raster | None = None, mm_per_unit=1.0, closest: Closes
         use = over & np.isfinite(cast).all(1)
         use[use] = np.linalg.norm(cast[use] - points[use], axis=1) * mm_per_unit > SNAP_AGREES_MM
         points[use] = cast[use]
+    return points, nearest_vertices(V, T, points)
+
+
+def nearest_vertices(V, T, points) -> np.ndarray:
+    """The vertex of the surface ``(V, T)`` nearest each point."""
+    from scipy.spatial import cKDTree
+
     used = np.unique(T)
-    return points, used[cKDTree(V[used]).query(points)[1]]
+    return used[cKDTree(V[used]).query(points)[1]]

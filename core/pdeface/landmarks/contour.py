@@ -1,0 +1,67 @@
+"""The upper jaw points, where the jawline is a contour seen edge on: their depth from the face's own template.
+
+The upper jaw points (0-3, 13-16) lie where the side of the face turns away from the viewer. A frontal
+detector places them well across (x) and in height (y), but their depth along the contour is what a ray
+grazing the cheek happens to hit first: its depth behind the eye centres spreads 0.11-0.17 eye distances
+(standard deviation) over MakeHuman's development set, the true points' 0.04-0.09 (ICT's heads 0.01). So each
+keeps its height and takes the depth the map's own template (ICT's average face) gives it behind the eye
+centres; its side comes from the skin, the first surface met coming in from just outside the found point at
+that height and depth. On the development set the jaw's median error falls from 9.2 to 8.3 % of the eye
+distance (worst character 28 to 15 %).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..geometry import ray_triangle
+from ..landmark_scheme import eye_distance
+from ..surface.frame import face_frame
+
+#: The jaw points moved (the lower ones face the viewer: their ray hits the jaw squarely).
+UPPER_JAW = (0, 1, 2, 3, 13, 14, 15, 16)
+#: How far outside the found point (eye distances) the ray into the side of the face starts, and how far in from
+#: there it may meet the skin; met nowhere, the point stays.
+OUTSIDE, REACH = 0.2, 0.4
+
+
+def template_depths(template68) -> np.ndarray:
+    """How far behind the eye centres each landmark of ``template68 (68, 3)`` lies (eye distances)."""
+    f = face_frame(template68, unit="mm")
+    F = f.to_face(template68) / (eye_distance(template68) * f.scale)
+    return F[36:48, 2].mean() - F[:, 2]
+
+
+def upper_jaw_at_template_depth(V, T, points, template68) -> np.ndarray:
+    """``points (68, 3)`` with the upper jaw points (:data:`UPPER_JAW`) at the template's depth behind the eyes,
+    on the skin ``(V, T)`` at their own height (see the module's docstring).
+
+    Parameters
+    ----------
+    V, T : arrays
+        The mesh and the skin's triangles.
+    points : (68, 3) array
+        Landmarks on the skin, the mesh's space.
+    template68 : (68, 3) array
+        The landmarks of the map's template (:meth:`~pdeface.landmarks.facemap.LandmarkMap.apply` on it).
+    """
+    out = np.array(points, np.float64)
+    f = face_frame(out)
+    eyes = eye_distance(out) * f.scale
+    F = f.to_face(out)
+    depth = F[36:48, 2].mean() - template_depths(template68) * eyes
+    tri = f.to_face(np.asarray(V, np.float64))[np.asarray(T)]
+    lo, hi = tri.min(1), tri.max(1)
+    for j in UPPER_JAW:
+        side = np.sign(F[j, 0])
+        y, z = F[j, 1], depth[j]
+        near = (lo[:, 1] <= y) & (hi[:, 1] >= y) & (lo[:, 2] <= z) & (hi[:, 2] >= z) & (side * hi[:, 0] > 0)
+        if not near.any():
+            continue
+        x0 = side * (abs(F[j, 0]) + OUTSIDE * eyes)
+        k = int(near.sum())
+        hit, _, _, t = ray_triangle(np.tile([x0, y, z], (k, 1)), np.tile([-side, 0.0, 0.0], (k, 1)),
+                                    tri[near, 0], tri[near, 1], tri[near, 2])
+        t = np.where(hit, t, np.inf).min()
+        if t <= (OUTSIDE + REACH) * eyes:
+            out[j] = f.to_user(np.array([[x0 - side * t, y, z]]))[0]
+    return out
