@@ -8,7 +8,7 @@ with the project's own renderer and framed on the head's own landmarks (so rows 
 head with its 68 landmark vertices (the convention the detector's map follows), then each named development-set
 character with its annotated landmarks (red; with ``--compare``, an annotation's base vertices carried through
 the character's targets in blue beneath: what the truth was before each character was annotated on its own; with
-``--found``, the points the detector finds in green). Needs ``../shared/data/makehuman`` (and, for
+``--found``, the points the detector finds as small green dots on top). Needs ``../shared/data/makehuman`` (and, for
 ``--found``, ``pdeface[landmarks]``).
 """
 from __future__ import annotations
@@ -30,6 +30,7 @@ from scripts.devset.makehuman import BASE_MM
 #: Panels: the direction the viewer looks from, in the face frame (+x the subject's left, +z forward).
 PANELS = {"front": (0.0, 0.0, 1.0), "three-quarter": (-0.7, 0.0, 0.7), "profile": (-1.0, 0.0, 0.0)}
 RED, BLUE, GREEN = (230, 30, 30), (40, 90, 240), (30, 190, 60)
+DRAWN = [BLUE, RED, GREEN]
 
 
 def panels(V, T, point_sets, size):
@@ -44,11 +45,11 @@ def panels(V, T, point_sets, size):
         forward = np.array(d) @ f.rotation  # face-frame direction → mesh space
         view = View.looking(forward, f.rotation[1], centre, 1.6 * eyes, size)
         img = shade(V, T, rasterise(V, T, view))
-        for P, colour in point_sets:
+        for P, colour in sorted(point_sets, key=lambda s: DRAWN.index(s[1])):  # carried, truth, found on top
             x, y, _ = view.project(P)
             near = np.ones(len(P), bool) if name == "front" else (f.to_face(P)[:, 0] - f.to_face(L)[:, 0].mean()
                                                                    <= 1e-6 * f.scale)
-            img = marked(img, np.stack([x, y], 1)[near], r=2, colour=colour)
+            img = marked(img, np.stack([x, y], 1)[near], r=1 if colour == GREEN else 2, colour=colour)
         out.append(img)
     return np.concatenate(out, axis=1)
 

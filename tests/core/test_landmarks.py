@@ -419,8 +419,7 @@ def test_group_spread_leaves_out_renders_that_missed_a_landmark(rng):
 @pytest.mark.parametrize("name", ["identity015", "identity019"])
 def test_upper_jaw_points_slid_along_the_contour_come_back_to_the_templates_depth(heads, name):
     # A frontal detector's upper jaw points lie where a ray grazing the cheek met it: anywhere along the contour.
-    # Slid 0.15 eye distances forward or back on the skin, they come back to ICT's own: median within 0.05 (the
-    # template's depths, its 468 points mapped, lie up to 0.05 from ICT's own landmarks'), each within 0.10.
+    # Slid 0.15 eye distances forward or back on the skin, they come back to the identity's own.
     from pdeface.landmark_scheme import eye_distance
     from pdeface.landmarks.contour import UPPER_JAW, upper_jaw_at_template_depth
     from pdeface.surface.frame import face_frame
@@ -436,8 +435,8 @@ def test_upper_jaw_points_slid_along_the_contour_come_back_to_the_templates_dept
         moved[j] = f.to_user(F)[0]
     moved[list(UPPER_JAW)] = ClosestPoint(V, T).query(moved[list(UPPER_JAW)])[3]  # back onto the skin
     before = np.linalg.norm(moved - L, axis=1)[list(UPPER_JAW)] / eyes
-    back = upper_jaw_at_template_depth(V, T, moved, read_map().apply(read_map().template))
+    back = upper_jaw_at_template_depth(V, T, moved)  # at the generic head's depths
     after = np.linalg.norm(back - L, axis=1)[list(UPPER_JAW)] / eyes
-    assert np.median(before) > 0.1 and np.median(after) < 0.05 and after.max() < 0.10, (before, after)
+    assert np.median(before) > 0.1 and np.median(after) < 0.03 and after.max() < 0.05, (before, after)
     others = np.setdiff1d(np.arange(68), list(UPPER_JAW))
     assert np.array_equal(back[others], moved[others])  # only the upper jaw moves

@@ -368,7 +368,7 @@ def detect(V, T, unit=None, landmark_map: LandmarkMap | None = None, detector: D
         P2 = np.nanmean(Ps, axis=0)
         points, _ = snap(V, T[skin], m.apply(P2), skin_raster, 1.0 / s, closest)
         # The upper jaw's depth along the contour from the template, not from where a grazing ray met the cheek.
-        points = upper_jaw_at_template_depth(V, T[skin], points, m.apply(m.template))
+        points = upper_jaw_at_template_depth(V, T[skin], points)
         indices = nearest_vertices(V, T[skin], points)
         mm = UNITS_MM[unit] if unit else estimate_unit(points)[1]  # the fit's own estimate (one for both)
         spread = group_spread(m, Ps, mm)
