@@ -60,8 +60,18 @@ def upper_jaw_at_template_depth(V, T, points, template68=None) -> np.ndarray:
     eyes = eye_distance(out) * f.scale
     F = f.to_face(out)
     depth = F[36:48, 2].mean() - template_depths(_ict_landmarks() if template68 is None else template68) * eyes
-    tri = f.to_face(np.asarray(V, np.float64))[np.asarray(T)]
-    lo, hi = tri.min(1), tri.max(1)
+    rows = list(UPPER_JAW)
+    FV = f.to_face(np.asarray(V, np.float64))
+    T = np.asarray(T)
+    # Only the triangles with a corner in the band of heights and depths the rays pass (a triangle reaching into
+    # it from outside has a corner within an edge of it: the band is widened by the longest edge).
+    edge = max(np.linalg.norm(FV[T[:, a]] - FV[T[:, b]], axis=1).max() for a, b in ((0, 1), (1, 2), (2, 0)))
+    lo_b = np.array([F[rows, 1].min(), depth[rows].min()]) - edge
+    hi_b = np.array([F[rows, 1].max(), depth[rows].max()]) + edge
+    inside = ((FV[:, 1:] >= lo_b) & (FV[:, 1:] <= hi_b)).all(1)
+    tri = FV[T[inside[T].any(1)]]
+    lo = np.minimum(np.minimum(tri[:, 0], tri[:, 1]), tri[:, 2])
+    hi = np.maximum(np.maximum(tri[:, 0], tri[:, 1]), tri[:, 2])
     for j in UPPER_JAW:
         side = np.sign(F[j, 0])
         y, z = F[j, 1], depth[j]
