@@ -35,11 +35,10 @@ from pdeface.surface.frame import estimate_unit, face_frame
 from scripts.bench.benchlib import bench_parser, run_bench
 from scripts.devset.characters import SPECS, build
 
-SEE_ALSO = [("![ICT's convention (top: ICT's 68 in red, found in green) beside the development set's truth: the base, "
-             "then two characters (red: annotated on the character's own shape; blue: the base's vertices carried "
-             "through its targets, the truth before; green: found)](../images/devset_audit.png)",
-             "../images/devset_audit.png"),
-            ("the annotation and its audit", "devset_annotation.md")]
+AUDIT_FIGURE = ("![ICT's convention (top: ICT's 68 in red, found in green) beside the development set's truth: the "
+                "base, then two characters (red: annotated on the character's own shape; blue: the base's vertices "
+                "carried through its targets, the truth before; green: found)](../images/devset_audit.png)")
+SEE_ALSO = [(AUDIT_FIGURE, "../images/devset_audit.png"), ("the annotation and its audit", "devset_annotation.md")]
 TARGETS = {"found_share": 0.95, "inner_median_pct": 3.0, "inner_p95_pct": 8.0, "jaw_median_pct": 6.0,
            "unit_error_pct": 10.0, "passed_group_off_pct": 10.0}
 
