@@ -7,7 +7,8 @@ mesh: identities, stylised, remeshed, eyes/teeth merged or separate, parted lips
 with the head turned, in mm, cm, dm, m, inches and a game's 168 mm units) is given to
 ``pdeface landmarks``'s search (``pdeface.landmarks.headfind.detect_anywhere``: on a body where no face
 shows, the head cut out) as a user would give it, unit unknown. Per character: found?; the error of the
-found landmarks against the annotated points (ICT's convention: ``scripts/devset/annotate.py``) in % of the
+found landmarks against the annotated points (ICT's convention, each character annotated on its own shape:
+``scripts/devset/annotate.py``) in % of the
 true eye distance (inner points 17-67: median
 and p95; jaw 0-16: median, and its median seen straight on ("front": without the depth along the contour,
 which the jawline leaves open); the worst group's median); the landmark gate's verdict on the found points
@@ -34,6 +35,10 @@ from pdeface.surface.frame import estimate_unit, face_frame
 from scripts.bench.benchlib import bench_parser, run_bench
 from scripts.devset.characters import SPECS, build
 
+AUDIT_FIGURE = ("![ICT's convention (top: ICT's 68 in red, found in green) beside the development set's truth: the "
+                "base, then two characters (red: annotated on the character's own shape; blue: the base's vertices "
+                "carried through its targets, the truth before; green: found)](../images/devset_audit.png)")
+SEE_ALSO = [(AUDIT_FIGURE, "../images/devset_audit.png"), ("the annotation and its audit", "devset_annotation.md")]
 TARGETS = {"found_share": 0.95, "inner_median_pct": 3.0, "inner_p95_pct": 8.0, "jaw_median_pct": 6.0,
            "unit_error_pct": 10.0, "passed_group_off_pct": 10.0}
 
@@ -84,8 +89,8 @@ def main(argv=None):
     args = ap.parse_args(argv)
     names = args.only.split(",") if args.only else list(SPECS)
     rows = {}
-    print("== truth: the annotation in ICT-FaceKit's convention, ICT's face registered onto the base "
-          "(scripts/devset/annotate.py; method and residuals: devset_annotation.md)")
+    print("== truth: the annotation in ICT-FaceKit's convention, ICT's face registered onto each character's shape "
+          "(scripts/devset/annotate.py; method, residuals and the audit: devset_annotation.md)")
     print(f"== {len(names)} characters (errors in % of the true eye distance; unit: estimated / true mm per unit)")
     print(f"  {'character':32s} {'found':5s} {'inner med':>9s} {'p95':>6s} {'jaw med':>7s} {'worst grp':>14s} "
           f"{'front':>5s} {'unit err':>8s} {'s':>5s}  gate (found; truth)")

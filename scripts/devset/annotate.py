@@ -1,6 +1,6 @@
 """The MakeHuman annotation re-derived in ICT-FaceKit's landmark convention, independently of the detector.
 
-Usage: python -m scripts.devset.annotate [--write] [--ict DIR] [--old OLD.json] [--no-page]
+Usage: python -m scripts.devset.annotate [--write] [--ict DIR] [--old OLD.json] [--no-characters] [--no-page]
 
 The detector's map was fitted on ICT-FaceKit heads, so the development set's truth must put each of the 68
 landmarks where ICT puts it. ICT's generic neutral face (its 68 landmark vertices, ``vertex_indices.json``)
@@ -24,9 +24,17 @@ is registered onto MakeHuman's base skin:
    eye distances farther back than ICT's convention (the detector's jaw median error on the development set
    then rises from 10 to 17 %): not done.
 
+4. **each character's own shape** (its identity and local targets, before any expression, pose or remesh) is
+   annotated the same way: MakeHuman's targets slide the skin over the features (a young woman's target takes
+   the base's brow vertices 0.15 eye distances up the forehead, off the brow ridge; the jaw vertices slide along
+   the contour by up to 0.19), so the base's vertices carried through a target no longer sit where ICT's
+   convention puts the landmark. The audit below prints, per character, how far the carried base vertices lie
+   from the character's own registration.
+
 Prints the registration residuals, how far each group moved from the old annotation and each group's
-statistics (in eye distances) against ICT's 21 heads (neutral and 20 identities), and writes that to
-``docs/measurements/devset_annotation.md``; ``--write`` rewrites ``makehuman_landmarks.json``.
+statistics (in eye distances) against ICT's 21 heads (neutral and 20 identities), the per-character audit, and
+writes that to ``docs/measurements/devset_annotation.md``; ``--write`` rewrites ``makehuman_landmarks.json``
+(``--no-characters``: the base alone, a few times faster).
 """
 from __future__ import annotations
 
@@ -46,7 +54,7 @@ from pdeface.surface.frame import face_frame
 
 from scripts.bench.benchlib import run_bench
 
-from .characters import ANNOTATION
+from .characters import ANNOTATION, SPECS, shape
 from .makehuman import DATA, read_base, triangles
 
 #: ICT-FaceKit beside MakeHuman's data (``PDEFACE_ICT`` overrides).
@@ -232,6 +240,7 @@ def main(argv=None):
     ap.add_argument("--old", default=str(ANNOTATION),
                     help="the annotation to compare with (its vertex 'indices'): a file, or a git revision of ours")
     ap.add_argument("--no-page", action="store_true", help="leave docs/measurements/devset_annotation.md")
+    ap.add_argument("--no-characters", action="store_true", help="the base alone, not each character's shape")
     args = ap.parse_args(argv)
     Vs, Ts, Ls, ict = ict_face(args.ict)
     Vt, Tt, head = makehuman_head()
@@ -270,14 +279,63 @@ def main(argv=None):
             zip(range(-1, 20), heads)]
     print(f"  {'upper jaw points inside the frontal contour':44s} {min(gaps):6.3f}..{max(gaps):6.3f}   "
           f"{contour_gap(Vt, Th, Vt[old]):6.3f} -> {contour_gap(Vt, Th, new):6.3f}")
+    per_character = {} if args.no_characters else characters(Vs, Ts, Ls, Th, idx, ict_stats)
     if args.write:
         data = json.loads(ANNOTATION.read_text())
         data["indices"] = [int(i) for i in idx]
         data.pop("corners", None), data.pop("weights", None)
         data["about"] = ABOUT
-        ANNOTATION.write_text(json.dumps(data, indent=1) + "\n")
+        if per_character:
+            data["characters"] = {name: [int(i) for i in v] for name, v in per_character.items()}
+        chars = data.pop("characters", {})
+        text = json.dumps(data, indent=1)
+        if chars:  # one line per character
+            text = (text[:-2] + ',\n "characters": {\n'
+                    + ",\n".join(f"  {json.dumps(n)}: {json.dumps(v)}" for n, v in chars.items()) + "\n }\n}")
+        ANNOTATION.write_text(text + "\n")
         print(f"wrote {ANNOTATION}")
     return idx
+
+
+#: The figures :func:`characters` audits (those the issue's suspicion names).
+AUDITED = ("inner brows above the eye centres", "outer brows above the eye centres",
+           "jaw angles (5, 11) behind the eye centres", "jaw ends (0, 16) behind the eye centres")
+
+
+def annotate_shape(V, Vs, Ts, Ls, Th):
+    """ICT's face ``(Vs, Ts)`` registered onto a character's shape ``V`` (the base's topology, head triangles
+    ``Th``): its 68 landmark vertices (:func:`symmetric_vertices`)."""
+    X, _ = register(Vs, Ts, Ls, V, Th, log=lambda *_: None)
+    return symmetric_vertices(X[Ls], V, Th)[0]
+
+
+def characters(Vs, Ts, Ls, Th, base_idx, ict_stats) -> dict:
+    """Each development-set character's own annotation (:func:`annotate_shape` on its :func:`shape`; characters
+    of one shape share it), printed against the base's vertices carried through its targets.
+
+    Returns ``{character name: (68,) vertices}`` for those whose shape is not the base's."""
+    print("== each character's shape annotated on its own (ICT registered onto it): how far the base's vertices, "
+          "carried through its targets, lie from it (median per group, % of the eye distance), and the audited "
+          "statistics (eye distances) carried -> own; ICT's 21 heads: "
+          + ", ".join(f"{n.split(' (')[0]} {min(s[n] for s in ict_stats):.2f}..{max(s[n] for s in ict_stats):.2f}"
+                      for n in AUDITED))
+    print(f"  {'character':30s} " + " ".join(f"{g:>5s}" for g in GROUPS) + "   "
+          + "  ".join(f"{n.split(' ')[0] + ' ' + n.split(' ')[1]:>18s}" for n in AUDITED))
+    by_shape, out = {}, {}
+    for name, spec in SPECS.items():
+        if not spec.identity and not spec.style:
+            continue
+        key = json.dumps([spec.identity, spec.style], sort_keys=True)
+        V = shape(spec)
+        if key not in by_shape:
+            by_shape[key] = annotate_shape(V, Vs, Ts, Ls, Th)
+        idx = out[name] = by_shape[key]
+        carried, own = V[base_idx], V[idx]
+        d = np.linalg.norm(carried - own, axis=1) / eye_distance(own) * 100
+        a, b = statistics(carried), statistics(own)
+        print(f"  {name:30s} " + " ".join(f"{np.median(d[list(r)]):5.1f}" for r in GROUPS.values()) + "   "
+              + "  ".join(f"{a[n]:8.2f} -> {b[n]:5.2f}" for n in AUDITED), flush=True)
+    return out
 
 
 ABOUT = ("The 68 Multi-PIE (iBUG-68) landmarks as vertex indices of MakeHuman's hm08 base mesh (base.obj, 0-based, "
@@ -286,7 +344,9 @@ ABOUT = ("The 68 Multi-PIE (iBUG-68) landmarks as vertex indices of MakeHuman's 
          "with a thin-plate spline, coarse to fine), left and right averaged across the midline, each landmark "
          "taken to its closest skin point and from there to the vertex of that skin triangle that weighs most (on "
          "its own lip or lid), a midline landmark to the nearest midline vertex; the left side is the right's mirror "
-         "vertex. Made by "
+         "vertex. 'characters': the same, on each development-set character's own shape (identity and local "
+         "targets; MakeHuman's targets slide the skin over the features, so the base's vertices carried through "
+         "them drift off the brow ridge and along the jaw), then carried through its expression and pose. Made by "
          "scripts/devset/annotate.py (--write); scripts/figures/render_devset_landmarks.py draws them "
          "(docs/images/makehuman_landmarks.png).")
 

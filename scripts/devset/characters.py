@@ -2,8 +2,8 @@
 
 Each :class:`Character` is what a user would hand over (a head or a whole body, one mesh, in some unit and
 axis convention, eyes/teeth/tongue merged in or as separate objects) plus the truth: the 68 landmarks
-(the vertices annotated once on the base mesh, ``makehuman_landmarks.json``, carried through every
-deformation; on a remeshed character, the nearest point of the new surface) and millimetres per unit.
+(vertices annotated on the character's shape, ``makehuman_landmarks.json``, carried through its
+expression, pose and unit; on a remeshed character, the nearest point of the new surface) and millimetres per unit.
 
     from scripts.devset.characters import SPECS, build
     ch = build(SPECS["stylised-nose-mouth-cm"])
@@ -44,15 +44,22 @@ def _annotation() -> dict:
     return json.loads(ANNOTATION.read_text())
 
 
-def annotated_indices() -> np.ndarray:
-    """The 68 annotated base-mesh vertices (iBUG-68 order)."""
+def annotated_indices(name: str | None = None) -> np.ndarray:
+    """The 68 annotated vertices (iBUG-68 order) of the base mesh, or of the character ``name``'s shape.
+
+    MakeHuman's identity and local targets slide the skin over the features (a young woman's target takes the
+    base's brow vertices 0.15 eye distances up the forehead, off the brow ridge), so a character's landmark
+    vertices are annotated on its own shape (``scripts/devset/annotate.py``, ICT's face registered onto it);
+    expressions and poses then carry them."""
+    if name is not None and name in _annotation().get("characters", {}):
+        return np.array(_annotation()["characters"][name], np.int64)
     return np.array(_annotation()["indices"], np.int64)
 
 
-def annotated_points(V) -> np.ndarray:
-    """The 68 annotated landmarks on the base mesh or a character made from it (``V``, its vertices): the
-    annotated vertices, carried by every deformation."""
-    return np.asarray(V)[annotated_indices()]
+def annotated_points(V, name: str | None = None) -> np.ndarray:
+    """The 68 annotated landmarks on the base mesh or on the character ``name`` (``V``, its vertices in the
+    base's order): the annotated vertices, carried by every later deformation."""
+    return np.asarray(V)[annotated_indices(name)]
 
 
 @dataclass(frozen=True)
@@ -109,13 +116,19 @@ def race_of(spec: Spec) -> str:
     return race if race in ("caucasian", "african", "asian") else "caucasian"
 
 
-def _identity(spec: Spec) -> np.ndarray:
-    V = read_base().vertices
+def shape(spec: Spec) -> np.ndarray:
+    """The base's vertices with ``spec``'s identity and local (style) targets: the shape its landmarks are
+    annotated on."""
     weights = {f"macrodetails/{k}": w for k, w in spec.identity.items()}
     weights.update(spec.style)
+    return apply_targets(read_base().vertices, weights)
+
+
+def _identity(spec: Spec) -> np.ndarray:
+    V = shape(spec)
     if spec.mouth_open:
-        weights[f"expression/units/{race_of(spec)}/mouth-open"] = spec.mouth_open
-    return apply_targets(V, weights)
+        V = apply_targets(V, {f"expression/units/{race_of(spec)}/mouth-open": spec.mouth_open})
+    return V
 
 
 def _rotate_about(V, centre, axis_angle, weight):
@@ -259,7 +272,7 @@ def build(spec: Spec) -> Character:
         V = _t_pose(V)
     if spec.head_turn:
         V = _turn_head(V, spec.head_turn)
-    L = annotated_points(V)
+    L = annotated_points(V, spec.name)
     cut = base.joint("neck", V)[1] - HEAD_CUT
 
     def keep(T):
@@ -317,8 +330,10 @@ def _specs():
              style={"eyes/l-eye-scale-incr": 2.0, "eyes/r-eye-scale-incr": 2.0, "head/head-oval": 1.0,
                     "chin/chin-width-decr": 1.5},
              unit="m", tags=("stylised",)),
+        # The chin target at 1.5, not 2: at 2 the chin is a shelf jutting 0.6 eye distances forward, where ICT's
+        # face registered onto it cannot say where the chin point is (it lands under the shelf).
         Spec("stylised-chin-cheek-in", idn("asian-male-old"),
-             style={"chin/chin-prominent-incr": 2.0, "cheek/l-cheek-bones-incr": 2.0, "cheek/r-cheek-bones-incr": 2.0,
+             style={"chin/chin-prominent-incr": 1.5, "cheek/l-cheek-bones-incr": 2.0, "cheek/r-cheek-bones-incr": 2.0,
                     "forehead/forehead-trans-forward": 1.5},
              unit="in", tags=("stylised",)),
         Spec("decimated-cm", idn("caucasian-male-young", "african-female-young"), remesh="decimate",

@@ -317,3 +317,26 @@ def test_the_annotation_is_icts_generic_face_registered_onto_the_base():
                  "jaw ends (0, 16) behind the eye centres"]:
         vals = [s[name] for s in ict_stats]
         assert min(vals) - 0.02 <= ours[name] <= max(vals) + 0.02, (name, ours[name], min(vals), max(vals))
+
+
+@needs_makehuman
+@pytest.mark.skipif(not annotate.ICT.joinpath("generic_neutral_mesh.obj").is_file(), reason="needs ICT-FaceKit")
+def test_a_character_is_annotated_on_its_own_shape_not_with_the_bases_vertices_carried():
+    """MakeHuman's young-woman target slides the base's brow vertices up the forehead: carried through it, they
+    sit far above where ICT's heads have brows; annotated on the character's own shape (what the committed
+    annotation holds), they sit among ICT's heads again."""
+    from scripts.devset.characters import shape
+
+    name = "caucasian-female-young-cm"
+    Vs, Ts, Ls, ict = annotate.ict_face()
+    _, Tt, head = annotate.makehuman_head()
+    V = shape(SPECS[name])
+    idx = annotate.annotate_shape(V, Vs, Ts, Ls, Tt[head[Tt].all(1)])
+    assert (idx == annotated_indices(name)).all()  # the committed annotation is the registration's on its shape
+    ch = build(SPECS[name])
+    assert np.allclose(ch.landmarks, V[idx] * 10)  # the character (decimetres to cm) carries them
+    heads = [Vs[Ls]] + [(Vs + ict.shape(f"identity{i:03d}"))[Ls] for i in range(20)]
+    stat = "inner brows above the eye centres"
+    ict_brows = np.mean([annotate.statistics(L)[stat] for L in heads])
+    own, carried = annotate.statistics(V[idx])[stat], annotate.statistics(V[annotated_indices()])[stat]
+    assert abs(own - ict_brows) < 0.05 and carried - ict_brows > 0.1  # carried: 0.15 eye distances too high

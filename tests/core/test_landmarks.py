@@ -9,7 +9,7 @@ import pytest
 from pdeface.assets import load_head, load_head_shapes
 from pdeface.cli import main
 from pdeface.errors import LandmarkError, MeshError
-from pdeface.geometry import similarity
+from pdeface.geometry import ClosestPoint, similarity
 from pdeface.io.meshio import read_mesh, write_mesh
 from pdeface.landmarks import MissingDependencyError, available, detect
 from pdeface.landmarks import detector as detector_module
@@ -285,6 +285,19 @@ def test_a_head_lying_face_up_in_mm_is_found(heads):
 
 
 @needs_mediapipe
+@pytest.mark.parametrize("degrees", [45, -45])
+def test_a_head_pitched_45_degrees_between_the_axes_is_found(heads, degrees):
+    # Between the search's axis views (each sees the face 45° turned, the detector sees none there): found from
+    # the view between them. identity019 is held out of the shipped map.
+    mesh, T, lm, shapes = heads
+    V = (mesh.vertices + shapes["identity019"]) @ rotation_vector_matrix([np.radians(degrees), 0, 0]).T
+    found = detect(V, T)
+    err = np.linalg.norm(found.points - V[lm], axis=1) * 10  # mm
+    assert np.median(err[17:]) < 1.0 and np.percentile(err[17:], 95) < 2.5 and np.median(err[:17]) < 6.0
+    assert not found.view.startswith(("+z ", "-y ", "+x ", "-x ", "-z ", "+y "))  # an in-between view found it
+
+
+@needs_mediapipe
 def test_no_face_and_two_faces_are_clear_errors(heads):
     mesh, T, _, _ = heads
     u, v = np.meshgrid(np.linspace(0, np.pi, 20), np.linspace(0, 2 * np.pi, 40), indexing="ij")
@@ -401,3 +414,29 @@ def test_group_spread_leaves_out_renders_that_missed_a_landmark(rng):
     assert all(np.isfinite(v) and v > 0 for v in spread.values())
     L = np.stack([m.apply(P) for P in views[[0, 2, 3]]])
     assert spread["jaw"] >= np.median(np.linalg.norm(L[:, :17] - L[:, :17].mean(0), axis=2).max(0)) * 0.5
+
+
+@pytest.mark.parametrize("name", ["identity015", "identity019"])
+def test_upper_jaw_points_slid_along_the_contour_come_back_to_the_templates_depth(heads, name):
+    # A frontal detector's upper jaw points lie where a ray grazing the cheek met it: anywhere along the contour.
+    # Slid 0.15 eye distances forward or back on the skin, they come back to the identity's own.
+    from pdeface.landmark_scheme import eye_distance
+    from pdeface.landmarks.contour import UPPER_JAW, upper_jaw_at_template_depth
+    from pdeface.surface.frame import face_frame
+
+    mesh, T, lm, shapes = heads
+    V = mesh.vertices + shapes[name]
+    L = V[lm]
+    f, eyes = face_frame(L), eye_distance(L)
+    moved = L.copy()
+    for j, shift in zip(UPPER_JAW, [0.15, -0.15] * 4):
+        F = f.to_face(L[[j]])
+        F[0, 2] += shift * eyes * f.scale
+        moved[j] = f.to_user(F)[0]
+    moved[list(UPPER_JAW)] = ClosestPoint(V, T).query(moved[list(UPPER_JAW)])[3]  # back onto the skin
+    before = np.linalg.norm(moved - L, axis=1)[list(UPPER_JAW)] / eyes
+    back = upper_jaw_at_template_depth(V, T, moved)  # at the generic head's depths
+    after = np.linalg.norm(back - L, axis=1)[list(UPPER_JAW)] / eyes
+    assert np.median(before) > 0.1 and np.median(after) < 0.03 and after.max() < 0.05, (before, after)
+    others = np.setdiff1d(np.arange(68), list(UPPER_JAW))
+    assert np.array_equal(back[others], moved[others])  # only the upper jaw moves

@@ -46,17 +46,18 @@ SPACING = {"jaw": [(0, 16, 1.3, 3.2)], "brows": [(17, 26, 1.0, 2.6)],
            "nose": [(27, 33, 0.45, 1.4), (31, 35, 0.25, 0.9)],
            "eyes": [(36, 39, 0.25, 0.75), (42, 45, 0.25, 0.75)], "mouth": [(48, 54, 0.45, 1.5)]}
 #: The brows' mean height above the eye centres (eye distances): rows, least, most. True brows: ICT's 21 heads
-#: outer 0.31-0.33, inner 0.40-0.41 (found by the detector, also turned: 0.31-0.33, 0.39-0.41); MakeHuman's 24
-#: characters 0.35-0.46 and 0.39-0.56. The least lie below every true head of both families; brows found too
-#: low on MakeHuman's hairless heads (outer 0.27-0.30, 11-19 % of the eye distance off) fall under them.
-BROW_HEIGHT = {"outer": ([17, 18, 25, 26], 0.30, 0.65), "inner": ([20, 21, 22, 23], 0.35, 0.70)}
+#: outer 0.31-0.33, inner 0.40-0.41; MakeHuman's 24 characters (each annotated on its own shape) 0.32-0.37 and
+#: 0.32-0.45. The least lie just under every true head of both families; brows found on the upper lid's fold
+#: of a hairless head, or too low on MakeHuman's (outer 0.28-0.30), fall under them.
+BROW_HEIGHT = {"outer": ([17, 18, 25, 26], 0.30, 0.65), "inner": ([20, 21, 22, 23], 0.31, 0.70)}
 #: How far (eye distances) a jaw point may lie from the middle of its neighbours: true jawlines bend 0.10 (ICT's
-#: identities) to 0.17 (MakeHuman's characters), 0.28 with MakeHuman's chin target at weight 2; found on ICT, 0.18.
-JAW_BEND = 0.32
+#: identities) to 0.41 (MakeHuman's chin target at weight 2); found on ICT, 0.18.
+JAW_BEND = 0.42
 #: How far (eye distances) the jaw angles (5, 11) lie at least behind the eye centres, in the face frame. True
-#: jaws: ICT's identities 0.24-0.25; MakeHuman's 24 characters 0.22-0.97. Found by the detector: ICT 0.24-0.26;
-#: on MakeHuman down to 0.01, the angles slid forward along the contour (error 11-15 % of the eye distance).
-JAW_ANGLES_BACK = 0.15
+#: jaws: ICT's identities 0.22-0.26; MakeHuman's 24 characters 0.12-0.55 (0.12: the chin target at weight 2
+#: tilts the face frame). Found by the detector: ICT 0.24-0.26; on MakeHuman down to 0.01, the angles slid
+#: forward along the contour.
+JAW_ANGLES_BACK = 0.11
 #: Pixels of the visibility renders.
 SIZE = 256
 

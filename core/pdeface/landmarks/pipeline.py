@@ -2,7 +2,8 @@
 
 1. **Search.** The mesh is rendered from the six axis directions; each image
    is read in four rolls (0, 90, 180, 270°) by the face detector, so heads in
-   any axis convention, turned or lying, and whole bodies are found.
+   any axis convention, turned or lying, and whole bodies are found; where
+   none shows a face, from the 20 directions between them (a head pitched 45°).
 2. **Zoom.** The best face is rendered again, filling the image; the face
    mesh's 468 points are cast back onto the mesh.
    Each roll of the zoom is read, and the reading that best fits the map's
@@ -17,6 +18,7 @@
 """
 from __future__ import annotations
 
+import itertools
 import warnings
 from dataclasses import dataclass, field
 
@@ -27,6 +29,7 @@ from ..geometry import ClosestPoint
 from ..mesh import connected_components, vertex_normals
 from ..rigid import rotation_vector_matrix
 from ..surface.frame import UNITS_MM, estimate_unit
+from .contour import upper_jaw_at_template_depth
 from .detector import Detector
 from .facemap import GROUPS, LandmarkMap, read_map, robust_similarity
 from .render import Raster, View, back_project, marked, rasterise, shade
@@ -34,6 +37,20 @@ from .render import Raster, View, back_project, marked, rasterise, shade
 #: The search's view directions (towards the viewer) with an up vector each.
 SEARCH_AXES = {"+z": ((0, 0, 1), (0, 1, 0)), "-y": ((0, -1, 0), (0, 0, 1)), "+x": ((1, 0, 0), (0, 1, 0)),
                "-x": ((-1, 0, 0), (0, 1, 0)), "-z": ((0, 0, -1), (0, 1, 0)), "+y": ((0, 1, 0), (0, 0, 1))}
+
+
+def _between_axes() -> dict:
+    """The view directions between :data:`SEARCH_AXES`: the cube's 12 edges, then its 8 corners (named by their
+    axes, ``+y+z``), each with an up vector across it."""
+    dirs = [d for d in itertools.product((-1, 0, 1), repeat=3) if sorted(map(abs, d)) in ([0, 1, 1], [1, 1, 1])]
+    return {"".join(f"{'+-'[v < 0]}{axis}" for v, axis in zip(d, "xyz") if v):
+            (np.array(d) / np.linalg.norm(d), min(((0, 1, 0), (0, 0, 1), (1, 0, 0)), key=lambda u: abs(np.dot(u, d))))
+            for d in sorted(dirs, key=lambda d: sum(map(abs, d)))}
+
+
+#: Where no axis view shows a face (a head pitched 45° between two axes: the face detector misses a face
+#: turned ~40° from the view), the views between them; the four rolls of each cover the rest.
+SEARCH_BETWEEN = _between_axes()
 #: Pixels of the search renders and of the zoomed and frontal face renders.
 SEARCH_SIZE, FACE_SIZE = 512, 384
 #: Half-width of the frontal render in the template's mm (the face about half the image across).
@@ -128,7 +145,9 @@ def search(V, T, detector: Detector, size=SEARCH_SIZE, normals=None):
         When no view shows a face, or the best view shows two.
     """
     tried, found = [], []
-    for name, (forward, up) in SEARCH_AXES.items():
+    for name, (forward, up) in [*SEARCH_AXES.items(), *SEARCH_BETWEEN.items()]:
+        if name in SEARCH_BETWEEN and found:
+            break  # the in-between views only where no axis view showed a face
         base = _framing(V, forward, up, size)
         img = shade(V, T, rasterise(V, T, base), normals=normals)
         for k in range(4):
@@ -347,7 +366,10 @@ def detect(V, T, unit=None, landmark_map: LandmarkMap | None = None, detector: D
         Ps, direct = frontal_readings(V, T, skin, detector, m, (s, R, t), first=(raster, img, px, skin_raster),
                                       closest=closest, normals=normals)
         P2 = np.nanmean(Ps, axis=0)
-        points, indices = snap(V, T[skin], m.apply(P2), skin_raster, 1.0 / s, closest)
+        points, _ = snap(V, T[skin], m.apply(P2), skin_raster, 1.0 / s, closest)
+        # The upper jaw's depth along the contour from the template, not from where a grazing ray met the cheek.
+        points = upper_jaw_at_template_depth(V, T[skin], points)
+        indices = nearest_vertices(V, T[skin], points)
         mm = UNITS_MM[unit] if unit else estimate_unit(points)[1]  # the fit's own estimate (one for both)
         spread = group_spread(m, Ps, mm)
         direct = direct.mean(0)
@@ -499,8 +521,6 @@ def snap(V, T, L, raster: Raster | None = None, mm_per_unit=1.0, closest: Closes
     commissure. Contours (the jawline), where a ray grazes the surface, keep the nearest point.
     ``closest``: a :class:`~pdeface.geometry.ClosestPoint` on ``(V, T)``, when already built.
     """
-    from scipy.spatial import cKDTree
-
     points = (ClosestPoint(V, T) if closest is None else closest).query(L)[3]
     if raster is not None:
         depth = depth_map(V, T, raster)
@@ -510,5 +530,12 @@ def snap(V, T, L, raster: Raster | None = None, mm_per_unit=1.0, closest: Closes
         use = over & np.isfinite(cast).all(1)
         use[use] = np.linalg.norm(cast[use] - points[use], axis=1) * mm_per_unit > SNAP_AGREES_MM
         points[use] = cast[use]
+    return points, nearest_vertices(V, T, points)
+
+
+def nearest_vertices(V, T, points) -> np.ndarray:
+    """The vertex of the surface ``(V, T)`` nearest each point."""
+    from scipy.spatial import cKDTree
+
     used = np.unique(T)
-    return points, used[cKDTree(V[used]).query(points)[1]]
+    return used[cKDTree(V[used]).query(points)[1]]
