@@ -192,10 +192,11 @@ Fit then uses them"""
         unit = None if s.unit == "AUTO" else s.unit
         arrays = landmarks.mesh_arrays(obj)  # read once for the find and its gate
         try:
-            points, found, seconds = landmarks.find(context, obj, unit, arrays)
+            _, found, seconds = landmarks.find(context, obj, unit, arrays)
         finally:
             compat.set_status(context, None)
-        verdict = landmarks.gate(obj, points, unit, found.skin, arrays)
+        # on the points as the empties hold them (float32 in Blender): what Fit reads back, reusing this verdict
+        verdict = landmarks.gate(obj, landmarks.empty_points(obj), unit, found.skin, arrays)
         if verdict.passed:
             return landmarks.summary(obj, found, seconds)
         self.report({"WARNING"}, f"{landmarks.summary(obj, found, seconds)}; they fail the landmark gate: "
