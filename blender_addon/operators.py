@@ -166,7 +166,7 @@ class PDEFACE_OT_fit_to_selected(_UserMeshOperator, Operator):
         finally:
             wm.progress_end()
             compat.set_status(context, None)
-        for note in face.binding_notes(obj) if r else []:
+        for note in r["notes"] if r else []:  # the binding's, as build_keys made it (not bound again to ask)
             self.report({"INFO"}, note)
         filled = int((sampler.status != 0).sum())
         msg = (f"Fitted {obj.name}: {model.layout.n_curves} curves, unit {model.frame.unit}, "
