@@ -407,13 +407,15 @@ def _faces(lines: _Lines, rows: dict):
                 or (b[double + 2] == ord("/")).any()):
             return None
         field_at, field_end = _tokens(text, space | (text == ord("/")) | (text == ord("f")))
-    minus = b[field_at] == ord("-")  # a relative index
-    digits_at = field_at + minus
+    signs = np.count_nonzero(text == ord("-"))
+    minus = b[field_at] == ord("-") if signs else None  # a relative index (none in the usual file)
+    digits_at = field_at + minus if signs else field_at
     length = field_end - digits_at
-    if np.count_nonzero(text == ord("-")) != np.count_nonzero(minus) or length.min() < 1 or length.max() > 15:
+    if (signs and signs != np.count_nonzero(minus)) or length.min() < 1 or length.max() > 15:
         return None  # a sign inside an index, a sign alone, or more digits than an index has
     values = _digit_values(b, digits_at, field_end)
-    values[minus] *= -1
+    if signs:
+        values[minus] *= -1
     f = len(field_at) // len(corner_at)
     if 1 <= f <= 3 and len(field_at) == f * len(corner_at) and not len(double) and (field_at[::f] == corner_at).all():
         # Every corner f fields, v, v/vt or v/vt/vn (the usual file): the values as columns.
