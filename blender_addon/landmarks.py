@@ -10,6 +10,7 @@ the mesh for the panel), and the landmarks JSON out and in (:func:`export`, :fun
 The face-landmark model (``mediapipe``) is optional: when it is missing, :func:`install` puts it in the
 extension's own user folder on request.
 """
+import hashlib
 import json
 import math
 import os
@@ -27,7 +28,7 @@ from pdeface.landmark_scheme import eye_distance
 from pdeface.landmarks import MissingDependencyError, available
 from pdeface.landmarks.detector import RUNTIME_PACKAGES
 from pdeface.landmarks.facemap import GROUPS
-from pdeface.landmarks.gate import LandmarkGateError, check
+from pdeface.landmarks.gate import LandmarkGateError, Verdict, check
 from pdeface.landmarks.headfind import detect_anywhere
 from pdeface.landmarks.pipeline import onto_outer_surface, skin_triangles
 from pdeface.landmarks.render import View, rasterise
@@ -42,6 +43,9 @@ COLLECTION = "PDE Landmarks"
 #: Custom properties on the mesh (saved with the .blend): the gate's last one-line failure ("" when it passed)
 #: and its failing groups, comma-separated, for the panel.
 GATE_PROP, GATE_GROUPS_PROP = "pdeface_gate", "pdeface_gate_groups"
+#: Custom properties on the mesh: the gate's last verdict (JSON) and a digest of what it judged (the points, the
+#: unit, the mesh's vertices and faces): Fit reuses the verdict of Find Landmarks when nothing of it changed.
+GATE_VERDICT_PROP, GATE_OF_PROP = "pdeface_gate_verdict", "pdeface_gate_of"
 #: Custom property on each landmark empty: its display size when its group passes (a failing one's is twice).
 SIZE_PROP = "pdeface_size"
 #: The picture of the 68-point scheme (drawn by scripts/figures/render_landmark_scheme.py).
@@ -211,8 +215,32 @@ def gate(obj, points, unit=None, skin=None, arrays=None):
     verdict = check(points, V, T[skin], unit)
     obj[GATE_PROP] = verdict.message()
     obj[GATE_GROUPS_PROP] = ",".join(verdict.failures)
+    obj[GATE_VERDICT_PROP] = json.dumps(verdict.to_json())
+    obj[GATE_OF_PROP] = gate_digest(obj, points, unit)
     highlight(obj, list(verdict.failures))
     return verdict
+
+
+def gate_digest(obj, points, unit=None):
+    """A digest of what the gate judges on ``obj``: the points (object space), the unit, the mesh's vertices and
+    its faces' corners (read from Blender: a few milliseconds)."""
+    mesh = obj.data
+    corners = np.empty(len(mesh.loops), np.int32)
+    mesh.loops.foreach_get("vertex_index", corners)
+    starts = np.empty(len(mesh.polygons), np.int32)
+    mesh.polygons.foreach_get("loop_start", starts)
+    h = hashlib.blake2b(digest_size=16)
+    for a in (np.asarray(points, np.float64), bridge.vertices(mesh), corners, starts):
+        h.update(np.ascontiguousarray(a).tobytes())
+    h.update(str(unit).encode())
+    return h.hexdigest()
+
+
+def last_verdict(obj, points, unit=None):
+    """The verdict the gate gave on ``points`` over ``obj`` as it is now, if it judged them already; else None."""
+    if GATE_VERDICT_PROP not in obj or obj.get(GATE_OF_PROP) != gate_digest(obj, points, unit):
+        return None
+    return Verdict.from_json(json.loads(obj[GATE_VERDICT_PROP]))
 
 
 def failing_groups(obj):
@@ -240,8 +268,12 @@ def highlight(obj, groups):
 
 def gated(obj, points, unit=None, accept=False):
     """Gate the landmarks the fit is about to use; raise :class:`LandmarkGateError` (one line, the empties left
-    as they are for editing) when a group fails, unless ``accept``. Returns a note on an accepted failure."""
-    verdict = gate(obj, points, unit)
+    as they are for editing) when a group fails, unless ``accept``. Returns a note on an accepted failure.
+    The verdict of Find Landmarks is reused when neither the points nor the mesh changed since (issue #35: the
+    gate ran twice, the second time on a skin chosen otherwise)."""
+    verdict = last_verdict(obj, points, unit)
+    if verdict is None:
+        verdict = gate(obj, points, unit)
     if verdict.passed:
         return None
     if not accept:

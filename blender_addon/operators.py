@@ -166,7 +166,7 @@ class PDEFACE_OT_fit_to_selected(_UserMeshOperator, Operator):
         finally:
             wm.progress_end()
             compat.set_status(context, None)
-        for note in face.binding_notes(obj) if r else []:
+        for note in r["notes"] if r else []:  # the binding's, as build_keys made it (not bound again to ask)
             self.report({"INFO"}, note)
         filled = int((sampler.status != 0).sum())
         msg = (f"Fitted {obj.name}: {model.layout.n_curves} curves, unit {model.frame.unit}, "
@@ -192,10 +192,11 @@ Fit then uses them"""
         unit = None if s.unit == "AUTO" else s.unit
         arrays = landmarks.mesh_arrays(obj)  # read once for the find and its gate
         try:
-            points, found, seconds = landmarks.find(context, obj, unit, arrays)
+            _, found, seconds = landmarks.find(context, obj, unit, arrays)
         finally:
             compat.set_status(context, None)
-        verdict = landmarks.gate(obj, points, unit, found.skin, arrays)
+        # on the points as the empties hold them (float32 in Blender): what Fit reads back, reusing this verdict
+        verdict = landmarks.gate(obj, landmarks.empty_points(obj), unit, found.skin, arrays)
         if verdict.passed:
             return landmarks.summary(obj, found, seconds)
         self.report({"WARNING"}, f"{landmarks.summary(obj, found, seconds)}; they fail the landmark gate: "

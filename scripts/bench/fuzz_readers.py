@@ -677,7 +677,7 @@ def one_parser(cli):
     parsing leaves an argparse parser as it was, so each input still meets a fresh one."""
     build = cli.build_parser
     parser = build()
-    cli.build_parser = lambda: parser
+    cli.build_parser = lambda command=None: parser  # the whole parser serves every command
     try:
         yield parser
     finally:

@@ -85,16 +85,21 @@ def test_fit_puts_every_key_on_the_users_objects(bpy, ict_head, tmp_path):
     assert np.linalg.norm(up, axis=1).max() > 0.3  # cm: the eyeballs turn
 
 
-def test_a_head_without_eyeballs_gets_no_gaze_keys(bpy, ict_head):
+def test_a_head_without_eyeballs_gets_no_gaze_keys(bpy, ict_head, monkeypatch):
     head, eyes, *_ = ict_head
     bpy.data.objects.remove(eyes)  # empty sockets
     head.select_set(True)
     bpy.context.view_layer.objects.active = head
+    reported, rigging = [], addon("rigging")
+    build = rigging.build_keys
+    monkeypatch.setattr(rigging, "build_keys", lambda *a: reported.append(build(*a)) or reported[-1])
+    monkeypatch.setattr(addon("face"), "binding_notes", lambda face: pytest.fail("bound again for its notes"))
     assert bpy.ops.pdeface.fit_to_selected() == {"FINISHED"}
+    monkeypatch.undo()
     names = set(key_blocks(head).keys())
     assert AU12 in names and not any(n.startswith(("AU61 ", "AU62 ", "AU63 ", "AU64 ")) for n in names)
     notes = addon("face").binding_notes(head.pdeface.rig_face)
-    assert sum("no gaze keys" in n for n in notes) == 1  # the operator reports it
+    assert sum("no gaze keys" in n for n in notes) == 1 and reported[0]["notes"] == notes  # the operator reports them
 
 
 def test_panel_operations_drive_the_users_mesh(bpy, ict_head):

@@ -235,3 +235,28 @@ def test_find_landmarks_reports_the_gate_and_leaves_the_empties_to_edit(bpy, hea
     assert np.allclose(lms_mod.empty_points(obj), bad, atol=1e-6)
     assert lms_mod.failing_groups(obj) == ["mouth"] and "mouth: surface" in obj[lms_mod.GATE_PROP]
     assert lms_mod.empties(obj)[57].select_get()
+
+
+def test_fit_reuses_the_gate_of_find_landmarks_until_a_point_or_the_mesh_changes(bpy, head, monkeypatch):
+    from types import SimpleNamespace
+
+    lms_mod = addon().landmarks
+    obj, true = head
+    bad = true.copy()
+    bad[[56, 57, 58], 1] += 0.01  # three lower-lip points inside the mouth
+    found = SimpleNamespace(points=bad, confidence=dict.fromkeys(lms_mod.GROUPS, 0.9), view="-y roll 0", skin=None)
+    monkeypatch.setattr(lms_mod, "detect_anywhere", lambda V, T, unit: found)
+    assert bpy.ops.pdeface.find_landmarks() == {"FINISHED"}
+    judged, check = [], lms_mod.check
+    monkeypatch.setattr(lms_mod, "check", lambda *a, **k: judged.append(1) or check(*a, **k))
+    with pytest.raises(RuntimeError, match="mouth: surface"):  # Find's verdict, not judged again
+        bpy.ops.pdeface.fit_to_selected()
+    assert judged == [] and lms_mod.failing_groups(obj) == ["mouth"]
+    lms = lms_mod.empties(obj)
+    for i in (56, 57, 58):  # put back: judged again, and passes
+        lms[i].location = true[i]
+    bpy.context.view_layer.update()
+    assert lms_mod.gated(obj, lms_mod.empty_points(obj)) is None and judged == [1]
+    assert lms_mod.gated(obj, lms_mod.empty_points(obj)) is None and judged == [1]  # the same points: reused
+    obj.data.vertices[0].co.x += 0.001  # the mesh edited: judged again
+    assert lms_mod.gated(obj, lms_mod.empty_points(obj)) is None and judged == [1, 1]

@@ -148,3 +148,23 @@ def test_render_passes_its_arguments_on(capsys):
     with pytest.raises(SystemExit):  # other commands still refuse unknown options
         main(["mesh", "default", "-o", "x.obj", "--no-such-option"])
     assert "unrecognized arguments: --no-such-option" in capsys.readouterr().err
+
+
+def test_each_command_imports_only_its_group(capsys):
+    import sys
+
+    from pdeface import cli
+    registered = {}
+    for group in cli.GROUPS:
+        sub = argparse.ArgumentParser().add_subparsers()
+        __import__(f"pdeface.cli.{group}", fromlist=["register"]).register(sub)
+        registered.update(dict.fromkeys(sub.choices, group))
+    assert list(registered.items()) == list(cli.COMMANDS.items())  # the table is the groups' own, in their order
+    probe = ("import sys\nfrom pdeface.cli import main\ntry:\n    main(['rig', '--help'])\nexcept SystemExit:\n"
+             "    print(sorted(m for m in sys.modules if m.startswith('pdeface.cli.')))")
+    res = subprocess.run([sys.executable, "-c", probe], check=False, capture_output=True, text=True)
+    assert "keys.npz" in res.stdout and "'pdeface.cli.rig'" in res.stdout, res.stderr
+    assert "pdeface.cli.au'" not in res.stdout and "pdeface.cli.batch'" not in res.stdout
+    with pytest.raises(SystemExit):  # an unknown command still lists every command
+        main(["no-such-command"])
+    assert "'fit'" in capsys.readouterr().err

@@ -9,7 +9,7 @@ from pdeface.cli import main
 from pdeface.io.meshio import write_mesh
 from pdeface.landmark_scheme import INNER_LIPS, LOWER_LIDS, MIRROR, eye_distance
 from pdeface.landmarks import available as mediapipe_available
-from pdeface.landmarks.gate import check, require
+from pdeface.landmarks.gate import Verdict, check, require
 from pdeface.mesh import Mesh
 from pdeface.rigid import rotation_vector_matrix
 from pdeface.surface.fit import fit_face
@@ -214,6 +214,8 @@ def test_the_gate_names_the_group_and_the_check_that_fail(ict):
         assert what in [c for c, _ in v.failures[group]], (group, what, v.message())
         with pytest.raises(Exception, match=f"{group}: .*{what}"):
             require(v)
+        again = Verdict.from_json(json.loads(json.dumps(v.to_json())))  # as the add-on keeps it on the mesh
+        assert again.failures == v.failures and again.message() == v.message() and not again.passed
     P = L.copy()
     P[list(INNER_LIPS)[:2]] = np.nan
     assert ("finite" in [c for c, _ in check(P).failures["mouth"]])

@@ -16,27 +16,35 @@ parse, call and print.
 from __future__ import annotations
 
 import argparse
+import importlib
 import sys
 
 from .. import __version__
 from ..errors import PdeFaceError, one_line
 from ..threads import bounded_threads
-from . import au, aus, batch, demo, face, fdt, landmarks, muscles, render, rig, stream
 from .common import HelpFormatter
 
-#: The command groups, in the order ``pdeface --help`` lists their commands.
-GROUPS = (face, au, aus, fdt, muscles, landmarks, rig, stream, render, batch, demo)
+#: Each command and the module of its group, in the order ``pdeface --help`` lists them. A command imports only
+#: its own group (the groups import most of the library: all of them took a third of a second, issue #35);
+#: tests/core/test_cli.py checks this table against what the groups register.
+COMMANDS = {"fit": "face", "mesh": "face", "report": "face", "parts": "face", "descriptor": "au", "pose": "au",
+            "retarget": "au", "au-report": "au", "import-au": "au", "aus": "aus", "fdt": "fdt", "muscles": "muscles",
+            "landmarks": "landmarks", "rig": "rig", "stream": "stream", "render": "render", "batch": "batch",
+            "demo": "demo"}
+#: The command groups' modules, in that order.
+GROUPS = tuple(dict.fromkeys(COMMANDS.values()))
 
 
-def build_parser():
-    """The ``pdeface`` parser: every group's subcommands, each showing its options' defaults."""
+def build_parser(command=None):
+    """The ``pdeface`` parser: every group's subcommands, each showing its options' defaults; only the group of
+    ``command`` (a name of :data:`COMMANDS`) when given."""
     ap = argparse.ArgumentParser(prog="pdeface", description="PDE face models and FACS Action Units.")
     ap.add_argument("--version", action="version", version=f"pdeface {__version__}")
     sub = ap.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for group in GROUPS:
-        group.register(sub)
-    for command in subcommands(ap).values():
-        command.formatter_class = HelpFormatter
+    for group in (COMMANDS[command],) if command in COMMANDS else GROUPS:
+        importlib.import_module(f".{group}", __name__).register(sub)
+    for parser in subcommands(ap).values():
+        parser.formatter_class = HelpFormatter
     return ap
 
 
@@ -57,7 +65,9 @@ def main(argv=None):
     A bad argument is argparse's usage error (``SystemExit(2)``); any other exception is a bug and shows
     its traceback.
     """
-    ap = build_parser()
+    argv = sys.argv[1:] if argv is None else list(argv)
+    # the command is the first word that is not an option (pdeface's own options take no value)
+    ap = build_parser(next((a for a in argv if not a.startswith("-")), None))
     args, extra = ap.parse_known_args(argv)
     if extra and not getattr(args, "passes_arguments_on", False):
         ap.error(f"unrecognized arguments: {' '.join(extra)}")

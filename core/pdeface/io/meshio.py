@@ -197,11 +197,18 @@ class _Lines:
     def __getitem__(self, i):
         return self.data[self.starts[i]:self.ends[i]]
 
-    def block(self, rows) -> bytes:
-        """The lines ``rows`` (ascending) joined by newlines: a slice of the data for each run of consecutive lines."""
+    def block(self, rows):
+        """The lines ``rows`` (ascending) joined by newlines, with a newline before and after (``block``), and
+        ``block``'s bytes as a uint8 array padded with 18 NULs (the parsers read a few bytes past a number); the
+        data joined once, a run of consecutive lines at a time."""
         run = np.flatnonzero(np.diff(rows) != 1) + 1
         first, last = rows[np.concatenate([[0], run])], rows[np.concatenate([run - 1, [len(rows) - 1]])]
-        return b"\n".join([self.data[a:b] for a, b in zip(self.starts[first].tolist(), self.ends[last].tolist())])
+        view = memoryview(self.data)
+        parts = [b"\n"]
+        for a, b in zip(self.starts[first].tolist(), self.ends[last].tolist()):
+            parts += [view[a:b], b"\n"]
+        padded = b"".join([*parts, b"\0" * 18])
+        return padded[:-18], np.frombuffer(padded, np.uint8)
 
 
 def _tokens(b, sep):
@@ -277,7 +284,7 @@ def _plain_decimals(text: bytes, b, at, end):
         return bad
     frac_digits = np.zeros(len(at), np.int64)
     frac_digits[of] = end[of] - dot - 1
-    if len(dot) == len(at) and text.count(b"-") == np.count_nonzero(minus):
+    if len(dot) == len(at) and np.count_nonzero(b[:len(text)] == ord("-")) == np.count_nonzero(minus):
         # -digits.digits each (a sign only in front): the two runs of digits read digit by digit.
         mantissa = _digit_values(b, at + minus, dot) * _IPOW10[frac_digits] + _digit_values(b, dot + 1, end)
     else:
@@ -324,8 +331,7 @@ def _numbers(lines: _Lines, rows, tag: bytes, n: int):
     array; None if a line is short or has anything but numbers, or a number is not finite."""
     if not len(rows):
         return np.zeros((0, n))
-    block = b"\n" + lines.block(rows) + b"\n"
-    b = np.frombuffer(block + b"\0" * 18, np.uint8)
+    block, b = lines.block(rows)
     if len(block.translate(None, _NUMBER_BYTES)) != len(rows) * len(tag):  # letters other than the tags'
         return None
     at, end = _tokens(b[:len(block)], b[:len(block)] <= 32)  # only whitespace is below '+' now
@@ -356,18 +362,19 @@ def _numbers(lines: _Lines, rows, tag: bytes, n: int):
     return out if np.isfinite(out).all() else None
 
 
-def _usual_corners(block: bytes, text, space):
+def _usual_corners(text, space):
     """The face lines' fields (where each starts and ends), corners per line and fields per corner ``f``, where
     every corner is ``f`` fields (1 to 3) joined by single slashes, as in nearly every file; None for any other.
 
     A corner's first field follows whitespace (the tag ``f`` is followed by it), each other field the slash
     just after the field before it; with no other slash in the lines, none is doubled, leading or trailing.
     """
-    field_at, field_end = _tokens(text, space | (text == ord("/")) | (text == ord("f")))
+    slash = text == ord("/")
+    field_at, field_end = _tokens(text, space | slash | (text == ord("f")))
     first = np.flatnonzero(space[field_at - 1])
     f = len(field_at) // max(len(first), 1)
     if (not len(first) or not 1 <= f <= 3 or len(field_at) != f * len(first)
-            or block.count(b"/") != (f - 1) * len(first)):
+            or np.count_nonzero(slash) != (f - 1) * len(first)):
         return None
     if f > 1 and not ((first == np.arange(0, len(field_at), f)).all()
                       and (field_at.reshape(-1, f)[:, 1:] == field_end.reshape(-1, f)[:, :-1] + 1).all()):
@@ -378,13 +385,12 @@ def _usual_corners(block: bytes, text, space):
 def _faces(lines: _Lines, rows: dict):
     """The faces' corner counts and their vertex, texture and normal indices, 0-based (-1: none given);
     None if a face has fewer than 3 corners or a corner is not 1 to 3 fields of valid indices."""
-    block = b"\n" + lines.block(rows[_F]) + b"\n"
-    b = np.frombuffer(block + b"\0" * 18, np.uint8)
+    block, b = lines.block(rows[_F])
     text = b[:len(block)]
     if len(block.translate(None, _CORNER_BYTES)) != len(rows[_F]):  # anything but the tags, indices and slashes
         return None
     space = text <= 32  # only whitespace is below '-' now
-    usual = _usual_corners(block, text, space)
+    usual = _usual_corners(text, space)
     if usual is not None:  # no slash to check: the fields are as the usual file has them
         field_at, field_end, counts, f = usual
         corner_at, slash, double = field_at[::f], None, ()
@@ -401,13 +407,15 @@ def _faces(lines: _Lines, rows: dict):
                 or (b[double + 2] == ord("/")).any()):
             return None
         field_at, field_end = _tokens(text, space | (text == ord("/")) | (text == ord("f")))
-    minus = b[field_at] == ord("-")  # a relative index
-    digits_at = field_at + minus
+    signs = np.count_nonzero(text == ord("-"))
+    minus = b[field_at] == ord("-") if signs else None  # a relative index (none in the usual file)
+    digits_at = field_at + minus if signs else field_at
     length = field_end - digits_at
-    if block.count(b"-") != np.count_nonzero(minus) or length.min() < 1 or length.max() > 15:
+    if (signs and signs != np.count_nonzero(minus)) or length.min() < 1 or length.max() > 15:
         return None  # a sign inside an index, a sign alone, or more digits than an index has
     values = _digit_values(b, digits_at, field_end)
-    values[minus] *= -1
+    if signs:
+        values[minus] *= -1
     f = len(field_at) // len(corner_at)
     if 1 <= f <= 3 and len(field_at) == f * len(corner_at) and not len(double) and (field_at[::f] == corner_at).all():
         # Every corner f fields, v, v/vt or v/vt/vn (the usual file): the values as columns.

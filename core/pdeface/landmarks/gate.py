@@ -91,6 +91,11 @@ class Verdict:
         return {"passed": self.passed, "failures": {g: [{"check": c, "detail": d} for c, d in checks]
                                                     for g, checks in self.failures.items()}}
 
+    @classmethod
+    def from_json(cls, data: dict) -> Verdict:
+        """The verdict :meth:`to_json` wrote."""
+        return cls({g: [(c["check"], c["detail"]) for c in checks] for g, checks in data["failures"].items()})
+
 
 def _group_of():
     g = np.empty(68, dtype=object)

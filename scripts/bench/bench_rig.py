@@ -1,0 +1,105 @@
+"""Benchmark ``pdeface rig MESH -o OUT`` end to end (issue #35: a new head rigged in ≤ 3 s on the command line).
+
+Usage: python -m scripts.bench.bench_rig [--runs 3] [--import-runs 7]
+
+ICT-FaceKit's whole head (26,719 vertices, written as OBJ from the bundled asset) and the same head
+clustered on a grid to about 8k vertices (another topology), each rigged by ``pdeface rig`` in a fresh
+process (its imports included, landmarks found with MediaPipe): the process's wall and CPU seconds, each step's
+seconds from its report (read, landmarks, fit, retarget, bind, keys; median of the runs) and the ratio
+to the 3 s target. Then the command line's own imports before a command runs, median of fresh processes
+(``python -X importtime``): ``pdeface rig`` importing its own group only, against every group imported
+(as before issue #35), in the same run. The machine's load average is printed: other work beside it
+slows every figure. Needs ``pdeface[landmarks]``.
+"""
+from __future__ import annotations
+
+import json
+import os
+import resource
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from pdeface.assets import load_head
+from pdeface.io.meshio import write_obj
+from pdeface.mesh import Mesh
+
+from scripts.bench.benchlib import bench_parser, clustered, run_bench
+
+TARGET_S = 3.0
+STEPS = ("read", "landmarks", "fit", "retarget", "bind", "keys")
+
+
+def load_text():
+    return ", ".join(f"{x:.2f}" for x in os.getloadavg())
+
+
+def child_cpu():
+    use = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return use.ru_utime + use.ru_stime
+
+
+def rig_once(path, out):
+    """(process wall seconds, its CPU seconds, the report's timings) of ``pdeface rig path -o out`` in a fresh
+    process."""
+    t, c = time.perf_counter(), child_cpu()
+    done = subprocess.run([sys.executable, "-m", "pdeface.cli", "rig", str(path), "-o", str(out)],
+                          capture_output=True, text=True, check=False)
+    wall, cpu = time.perf_counter() - t, child_cpu() - c
+    if done.returncode:
+        raise SystemExit(f"pdeface rig {path} failed: {done.stderr.strip()[-600:]}")
+    return wall, cpu, json.loads(done.stdout.strip().splitlines()[-1])["timings"]
+
+
+def import_seconds(command):
+    """Seconds of the imports a fresh process makes to build the parser for ``command`` (None: every group)."""
+    code = f"from pdeface.cli import build_parser; build_parser({command!r})"
+    err = subprocess.run([sys.executable, "-X", "importtime", "-c", code], capture_output=True, text=True,
+                         check=True).stderr
+    top = [line.split("|") for line in err.splitlines() if line.startswith("import time:")]
+    # the outermost imports' cumulative times (a nested one's name is indented further)
+    return sum(int(f[1]) for f in top if f[1].strip().isdigit() and not f[2].startswith("  ")) / 1e6
+
+
+def main(argv=None):
+    ap = bench_parser(__doc__)
+    ap.add_argument("--runs", type=int, default=3)
+    ap.add_argument("--import-runs", type=int, default=7)
+    args = ap.parse_args(argv)
+    head, _ = load_head()
+    V, T = head.vertices, head.triangles()[0]
+    Vc, Tc = clustered(V, T, 0.42)  # cm: about 8k vertices
+    print(f"{os.cpu_count()} cores; load average at the start: {load_text()}")
+    with tempfile.TemporaryDirectory() as tmp:
+        for name, mesh in (("ICT head", head), ("clustered head", Mesh.from_faces(Vc, Tc))):
+            path = Path(tmp) / f"{len(mesh.vertices)}.obj"
+            write_obj(path, mesh)
+            runs = [rig_once(path, Path(tmp) / "out") for _ in range(args.runs)]
+            wall = statistics.median(w for w, _, _ in runs)
+            cpu = statistics.median(c for _, c, _ in runs)
+            steps = {k: statistics.median(t[k] for _, _, t in runs) for k in STEPS}
+            print(f"\n== {name} ({len(mesh.vertices)} vertices): pdeface rig {wall:.2f} s per process ({cpu:.2f} s of "
+                  f"CPU: less sensitive to other work), median of {args.runs} (runs "
+                  f"{', '.join(f'{w:.2f}' for w, _, _ in runs)}); target ≤ {TARGET_S:.0f} s: ratio "
+                  f"{wall / TARGET_S:.2f}, {'met' if wall <= TARGET_S else 'NOT met'}; load after: {load_text()}")
+            for k, s in steps.items():
+                print(f"  {k:10s} {s:6.2f} s  {100 * s / wall:4.0f}%")
+            rest = wall - sum(steps.values())
+            print(f"  {'the rest':10s} {rest:6.2f} s  {100 * rest / wall:4.0f}%  (Python's start, imports, writing)")
+    own, every = [], []
+    for _ in range(args.import_runs):  # interleaved: the machine's load falls on both alike
+        own.append(import_seconds("rig"))
+        every.append(import_seconds(None))
+    if args.import_runs:
+        a, b = statistics.median(own), statistics.median(every)
+        print(f"\nthe command line's imports before pdeface rig runs: {a:.3f} s (its own group) against {b:.3f} s "
+              f"(every group, as before): {b / a:.1f}× less; median of {args.import_runs} fresh processes each")
+    print(f"load average at the end: {load_text()}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(run_bench(main, "rig"))
