@@ -7,7 +7,9 @@ Each character of ``scripts.devset.characters`` is rigged as ``bench_keys_devset
 the add-on's joined objects, :class:`pdeface.head.bind.HeadBinding`) and rendered with Blender's Workbench
 (studio light, smooth shading) in a front and a three-quarter view, one ``keys_devset_<name>.png`` per character:
 a row per view, a column per key. Vertices of a new fold (an edge under 20° at rest and over 40° in the key) are
-red, and each panel's title counts those edges.
+red, and each panel's title counts those edges. The mouth's lining (skin behind the inner lips) is dark and the
+teeth and tongue ivory, as a texture would have them; a head with no mouth inside gets the mouth bag the add-on adds (:mod:`pdeface.head.mouth`),
+dark too (``--no-mouth-bag``: not), as ``no-mouth-inside-cm`` (``scripts.devset.characters.NO_MOUTH_INSIDE``) shows.
 """
 from __future__ import annotations
 
@@ -20,40 +22,63 @@ import numpy as np
 from pdeface.au.modelfile import load_face
 from pdeface.au.retarget import retarget
 from pdeface.head.bind import HeadBinding, descriptor_motion_args
+from pdeface.head.mouth import mouth_bag
+from pdeface.head.parts import mouth_line
 from pdeface.io.png import draw_text, write_png
+from pdeface.landmark_scheme import INNER_LIPS, MOUTH_CORNERS
 from pdeface.mesh import edge_face_pairs, turn_degrees
 from pdeface.presets import every_pose
 from pdeface.surface.fit import fit_face
 
-from scripts.devset.characters import SPECS, build
+from scripts.devset.characters import NO_MOUTH_INSIDE, SPECS, build
 
 OUT = Path(__file__).resolve().parents[2] / "docs" / "images"
 #: The hardest heads of the development set after issue #40's first fixes: fused lips (voxel-m), the mouth curves
 #: once on the chin (body-A-cm), the most keys folding (eyes-teeth-separate-in), the least closed lids and smallest
 #: smile (stylised-parted-decimated-dm, stylised-chin-cheek-in).
 HARDEST = ("voxel-m", "body-A-cm", "eyes-teeth-separate-in", "stylised-parted-decimated-dm", "stylised-chin-cheek-in")
+#: Rendered beside them by default: the head with no mouth inside, with its mouth bag.
+MOUTH_BAG = (NO_MOUTH_INSIDE.name,)
 KEYS = ("neutral", "AU12", "AU27", "AU45", "happy")
 #: The views: the camera turned this many degrees about the face's vertical axis (towards the subject's left).
 VIEWS = {"front": 0.0, "3/4": 40.0}
 SKIN = (0.80, 0.74, 0.68, 1.0)
 FOLD = (0.9, 0.05, 0.05, 1.0)
+MOUTH = (0.14, 0.09, 0.09, 1.0)
+TEETH = (0.95, 0.93, 0.84, 1.0)
 #: The PNGs' colour levels are this many apart (smooth shading's gradients compress three times smaller).
 LEVEL_STEP = 8
 
 
-def rigged(name, keys=KEYS):
-    """(face-frame vertices / eye distance, triangles, face-frame landmarks / eye distance, {key: moved vertices})."""
-    ch = build(SPECS[name])
+def rigged(name, keys=KEYS, bag=True):
+    """(face-frame vertices / eye distance, triangles, face-frame landmarks / eye distance, {key: moved vertices},
+    dark vertices: the mouth's lining and bag, the teeth and tongue). ``bag``: a head with no mouth inside gets the
+    add-on's mouth bag."""
+    ch = build(SPECS.get(name, NO_MOUTH_INSIDE))
     (V, T), L = ch.joined(), ch.landmarks
     model = retarget(load_face("default"), fit_face(V, T, L)[0])
     b = HeadBinding(model, V, T, landmarks=L)
+    f = model.frame
+    # The lining: skin the PDE face does not cover behind the inner lips, within the mouth's width and near its line.
+    dark = np.zeros(len(V), bool)
+    Pf, Lf, ed = f.to_face(V[b.skin]), f.to_face(L), b.eye_distance
+    corners = Lf[MOUTH_CORNERS, 0]
+    dark[b.skin] = (~b.covered & (Pf[:, 2] < Lf[INNER_LIPS, 2].min()) & (np.abs(Pf[:, 1] - mouth_line(Lf)) < 0.35 * ed)
+                    & (np.abs(Pf[:, 0] - corners.mean()) < np.ptp(corners) / 2 + 0.2 * ed))
+    if bag and any(w.startswith("no mouth inside") for w in b.warnings):
+        Vb, Tb = mouth_bag(f.to_face(V), T, b.parts.mask("skin"), f.to_face(L), b.eye_distance)
+        bag_idx = np.arange(len(V), len(V) + len(Vb))
+        V, T = np.r_[V, f.to_user(Vb)], np.r_[T, Tb + len(V)]
+        b = HeadBinding(model, V, T, landmarks=L, overrides={"mouth": bag_idx.tolist()})
+        dark = np.r_[dark, np.ones(len(Vb), bool)]
     descr = {f"AU{d.key}": d for d in model.descriptors}
     poses = every_pose(model)
     names = [k for k in keys if k != "neutral"]
     motions = [descriptor_motion_args(descr[n]) if n in descr else b.pose_motion_args(poses[n], "sum") for n in names]
-    f, ed = model.frame, b.eye_distance
+    ed = b.eye_distance
     posed = {n: f.to_face(V + d) / ed for n, d in zip(names, b.displacements(motions))}
-    return f.to_face(V) / ed, T, f.to_face(L) / ed, {"neutral": f.to_face(V) / ed, **posed}
+    teeth = b.parts.mask("jaw", "skull")
+    return f.to_face(V) / ed, T, f.to_face(L) / ed, {"neutral": f.to_face(V) / ed, **posed}, dark, teeth
 
 
 def new_fold_vertices(V0, P, T, pairs):
@@ -116,11 +141,11 @@ def _one_winding(me):
     bm.free()
 
 
-def sheet(name, size, tmp, keys=KEYS):
+def sheet(name, size, tmp, keys=KEYS, bag=True):
     """One character's (views × keys) panels as one image, and its new folds per key."""
     import bpy
 
-    V0, T, Lf, posed = rigged(name, keys)
+    V0, T, Lf, posed, dark, teeth = rigged(name, keys, bag)
     pairs = edge_face_pairs(T)
     scene, cam = _scene(size)
     me = bpy.data.meshes.new(name)
@@ -138,6 +163,8 @@ def sheet(name, size, tmp, keys=KEYS):
         me.vertices.foreach_set("co", P.astype(np.float32).ravel())
         at, folds[key] = new_fold_vertices(V0, P, T, pairs)
         c = np.tile(SKIN, (len(P), 1))
+        c[dark] = MOUTH
+        c[teeth] = TEETH
         c[at] = FOLD
         colours.data.foreach_set("color", c.astype(np.float32).ravel())
         me.update()
@@ -154,13 +181,15 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("-o", "--out", default=str(OUT), help="folder of the keys_devset_<name>.png files")
     ap.add_argument("--size", type=int, default=512, help="pixels per panel")
-    ap.add_argument("--only", help="comma-separated character names (default: the five hardest)")
+    ap.add_argument("--only", help=f"comma-separated character names (default: the five hardest and "
+                                   f"{', '.join(MOUTH_BAG)})")
+    ap.add_argument("--no-mouth-bag", action="store_true", help="no mouth bag on a head with no mouth inside")
     ap.add_argument("--keys", default=",".join(KEYS), help="comma-separated keys (default: %(default)s)")
     args = ap.parse_args(argv)
-    names = args.only.split(",") if args.only else HARDEST
+    names = args.only.split(",") if args.only else HARDEST + MOUTH_BAG
     with tempfile.TemporaryDirectory() as tmp:
         for name in names:
-            img, folds = sheet(name, args.size, tmp, args.keys.split(","))
+            img, folds = sheet(name, args.size, tmp, args.keys.split(","), not args.no_mouth_bag)
             path = Path(args.out) / f"keys_devset_{name}.png"
             write_png(path, (img // LEVEL_STEP) * LEVEL_STEP + LEVEL_STEP // 2)  # a third of the bytes
             print(f"wrote {path} ({path.stat().st_size / 1e3:.0f} kB); new folds: "

@@ -23,6 +23,8 @@ follow    touches the skin (within ``TOUCH_IOD``): lashes, lacrimal and
           occlusion meshes, brows and beards glued to the skin
 follow    within ``NEAR_IOD`` of the skin: hair cards, brows
 rest      anything else (a body's other parts, props): never moves
+mouth     never found: a mouth bag named so (:mod:`pdeface.head.mouth`)
+          hangs from the lips, turning with the jaw below the mouth line
 ========  ==============================================================
 
 Users override any of it by naming vertices per kind (a JSON file on the
@@ -52,8 +54,8 @@ from ..rigid import jaw_hinge
 from ..surface.fit import skin_vertices
 from ..surface.frame import face_frame
 
-#: Part kinds, in the order of their integer codes.
-KINDS = ("skin", "follow", "eye_L", "eye_R", "jaw", "skull", "rest")
+#: Part kinds, in the order of their integer codes (a new kind goes last: files and vertex groups keep theirs).
+KINDS = ("skin", "follow", "eye_L", "eye_R", "jaw", "skull", "rest", "mouth")
 CODE = {k: i for i, k in enumerate(KINDS)}
 
 #: A part within this many eye distances of the skin is glued to it (lashes, lacrimal meshes).
