@@ -5,13 +5,15 @@ import numpy as np
 import pytest
 from pdeface.au.modelfile import load_face
 from pdeface.au.retarget import retarget
+from pdeface.geometry import ray_triangle
 from pdeface.head.bind import JAW_AUS, HeadBinding
+from pdeface.head.mouth import _outside, has_mouth_inside, lower_share, mouth_bag
 from pdeface.head.parts import CODE
 from pdeface.mesh import connected_components, edge_face_pairs, turn_degrees
 from pdeface.surface.fit import fit_face
 
 from scripts.devset import makehuman
-from scripts.devset.characters import SPECS, build
+from scripts.devset.characters import NO_MOUTH_INSIDE, SPECS, build
 
 needs_makehuman = pytest.mark.skipif(not makehuman.available(), reason="needs ../shared/data/makehuman")
 
@@ -63,3 +65,66 @@ def test_teeth_and_tongue_turn_whole_with_the_jaw_or_stay_with_the_skull(name):
             moved = {c: np.linalg.norm(P[lab == c] - Vf[lab == c], axis=1) for c in inner}
             assert all(moved[c].min() > 0.1 * ed for c in jaw)
             assert all(moved[c].max() == 0 for c in inner if c not in jaw)
+
+
+@lru_cache(maxsize=1)
+def no_mouth_inside():
+    """The development head whose lips open onto the inside of the head, rigged; its mouth bag (face frame)."""
+    ch = build(NO_MOUTH_INSIDE)
+    V, T, L = ch.vertices, ch.triangles, ch.landmarks
+    model = retarget(load_face("default"), fit_face(V, T, L)[0])
+    b = HeadBinding(model, V, T, landmarks=L)
+    f = model.frame
+    bag = mouth_bag(f.to_face(V), T, b.parts.mask("skin"), f.to_face(L), b.eye_distance)
+    return V, T, L, model, b, bag
+
+
+@needs_makehuman
+def test_a_head_without_a_mouth_inside_is_told_so_and_one_with_it_is_not():
+    *_, b, _ = no_mouth_inside()
+    assert any(w.startswith("no mouth inside") for w in b.warnings)
+    assert any("Add Mouth Bag" in n for n in b.notes)
+    for name in ("eyes-teeth-separate-in", "parted-lips-teeth-separate-m"):  # MakeHuman's shallow mouth, teeth
+        assert not any("mouth inside" in n for n in rig(name)[-1].notes)
+    assert not has_mouth_inside(*[np.array(x) for x in ([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]])],
+                                np.zeros((68, 3)), 1.0)  # a lone triangle at the lips: all border
+
+
+@needs_makehuman
+def test_the_mouth_bag_is_closed_inside_the_head_and_hangs_from_the_lips():
+    V, T, L, model, b, (Vb, Tb) = no_mouth_inside()
+    f, ed = model.frame, b.eye_distance
+    Vf, Lf = f.to_face(V), f.to_face(L)
+    E = np.sort(np.concatenate([Tb[:, [0, 1]], Tb[:, [1, 2]], Tb[:, [2, 0]]]), axis=1)
+    assert (np.unique(E, axis=0, return_counts=True)[1] == 2).all()  # closed: every edge between two triangles
+    skin_T = T[b.parts.mask("skin")[T].all(axis=1)]
+    assert not _outside(Vb, (Vf, skin_T), Vb.mean(0)).any()  # within the skin at rest
+    assert np.ptp(Vb[:, 0]) > np.ptp(Lf[[48, 54], 0])  # wider than the mouth
+    # Given to the binding as kind "mouth", beside the head: the head's keys as without it.
+    n = len(V)
+    VV, TT = np.r_[V, f.to_user(Vb)], np.r_[T, Tb + n]
+    bb = HeadBinding(model, VV, TT, landmarks=L, overrides={"mouth": list(range(n, len(VV)))})
+    assert not any("mouth inside" in x for x in bb.notes) and (bb.parts.kind[n:] == CODE["mouth"]).all()
+    descr = {d.key: d for d in model.descriptors}
+    keys = ("27", "26", "12", "45")
+    D = bb.descriptor_displacements([descr[k] for k in keys])
+    D0 = b.descriptor_displacements([descr[k] for k in keys])
+    np.testing.assert_allclose(D[:, :n], D0, atol=1e-6 * ed / f.scale)
+    lip = np.argmin(np.linalg.norm(Vf - Lf[62], axis=1))
+    share = lower_share(Vb, Lf, ed)
+    for key, d in zip(keys, D):
+        P = f.to_face(VV + d)
+        moved = P[n:] - Vb
+        top = share == 0
+        np.testing.assert_allclose(moved[top], np.tile(P[lip] - Vf[lip], (top.sum(), 1)), atol=1e-6 * ed)
+        if key == "27":  # the jaw opens: the bag's bottom with it, and the mouth's opening shows the bag
+            assert np.linalg.norm(moved[share == 1], axis=1).min() > 0.2 * ed
+            up, lo = (P[np.argmin(np.linalg.norm(Vf - Lf[i], axis=1))] for i in (62, 66))
+            o = (up + lo) / 2 + [0, 0, ed]
+            X = P[TT]
+            hit, _, _, t = ray_triangle(np.tile(o, (len(TT), 1)), np.tile([0.0, 0.0, -1.0], (len(TT), 1)),
+                                        X[:, 0], X[:, 1], X[:, 2])
+            first = np.nonzero(hit)[0][np.argmin(t[hit])]
+            assert (TT[first] >= n).all()  # the first thing seen through the open lips is the bag
+        if key == "45":  # a blink leaves it
+            assert np.abs(moved).max() < 0.01 * ed

@@ -470,7 +470,8 @@ class HeadBinding:
             pinned[si[_inner_lip_middles(P, Lf, eye_distance)]] = True
         if self.lips_one_line:  # the skin joining the lips stretches; the upper lip keeps its (still) motion
             pinned[si[_upper_lip(P, Lf, eye_distance)]] = True
-        self._folds = FoldRelax(Vf, T, pinned)
+        # (a mouth bag left out: pinned, and not counted in the head's share of folds: the head's keys as without it)
+        self._folds = FoldRelax(Vf, T[~parts.mask("mouth")[T].all(axis=1)], pinned)
 
         # Jaw: the chin that drives it, and the parts it turns.
         chin = covered & (P[:, 1] < Lf[LIP_LOWER_BOTTOM, 1] - 0.08 * eye_distance) & (np.abs(P[:, 0]) < abs(Lf[JAW_RIGHT_ANGLE, 0] - Lf[JAW_LEFT_ANGLE, 0]) / 2) \
