@@ -400,6 +400,7 @@ class HeadBinding:
         else:
             raise MeshError("this face model carries no landmarks (made by pdeface 0.1): give the head's landmarks "
                             "or refit the face")
+        self.face_landmarks = Lf
         self.eye_distance = eye_distance = landmark_scheme.eye_distance(Lf)
         self.hinge = jaw_hinge(Lf, eye_distance)
         self.parts = parts = classify_parts(Vf, T, Lf, self.hinge, overrides)

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..geometry import ClosestPoint, smoothstep, triangle_cross, unit_rows
-from ..landmark_scheme import INNER_LIPS, LIP_LOWER_INNER, LIP_UPPER_INNER, MOUTH_CORNERS
+from ..landmark_scheme import LIP_LOWER_INNER, LIP_UPPER_INNER, MOUTH_CORNERS
 from ..mesh import border_vertices
 from .parts import mouth_line
 
@@ -92,11 +92,11 @@ def mouth_bag(Vf, T, skin, Lf, eye_distance):
     skin : (n,) bool array
         The head's skin (the bag is kept within it).
     Lf : (68, 3) array
-        The landmarks in the face frame.
+        The landmarks in the face frame (the mouth corners and inner lips' middles read: a model file keeps those).
     eye_distance : float
     """
     corners = Lf[MOUTH_CORNERS]
-    front = Lf[list(INNER_LIPS), 2].min() - BAG_FRONT_IOD * eye_distance
+    front = Lf[[*MOUTH_CORNERS, LIP_UPPER_INNER, LIP_LOWER_INNER], 2].min() - BAG_FRONT_IOD * eye_distance
     axes = np.array([np.ptp(corners[:, 0]) / 2 + BAG_SIDE_IOD * eye_distance, BAG_HALF_HEIGHT_IOD * eye_distance,
                      BAG_HALF_DEPTH_IOD * eye_distance])
     centre = np.array([corners[:, 0].mean(), mouth_line(Lf), front - axes[2]])
@@ -115,3 +115,11 @@ def lower_share(Xf, Lf, eye_distance) -> np.ndarray:
     below it (the rest of its motion is the upper lip's)."""
     band = BLEND_IOD * eye_distance
     return smoothstep((mouth_line(Lf) + band - Xf[:, 1]) / (2 * band))
+
+
+def head_mouth_bag(binding, triangles):
+    """:func:`mouth_bag` for the head a :class:`~pdeface.head.bind.HeadBinding` was made for (its ``triangles``):
+    ``(vertices in the head's space and unit, triangles)``."""
+    Vb, Tb = mouth_bag(binding.Vf, triangles, binding.parts.mask("skin"), binding.face_landmarks,
+                       binding.eye_distance)
+    return binding.frame.to_user(Vb), Tb
