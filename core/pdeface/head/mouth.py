@@ -27,7 +27,7 @@ BAG_HALF_HEIGHT_IOD = 0.15
 BAG_HALF_DEPTH_IOD = 0.25
 BAG_FRONT_IOD = 0.02
 #: Rings and segments of the bag's sphere; how many times its vertices outside the skin are pulled in.
-BAG_RINGS, BAG_SEGMENTS = 10, 20
+BAG_RINGS, BAG_SEGMENTS = 14, 28
 BAG_PULLS = 12
 #: ... until they lie this far (eye distances) inside it.
 BAG_MARGIN_IOD = 0.03
