@@ -7,13 +7,13 @@ from pdeface.au.modelfile import load_face
 from pdeface.au.retarget import retarget
 from pdeface.geometry import ray_triangle
 from pdeface.head.bind import JAW_AUS, HeadBinding
-from pdeface.head.mouth import _outside, has_mouth_inside, lower_share, mouth_bag
+from pdeface.head.mouth import _outside, cut_lips, has_mouth_inside, head_mouth_bag, lower_share, mouth_bag
 from pdeface.head.parts import CODE
 from pdeface.mesh import connected_components, edge_face_pairs, turn_degrees
 from pdeface.surface.fit import fit_face
 
 from scripts.devset import makehuman
-from scripts.devset.characters import NO_MOUTH_INSIDE, SPECS, build
+from scripts.devset.characters import NO_MOUTH_INSIDE, SPECS, Spec, build
 
 needs_makehuman = pytest.mark.skipif(not makehuman.available(), reason="needs ../shared/data/makehuman")
 
@@ -128,3 +128,35 @@ def test_the_mouth_bag_is_closed_inside_the_head_and_hangs_from_the_lips():
             assert (TT[first] >= n).all()  # the first thing seen through the open lips is the bag
         if key == "45":  # a blink leaves it
             assert np.abs(moved).max() < 0.01 * ed
+
+
+@needs_makehuman
+def test_fused_lips_cut_open_refitted_and_given_a_bag_part_in_au27():
+    """A voxel remesh of an identity the cut was not tuned on (voxel-m's was): its lips are one surface, the binding
+    warns; cut open along the line between them (asked for), fitted again with the inner lips' middles on either
+    side, and given a mouth bag, AU27 parts the lips over the bag as the issue asks, without new folds."""
+    ch = build(Spec("voxel-african-male-young", {"african-male-young": 1.0}, remesh="voxel"))
+    V, T, L = ch.vertices, ch.triangles, ch.landmarks
+    model = retarget(load_face("default"), fit_face(V, T, L)[0])
+    fused = HeadBinding(model, V, T, landmarks=L)
+    assert any(w.startswith("the lips are joined") for w in fused.warnings)
+    V2, T2, L2 = cut_lips(V, T, L, model.frame)
+    n = len(V)
+    assert len(V2) > n and len(T2) == len(T) and np.allclose(V2[:n], V)  # copies added, nothing else moved
+    model2 = retarget(load_face("default"), fit_face(V2, T2, L2)[0])
+    b = HeadBinding(model2, V2, T2, landmarks=L2)
+    assert not any("lips are joined" in x for x in b.notes)
+    assert any(w.startswith("no mouth inside") for w in b.warnings)  # the cut opens onto the inside of the head
+    Vb, Tb = head_mouth_bag(b, T2)
+    V3, T3 = np.r_[V2, Vb], np.r_[T2, Tb + len(V2)]
+    b3 = HeadBinding(model2, V3, T3, landmarks=L2, overrides={"mouth": list(range(len(V2), len(V3)))})
+    f, ed = model2.frame, b3.eye_distance
+    d = b3.descriptor_displacement({x.key: x for x in model2.descriptors}["27"])
+    P, X = f.to_face(V3 + d), f.to_face(V3)
+    Lf = f.to_face(L2)
+    up, lo = (np.argmin(np.linalg.norm(X[:len(V2)] - Lf[i], axis=1)) for i in (62, 66))
+    assert up != lo
+    assert (P[up, 1] - P[lo, 1]) - (X[up, 1] - X[lo, 1]) >= 0.25 * ed  # issue #40: the lips part
+    assert abs(P[up, 1] - X[up, 1]) <= 0.08 * ed
+    pairs = edge_face_pairs(T3)
+    assert ((turn_degrees(X, T3, pairs) < 20) & (turn_degrees(P, T3, pairs) > 40)).sum() <= 0.001 * len(pairs)

@@ -6,13 +6,20 @@ the landmarks, its vertices outside the skin around it pulled in); given to the 
 (:mod:`pdeface.head.parts`), it hangs from the lips: :func:`lower_share` of each vertex turns with the jaw, the
 rest moves with the upper lip, so an opened mouth shows the bag, stretched between the lips, never a hole. The
 user's mesh is not changed: the bag is an object of its own (the add-on's *Add Mouth Bag*).
+
+Lips joined in the mesh (a voxel remesh) cannot part; :func:`cut_lips` cuts them open along the line between them,
+for a new fit, where the user asks for it.
 """
 from __future__ import annotations
 
+from itertools import pairwise
+
 import numpy as np
 
+from ..errors import MeshError
 from ..geometry import ClosestPoint, smoothstep, triangle_cross, unit_rows
 from ..landmark_scheme import LIP_LOWER_INNER, LIP_UPPER_INNER, MOUTH_CORNERS
+from ..landmark_scheme import eye_distance as eye_distance_of  # bindings name theirs eye_distance
 from ..mesh import border_vertices
 from .parts import mouth_line
 
@@ -123,3 +130,86 @@ def head_mouth_bag(binding, triangles):
     Vb, Tb = mouth_bag(binding.Vf, triangles, binding.parts.mask("skin"), binding.face_landmarks,
                        binding.eye_distance)
     return binding.frame.to_user(Vb), Tb
+
+
+#: The lip line's path weighs each edge's length by 1 + LINE_PULL × its distance (eye distances) from the mouth's
+#: line through the corners and the inner lips' middle: it keeps to the groove between fused lips.
+LINE_PULL = 40.0
+#: A cut's upper side is lifted this far (eye distances): coincident, the binding would join the two sides again
+#: as a seam's copies.
+CUT_OPEN_IOD = 0.005
+
+
+def lip_line(Vf, T, Lf, eye_distance) -> np.ndarray:
+    """The vertices (in order, corner to corner) of the line between lips joined in the mesh: the shortest way over
+    its edges from the mouth corner (landmark 48) by the inner lips' middle (62 and 66) to the other corner (54),
+    kept near the mouth's line (face frame: ``Vf``, ``Lf``)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import dijkstra
+    from scipy.spatial import cKDTree
+
+    stops = Lf[[MOUTH_CORNERS[0], LIP_UPPER_INNER, MOUTH_CORNERS[1]]].copy()
+    stops[1] = Lf[[LIP_UPPER_INNER, LIP_LOWER_INNER]].mean(0)
+    order = np.argsort(stops[:, 0])
+    off = np.abs(Vf[:, 1] - np.interp(Vf[:, 0], stops[order, 0], stops[order, 1])) / eye_distance
+    i, j = np.concatenate([T[:, [0, 1]], T[:, [1, 2]], T[:, [2, 0]]]).T
+    w = np.linalg.norm(Vf[i] - Vf[j], axis=1) * (1 + LINE_PULL * (off[i] + off[j]) / 2)
+    graph = coo_matrix((w, (i, j)), shape=(len(Vf), len(Vf))).tocsr()
+    ends = cKDTree(Vf).query(stops)[1]
+    path = [int(ends[0])]
+    for a, b in pairwise(ends):
+        _, before = dijkstra(graph, directed=False, indices=int(a), return_predecessors=True)
+        leg, v = [], int(b)
+        while v != a:
+            if v < 0:
+                raise MeshError("the mouth corners and the lips' middle are not joined in the mesh: no lip line to cut")
+            leg.append(v)
+            v = int(before[v])
+        path += leg[::-1]
+    return np.array(path)
+
+
+def cut_lips(vertices, triangles, landmarks, frame):
+    """Lips joined in the mesh (a voxel remesh) cut open along :func:`lip_line`, for a new fit: the line's inner
+    vertices copied, the triangles above it (the upper lip's) moved onto the copies, lifted CUT_OPEN_IOD eye
+    distances; the mouth corners stay joined. A change of the user's topology: only where asked.
+
+    Parameters
+    ----------
+    vertices : (n, 3) array
+        The head (user space and unit).
+    triangles : (t, 3) int array
+    landmarks : (68, 3) array
+        Its landmarks (user space).
+    frame : FaceFrame
+        The face frame of a face fitted to it (``model.frame``).
+
+    Returns
+    -------
+    vertices : (n + k, 3) array
+        The old vertices, then the k copies.
+    triangles : (t, 3) int array
+    landmarks : (68, 3) array
+        The inner lips' middles (62 and 66) on the upper and the lower side of the cut: fit the face again with
+        these (fitted on lips joined, the face's two lip rims lie on one line and the cut's sides move as one).
+    """
+    V, T = np.asarray(vertices, np.float64), np.asarray(triangles, np.int64)
+    Vf, Lf = frame.to_face(V), frame.to_face(np.asarray(landmarks, np.float64))
+    ed = eye_distance_of(Lf)
+    path = lip_line(Vf, T, Lf, ed)
+    inner = path[1:-1]
+    if not len(inner):
+        raise MeshError("the lip line runs straight from corner to corner: nothing to cut")
+    copy_of = np.full(len(V), -1)
+    copy_of[inner] = len(V) + np.arange(len(inner))
+    order = np.argsort(Vf[path, 0])
+    centre = Vf[T].mean(1)
+    above = (centre[:, 1] > np.interp(centre[:, 0], Vf[path[order], 0], Vf[path[order], 1])) & (
+        copy_of[T] >= 0).any(axis=1)
+    T = T.copy()
+    T[above] = np.where(copy_of[T[above]] >= 0, copy_of[T[above]], T[above])
+    lifted = Vf[inner] + [0.0, CUT_OPEN_IOD * ed, 0.0]
+    middle = np.argmin(np.abs(Vf[inner, 0] - Lf[[LIP_UPPER_INNER, LIP_LOWER_INNER], 0].mean()))
+    Lf = Lf.copy()
+    Lf[LIP_UPPER_INNER], Lf[LIP_LOWER_INNER] = lifted[middle], Vf[inner[middle]]
+    return np.r_[V, frame.to_user(lifted)], T, frame.to_user(Lf)
