@@ -9,7 +9,8 @@ the add-on's joined objects, :class:`pdeface.head.bind.HeadBinding`) and rendere
 a row per view, a column per key. Vertices of a new fold (an edge under 20° at rest and over 40° in the key) are
 red, and each panel's title counts those edges. The mouth's lining (skin behind the inner lips) is dark and the
 teeth ivory and the tongue red, as a texture would have them; a head with no mouth inside gets the mouth bag the add-on adds (:mod:`pdeface.head.mouth`),
-dark too (``--no-mouth-bag``: not), as ``no-mouth-inside-cm`` (``scripts.devset.characters.NO_MOUTH_INSIDE``) shows.
+dark too (``--no-mouth-bag``: not), as ``no-mouth-inside-cm`` (``scripts.devset.characters.NO_MOUTH_INSIDE``) and
+``voxel-m-cut-lips`` (voxel-m's fused lips cut open, fitted again) show.
 """
 from __future__ import annotations
 
@@ -22,7 +23,7 @@ import numpy as np
 from pdeface.au.modelfile import load_face
 from pdeface.au.retarget import retarget
 from pdeface.head.bind import HeadBinding, descriptor_motion_args
-from pdeface.head.mouth import mouth_bag
+from pdeface.head.mouth import cut_lips, mouth_bag
 from pdeface.head.parts import mouth_line
 from pdeface.io.png import draw_text, write_png
 from pdeface.landmark_scheme import INNER_LIPS, MOUTH_CORNERS
@@ -37,8 +38,10 @@ OUT = Path(__file__).resolve().parents[2] / "docs" / "images"
 #: once on the chin (body-A-cm), the most keys folding (eyes-teeth-separate-in), the least closed lids and smallest
 #: smile (stylised-parted-decimated-dm, stylised-chin-cheek-in).
 HARDEST = ("voxel-m", "body-A-cm", "eyes-teeth-separate-in", "stylised-parted-decimated-dm", "stylised-chin-cheek-in")
-#: Rendered beside them by default: the head with no mouth inside, with its mouth bag.
-MOUTH_BAG = (NO_MOUTH_INSIDE.name,)
+#: A character's name with this after it: its fused lips cut open (:func:`pdeface.head.mouth.cut_lips`), fitted again.
+CUT = "-cut-lips"
+#: Rendered beside them by default: the head with no mouth inside, and voxel-m with its lips cut, with mouth bags.
+MOUTH_BAG = (NO_MOUTH_INSIDE.name, "voxel-m" + CUT)
 #: What the renders show, looked at (2026-11-26, branch keys-teeth-mouth; the bench's page lists them). Rendered
 #: again after a change to the binding, these are to be looked at and written again.
 SEEN = {
@@ -63,6 +66,10 @@ SEEN = {
     NO_MOUTH_INSIDE.name: "lips that open onto the inside of the head, with the add-on's mouth bag: AU27 and happy show "
                           "the dark bag between the lips, no hole (the bag's top a small wedge under the upper lip's "
                           "middle); folds at the lip corners (5 in AU27, 8 in happy); AU12 and AU45 as on the others",
+    "voxel-m" + CUT: "voxel-m's fused lips cut open along the line between them (cut_lips), fitted again, with a mouth "
+                     "bag: AU27 opens the mouth over the dark bag, no sheet (9 new folds, on the neck under the jaw); "
+                     "happy parts the lips over it; the cut follows the voxel grid's edges, so the lip line is jagged "
+                     "(a saw-tooth slit at rest); AU12, AU45 and happy no folds",
 }
 KEYS = ("neutral", "AU12", "AU27", "AU45", "happy")
 #: The views: the camera turned this many degrees about the face's vertical axis (towards the subject's left).
@@ -80,9 +87,12 @@ def rigged(name, keys=KEYS, bag=True):
     """(face-frame vertices / eye distance, triangles, face-frame landmarks / eye distance, {key: moved vertices},
     dark vertices: the mouth's lining and bag, the teeth and tongue, the tongue). ``bag``: a head with no mouth inside gets the
     add-on's mouth bag."""
-    ch = build(SPECS.get(name, NO_MOUTH_INSIDE))
+    ch = build(SPECS.get(name.removesuffix(CUT), NO_MOUTH_INSIDE))
     (V, T), L = ch.joined(), ch.landmarks
     model = retarget(load_face("default"), fit_face(V, T, L)[0])
+    if name.endswith(CUT):
+        V, T, L = cut_lips(V, T, L, model.frame)
+        model = retarget(load_face("default"), fit_face(V, T, L)[0])
     b = HeadBinding(model, V, T, landmarks=L)
     f = model.frame
     # The lining: skin the PDE face does not cover behind the inner lips (their depth across the mouth), within the
