@@ -140,10 +140,10 @@ LINE_PULL = 40.0
 CUT_OPEN_IOD = 0.005
 
 
-def lip_line(Vf, T, Lf, eye_distance) -> np.ndarray:
+def lip_line(Vf, edges, Lf, eye_distance) -> np.ndarray:
     """The vertices (in order, corner to corner) of the line between lips joined in the mesh: the shortest way over
-    its edges from the mouth corner (landmark 48) by the inner lips' middle (62 and 66) to the other corner (54),
-    kept near the mouth's line (face frame: ``Vf``, ``Lf``)."""
+    its ``edges`` ((e, 2) vertex pairs) from the mouth corner (landmark 48) by the inner lips' middle (62 and 66) to
+    the other corner (54), kept near the mouth's line (face frame: ``Vf``, ``Lf``)."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import dijkstra
     from scipy.spatial import cKDTree
@@ -152,7 +152,7 @@ def lip_line(Vf, T, Lf, eye_distance) -> np.ndarray:
     stops[1] = Lf[[LIP_UPPER_INNER, LIP_LOWER_INNER]].mean(0)
     order = np.argsort(stops[:, 0])
     off = np.abs(Vf[:, 1] - np.interp(Vf[:, 0], stops[order, 0], stops[order, 1])) / eye_distance
-    i, j = np.concatenate([T[:, [0, 1]], T[:, [1, 2]], T[:, [2, 0]]]).T
+    i, j = np.asarray(edges, np.int64).T
     w = np.linalg.norm(Vf[i] - Vf[j], axis=1) * (1 + LINE_PULL * (off[i] + off[j]) / 2)
     graph = coo_matrix((w, (i, j)), shape=(len(Vf), len(Vf))).tocsr()
     ends = cKDTree(Vf).query(stops)[1]
@@ -169,16 +169,16 @@ def lip_line(Vf, T, Lf, eye_distance) -> np.ndarray:
     return np.array(path)
 
 
-def cut_lips(vertices, triangles, landmarks, frame):
-    """Lips joined in the mesh (a voxel remesh) cut open along :func:`lip_line`, for a new fit: the line's inner
-    vertices copied, the triangles above it (the upper lip's) moved onto the copies, lifted CUT_OPEN_IOD eye
-    distances; the mouth corners stay joined. A change of the user's topology: only where asked.
+def lip_cut(vertices, edges, landmarks, frame):
+    """Where to cut lips joined in the mesh (a voxel remesh) open, for a new fit (:func:`cut_lips` on triangles; the
+    add-on's *Cut Lips Open* on Blender's edges).
 
     Parameters
     ----------
     vertices : (n, 3) array
         The head (user space and unit).
-    triangles : (t, 3) int array
+    edges : (e, 2) int array
+        Its edges.
     landmarks : (68, 3) array
         Its landmarks (user space).
     frame : FaceFrame
@@ -186,30 +186,47 @@ def cut_lips(vertices, triangles, landmarks, frame):
 
     Returns
     -------
-    vertices : (n + k, 3) array
-        The old vertices, then the k copies.
-    triangles : (t, 3) int array
+    path : (k,) int array
+        The lip line's vertices, corner to corner (:func:`lip_line`): the inner ones are copied, the copies take
+        the upper lip's side; the two corners stay joined.
+    lifted : (k - 2, 3) array
+        Where the copies go (user space): lifted CUT_OPEN_IOD eye distances.
     landmarks : (68, 3) array
         The inner lips' middles (62 and 66) on the upper and the lower side of the cut: fit the face again with
         these (fitted on lips joined, the face's two lip rims lie on one line and the cut's sides move as one).
     """
-    V, T = np.asarray(vertices, np.float64), np.asarray(triangles, np.int64)
+    V = np.asarray(vertices, np.float64)
     Vf, Lf = frame.to_face(V), frame.to_face(np.asarray(landmarks, np.float64))
     ed = eye_distance_of(Lf)
-    path = lip_line(Vf, T, Lf, ed)
+    path = lip_line(Vf, edges, Lf, ed)
     inner = path[1:-1]
     if not len(inner):
         raise MeshError("the lip line runs straight from corner to corner: nothing to cut")
-    copy_of = np.full(len(V), -1)
-    copy_of[inner] = len(V) + np.arange(len(inner))
-    order = np.argsort(Vf[path, 0])
-    centre = Vf[T].mean(1)
-    above = (centre[:, 1] > np.interp(centre[:, 0], Vf[path[order], 0], Vf[path[order], 1])) & (
-        copy_of[T] >= 0).any(axis=1)
-    T = T.copy()
-    T[above] = np.where(copy_of[T[above]] >= 0, copy_of[T[above]], T[above])
     lifted = Vf[inner] + [0.0, CUT_OPEN_IOD * ed, 0.0]
     middle = np.argmin(np.abs(Vf[inner, 0] - Lf[[LIP_UPPER_INNER, LIP_LOWER_INNER], 0].mean()))
     Lf = Lf.copy()
     Lf[LIP_UPPER_INNER], Lf[LIP_LOWER_INNER] = lifted[middle], Vf[inner[middle]]
-    return np.r_[V, frame.to_user(lifted)], T, frame.to_user(Lf)
+    return path, frame.to_user(lifted), frame.to_user(Lf)
+
+
+def above_line(Vf, path, points):
+    """Which ``points`` (face frame) lie above the lip line ``path`` (vertices of ``Vf``): the upper lip's side."""
+    order = np.argsort(Vf[path, 0])
+    return points[:, 1] > np.interp(points[:, 0], Vf[path[order], 0], Vf[path[order], 1])
+
+
+def cut_lips(vertices, triangles, landmarks, frame):
+    """Lips joined in the mesh cut open (:func:`lip_cut`) as a new triangle mesh: ``(vertices, triangles,
+    landmarks)``, the k copies after the old vertices, the triangles above the line (the upper lip's) moved onto
+    them. A change of the user's topology: only where asked."""
+    V, T = np.asarray(vertices, np.float64), np.asarray(triangles, np.int64)
+    edges = np.concatenate([T[:, [0, 1]], T[:, [1, 2]], T[:, [2, 0]]])
+    path, lifted, L = lip_cut(V, edges, landmarks, frame)
+    inner = path[1:-1]
+    copy_of = np.full(len(V), -1)
+    copy_of[inner] = len(V) + np.arange(len(inner))
+    Vf = frame.to_face(V)
+    moved = above_line(Vf, path, Vf[T].mean(1)) & (copy_of[T] >= 0).any(axis=1)
+    T = T.copy()
+    T[moved] = np.where(copy_of[T[moved]] >= 0, copy_of[T[moved]], T[moved])
+    return np.r_[V, lifted], T, L
