@@ -334,6 +334,21 @@ class PDEFACE_OT_add_mouth_bag(_FaceOperator, Operator):
                 f"{r['objects'] - 1} object(s) of yours")
 
 
+class PDEFACE_OT_cut_lips_open(_FaceOperator, Operator):
+    """Cut your mesh's fused lips (one surface, as a voxel remesh leaves them) open along the line between them, then
+    fit and rig it again so the lips part: this changes your mesh's topology (a few vertices added); your keys, UVs
+    and materials carry over. Add a mouth bag after it"""
+
+    bl_idname = "pdeface.cut_lips_open"
+    bl_label = "Cut Lips Open"
+
+    def run(self, context):
+        new, added = rigging.cut_lips_open(context, face.active_face(context))
+        for note in face.binding_notes(new):
+            self.report({"WARNING"} if note in face.binding_warnings(new) else {"INFO"}, note)
+        return f"Cut the lips of {new.pdeface.source.name} open ({added} vertices added) and fitted {new.name} again"
+
+
 class PDEFACE_OT_apply_preset(_FaceOperator, Operator):
     """Pose the face with an expression preset"""
 
@@ -584,8 +599,8 @@ class PDEFACE_OT_live_stop(_Operator, Operator):
 _classes = (PDEFACE_OT_add_default_face, PDEFACE_OT_add_ict_head, PDEFACE_OT_fit_to_selected,
             PDEFACE_OT_find_landmarks, PDEFACE_OT_snap_landmarks, PDEFACE_OT_export_landmarks,
             PDEFACE_OT_import_landmarks, PDEFACE_OT_show_landmark_scheme, PDEFACE_OT_install_landmark_model,
-            PDEFACE_OT_build_shape_keys, PDEFACE_OT_add_mouth_bag, PDEFACE_OT_apply_preset, PDEFACE_OT_load_fdt,
-            PDEFACE_OT_record_muscle_au,
+            PDEFACE_OT_build_shape_keys, PDEFACE_OT_add_mouth_bag, PDEFACE_OT_cut_lips_open, PDEFACE_OT_apply_preset,
+            PDEFACE_OT_load_fdt, PDEFACE_OT_record_muscle_au,
             PDEFACE_OT_load_muscle_au, PDEFACE_OT_reset_muscles, PDEFACE_OT_reset_pose, PDEFACE_OT_keyframe_pose, PDEFACE_OT_animate_sequence,
             PDEFACE_OT_import_au, PDEFACE_OT_transfer_texture, PDEFACE_OT_live_start, PDEFACE_OT_live_stop)
 

@@ -4,15 +4,18 @@ Rigging spans two rooms (the face fitted in :mod:`.face`, the keys built in
 :mod:`.keys`), so it sits above both.
 """
 import math
+from itertools import pairwise
 
 import bpy
 import numpy as np
+from mathutils import Vector
 from pdeface.assets import HEAD_PARTS, ICT_NOTICE, load_head
 from pdeface.errors import PdeFaceError
+from pdeface.head.mouth import above_line, lip_cut
 
 from . import bridge, compat, head
-from .face import fit_face_object, show_user_objects, user_objects
-from .keys import all_presets, build_keys
+from .face import fit_face_object, read_landmarks, show_user_objects, user_objects
+from .keys import all_presets, build_keys, mark_ours, ours
 
 #: Colours of the demo head's parts (ICT-FaceKit part name prefix → material name, RGBA).
 HEAD_MATERIALS = {"eyeball": ("PDE Eye", (0.85, 0.83, 0.8, 1.0)), "teeth": ("PDE Teeth", (0.9, 0.86, 0.75, 1.0)),
@@ -168,6 +171,62 @@ def add_mouth_bag(context, face):
     bag.pdeface.rig_face = face
     counts = build_keys(face, all_presets(context.scene))
     return bag, counts
+
+
+def cut_lips_open(context, face):
+    """Cut the fused lips of the mesh ``face`` was fitted to open along the line between them
+    (:func:`pdeface.head.mouth.lip_cut`: its edges split, the upper side lifted a little), then fit and rig it again
+    with the inner lips' landmarks on either side of the cut; the old face is removed. A change of the user's
+    topology, made only by this operator: their keys, UVs and materials carry over (our keys are built again).
+    Returns (the new face, the number of vertices the cut added)."""
+    import bmesh
+
+    users = user_objects(face)
+    src = face.pdeface.source
+    if not users or users[0] is not src:
+        raise PdeFaceError(f"{face.name} drives no mesh of yours: fit it with Keys on my mesh first")
+    model = bridge.face_model(face)
+    if not any(w.startswith("the lips are joined") for w in head.binding(face, model, users)[0].warnings):
+        raise PdeFaceError(f"{src.name}'s lips are not joined in the mesh: nothing to cut")
+    points, _ = read_landmarks(context.scene.pdeface, src)
+    me = src.data
+    V = head.rest_coords(src)
+    E = np.empty(2 * len(me.edges), np.int32)
+    me.edges.foreach_get("vertices", E)
+    path, lifted, points = lip_cut(V, E.reshape(-1, 2), points, model.frame)
+    kept = ours(src)
+    bm = bmesh.new()
+    try:
+        bm.from_mesh(me)
+        bm.verts.ensure_lookup_table()
+        bmesh.ops.split_edges(bm, edges=[bm.edges.get((bm.verts[a], bm.verts[b])) for a, b in pairwise(path)])
+        bm.verts.ensure_lookup_table()
+        co = np.array([v.co for v in bm.verts])
+        Vf = model.frame.to_face(V)
+        size = float(np.ptp(V, axis=0).max())
+        for i, target in zip(path[1:-1], lifted):
+            for v in (bm.verts[j] for j in np.nonzero(np.linalg.norm(co - V[i], axis=1) < 1e-7 * size)[0]):
+                centre = model.frame.to_face(np.array([list(f.calc_center_median()) for f in v.link_faces]))
+                if len(centre) and above_line(Vf, path, centre).mean() > 0.5:  # the upper lip's copy: lifted
+                    step = target - V[i]
+                    v.co = v.co + Vector(step)
+                    for layer in bm.verts.layers.shape.values():
+                        v[layer] = v[layer] + Vector(step)
+        bm.to_mesh(me)
+    finally:
+        bm.free()
+    me.update()
+    mark_ours(src, kept)
+    added = len(me.vertices) - len(V)
+    unit = None if context.scene.pdeface.unit == "AUTO" else context.scene.pdeface.unit
+    name = face.name
+    new, _, _, _ = fit_and_rig(context, src, points, unit=unit, parts=users[1:])
+    old_mesh = face.data
+    bpy.data.objects.remove(face)
+    if old_mesh.users == 0:
+        bpy.data.meshes.remove(old_mesh)
+    new.name = name
+    return new, added
 
 
 def _head_object(context, name, mesh, y_up=True):
