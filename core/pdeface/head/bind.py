@@ -430,7 +430,7 @@ class HeadBinding:
         if lips_joined:
             self.notes.append("the lips are joined in the mesh (no opening between them): keys that open the mouth "
                               "move the lower lip and stretch the skin joining it to the upper one; cut the mouth "
-                              "open (pdeface.head.mouth.cut_lips, or in your modeller), fit again and add a mouth "
+                              "open (the add-on's Cut Lips Open, or in your modeller), fit again and add a mouth "
                               "bag for lips that part")
         if not parts.mask("mouth").any() and not has_mouth_inside(P, Ts, Lf, eye_distance):
             self.notes.append("no mouth inside the lips: keys that open the mouth show the inside of the head; add a "
