@@ -166,14 +166,15 @@ class PDEFACE_OT_fit_to_selected(_UserMeshOperator, Operator):
         finally:
             wm.progress_end()
             compat.set_status(context, None)
-        warnings = face.binding_warnings(obj) if r else []
         for note in face.binding_notes(obj) if r else []:
-            self.report({"WARNING"} if note in warnings else {"INFO"}, note)
+            self.report({"INFO"}, note)
         filled = int((sampler.status != 0).sum())
         msg = (f"Fitted {obj.name}: {model.layout.n_curves} curves, unit {model.frame.unit}, "
                f"{filled} curve points filled over openings")
         if r:
             msg += f"; {r['aus']} AU and {r['expressions']} expression keys on {r['objects'] - 1} object(s) of yours"
+        for warning in face.binding_warnings(obj) if r else []:  # what the user should change: a warning too
+            self.report({"WARNING"}, warning)
         return msg
 
 
