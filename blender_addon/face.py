@@ -214,6 +214,12 @@ def binding_notes(face):
     return head.binding(face, bridge.face_model(face), users)[0].notes if users else []
 
 
+def binding_warnings(face):
+    """The notes of :func:`binding_notes` that ask the user to change something (lips joined, no mouth inside)."""
+    users = user_objects(face)
+    return head.binding(face, bridge.face_model(face), users)[0].warnings if users else []
+
+
 def show_user_objects(context, face):
     """Hide the PDE face (the reference) and make the user's mesh active and selected."""
     users = user_objects(face)

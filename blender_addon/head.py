@@ -15,6 +15,7 @@ touched.
 """
 import numpy as np
 from pdeface.head.bind import HeadBinding, descriptor_motion_args
+from pdeface.head.mouth import head_mouth_bag
 from pdeface.head.parts import KINDS
 
 from . import bridge
@@ -54,8 +55,8 @@ def _overrides(objs, starts) -> dict:
     return out
 
 
-def binding(face, model, users):
-    """The head binding of ``users`` (cached while their shapes and the model stay the same)."""
+def _joined(users):
+    """``(V, T, per-object vertices, starts)``: ``users``' rest shapes joined in the first's object space."""
     src = users[0]
     parts_V, parts_T, starts = [], [], []
     n = 0
@@ -67,8 +68,13 @@ def binding(face, model, users):
         parts_T.append(T + n)
         starts.append(n)
         n += len(V)
-    V = np.concatenate(parts_V)
-    T = np.concatenate(parts_T)
+    return np.concatenate(parts_V), np.concatenate(parts_T), parts_V, starts
+
+
+def binding(face, model, users):
+    """The head binding of ``users`` (cached while their shapes and the model stay the same)."""
+    src = users[0]
+    V, T, parts_V, starts = _joined(users)
     overrides = _overrides(users, starts)
     kinds = sorted(overrides)
     key = bridge.fingerprint(V, T, face.pdeface.model_data, ",".join(kinds), *(overrides[k] for k in kinds))
@@ -80,6 +86,13 @@ def binding(face, model, users):
     b = HeadBinding(model, V, T, overrides=overrides or None)
     _bindings[face.name] = (key, b)
     return b, layout
+
+
+def mouth_bag_of(face, model, users):
+    """A mouth bag for the head of ``users`` (:func:`pdeface.head.mouth.head_mouth_bag`): ``(vertices in the fitted
+    mesh's object space, triangles)``."""
+    b, _ = binding(face, model, users)
+    return head_mouth_bag(b, _joined(users)[1])
 
 
 def _split(layout, displacement, rests=None):

@@ -97,6 +97,19 @@ def _is_ours(key_block, entry) -> bool:
     return not entry.mark or entry.mark == bridge.fingerprint(bridge.key_coords(key_block))
 
 
+def ours(obj) -> set:
+    """Names of our keys on ``obj`` that still hold what we last wrote."""
+    return {e.name for e, kb in managed(obj) if _is_ours(kb, e)}
+
+
+def mark_ours(obj, names):
+    """Our keys ``names`` on ``obj`` marked as holding what they hold now: after a change of the mesh's topology
+    that changed no key's shape (a cut), they stay ours."""
+    for e, kb in managed(obj):
+        if e.name in names:
+            e.mark = bridge.fingerprint(bridge.key_coords(kb))
+
+
 def _write_key(key_block, entry, coords):
     coords = np.asarray(coords, np.float32)
     key_block.slider_min, key_block.slider_max = 0.0, 1.0

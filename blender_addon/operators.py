@@ -173,6 +173,8 @@ class PDEFACE_OT_fit_to_selected(_UserMeshOperator, Operator):
                f"{filled} curve points filled over openings")
         if r:
             msg += f"; {r['aus']} AU and {r['expressions']} expression keys on {r['objects'] - 1} object(s) of yours"
+        for warning in face.binding_warnings(obj) if r else []:  # what the user should change: a warning too
+            self.report({"WARNING"}, warning)
         return msg
 
 
@@ -319,6 +321,34 @@ Rebuilding updates these keys in place; your own keys are left alone"""
         if not r["skipped"]:
             return msg
         self.report({"WARNING"}, msg + f"; {r['skipped']} left alone (your own keys share those names)")
+
+
+class PDEFACE_OT_add_mouth_bag(_FaceOperator, Operator):
+    """Add a dark mouth bag behind the lips of your head (an object of its own, parented to it) that opens with the
+    jaw keys: for a head with no mouth inside. Your mesh is not changed; every key is built again"""
+
+    bl_idname = "pdeface.add_mouth_bag"
+    bl_label = "Add Mouth Bag"
+
+    def run(self, context):
+        bag, r = rigging.add_mouth_bag(context, face.active_face(context))
+        return (f"Added {bag.name} ({len(bag.data.vertices)} vertices) behind the lips; keys built again on "
+                f"{r['objects'] - 1} object(s) of yours")
+
+
+class PDEFACE_OT_cut_lips_open(_FaceOperator, Operator):
+    """Cut your mesh's fused lips (one surface, as a voxel remesh leaves them) open along the line between them, then
+    fit and rig it again so the lips part: this changes your mesh's topology (a few vertices added); your keys, UVs
+    and materials carry over. Add a mouth bag after it"""
+
+    bl_idname = "pdeface.cut_lips_open"
+    bl_label = "Cut Lips Open"
+
+    def run(self, context):
+        new, added = rigging.cut_lips_open(context, face.active_face(context))
+        for note in face.binding_notes(new):
+            self.report({"WARNING"} if note in face.binding_warnings(new) else {"INFO"}, note)
+        return f"Cut the lips of {new.pdeface.source.name} open ({added} vertices added) and fitted {new.name} again"
 
 
 class PDEFACE_OT_apply_preset(_FaceOperator, Operator):
@@ -571,7 +601,8 @@ class PDEFACE_OT_live_stop(_Operator, Operator):
 _classes = (PDEFACE_OT_add_default_face, PDEFACE_OT_add_ict_head, PDEFACE_OT_fit_to_selected,
             PDEFACE_OT_find_landmarks, PDEFACE_OT_snap_landmarks, PDEFACE_OT_export_landmarks,
             PDEFACE_OT_import_landmarks, PDEFACE_OT_show_landmark_scheme, PDEFACE_OT_install_landmark_model,
-            PDEFACE_OT_build_shape_keys, PDEFACE_OT_apply_preset, PDEFACE_OT_load_fdt, PDEFACE_OT_record_muscle_au,
+            PDEFACE_OT_build_shape_keys, PDEFACE_OT_add_mouth_bag, PDEFACE_OT_cut_lips_open, PDEFACE_OT_apply_preset,
+            PDEFACE_OT_load_fdt, PDEFACE_OT_record_muscle_au,
             PDEFACE_OT_load_muscle_au, PDEFACE_OT_reset_muscles, PDEFACE_OT_reset_pose, PDEFACE_OT_keyframe_pose, PDEFACE_OT_animate_sequence,
             PDEFACE_OT_import_au, PDEFACE_OT_transfer_texture, PDEFACE_OT_live_start, PDEFACE_OT_live_stop)
 

@@ -65,6 +65,10 @@ class PDEFACE_PT_face(_Panel, bpy.types.Panel):
         if obj is not None:
             layout.label(text=f"Face: {obj.name}", icon="OBJECT_DATA")
             layout.operator("pdeface.build_shape_keys", icon="SHAPEKEY_DATA")
+            if obj.pdeface.head_keys:
+                row = layout.row(align=True)
+                row.operator("pdeface.add_mouth_bag", icon="MESH_UVSPHERE")
+                row.operator("pdeface.cut_lips_open", icon="SCULPTMODE_HLT")
 
 
 def _gate_failure(layout, mesh):

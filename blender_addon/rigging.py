@@ -4,14 +4,18 @@ Rigging spans two rooms (the face fitted in :mod:`.face`, the keys built in
 :mod:`.keys`), so it sits above both.
 """
 import math
+from itertools import pairwise
 
 import bpy
 import numpy as np
+from mathutils import Vector
 from pdeface.assets import HEAD_PARTS, ICT_NOTICE, load_head
+from pdeface.errors import PdeFaceError
+from pdeface.head.mouth import above_line, lip_cut
 
-from . import bridge, compat
-from .face import fit_face_object, show_user_objects
-from .keys import all_presets, build_keys
+from . import bridge, compat, head
+from .face import fit_face_object, read_landmarks, show_user_objects, user_objects
+from .keys import all_presets, build_keys, mark_ours, ours
 
 #: Colours of the demo head's parts (ICT-FaceKit part name prefix → material name, RGBA).
 HEAD_MATERIALS = {"eyeball": ("PDE Eye", (0.85, 0.83, 0.8, 1.0)), "teeth": ("PDE Teeth", (0.9, 0.86, 0.75, 1.0)),
@@ -20,6 +24,9 @@ HEAD_MATERIALS = {"eyeball": ("PDE Eye", (0.85, 0.83, 0.8, 1.0)), "teeth": ("PDE
                   # ICT's shading helpers over the eyes (for Unreal's shaders): invisible here
                   "lacrimal": ("PDE Clear", (1.0, 1.0, 1.0, 0.0)), "eye_blend": ("PDE Clear", (1.0, 1.0, 1.0, 0.0)),
                   "eye_occlusion": ("PDE Clear", (1.0, 1.0, 1.0, 0.0))}
+
+#: The mouth bag's material (name, RGBA): the dark inside of an open mouth.
+MOUTH_BAG_MATERIAL = ("PDE Mouth Bag", (0.06, 0.015, 0.015, 1.0))
 
 #: The iris on ICT's eyeball UVs, which put the front of each eye at (0.5, 0.5): radius in UV units of
 #: the pupil, the iris and the dark ring at its rim, and the iris colour. UVs travel with the vertices,
@@ -121,6 +128,107 @@ def fit_and_rig(context, src, landmarks, unit=None, resolution="default", retarg
     return obj, model, sampler, counts
 
 
+def plain_material(name, colour):
+    """The material ``name``, made once of one ``colour`` (RGBA): an existing one (maybe the user's edit) is kept as
+    it is."""
+    mat = bpy.data.materials.get(name)
+    if mat is None:
+        mat = bpy.data.materials.new(name)
+        mat.diffuse_color = colour
+        compat.use_nodes(mat)
+        bsdf = mat.node_tree.nodes.get("Principled BSDF")
+        if bsdf is not None:
+            bsdf.inputs["Base Color"].default_value = colour
+            bsdf.inputs["Alpha"].default_value = colour[3]
+    return mat
+
+
+def add_mouth_bag(context, face):
+    """A mouth bag behind the lips of the head ``face`` drives (:mod:`pdeface.head.mouth`), as an object of its own
+    beside the user's: dark, parented to the fitted mesh, a part of the head in vertex group ``pdeface_mouth`` (the
+    jaw keys open it with the lips); every key of the head is then built again, the bag's with them. The user's
+    objects are not changed but for their keys. Returns (the bag object, the keys' counts)."""
+    users = user_objects(face)
+    if not users:
+        raise PdeFaceError(f"{face.name} drives no mesh of yours: fit it with Keys on my mesh first")
+    had = [o.name for o in users if head.group_members(o, "mouth") is not None]
+    if had:
+        raise PdeFaceError(f"{had[0]} is already this head's mouth bag (vertex group {head.GROUP_PREFIX}mouth)")
+    src = users[0]
+    vertices, triangles = head.mouth_bag_of(face, bridge.face_model(face), users)
+    name = f"{src.name} mouth bag"
+    me = bpy.data.meshes.new(name)
+    me.from_pydata(vertices.tolist(), [], triangles.tolist())
+    me.polygons.foreach_set("use_smooth", np.ones(len(triangles), bool))
+    me.update()
+    me.materials.append(plain_material(*MOUTH_BAG_MATERIAL))
+    bag = bpy.data.objects.new(name, me)
+    for collection in src.users_collection:
+        collection.objects.link(bag)
+    bag.parent = src  # in the fitted mesh's space, moving with it
+    bag.vertex_groups.new(name=head.GROUP_PREFIX + "mouth").add(list(range(len(vertices))), 1.0, "REPLACE")
+    face.pdeface.parts.add().obj = bag
+    bag.pdeface.rig_face = face
+    counts = build_keys(face, all_presets(context.scene))
+    return bag, counts
+
+
+def cut_lips_open(context, face):
+    """Cut the fused lips of the mesh ``face`` was fitted to open along the line between them
+    (:func:`pdeface.head.mouth.lip_cut`: its edges split, the upper side lifted a little), then fit and rig it again
+    with the inner lips' landmarks on either side of the cut; the old face is removed. A change of the user's
+    topology, made only by this operator: their keys, UVs and materials carry over (our keys are built again).
+    Returns (the new face, the number of vertices the cut added)."""
+    import bmesh
+
+    users = user_objects(face)
+    src = face.pdeface.source
+    if not users or users[0] is not src:
+        raise PdeFaceError(f"{face.name} drives no mesh of yours: fit it with Keys on my mesh first")
+    model = bridge.face_model(face)
+    if not any(w.startswith("the lips are joined") for w in head.binding(face, model, users)[0].warnings):
+        raise PdeFaceError(f"{src.name}'s lips are not joined in the mesh: nothing to cut")
+    points, _ = read_landmarks(context.scene.pdeface, src)
+    me = src.data
+    V = head.rest_coords(src)
+    E = np.empty(2 * len(me.edges), np.int32)
+    me.edges.foreach_get("vertices", E)
+    path, lifted, points = lip_cut(V, E.reshape(-1, 2), points, model.frame)
+    kept = ours(src)
+    bm = bmesh.new()
+    try:
+        bm.from_mesh(me)
+        bm.verts.ensure_lookup_table()
+        bmesh.ops.split_edges(bm, edges=[bm.edges.get((bm.verts[a], bm.verts[b])) for a, b in pairwise(path)])
+        bm.verts.ensure_lookup_table()
+        co = np.array([v.co for v in bm.verts])
+        Vf = model.frame.to_face(V)
+        size = float(np.ptp(V, axis=0).max())
+        for i, target in zip(path[1:-1], lifted):
+            for v in (bm.verts[j] for j in np.nonzero(np.linalg.norm(co - V[i], axis=1) < 1e-7 * size)[0]):
+                centre = model.frame.to_face(np.array([list(f.calc_center_median()) for f in v.link_faces]))
+                if len(centre) and above_line(Vf, path, centre).mean() > 0.5:  # the upper lip's copy: lifted
+                    step = target - V[i]
+                    v.co = v.co + Vector(step)
+                    for layer in bm.verts.layers.shape.values():
+                        v[layer] = v[layer] + Vector(step)
+        bm.to_mesh(me)
+    finally:
+        bm.free()
+    me.update()
+    mark_ours(src, kept)
+    added = len(me.vertices) - len(V)
+    unit = None if context.scene.pdeface.unit == "AUTO" else context.scene.pdeface.unit
+    name = face.name
+    new, _, _, _ = fit_and_rig(context, src, points, unit=unit, parts=users[1:])
+    old_mesh = face.data
+    bpy.data.objects.remove(face)
+    if old_mesh.users == 0:
+        bpy.data.meshes.remove(old_mesh)
+    new.name = name
+    return new, added
+
+
 def _head_object(context, name, mesh, y_up=True):
     """A new object of ``mesh`` in the scene with the skin material; a +Y-up file turned to Blender's +Z up,
     as Blender's own importers do."""
@@ -159,19 +267,12 @@ def add_ict_head(context, retarget=True):
     slots = {}
     for prefix, (mat_name, colour) in HEAD_MATERIALS.items():
         if mat_name not in slots:
-            mat = bpy.data.materials.get(mat_name)
-            if mat is None:  # made and shaded once: an existing one (maybe the user's edit) is kept as it is
-                mat = bpy.data.materials.new(mat_name)
-                mat.diffuse_color = colour
-                compat.use_nodes(mat)
-                bsdf = mat.node_tree.nodes.get("Principled BSDF")
-                if bsdf is not None:
-                    bsdf.inputs["Base Color"].default_value = colour
-                    bsdf.inputs["Alpha"].default_value = colour[3]
-                if prefix == "eyeball":
-                    shade_eye(mat, colour)
-                elif prefix == "eyelashes":
-                    shade_lashes(mat)
+            made = bpy.data.materials.get(mat_name) is None
+            mat = plain_material(mat_name, colour)
+            if made and prefix == "eyeball":
+                shade_eye(mat, colour)
+            elif made and prefix == "eyelashes":
+                shade_lashes(mat)
             obj.data.materials.append(mat)
             slots[mat_name] = len(obj.data.materials) - 1
     first = mesh.face_indices[np.r_[0, np.cumsum(mesh.face_counts)[:-1]]]

@@ -86,9 +86,10 @@ def write_page(name, module, argv, printed, start, wall_s, load):
              + ", ".join(f"{x:.2f}" for x in end) + " at the end",
              "", "Written by the benchmark itself (`--no-page` to leave it); run it again rather than edit it.",
              "", "## What it prints", "", "```text", printed.rstrip("\n"), "```", ""]
-    see_also = getattr(module, "SEE_ALSO", ())  # (label, link relative to the page) pairs
+    see_also = getattr(module, "SEE_ALSO", ())  # (label, link relative to the page[, what it shows]) tuples
     if see_also:
-        lines += ["## See also", "", *(f"- [{label}]({link})" for label, link in see_also), ""]
+        lines += ["## See also", "", *(f"- [{label}]({link})" + "".join(f": {n}" for n in note)
+                                      for label, link, *note in see_also), ""]
     PAGES.mkdir(parents=True, exist_ok=True)
     path = PAGES / f"{name}.md"
     path.write_text("\n".join(lines))

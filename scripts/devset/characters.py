@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 from pdeface.geometry import ClosestPoint, smoothstep
+from pdeface.mesh import connected_components
 from pdeface.rigid import rotation_vector_matrix
 from pdeface.surface.frame import BLENDER_FROM_ICT
 
@@ -75,6 +76,7 @@ class Spec:
     head_turn: float = 0.0  # degrees about the neck's vertical axis
     eyeballs: str = "none"  # "none", "merged" (in the same mesh) or "separate"
     mouth_parts: str = "none"  # teeth and tongue: "none", "merged" or "separate"
+    mouth_inside: bool = True  # False: the mouth's lining cut away (a game head: the lips open onto the head's inside)
     remesh: str = "none"  # "none", "decimate" (about 3k vertices) or "voxel"
     unit: str = "cm"
     axes: str = "ict"  # "ict" (+z front, +y up) or "blender" (-y front, +z up)
@@ -173,6 +175,37 @@ def _compact(V, T):
     remap = np.full(len(V), -1)
     remap[used] = np.arange(len(used))
     return V[used], remap[T], remap
+
+
+def mouth_lining(V, T, L):
+    """Which vertices ``V`` (triangles ``T``, ICT's axes) line the mouth: behind the inner lips (landmarks 60-67),
+    within the mouth's width and between the nose and the chin, hidden from the front (a ray straight forward meets
+    the skin: the lips closed over them; the chin and cheeks are not)."""
+    from pdeface.geometry import ray_triangle
+    from pdeface.landmark_scheme import CHIN, MOUTH_CORNERS, NOSE_BOTTOM, eye_distance
+
+    ed = eye_distance(L)
+    cx, half = L[MOUTH_CORNERS, 0].mean(), 0.5 * np.ptp(L[MOUTH_CORNERS, 0]) + 0.2 * ed
+    box = ((V[:, 2] < L[60:68, 2].max()) & (np.abs(V[:, 0] - cx) < half) & (V[:, 1] < L[NOSE_BOTTOM, 1])
+           & (V[:, 1] > L[CHIN, 1]) & (V[:, 2] > L[CHIN, 2] - 1.2 * ed))
+    X = V[T]
+    lo, hi = X.min(1), X.max(1)
+    hidden = np.zeros(len(V), bool)
+    for i in np.nonzero(box)[0]:
+        p = V[i]
+        near = (lo[:, 0] <= p[0]) & (hi[:, 0] >= p[0]) & (lo[:, 1] <= p[1]) & (hi[:, 1] >= p[1]) & (hi[:, 2] > p[2])
+        near &= ~(T == i).any(axis=1)
+        A, B, C = X[near, 0], X[near, 1], X[near, 2]
+        hit, _, _, t = ray_triangle(np.tile(p, (len(A), 1)), np.tile([0.0, 0.0, 1.0], (len(A), 1)), A, B, C)
+        hidden[i] = bool((hit & (t > 1e-6 * ed)).any())
+    return hidden
+
+
+def without_mouth_inside(V, T, L):
+    """Triangles ``T`` but those of the mouth's lining (:func:`mouth_lining`) and what that cuts loose."""
+    T = T[~mouth_lining(V, T, L)[T].all(axis=1)]
+    lab = connected_components(len(V), T)[T[:, 0]]
+    return T[lab == np.bincount(lab).argmax()]
 
 
 def decimate(V, T, target=3000):
@@ -279,6 +312,8 @@ def build(spec: Spec) -> Character:
         return T if spec.body else T[(V[T][:, :, 1] > cut).all(1)]
 
     skin_T = keep(triangles(base.group_quads("body")))
+    if not spec.mouth_inside:
+        skin_T = without_mouth_inside(V, skin_T, L)
     merged, separate = [skin_T], {}
     for names, how in ((EYES, spec.eyeballs), (MOUTH_PARTS, spec.mouth_parts)):
         for g in names:
@@ -364,3 +399,7 @@ def _specs():
 
 #: The development set, by name.
 SPECS = _specs()
+#: Beside it: a head whose lips open onto the inside of the head (a game character's; its mouth's lining cut
+#: away), for the mouth bag (issue #40).
+NO_MOUTH_INSIDE = Spec("no-mouth-inside-cm", {"african-female-young": 0.5, "caucasian-male-young": 0.5},
+                       mouth_inside=False, tags=("mouth",))

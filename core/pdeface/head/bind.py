@@ -26,6 +26,9 @@ motion to all of the user's mesh, once per fit:
 - **jaw AUs** (25, 26, 27, 29, 30) turn the jaw's parts (lower teeth, gums,
   tongue) about the hinge with the rotation recovered from the chin's own PDE
   motion (:mod:`pdeface.rigid`);
+- **a mouth bag** (part kind ``mouth``, :mod:`pdeface.head.mouth`) hangs from the lips: below the mouth line it
+  turns with the jaw, above it it moves with the upper lip's middle; a head with no mouth inside (and no bag) is
+  noted, and so are lips joined in the mesh, in :attr:`HeadBinding.warnings` as well;
 - **gaze AUs** (61-64) turn the eyeballs about their fitted centres;
 - **attached parts** (lashes, brows, hair cards, lacrimal meshes) ride on their
   nearest skin vertex, turning with its normal;
@@ -73,6 +76,7 @@ from ..surface.scan import load_scan
 from ..threads import bounded
 from .folds import FoldRelax
 from .lids import LidClosure, eyes_closed_by
+from .mouth import has_mouth_inside, lower_share
 from .parts import TOUCH_IOD, classify_parts, mouth_line, read_overrides
 from .prior import load_head_prior
 
@@ -396,6 +400,7 @@ class HeadBinding:
         else:
             raise MeshError("this face model carries no landmarks (made by pdeface 0.1): give the head's landmarks "
                             "or refit the face")
+        self.face_landmarks = Lf
         self.eye_distance = eye_distance = landmark_scheme.eye_distance(Lf)
         self.hinge = jaw_hinge(Lf, eye_distance)
         self.parts = parts = classify_parts(Vf, T, Lf, self.hinge, overrides)
@@ -425,7 +430,13 @@ class HeadBinding:
         if lips_joined:
             self.notes.append("the lips are joined in the mesh (no opening between them): keys that open the mouth "
                               "move the lower lip and stretch the skin joining it to the upper one; cut the mouth "
-                              "open (and add a mouth inside) for lips that part")
+                              "open (the add-on's Cut Lips Open, or in your modeller), fit again and add a mouth "
+                              "bag for lips that part")
+        if not parts.mask("mouth").any() and not has_mouth_inside(P, Ts, Lf, eye_distance):
+            self.notes.append("no mouth inside the lips: keys that open the mouth show the inside of the head; add a "
+                              "mouth bag (the add-on's Add Mouth Bag, or a part of kind 'mouth')")
+        #: The notes that ask the user to change something (the add-on reports them as warnings).
+        self.warnings = [n for n in self.notes if n.startswith(("the lips are joined", "no mouth inside"))]
         # Lips one row of vertices have no rims of their own: the strip between the PDE face's rims is their skin.
         covered, self.read_grid = _read_pde(model, P, self.skin_normals, eye_distance, resolution,
                                             mouth_strip if self.lips_one_line else (), _mouth_middle(P, Lf))
@@ -446,11 +457,11 @@ class HeadBinding:
         self._seam = _seam_smoother(P, L, covered, rest, Lf, eye_distance)
         # The back of the head and the neck keep still; the rigid parts turn whole.
         self._still = still_weight(Vf, P, Lf, eye_distance)
-        self._still[parts.mask("eye_L", "eye_R", "jaw")] = 1.0
+        self._still[parts.mask("eye_L", "eye_R", "jaw", "mouth")] = 1.0
         self._still = self._still[:, None, None]
         # Each key relaxed where it would fold the mesh; rigid eyeballs, the jaw's and the skull's parts and the skin
         # that never moves kept (the mouth's lower depths move with the jaw).
-        pinned = parts.mask("eye_L", "eye_R", "skull", "rest") | ~original
+        pinned = parts.mask("eye_L", "eye_R", "skull", "rest", "mouth") | ~original
         pinned[si[rest | (depths & (P[:, 1] > mouth_line(Lf)))]] = True
         near_skull = parts.mask("skull")  # the jaw turned whole, but near a split with the skull (ICT's gums)
         for _ in range(SPLIT_RINGS):
@@ -461,7 +472,8 @@ class HeadBinding:
             pinned[si[_inner_lip_middles(P, Lf, eye_distance)]] = True
         if self.lips_one_line:  # the skin joining the lips stretches; the upper lip keeps its (still) motion
             pinned[si[_upper_lip(P, Lf, eye_distance)]] = True
-        self._folds = FoldRelax(Vf, T, pinned)
+        # (a mouth bag left out: pinned, and not counted in the head's share of folds: the head's keys as without it)
+        self._folds = FoldRelax(Vf, T[~parts.mask("mouth")[T].all(axis=1)], pinned)
 
         # Jaw: the chin that drives it, and the parts it turns.
         chin = covered & (P[:, 1] < Lf[LIP_LOWER_BOTTOM, 1] - 0.08 * eye_distance) & (np.abs(P[:, 0]) < abs(Lf[JAW_RIGHT_ANGLE, 0] - Lf[JAW_LEFT_ANGLE, 0]) / 2) \
@@ -469,7 +481,11 @@ class HeadBinding:
         self.chin = chin if chin.sum() >= 10 else None
         if self.chin is None:
             self.notes.append("too little chin under the PDE face: jaw AUs move the skin only")
-        self.jaw_parts = np.nonzero(parts.mask("jaw") & original)[0]
+        self.jaw_parts = np.nonzero(parts.mask("jaw", "mouth") & original)[0]  # a mouth bag: its lower share
+        # A mouth bag: each vertex's share of the jaw's turn, the rest the upper lip's middle (its nearest skin).
+        self.mouth = np.nonzero(parts.mask("mouth") & original)[0]
+        self._mouth_lower = lower_share(Vf[self.mouth], Lf, eye_distance)[:, None, None]
+        self._upper_lip_vertex = si[np.argmin(np.linalg.norm(P - Lf[LIP_UPPER_INNER], axis=1))]
 
         # Attached parts ride on their nearest skin vertex.
         self.follow = follow = np.nonzero(parts.mask("follow") & original)[0]
@@ -629,6 +645,9 @@ class HeadBinding:
         # Relaxed again where the lids' closing or the eyeballs' surface folded them (a blink, a glance down), past
         # the limit alone (each sweep opens a closed lid a little), the lids kept out of the eyeballs.
         self._folds.relax(out, keys=[i for i, c in enumerate(closing) if c or pushed[i]], budget=self._folds.limit)
+        if len(self.mouth):  # the bag: the jaw's turn below the mouth line, the upper lip's motion above it
+            lip = out[self._upper_lip_vertex][None]
+            out[self.mouth] = self._mouth_lower * out[self.mouth] + (1 - self._mouth_lower) * lip
         out *= self._still
         out[self._copies] = out[self._copy_of]
         # One product (a transposed view's is slow).

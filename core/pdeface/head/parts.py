@@ -11,10 +11,11 @@ skin      holds the vertex nearest a landmark (ties go to the largest part;
           copies split along seams join their part)
 eye_L/R   the eyeball: the outermost round part of the right size behind
           each eye's landmarks (a sphere is fitted to it)
-jaw       inside the mouth (behind the lips, between nose and chin) and
-          below the mouth line, in front of the jaw hinge: lower teeth,
-          lower gums, tongue. A part spanning the mouth's width and line
-          (ICT's gums and tongue are one) is split per vertex.
+jaw       inside the mouth (behind the lips, between nose and chin), the
+          middle of its height below the mouth line, in front of the jaw
+          hinge: lower teeth, lower gums, tongue; turned whole. A part
+          spanning the mouth's width and reaching the upper and lower gums'
+          height (ICT's gums and tongue are one) is split per vertex.
 skull     inside the mouth, above the line or behind the hinge: upper teeth
           and gums; they do not move
 eye_L/R   lies within an eyeball's sphere: iris, cornea
@@ -22,6 +23,8 @@ follow    touches the skin (within ``TOUCH_IOD``): lashes, lacrimal and
           occlusion meshes, brows and beards glued to the skin
 follow    within ``NEAR_IOD`` of the skin: hair cards, brows
 rest      anything else (a body's other parts, props): never moves
+mouth     never found: a mouth bag named so (:mod:`pdeface.head.mouth`)
+          hangs from the lips, turning with the jaw below the mouth line
 ========  ==============================================================
 
 Users override any of it by naming vertices per kind (a JSON file on the
@@ -51,8 +54,8 @@ from ..rigid import jaw_hinge
 from ..surface.fit import skin_vertices
 from ..surface.frame import face_frame
 
-#: Part kinds, in the order of their integer codes.
-KINDS = ("skin", "follow", "eye_L", "eye_R", "jaw", "skull", "rest")
+#: Part kinds, in the order of their integer codes (a new kind goes last: files and vertex groups keep theirs).
+KINDS = ("skin", "follow", "eye_L", "eye_R", "jaw", "skull", "rest", "mouth")
 CODE = {k: i for i, k in enumerate(KINDS)}
 
 #: A part within this many eye distances of the skin is glued to it (lashes, lacrimal meshes).
@@ -168,11 +171,12 @@ def classify_parts(Vf, T, Lf, hinge, overrides=None) -> Parts:
         in_mouth = (abs(ctr[0] - Lf[MOUTH_CORNERS, 0].mean()) < half_width and Lf[CHIN, 1] < ctr[1] < Lf[NOSE_BOTTOM, 1]
                     and lips_z - 2 * s < ctr[2] < lips_z)
         if in_mouth:
-            spans = P[:, 1].min() < ymouth - 0.05 * s and P[:, 1].max() > ymouth + 0.05 * s
+            reach = SPLIT_REACH_IOD * s
+            spans = P[:, 1].min() < ymouth - reach and P[:, 1].max() > ymouth + reach
             if spans and np.ptp(P[:, 0]) > 0.5 * abs(Lf[MOUTH_CORNER_LEFT, 0] - Lf[MOUTH_CORNER_RIGHT, 0]):
-                lower = (P[:, 1] < ymouth) & (P[:, 2] > zcut)  # gums and tongue in one piece: per vertex
-            else:
-                lower = np.full(len(m), ctr[1] < ymouth and ctr[2] > zcut)
+                lower = (P[:, 1] < ymouth) & (P[:, 2] > zcut)  # both jaws' gums and the tongue: per vertex
+            else:  # one rigid piece (a tooth, a row of teeth, a tongue): the middle of its height says which jaw
+                lower = np.full(len(m), (P[:, 1].min() + P[:, 1].max()) / 2 < ymouth and ctr[2] > zcut)
             kind[m] = np.where(lower, CODE["jaw"], CODE["skull"])
             continue
         eye = next((e for e, (c0, r) in eyes.items() if np.linalg.norm(P - c0, axis=1).max() < r + 0.03 * s), None)
@@ -200,6 +204,12 @@ def classify_parts(Vf, T, Lf, hinge, overrides=None) -> Parts:
 #: How far in front of the jaw hinge (eye distances) the jaw's inner parts start moving with it
 #: (ICT-FaceKit's jawOpen: gums and tongue further back stay put).
 JAW_CUT_IOD = 0.15
+#: A piece inside the mouth is split per vertex between the jaw and the skull only where it reaches this far (eye
+#: distances) both above and below the mouth line: both jaws' gums in one piece (ICT's reach 0.33 below, 0.38 above,
+#: as far as its teeth's roots). A tongue alone stays between the teeth (MakeHuman's reaches 0.07-0.16 above): split,
+#: its back stayed with the skull while its tip turned with the jaw, stretched into spikes and folded 14-40 edges in
+#: AU27 (issue #40); whole, it turns with the jaw and keeps its shape.
+SPLIT_REACH_IOD = 0.25
 
 
 def override_indices(kind, indices, n_vertices) -> np.ndarray:
