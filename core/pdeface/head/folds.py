@@ -105,9 +105,9 @@ class FoldRelax:
         off = (self.mean @ Dk - Dk).reshape(n, k, 3)
         bent_v, bent_key = np.nonzero(np.einsum("nkc,nkc->nk", off, off) > (SCREEN * self.edge_length[:, None]) ** 2)
         pair, at = _rows_gather(self.vertex_pairs, bent_v)
-        ids = np.unique(bent_key[at] * n_pairs + pair)  # (key, edge) at a creased vertex, each once
+        ids = _once(bent_key[at] * n_pairs + pair, k * n_pairs)  # (key, edge) at a creased vertex, each once
         slot, pair = np.divmod(ids, n_pairs)
-        faces, pair_faces = np.unique(slot[:, None] * len(self.faces) + self.pairs[pair], return_inverse=True)
+        faces, pair_faces = _once_inverse(slot[:, None] * len(self.faces) + self.pairs[pair], k * len(self.faces))
         face_slot, face = np.divmod(faces, len(self.faces))
         tri = self.T[self.faces[face]]  # (f, 3): each (key, triangle) once
         X = self.V[tri] + Dk.reshape(n, k, 3)[tri, face_slot[:, None]]
@@ -168,19 +168,22 @@ class FoldRelax:
         mean = csr_matrix((self.mean.data[pos[inside]], (row[inside], at[inside])), shape=(m, m))
         ring = mean.copy()
         ring.data[:] = 1.0
-        movable = self.free[vertex] & np.isin(cols, zone, assume_unique=True)
+        in_zone = np.zeros(len(jobs) * n, bool)
+        in_zone[zone] = True
+        movable = self.free[vertex] & in_zone[cols]
         # The flat edges with a corner in a zone, their triangles (each once) in local indices.
         pair, row = _rows_gather(self.vertex_pairs, zone % n)
-        vpairs = np.unique(zone[row] // n * n_pairs + pair)
+        vpairs = _once(zone[row] // n * n_pairs + pair, len(jobs) * n_pairs)
         pair_job, pair = np.divmod(vpairs, n_pairs)
-        faces, pair_faces = np.unique(pair_job[:, None] * len(self.T) + self.faces[self.pairs[pair]],
-                                      return_inverse=True)
-        pair_faces = pair_faces.reshape(-1, 2)
+        faces, pair_faces = _once_inverse(pair_job[:, None] * len(self.T) + self.faces[self.pairs[pair]],
+                                          len(jobs) * len(self.T))
         face_job, face = np.divmod(faces, len(self.T))
         tri = np.searchsorted(cols, face_job[:, None] * n + self.T[face])  # (f, 3) local
         X, dl = self.V[vertex], D[vertex, key_of[job]]
+        at_rest = X + dl  # the rows' positions, kept up to date as they move
         nrm = np.zeros((len(faces), 3))
         fold = np.zeros(len(pair_job), bool)
+        count = np.zeros(len(jobs), np.int64)  # folded edges per job
         row_faces = csr_matrix((np.ones(tri.size), (tri.ravel(), np.repeat(np.arange(len(faces)), 3))),
                                shape=(m, len(faces)))
         pair_of = np.repeat(np.arange(len(pair_job)), 2)
@@ -188,12 +191,16 @@ class FoldRelax:
                                 shape=(len(faces), len(pair_job)))
 
         def folded(rows):  # the folds once ``rows`` moved: only their triangles' edges measured again
+            at_rest[rows] = X[rows] + dl[rows]
             at = _once(_rows_gather(row_faces, rows)[0], len(nrm))
-            P = X[tri[at]] + dl[tri[at]]
-            nrm[at] = unit_rows(np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]))
+            nrm[at] = unit_rows(_cross(at_rest, tri[at]))
             at = _once(_rows_gather(face_pairs, at)[0], len(fold))
-            fold[at] = (nrm[pair_faces[at, 0]] * nrm[pair_faces[at, 1]]).sum(-1) < self.cos_fold
-            return np.bincount(pair_job[fold], minlength=len(jobs))
+            a, b = nrm[pair_faces[at, 0]], nrm[pair_faces[at, 1]]
+            now = (a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1]) + a[:, 2] * b[:, 2] < self.cos_fold
+            count[:] += np.bincount(pair_job[at[now & ~fold[at]]], minlength=len(jobs))
+            count[:] -= np.bincount(pair_job[at[fold[at] & ~now]], minlength=len(jobs))
+            fold[at] = now
+            return count.copy()
 
         ball = np.nonzero(self.ball_radius[vertex] > 0)[0]  # rows kept out of an eyeball
         in_ball = np.zeros(m, bool)
@@ -259,6 +266,25 @@ class FoldRelax:
             seen[new] = True
             frontier = _once(new, len(seen))
         return np.flatnonzero(seen)
+
+
+def _cross(P, tri):
+    """Cross product of triangles ``tri``'s two edges from their first corner, corners at rows of ``P``
+    (:func:`pdeface.geometry.triangle_cross`'s numbers, without numpy.cross's axis shuffling)."""
+    a = P[tri[:, 0]]
+    u, v = P[tri[:, 1]] - a, P[tri[:, 2]] - a
+    out = np.empty_like(u)
+    out[:, 0] = u[:, 1] * v[:, 2] - u[:, 2] * v[:, 1]
+    out[:, 1] = u[:, 2] * v[:, 0] - u[:, 0] * v[:, 2]
+    out[:, 2] = u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]
+    return out
+
+
+def _once_inverse(idx, size):
+    """``(values, inverse)``: :func:`numpy.unique` of ``idx`` (all below ``size``) with ``return_inverse``, from a
+    mask (no sort); ``inverse`` shaped as ``idx``."""
+    values = _once(idx.ravel(), size)
+    return values, np.searchsorted(values, idx)
 
 
 def _once(idx, size):
