@@ -180,7 +180,7 @@ class FoldRelax:
         face_job, face = np.divmod(faces, len(self.T))
         tri = np.searchsorted(cols, face_job[:, None] * n + self.T[face])  # (f, 3) local
         X, dl = self.V[vertex], D[vertex, key_of[job]]
-        at_rest = X + dl  # the rows' positions, kept up to date as they move
+        position = X + dl  # the rows' positions, kept up to date as they move
         nrm = np.zeros((len(faces), 3))
         fold = np.zeros(len(pair_job), bool)
         count = np.zeros(len(jobs), np.int64)  # folded edges per job
@@ -190,16 +190,19 @@ class FoldRelax:
         face_pairs = csr_matrix((np.ones(pair_faces.size), (pair_faces.ravel(), pair_of)),
                                 shape=(len(faces), len(pair_job)))
 
-        def folded(rows):  # the folds once ``rows`` moved: only their triangles' edges measured again
-            at_rest[rows] = X[rows] + dl[rows]
+        def touched(rows):  # the triangles at ``rows`` (their corners) and their flat edges (their triangles)
             at = _once(_rows_gather(row_faces, rows)[0], len(nrm))
-            nrm[at] = unit_rows(_cross(at_rest, tri[at]))
-            at = _once(_rows_gather(face_pairs, at)[0], len(fold))
-            a, b = nrm[pair_faces[at, 0]], nrm[pair_faces[at, 1]]
+            edges = _once(_rows_gather(face_pairs, at)[0], len(fold))
+            return at, tri[at], edges, pair_faces[edges, 0], pair_faces[edges, 1]
+
+        def folded(rows, faces, corners, edges, first, second):  # the folds once ``rows`` (touching them) moved
+            position[rows] = X[rows] + dl[rows]
+            nrm[faces] = unit_rows(_cross(position, corners))
+            a, b = nrm[first], nrm[second]
             now = (a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1]) + a[:, 2] * b[:, 2] < self.cos_fold
-            count[:] += np.bincount(pair_job[at[now & ~fold[at]]], minlength=len(jobs))
-            count[:] -= np.bincount(pair_job[at[fold[at] & ~now]], minlength=len(jobs))
-            fold[at] = now
+            count[:] += np.bincount(pair_job[edges[now & ~fold[edges]]], minlength=len(jobs))
+            count[:] -= np.bincount(pair_job[edges[fold[edges] & ~now]], minlength=len(jobs))
+            fold[edges] = now
             return count.copy()
 
         ball = np.nonzero(self.ball_radius[vertex] > 0)[0]  # rows kept out of an eyeball
@@ -208,10 +211,10 @@ class FoldRelax:
         mark = np.zeros(m, bool)
         mark[np.searchsorted(cols, np.concatenate(seeds))] = True
         region = (mark | (ring @ mark.astype(np.float64) > 0)) & movable
-        count = folded(np.arange(m))
+        count = folded(np.arange(m), *touched(np.arange(m)))
         best, best_d = count.copy(), dl.copy()  # never worse than as bound
         since = np.zeros(len(jobs), np.int64)  # sweeps since each job's best
-        was = None
+        was, swept = None, None
         for step in range(RELAX_STEPS):
             live = (count > budgets) & (since < STALL_STEPS)
             if not live.any():
@@ -220,16 +223,20 @@ class FoldRelax:
                 was = live
                 rows = np.nonzero(live[job])[0]
                 ring_live, mean_live = ring[rows], mean[rows]
+                swept = None
             mark[:] = False
             mark[tri[pair_faces[fold & live[pair_job]]].ravel()] = True
             region[rows] |= (mark[rows] | (ring_live @ mark.astype(np.float64) > 0)) & movable[rows]
             if step and not step % GROW_EVERY:  # still folding: relax a wider ring
                 region[rows] |= (ring_live @ region.astype(np.float64) > 0) & movable[rows]
-            moved = region[rows]
-            dl[rows[moved]] += RELAX_RATE * (mean_live[moved] @ dl - dl[rows[moved]])
-            moved = rows[moved]
-            self._keep_out(X, dl, vertex, moved[in_ball[moved]])
-            count = folded(moved)
+            if swept is None or swept[0] != region.sum():  # the region only grows: its size says it changed
+                moved = region[rows]
+                swept = (region.sum(), rows[moved], mean_live[moved], touched(rows[moved]))
+                swept += (swept[1][in_ball[swept[1]]],)
+            _, moved, mean_moved, touch, balled = swept
+            dl[moved] += RELAX_RATE * (mean_moved @ dl - dl[moved])
+            self._keep_out(X, dl, vertex, balled)
+            count = folded(moved, *touch)
             better = count < best
             since = np.where(better, 0, since + live)
             if better.any():
