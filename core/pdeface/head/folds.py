@@ -74,6 +74,8 @@ class FoldRelax:
         W.sort_indices()
         self.mean = (diags(1.0 / np.maximum(np.asarray(W.sum(axis=1)).ravel(), 1e-300)) @ W).tocsr()
         self.mean.sort_indices()
+        self._mean32 = self.mean.astype(np.float32)  # the screen's (see _screen)
+        self._most_neighbours = int(np.diff(self.mean.indptr).max(initial=0))
         self.free = ~np.asarray(pinned, bool)
         self.ball_centre, self.ball_radius = np.zeros((len(V), 3)), np.zeros(len(V))  # none: keep_outside
         self.corners = self.T[self.faces[self.pairs]].reshape(len(self.pairs), 6)
@@ -102,8 +104,7 @@ class FoldRelax:
         n, k, n_pairs = len(self.V), len(keys), len(self.pairs)
         Dk = D if every else D.take(keys, axis=1)  # (D[:, keys] is laid out key-major: slow to flatten)
         Dk = np.ascontiguousarray(Dk).reshape(n, 3 * k)
-        off = (self.mean @ Dk - Dk).reshape(n, k, 3)
-        bent_v, bent_key = np.nonzero(np.einsum("nkc,nkc->nk", off, off) > (SCREEN * self.edge_length[:, None]) ** 2)
+        bent_v, bent_key = self._screen(Dk, k)
         pair, at = _rows_gather(self.vertex_pairs, bent_v)
         ids = _once(bent_key[at] * n_pairs + pair, k * n_pairs)  # (key, edge) at a creased vertex, each once
         slot, pair = np.divmod(ids, n_pairs)
@@ -115,6 +116,32 @@ class FoldRelax:
         pair_faces = pair_faces.reshape(-1, 2)
         fold = (nrm[pair_faces[:, 0]] * nrm[pair_faces[:, 1]]).sum(-1) < self.cos_fold
         return np.split(pair[fold], np.searchsorted(slot[fold], np.arange(1, k)))
+
+    def _screen(self, Dk, k):
+        """``(vertices, keys)`` where displacements ``Dk`` (n, 3k) are off their neighbours' mean by more than SCREEN of
+        the vertex's edges' length.
+
+        In float32 (half the memory to stream), with a margin for its rounding: the few (vertex, key) within it of the
+        line are measured again in float64, as a float64 screen would (the same sums in the same order): the same set.
+        """
+        D32 = Dk.astype(np.float32)
+        off = (self._mean32 @ D32 - D32).reshape(len(Dk), k, 3)
+        line = SCREEN * self.edge_length[:, None]
+        # float32's error in a (vertex, key)'s offset: a unit of rounding of the largest displacement per term of its
+        # sum (a neighbour, itself, the cast), per axis; twice that is a wide margin
+        margin = 2 * (self._most_neighbours + 3) * np.finfo(np.float32).eps * float(np.abs(D32).max(initial=0.0))
+        d2 = np.einsum("nkc,nkc->nk", off, off)
+        bent = d2 > ((line + margin) ** 2).astype(np.float32)
+        near_v, near_k = np.nonzero((d2 > (np.maximum(line - margin, 0.0) ** 2).astype(np.float32)) & ~bent)
+        if len(near_v):
+            pos, slot = _rows_entries(self.mean, near_v)
+            D3 = Dk.reshape(len(Dk), k, 3)
+            exact = np.zeros((len(near_v), 3))
+            np.add.at(exact, slot, self.mean.data[pos, None] * D3[self.mean.indices[pos], near_k[slot]])
+            exact -= D3[near_v, near_k]
+            exact = np.einsum("nc,nc->n", exact, exact)
+            bent[near_v, near_k] = exact > line[near_v, 0] ** 2
+        return np.nonzero(bent)
 
     def relax(self, D, keys=None, budget=None):
         """Relax displacements ``D`` (n, k, 3) in place where they fold more than ``budget`` edges (default:
