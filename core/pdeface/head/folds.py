@@ -102,43 +102,42 @@ class FoldRelax:
         keys = np.arange(D.shape[1]) if keys is None else np.asarray(keys, np.int64)
         every = len(keys) == D.shape[1] and (keys == np.arange(D.shape[1])).all()
         n, k, n_pairs = len(self.V), len(keys), len(self.pairs)
-        Dk = D if every else D.take(keys, axis=1)  # (D[:, keys] is laid out key-major: slow to flatten)
-        Dk = np.ascontiguousarray(Dk).reshape(n, 3 * k)
-        bent_v, bent_key = self._screen(Dk, k)
+        bent_v, bent_key = self._screen(D, keys, every)
         pair, at = _rows_gather(self.vertex_pairs, bent_v)
         ids = _once(bent_key[at] * n_pairs + pair, k * n_pairs)  # (key, edge) at a creased vertex, each once
         slot, pair = np.divmod(ids, n_pairs)
         faces, pair_faces = _once_inverse(slot[:, None] * len(self.faces) + self.pairs[pair], k * len(self.faces))
         face_slot, face = np.divmod(faces, len(self.faces))
         tri = self.T[self.faces[face]]  # (f, 3): each (key, triangle) once
-        X = self.V[tri] + Dk.reshape(n, k, 3)[tri, face_slot[:, None]]
+        X = self.V[tri] + D[tri, keys[face_slot][:, None]]
         nrm = unit_rows(np.cross(X[:, 1] - X[:, 0], X[:, 2] - X[:, 0]))
         pair_faces = pair_faces.reshape(-1, 2)
         fold = (nrm[pair_faces[:, 0]] * nrm[pair_faces[:, 1]]).sum(-1) < self.cos_fold
         return np.split(pair[fold], np.searchsorted(slot[fold], np.arange(1, k)))
 
-    def _screen(self, Dk, k):
-        """``(vertices, keys)`` where displacements ``Dk`` (n, 3k) are off their neighbours' mean by more than SCREEN of
-        the vertex's edges' length.
+    def _screen(self, D, keys, every):
+        """``(vertices, slots in keys)`` where displacements ``D`` (n, k, 3) of ``keys`` (``every`` key, or some) are
+        off their neighbours' mean by more than SCREEN of the vertex's edges' length.
 
         In float32 (half the memory to stream), with a margin for its rounding: the few (vertex, key) within it of the
         line are measured again in float64, as a float64 screen would (the same sums in the same order): the same set.
         """
-        D32 = Dk.astype(np.float32)
-        off = (self._mean32 @ D32 - D32).reshape(len(Dk), k, 3)
+        n, k = len(D), len(keys)
+        D32 = (D if every else D[:, keys]).astype(np.float32, order="C").reshape(n, 3 * k)
+        off = (self._mean32 @ D32 - D32).reshape(n, k, 3)
         line = SCREEN * self.edge_length[:, None]
         # float32's error in a (vertex, key)'s offset: a unit of rounding of the largest displacement per term of its
         # sum (a neighbour, itself, the cast), per axis; twice that is a wide margin
-        margin = 2 * (self._most_neighbours + 3) * np.finfo(np.float32).eps * float(np.abs(D32).max(initial=0.0))
+        largest = max(float(D32.max(initial=0.0)), -float(D32.min(initial=0.0)))
+        margin = 2 * (self._most_neighbours + 3) * np.finfo(np.float32).eps * largest
         d2 = np.einsum("nkc,nkc->nk", off, off)
         bent = d2 > ((line + margin) ** 2).astype(np.float32)
         near_v, near_k = np.nonzero((d2 > (np.maximum(line - margin, 0.0) ** 2).astype(np.float32)) & ~bent)
         if len(near_v):
             pos, slot = _rows_entries(self.mean, near_v)
-            D3 = Dk.reshape(len(Dk), k, 3)
             exact = np.zeros((len(near_v), 3))
-            np.add.at(exact, slot, self.mean.data[pos, None] * D3[self.mean.indices[pos], near_k[slot]])
-            exact -= D3[near_v, near_k]
+            np.add.at(exact, slot, self.mean.data[pos, None] * D[self.mean.indices[pos], keys[near_k[slot]]])
+            exact -= D[near_v, keys[near_k]]
             exact = np.einsum("nc,nc->n", exact, exact)
             bent[near_v, near_k] = exact > line[near_v, 0] ** 2
         return np.nonzero(bent)
