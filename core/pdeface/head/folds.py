@@ -101,7 +101,7 @@ class FoldRelax:
         """
         keys = np.arange(D.shape[1]) if keys is None else np.asarray(keys, np.int64)
         every = len(keys) == D.shape[1] and (keys == np.arange(D.shape[1])).all()
-        n, k, n_pairs = len(self.V), len(keys), len(self.pairs)
+        k, n_pairs = len(keys), len(self.pairs)
         bent_v, bent_key = self._screen(D, keys, every)
         pair, at = _rows_gather(self.vertex_pairs, bent_v)
         ids = _once(bent_key[at] * n_pairs + pair, k * n_pairs)  # (key, edge) at a creased vertex, each once
