@@ -73,6 +73,32 @@ def test_keys_screened_at_once_fold_the_edges_each_folds_alone():
         assert (len(exact) > 10) == (key < 2)
 
 
+def test_the_float32_screen_finds_what_a_float64_screen_does():
+    """Keys far from the origin (float32 rounds them by ~1e-3 mm) each lift one vertex by its screen line times
+    1 + δ, δ from -1e-6 to 1e-6: the float32 screen and its float64 second look agree with a float64 screen on
+    every (vertex, key), the lifted ones on either side of the line included."""
+    V, T = sheet(21)
+    relax = FoldRelax(V, T, np.zeros(len(V), bool))
+    line = folds.SCREEN * relax.edge_length
+    rng = np.random.default_rng(35)
+    k = 64
+    lifted = rng.choice(np.nonzero((V[:, :2] > 0).all(1) & (V[:, :2] < 20).all(1))[0], k)  # inner vertices
+    delta = np.linspace(-1e-6, 1e-6, k)
+    D = np.zeros((len(V), k, 3))
+    D[:, :, 0] = 1e4  # the same far shift for every vertex: no crease, only rounding
+    D[lifted, np.arange(k), 2] = line[lifted] * (1 + delta)  # its own offset: its neighbours stay
+    D[:, ::2] += rng.normal(0, 0.02, (len(V), k // 2, 3))  # and every other key a rough motion besides
+    Dk = D.reshape(len(V), 3 * k)
+    off = (relax.mean @ Dk - Dk).reshape(len(V), k, 3)
+    exact = np.einsum("nkc,nkc->nk", off, off) > line[:, None] ** 2
+    assert exact[lifted[1::2], np.arange(1, k, 2)].sum() == np.sum(delta[1::2] > 0)  # the line splits them
+    for keys in (np.arange(k), np.arange(1, k, 3)):
+        v, slot = relax._screen(D, keys, len(keys) == k)
+        got = np.zeros((len(V), len(keys)), bool)
+        got[v, slot] = True
+        np.testing.assert_array_equal(got, exact[:, keys])
+
+
 def test_keys_relaxed_side_by_side_are_each_key_relaxed_alone():
     V, T = sheet(41)
     D = cliff_keys(V)

@@ -74,6 +74,8 @@ class FoldRelax:
         W.sort_indices()
         self.mean = (diags(1.0 / np.maximum(np.asarray(W.sum(axis=1)).ravel(), 1e-300)) @ W).tocsr()
         self.mean.sort_indices()
+        self._mean32 = self.mean.astype(np.float32)  # the screen's (see _screen)
+        self._most_neighbours = int(np.diff(self.mean.indptr).max(initial=0))
         self.free = ~np.asarray(pinned, bool)
         self.ball_centre, self.ball_radius = np.zeros((len(V), 3)), np.zeros(len(V))  # none: keep_outside
         self.corners = self.T[self.faces[self.pairs]].reshape(len(self.pairs), 6)
@@ -99,22 +101,46 @@ class FoldRelax:
         """
         keys = np.arange(D.shape[1]) if keys is None else np.asarray(keys, np.int64)
         every = len(keys) == D.shape[1] and (keys == np.arange(D.shape[1])).all()
-        n, k, n_pairs = len(self.V), len(keys), len(self.pairs)
-        Dk = D if every else D.take(keys, axis=1)  # (D[:, keys] is laid out key-major: slow to flatten)
-        Dk = np.ascontiguousarray(Dk).reshape(n, 3 * k)
-        off = (self.mean @ Dk - Dk).reshape(n, k, 3)
-        bent_v, bent_key = np.nonzero(np.einsum("nkc,nkc->nk", off, off) > (SCREEN * self.edge_length[:, None]) ** 2)
+        k, n_pairs = len(keys), len(self.pairs)
+        bent_v, bent_key = self._screen(D, keys, every)
         pair, at = _rows_gather(self.vertex_pairs, bent_v)
-        ids = np.unique(bent_key[at] * n_pairs + pair)  # (key, edge) at a creased vertex, each once
+        ids = _once(bent_key[at] * n_pairs + pair, k * n_pairs)  # (key, edge) at a creased vertex, each once
         slot, pair = np.divmod(ids, n_pairs)
-        faces, pair_faces = np.unique(slot[:, None] * len(self.faces) + self.pairs[pair], return_inverse=True)
+        faces, pair_faces = _once_inverse(slot[:, None] * len(self.faces) + self.pairs[pair], k * len(self.faces))
         face_slot, face = np.divmod(faces, len(self.faces))
         tri = self.T[self.faces[face]]  # (f, 3): each (key, triangle) once
-        X = self.V[tri] + Dk.reshape(n, k, 3)[tri, face_slot[:, None]]
+        X = self.V[tri] + D[tri, keys[face_slot][:, None]]
         nrm = unit_rows(np.cross(X[:, 1] - X[:, 0], X[:, 2] - X[:, 0]))
         pair_faces = pair_faces.reshape(-1, 2)
         fold = (nrm[pair_faces[:, 0]] * nrm[pair_faces[:, 1]]).sum(-1) < self.cos_fold
         return np.split(pair[fold], np.searchsorted(slot[fold], np.arange(1, k)))
+
+    def _screen(self, D, keys, every):
+        """``(vertices, slots in keys)`` where displacements ``D`` (n, k, 3) of ``keys`` (``every`` key, or some) are
+        off their neighbours' mean by more than SCREEN of the vertex's edges' length.
+
+        In float32 (half the memory to stream), with a margin for its rounding: the few (vertex, key) within it of the
+        line are measured again in float64, as a float64 screen would (the same sums in the same order): the same set.
+        """
+        n, k = len(D), len(keys)
+        D32 = (D if every else D[:, keys]).astype(np.float32, order="C").reshape(n, 3 * k)
+        off = (self._mean32 @ D32 - D32).reshape(n, k, 3)
+        line = SCREEN * self.edge_length[:, None]
+        # float32's error in a (vertex, key)'s offset: a unit of rounding of the largest displacement per term of its
+        # sum (a neighbour, itself, the cast), per axis; twice that is a wide margin
+        largest = max(float(D32.max(initial=0.0)), -float(D32.min(initial=0.0)))
+        margin = 2 * (self._most_neighbours + 3) * np.finfo(np.float32).eps * largest
+        d2 = np.einsum("nkc,nkc->nk", off, off)
+        bent = d2 > ((line + margin) ** 2).astype(np.float32)
+        near_v, near_k = np.nonzero((d2 > (np.maximum(line - margin, 0.0) ** 2).astype(np.float32)) & ~bent)
+        if len(near_v):
+            pos, slot = _rows_entries(self.mean, near_v)
+            exact = np.zeros((len(near_v), 3))
+            np.add.at(exact, slot, self.mean.data[pos, None] * D[self.mean.indices[pos], keys[near_k[slot]]])
+            exact -= D[near_v, keys[near_k]]
+            exact = np.einsum("nc,nc->n", exact, exact)
+            bent[near_v, near_k] = exact > line[near_v, 0] ** 2
+        return np.nonzero(bent)
 
     def relax(self, D, keys=None, budget=None):
         """Relax displacements ``D`` (n, k, 3) in place where they fold more than ``budget`` edges (default:
@@ -168,32 +194,42 @@ class FoldRelax:
         mean = csr_matrix((self.mean.data[pos[inside]], (row[inside], at[inside])), shape=(m, m))
         ring = mean.copy()
         ring.data[:] = 1.0
-        movable = self.free[vertex] & np.isin(cols, zone, assume_unique=True)
+        in_zone = np.zeros(len(jobs) * n, bool)
+        in_zone[zone] = True
+        movable = self.free[vertex] & in_zone[cols]
         # The flat edges with a corner in a zone, their triangles (each once) in local indices.
         pair, row = _rows_gather(self.vertex_pairs, zone % n)
-        vpairs = np.unique(zone[row] // n * n_pairs + pair)
+        vpairs = _once(zone[row] // n * n_pairs + pair, len(jobs) * n_pairs)
         pair_job, pair = np.divmod(vpairs, n_pairs)
-        faces, pair_faces = np.unique(pair_job[:, None] * len(self.T) + self.faces[self.pairs[pair]],
-                                      return_inverse=True)
-        pair_faces = pair_faces.reshape(-1, 2)
+        faces, pair_faces = _once_inverse(pair_job[:, None] * len(self.T) + self.faces[self.pairs[pair]],
+                                          len(jobs) * len(self.T))
         face_job, face = np.divmod(faces, len(self.T))
         tri = np.searchsorted(cols, face_job[:, None] * n + self.T[face])  # (f, 3) local
         X, dl = self.V[vertex], D[vertex, key_of[job]]
+        position = X + dl  # the rows' positions, kept up to date as they move
         nrm = np.zeros((len(faces), 3))
         fold = np.zeros(len(pair_job), bool)
+        count = np.zeros(len(jobs), np.int64)  # folded edges per job
         row_faces = csr_matrix((np.ones(tri.size), (tri.ravel(), np.repeat(np.arange(len(faces)), 3))),
                                shape=(m, len(faces)))
         pair_of = np.repeat(np.arange(len(pair_job)), 2)
         face_pairs = csr_matrix((np.ones(pair_faces.size), (pair_faces.ravel(), pair_of)),
                                 shape=(len(faces), len(pair_job)))
 
-        def folded(rows):  # the folds once ``rows`` moved: only their triangles' edges measured again
+        def touched(rows):  # the triangles at ``rows`` (their corners) and their flat edges (their triangles)
             at = _once(_rows_gather(row_faces, rows)[0], len(nrm))
-            P = X[tri[at]] + dl[tri[at]]
-            nrm[at] = unit_rows(np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]))
-            at = _once(_rows_gather(face_pairs, at)[0], len(fold))
-            fold[at] = (nrm[pair_faces[at, 0]] * nrm[pair_faces[at, 1]]).sum(-1) < self.cos_fold
-            return np.bincount(pair_job[fold], minlength=len(jobs))
+            edges = _once(_rows_gather(face_pairs, at)[0], len(fold))
+            return at, tri[at], edges, pair_faces[edges, 0], pair_faces[edges, 1]
+
+        def folded(rows, faces, corners, edges, first, second):  # the folds once ``rows`` (touching them) moved
+            position[rows] = X[rows] + dl[rows]
+            nrm[faces] = unit_rows(_cross(position, corners))
+            a, b = nrm[first], nrm[second]
+            now = (a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1]) + a[:, 2] * b[:, 2] < self.cos_fold
+            count[:] += np.bincount(pair_job[edges[now & ~fold[edges]]], minlength=len(jobs))
+            count[:] -= np.bincount(pair_job[edges[fold[edges] & ~now]], minlength=len(jobs))
+            fold[edges] = now
+            return count.copy()
 
         ball = np.nonzero(self.ball_radius[vertex] > 0)[0]  # rows kept out of an eyeball
         in_ball = np.zeros(m, bool)
@@ -201,10 +237,10 @@ class FoldRelax:
         mark = np.zeros(m, bool)
         mark[np.searchsorted(cols, np.concatenate(seeds))] = True
         region = (mark | (ring @ mark.astype(np.float64) > 0)) & movable
-        count = folded(np.arange(m))
+        count = folded(np.arange(m), *touched(np.arange(m)))
         best, best_d = count.copy(), dl.copy()  # never worse than as bound
         since = np.zeros(len(jobs), np.int64)  # sweeps since each job's best
-        was = None
+        was, swept = None, None
         for step in range(RELAX_STEPS):
             live = (count > budgets) & (since < STALL_STEPS)
             if not live.any():
@@ -213,16 +249,23 @@ class FoldRelax:
                 was = live
                 rows = np.nonzero(live[job])[0]
                 ring_live, mean_live = ring[rows], mean[rows]
-            mark[:] = False
-            mark[tri[pair_faces[fold & live[pair_job]]].ravel()] = True
-            region[rows] |= (mark[rows] | (ring_live @ mark.astype(np.float64) > 0)) & movable[rows]
+                swept = None
+            # the live jobs' folded edges' corners and their neighbours join the region (the neighbour map is
+            # symmetric: a row next to a marked one is a marked one's neighbour); a few hundred rows, not all
+            edges = np.flatnonzero(fold)
+            marked = _once(tri[pair_faces[edges[live[pair_job[edges]]]]].ravel(), m)
+            grown = np.concatenate([marked, _rows_gather(ring, marked)[0]])
+            region[grown[movable[grown]]] = True
             if step and not step % GROW_EVERY:  # still folding: relax a wider ring
                 region[rows] |= (ring_live @ region.astype(np.float64) > 0) & movable[rows]
-            moved = region[rows]
-            dl[rows[moved]] += RELAX_RATE * (mean_live[moved] @ dl - dl[rows[moved]])
-            moved = rows[moved]
-            self._keep_out(X, dl, vertex, moved[in_ball[moved]])
-            count = folded(moved)
+            if swept is None or swept[0] != region.sum():  # the region only grows: its size says it changed
+                moved = region[rows]
+                swept = (region.sum(), rows[moved], mean_live[moved], touched(rows[moved]))
+                swept += (swept[1][in_ball[swept[1]]],)
+            _, moved, mean_moved, touch, balled = swept
+            dl[moved] += RELAX_RATE * (mean_moved @ dl - dl[moved])
+            self._keep_out(X, dl, vertex, balled)
+            count = folded(moved, *touch)
             better = count < best
             since = np.where(better, 0, since + live)
             if better.any():
@@ -259,6 +302,25 @@ class FoldRelax:
             seen[new] = True
             frontier = _once(new, len(seen))
         return np.flatnonzero(seen)
+
+
+def _cross(P, tri):
+    """Cross product of triangles ``tri``'s two edges from their first corner, corners at rows of ``P``
+    (:func:`pdeface.geometry.triangle_cross`'s numbers, without numpy.cross's axis shuffling)."""
+    a = P[tri[:, 0]]
+    u, v = P[tri[:, 1]] - a, P[tri[:, 2]] - a
+    out = np.empty_like(u)
+    out[:, 0] = u[:, 1] * v[:, 2] - u[:, 2] * v[:, 1]
+    out[:, 1] = u[:, 2] * v[:, 0] - u[:, 0] * v[:, 2]
+    out[:, 2] = u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]
+    return out
+
+
+def _once_inverse(idx, size):
+    """``(values, inverse)``: :func:`numpy.unique` of ``idx`` (all below ``size``) with ``return_inverse``, from a
+    mask (no sort); ``inverse`` shaped as ``idx``."""
+    values = _once(idx.ravel(), size)
+    return values, np.searchsorted(values, idx)
 
 
 def _once(idx, size):

@@ -133,9 +133,13 @@ def classify_parts(Vf, T, Lf, hinge, overrides=None) -> Parts:
     kind[skin] = CODE["skin"]
     skin_tree = cKDTree(Vf[skin])
 
-    others = [int(c) for c in np.unique(lab[~skin])]
-    members = {c: np.nonzero(lab == c)[0] for c in others}
-    gap = {c: float(skin_tree.query(Vf[m])[0].min()) for c, m in members.items()}
+    # Each other part's vertices (ascending) and its gap to the skin: one sort and one query for them all.
+    rest = np.nonzero(~skin)[0]
+    rest = rest[np.argsort(lab[rest], kind="stable")]
+    others, starts = np.unique(lab[rest], return_index=True)
+    members = dict(zip(others.tolist(), np.split(rest, starts[1:])))
+    gaps = np.minimum.reduceat(skin_tree.query(Vf[rest])[0], starts) if len(rest) else []
+    gap = dict(zip(others.tolist(), map(float, gaps)))
 
     # Eyeballs: the roundest part of the right size behind each eye, and what lies inside its sphere.
     eyes = {}
