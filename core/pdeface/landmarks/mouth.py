@@ -6,7 +6,8 @@ lip's inner surfaces meet, lies in the crease behind). Seen straight on, the lip
 its outer corner (48, 54) is a groove that deepens into the commissure: each inner corner moves to the deepest
 point of that line (from a little inside the found corner out to the outer one), as long as it lies no more than
 :data:`REACH` behind the found corner (deeper, the line crosses an opening: the slit of parted lips, the mouth).
-A corner with nothing seen deeper stays: on ICT's heads the true corners lie hidden behind the lips' fronts.
+A corner with nothing seen more than :data:`DEEPER` deeper stays: on ICT's heads the found corners already lie in the
+crease (the true ones often hidden behind the lips' fronts).
 """
 from __future__ import annotations
 
@@ -22,13 +23,17 @@ CORNERS = ((60, 48), (64, 54))
 INSIDE = 0.02
 #: How far behind the found inner corner (eye distances) the line's deepest point may lie.
 REACH = 0.06
+#: How much deeper than the found inner corner (eye distances) the line's deepest point must lie for the corner to
+#: move: on ICT's heads (the map's own) the found corners lie 0-0.016 in front of it, and moving them there puts
+#: some 0.04 eye distances to the side; on MakeHuman's characters 0.02-0.06.
+DEEPER = 0.02
 #: Pixels across the straight-on mouth view, and its half-width (eye distances): about 0.005 eye distances a pixel.
 SIZE, HALF = 384, 1.0
 
 
 def inner_lip_corners_at_seam_end(V, T, points) -> np.ndarray:
     """``points (68, 3)`` with the inner lip corners (:data:`CORNERS`) moved to the deepest point of the lip line
-    on the skin ``(V, T)`` (see the module's docstring); a corner stays where no pixel of the line is seen deeper.
+    on the skin ``(V, T)`` (see the module's docstring); a corner stays where no pixel of the line is seen :data:`DEEPER` deeper.
 
     Parameters
     ----------
@@ -61,8 +66,8 @@ def inner_lip_corners_at_seam_end(V, T, points) -> np.ndarray:
     for inner, line in lines.items():
         d = np.where(line & (depth >= z[inner] - REACH * eyes), depth, np.inf)
         k = int(np.argmin(d))
-        if not d.flat[k] < z[inner]:
-            continue  # nothing seen deeper: the corner is in the crease already (hidden behind the lips, as ICT's)
+        if not d.flat[k] < z[inner] - DEEPER * eyes:
+            continue  # the corner is in the crease already (or hidden behind the lips, as ICT's)
         P = back_project(V, T, raster, np.array([k % SIZE], float), np.array([k // SIZE], float), reach=1)[0][0]
         if np.isfinite(P).all():
             out[inner] = P
