@@ -28,11 +28,11 @@ BAND, HALF_WIDTH, DEPTH = (0.0, 0.6), 0.8, 0.35
 #: The found landmarks that pose the region and stay in its fit: the eyes and the nose bridge's top.
 ANCHORS = (*range(36, 48), 27, 28)
 BROWS = range(17, 27)
-#: Closest-point iterations, and the share of pairs kept each time (the nearest: a region's edge may hang over
-#: the skin's).
-ITERATIONS, KEEP = 15, 0.9
+#: Closest-point iterations at most, and the share of pairs kept each time (the nearest: a region's edge may hang
+#: over the skin's); they stop once the region moves less than :data:`SETTLED` (eye distances).
+ITERATIONS, KEEP, SETTLED = 15, 0.9, 1e-3
 #: At most this many of the region's vertices take part (evenly spread by their numbering).
-MAX_POINTS = 1500
+MAX_POINTS = 600
 
 
 @lru_cache(maxsize=1)
@@ -73,12 +73,15 @@ def brows_from_template(V, T, points, closest: ClosestPoint | None = None) -> np
     anchors = list(ANCHORS)
     closest = ClosestPoint(V, T) if closest is None else closest
     s, R, t = similarity(L[anchors], out[anchors])
+    Q = s * region @ R.T + t
     for _ in range(ITERATIONS):
-        Q = s * region @ R.T + t
         C = closest.query(Q)[3]
         d = np.linalg.norm(C - Q, axis=1)
         near = d <= np.quantile(d, KEEP)
         _, R, t = similarity(s * np.concatenate([region[near], L[anchors]]),
                              np.concatenate([C[near], out[anchors]]), scale=False)
+        Q, was = s * region @ R.T + t, Q
+        if np.abs(Q - was).max() < SETTLED * eye_distance(out):
+            break
     out[list(BROWS)] = closest.query(s * L[list(BROWS)] @ R.T + t)[3]
     return out
