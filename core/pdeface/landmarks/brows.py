@@ -7,7 +7,7 @@ or lower than that, with the brow ridge. So ICT's generic head's brow region (th
 :data:`BAND` up, :data:`HALF_WIDTH` to each side) is registered rigidly onto the skin by iterated closest
 points, from the pose the found eyes and nose bridge give it (they stay in the fit, holding the region to the
 face), at the scale they give; ICT's brow landmarks carried along and taken to the nearest skin point are the
-brows. On the development set the brows' median error falls from 8.2 to 6.5 % of the eye distance (outer brows
+brows. On the development set the brows' median error falls from 8.2 to 6.4 % of the eye distance (outer brows
 8.3 to 5.5 %); on ICT's held-out heads they lie 0.2-0.6 mm from ICT's own, as the map's did.
 """
 from __future__ import annotations
