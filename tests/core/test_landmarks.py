@@ -440,3 +440,55 @@ def test_upper_jaw_points_slid_along_the_contour_come_back_to_the_templates_dept
     assert np.median(before) > 0.1 and np.median(after) < 0.03 and after.max() < 0.05, (before, after)
     others = np.setdiff1d(np.arange(68), list(UPPER_JAW))
     assert np.array_equal(back[others], moved[others])  # only the upper jaw moves
+
+
+@pytest.mark.parametrize("name", ["identity015", "identity019"])
+def test_inner_lip_corners_on_the_lips_front_go_back_into_the_lip_line(heads, name):
+    # The map may put the inner lip corners on the lips' front, in front of the commissure (MakeHuman's
+    # characters: 0.04-0.10 eye distances). Moved 0.06 eye distances forward onto the lips, they go back into
+    # the lip line, no farther from the identity's own; the own corners (hidden behind the lips) stay.
+    from pdeface.landmark_scheme import eye_distance
+    from pdeface.landmarks.mouth import CORNERS, inner_lip_corners_at_seam_end
+    from pdeface.surface.frame import face_frame
+
+    mesh, T, lm, shapes = heads
+    V = mesh.vertices + shapes[name]
+    L = V[lm]
+    f, eyes = face_frame(L), eye_distance(L)
+    inner = [i for i, _ in CORNERS]
+    moved = L.copy()
+    F = f.to_face(L[inner])
+    F[:, 2] += 0.06 * eyes * f.scale
+    moved[inner] = ClosestPoint(V, T).query(f.to_user(F))[3]  # onto the lips in front
+    back = inner_lip_corners_at_seam_end(V, T, moved)
+    deeper = (f.to_face(moved[inner]) - f.to_face(back[inner]))[:, 2] / (eyes * f.scale)
+    before, after = (np.linalg.norm(P[inner] - L[inner], axis=1) / eyes for P in (moved, back))
+    assert deeper.min() > 0.03 and (after <= before).all(), (deeper, before, after)
+    others = np.setdiff1d(np.arange(68), inner)
+    assert np.array_equal(back[others], moved[others])  # only the inner corners move
+    assert np.array_equal(inner_lip_corners_at_seam_end(V, T, L), L)
+
+
+@pytest.mark.parametrize("name", ["identity015", "identity019"])
+def test_brows_come_from_ict_brow_region_laid_onto_the_skin(heads, name):
+    # The brows found on a hairless head stay at the height the faces the detector learned have them; ICT's brow
+    # region registered onto the skin from the eyes and nose bridge puts them back with the brow ridge: brows
+    # lifted 0.08 eye distances up the forehead come back to the identity's own.
+    from pdeface.landmark_scheme import eye_distance
+    from pdeface.landmarks.brows import BROWS, brows_from_template
+    from pdeface.surface.frame import face_frame
+
+    mesh, T, lm, shapes = heads
+    V = mesh.vertices + shapes[name]
+    L = V[lm]
+    f, eyes = face_frame(L), eye_distance(L)
+    rows = list(BROWS)
+    moved = L.copy()
+    F = f.to_face(L[rows])
+    F[:, 1] += 0.08 * eyes * f.scale
+    moved[rows] = ClosestPoint(V, T).query(f.to_user(F))[3]
+    back = brows_from_template(V, T, moved)
+    before, after = (np.linalg.norm(P[rows] - L[rows], axis=1) / eyes for P in (moved, back))
+    assert before.min() > 0.06 and after.max() < 0.015, (before, after)
+    others = np.setdiff1d(np.arange(68), rows)
+    assert np.array_equal(back[others], moved[others])  # only the brows move

@@ -29,10 +29,12 @@ from ..geometry import ClosestPoint
 from ..mesh import connected_components, vertex_normals
 from ..rigid import rotation_vector_matrix
 from ..surface.frame import UNITS_MM, estimate_unit
+from .brows import brows_from_template
 from .contour import upper_jaw_at_template_depth
 from .detector import Detector
 from .facemap import GROUPS, LandmarkMap, read_map, robust_similarity
-from .render import Raster, View, back_project, marked, rasterise, shade
+from .mouth import inner_lip_corners_at_seam_end
+from .render import Raster, View, back_project, depth_map, marked, rasterise, shade
 
 #: The search's view directions (towards the viewer) with an up vector each.
 SEARCH_AXES = {"+z": ((0, 0, 1), (0, 1, 0)), "-y": ((0, -1, 0), (0, 0, 1)), "+x": ((1, 0, 0), (0, 1, 0)),
@@ -369,6 +371,10 @@ def detect(V, T, unit=None, landmark_map: LandmarkMap | None = None, detector: D
         points, _ = snap(V, T[skin], m.apply(P2), skin_raster, 1.0 / s, closest)
         # The upper jaw's depth along the contour from the template, not from where a grazing ray met the cheek.
         points = upper_jaw_at_template_depth(V, T[skin], points)
+        # The brows with the brow ridge (ICT's brow region laid onto the skin), not at ICT's height above the eyes.
+        points = brows_from_template(V, T[skin], points, closest)
+        # The inner lip corners back in the commissure, not on the lips' front.
+        points = inner_lip_corners_at_seam_end(V, T[skin], points)
         indices = nearest_vertices(V, T[skin], points)
         mm = UNITS_MM[unit] if unit else estimate_unit(points)[1]  # the fit's own estimate (one for both)
         spread = group_spread(m, Ps, mm)
@@ -414,15 +420,6 @@ def group_spread(m: LandmarkMap, view_points, mm=1.0) -> dict:
         warnings.simplefilter("ignore", RuntimeWarning)  # a landmark no render saw stays NaN
         d = np.nanmax(np.linalg.norm(L - np.nanmean(L, 0), axis=2), 0) * mm
         return {g: float(np.nanmedian(d[list(rows)])) for g, rows in GROUPS.items()}
-
-
-def depth_map(V, T, raster: Raster) -> np.ndarray:
-    """Each pixel's depth towards the viewer (mesh units), -inf where the raster shows nothing."""
-    depth = np.full(raster.tri.shape, -np.inf)
-    seen = raster.tri >= 0
-    Q = np.einsum("pk,pkj->pj", raster.bary[seen], V[T[raster.tri[seen]]])
-    depth[seen] = (Q - raster.view.centre) @ raster.view.rotation[2]
-    return depth
 
 
 def outer_pixels(V, T, raster: Raster, mm_per_unit, depth=None) -> np.ndarray:

@@ -295,3 +295,12 @@ def marked(img, pixels, r=2, colour=(230, 30, 30)):
     for x, y in np.round(pixels).astype(int):
         img[max(y - r, 0):min(y + r + 1, h), max(x - r, 0):min(x + r + 1, w)] = colour
     return img
+
+
+def depth_map(V, T, raster: Raster) -> np.ndarray:
+    """Each pixel's depth towards the viewer (mesh units), -inf where the raster shows nothing."""
+    depth = np.full(raster.tri.shape, -np.inf)
+    seen = raster.tri >= 0
+    Q = np.einsum("pk,pkj->pj", raster.bary[seen], V[T[raster.tri[seen]]])
+    depth[seen] = (Q - raster.view.centre) @ raster.view.rotation[2]
+    return depth

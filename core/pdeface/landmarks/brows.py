@@ -1,0 +1,87 @@
+"""The brows (17-26) where ICT's generic head puts them once its brow region is laid onto the skin.
+
+On a hairless head the face mesh finds no brow hair: its brow points stay where the faces it learned had
+them relative to the eyes, and the map carries them to ICT's height above the eyes. On MakeHuman's development
+set the true brows (ICT's face registered onto each character's own shape) lie 0.05-0.10 eye distances higher
+or lower than that, with the brow ridge. So ICT's generic head's brow region (the skin from the eye centres
+:data:`BAND` up, :data:`HALF_WIDTH` to each side) is registered rigidly onto the skin by iterated closest
+points, from the pose the found eyes and nose bridge give it (they stay in the fit, holding the region to the
+face), at the scale they give; ICT's brow landmarks carried along and taken to the nearest skin point are the
+brows. On the development set the brows' median error falls from 8.2 to 6.4 % of the eye distance (outer brows
+8.3 to 5.5 %); on ICT's held-out heads they lie 0.2-0.6 mm from ICT's own, as the map's did.
+"""
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+
+from ..assets import load_head
+from ..geometry import ClosestPoint, similarity
+from ..landmark_scheme import eye_distance
+from ..mesh import connected_components
+from ..surface.frame import face_frame
+
+#: The brow region of ICT's generic head: heights above the eye centres and half its width (eye distances);
+#: its points lie in front of :data:`DEPTH` behind the eye centres (the face, not the temples' sides).
+BAND, HALF_WIDTH, DEPTH = (0.0, 0.6), 0.8, 0.35
+#: The found landmarks that pose the region and stay in its fit: the eyes and the nose bridge's top.
+ANCHORS = (*range(36, 48), 27, 28)
+BROWS = range(17, 27)
+#: Closest-point iterations at most, and the share of pairs kept each time (the nearest: a region's edge may hang
+#: over the skin's); they stop once the region moves less than :data:`SETTLED` (eye distances).
+ITERATIONS, KEEP, SETTLED = 15, 0.9, 1e-3
+#: At most this many of the region's vertices take part (evenly spread by their numbering).
+MAX_POINTS = 600
+
+
+@lru_cache(maxsize=1)
+def _ict_brow_region() -> tuple[np.ndarray, np.ndarray]:
+    """ICT's generic head: its brow region's skin vertices (:data:`BAND`; not the eyeballs, lashes or sockets
+    behind, separate parts) and its 68 landmarks."""
+    mesh, landmarks = load_head()
+    V, T = mesh.vertices, mesh.triangles()[0]
+    L = V[landmarks]
+    f = face_frame(L)
+    F = f.to_face(V) / (eye_distance(L) * f.scale)
+    eyes = f.to_face(L[36:48]).mean(0) / (eye_distance(L) * f.scale)
+    labels = connected_components(len(V), T)
+    region = np.zeros(len(V), bool)
+    region[np.unique(T)] = True
+    region &= np.isin(labels, labels[landmarks])
+    region &= ((np.abs(F[:, 0]) < HALF_WIDTH) & (F[:, 1] > eyes[1] + BAND[0]) & (F[:, 1] < eyes[1] + BAND[1])
+               & (F[:, 2] > eyes[2] - DEPTH))
+    P = V[region]
+    return P[:: max(1, len(P) // MAX_POINTS)], L
+
+
+def brows_from_template(V, T, points, closest: ClosestPoint | None = None) -> np.ndarray:
+    """``points (68, 3)`` with the brows (17-26) from ICT's brow region registered onto the skin ``(V, T)``
+    (see the module's docstring).
+
+    Parameters
+    ----------
+    V, T : arrays
+        The mesh and the skin's triangles.
+    points : (68, 3) array
+        Landmarks on the skin, the mesh's space (the eyes and nose bridge are trusted).
+    closest : ClosestPoint, optional
+        On ``(V, T)``, when already built.
+    """
+    out = np.array(points, np.float64)
+    region, L = _ict_brow_region()
+    anchors = list(ANCHORS)
+    closest = ClosestPoint(V, T) if closest is None else closest
+    s, R, t = similarity(L[anchors], out[anchors])
+    Q = s * region @ R.T + t
+    for _ in range(ITERATIONS):
+        C = closest.query(Q)[3]
+        d = np.linalg.norm(C - Q, axis=1)
+        near = d <= np.quantile(d, KEEP)
+        _, R, t = similarity(s * np.concatenate([region[near], L[anchors]]),
+                             np.concatenate([C[near], out[anchors]]), scale=False)
+        Q, was = s * region @ R.T + t, Q
+        if np.abs(Q - was).max() < SETTLED * eye_distance(out):
+            break
+    out[list(BROWS)] = closest.query(s * L[list(BROWS)] @ R.T + t)[3]
+    return out
