@@ -73,7 +73,7 @@ from ..surface.model import KEPT_LANDMARKS
 from ..surface.scan import load_scan
 from ..threads import bounded
 from .folds import FoldRelax
-from .lids import LidClosure, eyes_closed_by
+from .lids import LidClosure, eyes_closed_by, eyes_or_sockets
 from .parts import TOUCH_IOD, classify_parts, mouth_line, read_overrides
 from .prior import load_head_prior
 
@@ -245,14 +245,19 @@ def _below_chin(X, Lf, eye_distance):
     return X[:, 1] < Lf[CHIN, 1] - BELOW_CHIN_IOD * eye_distance
 
 
-def _prior_reach(Vf, from_covered, skin_rest, Lf, eye_distance):
+def _prior_reach(Vf, from_covered, skin_rest, Lf, eye_distance, eyeballs=None):
     """How much of the head prior each vertex takes: none in the rest region (``skin_rest``: its vertex
     indices) nor below the chin's rest line, fading in over the last PRIOR_FADE of the way to the rest
-    region (no step where it starts)."""
+    region (no step where it starts); none in an empty socket's cup behind where its eyeball would sit (an eye
+    not in ``eyeballs``: ICT's orbit residuals moved MakeHuman's base's cup 2-6 mm in a blink)."""
     reach = np.clip((REST_IOD * eye_distance - from_covered) / (PRIOR_FADE * REST_IOD * eye_distance), 0, 1)
     reach = reach * reach * (3 - 2 * reach)
     reach[skin_rest] = 0.0
     reach[_below_chin(Vf, Lf, eye_distance)] = 0.0
+    for name, (centre, radius) in eyes_or_sockets(Lf, eye_distance, eyeballs).items():
+        if name not in (eyeballs or {}):
+            reach[(from_covered > 0) & (np.linalg.norm(Vf - centre, axis=1) < radius + 0.1 * eye_distance)
+                  & (Vf[:, 2] < centre[2])] = 0.0
     return reach
 
 
@@ -312,16 +317,19 @@ def _upper_lip(P, Lf, eye_distance):
 
 
 def _depths(P, covered, Lf, eye_distance, eyes):
-    """The mouth's depths (lining, throat) and the orbits behind the eyeballs: left at rest.
+    """The mouth's depths (lining, throat) and the orbits behind the eyeballs (or where they would sit: an empty
+    socket's cup): left at rest.
 
-    The lips' motion would otherwise spread through the whole mouth (ICT-FaceKit's truth fades).
+    The lips' motion would otherwise spread through the whole mouth (ICT-FaceKit's truth fades), the lids' through an
+    empty socket (MakeHuman's base: its blink moved the cup behind the lids 6 mm, 17 mm deep; its own eye closure
+    keeps it still).
     """
     lips_z = Lf[LIP_MIDDLES, 2].max()
     inside = ~covered & (np.abs(P[:, 0]) < 0.6 * eye_distance) & (P[:, 1] < Lf[NOSE_BOTTOM, 1])
     depths = inside & (P[:, 2] < lips_z - MOUTH_DEPTH_IOD * eye_distance) & (P[:, 1] > Lf[CHIN, 1])
     depths |= (inside & (P[:, 2] < lips_z - UPPER_LINING_IOD * eye_distance)
                & (P[:, 1] > mouth_line(Lf) + UPPER_LINING_RISE_IOD * eye_distance))
-    for centre, radius in eyes.values():
+    for centre, radius in eyes_or_sockets(Lf, eye_distance, eyes).values():
         depths |= ~covered & (np.linalg.norm(P - centre, axis=1) < radius + 0.1 * eye_distance) & (P[:, 2] < centre[2])
     return depths
 
@@ -518,7 +526,7 @@ class HeadBinding:
                     prior = None
                     self.notes.append(f"no head prior ({exc}): the skin beyond the PDE face follows its harmonic "
                                       "extension alone")
-            reach = _prior_reach(Vf, from_covered, si[rest], Lf, eye_distance) * original
+            reach = _prior_reach(Vf, from_covered, si[rest], Lf, eye_distance, parts.eyes) * original
             self.prior = prior.on(model, Vf, parts.kind, reach, eye_distance=eye_distance) if prior is not None else None
             if prior is not None and self.prior is None:
                 self.notes.append("the face's curve layout is not the head prior's: the skin beyond the PDE face "
