@@ -28,9 +28,8 @@ LIMIT_MIN = 2
 #: the poses that mix keys); every sweep smooths the key's own motion too (a lid's closing, a lip's lift).
 FOLD_SHARE = 0.0005
 FOLD_MIN = 1
-#: Most relaxation sweeps per key, and how far each moves a vertex towards its neighbours' mean (60 left
-#: asian-female-old's AU17 at 18 edges over 40° at its mouth's inner corners, still folding fewer: 100 14, 150 8).
-RELAX_STEPS = 150
+#: Most relaxation sweeps per key, and how far each moves a vertex towards its neighbours' mean.
+RELAX_STEPS = 60
 RELAX_RATE = 0.5
 #: While a key still folds, its relaxed set grows by a ring every GROW_EVERY sweeps, up to ZONE_RINGS rings
 #: from the first folded edges.
