@@ -133,6 +133,11 @@ MIN_HEAD_DEPTH_IOD = 2.5
 #: ... capped at this (mm, the key's motion's size, its direction kept: the issue's 0.5 less a margin; per key, so
 #: keys mixed may add up).
 STILL_MM = 0.4
+#: Keys that do not open the jaw relax their folds in up to this many sweeps (the jaw's in folds.RELAX_STEPS, 60):
+#: asian-female-old's and eyes-teeth-separate's AU17 folded 18 edges at the mouth's inner corners after 60 (the
+#: issue's limit 13), 8 and 6 after 150; for the jaw's keys more sweeps smooth parted lips shut (african-male-old's
+#: AU27 gap 0.37 -> 0.26 eye distances).
+STEPS_NOT_JAW = 150
 #: AUs that move the jaw, and the gaze AUs.
 JAW_AUS = frozenset({25, 26, 27, 29, 30})
 GAZE_AUS = frozenset({61, 62, 63, 64})
@@ -638,7 +643,9 @@ class HeadBinding:
             for _ in range(steps):
                 flat[at] += w * (S @ flat - flat[at])
             out[self.skin[band]] = flat[at].reshape(len(band), -1, 3)
-        self._folds.relax(out)
+        jaw = [i for i, m in enumerate(motions) if m[2]]
+        self._folds.relax(out, keys=jaw)
+        self._folds.relax(out, keys=np.setdiff1d(np.arange(len(motions)), jaw), steps=STEPS_NOT_JAW)
         self._lids.apply(out, closing)
         pushed = self._keep_out_of_eyeballs(out)
         # Relaxed again where the lids' closing or the eyeballs' surface folded them (a blink, a glance down), past
