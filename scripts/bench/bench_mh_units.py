@@ -23,8 +23,11 @@ AU4                eyebrows-left-down + eyebrows-right-down
 Printed per pair: **field cosine** (the two displacement fields as vectors: 1 = same direction
 everywhere, whatever the magnitude), **captured** ``1 − RMS(ours − theirs) / RMS(theirs)`` (aureport's),
 **gain** (the weight of their unit that best matches ours: ``<ours, theirs> / |theirs|²``), and for the eye
-closure the **lid travel**: our upper-lid middles' motion over theirs (target ≥ 0.80). The units are
-MakeHuman's race-specific ones (the character's first identity's race; caucasian for the base).
+closure the **lid travel**: our upper-lid middles' motion over theirs, and (target ≥ 0.80) over the travel
+that closes the eye: theirs, but no more than the rest gap between the upper and lower lid middles
+(MakeHuman's unit is one fixed 8.9 mm motion made for the base's 7.9 mm gap: on narrower eyes it takes the
+upper lid 3 mm through the lower one). The units are MakeHuman's race-specific ones (the character's first
+identity's race; caucasian for the base).
 """
 from __future__ import annotations
 
@@ -51,8 +54,9 @@ PAIRS = {
     "AU1": ({"1": 1.0}, ("eyebrows-left-inner-up", "eyebrows-right-inner-up")),
     "AU4": ({"4": 1.0}, ("eyebrows-left-down", "eyebrows-right-down")),
 }
-#: Upper-lid middles (iBUG-68, 0-based).
+#: Upper-lid middles (iBUG-68, 0-based), and the lower ones below them.
 UPPER_LIDS = (37, 38, 43, 44)
+LOWER_LIDS = (41, 40, 47, 46)
 LID_TRAVEL_TARGET = 0.80
 
 
@@ -79,8 +83,10 @@ def compare(ours, theirs, mm_per_unit, lid_vertices=None) -> dict:
            "ours_max_mm": float(np.linalg.norm(ours, axis=1).max() * mm_per_unit),
            "theirs_max_mm": float(np.linalg.norm(theirs, axis=1).max() * mm_per_unit)}
     if lid_vertices is not None:
-        travel = lambda D: np.linalg.norm(D[lid_vertices], axis=1).mean()
+        upper, gap = lid_vertices
+        travel = lambda D: np.linalg.norm(D[upper], axis=1).mean()
         out["lid_travel"] = float(travel(ours) / travel(theirs))
+        out["closing_travel"] = float(travel(ours) / min(travel(theirs), gap))
     return out
 
 
@@ -93,7 +99,9 @@ def measure(spec, source) -> dict:
     keys = {d.key for d in model.descriptors}
     names = [n for n, (w, _) in PAIRS.items() if set(w) <= keys]
     D = b.pose_displacements([(PAIRS[n][0], "sum") for n in names])
-    lids = np.array([np.argmin(np.linalg.norm(V - L[i], axis=1)) for i in UPPER_LIDS])
+    nearest = lambda idx: np.array([np.argmin(np.linalg.norm(V - L[i], axis=1)) for i in idx])
+    upper = nearest(UPPER_LIDS)
+    lids = upper, float(np.linalg.norm(V[upper] - V[nearest(LOWER_LIDS)], axis=1).mean())
     out = {}
     for n, ours in zip(names, D):
         theirs = unit_field(spec, PAIRS[n][1], ch)
@@ -113,7 +121,7 @@ def main(argv=None):
     source = load_face("default")
     print(f"== {len(names)} characters (not remeshed), true landmarks; every vertex of each; "
           "cos: field cosine, cap: captured, gain: their unit's best-matching weight")
-    print(f"  {'character':30s} " + " ".join(f"{n:>17s}" for n in PAIRS) + "  AU45 lid travel")
+    print(f"  {'character':30s} " + " ".join(f"{n:>17s}" for n in PAIRS) + "  AU45 lid travel, to closing")
     rows = {}
     for name in names:
         try:
@@ -125,8 +133,9 @@ def main(argv=None):
         rows[name] = r
         cells = [f"{r[n]['cosine']:5.2f} {r[n]['captured']:5.2f} {r[n]['gain']:5.2f}" if "cosine" in r.get(n, {})
                  else f"{'-':>17s}" for n in PAIRS]
-        lid = r.get("AU45", {}).get("lid_travel")
-        print(f"  {name:30s} " + " ".join(cells) + (f"  {lid:5.2f}" if lid is not None else "  -"), flush=True)
+        lid, closing = (r.get("AU45", {}).get(k) for k in ("lid_travel", "closing_travel"))
+        print(f"  {name:30s} " + " ".join(cells) + (f"  {lid:5.2f} {closing:5.2f}" if lid is not None else "  -"),
+              flush=True)
     done = [r for r in rows.values() if "error" not in r]
     print("== summary (median over characters; cos / captured / gain)")
     for n in PAIRS:
@@ -137,10 +146,12 @@ def main(argv=None):
                   f"{med('captured'):5.2f}  gain {med('gain'):5.2f}  max motion ours {med('ours_max_mm'):5.1f} mm, "
                   f"theirs {med('theirs_max_mm'):5.1f} mm ({len(vals)} characters)")
     lids = [r["AU45"]["lid_travel"] for r in done if "lid_travel" in r.get("AU45", {})]
+    closing = [r["AU45"]["closing_travel"] for r in done if "closing_travel" in r.get("AU45", {})]
     if lids:
-        ok = sum(x >= LID_TRAVEL_TARGET for x in lids)
+        ok = sum(x >= LID_TRAVEL_TARGET for x in closing)
         print(f"  AU45 lid travel against the eye closure: median {np.median(lids):.2f}, worst {min(lids):.2f}; "
-              f">= {LID_TRAVEL_TARGET:.2f} on {ok}/{len(lids)} (target: every character)")
+              f"against its travel up to the rest gap: median {np.median(closing):.2f}, worst {min(closing):.2f}, "
+              f">= {LID_TRAVEL_TARGET:.2f} on {ok}/{len(closing)} (target: every character)")
     if args.json:
         with open(args.json, "w") as fh:
             json.dump(rows, fh, indent=1)

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 from pdeface.au.modelfile import load_face
 from pdeface.geometry import triangle_cross, unit_rows
-from pdeface.head import folds
+from pdeface.head import bind, folds
 from pdeface.head.bind import HeadBinding, descriptor_motion_args
 from pdeface.head.folds import FoldRelax
 from pdeface.head.lids import eyes_closed_by
@@ -168,6 +168,7 @@ def test_keys_on_heads_not_tuned_on_fold_no_edge_and_close_the_eyes(name, monkey
     motions = [descriptor_motion_args(descr[n]) if n in descr else b.pose_motion_args(poses[n], "sum") for n in names]
     posed = dict(zip(names, f.to_face(V + b.displacements(motions))))
     monkeypatch.setattr(folds, "RELAX_STEPS", 0)
+    monkeypatch.setattr(bind, "STEPS_NOT_JAW", 0)
     raw = dict(zip(names, f.to_face(V + b.displacements([m[:4] for m in motions]))))  # nor the lids closed
     pairs = edge_face_pairs(T)
     budget = max(2, 0.001 * len(pairs))

@@ -126,6 +126,7 @@ def test_rig_and_all_keys_leave_out_gaze_keys_on_a_head_without_eyeballs(tmp_pat
 def test_the_lip_and_eye_corners_fold_less_and_the_mouth_opens_as_wide(monkeypatch):
     V, T, L, model, smoothed = rig("base-dm")
     monkeypatch.setattr(fold_relax, "RELAX_STEPS", 0)  # the seam smoother alone (the folds' relaxation: test_head_folds)
+    monkeypatch.setattr(bind, "STEPS_NOT_JAW", 0)
     monkeypatch.setattr(bind, "SEAM_STEPS", 0)
     raw = HeadBinding(model, V, T, landmarks=L)
     f = model.frame
@@ -277,3 +278,48 @@ def test_the_back_of_the_head_and_a_bodys_neck_keep_still_but_the_jaw_opens(name
         kept, before = b.displacement(*args), free.displacement(*args)
         assert np.linalg.norm(before[under_jaw], axis=1).max() > 0.1 * ed / f.scale
         np.testing.assert_allclose(kept[under_jaw], before[under_jaw], atol=1e-9)
+
+
+@needs_makehuman
+def test_an_empty_sockets_cup_keeps_still_in_a_blink_that_closes_the_lids(monkeypatch):
+    """Without eyeballs the skin behind where each would sit (the socket's cup) is left at rest and takes no head
+    prior: the blink moved MakeHuman's cup up to 6 mm (its own eye closure keeps it still; issue #40)."""
+    from pdeface.head import lids
+
+    V, T, L, model, b = rig("asian-male-young-blender-m")  # no eyeballs; not the heads this was tuned on
+    assert not b.parts.eyes
+    f = model.frame
+    Vf, Lf = f.to_face(V), f.to_face(L)
+    args = descriptor_motion_args({x.key: x for x in model.descriptors}["45"])
+    cup = np.zeros(len(V), bool)
+    for centre, radius in lids.eyes_or_sockets(Lf, b.eye_distance).values():
+        cup |= (np.linalg.norm(Vf - centre, axis=1) < radius + 0.1 * b.eye_distance) & (Vf[:, 2] < centre[2])
+    cup[b.skin[b.covered]] = False  # the lids' own skin, under the PDE face
+    cup &= b.parts.mask("skin")
+    assert cup.sum() > 50
+    moved = np.linalg.norm(b.displacement(*args)[cup], axis=1) * f.scale
+    assert moved.max() < 0.5  # mm
+    assert min(lid_closure(V, L, model, b).values()) >= 0.8
+    # As it was: the cup took the lids' motion (no socket where no eyeball was found).
+    monkeypatch.setattr(bind, "eyes_or_sockets", lambda Lf, ed, eyes=None: dict(eyes or {}))
+    before = HeadBinding(model, V, T, landmarks=L)
+    assert np.linalg.norm(before.displacement(*args)[cup], axis=1).max() * f.scale > 2.0
+
+
+
+@needs_makehuman
+def test_a_chin_raiser_does_not_fold_the_mouths_inner_corners_and_the_jaw_still_opens():
+    # asian-female-old's AU17 folded 18 edges (13 allowed) at the inner lip corners: its relaxation ran out of sweeps
+    # (keys that do not open the jaw now get bind.STEPS_NOT_JAW; the jaw's keep theirs: more smoothed the lips shut).
+    V, T, L, model, b = rig("asian-female-old-in")
+    f = model.frame
+    Vf, Lf = f.to_face(V), f.to_face(L)
+    pairs = edge_face_pairs(T)
+    flat = turn_degrees(Vf, T, pairs) < 20
+    by_key = {x.key: x for x in model.descriptors}
+    for key in ("17", "15"):
+        posed = f.to_face(V + b.displacement(*descriptor_motion_args(by_key[key])))
+        assert (flat & (turn_degrees(posed, T, pairs) > 40)).sum() <= max(2, 0.001 * len(pairs)), key
+    posed = f.to_face(V + b.displacement(*descriptor_motion_args(by_key["27"])))
+    up, lo = (np.argmin(np.linalg.norm(Vf - Lf[i], axis=1)) for i in (LIP_UPPER_INNER, LIP_LOWER_INNER))
+    assert (posed[up, 1] - posed[lo, 1]) - (Vf[up, 1] - Vf[lo, 1]) >= 0.25 * eyes_of(Lf)[1]

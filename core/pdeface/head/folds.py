@@ -142,9 +142,10 @@ class FoldRelax:
             bent[near_v, near_k] = exact > line[near_v, 0] ** 2
         return np.nonzero(bent)
 
-    def relax(self, D, keys=None, budget=None):
+    def relax(self, D, keys=None, budget=None, steps=None):
         """Relax displacements ``D`` (n, k, 3) in place where they fold more than ``budget`` edges (default:
-        :attr:`budget`), only ``keys`` (indices) if given; whether any key was changed.
+        :attr:`budget`), only ``keys`` (indices) if given, in at most ``steps`` sweeps (default: RELAX_STEPS);
+        whether any key was changed.
 
         Each key is relaxed piece by piece of the mesh, each piece to its share of ``budget`` (by its flat edges):
         a lash strip folding does not smooth the lid under it. Every (key, piece) is worked on at once.
@@ -164,10 +165,10 @@ class FoldRelax:
             jobs += [(key, edges[piece == label], int(share[label]))
                      for label, count in zip(labels, counts) if count > share[label]]
         if jobs:
-            self._relax_jobs(D, jobs)
+            self._relax_jobs(D, jobs, RELAX_STEPS if steps is None else steps)
         return changed
 
-    def _relax_jobs(self, D, jobs):
+    def _relax_jobs(self, D, jobs, steps=RELAX_STEPS):
         """Relax ``jobs`` ``(key, folded edges of one piece, budget)`` of ``D`` (n, k, 3) in place; per job the
         folds left (never more than as bound).
 
@@ -241,7 +242,7 @@ class FoldRelax:
         best, best_d = count.copy(), dl.copy()  # never worse than as bound
         since = np.zeros(len(jobs), np.int64)  # sweeps since each job's best
         was, swept = None, None
-        for step in range(RELAX_STEPS):
+        for step in range(steps):
             live = (count > budgets) & (since < STALL_STEPS)
             if not live.any():
                 break

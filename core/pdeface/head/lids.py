@@ -31,8 +31,10 @@ LEFT_OPEN = 0.1
 #: How far above the margin (eye distances) the upper lid moves with it, and how deep behind it.
 LID_IOD = 0.2
 DEPTH_IOD = 0.25
-#: An eyeball's centre behind its lids' landmarks (eye distances: 12 mm of 63) where the head has none.
+#: An eyeball's centre behind its lids' landmarks (eye distances: 12 mm of 63) where the head has none, and its
+#: radius (an adult's eyeball, 12 mm).
 EYE_DEPTH_IOD = 0.19
+EYE_RADIUS_IOD = 0.19
 
 
 class LidClosure:
@@ -77,9 +79,7 @@ class LidClosure:
             z_margin = Lf[list(upper), 2].max()
             w = along * share * inside * lid * (Vf[:, 2] > z_margin - DEPTH_IOD * eye_distance)
             idx = np.nonzero(w > 0)[0]
-            ball = (eyeballs or {}).get(f"eye_{side}")
-            centre = ball[0] if ball is not None else \
-                Lf[list(upper) + list(lower)].mean(0) - [0, 0, EYE_DEPTH_IOD * eye_distance]
+            centre = eyes_or_sockets(Lf, eye_distance, eyeballs)[f"eye_{side}"][0]
             self.eyes.append((np.array(at[:2]), np.array(at[2:]), idx, w[idx], np.asarray(centre, np.float64)))
 
     def apply(self, out, closing):
@@ -117,6 +117,17 @@ class LidClosure:
             turned *= (1 + share * (rb / np.maximum(ra, 1e-300) - 1)[None])[..., None]
             sub[idx] += turned - v
         out[:, keys] = sub
+
+
+def eyes_or_sockets(Lf, eye_distance, eyeballs=None) -> dict:
+    """``"eye_R"``/``"eye_L"`` → (centre, radius) (face frame): the eyeballs found (``eyeballs``), else where an
+    eyeball would sit behind the lids' landmarks (an empty socket, a painted eye)."""
+    out = {}
+    for side, (upper, lower) in LIDS.items():
+        ball = (eyeballs or {}).get(f"eye_{side}")
+        out[f"eye_{side}"] = ball if ball is not None else (
+            Lf[list(upper) + list(lower)].mean(0) - [0, 0, EYE_DEPTH_IOD * eye_distance], EYE_RADIUS_IOD * eye_distance)
+    return out
 
 
 def eyes_closed_by(weights) -> dict | None:
