@@ -82,6 +82,37 @@ def print_groups(rows):
             f"{np.median([r['groups_p95'][g] for r in rows.values()]):5.1f}" for g in GROUPS))
 
 
+def jaw_point_errors(found, true, eyes):
+    """Each jaw point's (0-16) error in % of the eye distance, split along the true jawline (signed: + toward
+    the chin) and across it (unsigned)."""
+    frame = face_frame(true)
+    T = frame.to_face(true[:17]) / (eyes * frame.scale) * 100
+    d = frame.to_face(found[:17]) / (eyes * frame.scale) * 100 - T
+    tangent = np.gradient(T, axis=0)
+    tangent /= np.linalg.norm(tangent, axis=1, keepdims=True)
+    along = (d * tangent).sum(1)
+    across = np.linalg.norm(d - along[:, None] * tangent, axis=1)
+    along[9:] *= -1  # the tangent runs from 0 to 16: up, away from the chin, on 9-16
+    return along, across
+
+
+def print_jaw_points(rows):
+    """Where the jaw goes wrong: per character and jaw point, the error along / across the jawline."""
+    print("== jaw points: error along (signed: + toward the chin) / across the true "
+          "jawline (% of the true eye distance)")
+    print(f"  {'character':32s} " + " ".join(f"{j:>7d}" for j in range(17)))
+    errs = {}
+    for name, r in rows.items():
+        along, across = jaw_point_errors(np.array(r["points"]), np.array(r["truth"]), r["eyes"])
+        errs[name] = along, across
+        print(f"  {name:32s} " + " ".join(f"{a:+4.0f}/{c:2.0f}" for a, c in zip(along, across)))
+    if errs:
+        along = np.array([a for a, _ in errs.values()])
+        across = np.array([c for _, c in errs.values()])
+        print(f"  {'median |along| / across':32s} " + " ".join(
+            f"{a:4.1f}/{c:2.0f}" for a, c in zip(np.median(abs(along), 0), np.median(across, 0))))
+
+
 def main(argv=None):
     ap = bench_parser(__doc__)
     ap.add_argument("--only", help="comma-separated character names")
@@ -113,6 +144,7 @@ def main(argv=None):
             r["seconds"] = time.perf_counter() - t
             r["found"] = True
             r["points"], r["truth"] = found.points.tolist(), ch.landmarks.tolist()  # for the --json reader
+            r["eyes"] = eyes
             r.update(errors_pct(found.points, ch.landmarks, eyes))
             r["unit_error_pct"] = 100 * (found.mm_per_unit / ch.mm_per_unit - 1)
             verdict = check(found.points, ch.vertices, ch.triangles[found.skin])
@@ -127,6 +159,7 @@ def main(argv=None):
     ok = [r for r in rows.values() if r["found"]]
     share = len(ok) / len(rows)
     print_groups({n: r for n, r in rows.items() if r["found"]})
+    print_jaw_points({n: r for n, r in rows.items() if r["found"]})
     print("== summary")
     print(f"  found {len(ok)}/{len(rows)} = {share:.0%} (target >= {TARGETS['found_share']:.0%})")
     if ok:

@@ -342,3 +342,26 @@ def test_a_character_is_annotated_on_its_own_shape_not_with_the_bases_vertices_c
     ict_brows = np.mean([annotate.statistics(L)[stat] for L in heads])
     own, carried = annotate.statistics(V[idx])[stat], annotate.statistics(V[annotated_indices()])[stat]
     assert abs(own - ict_brows) < 0.05 and carried - ict_brows > 0.1  # carried: 0.15 eye distances too high
+
+
+def test_jaw_point_errors_split_along_and_across_the_jawline(ict):
+    """bench_devset's per jaw point figure: a jaw point slid along the true jawline counts along (+ toward the chin
+    on either side), one pushed off it across."""
+    from scripts.bench.bench_devset import jaw_point_errors
+
+    mesh, _, lm, _ = ict
+    true = mesh.vertices[lm].astype(np.float64)
+    eyes = eye_distance(true)
+    found = true.copy()
+    step = 0.05 * eyes
+    for j in (3, 13):  # toward the chin: from 3 to 4, and from 13 to 12
+        toward = true[j + 1 if j < 8 else j - 1] - true[j - 1 if j < 8 else j + 1]
+        found[j] += step * toward / np.linalg.norm(toward)
+    out = face_frame(true).rotation[2]  # forward: across the jawline at the chin
+    found[8] += step * out
+    along, across = jaw_point_errors(found, true, eyes)
+    assert along[3] == pytest.approx(5.0, abs=0.5) and along[13] == pytest.approx(5.0, abs=0.5)
+    assert across[3] < 1.0 and across[13] < 1.0
+    assert abs(along[8]) < 0.5 and across[8] == pytest.approx(5.0, abs=0.5)
+    unmoved = [j for j in range(17) if j not in (3, 8, 13)]
+    assert np.allclose(along[unmoved], 0) and np.allclose(across[unmoved], 0)
