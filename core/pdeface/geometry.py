@@ -256,8 +256,9 @@ class ClosestPoint:
         self._vstart = np.searchsorted(self.T.ravel()[order], np.arange(nv + 1))
         self.vtree = cKDTree(self.V)
 
-    def query(self, P):
-        """Closest points on the mesh.
+    def query(self, P, nearest=None):
+        """Closest points on the mesh; ``nearest``: each point's nearest vertex where already found (a query of
+        :attr:`vtree`).
 
         Returns
         -------
@@ -270,7 +271,7 @@ class ClosestPoint:
         k = min(self.k, len(self.T))
         _, ct = self.tree.query(P, k=k)
         ct = ct.reshape(len(P), -1)
-        _, nv = self.vtree.query(P, k=1)
+        nv = self.vtree.query(P, k=1)[1] if nearest is None else np.asarray(nearest, np.int64)
         # Triangles around the nearest vertex (a few, padded with the first centroid hit).
         deg = self._vstart[nv + 1] - self._vstart[nv]
         maxdeg = int(deg.max()) if len(deg) else 0

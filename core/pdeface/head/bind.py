@@ -188,10 +188,11 @@ def _read_pde(model, P, N, eye_distance, resolution, skin_strips=(), on_strip=No
     # Only skin near the grid can be under it (the back of a head, a body: skip the exact query).
     edge = np.linalg.norm(X0[Tp[:, 0]] - X0[Tp[:, 1]], axis=1).max()
     closest = ClosestPoint(X0, Tp)
-    near = closest.vtree.query(P, distance_upper_bound=COVER_IOD * eye_distance + edge)[0] < np.inf  # its grid's tree
+    gap, nearest = closest.vtree.query(P, distance_upper_bound=COVER_IOD * eye_distance + edge)  # its grid's tree
+    near = gap < np.inf
     dist, tri, bary = np.full(len(P), np.inf), np.zeros(len(P), np.int64), np.zeros((len(P), 3))
     if near.any():
-        dist[near], tri[near], bary[near], _ = closest.query(P[near])
+        dist[near], tri[near], bary[near], _ = closest.query(P[near], nearest[near])
     r, c = Tp[tri] // nv, Tp[tri] % nv
     inside = (r.min(1) > 0) & (r.max(1) < nu - 1) & (c.min(1) > 0) & (c.max(1) < nv - 1)
     sub_u = resolution[0]  # curve k is grid row k * sub_u
@@ -403,7 +404,7 @@ class HeadBinding:
         self.face_landmarks = Lf
         self.eye_distance = eye_distance = landmark_scheme.eye_distance(Lf)
         self.hinge = jaw_hinge(Lf, eye_distance)
-        self.parts = parts = classify_parts(Vf, T, Lf, self.hinge, overrides)
+        self.parts = parts = classify_parts(Vf, T, Lf, self.hinge, overrides, welded=True)
         # Seam copies take their vertex's kind and, in the end, its motion; nothing else counts them.
         self._copies = np.nonzero(rep != np.arange(len(V)))[0]
         self._copy_of = rep[self._copies]
@@ -447,7 +448,11 @@ class HeadBinding:
             Vf, distance_upper_bound=REST_IOD * eye_distance * (1 + 1e-9))[0]  # exact up to the edge
         self.rest = rest = _rest_region(P, Ts, covered, from_covered[si], Lf, eye_distance)
         depths = _depths(P, covered, Lf, eye_distance, parts.eyes)
-        self._L = L = cotan_laplacian(P, Ts)
+        # The folds' relaxation's Laplacian (the head but a mouth bag) holds the skin's, where no triangle joins the
+        # skin to another part (an override may): the same sums in the same order, built once.
+        fold_T = T[~parts.mask("mouth")[T].all(axis=1)]
+        fold_L = cotan_laplacian(Vf, fold_T)
+        self._L = L = fold_L[si][:, si] if len(Ts) == skin[fold_T].any(axis=1).sum() else cotan_laplacian(P, Ts)
         cov = np.nonzero(covered)[0]  # the grid read at every skin vertex (rows of the covered ones)
         self._read_skin = csr_matrix((np.ones(len(cov)), (cov, np.arange(len(cov)))),
                                      shape=(len(P), len(cov))) @ self.read_grid
@@ -473,7 +478,7 @@ class HeadBinding:
         if self.lips_one_line:  # the skin joining the lips stretches; the upper lip keeps its (still) motion
             pinned[si[_upper_lip(P, Lf, eye_distance)]] = True
         # (a mouth bag left out: pinned, and not counted in the head's share of folds: the head's keys as without it)
-        self._folds = FoldRelax(Vf, T[~parts.mask("mouth")[T].all(axis=1)], pinned)
+        self._folds = FoldRelax(Vf, fold_T, pinned, fold_L)
 
         # Jaw: the chin that drives it, and the parts it turns.
         chin = covered & (P[:, 1] < Lf[LIP_LOWER_BOTTOM, 1] - 0.08 * eye_distance) & (np.abs(P[:, 0]) < abs(Lf[JAW_RIGHT_ANGLE, 0] - Lf[JAW_LEFT_ANGLE, 0]) / 2) \

@@ -53,9 +53,11 @@ class FoldRelax:
     T : (t, 3) int array
     pinned : (n,) bool array
         Vertices whose motion is never changed (eyeballs: rigid; parts that never move).
+    laplacian : sparse (n, n) matrix, optional
+        ``cotan_laplacian(V, T)`` where already built (the binding's).
     """
 
-    def __init__(self, V, T, pinned):
+    def __init__(self, V, T, pinned, laplacian=None):
         from scipy.sparse import csr_matrix, diags
 
         self.V, self.T = V, np.asarray(T, np.int64)
@@ -68,7 +70,7 @@ class FoldRelax:
         self.cos_fold = np.cos(np.radians(FOLD_DEG))
         # Cotangent weights (clamped positive): on ICT's dense, stretched lip and lid rims the plain mean of
         # the neighbours folded them further (AU27's skin folds 22 -> 82); these follow the surface's shape.
-        L = cotan_laplacian(V, self.T)
+        L = cotan_laplacian(V, self.T) if laplacian is None else laplacian
         W = (diags(L.diagonal()) - L).tocsr()
         W.eliminate_zeros()
         W.sort_indices()

@@ -105,7 +105,7 @@ def fit_sphere(P):
     return c, float(np.sqrt(max(sol[3] + c @ c, 0.0)))
 
 
-def classify_parts(Vf, T, Lf, hinge, overrides=None) -> Parts:
+def classify_parts(Vf, T, Lf, hinge, overrides=None, welded=False) -> Parts:
     """Part kind of every vertex of a head mesh.
 
     Parameters
@@ -120,6 +120,8 @@ def classify_parts(Vf, T, Lf, hinge, overrides=None) -> Parts:
         The jaw hinge (see :func:`pdeface.rigid.jaw_hinge`).
     overrides : dict, optional
         Kind → vertex indices, applied last (see :func:`apply_overrides`).
+    welded : bool
+        ``T``'s seam copies already joined (:func:`pdeface.mesh.seam_welds`, as the binding does): none welded again.
     """
     from scipy.spatial import cKDTree
 
@@ -129,7 +131,8 @@ def classify_parts(Vf, T, Lf, hinge, overrides=None) -> Parts:
     s = eye_distance(Lf)
     kind = np.full(n, CODE["rest"], np.int8)
 
-    skin = skin_vertices(Vf, T, Lf[np.isfinite(Lf).all(axis=1)])  # a model file keeps some landmarks
+    # (a model file keeps some landmarks)
+    skin = skin_vertices(Vf, T, Lf[np.isfinite(Lf).all(axis=1)], pieces=lab if welded else None)
     kind[skin] = CODE["skin"]
     skin_tree = cKDTree(Vf[skin])
 
