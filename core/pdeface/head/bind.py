@@ -74,7 +74,7 @@ from ..surface.layout import ANCHOR_NAMES
 from ..surface.model import KEPT_LANDMARKS
 from ..surface.scan import load_scan
 from ..threads import bounded
-from .folds import FoldRelax
+from .folds import FoldRelax, Screen
 from .lids import LidClosure, eyes_closed_by
 from .mouth import has_mouth_inside, lower_share
 from .parts import TOUCH_IOD, classify_parts, mouth_line, read_overrides
@@ -644,12 +644,15 @@ class HeadBinding:
             for _ in range(steps):
                 flat[at] += w * (S @ flat - flat[at])
             out[self.skin[band]] = flat[at].reshape(len(band), -1, 3)
-        self._folds.relax(out)
-        self._lids.apply(out, closing)
-        pushed = self._keep_out_of_eyeballs(out)
+        screen = Screen()
+        self._folds.relax(out, screen=screen)
+        screen.moved(*self._lids.apply(out, closing))
+        pushed = self._keep_out_of_eyeballs(out, screen)
         # Relaxed again where the lids' closing or the eyeballs' surface folded them (a blink, a glance down), past
-        # the issue's limit alone (each sweep opens a closed lid a little), the lids kept out of the eyeballs.
-        self._folds.relax(out, keys=[i for i, c in enumerate(closing) if c or pushed[i]], budget=self._folds.limit)
+        # the issue's limit alone (each sweep opens a closed lid a little), the lids kept out of the eyeballs; only
+        # what moved since the first relaxation's screen is screened again.
+        self._folds.relax(out, keys=[i for i, c in enumerate(closing) if c or pushed[i]], budget=self._folds.limit,
+                          screen=screen)
         if len(self.mouth):  # the bag: the jaw's turn below the mouth line, the upper lip's motion above it
             lip = out[self._upper_lip_vertex][None]
             out[self.mouth] = self._mouth_lower * out[self.mouth] + (1 - self._mouth_lower) * lip
@@ -660,9 +663,9 @@ class HeadBinding:
         user = np.empty((out.shape[1], out.shape[0], 3))
         return np.matmul(out.transpose(1, 0, 2), self.frame.to_user_vectors(np.eye(3)), out=user)
 
-    def _keep_out_of_eyeballs(self, out):
+    def _keep_out_of_eyeballs(self, out, screen=None):
         """Lids that a key takes into an eyeball put back on its surface (``out`` (n, k, 3), in place); which keys
-        it changed, (k,) bool."""
+        it changed, (k,) bool; the (vertex, key) pairs it moved told to ``screen`` (a :class:`~.folds.Screen`)."""
         changed = np.zeros(out.shape[1], bool)
         for centre, radius, _, guard in self.eyes.values():
             if len(guard):
@@ -670,8 +673,12 @@ class HeadBinding:
                 p = self.Vf[g, None] + out[g]  # (guard, motions, 3)
                 rho = np.linalg.norm(p - centre, axis=-1, keepdims=True)
                 pushed = centre + (p - centre) * (radius / np.maximum(rho, 1e-12)) - self.Vf[g, None]
-                out[g] = np.where(rho < radius, pushed, out[g])
-                changed |= (rho < radius).any(axis=(0, 2))
+                inside = rho[..., 0] < radius
+                out[g] = np.where(inside[..., None], pushed, out[g])
+                changed |= inside.any(axis=0)
+                if screen is not None:
+                    rows, keys = np.nonzero(inside)
+                    screen.moved(g[rows], keys)
         return changed
 
     def _follow(self, out):

@@ -86,11 +86,13 @@ class LidClosure:
         """Close the eyes in the keys that close them, in place.
 
         ``out`` (n, k, 3): the keys' displacements (face frame); ``closing``: per key, :func:`eyes_closed_by`
-        its AUs (None: left as it is).
+        its AUs (None: left as it is). Returns ``(vertices, keys)``: the (vertex, key) pairs it may have moved.
         """
-        keys = [i for i, c in enumerate(closing) if c]
-        if not keys:
-            return
+        keys = np.array([i for i, c in enumerate(closing) if c], np.int64)
+        lids = np.concatenate([idx for _, _, idx, _, _ in self.eyes] or [np.zeros(0, np.int64)])
+        moved = np.repeat(lids, len(keys)), np.tile(keys, len(lids))
+        if not len(keys):
+            return moved
         sub = out[:, keys]
         ends = []
         for up, lo, _, _, _ in self.eyes:
@@ -117,6 +119,7 @@ class LidClosure:
             turned *= (1 + share * (rb / np.maximum(ra, 1e-300) - 1)[None])[..., None]
             sub[idx] += turned - v
         out[:, keys] = sub
+        return moved
 
 
 def eyes_closed_by(weights) -> dict | None:
