@@ -16,10 +16,20 @@ def cylinder_coords(P: np.ndarray, axis_z: float) -> tuple[np.ndarray, np.ndarra
     return np.arctan2(dx, dz), P[:, 1].copy(), np.hypot(dx, dz)
 
 
+def cross3(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """:func:`numpy.cross` of 3-vectors along the last axis (broadcast): the same numbers, a third of the time (no
+    axis shuffling; the binding's keys turn thousands of normals each)."""
+    out = np.empty(np.broadcast_shapes(u.shape, v.shape), np.result_type(u, v))
+    out[..., 0] = u[..., 1] * v[..., 2] - u[..., 2] * v[..., 1]
+    out[..., 1] = u[..., 2] * v[..., 0] - u[..., 0] * v[..., 2]
+    out[..., 2] = u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0]
+    return out
+
+
 def triangle_cross(V: np.ndarray, T: np.ndarray) -> np.ndarray:
     """Cross product of each triangle's two edges from its first corner: the normal times twice the area."""
     P = V[T]
-    return np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
+    return cross3(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
 
 
 def smoothstep(t) -> np.ndarray:

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 from pdeface.au.modelfile import load_face
-from pdeface.geometry import triangle_cross, unit_rows
+from pdeface.geometry import cross3, triangle_cross, unit_rows
 from pdeface.head import folds
 from pdeface.head.bind import HeadBinding, descriptor_motion_args
 from pdeface.head.folds import FoldRelax
@@ -125,6 +125,14 @@ def test_a_second_relaxation_reading_the_first_ones_screen_relaxes_as_one_screen
     relax.relax(plain, keys=keys)
     np.testing.assert_array_equal(D, plain)
     assert not np.array_equal(D[:, 2], cliff_keys(V, heights=(3.0, -2.0, 0.01, 2.5))[:, 2])  # the new step relaxed
+
+
+def test_cross3_is_numpys_cross_bit_for_bit():
+    """The binding's normals (lashes turning with the lids, the lids' axes, the folds' triangles) as numpy's."""
+    rng = np.random.default_rng(35)
+    a, b = rng.normal(0, 50, (300, 1, 3)), rng.normal(0, 1e-3, (300, 7, 3))
+    for u, v in ((a, b), (b, a), (b, b[::-1]), (a[:, 0], a[::-1, 0])):
+        np.testing.assert_array_equal(cross3(u, v), np.cross(u, v))
 
 
 def test_keys_relaxed_side_by_side_are_each_key_relaxed_alone():

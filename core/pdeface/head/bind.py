@@ -51,7 +51,7 @@ import numpy as np
 from .. import landmark_scheme
 from ..errors import MeshError, PdeFaceError
 from ..facs import au_number, normalise_weights
-from ..geometry import ClosestPoint, smoothstep, triangle_cross, unit_rows
+from ..geometry import ClosestPoint, cross3, smoothstep, triangle_cross, unit_rows
 from ..landmark_scheme import (
     CHIN,
     EYE_INNER_LEFT,
@@ -132,6 +132,8 @@ UPPER_LIP_IOD = 0.03
 STILL_BEHIND = (0.55, 0.6)
 STILL_BELOW_CHIN_IOD = (1.0, 1.4)
 MIN_HEAD_DEPTH_IOD = 2.5
+#: Vertices turned to user space at a time (the keys' last step).
+USER_BLOCK = 1024
 #: AUs that move the jaw, and the gaze AUs.
 JAW_AUS = frozenset({25, 26, 27, 29, 30})
 GAZE_AUS = frozenset({61, 62, 63, 64})
@@ -659,9 +661,14 @@ class HeadBinding:
         out *= self._still
         out[self._copies] = out[self._copy_of]
         # To user space and key-major (each key's rows contiguous) in one pass: the frame's map as a matrix, one
-        # product writing the transposed result (half the time of a product, then a transposed copy).
+        # product writing the transposed result (half the time of a product, then a transposed copy), a block of
+        # USER_BLOCK vertices at a time (the block's rows of every key stay in cache: 1.5× faster).
         user = np.empty((out.shape[1], out.shape[0], 3))
-        return np.matmul(out.transpose(1, 0, 2), self.frame.to_user_vectors(np.eye(3)), out=user)
+        to_user = self.frame.to_user_vectors(np.eye(3))
+        for start in range(0, len(out), USER_BLOCK):
+            block = slice(start, start + USER_BLOCK)
+            np.matmul(out[block].transpose(1, 0, 2), to_user, out=user[:, block])
+        return user
 
     def _keep_out_of_eyeballs(self, out, screen=None):
         """Lids that a key takes into an eyeball put back on its surface (``out`` (n, k, 3), in place); which keys
@@ -692,11 +699,11 @@ class HeadBinding:
         moved = triangle_cross(self.Vf[ring][:, None] + out[ring], self._ring)  # (ring triangles, k, 3)
         n1 = unit_rows((self._ring_sum @ moved.reshape(len(moved), -1)).reshape(-1, k, 3))[self._anchor_of]
         n0 = self.skin_normals[self.anchor][:, None]
-        v = np.cross(n0, n1)
+        v = cross3(n0, n1)
         c = (n0 * n1).sum(-1, keepdims=True)
         o = self.follow_offset[:, None]
-        vo = np.cross(v, o)
-        turned = o + vo + np.cross(v, vo) / np.maximum(1 + c, 1e-6)
+        vo = cross3(v, o)
+        turned = o + vo + cross3(v, vo) / np.maximum(1 + c, 1e-6)
         return out[self.skin[self.anchor]] + turned - o
 
     # ---------------------------------------------------------------- keys and poses

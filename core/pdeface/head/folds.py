@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..geometry import unit_rows
+from ..geometry import cross3, unit_rows
 from ..mesh import connected_components, cotan_laplacian, edge_face_pairs, turn_degrees
 
 #: Edges turning by less than this at rest are flat; a key folds one that then turns by more than FOLD_DEG
@@ -126,7 +126,7 @@ class FoldRelax:
         face_slot, face = np.divmod(faces, len(self.faces))
         tri = self.T[self.faces[face]]  # (f, 3): each (key, triangle) once
         X = self.V[tri] + D[tri, keys[face_slot][:, None]]
-        nrm = unit_rows(np.cross(X[:, 1] - X[:, 0], X[:, 2] - X[:, 0]))
+        nrm = unit_rows(cross3(X[:, 1] - X[:, 0], X[:, 2] - X[:, 0]))
         pair_faces = pair_faces.reshape(-1, 2)
         fold = (nrm[pair_faces[:, 0]] * nrm[pair_faces[:, 1]]).sum(-1) < self.cos_fold
         return np.split(pair[fold], np.searchsorted(slot[fold], np.arange(1, k)))
