@@ -164,11 +164,10 @@ class _Extension:
         return self.read @ G, free
 
 
-def _check_on_skin(Lf, skin_points, eye_distance):
-    """Refuse landmarks off the skin (a model fitted on another mesh, landmarks inside the head)."""
-    from scipy.spatial import cKDTree
-
-    off = cKDTree(skin_points).query(Lf[np.isfinite(Lf).all(axis=1)])[0]
+def _check_on_skin(Lf, skin_tree, eye_distance):
+    """Refuse landmarks off the skin (``skin_tree``: a ``cKDTree`` of it) (a model fitted on another mesh, landmarks
+    inside the head)."""
+    off = skin_tree.query(Lf[np.isfinite(Lf).all(axis=1)])[0]
     if np.median(off) > 0.05 * eye_distance or off.max() > 0.3 * eye_distance:
         raise MeshError(f"the landmarks do not lie on skin (median {np.median(off):.3g} mm off it, the worst "
                         f"{off.max():.3g} mm): was the face fitted on this head, in this unit, with landmarks "
@@ -214,18 +213,18 @@ def _read_pde(model, P, N, eye_distance, resolution, skin_strips=(), on_strip=No
     return covered, _barycentric_matrix(Tp[tri[covered]], bary[covered], len(X0))
 
 
-def _lips_joined(P, Ts, Lf, eye_distance) -> tuple:
+def _lips_joined(P, Ts, Lf, eye_distance, skin_tree) -> tuple:
     """``(joined, one_line)``: whether skin joins the inner lips' middles (landmarks 62 and 66) by a way about as
     short as the gap between them (no opening between the lips: a voxel remesh, a decimated mouth), and whether
-    they are one row of vertices there (nearest the same vertex, or within LIP_LINE_IOD: a voxel remesh's)."""
+    they are one row of vertices there (nearest the same vertex, or within LIP_LINE_IOD: a voxel remesh's);
+    ``skin_tree``: a ``cKDTree`` of the skin ``P``."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import dijkstra
-    from scipy.spatial import cKDTree
 
     ends = Lf[[LIP_UPPER_INNER, LIP_LOWER_INNER]]
     if not np.isfinite(ends).all():
         return False, False
-    a, b = cKDTree(P).query(ends)[1]
+    a, b = skin_tree.query(ends)[1]
     apart = np.linalg.norm(P[a] - P[b])
     i, j = Ts.ravel(), np.roll(Ts, -1, axis=1).ravel()
     graph = coo_matrix((np.linalg.norm(P[i] - P[j], axis=1), (i, j)), shape=(len(P), len(P))).tocsr()
@@ -420,16 +419,17 @@ class HeadBinding:
         self.skin = si = np.nonzero(skin)[0]
         if len(si) == 0:
             raise MeshError("no skin: the landmarks lie on no part of this mesh")
-        _check_on_skin(Lf, Vf[si], eye_distance)
+        P = Vf[si]
+        skin_tree = cKDTree(P)  # the landmarks' check, the lips' ends, the attached parts' anchors
+        _check_on_skin(Lf, skin_tree, eye_distance)
         local = np.full(len(V), -1)
         local[si] = np.arange(len(si))
         Ts = local[T[skin[T].all(axis=1)]]
         if len(Ts) == 0:
             raise MeshError("the skin has no triangles")
-        P = Vf[si]
         self.skin_normals = vertex_normals(P, Ts)
         mouth_strip = [k for a, k in model.layout.opening_curves() if ANCHOR_NAMES[a] == "mouth_top"]
-        lips_joined, self.lips_one_line = _lips_joined(P, Ts, Lf, eye_distance) if mouth_strip else (False, False)
+        lips_joined, self.lips_one_line = _lips_joined(P, Ts, Lf, eye_distance, skin_tree) if mouth_strip else (False, False)
         if lips_joined:
             self.notes.append("the lips are joined in the mesh (no opening between them): keys that open the mouth "
                               "move the lower lip and stretch the skin joining it to the upper one; cut the mouth "
@@ -497,7 +497,7 @@ class HeadBinding:
         # Attached parts ride on their nearest skin vertex.
         self.follow = follow = np.nonzero(parts.mask("follow") & original)[0]
         if len(follow):
-            self.anchor = self._anchors(Vf[follow], connected_components(len(V), T)[follow], P)
+            self.anchor = self._anchors(Vf[follow], connected_components(len(V), T)[follow], skin_tree)
             self.follow_offset = Vf[follow] - P[self.anchor]
             # The anchors' normals, read off the skin triangles around them alone (each key turns them).
             anchors, self._anchor_of = np.unique(self.anchor, return_inverse=True)
@@ -540,17 +540,18 @@ class HeadBinding:
                 self.notes.append("the face's curve layout is not the head prior's: the skin beyond the PDE face "
                                   "follows its harmonic extension alone")
 
-    def _anchors(self, X, labels, P):
+    def _anchors(self, X, labels, skin_tree):
         """Skin anchor of each attached vertex: the skin vertex nearest its part's root.
 
         A part's roots are its vertices touching the skin (a lash strip's base;
         all of a part that floats). Each vertex takes its nearest root in the
-        same part, so a lash tip curling towards the brow still rides on the lid.
+        same part, so a lash tip curling towards the brow still rides on the lid. ``skin_tree``: a ``cKDTree`` of
+        the skin.
         """
         from scipy.spatial import cKDTree
 
 
-        gap, nearest_skin = cKDTree(P).query(X)
+        gap, nearest_skin = skin_tree.query(X)
         roots = gap < TOUCH_IOD * self.eye_distance
         floating = ~np.isin(labels, np.unique(labels[roots]))
         roots |= floating
