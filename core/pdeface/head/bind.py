@@ -165,8 +165,8 @@ class _Extension:
 
 
 def _check_on_skin(Lf, skin_tree, eye_distance):
-    """Refuse landmarks off the skin (``skin_tree``: a ``cKDTree`` of it) (a model fitted on another mesh, landmarks
-    inside the head)."""
+    """Refuse landmarks off the skin (a model fitted on another mesh, landmarks inside the head); ``skin_tree``: a
+    ``cKDTree`` of the skin."""
     off = skin_tree.query(Lf[np.isfinite(Lf).all(axis=1)])[0]
     if np.median(off) > 0.05 * eye_distance or off.max() > 0.3 * eye_distance:
         raise MeshError(f"the landmarks do not lie on skin (median {np.median(off):.3g} mm off it, the worst "

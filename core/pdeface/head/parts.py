@@ -131,7 +131,7 @@ def classify_parts(Vf, T, Lf, hinge, overrides=None, welded=False) -> Parts:
     s = eye_distance(Lf)
     kind = np.full(n, CODE["rest"], np.int8)
 
-    # (a model file keeps some landmarks)
+    # under the landmarks it has (a model file keeps some)
     skin = skin_vertices(Vf, T, Lf[np.isfinite(Lf).all(axis=1)], pieces=lab if welded else None)
     kind[skin] = CODE["skin"]
     skin_tree = cKDTree(Vf[skin])

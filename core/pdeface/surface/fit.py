@@ -38,10 +38,10 @@ def skin_vertices(V: np.ndarray, T: np.ndarray, points: np.ndarray, pieces: np.n
 
     used = np.unique(T)  # the mesh's size from its triangles: a stray vertex far away must not set it
     extent = np.ptp(V[used], axis=0) if len(used) else np.zeros(3)
-    if pieces is None:
-        rep = seam_welds(V, T, tol=1e-6 * float(np.linalg.norm(extent)))  # split along UV seams: still one piece
-        pieces = connected_components(len(V), rep[T])[rep]
     lab = pieces
+    if lab is None:
+        rep = seam_welds(V, T, tol=1e-6 * float(np.linalg.norm(extent)))  # split along UV seams: still one piece
+        lab = connected_components(len(V), rep[T])[rep]
     sizes = np.bincount(lab)
     tree = cKDTree(V[used])
     dist, _ = tree.query(points)
