@@ -497,7 +497,7 @@ class HeadBinding:
         # Attached parts ride on their nearest skin vertex.
         self.follow = follow = np.nonzero(parts.mask("follow") & original)[0]
         if len(follow):
-            self.anchor = self._anchors(Vf[follow], connected_components(len(V), T)[follow], skin_tree)
+            self.anchor = self._anchors(Vf[follow], parts.pieces[follow], skin_tree)
             self.follow_offset = Vf[follow] - P[self.anchor]
             # The anchors' normals, read off the skin triangles around them alone (each key turns them).
             anchors, self._anchor_of = np.unique(self.anchor, return_inverse=True)

@@ -78,11 +78,14 @@ class Parts:
         ``"eye_L"``/``"eye_R"`` → (centre (3,), radius) in the face frame (mm), for eyes found.
     notes : list of str
         What was decided, for the user (how many vertices of each kind, overrides applied).
+    pieces : (n,) int array or None
+        The connected piece of every vertex (:func:`pdeface.mesh.connected_components` of the triangles classified).
     """
 
     kind: np.ndarray
     eyes: dict = field(default_factory=dict)
     notes: list = field(default_factory=list)
+    pieces: np.ndarray | None = None
 
     def mask(self, *kinds) -> np.ndarray:
         return np.isin(self.kind, [CODE[k] for k in kinds])
@@ -195,7 +198,7 @@ def classify_parts(Vf, T, Lf, hinge, overrides=None, welded=False) -> Parts:
             continue
         if gap[c] < NEAR_IOD * s:
             kind[m] = CODE["follow"]
-    parts = Parts(kind, eyes)
+    parts = Parts(kind, eyes, pieces=lab)
     if overrides:
         apply_overrides(parts, overrides)
     counts = parts.counts()
