@@ -16,10 +16,20 @@ def cylinder_coords(P: np.ndarray, axis_z: float) -> tuple[np.ndarray, np.ndarra
     return np.arctan2(dx, dz), P[:, 1].copy(), np.hypot(dx, dz)
 
 
+def cross3(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """:func:`numpy.cross` of 3-vectors along the last axis (broadcast): the same numbers, a third of the time (no
+    axis shuffling; the binding's keys turn thousands of normals each)."""
+    out = np.empty(np.broadcast_shapes(u.shape, v.shape), np.result_type(u, v))
+    out[..., 0] = u[..., 1] * v[..., 2] - u[..., 2] * v[..., 1]
+    out[..., 1] = u[..., 2] * v[..., 0] - u[..., 0] * v[..., 2]
+    out[..., 2] = u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0]
+    return out
+
+
 def triangle_cross(V: np.ndarray, T: np.ndarray) -> np.ndarray:
     """Cross product of each triangle's two edges from its first corner: the normal times twice the area."""
     P = V[T]
-    return np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
+    return cross3(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
 
 
 def smoothstep(t) -> np.ndarray:
@@ -256,8 +266,9 @@ class ClosestPoint:
         self._vstart = np.searchsorted(self.T.ravel()[order], np.arange(nv + 1))
         self.vtree = cKDTree(self.V)
 
-    def query(self, P):
-        """Closest points on the mesh.
+    def query(self, P, nearest=None):
+        """Closest points on the mesh; ``nearest``: each point's nearest vertex where already found (a query of
+        :attr:`vtree`).
 
         Returns
         -------
@@ -270,7 +281,7 @@ class ClosestPoint:
         k = min(self.k, len(self.T))
         _, ct = self.tree.query(P, k=k)
         ct = ct.reshape(len(P), -1)
-        _, nv = self.vtree.query(P, k=1)
+        nv = self.vtree.query(P, k=1)[1] if nearest is None else np.asarray(nearest, np.int64)
         # Triangles around the nearest vertex (a few, padded with the first centroid hit).
         deg = self._vstart[nv + 1] - self._vstart[nv]
         maxdeg = int(deg.max()) if len(deg) else 0

@@ -10,9 +10,10 @@ from pdeface.au.retarget import retarget
 from pdeface.cli import main
 from pdeface.errors import MeshError, PdeFaceError
 from pdeface.head.bind import HeadBinding
-from pdeface.head.parts import CODE, parse_overrides, skin_mask
+from pdeface.head.parts import CODE, classify_parts, parse_overrides, skin_mask
 from pdeface.head.report import head_report
 from pdeface.io.meshio import read_obj
+from pdeface.mesh import seam_welds
 from pdeface.rigid import jaw_motion, rigid_displacement, rotation_vector, rotation_vector_matrix
 from pdeface.surface.fit import fit_face
 
@@ -349,12 +350,12 @@ def test_landmarks_on_a_part_that_is_not_skin(head):
         HeadBinding(load_face("default"), mesh.vertices, T, landmarks=mesh.vertices[lm] + [0, 0, -3.0])
 
 
-def test_a_head_split_along_seams_moves_in_one_piece(head, generic):
-    """An exporter's copy of the head, its vertices split where UVs break: the keys match the whole head's."""
+def split_along_a_seam(head, generic):
+    """``(V, T, seam vertices, their copies)``: the head with the skin's triangles beyond a vertical seam down the
+    subject's right cheek given copies of the seam's vertices (an exporter's split where UVs break)."""
     mesh, T, lm, _ = head
-    model, b = generic
+    _, b = generic
     V = mesh.vertices
-    # the skin's triangles beyond a vertical seam down the subject's right cheek get copies of the seam's vertices
     skin = np.zeros(len(V), bool)
     skin[b.skin] = True
     seam_x = V[lm[2], 0] * 0.5
@@ -363,8 +364,30 @@ def test_a_head_split_along_seams_moves_in_one_piece(head, generic):
     copies = np.arange(len(V), len(V) + len(on_seam))
     remap = np.arange(len(V))
     remap[on_seam] = copies
-    T_split = np.where(tri_right[:, None], remap[T], T)
-    V_split = np.concatenate([V, V[on_seam]])
+    return np.concatenate([V, V[on_seam]]), np.where(tri_right[:, None], remap[T], T), on_seam, copies
+
+
+def test_the_bindings_joined_seams_classify_the_parts_as_their_own_welding_does(head, generic):
+    """classify_parts on triangles whose seams the binding joined (``welded``: no second welding) finds the parts
+    it finds welding them again."""
+    model, b = generic
+    V, T, on_seam, copies = split_along_a_seam(head, generic)
+    rep = seam_welds(V, T)
+    assert (rep[copies] == on_seam).all()
+    Tw = rep[T]
+    Tw = Tw[(Tw[:, 0] != Tw[:, 1]) & (Tw[:, 1] != Tw[:, 2]) & (Tw[:, 2] != Tw[:, 0])]
+    Vf = model.frame.to_face(V)
+    welded = classify_parts(Vf, Tw, b.face_landmarks, b.hinge, welded=True)
+    again = classify_parts(Vf, Tw, b.face_landmarks, b.hinge)
+    np.testing.assert_array_equal(welded.kind, again.kind)
+    assert welded.notes == again.notes and (welded.kind[on_seam] == CODE["skin"]).all()
+
+
+def test_a_head_split_along_seams_moves_in_one_piece(head, generic):
+    """An exporter's copy of the head, its vertices split where UVs break: the keys match the whole head's."""
+    model, b = generic
+    V = head[0].vertices
+    V_split, T_split, on_seam, copies = split_along_a_seam(head, generic)
     split = HeadBinding(model, V_split, T_split)
     assert f"{len(on_seam)} vertices split along seams joined" in split.notes
     d = next(x for x in model.descriptors if x.key == "12")

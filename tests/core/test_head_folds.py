@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 from pdeface.au.modelfile import load_face
-from pdeface.geometry import triangle_cross, unit_rows
+from pdeface.geometry import cross3, triangle_cross, unit_rows
 from pdeface.head import bind, folds
 from pdeface.head.bind import HeadBinding, descriptor_motion_args
 from pdeface.head.folds import FoldRelax
@@ -97,6 +97,42 @@ def test_the_float32_screen_finds_what_a_float64_screen_does():
         got = np.zeros((len(V), len(keys)), bool)
         got[v, slot] = True
         np.testing.assert_array_equal(got, exact[:, keys])
+
+
+def test_a_second_relaxation_reading_the_first_ones_screen_relaxes_as_one_screening_again():
+    """The binding's second look (after the lids close): the first relaxation's screen, brought up to date where it and
+    a later change moved the keys, is the screen of the keys as they are, and the relaxation the same."""
+    V, T = sheet(41)
+    D = cliff_keys(V, heights=(3.0, -2.0, 0.01, 2.5))
+    pinned = V[:, 0] == 0
+    relax = FoldRelax(V, T, pinned)
+    screen, plain = folds.Screen(), D.copy()
+    relax.relax(D, screen=screen)
+    relax.relax(plain)
+    np.testing.assert_array_equal(D, plain)
+    assert screen.pending  # the cliffs' relaxation moved rows
+    # a later change (a lid closing) steps two keys again along another line
+    step = (V[:, 1] >= 25) & (V[:, 0] > 5)
+    for key in (2, 3):
+        D[step, key, 2] -= 2.0
+        plain[step, key, 2] -= 2.0
+        screen.moved(np.nonzero(step)[0], np.full(step.sum(), key))
+    keys = np.array([1, 2, 3])
+    first, fresh = screen.bent.copy(), relax._bent(D, keys, False)
+    assert (first[:, keys] != fresh).any()  # the moves changed what the screen finds
+    np.testing.assert_array_equal(relax._bent_since(D, screen)[:, keys], fresh)
+    relax.relax(D, keys=keys, screen=screen)
+    relax.relax(plain, keys=keys)
+    np.testing.assert_array_equal(D, plain)
+    assert not np.array_equal(D[:, 2], cliff_keys(V, heights=(3.0, -2.0, 0.01, 2.5))[:, 2])  # the new step relaxed
+
+
+def test_cross3_is_numpys_cross_bit_for_bit():
+    """The binding's normals (lashes turning with the lids, the lids' axes, the folds' triangles) as numpy's."""
+    rng = np.random.default_rng(35)
+    a, b = rng.normal(0, 50, (300, 1, 3)), rng.normal(0, 1e-3, (300, 7, 3))
+    for u, v in ((a, b), (b, a), (b, b[::-1]), (a[:, 0], a[::-1, 0])):
+        np.testing.assert_array_equal(cross3(u, v), np.cross(u, v))
 
 
 def test_keys_relaxed_side_by_side_are_each_key_relaxed_alone():

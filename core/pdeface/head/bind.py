@@ -52,7 +52,7 @@ import numpy as np
 from .. import landmark_scheme
 from ..errors import MeshError, PdeFaceError
 from ..facs import au_number, normalise_weights
-from ..geometry import ClosestPoint, smoothstep, triangle_cross, unit_rows
+from ..geometry import ClosestPoint, cross3, smoothstep, triangle_cross, unit_rows
 from ..landmark_scheme import (
     CHIN,
     EYE_INNER_LEFT,
@@ -75,7 +75,8 @@ from ..surface.layout import ANCHOR_NAMES
 from ..surface.model import KEPT_LANDMARKS
 from ..surface.scan import load_scan
 from ..threads import bounded
-from .folds import FoldRelax
+from . import folds as fold_relax
+from .folds import FoldRelax, Screen
 from .lids import LidClosure, eyes_closed_by, eyes_or_sockets
 from .mouth import has_mouth_inside, lower_share
 from .parts import TOUCH_IOD, classify_parts, mouth_line, read_overrides
@@ -142,6 +143,8 @@ STILL_MM = 0.4
 #: issue's limit 13), 8 and 6 after 150; for the jaw's keys more sweeps smooth parted lips shut (african-male-old's
 #: AU27 gap 0.37 -> 0.26 eye distances).
 STEPS_NOT_JAW = 150
+#: Vertices turned to user space at a time (the keys' last step).
+USER_BLOCK = 1024
 #: AUs that move the jaw, and the gaze AUs.
 JAW_AUS = frozenset({25, 26, 27, 29, 30})
 GAZE_AUS = frozenset({61, 62, 63, 64})
@@ -172,11 +175,10 @@ class _Extension:
         return self.read @ G, free
 
 
-def _check_on_skin(Lf, skin_points, eye_distance):
-    """Refuse landmarks off the skin (a model fitted on another mesh, landmarks inside the head)."""
-    from scipy.spatial import cKDTree
-
-    off = cKDTree(skin_points).query(Lf[np.isfinite(Lf).all(axis=1)])[0]
+def _check_on_skin(Lf, skin_tree, eye_distance):
+    """Refuse landmarks off the skin (a model fitted on another mesh, landmarks inside the head); ``skin_tree``: a
+    ``cKDTree`` of the skin."""
+    off = skin_tree.query(Lf[np.isfinite(Lf).all(axis=1)])[0]
     if np.median(off) > 0.05 * eye_distance or off.max() > 0.3 * eye_distance:
         raise MeshError(f"the landmarks do not lie on skin (median {np.median(off):.3g} mm off it, the worst "
                         f"{off.max():.3g} mm): was the face fitted on this head, in this unit, with landmarks "
@@ -198,10 +200,11 @@ def _read_pde(model, P, N, eye_distance, resolution, skin_strips=(), on_strip=No
     # Only skin near the grid can be under it (the back of a head, a body: skip the exact query).
     edge = np.linalg.norm(X0[Tp[:, 0]] - X0[Tp[:, 1]], axis=1).max()
     closest = ClosestPoint(X0, Tp)
-    near = closest.vtree.query(P, distance_upper_bound=COVER_IOD * eye_distance + edge)[0] < np.inf  # its grid's tree
+    gap, nearest = closest.vtree.query(P, distance_upper_bound=COVER_IOD * eye_distance + edge)  # its grid's tree
+    near = gap < np.inf
     dist, tri, bary = np.full(len(P), np.inf), np.zeros(len(P), np.int64), np.zeros((len(P), 3))
     if near.any():
-        dist[near], tri[near], bary[near], _ = closest.query(P[near])
+        dist[near], tri[near], bary[near], _ = closest.query(P[near], nearest[near])
     r, c = Tp[tri] // nv, Tp[tri] % nv
     inside = (r.min(1) > 0) & (r.max(1) < nu - 1) & (c.min(1) > 0) & (c.max(1) < nv - 1)
     sub_u = resolution[0]  # curve k is grid row k * sub_u
@@ -221,18 +224,18 @@ def _read_pde(model, P, N, eye_distance, resolution, skin_strips=(), on_strip=No
     return covered, _barycentric_matrix(Tp[tri[covered]], bary[covered], len(X0))
 
 
-def _lips_joined(P, Ts, Lf, eye_distance) -> tuple:
+def _lips_joined(P, Ts, Lf, eye_distance, skin_tree) -> tuple:
     """``(joined, one_line)``: whether skin joins the inner lips' middles (landmarks 62 and 66) by a way about as
     short as the gap between them (no opening between the lips: a voxel remesh, a decimated mouth), and whether
-    they are one row of vertices there (nearest the same vertex, or within LIP_LINE_IOD: a voxel remesh's)."""
+    they are one row of vertices there (nearest the same vertex, or within LIP_LINE_IOD: a voxel remesh's);
+    ``skin_tree``: a ``cKDTree`` of the skin ``P``."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import dijkstra
-    from scipy.spatial import cKDTree
 
     ends = Lf[[LIP_UPPER_INNER, LIP_LOWER_INNER]]
     if not np.isfinite(ends).all():
         return False, False
-    a, b = cKDTree(P).query(ends)[1]
+    a, b = skin_tree.query(ends)[1]
     apart = np.linalg.norm(P[a] - P[b])
     i, j = Ts.ravel(), np.roll(Ts, -1, axis=1).ravel()
     graph = coo_matrix((np.linalg.norm(P[i] - P[j], axis=1), (i, j)), shape=(len(P), len(P))).tocsr()
@@ -422,7 +425,7 @@ class HeadBinding:
         self.face_landmarks = Lf
         self.eye_distance = eye_distance = landmark_scheme.eye_distance(Lf)
         self.hinge = jaw_hinge(Lf, eye_distance)
-        self.parts = parts = classify_parts(Vf, T, Lf, self.hinge, overrides)
+        self.parts = parts = classify_parts(Vf, T, Lf, self.hinge, overrides, welded=True)
         # Seam copies take their vertex's kind and, in the end, its motion; nothing else counts them.
         self._copies = np.nonzero(rep != np.arange(len(V)))[0]
         self._copy_of = rep[self._copies]
@@ -436,16 +439,17 @@ class HeadBinding:
         self.skin = si = np.nonzero(skin)[0]
         if len(si) == 0:
             raise MeshError("no skin: the landmarks lie on no part of this mesh")
-        _check_on_skin(Lf, Vf[si], eye_distance)
+        P = Vf[si]
+        skin_tree = cKDTree(P)  # the landmarks' check, the lips' ends, the attached parts' anchors
+        _check_on_skin(Lf, skin_tree, eye_distance)
         local = np.full(len(V), -1)
         local[si] = np.arange(len(si))
         Ts = local[T[skin[T].all(axis=1)]]
         if len(Ts) == 0:
             raise MeshError("the skin has no triangles")
-        P = Vf[si]
         self.skin_normals = vertex_normals(P, Ts)
         mouth_strip = [k for a, k in model.layout.opening_curves() if ANCHOR_NAMES[a] == "mouth_top"]
-        lips_joined, self.lips_one_line = _lips_joined(P, Ts, Lf, eye_distance) if mouth_strip else (False, False)
+        lips_joined, self.lips_one_line = _lips_joined(P, Ts, Lf, eye_distance, skin_tree) if mouth_strip else (False, False)
         if lips_joined:
             self.notes.append("the lips are joined in the mesh (no opening between them): keys that open the mouth "
                               "move the lower lip and stretch the skin joining it to the upper one; cut the mouth "
@@ -466,7 +470,11 @@ class HeadBinding:
             Vf, distance_upper_bound=REST_IOD * eye_distance * (1 + 1e-9))[0]  # exact up to the edge
         self.rest = rest = _rest_region(P, Ts, covered, from_covered[si], Lf, eye_distance)
         depths = _depths(P, covered, Lf, eye_distance, parts.eyes)
-        self._L = L = cotan_laplacian(P, Ts)
+        # The folds' relaxation's Laplacian (the head but a mouth bag) holds the skin's, where no triangle joins the
+        # skin to another part (an override may): the same sums in the same order, built once.
+        fold_T = T[~parts.mask("mouth")[T].all(axis=1)]
+        fold_L = cotan_laplacian(Vf, fold_T)
+        self._L = L = fold_L[si][:, si] if len(Ts) == skin[fold_T].any(axis=1).sum() else cotan_laplacian(P, Ts)
         cov = np.nonzero(covered)[0]  # the grid read at every skin vertex (rows of the covered ones)
         self._read_skin = csr_matrix((np.ones(len(cov)), (cov, np.arange(len(cov)))),
                                      shape=(len(P), len(cov))) @ self.read_grid
@@ -493,7 +501,7 @@ class HeadBinding:
         if self.lips_one_line:  # the skin joining the lips stretches; the upper lip keeps its (still) motion
             pinned[si[_upper_lip(P, Lf, eye_distance)]] = True
         # (a mouth bag left out: pinned, and not counted in the head's share of folds: the head's keys as without it)
-        self._folds = FoldRelax(Vf, T[~parts.mask("mouth")[T].all(axis=1)], pinned)
+        self._folds = FoldRelax(Vf, fold_T, pinned, fold_L)
 
         # Jaw: the chin that drives it, and the parts it turns.
         chin = covered & (P[:, 1] < Lf[LIP_LOWER_BOTTOM, 1] - 0.08 * eye_distance) & (np.abs(P[:, 0]) < abs(Lf[JAW_RIGHT_ANGLE, 0] - Lf[JAW_LEFT_ANGLE, 0]) / 2) \
@@ -510,7 +518,7 @@ class HeadBinding:
         # Attached parts ride on their nearest skin vertex.
         self.follow = follow = np.nonzero(parts.mask("follow") & original)[0]
         if len(follow):
-            self.anchor = self._anchors(Vf[follow], connected_components(len(V), T)[follow], P)
+            self.anchor = self._anchors(Vf[follow], parts.pieces[follow], skin_tree)
             self.follow_offset = Vf[follow] - P[self.anchor]
             # The anchors' normals, read off the skin triangles around them alone (each key turns them).
             anchors, self._anchor_of = np.unique(self.anchor, return_inverse=True)
@@ -553,17 +561,18 @@ class HeadBinding:
                 self.notes.append("the face's curve layout is not the head prior's: the skin beyond the PDE face "
                                   "follows its harmonic extension alone")
 
-    def _anchors(self, X, labels, P):
+    def _anchors(self, X, labels, skin_tree):
         """Skin anchor of each attached vertex: the skin vertex nearest its part's root.
 
         A part's roots are its vertices touching the skin (a lash strip's base;
         all of a part that floats). Each vertex takes its nearest root in the
-        same part, so a lash tip curling towards the brow still rides on the lid.
+        same part, so a lash tip curling towards the brow still rides on the lid. ``skin_tree``: a ``cKDTree`` of
+        the skin.
         """
         from scipy.spatial import cKDTree
 
 
-        gap, nearest_skin = cKDTree(P).query(X)
+        gap, nearest_skin = skin_tree.query(X)
         roots = gap < TOUCH_IOD * self.eye_distance
         floating = ~np.isin(labels, np.unique(labels[roots]))
         roots |= floating
@@ -659,23 +668,31 @@ class HeadBinding:
             for _ in range(steps):
                 flat[at] += w * (S @ flat - flat[at])
             out[self.skin[band]] = flat[at].reshape(len(band), -1, 3)
-        jaw = [i for i, m in enumerate(motions) if m[2]]
-        self._folds.relax(out, keys=jaw)
-        self._folds.relax(out, keys=np.setdiff1d(np.arange(len(motions)), jaw), steps=STEPS_NOT_JAW)
-        self._lids.apply(out, closing)
-        pushed = self._keep_out_of_eyeballs(out)
+        # The jaw's keys in RELAX_STEPS sweeps, the others in up to STEPS_NOT_JAW (one relaxation: one screen kept).
+        steps = np.array([fold_relax.RELAX_STEPS if m[2] else STEPS_NOT_JAW for m in motions])
+        screen = Screen()
+        self._folds.relax(out, steps=steps, screen=screen)
+        screen.moved(*self._lids.apply(out, closing))
+        pushed = self._keep_out_of_eyeballs(out, screen)
         # Relaxed again where the lids' closing or the eyeballs' surface folded them (a blink, a glance down), past
-        # the issue's limit alone (each sweep opens a closed lid a little), the lids kept out of the eyeballs.
-        self._folds.relax(out, keys=[i for i, c in enumerate(closing) if c or pushed[i]], budget=self._folds.limit)
+        # the issue's limit alone (each sweep opens a closed lid a little), the lids kept out of the eyeballs; only
+        # what moved since the first relaxation's screen is screened again.
+        self._folds.relax(out, keys=[i for i, c in enumerate(closing) if c or pushed[i]], budget=self._folds.limit,
+                          screen=screen)
         if len(self.mouth):  # the bag: the jaw's turn below the mouth line, the upper lip's motion above it
             lip = out[self._upper_lip_vertex][None]
             out[self.mouth] = self._mouth_lower * out[self.mouth] + (1 - self._mouth_lower) * lip
         self._keep_still(out)
         out[self._copies] = out[self._copy_of]
         # To user space and key-major (each key's rows contiguous) in one pass: the frame's map as a matrix, one
-        # product writing the transposed result (half the time of a product, then a transposed copy).
+        # product writing the transposed result (half the time of a product, then a transposed copy), a block of
+        # USER_BLOCK vertices at a time (the block's rows of every key stay in cache: 1.5× faster).
         user = np.empty((out.shape[1], out.shape[0], 3))
-        return np.matmul(out.transpose(1, 0, 2), self.frame.to_user_vectors(np.eye(3)), out=user)
+        to_user = self.frame.to_user_vectors(np.eye(3))
+        for start in range(0, len(out), USER_BLOCK):
+            block = slice(start, start + USER_BLOCK)
+            np.matmul(out[block].transpose(1, 0, 2), to_user, out=user[:, block])
+        return user
 
     def _keep_still(self, out):
         """The back of the head and a body's neck (``out`` (n, k, 3), face frame mm, in place): each key's motion
@@ -686,9 +703,9 @@ class HeadBinding:
         size = np.linalg.norm(moved, axis=2, keepdims=True)
         out[self._fading] = moved * (s + (1 - s) * np.minimum(1.0, STILL_MM / np.maximum(size, 1e-12)))
 
-    def _keep_out_of_eyeballs(self, out):
+    def _keep_out_of_eyeballs(self, out, screen=None):
         """Lids that a key takes into an eyeball put back on its surface (``out`` (n, k, 3), in place); which keys
-        it changed, (k,) bool."""
+        it changed, (k,) bool; the (vertex, key) pairs it moved told to ``screen`` (a :class:`~.folds.Screen`)."""
         changed = np.zeros(out.shape[1], bool)
         for centre, radius, _, guard in self.eyes.values():
             if len(guard):
@@ -696,8 +713,12 @@ class HeadBinding:
                 p = self.Vf[g, None] + out[g]  # (guard, motions, 3)
                 rho = np.linalg.norm(p - centre, axis=-1, keepdims=True)
                 pushed = centre + (p - centre) * (radius / np.maximum(rho, 1e-12)) - self.Vf[g, None]
-                out[g] = np.where(rho < radius, pushed, out[g])
-                changed |= (rho < radius).any(axis=(0, 2))
+                inside = rho[..., 0] < radius
+                out[g] = np.where(inside[..., None], pushed, out[g])
+                changed |= inside.any(axis=0)
+                if screen is not None:
+                    rows, keys = np.nonzero(inside)
+                    screen.moved(g[rows], keys)
         return changed
 
     def _follow(self, out):
@@ -711,11 +732,11 @@ class HeadBinding:
         moved = triangle_cross(self.Vf[ring][:, None] + out[ring], self._ring)  # (ring triangles, k, 3)
         n1 = unit_rows((self._ring_sum @ moved.reshape(len(moved), -1)).reshape(-1, k, 3))[self._anchor_of]
         n0 = self.skin_normals[self.anchor][:, None]
-        v = np.cross(n0, n1)
+        v = cross3(n0, n1)
         c = (n0 * n1).sum(-1, keepdims=True)
         o = self.follow_offset[:, None]
-        vo = np.cross(v, o)
-        turned = o + vo + np.cross(v, vo) / np.maximum(1 + c, 1e-6)
+        vo = cross3(v, o)
+        turned = o + vo + cross3(v, vo) / np.maximum(1 + c, 1e-6)
         return out[self.skin[self.anchor]] + turned - o
 
     # ---------------------------------------------------------------- keys and poses

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..geometry import unit_rows
+from ..geometry import cross3, unit_rows
 from ..mesh import connected_components, cotan_laplacian, edge_face_pairs, turn_degrees
 
 #: Edges turning by less than this at rest are flat; a key folds one that then turns by more than FOLD_DEG
@@ -43,6 +43,20 @@ SCREEN = 0.05
 ZONE_RINGS = 10
 
 
+class Screen:
+    """What a relaxation of every key of ``D`` screened (:attr:`bent`, (n, k) bool: the (vertex, key) off their
+    neighbours' mean) and the (vertex, key) pairs moved since (:meth:`moved`): a later relaxation of the same ``D``
+    screens those and their neighbours again, not every vertex of its keys (the binding's second look after the
+    lids close)."""
+
+    def __init__(self):
+        self.bent, self.pending = None, []
+
+    def moved(self, vertices, keys):
+        """Vertices ``vertices`` of keys ``keys`` (index arrays of one length) may have moved."""
+        self.pending.append((np.asarray(vertices, np.int64).ravel(), np.asarray(keys, np.int64).ravel()))
+
+
 class FoldRelax:
     """The relaxation of keys on one mesh: its flat edges and its neighbour map, made once.
 
@@ -53,9 +67,11 @@ class FoldRelax:
     T : (t, 3) int array
     pinned : (n,) bool array
         Vertices whose motion is never changed (eyeballs: rigid; parts that never move).
+    laplacian : sparse (n, n) matrix, optional
+        ``cotan_laplacian(V, T)`` where already built (the binding's).
     """
 
-    def __init__(self, V, T, pinned):
+    def __init__(self, V, T, pinned, laplacian=None):
         from scipy.sparse import csr_matrix, diags
 
         self.V, self.T = V, np.asarray(T, np.int64)
@@ -68,7 +84,7 @@ class FoldRelax:
         self.cos_fold = np.cos(np.radians(FOLD_DEG))
         # Cotangent weights (clamped positive): on ICT's dense, stretched lip and lid rims the plain mean of
         # the neighbours folded them further (AU27's skin folds 22 -> 82); these follow the surface's shape.
-        L = cotan_laplacian(V, self.T)
+        L = cotan_laplacian(V, self.T) if laplacian is None else laplacian
         W = (diags(L.diagonal()) - L).tocsr()
         W.eliminate_zeros()
         W.sort_indices()
@@ -91,9 +107,9 @@ class FoldRelax:
         """The flat edges (indices into :attr:`pairs`) that displacement ``d`` (n, 3) folds."""
         return self.folded_keys(d[:, None])[0]
 
-    def folded_keys(self, D, keys=None):
+    def folded_keys(self, D, keys=None, bent=None):
         """Per key of ``D`` (n, k, 3) (only ``keys``, indices, if given): the flat edges (indices into :attr:`pairs`,
-        ascending) its displacement folds.
+        ascending) its displacement folds; ``bent``: the screen's (n, keys) bool matrix where already known.
 
         Only edges at a vertex whose motion is off its neighbours' mean by SCREEN of its edges' length are
         measured: a fold is a crease in the motion, a smooth motion (most of every key) folds nothing. All keys
@@ -102,7 +118,7 @@ class FoldRelax:
         keys = np.arange(D.shape[1]) if keys is None else np.asarray(keys, np.int64)
         every = len(keys) == D.shape[1] and (keys == np.arange(D.shape[1])).all()
         k, n_pairs = len(keys), len(self.pairs)
-        bent_v, bent_key = self._screen(D, keys, every)
+        bent_v, bent_key = np.nonzero(self._bent(D, keys, every) if bent is None else bent)
         pair, at = _rows_gather(self.vertex_pairs, bent_v)
         ids = _once(bent_key[at] * n_pairs + pair, k * n_pairs)  # (key, edge) at a creased vertex, each once
         slot, pair = np.divmod(ids, n_pairs)
@@ -110,14 +126,19 @@ class FoldRelax:
         face_slot, face = np.divmod(faces, len(self.faces))
         tri = self.T[self.faces[face]]  # (f, 3): each (key, triangle) once
         X = self.V[tri] + D[tri, keys[face_slot][:, None]]
-        nrm = unit_rows(np.cross(X[:, 1] - X[:, 0], X[:, 2] - X[:, 0]))
+        nrm = unit_rows(cross3(X[:, 1] - X[:, 0], X[:, 2] - X[:, 0]))
         pair_faces = pair_faces.reshape(-1, 2)
         fold = (nrm[pair_faces[:, 0]] * nrm[pair_faces[:, 1]]).sum(-1) < self.cos_fold
         return np.split(pair[fold], np.searchsorted(slot[fold], np.arange(1, k)))
 
     def _screen(self, D, keys, every):
         """``(vertices, slots in keys)`` where displacements ``D`` (n, k, 3) of ``keys`` (``every`` key, or some) are
-        off their neighbours' mean by more than SCREEN of the vertex's edges' length.
+        off their neighbours' mean by more than SCREEN of the vertex's edges' length (see :meth:`_bent`)."""
+        return np.nonzero(self._bent(D, keys, every))
+
+    def _bent(self, D, keys, every):
+        """(n, len(keys)) bool: where displacements ``D`` (n, k, 3) of ``keys`` (``every`` key, or some) are off their
+        neighbours' mean by more than SCREEN of the vertex's edges' length.
 
         In float32 (half the memory to stream), with a margin for its rounding: the few (vertex, key) within it of the
         line are measured again in float64, as a float64 screen would (the same sums in the same order): the same set.
@@ -134,29 +155,54 @@ class FoldRelax:
         bent = d2 > ((line + margin) ** 2).astype(np.float32)
         near_v, near_k = np.nonzero((d2 > (np.maximum(line - margin, 0.0) ** 2).astype(np.float32)) & ~bent)
         if len(near_v):
-            pos, slot = _rows_entries(self.mean, near_v)
-            exact = np.zeros((len(near_v), 3))
-            np.add.at(exact, slot, self.mean.data[pos, None] * D[self.mean.indices[pos], keys[near_k[slot]]])
-            exact -= D[near_v, keys[near_k]]
-            exact = np.einsum("nc,nc->n", exact, exact)
-            bent[near_v, near_k] = exact > line[near_v, 0] ** 2
-        return np.nonzero(bent)
+            bent[near_v, near_k] = self._bent_exactly(D, near_v, keys[near_k])
+        return bent
 
-    def relax(self, D, keys=None, budget=None, steps=None):
+    def _bent_exactly(self, D, vertices, keys):
+        """The float64 screen of (vertex, key) pairs of ``D`` (n, k, 3): the same sums in the same order."""
+        pos, slot = _rows_entries(self.mean, vertices)
+        exact = np.zeros((len(vertices), 3))
+        np.add.at(exact, slot, self.mean.data[pos, None] * D[self.mean.indices[pos], keys[slot]])
+        exact -= D[vertices, keys]
+        exact = np.einsum("nc,nc->n", exact, exact)
+        return exact > (SCREEN * self.edge_length[vertices]) ** 2
+
+    def _bent_since(self, D, screen):
+        """``screen``'s :attr:`~Screen.bent` brought up to ``D``: its moved pairs and their neighbours screened again."""
+        if screen.pending:
+            n = len(D)
+            vertices, keys = (np.concatenate(a) for a in zip(*screen.pending))
+            nb, slot = _rows_gather(self.mean, vertices)  # a vertex's screen reads its neighbours (a symmetric map)
+            ids = _once(np.concatenate([keys * n + vertices, keys[slot] * n + nb]), D.shape[1] * n)
+            keys, vertices = np.divmod(ids, n)
+            screen.bent[vertices, keys] = self._bent_exactly(D, vertices, keys)
+            screen.pending = []
+        return screen.bent
+
+    def relax(self, D, keys=None, budget=None, steps=None, screen=None):
         """Relax displacements ``D`` (n, k, 3) in place where they fold more than ``budget`` edges (default:
-        :attr:`budget`), only ``keys`` (indices) if given, in at most ``steps`` sweeps (default: RELAX_STEPS);
-        whether any key was changed.
+        :attr:`budget`), only ``keys`` (indices) if given, in at most ``steps`` sweeps (default: RELAX_STEPS; or
+        (k,) ints, each key's); whether any key was changed.
 
         Each key is relaxed piece by piece of the mesh, each piece to its share of ``budget`` (by its flat edges):
         a lash strip folding does not smooth the lid under it. Every (key, piece) is worked on at once.
+        ``screen``: a :class:`Screen` of ``D``; an empty one keeps this relaxation's screen of every key and the
+        pairs it moves, one kept reads it instead of screening ``D`` again.
         """
         budget = self.budget if budget is None else budget
         keys = np.arange(D.shape[1]) if keys is None else np.asarray(keys, np.int64)
         if not len(keys):
             return False
+        bent = None
+        if screen is not None and screen.bent is not None:
+            bent = self._bent_since(D, screen)[:, keys]
+        elif screen is not None and len(keys) == D.shape[1] and (keys == np.arange(D.shape[1])).all():
+            bent = screen.bent = self._bent(D, keys, True)
+        else:
+            screen = None  # a screen of some keys: not kept
         share = budget * self.piece_edges / max(self.piece_edges.sum(), 1)
         jobs, changed = [], False
-        for key, edges in zip(keys, self.folded_keys(D, keys)):
+        for key, edges in zip(keys, self.folded_keys(D, keys, bent)):
             if len(edges) <= budget:
                 continue
             changed = True
@@ -165,12 +211,13 @@ class FoldRelax:
             jobs += [(key, edges[piece == label], int(share[label]))
                      for label, count in zip(labels, counts) if count > share[label]]
         if jobs:
-            self._relax_jobs(D, jobs, RELAX_STEPS if steps is None else steps)
+            steps = np.broadcast_to(RELAX_STEPS if steps is None else steps, D.shape[1])
+            self._relax_jobs(D, jobs, steps, screen)
         return changed
 
-    def _relax_jobs(self, D, jobs, steps=RELAX_STEPS):
-        """Relax ``jobs`` ``(key, folded edges of one piece, budget)`` of ``D`` (n, k, 3) in place; per job the
-        folds left (never more than as bound).
+    def _relax_jobs(self, D, jobs, steps, screen=None):
+        """Relax ``jobs`` ``(key, folded edges of one piece, budget)`` of ``D`` (n, k, 3) in place, each in at most
+        ``steps`` (k,) of its key's sweeps; per job the folds left (never more than as bound).
 
         Each job works on the vertices within ZONE_RINGS of its folded edges alone (and two rings around them, read
         only), sweep after sweep until it folds at most its budget. The jobs' vertices are laid side by side as
@@ -242,8 +289,9 @@ class FoldRelax:
         best, best_d = count.copy(), dl.copy()  # never worse than as bound
         since = np.zeros(len(jobs), np.int64)  # sweeps since each job's best
         was, swept = None, None
-        for step in range(steps):
-            live = (count > budgets) & (since < STALL_STEPS)
+        job_steps = np.asarray(steps)[key_of]
+        for step in range(int(job_steps.max())):
+            live = (count > budgets) & (since < STALL_STEPS) & (step < job_steps)
             if not live.any():
                 break
             if was is None or (live != was).any():  # a job done: the sweeps work on the others alone
@@ -273,6 +321,9 @@ class FoldRelax:
                 rows_better = better[job]
                 best_d[rows_better] = dl[rows_better]
                 best = np.minimum(best, count)
+        if screen is not None:  # the rows it moved, for the screen kept
+            moved = (best_d != D[vertex, key_of[job]]).any(axis=1)
+            screen.moved(vertex[moved], key_of[job[moved]])
         D[vertex, key_of[job]] = best_d
         return best
 

@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..facs import split_au_key
-from ..geometry import smoothstep, unit_rows
+from ..geometry import cross3, smoothstep, unit_rows
 
 #: Upper and lower lid landmarks (iBUG-68, 0-based) per eye, each from one corner to the other.
 LIDS = {"R": ((36, 37, 38, 39), (36, 41, 40, 39)), "L": ((42, 43, 44, 45), (42, 47, 46, 45))}
@@ -86,11 +86,13 @@ class LidClosure:
         """Close the eyes in the keys that close them, in place.
 
         ``out`` (n, k, 3): the keys' displacements (face frame); ``closing``: per key, :func:`eyes_closed_by`
-        its AUs (None: left as it is).
+        its AUs (None: left as it is). Returns ``(vertices, keys)``: the (vertex, key) pairs it may have moved.
         """
-        keys = [i for i, c in enumerate(closing) if c]
-        if not keys:
-            return
+        keys = np.array([i for i, c in enumerate(closing) if c], np.int64)
+        lids = np.concatenate([idx for _, _, idx, _, _ in self.eyes] or [np.zeros(0, np.int64)])
+        moved = np.repeat(lids, len(keys)), np.tile(keys, len(lids))
+        if not len(keys):
+            return moved
         sub = out[:, keys]
         ends = []
         for up, lo, _, _, _ in self.eyes:
@@ -106,17 +108,18 @@ class LidClosure:
             # Turned about the eye's centre (the lid slides over the eyeball, never into it), the upper middle
             # onto the lower one; its distance from the centre blended to the lower's.
             a, b = U1 - centre, L1 - centre
-            axis = unit_rows(np.cross(a, b))
+            axis = unit_rows(cross3(a, b))
             ra, rb = np.linalg.norm(a, axis=1), np.linalg.norm(b, axis=1)
             angle = np.arccos(np.clip((a * b).sum(1) / np.maximum(ra * rb, 1e-300), -1, 1))
             share = weight[:, None] * to_go[None]  # (m, k)
             v = self.Vf[idx, None] + sub[idx] - centre  # (m, k, 3)
             phi = share * angle[None]
             cos, sin = np.cos(phi)[..., None], np.sin(phi)[..., None]
-            turned = v * cos + np.cross(axis[None], v) * sin + axis[None] * (v * axis[None]).sum(-1, keepdims=True) * (1 - cos)
+            turned = v * cos + cross3(axis[None], v) * sin + axis[None] * (v * axis[None]).sum(-1, keepdims=True) * (1 - cos)
             turned *= (1 + share * (rb / np.maximum(ra, 1e-300) - 1)[None])[..., None]
             sub[idx] += turned - v
         out[:, keys] = sub
+        return moved
 
 
 def eyes_or_sockets(Lf, eye_distance, eyeballs=None) -> dict:

@@ -78,11 +78,14 @@ class Parts:
         ``"eye_L"``/``"eye_R"`` → (centre (3,), radius) in the face frame (mm), for eyes found.
     notes : list of str
         What was decided, for the user (how many vertices of each kind, overrides applied).
+    pieces : (n,) int array or None
+        The connected piece of every vertex (:func:`pdeface.mesh.connected_components` of the triangles classified).
     """
 
     kind: np.ndarray
     eyes: dict = field(default_factory=dict)
     notes: list = field(default_factory=list)
+    pieces: np.ndarray | None = None
 
     def mask(self, *kinds) -> np.ndarray:
         return np.isin(self.kind, [CODE[k] for k in kinds])
@@ -105,7 +108,7 @@ def fit_sphere(P):
     return c, float(np.sqrt(max(sol[3] + c @ c, 0.0)))
 
 
-def classify_parts(Vf, T, Lf, hinge, overrides=None) -> Parts:
+def classify_parts(Vf, T, Lf, hinge, overrides=None, welded=False) -> Parts:
     """Part kind of every vertex of a head mesh.
 
     Parameters
@@ -120,6 +123,8 @@ def classify_parts(Vf, T, Lf, hinge, overrides=None) -> Parts:
         The jaw hinge (see :func:`pdeface.rigid.jaw_hinge`).
     overrides : dict, optional
         Kind → vertex indices, applied last (see :func:`apply_overrides`).
+    welded : bool
+        ``T``'s seam copies already joined (:func:`pdeface.mesh.seam_welds`, as the binding does): none welded again.
     """
     from scipy.spatial import cKDTree
 
@@ -129,7 +134,8 @@ def classify_parts(Vf, T, Lf, hinge, overrides=None) -> Parts:
     s = eye_distance(Lf)
     kind = np.full(n, CODE["rest"], np.int8)
 
-    skin = skin_vertices(Vf, T, Lf[np.isfinite(Lf).all(axis=1)])  # a model file keeps some landmarks
+    # under the landmarks it has (a model file keeps some)
+    skin = skin_vertices(Vf, T, Lf[np.isfinite(Lf).all(axis=1)], pieces=lab if welded else None)
     kind[skin] = CODE["skin"]
     skin_tree = cKDTree(Vf[skin])
 
@@ -192,7 +198,7 @@ def classify_parts(Vf, T, Lf, hinge, overrides=None) -> Parts:
             continue
         if gap[c] < NEAR_IOD * s:
             kind[m] = CODE["follow"]
-    parts = Parts(kind, eyes)
+    parts = Parts(kind, eyes, pieces=lab)
     if overrides:
         apply_overrides(parts, overrides)
     counts = parts.counts()

@@ -22,7 +22,7 @@ from .rims import follow_rims
 from .sampling import mesh_resolution
 
 
-def skin_vertices(V: np.ndarray, T: np.ndarray, points: np.ndarray) -> np.ndarray:
+def skin_vertices(V: np.ndarray, T: np.ndarray, points: np.ndarray, pieces: np.ndarray | None = None) -> np.ndarray:
     """Mask of the vertices of the connected pieces that lie under ``points`` (the landmarks).
 
     Separate pieces (eyeballs, teeth) are left out; copies an exporter split along
@@ -30,15 +30,18 @@ def skin_vertices(V: np.ndarray, T: np.ndarray, points: np.ndarray) -> np.ndarra
     share the lids' vertex positions: where several pieces are equally near a
     point, the largest is the skin. A point on the skin between its vertices (a lid margin's point)
     may lie nearer to an eyeball's vertex than to the skin's: the piece of the nearest triangle
-    counts too, the largest again.
+    counts too, the largest again. ``pieces``: the connected pieces' labels of ``(V, T)`` where ``T``'s seams are
+    already joined (the binding's), so none are welded again.
     """
     from scipy.spatial import cKDTree  # scipy is heavy: only fitting and reports need it
 
 
     used = np.unique(T)  # the mesh's size from its triangles: a stray vertex far away must not set it
     extent = np.ptp(V[used], axis=0) if len(used) else np.zeros(3)
-    rep = seam_welds(V, T, tol=1e-6 * float(np.linalg.norm(extent)))  # split along UV seams: still one piece
-    lab = connected_components(len(V), rep[T])[rep]
+    lab = pieces
+    if lab is None:
+        rep = seam_welds(V, T, tol=1e-6 * float(np.linalg.norm(extent)))  # split along UV seams: still one piece
+        lab = connected_components(len(V), rep[T])[rep]
     sizes = np.bincount(lab)
     tree = cKDTree(V[used])
     dist, _ = tree.query(points)
