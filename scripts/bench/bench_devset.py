@@ -16,8 +16,7 @@ which the jawline leaves open); the worst group's median); the landmark gate's v
 found landmarks (what ``fit`` uses) against the truth, and from the true landmarks. Beside the errors against
 the annotated vertices (the issue's truth), the same against the registered points before their snap to a vertex
 ("skin": ``Character.skin_landmarks``; a vertex lies a median 5 % of the eye distance from it on the coarse jaw,
-the floor of a perfect detector's jaw score). Then the base mesh in
-its own decimetres is fitted with the found landmarks. Needs ``pdeface[landmarks]`` and
+the floor of a perfect detector's jaw score, printed as the truth's grain). Then the base mesh in its own decimetres is fitted with the found landmarks. Needs ``pdeface[landmarks]`` and
 ``../shared/data/makehuman``.
 """
 from __future__ import annotations
@@ -151,6 +150,7 @@ def main(argv=None):
             r["eyes"] = eyes
             r.update(errors_pct(found.points, ch.landmarks, eyes))
             r["skin"] = errors_pct(found.points, ch.skin_landmarks, eyes)
+            r["grain"] = errors_pct(ch.skin_landmarks, ch.landmarks, eyes)  # a perfect detector's score
             r["unit_error_pct"] = 100 * (found.mm_per_unit / ch.mm_per_unit - 1)
             verdict = check(found.points, ch.vertices, ch.triangles[found.skin])
             r["gate"] = verdict.to_json()
@@ -177,6 +177,9 @@ def main(argv=None):
                 n_ok = sum(v <= TARGETS[target] for v in vals)
                 print(f"  {k:16s} against the {truth:11s}: median over characters {np.median(vals):.1f} %, worst "
                       f"{max(vals):.1f} %; within {TARGETS[target]} %: {n_ok}/{len(ok)}")
+        grain = {k: np.median([r["grain"][k] for r in ok]) for k in ("inner_median", "inner_p95", "jaw_median")}
+        print("  the truth's grain: the registered skin points scored against the vertices (a perfect detector's "
+              "score), median over characters: " + ", ".join(f"{k} {v:.1f} %" for k, v in grain.items()))
         units = [abs(r["unit_error_pct"]) for r in ok]
         print(f"  unit (from found landmarks): worst {max(units):.1f} %; within {TARGETS['unit_error_pct']} %: "
               f"{sum(u <= TARGETS['unit_error_pct'] for u in units)}/{len(ok)}")

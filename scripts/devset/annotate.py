@@ -352,9 +352,10 @@ def main(argv=None):
     return idx
 
 
-#: The figures :func:`characters` audits (those the issue's suspicion names).
+#: The figures :func:`characters` audits (those the issue's suspicion names, and the inner lip's snap).
 AUDITED = ("inner brows above the eye centres", "outer brows above the eye centres",
-           "jaw angles (5, 11) behind the eye centres", "jaw ends (0, 16) behind the eye centres")
+           "jaw angles (5, 11) behind the eye centres", "jaw ends (0, 16) behind the eye centres",
+           "upper lip height (51 above 62)")
 
 
 def annotate_shape(V, Vs, Ts, Ls, Th):
