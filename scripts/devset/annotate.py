@@ -42,6 +42,7 @@ import argparse
 import json
 import os
 import subprocess
+from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -55,7 +56,7 @@ from pdeface.surface.frame import face_frame
 from scripts.bench.benchlib import run_bench
 
 from .characters import ANNOTATION, SPECS, shape
-from .makehuman import DATA, read_base, triangles
+from .makehuman import DATA, apply_targets, read_base, triangles
 
 #: ICT-FaceKit beside MakeHuman's data (``PDEFACE_ICT`` overrides).
 ICT = Path(os.environ.get("PDEFACE_ICT") or DATA.parent / "ict-facekit")
@@ -170,17 +171,63 @@ def symmetric_points(P, V, T):
 def symmetric_vertices(P, V, T):
     """The skin vertex for each landmark ``P (68, 3)``: the corner of its closest skin point's triangle that
     weighs most (:func:`symmetric_points`: on its own lip or lid, where the nearest vertex may be the other
-    lip's across the seam), a midline landmark's the nearest midline vertex; left ones mirror the right.
+    lip's across the seam), a midline landmark's the nearest midline vertex, an inner-lip one on its own lip
+    (:func:`own_lip_vertices`); left ones mirror the right.
 
     Returns the vertices (68,) and how far each lies from the averaged landmark."""
     _, _, idx, _ = symmetric_points(P, V, T)
-    sym = (P + P[list(MIRROR)] * [-1.0, 1.0, 1.0]) / 2
+    flip = np.array([-1.0, 1.0, 1.0])
+    sym = (P + P[list(MIRROR)] * flip) / 2
     used = np.unique(T)
     midline = used[np.abs(V[used, 0]) < 1e-9]
     for i, j in enumerate(MIRROR):
         if i == j and abs(V[idx[i], 0]) >= 1e-9:
             idx[i] = midline[np.argmin(np.linalg.norm(V[midline] - sym[i], axis=1))]
+    idx = own_lip_vertices(idx, sym, V, T)
     return idx, np.linalg.norm(V[idx] - sym, axis=1)
+
+
+#: Inner-lip landmarks whose vertex must lie on their own lip: the upper's (61-63) and the lower's (65-67); the
+#: inner corners (60, 64) are both lips'.
+UPPER_INNER, LOWER_INNER = (61, 62, 63), (65, 66, 67)
+#: The lower lip's side of the lip line: base vertices that MakeHuman's mouth-open unit moves down by more than
+#: this share of the most it moves any.
+JAW_SHARE = 0.5
+
+
+@lru_cache(maxsize=1)
+def lower_lip_side() -> np.ndarray:
+    """Which base vertices open with the jaw (:data:`JAW_SHARE`): the lower lip's side of the lip line, the rest
+    the upper's; the same on every character (its shape keeps the base's topology)."""
+    V = read_base().vertices
+    down = V[:, 1] - apply_targets(V, {"expression/units/caucasian/mouth-open": 1.0})[:, 1]
+    return down > JAW_SHARE * down.max()
+
+
+def own_lip_vertices(idx, sym, V, T):
+    """``idx`` with each inner-lip landmark (:data:`UPPER_INNER`, :data:`LOWER_INNER`) on the nearest vertex of
+    its own lip (:func:`lower_lip_side`) that faces forward (the lip's rim and front, not its inside behind the
+    rim, which a remesh merges with the other lip), a midline one on the midline; left ones mirror the right.
+
+    ``sym (68, 3)``: the averaged landmarks."""
+    from scipy.spatial import cKDTree
+
+    idx = idx.copy()
+    used = np.unique(T)
+    lower = lower_lip_side()
+    forward = vertex_normals(V, T) @ face_frame(sym).rotation[2] > 0
+    flip = np.array([-1.0, 1.0, 1.0])
+    for i in UPPER_INNER + LOWER_INNER:
+        j = MIRROR[i]
+        if j < i:
+            continue
+        own = used[(lower[used] == (i in LOWER_INNER)) & forward[used]]
+        if i == j:
+            own = own[np.abs(V[own, 0]) < 1e-9]
+        idx[i] = own[np.argmin(np.linalg.norm(V[own] - sym[i], axis=1))]
+        if j != i:
+            idx[j] = used[cKDTree(V[used]).query(V[idx[i]] * flip)[1]]
+    return idx
 
 
 #: Group statistics (eye distances, in the face frame: +x the subject's left, +y up, +z forward), each
@@ -285,35 +332,47 @@ def main(argv=None):
         data["indices"] = [int(i) for i in idx]
         data.pop("corners", None), data.pop("weights", None)
         data["about"] = ABOUT
+        skin = {"base": (corners, weights)}
         if per_character:
-            data["characters"] = {name: [int(i) for i in v] for name, v in per_character.items()}
+            data["characters"] = {name: [int(i) for i in v[0]] for name, v in per_character.items()}
+            skin.update({name: v[1:] for name, v in per_character.items()})
+        elif "skin_points" in data:  # --no-characters: the characters' points stay as they were
+            skin = {**{n: (v["corners"], v["weights"]) for n, v in data["skin_points"].items()}, "base": skin["base"]}
+        data.pop("skin_points", None)
         chars = data.pop("characters", {})
-        text = json.dumps(data, indent=1)
+        text = json.dumps(data, indent=1)[:-2]
         if chars:  # one line per character
-            text = (text[:-2] + ',\n "characters": {\n'
-                    + ",\n".join(f"  {json.dumps(n)}: {json.dumps(v)}" for n, v in chars.items()) + "\n }\n}")
-        ANNOTATION.write_text(text + "\n")
+            text += ',\n "characters": {\n' + ",\n".join(f"  {json.dumps(n)}: {json.dumps(v)}"
+                                                          for n, v in chars.items()) + "\n }"
+        text += ',\n "skin_points": {\n' + ",\n".join(
+            f'  {json.dumps(n)}: {{"corners": {json.dumps(np.asarray(c).tolist())}, '
+            f'"weights": {json.dumps(np.round(np.asarray(w, float), 6).tolist())}}}' for n, (c, w) in skin.items())
+        ANNOTATION.write_text(text + "\n }\n}\n")
         print(f"wrote {ANNOTATION}")
     return idx
 
 
-#: The figures :func:`characters` audits (those the issue's suspicion names).
+#: The figures :func:`characters` audits (those the issue's suspicion names, and the inner lip's snap).
 AUDITED = ("inner brows above the eye centres", "outer brows above the eye centres",
-           "jaw angles (5, 11) behind the eye centres", "jaw ends (0, 16) behind the eye centres")
+           "jaw angles (5, 11) behind the eye centres", "jaw ends (0, 16) behind the eye centres",
+           "upper lip height (51 above 62)")
 
 
 def annotate_shape(V, Vs, Ts, Ls, Th):
     """ICT's face ``(Vs, Ts)`` registered onto a character's shape ``V`` (the base's topology, head triangles
-    ``Th``): its 68 landmark vertices (:func:`symmetric_vertices`)."""
+    ``Th``): its 68 landmark vertices (:func:`symmetric_vertices`) and the registered points on the skin before
+    that snap, as triangle corners (68, 3) and weights (68, 3) (:func:`symmetric_points`)."""
     X, _ = register(Vs, Ts, Ls, V, Th, log=lambda *_: None)
-    return symmetric_vertices(X[Ls], V, Th)[0]
+    corners, weights, _, _ = symmetric_points(X[Ls], V, Th)
+    return symmetric_vertices(X[Ls], V, Th)[0], corners, weights
 
 
 def characters(Vs, Ts, Ls, Th, base_idx, ict_stats) -> dict:
     """Each development-set character's own annotation (:func:`annotate_shape` on its :func:`shape`; characters
     of one shape share it), printed against the base's vertices carried through its targets.
 
-    Returns ``{character name: (68,) vertices}`` for those whose shape is not the base's."""
+    Returns ``{character name: (vertices (68,), corners (68, 3), weights (68, 3))}`` (:func:`annotate_shape`)
+    for those whose shape is not the base's."""
     print("== each character's shape annotated on its own (ICT registered onto it): how far the base's vertices, "
           "carried through its targets, lie from it (median per group, % of the eye distance), and the audited "
           "statistics (eye distances) carried -> own; ICT's 21 heads: "
@@ -329,7 +388,8 @@ def characters(Vs, Ts, Ls, Th, base_idx, ict_stats) -> dict:
         V = shape(spec)
         if key not in by_shape:
             by_shape[key] = annotate_shape(V, Vs, Ts, Ls, Th)
-        idx = out[name] = by_shape[key]
+        out[name] = by_shape[key]
+        idx = out[name][0]
         carried, own = V[base_idx], V[idx]
         d = np.linalg.norm(carried - own, axis=1) / eye_distance(own) * 100
         a, b = statistics(carried), statistics(own)
@@ -344,11 +404,14 @@ ABOUT = ("The 68 Multi-PIE (iBUG-68) landmarks as vertex indices of MakeHuman's 
          "with a thin-plate spline, coarse to fine), left and right averaged across the midline, each landmark "
          "taken to its closest skin point and from there to the vertex of that skin triangle that weighs most (on "
          "its own lip or lid), a midline landmark to the nearest midline vertex; the left side is the right's mirror "
-         "vertex. 'characters': the same, on each development-set character's own shape (identity and local "
+         "vertex; an inner-lip landmark on a vertex of its own lip (upper 61-63, lower 65-67: the lower lip's side "
+         "opens with MakeHuman's mouth-open unit), the nearest that faces forward. 'characters': the same, on each "
+         "development-set character's own shape (identity and local "
          "targets; MakeHuman's targets slide the skin over the features, so the base's vertices carried through "
          "them drift off the brow ridge and along the jaw), then carried through its expression and pose. Made by "
          "scripts/devset/annotate.py (--write); scripts/figures/render_devset_landmarks.py draws them "
-         "(docs/images/makehuman_landmarks.png).")
+         "(docs/images/makehuman_landmarks.png). 'skin_points': per character ('base': the base's shape) the registered "
+         "landmarks on the skin before the snap to a vertex, as triangle corners and weights (68 x 3 each).")
 
 
 if __name__ == "__main__":

@@ -3,11 +3,12 @@
 Each :class:`Character` is what a user would hand over (a head or a whole body, one mesh, in some unit and
 axis convention, eyes/teeth/tongue merged in or as separate objects) plus the truth: the 68 landmarks
 (vertices annotated on the character's shape, ``makehuman_landmarks.json``, carried through its
-expression, pose and unit; on a remeshed character, the nearest point of the new surface) and millimetres per unit.
+expression, pose and unit; on a remeshed character, the nearest point of the new surface) and millimetres per unit;
+beside them the registered points before their snap to a vertex (``skin_landmarks``, carried alike).
 
     from scripts.devset.characters import SPECS, build
     ch = build(SPECS["stylised-nose-mouth-cm"])
-    ch.vertices, ch.triangles, ch.landmarks, ch.mm_per_unit, ch.parts
+    ch.vertices, ch.triangles, ch.landmarks, ch.mm_per_unit, ch.parts, ch.skin_landmarks
 
 Characters: mixed ethnicity, gender and age (MakeHuman's macrodetails, adults: a unit judged against an
 adult's face cannot be right for a baby's), stylised (local targets at weight 1–2), decimated to about
@@ -63,6 +64,18 @@ def annotated_points(V, name: str | None = None) -> np.ndarray:
     return np.asarray(V)[annotated_indices(name)]
 
 
+def annotated_skin_points(V, name: str | None = None) -> np.ndarray:
+    """The 68 registered landmarks on the skin of the base mesh or of the character ``name`` (``V``, its vertices
+    in the base's order), before :func:`annotated_indices` snaps them to a vertex: each a point of a skin triangle
+    (its corners and weights in ``makehuman_landmarks.json``'s "skin_points"), carried by every later deformation.
+
+    The vertex is the issue's truth; this point is where ICT's convention puts the landmark between vertices
+    (on the coarse jaw, a median 5 % of the eye distance from its vertex)."""
+    points = _annotation()["skin_points"]
+    entry = points[name if name in points else "base"]
+    return np.einsum("ij,ijk->ik", np.array(entry["weights"]), np.asarray(V)[np.array(entry["corners"])])
+
+
 @dataclass(frozen=True)
 class Spec:
     """How a character is made (all but ``name`` optional)."""
@@ -94,6 +107,7 @@ class Character:
     mm_per_unit: float
     parts: dict  # separate objects: name → (V, T)
     spec: Spec
+    skin_landmarks: np.ndarray | None = None  # (68, 3) the registered points before the snap to vertices
 
     def joined(self) -> tuple[np.ndarray, np.ndarray]:
         """``(V, T)``: the mesh with its separate objects appended, as the add-on joins a head's objects."""
@@ -306,6 +320,7 @@ def build(spec: Spec) -> Character:
     if spec.head_turn:
         V = _turn_head(V, spec.head_turn)
     L = annotated_points(V, spec.name)
+    S = annotated_skin_points(V, spec.name)
     cut = base.joint("neck", V)[1] - HEAD_CUT
 
     def keep(T):
@@ -329,7 +344,7 @@ def build(spec: Spec) -> Character:
             Ws, Fs = decimate(skin, Fs, 3000)
         else:
             Ws, Fs = voxel_remesh(skin, Fs, 0.05)
-        L = ClosestPoint(Ws, Fs).query(L)[3]
+        L, S = (ClosestPoint(Ws, Fs).query(P)[3] for P in (L, S))
         rest = [_compact(V, T)[:2] for T in merged[1:]]
         W, F = Ws, Fs
         for Vr, Tr in rest:
@@ -342,7 +357,7 @@ def build(spec: Spec) -> Character:
         return P @ R.T * k
 
     return Character(spec.name, place(W), F, place(L), UNIT_MM[spec.unit],
-                     {n: (place(Vp), Tp) for n, (Vp, Tp) in separate.items()}, spec)
+                     {n: (place(Vp), Tp) for n, (Vp, Tp) in separate.items()}, spec, place(S))
 
 
 def _specs():
