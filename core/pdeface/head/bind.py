@@ -488,10 +488,15 @@ class HeadBinding:
             near_skull[T[near_skull[T].any(axis=1)]] = True
         pinned |= parts.mask("jaw") & ~near_skull
         # Lips apart (parted, touching) part by themselves: pinned, their middles folded AU27 (issue #40).
+        # Both pins are for the jaw's keys: the other keys' relaxation moves them (stylised-nose-mouth's AU22 and
+        # AU18 folded 26 and 15 edges against the kept upper lip, 39 and 25 over 35° after 150 sweeps).
+        jaw_pinned = np.zeros(len(V), bool)
         if lips_joined:
-            pinned[si[_inner_lip_middles(P, Lf, eye_distance)]] = True
+            jaw_pinned[si[_inner_lip_middles(P, Lf, eye_distance)]] = True
         if self.lips_one_line:  # the skin joining the lips stretches; the upper lip keeps its (still) motion
-            pinned[si[_upper_lip(P, Lf, eye_distance)]] = True
+            jaw_pinned[si[_upper_lip(P, Lf, eye_distance)]] = True
+        self._jaw_pinned = np.nonzero(jaw_pinned & ~pinned)[0]
+        pinned |= jaw_pinned
         # (a mouth bag left out: pinned, and not counted in the head's share of folds: the head's keys as without it)
         self._folds = FoldRelax(Vf, T[~parts.mask("mouth")[T].all(axis=1)], pinned)
 
@@ -661,7 +666,8 @@ class HeadBinding:
             out[self.skin[band]] = flat[at].reshape(len(band), -1, 3)
         jaw = [i for i, m in enumerate(motions) if m[2]]
         self._folds.relax(out, keys=jaw)
-        self._folds.relax(out, keys=np.setdiff1d(np.arange(len(motions)), jaw), steps=STEPS_NOT_JAW)
+        self._folds.relax(out, keys=np.setdiff1d(np.arange(len(motions)), jaw), steps=STEPS_NOT_JAW,
+                          unpinned=self._jaw_pinned)
         self._lids.apply(out, closing)
         pushed = self._keep_out_of_eyeballs(out)
         # Relaxed again where the lids' closing or the eyeballs' surface folded them (a blink, a glance down), past
