@@ -38,7 +38,9 @@ GROW_EVERY = 8
 #: after 19 sweeps of 60; at 3 * GROW_EVERY african-male-old's AU27 stopped at 16 edges over 40°, 12 at 5 *).
 STALL_STEPS = 5 * GROW_EVERY
 #: Folds are looked for only at vertices whose motion is off their neighbours' mean by this share of their
-#: edges' length (a crease of 35° across an edge puts its ends about 0.3 off).
+#: edges' length (a crease of 35° across an edge of a flat, even mesh puts its ends about 0.3 off; at 0.05 the screen
+#: missed asian-male-young's AU17, 20 edges over 40° at the mouth's corners, bent 5-18° at rest, long thin
+#: triangles, their corners 0.005-0.045 off: 0.02 finds all but a few of them).
 SCREEN = 0.02
 ZONE_RINGS = 10
 
@@ -142,11 +144,10 @@ class FoldRelax:
             bent[near_v, near_k] = exact > line[near_v, 0] ** 2
         return np.nonzero(bent)
 
-    def relax(self, D, keys=None, budget=None, steps=None, unpinned=None):
+    def relax(self, D, keys=None, budget=None, steps=None):
         """Relax displacements ``D`` (n, k, 3) in place where they fold more than ``budget`` edges (default:
         :attr:`budget`), only ``keys`` (indices) if given, in at most ``steps`` sweeps (default: RELAX_STEPS);
-        whether any key was changed. ``unpinned`` (indices or a mask): pinned vertices these keys may move (a pin
-        some keys need, others not).
+        whether any key was changed.
 
         Each key is relaxed piece by piece of the mesh, each piece to its share of ``budget`` (by its flat edges):
         a lash strip folding does not smooth the lid under it. Every (key, piece) is worked on at once.
@@ -166,14 +167,10 @@ class FoldRelax:
             jobs += [(key, edges[piece == label], int(share[label]))
                      for label, count in zip(labels, counts) if count > share[label]]
         if jobs:
-            free = self.free
-            if unpinned is not None:
-                free = free.copy()
-                free[unpinned] = True
-            self._relax_jobs(D, jobs, RELAX_STEPS if steps is None else steps, free)
+            self._relax_jobs(D, jobs, RELAX_STEPS if steps is None else steps)
         return changed
 
-    def _relax_jobs(self, D, jobs, steps=RELAX_STEPS, free=None):
+    def _relax_jobs(self, D, jobs, steps=RELAX_STEPS):
         """Relax ``jobs`` ``(key, folded edges of one piece, budget)`` of ``D`` (n, k, 3) in place; per job the
         folds left (never more than as bound).
 
@@ -202,7 +199,7 @@ class FoldRelax:
         ring.data[:] = 1.0
         in_zone = np.zeros(len(jobs) * n, bool)
         in_zone[zone] = True
-        movable = (self.free if free is None else free)[vertex] & in_zone[cols]
+        movable = self.free[vertex] & in_zone[cols]
         # The flat edges with a corner in a zone, their triangles (each once) in local indices.
         pair, row = _rows_gather(self.vertex_pairs, zone % n)
         vpairs = _once(zone[row] // n * n_pairs + pair, len(jobs) * n_pairs)
