@@ -331,8 +331,9 @@ def test_a_chin_raiser_does_not_fold_the_mouths_inner_corners_and_the_jaw_still_
 def test_folds_the_screen_missed_or_pins_kept_are_relaxed(name, keys):
     # asian-male-young's AU17 folded 20 edges (13 allowed) at the mouth's corners, edges bent 5-18° at rest whose
     # crease moved their corners under folds.SCREEN 0.05 off their neighbours' mean: never screened, never relaxed.
-    # stylised-nose-mouth's lips are joined: the upper lip and the inner lips' middles were kept as bound and AU22,
-    # AU18 and AU27 folded 26, 15 and 21 edges against them. The joined lips' AU27 still opens below the upper lip.
+    # stylised-nose-mouth's lips are joined: the upper lip and the inner lips' middles were kept as bound in every key
+    # and AU22, AU18 and AU27 folded 26, 15 and 21 edges against them (now the upper lip in the jaw's keys alone).
+    # The joined lips' AU27 still opens below the upper lip.
     V, T, L, model, b = rig(name)
     f = model.frame
     Vf, Lf = f.to_face(V), f.to_face(L)

@@ -112,9 +112,8 @@ SEAM_CORNERS = ((INNER_LIPS[0], 0.3), (INNER_LIPS[4], 0.3), (EYE_INNER_RIGHT, 0.
 SPLIT_RINGS = 2
 #: The head prior fades out over this share of the way from the covered skin to the rest region.
 PRIOR_FADE = 0.3
-#: Inner lips' middles nearer than this (eye distances) are one row of vertices (a voxel remesh's). The folds'
-#: relaxation keeps no skin of joined lips as bound: kept (their inner middles, the upper lip) for AU27, the skin
-#: around them folded against it (stylised-nose-mouth's AU27, AU22, AU18: 21, 26, 15 edges over 40°, 6, 5, 1 free).
+#: Inner lips' middles nearer than this (eye distances) are one row of vertices (a voxel remesh's). (The folds'
+#: relaxation once kept their skin as bound on joined lips: stylised-nose-mouth's AU27 folded 21 edges against it.)
 LIP_LINE_IOD = 0.03
 #: Lips joined in the mesh (a voxel remesh, a decimated mouth): the inner lips' middles (landmarks 62, 66) are joined
 #: by skin no longer than FUSED_PATH times their distance apart plus FUSED_IOD eye distances (touching lips with a mouth behind them:
@@ -123,6 +122,8 @@ FUSED_PATH = 3.0
 FUSED_IOD = 0.05
 #: On joined lips the skin under the strip between the rims within this share of the mouth's width reads it.
 JOINED_WIDTH = 0.6
+#: On joined lips the folds' relaxation keeps the upper lip's skin this far (eye distances) above the mouth's middle.
+UPPER_LIP_IOD = 0.03
 #: Every key's motion fades, from the first to the second share of the head's depth behind the nose tip (the
 #: issue's still back of the head starts at 0.6), and from the first to the second eye distance below the chin (a
 #: body's neck: the under-jaw the jaw keys move lies above it), to at most STILL_MM. A head depth is at least
@@ -297,6 +298,17 @@ def _mouth_middle(P, Lf):
     return np.abs(P[:, 0] - corners.mean()) < 0.5 * JOINED_WIDTH * np.ptp(corners)
 
 
+def _upper_lip(P, Lf, eye_distance):
+    """Skin between the nose's base and the mouth's middle line, no wider than the mouth (half an eye distance
+    beyond each corner): kept by the folds' relaxation on joined lips, which would otherwise spread the stretch of
+    the skin joining them up into the upper lip."""
+    corners = Lf[MOUTH_CORNERS, 0]
+    middle = Lf[[LIP_UPPER_INNER, LIP_LOWER_INNER], 1].mean()
+    return ((P[:, 1] > middle + UPPER_LIP_IOD * eye_distance) & (P[:, 1] < Lf[NOSE_BOTTOM, 1])
+            & (P[:, 0] > corners.min() - 0.05 * eye_distance) & (P[:, 0] < corners.max() + 0.05 * eye_distance)
+            & (P[:, 2] > Lf[LIP_MIDDLES, 2].min() - 0.1 * eye_distance))
+
+
 def _depths(P, covered, Lf, eye_distance, eyes):
     """The mouth's depths (lining, throat) and the orbits behind the eyeballs (or where they would sit: an empty
     socket's cup): left at rest.
@@ -459,6 +471,12 @@ class HeadBinding:
         for _ in range(SPLIT_RINGS):
             near_skull[T[near_skull[T].any(axis=1)]] = True
         pinned |= parts.mask("jaw") & ~near_skull
+        # On lips joined in the mesh the upper lip is kept in the jaw's keys alone: the other keys' relaxation moves it
+        # (stylised-nose-mouth's AU22 and AU18 folded 26 and 15 edges against it, 39 and 25 over 35° after 150 sweeps).
+        self._upper_lip_kept = np.zeros(0, np.int64)
+        if self.lips_one_line:  # the skin joining the lips stretches; the upper lip keeps its (still) motion
+            self._upper_lip_kept = si[_upper_lip(P, Lf, eye_distance) & ~pinned[si]]
+            pinned[self._upper_lip_kept] = True
         # (a mouth bag left out: pinned, and not counted in the head's share of folds: the head's keys as without it)
         self._folds = FoldRelax(Vf, T[~parts.mask("mouth")[T].all(axis=1)], pinned)
 
@@ -628,7 +646,8 @@ class HeadBinding:
             out[self.skin[band]] = flat[at].reshape(len(band), -1, 3)
         jaw = [i for i, m in enumerate(motions) if m[2]]
         self._folds.relax(out, keys=jaw)
-        self._folds.relax(out, keys=np.setdiff1d(np.arange(len(motions)), jaw), steps=STEPS_NOT_JAW)
+        self._folds.relax(out, keys=np.setdiff1d(np.arange(len(motions)), jaw), steps=STEPS_NOT_JAW,
+                          unpinned=self._upper_lip_kept)
         self._lids.apply(out, closing)
         pushed = self._keep_out_of_eyeballs(out)
         # Relaxed again where the lids' closing or the eyeballs' surface folded them (a blink, a glance down), past

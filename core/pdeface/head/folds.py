@@ -144,10 +144,11 @@ class FoldRelax:
             bent[near_v, near_k] = exact > line[near_v, 0] ** 2
         return np.nonzero(bent)
 
-    def relax(self, D, keys=None, budget=None, steps=None):
+    def relax(self, D, keys=None, budget=None, steps=None, unpinned=None):
         """Relax displacements ``D`` (n, k, 3) in place where they fold more than ``budget`` edges (default:
         :attr:`budget`), only ``keys`` (indices) if given, in at most ``steps`` sweeps (default: RELAX_STEPS);
-        whether any key was changed.
+        whether any key was changed. ``unpinned`` (indices or a mask): pinned vertices these keys may move (a pin
+        some keys need, others not).
 
         Each key is relaxed piece by piece of the mesh, each piece to its share of ``budget`` (by its flat edges):
         a lash strip folding does not smooth the lid under it. Every (key, piece) is worked on at once.
@@ -167,10 +168,14 @@ class FoldRelax:
             jobs += [(key, edges[piece == label], int(share[label]))
                      for label, count in zip(labels, counts) if count > share[label]]
         if jobs:
-            self._relax_jobs(D, jobs, RELAX_STEPS if steps is None else steps)
+            free = self.free
+            if unpinned is not None:
+                free = free.copy()
+                free[unpinned] = True
+            self._relax_jobs(D, jobs, RELAX_STEPS if steps is None else steps, free)
         return changed
 
-    def _relax_jobs(self, D, jobs, steps=RELAX_STEPS):
+    def _relax_jobs(self, D, jobs, steps=RELAX_STEPS, free=None):
         """Relax ``jobs`` ``(key, folded edges of one piece, budget)`` of ``D`` (n, k, 3) in place; per job the
         folds left (never more than as bound).
 
@@ -199,7 +204,7 @@ class FoldRelax:
         ring.data[:] = 1.0
         in_zone = np.zeros(len(jobs) * n, bool)
         in_zone[zone] = True
-        movable = self.free[vertex] & in_zone[cols]
+        movable = (self.free if free is None else free)[vertex] & in_zone[cols]
         # The flat edges with a corner in a zone, their triangles (each once) in local indices.
         pair, row = _rows_gather(self.vertex_pairs, zone % n)
         vpairs = _once(zone[row] // n * n_pairs + pair, len(jobs) * n_pairs)
