@@ -40,8 +40,8 @@ STALL_STEPS = 5 * GROW_EVERY
 #: Folds are looked for only at vertices whose motion is off their neighbours' mean by this share of their
 #: edges' length (a crease of 35° across an edge of a flat, even mesh puts its ends about 0.3 off; at 0.05 the screen
 #: missed asian-male-young's AU17, 20 edges over 40° at the mouth's corners, bent 5-18° at rest, long thin
-#: triangles, their corners 0.005-0.045 off; at 0.03 it finds them (20 -> 0). The CPU of ICT's 82 keys (26.7k vertices):
-#: 1.08 times 0.05's, 0.02's 1.22).
+#: triangles, their corners 0.005-0.045 off; at 0.03 it finds them: 20 -> 0). ICT's 82 keys (26.7k vertices) cost 1.08
+#: times the CPU they did at 0.05 (at 0.02 1.22 times).
 SCREEN = 0.03
 ZONE_RINGS = 10
 
