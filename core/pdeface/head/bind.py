@@ -113,7 +113,8 @@ SEAM_CORNERS = ((INNER_LIPS[0], 0.3), (INNER_LIPS[4], 0.3), (EYE_INNER_RIGHT, 0.
 SPLIT_RINGS = 2
 #: The head prior fades out over this share of the way from the covered skin to the rest region.
 PRIOR_FADE = 0.3
-#: How near the inner lips' middle line (eye distances) the folds' relaxation leaves the skin as bound.
+#: Inner lips' middles nearer than this (eye distances) are one row of vertices (a voxel remesh's). (The folds'
+#: relaxation once kept their skin as bound on joined lips: stylised-nose-mouth's AU27 folded 21 edges against it.)
 LIP_LINE_IOD = 0.03
 #: Lips joined in the mesh (a voxel remesh, a decimated mouth): the inner lips' middles (landmarks 62, 66) are joined
 #: by skin no longer than FUSED_PATH times their distance apart plus FUSED_IOD eye distances (touching lips with a mouth behind them:
@@ -291,23 +292,6 @@ def still_weight(X, P, Lf, eye_distance) -> np.ndarray:
     behind = smoothstep((b - (tip_z - X[:, 2]) / depth) / (b - a))
     below = smoothstep((d - (chin_y - X[:, 1]) / eye_distance) / (d - c))
     return behind * below
-
-
-def _inner_lip_middles(P, Lf, eye_distance):
-    """Skin on the inner lips' middle thirds (landmarks 61-63, 65-67): kept by the folds' relaxation on lips joined
-    in the mesh, which it would otherwise smooth shut in AU27 where they meet in one row of vertices (a decimated
-    head). Lips apart are not kept: the step between a kept middle and its relaxed neighbours folded parted lips'
-    AU27 (36 edges on parted-lips-cm, 4 without)."""
-    from scipy.spatial import cKDTree
-
-    t = np.linspace(0, 1, 8, endpoint=False)[:, None]
-    lines = [(61, 62), (62, 63), (65, 66), (66, 67)]
-    along = np.concatenate([Lf[a] + t * (Lf[b] - Lf[a]) for a, b in lines] + [Lf[[63, 67]]])
-    along = along[np.isfinite(along).all(axis=1)]  # a landmark may be missing
-    if not len(along):
-        return np.zeros(len(P), bool)
-    near = cKDTree(along).query(P, distance_upper_bound=LIP_LINE_IOD * eye_distance)[0]
-    return np.isfinite(near)
 
 
 def _mouth_middle(P, Lf):
@@ -495,11 +479,12 @@ class HeadBinding:
         for _ in range(SPLIT_RINGS):
             near_skull[T[near_skull[T].any(axis=1)]] = True
         pinned |= parts.mask("jaw") & ~near_skull
-        # Lips apart (parted, touching) part by themselves: pinned, their middles folded AU27 (issue #40).
-        if lips_joined:
-            pinned[si[_inner_lip_middles(P, Lf, eye_distance)]] = True
+        # On lips joined in the mesh the upper lip is kept in the jaw's keys alone: the other keys' relaxation moves it
+        # (stylised-nose-mouth's AU22 and AU18 folded 26 and 15 edges against it, 39 and 25 over 35° after 150 sweeps).
+        self._upper_lip_kept = np.zeros(0, np.int64)
         if self.lips_one_line:  # the skin joining the lips stretches; the upper lip keeps its (still) motion
-            pinned[si[_upper_lip(P, Lf, eye_distance)]] = True
+            self._upper_lip_kept = si[_upper_lip(P, Lf, eye_distance) & ~pinned[si]]
+            pinned[self._upper_lip_kept] = True
         # (a mouth bag left out: pinned, and not counted in the head's share of folds: the head's keys as without it)
         self._folds = FoldRelax(Vf, fold_T, pinned, fold_L)
 
@@ -668,10 +653,12 @@ class HeadBinding:
             for _ in range(steps):
                 flat[at] += w * (S @ flat - flat[at])
             out[self.skin[band]] = flat[at].reshape(len(band), -1, 3)
-        # The jaw's keys in RELAX_STEPS sweeps, the others in up to STEPS_NOT_JAW (one relaxation: one screen kept).
+        # The jaw's keys in RELAX_STEPS sweeps, the others in up to STEPS_NOT_JAW and free to move a joined upper lip
+        # (one relaxation: one screen kept).
         steps = np.array([fold_relax.RELAX_STEPS if m[2] else STEPS_NOT_JAW for m in motions])
         screen = Screen()
-        self._folds.relax(out, steps=steps, screen=screen)
+        self._folds.relax(out, steps=steps, screen=screen, unpinned=self._upper_lip_kept,
+                          unpinned_keys=[i for i, m in enumerate(motions) if not m[2]])
         screen.moved(*self._lids.apply(out, closing))
         pushed = self._keep_out_of_eyeballs(out, screen)
         # Relaxed again where the lids' closing or the eyeballs' surface folded them (a blink, a glance down), past

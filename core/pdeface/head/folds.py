@@ -38,8 +38,11 @@ GROW_EVERY = 8
 #: after 19 sweeps of 60; at 3 * GROW_EVERY african-male-old's AU27 stopped at 16 edges over 40°, 12 at 5 *).
 STALL_STEPS = 5 * GROW_EVERY
 #: Folds are looked for only at vertices whose motion is off their neighbours' mean by this share of their
-#: edges' length (a crease of 35° across an edge puts its ends about 0.3 off).
-SCREEN = 0.05
+#: edges' length (a crease of 35° across an edge of a flat, even mesh puts its ends about 0.3 off; at 0.05 the screen
+#: missed asian-male-young's AU17, 20 edges over 40° at the mouth's corners, bent 5-18° at rest, long thin
+#: triangles, their corners 0.005-0.045 off; at 0.03 it finds them: 20 -> 0). ICT's 82 keys (26.7k vertices) cost 1.08
+#: times the CPU they did at 0.05 (at 0.02 1.22 times).
+SCREEN = 0.03
 ZONE_RINGS = 10
 
 
@@ -179,10 +182,11 @@ class FoldRelax:
             screen.pending = []
         return screen.bent
 
-    def relax(self, D, keys=None, budget=None, steps=None, screen=None):
+    def relax(self, D, keys=None, budget=None, steps=None, screen=None, unpinned=None, unpinned_keys=None):
         """Relax displacements ``D`` (n, k, 3) in place where they fold more than ``budget`` edges (default:
         :attr:`budget`), only ``keys`` (indices) if given, in at most ``steps`` sweeps (default: RELAX_STEPS; or
-        (k,) ints, each key's); whether any key was changed.
+        (k,) ints, each key's); whether any key was changed. ``unpinned`` (indices or a mask): pinned vertices that
+        ``unpinned_keys`` (indices; default every key) may move (a pin some keys need, others not).
 
         Each key is relaxed piece by piece of the mesh, each piece to its share of ``budget`` (by its flat edges):
         a lash strip folding does not smooth the lid under it. Every (key, piece) is worked on at once.
@@ -212,12 +216,20 @@ class FoldRelax:
                      for label, count in zip(labels, counts) if count > share[label]]
         if jobs:
             steps = np.broadcast_to(RELAX_STEPS if steps is None else steps, D.shape[1])
-            self._relax_jobs(D, jobs, steps, screen)
+            extra = np.zeros(len(self.free), bool)
+            if unpinned is not None:
+                extra[unpinned] = True
+            extra_keys = np.ones(D.shape[1], bool)
+            if unpinned_keys is not None:
+                extra_keys[:] = False
+                extra_keys[unpinned_keys] = True
+            self._relax_jobs(D, jobs, steps, screen, (extra, extra_keys))
         return changed
 
-    def _relax_jobs(self, D, jobs, steps, screen=None):
+    def _relax_jobs(self, D, jobs, steps, screen=None, unpinned=None):
         """Relax ``jobs`` ``(key, folded edges of one piece, budget)`` of ``D`` (n, k, 3) in place, each in at most
-        ``steps`` (k,) of its key's sweeps; per job the folds left (never more than as bound).
+        ``steps`` (k,) of its key's sweeps; per job the folds left (never more than as bound). ``unpinned``:
+        ``(vertices (n,) bool, keys (k,) bool)``, pinned vertices those keys may move.
 
         Each job works on the vertices within ZONE_RINGS of its folded edges alone (and two rings around them, read
         only), sweep after sweep until it folds at most its budget. The jobs' vertices are laid side by side as
@@ -244,7 +256,10 @@ class FoldRelax:
         ring.data[:] = 1.0
         in_zone = np.zeros(len(jobs) * n, bool)
         in_zone[zone] = True
-        movable = self.free[vertex] & in_zone[cols]
+        free = self.free[vertex]
+        if unpinned is not None:
+            free |= unpinned[0][vertex] & unpinned[1][key_of[job]]
+        movable = free & in_zone[cols]
         # The flat edges with a corner in a zone, their triangles (each once) in local indices.
         pair, row = _rows_gather(self.vertex_pairs, zone % n)
         vpairs = _once(zone[row] // n * n_pairs + pair, len(jobs) * n_pairs)
