@@ -433,7 +433,8 @@ class HeadBinding:
             raise MeshError("the skin has no triangles")
         self.skin_normals = vertex_normals(P, Ts)
         mouth_strip = [k for a, k in model.layout.opening_curves() if ANCHOR_NAMES[a] == "mouth_top"]
-        lips_joined, self.lips_one_line = _lips_joined(P, Ts, Lf, eye_distance, skin_tree) if mouth_strip else (False, False)
+        lips_joined, self.lips_one_line = (_lips_joined(P, Ts, Lf, eye_distance, skin_tree) if mouth_strip
+                                           else (False, False))
         if lips_joined:
             self.notes.append("the lips are joined in the mesh (no opening between them): keys that open the mouth "
                               "move the lower lip and stretch the skin joining it to the upper one; cut the mouth "

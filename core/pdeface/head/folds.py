@@ -171,7 +171,8 @@ class FoldRelax:
         return exact > (SCREEN * self.edge_length[vertices]) ** 2
 
     def _bent_since(self, D, screen):
-        """``screen``'s :attr:`~Screen.bent` brought up to ``D``: its moved pairs and their neighbours screened again."""
+        """``screen``'s :attr:`~Screen.bent` brought up to ``D``: its moved pairs and their neighbours screened
+        again."""
         if screen.pending:
             n = len(D)
             vertices, keys = (np.concatenate(a) for a in zip(*screen.pending))

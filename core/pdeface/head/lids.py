@@ -115,7 +115,8 @@ class LidClosure:
             v = self.Vf[idx, None] + sub[idx] - centre  # (m, k, 3)
             phi = share * angle[None]
             cos, sin = np.cos(phi)[..., None], np.sin(phi)[..., None]
-            turned = v * cos + cross3(axis[None], v) * sin + axis[None] * (v * axis[None]).sum(-1, keepdims=True) * (1 - cos)
+            turned = (v * cos + cross3(axis[None], v) * sin
+                      + axis[None] * (v * axis[None]).sum(-1, keepdims=True) * (1 - cos))
             turned *= (1 + share * (rb / np.maximum(ra, 1e-300) - 1)[None])[..., None]
             sub[idx] += turned - v
         out[:, keys] = sub

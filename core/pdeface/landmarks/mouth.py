@@ -34,7 +34,8 @@ SIZE, HALF = 384, 1.0
 
 def inner_lip_corners_at_seam_end(V, T, points) -> np.ndarray:
     """``points (68, 3)`` with the inner lip corners (:data:`CORNERS`) moved to the deepest point of the lip line
-    on the skin ``(V, T)`` (see the module's docstring); a corner stays where no pixel of the line is seen :data:`DEEPER` deeper.
+    on the skin ``(V, T)`` (see the module's docstring); a corner stays where no pixel of the line is seen
+    :data:`DEEPER` deeper.
 
     Parameters
     ----------
