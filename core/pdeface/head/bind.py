@@ -301,6 +301,23 @@ def _mouth_middle(P, Lf):
     return np.abs(P[:, 0] - corners.mean()) < 0.5 * JOINED_WIDTH * np.ptp(corners)
 
 
+def _inner_lip_middles(P, Lf, eye_distance):
+    """Skin on the inner lips' middle thirds (landmarks 61-63, 65-67): kept by the jaw keys' fold relaxation on lips
+    joined in the mesh, which it would otherwise smooth shut in AU27 where they meet in one row of vertices (a
+    decimated head). Lips apart are not kept: the step between a kept middle and its relaxed neighbours folded parted
+    lips' AU27 (36 edges on parted-lips-cm, 4 without)."""
+    from scipy.spatial import cKDTree
+
+    t = np.linspace(0, 1, 8, endpoint=False)[:, None]
+    lines = [(61, 62), (62, 63), (65, 66), (66, 67)]
+    along = np.concatenate([Lf[a] + t * (Lf[b] - Lf[a]) for a, b in lines] + [Lf[[63, 67]]])
+    along = along[np.isfinite(along).all(axis=1)]  # a landmark may be missing
+    if not len(along):
+        return np.zeros(len(P), bool)
+    near = cKDTree(along).query(P, distance_upper_bound=LIP_LINE_IOD * eye_distance)[0]
+    return np.isfinite(near)
+
+
 def _upper_lip(P, Lf, eye_distance):
     """Skin between the nose's base and the mouth's middle line, no wider than the mouth (half an eye distance
     beyond each corner): kept by the folds' relaxation on joined lips, which would otherwise spread the stretch of
@@ -480,12 +497,17 @@ class HeadBinding:
         for _ in range(SPLIT_RINGS):
             near_skull[T[near_skull[T].any(axis=1)]] = True
         pinned |= parts.mask("jaw") & ~near_skull
-        # On lips joined in the mesh the upper lip is kept in the jaw's keys alone: the other keys' relaxation moves it
-        # (stylised-nose-mouth's AU22 and AU18 folded 26 and 15 edges against it, 39 and 25 over 35° after 150 sweeps).
-        self._upper_lip_kept = np.zeros(0, np.int64)
+        # On lips joined in the mesh the inner lips' middles (their AU27 opening) and, on lips in one line, the upper
+        # lip are kept in the jaw's keys alone: the other keys' relaxation moves them (stylised-nose-mouth's AU22 and
+        # AU18 folded 26 and 15 edges against them, 39 and 25 over 35° after 150 sweeps; without the middles kept,
+        # decimated-cm's AU27 inner gap closed to 0.16 eye distances).
+        kept = np.zeros(len(P), bool)
+        if lips_joined:
+            kept |= _inner_lip_middles(P, Lf, eye_distance)
         if self.lips_one_line:  # the skin joining the lips stretches; the upper lip keeps its (still) motion
-            self._upper_lip_kept = si[_upper_lip(P, Lf, eye_distance) & ~pinned[si]]
-            pinned[self._upper_lip_kept] = True
+            kept |= _upper_lip(P, Lf, eye_distance)
+        self._jaw_pins = si[kept & ~pinned[si]]
+        pinned[self._jaw_pins] = True
         # (a mouth bag left out: pinned, and not counted in the head's share of folds: the head's keys as without it)
         self._folds = FoldRelax(Vf, fold_T, pinned, fold_L)
 
@@ -658,7 +680,7 @@ class HeadBinding:
         # (one relaxation: one screen kept).
         steps = np.array([fold_relax.RELAX_STEPS if m[2] else STEPS_NOT_JAW for m in motions])
         screen = Screen()
-        self._folds.relax(out, steps=steps, screen=screen, unpinned=self._upper_lip_kept,
+        self._folds.relax(out, steps=steps, screen=screen, unpinned=self._jaw_pins,
                           unpinned_keys=[i for i, m in enumerate(motions) if not m[2]])
         screen.moved(*self._lids.apply(out, closing))
         pushed = self._keep_out_of_eyeballs(out, screen)
