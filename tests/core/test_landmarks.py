@@ -416,24 +416,31 @@ def test_group_spread_leaves_out_renders_that_missed_a_landmark(rng):
     assert spread["jaw"] >= np.median(np.linalg.norm(L[:, :17] - L[:, :17].mean(0), axis=2).max(0)) * 0.5
 
 
+def _moved_on_skin(V, T, L, rows, axis, shifts):
+    """Landmarks ``L`` with ``rows`` moved ``shifts`` (eye distances, one or per row) along face-frame ``axis``, then
+    onto the skin ``(V, T)``; also the face frame and the eye distance."""
+    from pdeface.landmark_scheme import eye_distance
+    from pdeface.surface.frame import face_frame
+
+    f, eyes = face_frame(L), eye_distance(L)
+    rows = list(rows)
+    F = f.to_face(L[rows])
+    F[:, axis] += np.asarray(shifts, np.float64) * eyes * f.scale
+    moved = L.copy()
+    moved[rows] = ClosestPoint(V, T).query(f.to_user(F))[3]
+    return moved, f, eyes
+
+
 @pytest.mark.parametrize("name", ["identity015", "identity019"])
 def test_upper_jaw_points_slid_along_the_contour_come_back_to_the_templates_depth(heads, name):
     # A frontal detector's upper jaw points lie where a ray grazing the cheek met it: anywhere along the contour.
     # Slid 0.15 eye distances forward or back on the skin, they come back to the identity's own.
-    from pdeface.landmark_scheme import eye_distance
     from pdeface.landmarks.contour import UPPER_JAW, upper_jaw_at_template_depth
-    from pdeface.surface.frame import face_frame
 
     mesh, T, lm, shapes = heads
     V = mesh.vertices + shapes[name]
     L = V[lm]
-    f, eyes = face_frame(L), eye_distance(L)
-    moved = L.copy()
-    for j, shift in zip(UPPER_JAW, [0.15, -0.15] * 4):
-        F = f.to_face(L[[j]])
-        F[0, 2] += shift * eyes * f.scale
-        moved[j] = f.to_user(F)[0]
-    moved[list(UPPER_JAW)] = ClosestPoint(V, T).query(moved[list(UPPER_JAW)])[3]  # back onto the skin
+    moved, _, eyes = _moved_on_skin(V, T, L, UPPER_JAW, 2, [0.15, -0.15] * 4)
     before = np.linalg.norm(moved - L, axis=1)[list(UPPER_JAW)] / eyes
     back = upper_jaw_at_template_depth(V, T, moved)  # at the generic head's depths
     after = np.linalg.norm(back - L, axis=1)[list(UPPER_JAW)] / eyes
@@ -447,19 +454,13 @@ def test_inner_lip_corners_on_the_lips_front_go_back_into_the_lip_line(heads, na
     # The map may put the inner lip corners on the lips' front, in front of the commissure (MakeHuman's
     # characters: 0.04-0.10 eye distances). Moved 0.06 eye distances forward onto the lips, they go back into
     # the lip line, no farther from the identity's own; the own corners (hidden behind the lips) stay.
-    from pdeface.landmark_scheme import eye_distance
     from pdeface.landmarks.mouth import CORNERS, inner_lip_corners_at_seam_end
-    from pdeface.surface.frame import face_frame
 
     mesh, T, lm, shapes = heads
     V = mesh.vertices + shapes[name]
     L = V[lm]
-    f, eyes = face_frame(L), eye_distance(L)
     inner = [i for i, _ in CORNERS]
-    moved = L.copy()
-    F = f.to_face(L[inner])
-    F[:, 2] += 0.06 * eyes * f.scale
-    moved[inner] = ClosestPoint(V, T).query(f.to_user(F))[3]  # onto the lips in front
+    moved, f, eyes = _moved_on_skin(V, T, L, inner, 2, 0.06)  # onto the lips in front
     back = inner_lip_corners_at_seam_end(V, T, moved)
     deeper = (f.to_face(moved[inner]) - f.to_face(back[inner]))[:, 2] / (eyes * f.scale)
     before, after = (np.linalg.norm(P[inner] - L[inner], axis=1) / eyes for P in (moved, back))
@@ -474,19 +475,13 @@ def test_brows_come_from_ict_brow_region_laid_onto_the_skin(heads, name):
     # The brows found on a hairless head stay at the height the faces the detector learned have them; ICT's brow
     # region registered onto the skin from the eyes and nose bridge puts them back with the brow ridge: brows
     # lifted 0.08 eye distances up the forehead come back to the identity's own.
-    from pdeface.landmark_scheme import eye_distance
     from pdeface.landmarks.brows import BROWS, brows_from_template
-    from pdeface.surface.frame import face_frame
 
     mesh, T, lm, shapes = heads
     V = mesh.vertices + shapes[name]
     L = V[lm]
-    f, eyes = face_frame(L), eye_distance(L)
     rows = list(BROWS)
-    moved = L.copy()
-    F = f.to_face(L[rows])
-    F[:, 1] += 0.08 * eyes * f.scale
-    moved[rows] = ClosestPoint(V, T).query(f.to_user(F))[3]
+    moved, _, eyes = _moved_on_skin(V, T, L, rows, 1, 0.08)
     back = brows_from_template(V, T, moved)
     before, after = (np.linalg.norm(P[rows] - L[rows], axis=1) / eyes for P in (moved, back))
     assert before.min() > 0.06 and after.max() < 0.015, (before, after)
