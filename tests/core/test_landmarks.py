@@ -432,21 +432,42 @@ def _moved_on_skin(V, T, L, rows, axis, shifts):
 
 
 @pytest.mark.parametrize("name", ["identity015", "identity019"])
-def test_upper_jaw_points_slid_along_the_contour_come_back_to_the_templates_depth(heads, name):
-    # A frontal detector's upper jaw points lie where a ray grazing the cheek met it: anywhere along the contour.
-    # Slid 0.15 eye distances forward or back on the skin, they come back to the identity's own.
-    from pdeface.landmarks.contour import UPPER_JAW, upper_jaw_at_template_depth
+def test_jaw_sides_slid_along_the_contour_come_back_to_the_templates_depth(heads, name):
+    # A frontal detector's points on the jaw's sides lie where a ray grazing the cheek met it: anywhere along the
+    # contour. Slid 0.15 eye distances forward or back on the skin, they come back to the identity's own, the upper
+    # ends at their depth behind the eyes, the lower ones behind the jaw points beside the chin.
+    from pdeface.landmarks.contour import JAW_SIDES, jaw_sides_at_template_depth
 
     mesh, T, lm, shapes = heads
     V = mesh.vertices + shapes[name]
     L = V[lm]
-    moved, _, eyes = _moved_on_skin(V, T, L, UPPER_JAW, 2, [0.15, -0.15] * 4)
-    before = np.linalg.norm(moved - L, axis=1)[list(UPPER_JAW)] / eyes
-    back = upper_jaw_at_template_depth(V, T, moved)  # at the generic head's depths
-    after = np.linalg.norm(back - L, axis=1)[list(UPPER_JAW)] / eyes
+    rows = list(JAW_SIDES)
+    moved, _, eyes = _moved_on_skin(V, T, L, rows, 2, [0.15, -0.15] * (len(rows) // 2))
+    before = np.linalg.norm(moved - L, axis=1)[rows] / eyes
+    back = jaw_sides_at_template_depth(V, T, moved)  # at the generic head's depths
+    after = np.linalg.norm(back - L, axis=1)[rows] / eyes
     assert np.median(before) > 0.1 and np.median(after) < 0.03 and after.max() < 0.05, (before, after)
-    others = np.setdiff1d(np.arange(68), list(UPPER_JAW))
-    assert np.array_equal(back[others], moved[others])  # only the upper jaw moves
+    others = np.setdiff1d(np.arange(68), rows)
+    assert np.array_equal(back[others], moved[others])  # only the jaw's sides move
+
+
+def test_the_jaw_sides_lower_points_follow_the_chins_depth(heads):
+    # A heavy jaw carries the lower sides back with the points beside the chin (MakeHuman's characters): the whole
+    # lower jaw moved back, its sides come back to where the chin points now say, not to the eyes' template depth.
+    from pdeface.landmarks.contour import BEHIND_CHIN, jaw_sides_at_template_depth
+
+    mesh, T, lm, shapes = heads
+    V = mesh.vertices + shapes["identity015"]
+    L = V[lm]
+    lower = [*BEHIND_CHIN, *set(BEHIND_CHIN.values())]
+    back_by = 0.08
+    moved, f, eyes = _moved_on_skin(V, T, L, lower, 2, -back_by)  # the lower jaw and its chin points back
+    placed = jaw_sides_at_template_depth(V, T, moved)
+    rows = list(BEHIND_CHIN)
+    deeper = (f.to_face(L[rows]) - f.to_face(placed[rows]))[:, 2] / (eyes * f.scale)
+    chin_deeper = (f.to_face(L[list(set(BEHIND_CHIN.values()))]) - f.to_face(moved[list(set(BEHIND_CHIN.values()))]))
+    chin_deeper = chin_deeper[:, 2].mean() / (eyes * f.scale)
+    assert chin_deeper > 0.04 and np.abs(deeper - chin_deeper).max() < 0.03, (deeper, chin_deeper)
 
 
 @pytest.mark.parametrize("name", ["identity015", "identity019"])

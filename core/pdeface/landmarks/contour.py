@@ -1,13 +1,20 @@
-"""The upper jaw points, where the jawline is a contour seen edge on: their depth from ICT's generic head.
+"""The jaw's sides, where the jawline is a contour seen edge on: their depth from ICT's generic head.
 
-The upper jaw points (0-3, 13-16) lie where the side of the face turns away from the viewer. A frontal
-detector places them well across (x) and in height (y), but their depth along the contour is what a ray
-grazing the cheek happens to hit first: its depth behind the eye centres spreads 0.11-0.17 eye distances
-(standard deviation) over MakeHuman's development set, the true points' 0.04-0.09 (ICT's heads 0.01). So each
-keeps its height and takes the depth ICT's generic head (the convention the map follows) gives it behind the eye
-centres; its side comes from the skin, the first surface met coming in from just outside the found point at
-that height and depth. On the development set the jaw's median error falls from 9.2 to 8.5 % of the eye
-distance (worst character 28 to 13 %); on ICT's held-out heads the jaw median from 0.34-1.33 to 0.31-1.15 mm.
+The jaw points 0-4 and 12-16 lie where the side of the face turns away from the viewer. A frontal detector
+places them well across (x) and in height (y), but their depth along the contour is what a ray grazing the cheek
+happens to hit first. So each keeps its height and takes the depth ICT's generic head (the convention the map
+follows) gives it, measured from the nearest part of the face whose depth the detector does see: the upper ends
+(0, 1, 15, 16) behind the eye centres, the rest (2-4, 12-14) behind the jaw points beside the chin (6, 10), which
+face the viewer. Its side then comes from the skin, the first surface met coming in from just outside the found
+point at that height and depth.
+
+Why two references: on MakeHuman's development set (each character annotated in ICT's convention) the true
+depths behind the eye centres spread 0.03-0.05 eye distances (standard deviation) at the jaw's upper ends but
+0.07-0.11 lower down (a long chin or a heavy jaw carries them back), where their depth behind points 6 and 10
+spreads 0.02-0.05 (ICT's own heads: 0.01 either way). Behind the eyes alone points 3-4 came out 0.05-0.2 eye
+distances in front of the truth. The jaw angles (5, 11) keep the detector's depth: taken behind 6 and 10 too,
+they come nearer the truth on most characters, but on one stylised character the jaw then passed the gate 13.7 %
+of the eye distance off (its angles fit the annotated vertices better where the detector put them).
 """
 from __future__ import annotations
 
@@ -20,8 +27,13 @@ from ..geometry import ray_triangle
 from ..landmark_scheme import eye_distance
 from ..surface.frame import face_frame
 
-#: The jaw points moved (the lower ones face the viewer: their ray hits the jaw squarely).
-UPPER_JAW = (0, 1, 2, 3, 13, 14, 15, 16)
+#: The jaw points whose depth is taken behind the eye centres, and those taken behind the jaw point beside the
+#: chin on their side (their reference): the jaw's sides. The chin's (6-10) face the viewer: their ray hits them
+#: squarely; the angles (5, 11) keep the detector's depth (see the module's docstring).
+BEHIND_EYES = (0, 1, 15, 16)
+BEHIND_CHIN = {2: 6, 3: 6, 4: 6, 12: 10, 13: 10, 14: 10}
+#: Every jaw point moved.
+JAW_SIDES = tuple(sorted((*BEHIND_EYES, *BEHIND_CHIN)))
 #: How far outside the found point (eye distances) the ray into the side of the face starts, and how far in from
 #: there it may meet the skin; met nowhere, the point stays.
 OUTSIDE, REACH = 0.2, 0.4
@@ -40,9 +52,10 @@ def _ict_landmarks() -> np.ndarray:
     return mesh.vertices[landmarks]
 
 
-def upper_jaw_at_template_depth(V, T, points, template68=None) -> np.ndarray:
-    """``points (68, 3)`` with the upper jaw points (:data:`UPPER_JAW`) at the template's depth behind the eyes,
-    on the skin ``(V, T)`` at their own height (see the module's docstring).
+def jaw_sides_at_template_depth(V, T, points, template68=None) -> np.ndarray:
+    """``points (68, 3)`` with the jaw's sides (:data:`JAW_SIDES`) at the template's depth behind the eyes
+    (:data:`BEHIND_EYES`) or behind the jaw point beside the chin (:data:`BEHIND_CHIN`), on the skin ``(V, T)`` at
+    their own height (see the module's docstring).
 
     Parameters
     ----------
@@ -59,8 +72,12 @@ def upper_jaw_at_template_depth(V, T, points, template68=None) -> np.ndarray:
     f = face_frame(out)
     eyes = eye_distance(out) * f.scale
     F = f.to_face(out)
-    depth = F[36:48, 2].mean() - template_depths(_ict_landmarks() if template68 is None else template68) * eyes
-    rows = list(UPPER_JAW)
+    behind = template_depths(_ict_landmarks() if template68 is None else template68) * eyes
+    depth = np.full(68, np.nan)
+    depth[list(BEHIND_EYES)] = F[36:48, 2].mean() - behind[list(BEHIND_EYES)]
+    for j, ref in BEHIND_CHIN.items():
+        depth[j] = F[ref, 2] - (behind[j] - behind[ref])
+    rows = list(JAW_SIDES)
     FV = f.to_face(np.asarray(V, np.float64))
     T = np.asarray(T)
     # Only the triangles with a corner in the band of heights and depths the rays pass (a triangle reaching into
@@ -72,7 +89,7 @@ def upper_jaw_at_template_depth(V, T, points, template68=None) -> np.ndarray:
     tri = FV[T[inside[T].any(1)]]
     lo = np.minimum(np.minimum(tri[:, 0], tri[:, 1]), tri[:, 2])
     hi = np.maximum(np.maximum(tri[:, 0], tri[:, 1]), tri[:, 2])
-    for j in UPPER_JAW:
+    for j in JAW_SIDES:
         side = np.sign(F[j, 0])
         y, z = F[j, 1], depth[j]
         near = (lo[:, 1] <= y) & (hi[:, 1] >= y) & (lo[:, 2] <= z) & (hi[:, 2] >= z) & (side * hi[:, 0] > 0)
