@@ -434,14 +434,14 @@ def _moved_on_skin(V, T, L, rows, axis, shifts):
 @pytest.mark.parametrize("name", ["identity015", "identity019"])
 def test_jaw_sides_slid_along_the_contour_come_back_to_the_templates_depth(heads, name):
     # A frontal detector's points on the jaw's sides lie where a ray grazing the cheek met it: anywhere along the
-    # contour. Slid 0.15 eye distances forward or back on the skin, they come back to the identity's own, the upper
-    # ends at their depth behind the eyes, the lower ones behind the jaw points beside the chin.
-    from pdeface.landmarks.contour import JAW_SIDES, jaw_sides_at_template_depth
+    # contour. Slid 0.15 eye distances forward or back on the skin, they come back to the identity's own (on ICT's
+    # heads the depths behind the eyes and behind the chin's points agree: the eyes' counts).
+    from pdeface.landmarks.contour import UPPER_JAW, jaw_sides_at_template_depth
 
     mesh, T, lm, shapes = heads
     V = mesh.vertices + shapes[name]
     L = V[lm]
-    rows = list(JAW_SIDES)
+    rows = list(UPPER_JAW)
     moved, _, eyes = _moved_on_skin(V, T, L, rows, 2, [0.15, -0.15] * (len(rows) // 2))
     before = np.linalg.norm(moved - L, axis=1)[rows] / eyes
     back = jaw_sides_at_template_depth(V, T, moved)  # at the generic head's depths
@@ -453,21 +453,24 @@ def test_jaw_sides_slid_along_the_contour_come_back_to_the_templates_depth(heads
 
 def test_the_jaw_sides_lower_points_follow_the_chins_depth(heads):
     # A heavy jaw carries the lower sides back with the points beside the chin (MakeHuman's characters): the whole
-    # lower jaw moved back, its sides come back to where the chin points now say, not to the eyes' template depth.
+    # lower jaw moved back, its sides go to where the chin's points now say, not to the eyes' template depth. On the
+    # identity as it is, eyes and chin agree and points 4 and 12 keep their own depth.
     from pdeface.landmarks.contour import BEHIND_CHIN, jaw_sides_at_template_depth
 
     mesh, T, lm, shapes = heads
     V = mesh.vertices + shapes["identity015"]
     L = V[lm]
-    lower = [*BEHIND_CHIN, *set(BEHIND_CHIN.values())]
-    back_by = 0.08
-    moved, f, eyes = _moved_on_skin(V, T, L, lower, 2, -back_by)  # the lower jaw and its chin points back
+    sides, chin = list(BEHIND_CHIN), sorted(set(BEHIND_CHIN.values()))
+    moved, f, eyes = _moved_on_skin(V, T, L, sides + chin, 2, -0.08)  # the lower jaw and its chin points back
     placed = jaw_sides_at_template_depth(V, T, moved)
-    rows = list(BEHIND_CHIN)
-    deeper = (f.to_face(L[rows]) - f.to_face(placed[rows]))[:, 2] / (eyes * f.scale)
-    chin_deeper = (f.to_face(L[list(set(BEHIND_CHIN.values()))]) - f.to_face(moved[list(set(BEHIND_CHIN.values()))]))
-    chin_deeper = chin_deeper[:, 2].mean() / (eyes * f.scale)
-    assert chin_deeper > 0.04 and np.abs(deeper - chin_deeper).max() < 0.03, (deeper, chin_deeper)
+
+    def back(P, rows):  # how far behind the identity's own (eye distances)
+        return (f.to_face(L[rows]) - f.to_face(P[rows]))[:, 2] / (eyes * f.scale)
+
+    chin_back = back(moved, chin).mean()
+    assert chin_back > 0.04 and np.abs(back(placed, sides) - chin_back).max() < 0.03, (back(placed, sides), chin_back)
+    as_is = jaw_sides_at_template_depth(V, T, L)
+    assert np.array_equal(as_is[[4, 12]], L[[4, 12]])
 
 
 @pytest.mark.parametrize("name", ["identity015", "identity019"])

@@ -1,6 +1,6 @@
 """The jaw's sides, where the jawline is a contour seen edge on: their depth from ICT's generic head.
 
-The jaw points 0-4 and 12-16 lie where the side of the face turns away from the viewer. A frontal detector
+The jaw points 0-3 and 13-16 lie where the side of the face turns away from the viewer. A frontal detector
 places them well across (x) and in height (y), but their depth along the contour is what a ray grazing the cheek
 happens to hit first. So each keeps its height and takes the depth ICT's generic head (the convention the map
 follows) gives it behind the eye centres; its side then comes from the skin, the first surface met coming in from
@@ -12,7 +12,8 @@ so the detector sees its depth) counts instead, where it disagrees with the eyes
 ever make them (:data:`AGREE`). On MakeHuman's development set (each character annotated in ICT's convention) the
 true depths of points 2-4 behind the eye centres spread 0.07-0.11 eye distances (standard deviation), behind
 points 6 and 10 0.02-0.05; at the upper ends (0, 1) the eyes are the better reference (0.03-0.05 against
-0.08-0.10). On ICT's heads both agree (0.01).
+0.08-0.10). On ICT's heads the two agree (within 0.015) and points 4 and 12 keep the detector's depth (at the
+template's, identity019's jaw came nearer ICT's own, but the fit's AU capture fell 0.003-0.009 on two heads).
 
 The jaw angles (5, 11) keep the detector's depth: taken behind 6 and 10 as well, they come nearer the truth on
 most characters, but on one stylised character the jaw then passes the gate 13.7 % of the eye distance off.
@@ -28,11 +29,14 @@ from ..geometry import ray_triangle, smoothstep
 from ..landmark_scheme import eye_distance
 from ..surface.frame import face_frame
 
-#: The jaw points moved: the jaw's sides. The chin's (6-10) face the viewer, their ray hits them squarely; the
-#: angles (5, 11) keep the detector's depth (see the module's docstring).
-JAW_SIDES = (0, 1, 2, 3, 4, 12, 13, 14, 15, 16)
-#: The lower sides, each with the jaw point beside the chin on its side whose depth may count instead of the eyes'.
+#: The jaw points taken to the template's depth behind the eyes. The chin's (6-10) face the viewer, their ray hits
+#: them squarely; the angles (5, 11) keep the detector's depth (see the module's docstring).
+UPPER_JAW = (0, 1, 2, 3, 13, 14, 15, 16)
+#: The lower sides, each with the jaw point beside the chin on its side whose depth may count instead (points 4
+#: and 12 are moved only then).
 BEHIND_CHIN = {2: 6, 3: 6, 4: 6, 12: 10, 13: 10, 14: 10}
+#: Every jaw point that may move.
+JAW_SIDES = tuple(sorted({*UPPER_JAW, *BEHIND_CHIN}))
 #: How far (eye distances) the depths behind the eyes and behind the chin's point may disagree before the chin's
 #: begins to count, and where it counts alone (ICT's held-out heads: at most 0.015; MakeHuman's characters: a
 #: median 0.08).
@@ -56,8 +60,8 @@ def _ict_landmarks() -> np.ndarray:
 
 
 def jaw_sides_at_template_depth(V, T, points, template68=None) -> np.ndarray:
-    """``points (68, 3)`` with the jaw's sides (:data:`JAW_SIDES`) at the template's depth behind the eyes, or
-    for the lower ones behind the jaw point beside the chin (:data:`BEHIND_CHIN`) where the two disagree
+    """``points (68, 3)`` with the jaw's sides at the template's depth behind the eyes (:data:`UPPER_JAW`), or for
+    the lower ones (:data:`BEHIND_CHIN`) behind the jaw point beside the chin where the two disagree
     (:data:`AGREE`), on the skin ``(V, T)`` at their own height (see the module's docstring).
 
     Parameters
@@ -76,11 +80,16 @@ def jaw_sides_at_template_depth(V, T, points, template68=None) -> np.ndarray:
     eyes = eye_distance(out) * f.scale
     F = f.to_face(out)
     behind = template_depths(_ict_landmarks() if template68 is None else template68) * eyes
-    depth = F[36:48, 2].mean() - behind
+    behind_eyes = F[36:48, 2].mean() - behind
+    depth = F[:, 2].copy()
+    depth[list(UPPER_JAW)] = behind_eyes[list(UPPER_JAW)]
+    rows = list(UPPER_JAW)
     for j, ref in BEHIND_CHIN.items():
-        off = F[ref, 2] - (behind[j] - behind[ref]) - depth[j]
-        depth[j] += smoothstep((abs(off) / eyes - AGREE[0]) / (AGREE[1] - AGREE[0])) * off
-    rows = list(JAW_SIDES)
+        behind_chin = F[ref, 2] - (behind[j] - behind[ref])
+        w = smoothstep((abs(behind_chin - behind_eyes[j]) / eyes - AGREE[0]) / (AGREE[1] - AGREE[0]))
+        depth[j] += w * (behind_chin - depth[j])
+        if w > 0 and j not in rows:
+            rows.append(j)
     FV = f.to_face(np.asarray(V, np.float64))
     T = np.asarray(T)
     # Only the triangles with a corner in the band of heights and depths the rays pass (a triangle reaching into
@@ -92,7 +101,7 @@ def jaw_sides_at_template_depth(V, T, points, template68=None) -> np.ndarray:
     tri = FV[T[inside[T].any(1)]]
     lo = np.minimum(np.minimum(tri[:, 0], tri[:, 1]), tri[:, 2])
     hi = np.maximum(np.maximum(tri[:, 0], tri[:, 1]), tri[:, 2])
-    for j in JAW_SIDES:
+    for j in rows:
         side = np.sign(F[j, 0])
         y, z = F[j, 1], depth[j]
         near = (lo[:, 1] <= y) & (hi[:, 1] >= y) & (lo[:, 2] <= z) & (hi[:, 2] >= z) & (side * hi[:, 0] > 0)
