@@ -113,6 +113,10 @@ def print_jaw_points(rows):
         across = np.array([c for _, c in errs.values()])
         print(f"  {'median |along| / across':32s} " + " ".join(
             f"{a:4.1f}/{c:2.0f}" for a, c in zip(np.median(abs(along), 0), np.median(across, 0))))
+        skin = [jaw_point_errors(np.array(r["points"]), np.array(r["skin_truth"]), r["eyes"]) for r in rows.values()]
+        print(f"  {'the same against the skin points':32s} " + " ".join(
+            f"{a:4.1f}/{c:2.0f}" for a, c in zip(np.median(abs(np.array([a for a, _ in skin])), 0),
+                                                 np.median(np.array([c for _, c in skin]), 0))))
 
 
 def main(argv=None):
@@ -147,6 +151,7 @@ def main(argv=None):
             r["seconds"] = time.perf_counter() - t
             r["found"] = True
             r["points"], r["truth"] = found.points.tolist(), ch.landmarks.tolist()  # for the --json reader
+            r["skin_truth"] = ch.skin_landmarks.tolist()
             r["eyes"] = eyes
             r.update(errors_pct(found.points, ch.landmarks, eyes))
             r["skin"] = errors_pct(found.points, ch.skin_landmarks, eyes)
