@@ -435,7 +435,7 @@ def test_the_jaws_lower_sides_come_back_to_the_characters_own_depth(name, monkey
     def off(P):  # the sides' median distance from their own (eye distances)
         return np.median(np.linalg.norm(P[rows] - L[rows], axis=1)) / eyes
 
-    placed = off(contour.jaw_sides_at_template_depth(V, T, slid))
+    placed = off(contour.upper_jaw_at_template_depth(V, T, slid))
     monkeypatch.setattr(contour, "BEHIND_CHIN", {})  # the eyes' template depth alone
-    eyes_only = off(contour.jaw_sides_at_template_depth(V, T, slid))
+    eyes_only = off(contour.upper_jaw_at_template_depth(V, T, slid))
     assert off(slid) > 0.1 and placed < 0.035 and eyes_only > 2 * placed, (off(slid), placed, eyes_only)

@@ -35,8 +35,6 @@ UPPER_JAW = (0, 1, 2, 3, 13, 14, 15, 16)
 #: The lower sides, each with the jaw point beside the chin on its side whose depth may count instead (points 4
 #: and 12 are moved only then).
 BEHIND_CHIN = {2: 6, 3: 6, 4: 6, 12: 10, 13: 10, 14: 10}
-#: Every jaw point that may move.
-JAW_SIDES = tuple(sorted({*UPPER_JAW, *BEHIND_CHIN}))
 #: How far (eye distances) the depths behind the eyes and behind the chin's point may disagree before the chin's
 #: begins to count, and where it counts alone (ICT's held-out heads: at most 0.015; MakeHuman's characters: a
 #: median 0.08).
@@ -59,7 +57,7 @@ def _ict_landmarks() -> np.ndarray:
     return mesh.vertices[landmarks]
 
 
-def jaw_sides_at_template_depth(V, T, points, template68=None) -> np.ndarray:
+def upper_jaw_at_template_depth(V, T, points, template68=None) -> np.ndarray:
     """``points (68, 3)`` with the jaw's sides at the template's depth behind the eyes (:data:`UPPER_JAW`), or for
     the lower ones (:data:`BEHIND_CHIN`) behind the jaw point beside the chin where the two disagree
     (:data:`AGREE`), on the skin ``(V, T)`` at their own height (see the module's docstring).

@@ -30,7 +30,7 @@ from ..mesh import connected_components, vertex_normals
 from ..rigid import rotation_vector_matrix
 from ..surface.frame import UNITS_MM, estimate_unit
 from .brows import brows_from_template
-from .contour import jaw_sides_at_template_depth
+from .contour import upper_jaw_at_template_depth
 from .detector import Detector
 from .facemap import GROUPS, LandmarkMap, read_map, robust_similarity
 from .mouth import inner_lip_corners_at_seam_end
@@ -369,8 +369,8 @@ def detect(V, T, unit=None, landmark_map: LandmarkMap | None = None, detector: D
                                       closest=closest, normals=normals)
         P2 = np.nanmean(Ps, axis=0)
         points, _ = snap(V, T[skin], m.apply(P2), skin_raster, 1.0 / s, closest)
-        # The jaw's sides at their depth along the contour from the template, not where a grazing ray met the skin.
-        points = jaw_sides_at_template_depth(V, T[skin], points)
+        # The upper jaw's depth along the contour from the template, not from where a grazing ray met the cheek.
+        points = upper_jaw_at_template_depth(V, T[skin], points)
         # The brows with the brow ridge (ICT's brow region laid onto the skin), not at ICT's height above the eyes.
         points = brows_from_template(V, T[skin], points, closest)
         # The inner lip corners back in the commissure, not on the lips' front.
