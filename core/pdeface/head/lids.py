@@ -111,10 +111,11 @@ class LidClosure:
             w = np.array([closing[i].get(side, 0.0) for i in keys])
             wink = np.array([closing[i].get("?", 0.0) for i in keys])
             w = np.minimum(w + wink * (gaps[j] <= gaps.min(0)), 1.0)  # a wink: the eye its motion closes more
-            # The lower lid keeps its height (its slide along kept): the blink is the upper lid's (ICT's scanned one
-            # raises the lower middle 0.02 of the gap, MakeHuman's eye closure not at all; the retargeted motion
-            # raised it up to 0.16 on the development set, that much less travel for the upper lid).
-            rise = np.maximum(L1[:, 1] - self.Vf[self.eyes[j][1], 1].mean(), 0) * w  # (k,)
+            # In a blink the lower lid keeps its height (its slide along kept): the closing is the upper lid's (ICT's
+            # scanned blink raises the lower middle 0.02 of the gap, MakeHuman's eye closure not at all; the
+            # retargeted motion raised it up to 0.16 on the development set, that much less travel for the upper lid).
+            held = w * (1 - np.array([closing[i].get("wink", 0.0) for i in keys]))  # a wink's cheek raises it
+            rise = np.maximum(L1[:, 1] - self.Vf[self.eyes[j][1], 1].mean(), 0) * held  # (k,)
             low, w_low = self.lower[j]
             sub[low, :, 1] -= w_low[:, None] * rise[None]
             L1 = L1 - rise[:, None] * [0, 1, 0]
@@ -151,12 +152,13 @@ def eyes_or_sockets(Lf, eye_distance, eyeballs=None) -> dict:
 
 
 def eyes_closed_by(weights) -> dict | None:
-    """``{"R": w, "L": w, "?": w}``: how far normalised AU ``weights`` close each eye ("?": a wink's, on the eye
-    its motion closes more); None where they close none."""
+    """``{"R": w, "L": w, "?": w, "wink": w}``: how far normalised AU ``weights`` close each eye ("?": a wink's,
+    on the eye its motion closes more) and, where a wink closes them, its weight ("wink": its lower lid rises
+    with the cheek); None where they close none."""
     out = {}
     for key, w in weights.items():
         au, side = split_au_key(key)
         if au in CLOSING_AUS and w:
-            for s in (side,) if side else ("?",) if au == WINK else ("R", "L"):
+            for s in ((side,) if side else ("?",) if au == WINK else ("R", "L")) + (("wink",) if au == WINK else ()):
                 out[s] = min(1.0, out.get(s, 0.0) + w)
     return out or None
