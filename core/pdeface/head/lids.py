@@ -8,7 +8,9 @@ for AU43/45 without one, the one the motion closes more for a wink without one) 
 of the rest gap between the upper and lower lid middles (the vertices at the landmarks).
 :class:`LidClosure` turns the upper lid the rest of the way about the eye's centre (over the eyeball, which
 it never enters) onto the lower lid's keyed middle: the margin fully, fading out above it over ``LID_IOD`` eye distances, along the margin as the opening's height does,
-and what lies in the opening (a lid's lining, an occlusion mesh) shared out between the two margins.
+and what lies in the opening (a lid's lining, an occlusion mesh) shared out between the two margins. In a blink
+(AU43, AU45; not a wink, whose cheek raises it) the lower lid first keeps its rest height, the same way down
+from its margin: where the keyed motion raised it, the upper lid stopped that much short of its travel.
 """
 from __future__ import annotations
 
