@@ -22,7 +22,8 @@ motion to all of the user's mesh, once per fit:
 - **lips joined in the mesh** (no opening between them: a voxel remesh, a decimated mouth) cannot part without a
   new topology: the binding notes it; where they are one row of vertices, the skin under the PDE face's strip
   between the lips' rims reads the strip (it stretches from the upper rim's motion to the lower's) and the folds'
-  relaxation keeps the upper lip, so AU27 moves the lower lip and stretches the skin joining them;
+  relaxation keeps the upper lip, so AU27 moves the lower lip and stretches the skin joining them; elsewhere (a
+  decimation merged the rims at the middle) the jaw's keys hold each inner lip's uncovered rim with its own lip;
 - **jaw AUs** (25, 26, 27, 29, 30) turn the jaw's parts (lower teeth, gums,
   tongue) about the hinge with the rotation recovered from the chin's own PDE
   motion (:mod:`pdeface.rigid`);
