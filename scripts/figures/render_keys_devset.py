@@ -42,34 +42,33 @@ HARDEST = ("voxel-m", "body-A-cm", "eyes-teeth-separate-in", "stylised-parted-de
 CUT = "-cut-lips"
 #: Rendered beside them by default: the head with no mouth inside, and voxel-m with its lips cut, with mouth bags.
 MOUTH_BAG = (NO_MOUTH_INSIDE.name, "voxel-m" + CUT)
-#: What the renders show, looked at (2026-11-26, branch keys-teeth-mouth; the bench's page lists them). Rendered
+#: What the renders show, looked at (2026-11-26, branch keys-au45; the bench's page lists them). Rendered
 #: again after a change to the binding, these are to be looked at and written again.
 SEEN = {
     "voxel-m": "fused lips (one surface, no opening): AU27 drops the chin and lower lip and stretches the skin joining "
-               "the lips into a sheet with a crease down its middle (5 new folds): no opening without cutting the mesh, "
-               "so the binding warns (lips joined: cut the mouth open); AU12 a fold at each mouth corner (2); AU45 "
-               "closes the lids (1); happy no folds",
-    "body-A-cm": "AU27 opens a round mouth over the dark lining, folds at both lip corners and along the lower inner "
-                 "lip (10); happy parts the lips over the lining, folds along the lower inner lip (12); AU45 closes the "
-                 "lids, folds at a lid corner (11); AU12 folds at the corners (4); no beak",
+               "the lips into a sheet with a crease down its middle (8 new folds): no opening without cutting the mesh, "
+               "so the binding warns (lips joined: cut the mouth open); AU12 a fold on one cheek (1); AU45 closes the "
+               "jagged voxel lids part way, a fold on the right upper lid (3, as before the lower lids were held); "
+               "happy a fold at one corner (1)",
+    "body-A-cm": "AU27 opens a round mouth over the dark lining, folds at both lip corners (16); happy parts the lips "
+                 "over the lining (11); AU45 closes the lids to a thin line, the lower lids at their rest height, folds "
+                 "at an outer lid corner (14); AU12 folds at the corners (4); no beak",
     "eyes-teeth-separate-in": "AU27: the tongue (red) and lower teeth (ivory) turn down whole with the jaw, no spikes "
-                              "or stretched teeth (before: the tongue split with the skull, its back stayed); the "
-                              "folds left are skin at the lip corners (8); happy shows tongue and lower teeth; AU45 "
-                              "closes the lids (6); AU12 a fold at one corner (4)",
+                              "or stretched teeth; the folds left are skin at the lip corners (8); happy shows tongue "
+                              "and lower teeth (4); AU45 closes the lids to a thin line (7); AU12 no folds",
     "stylised-parted-decimated-dm": "the dark holes round the nose and lips are the decimation's, there at rest; the "
-                                    "parted lips show the dark lining; AU27 opens wide (the mouth's floor grey: skin "
-                                    "the PDE face covers), a fold on the neck under the jaw (2); AU45 closes the lids "
-                                    "with folds at both inner corners (4); AU12 and happy one fold each",
-    "stylised-chin-cheek-in": "AU27 opens the mouth over the dark lining, the lower lip's inner edge creased at both "
-                              "sides (12); AU45 closes the lids, folds at the lid corners (6); AU12 and happy read as "
-                              "smiles (2, 0); the dark shading on the cheeks is the style's cheek bones, at rest too",
+                                    "parted lips show the dark lining; AU27 opens wide (2 folds); AU45 closes the lids "
+                                    "with folds at a corner of each eye (4); AU12 and happy no folds",
+    "stylised-chin-cheek-in": "AU27 opens the mouth over the dark lining (2); AU45 closes the lids to a thin line (4); "
+                              "AU12 and happy read as smiles, a fold at the upper lip's middle (4, 4); the dark shading "
+                              "on the cheeks is the style's cheek bones, at rest too",
     NO_MOUTH_INSIDE.name: "lips that open onto the inside of the head, with the add-on's mouth bag: AU27 and happy show "
-                          "the dark bag between the lips, no hole (the bag's top a small wedge under the upper lip's "
-                          "middle); folds at the lip corners (5 in AU27, 8 in happy); AU12 and AU45 as on the others",
+                          "the dark bag between the lips, no hole; folds at the lip corners (5 in AU27, 2 in happy); "
+                          "AU12 (4) and AU45 (3, the lids closed to a thin line) as on the others",
     "voxel-m" + CUT: "voxel-m's fused lips cut open along the line between them (cut_lips), fitted again, with a mouth "
-                     "bag: AU27 opens the mouth over the dark bag, no sheet (9 new folds, on the neck under the jaw); "
+                     "bag: AU27 opens the mouth over the dark bag, no sheet (6 new folds, on the neck under the jaw); "
                      "happy parts the lips over it; the cut follows the voxel grid's edges, so the lip line is jagged "
-                     "(a saw-tooth slit at rest); AU12, AU45 and happy no folds",
+                     "(a saw-tooth slit at rest); AU45 as on voxel-m (3); AU12 and happy no folds",
 }
 KEYS = ("neutral", "AU12", "AU27", "AU45", "happy")
 #: The views: the camera turned this many degrees about the face's vertical axis (towards the subject's left).

@@ -22,7 +22,8 @@ motion to all of the user's mesh, once per fit:
 - **lips joined in the mesh** (no opening between them: a voxel remesh, a decimated mouth) cannot part without a
   new topology: the binding notes it; where they are one row of vertices, the skin under the PDE face's strip
   between the lips' rims reads the strip (it stretches from the upper rim's motion to the lower's) and the folds'
-  relaxation keeps the upper lip, so AU27 moves the lower lip and stretches the skin joining them;
+  relaxation keeps the upper lip, so AU27 moves the lower lip and stretches the skin joining them; elsewhere (a
+  decimation merged the rims at the middle) the jaw's keys hold each inner lip's uncovered rim with its own lip;
 - **jaw AUs** (25, 26, 27, 29, 30) turn the jaw's parts (lower teeth, gums,
   tongue) about the hinge with the rotation recovered from the chin's own PDE
   motion (:mod:`pdeface.rigid`);
@@ -301,7 +302,7 @@ def _mouth_middle(P, Lf):
     return np.abs(P[:, 0] - corners.mean()) < 0.5 * JOINED_WIDTH * np.ptp(corners)
 
 
-def _inner_lip_middles(P, Lf, eye_distance):
+def _inner_lip_middles(P, Lf, eye_distance, lines=((61, 62), (62, 63), (65, 66), (66, 67))):
     """Skin on the inner lips' middle thirds (landmarks 61-63, 65-67): kept by the jaw keys' fold relaxation on lips
     joined in the mesh, which it would otherwise smooth shut in AU27 where they meet in one row of vertices (a
     decimated head). Lips apart are not kept: the step between a kept middle and its relaxed neighbours folded parted
@@ -309,13 +310,41 @@ def _inner_lip_middles(P, Lf, eye_distance):
     from scipy.spatial import cKDTree
 
     t = np.linspace(0, 1, 8, endpoint=False)[:, None]
-    lines = [(61, 62), (62, 63), (65, 66), (66, 67)]
-    along = np.concatenate([Lf[a] + t * (Lf[b] - Lf[a]) for a, b in lines] + [Lf[[63, 67]]])
+    along = np.concatenate([Lf[a] + t * (Lf[b] - Lf[a]) for a, b in lines] + [Lf[[b for _, b in lines[1::2]]]])
     along = along[np.isfinite(along).all(axis=1)]  # a landmark may be missing
     if not len(along):
         return np.zeros(len(P), bool)
     near = cKDTree(along).query(P, distance_upper_bound=LIP_LINE_IOD * eye_distance)[0]
     return np.isfinite(near)
+
+
+def _merged_rims(P, covered, fixed, Lf, eye_distance, skin_tree):
+    """``(held, anchors)`` on lips joined in the mesh: the skin the PDE face does not cover (nor ``fixed``: rest,
+    depths) on each inner lip's middle third (at its landmarks, 61-63 or 65-67, or on their line on its side of the
+    mouth line), not at the other lip's landmarks, and each one's nearest covered skin on the same side. A decimation
+    merges the lips' rims there: free, such a vertex took both lips' motion (decimated-cm's upper lip sank 0.24 eye
+    distances in AU27, following the jaw); held, each rim follows its lip and the skin joining them stretches."""
+    empty = np.zeros(0, np.int64)
+    if not np.isfinite(Lf[list(INNER_LIPS)]).all():
+        return empty, empty
+    from scipy.spatial import cKDTree
+
+    at = skin_tree.query(Lf[list(INNER_LIPS)])[1]  # 60-67: the corners 60 and 64 are both lips'
+    free = ~covered & ~fixed
+    side = P[:, 1] > mouth_line(Lf)
+    held, anchors = [empty], [empty]
+    for own, other, lines, upper in ((at[1:4], at[5:8], ((61, 62), (62, 63)), True),
+                                     (at[5:8], at[1:4], ((65, 66), (66, 67)), False)):
+        on_side = side if upper else ~side
+        rim = np.union1d(own, np.nonzero(_inner_lip_middles(P, Lf, eye_distance, lines) & on_side)[0])
+        rim = np.setdiff1d(rim[free[rim]], other)
+        lip = np.nonzero(covered & on_side)[0]
+        if len(rim) and len(lip):
+            held.append(rim)
+            anchors.append(lip[cKDTree(P[lip]).query(P[rim])[1]])
+    held, anchors = np.concatenate(held), np.concatenate(anchors)
+    first = np.unique(held, return_index=True)[1]  # a landmark's vertex on the other side: the upper lip's
+    return held[first], anchors[first]
 
 
 def _upper_lip(P, Lf, eye_distance):
@@ -482,6 +511,14 @@ class HeadBinding:
                                      shape=(len(P), len(cov))) @ self.read_grid
         self._ext = _Extension(L, covered | rest | depths, self._read_skin)
         self._jaw_fixed = covered | rest | (depths & (P[:, 1] > mouth_line(Lf)))  # the jaw moves the lower depths
+        self._read_jaw = self._read_skin
+        if lips_joined and not self.lips_one_line:  # rims merged by a decimation held with their lips
+            held, anchor = _merged_rims(P, covered, rest | depths, Lf, eye_distance, skin_tree)
+            self._jaw_fixed[held] = True
+            pick = np.arange(len(P))
+            pick[held] = anchor
+            self._read_jaw = csr_matrix((np.ones(len(P)), (np.arange(len(P)), pick)), shape=(len(P),) * 2) @ \
+                self._read_skin
         self._ext_jaw = None  # factorised on first use
         self._seam = _seam_smoother(P, L, covered, rest, Lf, eye_distance)
         # The back of the head and the neck keep still; the rigid parts turn whole.
@@ -596,7 +633,7 @@ class HeadBinding:
         if not jaw:
             return self._ext
         if self._ext_jaw is None:  # factorised on first use
-            self._ext_jaw = _Extension(self._L, self._jaw_fixed, self._read_skin)
+            self._ext_jaw = _Extension(self._L, self._jaw_fixed, self._read_jaw)
         return self._ext_jaw
 
     def face_motion(self, delta_coefficients, delta_residual, jaw=False, gaze=None, with_prior=True) -> np.ndarray:
