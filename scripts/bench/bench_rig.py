@@ -5,8 +5,8 @@ Usage: python -m scripts.bench.bench_rig [--runs 3] [--import-runs 7]
 ICT-FaceKit's whole head (26,719 vertices, written as OBJ from the bundled asset) and the same head
 clustered on a grid to about 8k vertices (another topology), each rigged by ``pdeface rig`` in a fresh
 process (its imports included, landmarks found with MediaPipe): the process's wall and CPU seconds, each step's
-seconds from its report (read, landmarks, fit, retarget, bind, keys; median of the runs) and the ratio
-to the 3 s target. Then the command line's own imports before a command runs, median of fresh processes
+wall and CPU seconds from its report (read, landmarks, fit, retarget, bind, keys; median of the runs) and the
+ratio to the 3 s target. Then the command line's own imports before a command runs, median of fresh processes
 (``python -X importtime``): ``pdeface rig`` importing its own group only, against every group imported
 (as before issue #35), in the same run. The machine's load average is printed: other work beside it
 slows every figure. Needs ``pdeface[landmarks]``.
@@ -43,15 +43,16 @@ def child_cpu():
 
 
 def rig_once(path, out):
-    """(process wall seconds, its CPU seconds, the report's timings) of ``pdeface rig path -o out`` in a fresh
-    process."""
+    """(process wall seconds, its CPU seconds, each step's (wall, CPU) seconds from the report) of ``pdeface rig
+    path -o out`` in a fresh process."""
     t, c = time.perf_counter(), child_cpu()
     done = subprocess.run([sys.executable, "-m", "pdeface.cli", "rig", str(path), "-o", str(out)],
                           capture_output=True, text=True, check=False)
     wall, cpu = time.perf_counter() - t, child_cpu() - c
     if done.returncode:
         raise SystemExit(f"pdeface rig {path} failed: {done.stderr.strip()[-600:]}")
-    return wall, cpu, json.loads(done.stdout.strip().splitlines()[-1])["timings"]
+    printed = json.loads(done.stdout.strip().splitlines()[-1])
+    return wall, cpu, {k: (printed["timings"][k], printed["cpu_timings"][k]) for k in STEPS}
 
 
 def import_seconds(command):
@@ -80,15 +81,18 @@ def main(argv=None):
             runs = [rig_once(path, Path(tmp) / "out") for _ in range(args.runs)]
             wall = statistics.median(w for w, _, _ in runs)
             cpu = statistics.median(c for _, c, _ in runs)
-            steps = {k: statistics.median(t[k] for _, _, t in runs) for k in STEPS}
+            steps = {k: statistics.median(t[k][0] for _, _, t in runs) for k in STEPS}
+            steps_cpu = {k: statistics.median(t[k][1] for _, _, t in runs) for k in STEPS}
             print(f"\n== {name} ({len(mesh.vertices)} vertices): pdeface rig {wall:.2f} s per process ({cpu:.2f} s of "
                   f"CPU: less sensitive to other work), median of {args.runs} (runs "
                   f"{', '.join(f'{w:.2f}' for w, _, _ in runs)}); target ≤ {TARGET_S:.0f} s: ratio "
                   f"{wall / TARGET_S:.2f}, {'met' if wall <= TARGET_S else 'NOT met'}; load after: {load_text()}")
+            print(f"  {'step':10s} {'wall s':>6s} {'share':>5s}  {'CPU s':>6s} {'share':>5s}")
             for k, s in steps.items():
-                print(f"  {k:10s} {s:6.2f} s  {100 * s / wall:4.0f}%")
-            rest = wall - sum(steps.values())
-            print(f"  {'the rest':10s} {rest:6.2f} s  {100 * rest / wall:4.0f}%  (Python's start, imports, writing)")
+                print(f"  {k:10s} {s:6.2f} {100 * s / wall:4.0f}%  {steps_cpu[k]:6.2f} {100 * steps_cpu[k] / cpu:4.0f}%")
+            rest, rest_cpu = wall - sum(steps.values()), cpu - sum(steps_cpu.values())
+            print(f"  {'the rest':10s} {rest:6.2f} {100 * rest / wall:4.0f}%  {rest_cpu:6.2f} {100 * rest_cpu / cpu:4.0f}%"
+                  "  (Python's start, imports, writing)")
     own, every = [], []
     for _ in range(args.import_runs):  # interleaved: the machine's load falls on both alike
         own.append(import_seconds("rig"))
