@@ -10,12 +10,11 @@ ratio to the 3 s target. Then the command line's own imports before a command ru
 (``python -X importtime``): ``pdeface rig`` importing its own group only, against every group imported
 (as before issue #35), in the same run, and its own group compiled from source in each process, as on a machine
 where ``PYTHONDONTWRITEBYTECODE`` is set (this one's): pip compiles an installed pdeface's bytecode and a checkout
-writes it on its first run, so the rigs are timed with it (``compileall`` first). The machine's load average is
+writes it on its first run, so the rigs are timed with it (``benchlib.installed_env``). The machine's load average is
 printed: other work beside it slows every figure. Needs ``pdeface[landmarks]``.
 """
 from __future__ import annotations
 
-import compileall
 import json
 import os
 import resource
@@ -32,7 +31,7 @@ from pdeface.assets import load_head
 from pdeface.io.meshio import write_obj
 from pdeface.mesh import Mesh
 
-from scripts.bench.benchlib import bench_parser, clustered, run_bench
+from scripts.bench.benchlib import bench_parser, clustered, installed_env, run_bench
 
 TARGET_S = 3.0
 STEPS = ("read", "landmarks", "fit", "retarget", "bind", "keys")
@@ -48,10 +47,10 @@ def child_cpu():
 
 
 def child_env(source_only=None):
-    """The environment of a child: reading pdeface's bytecode (written by :func:`main`), or with ``source_only``
-    (a folder holding a copy of the package without its bytecode, first on the path) compiling pdeface's modules
-    from source, none written (numpy's and the rest's bytecode read as ever)."""
-    env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
+    """The environment of a child: reading pdeface's bytecode (:func:`~scripts.bench.benchlib.installed_env`), or
+    with ``source_only`` (a folder holding a copy of the package without its bytecode, first on the path)
+    compiling pdeface's modules from source, none written (numpy's and the rest's bytecode read as ever)."""
+    env = installed_env()
     if source_only:
         path = os.pathsep.join(p for p in (str(source_only), env.get("PYTHONPATH")) if p)
         env |= {"PYTHONDONTWRITEBYTECODE": "1", "PYTHONPATH": path}
@@ -90,7 +89,6 @@ def main(argv=None):
     head, _ = load_head()
     V, T = head.vertices, head.triangles()[0]
     Vc, Tc = clustered(V, T, 0.42)  # cm: about 8k vertices
-    compileall.compile_dir(Path(pdeface.__file__).parent, quiet=1)  # as pip leaves an installed pdeface
     print(f"{os.cpu_count()} cores; load average at the start: {load_text()}")
     with tempfile.TemporaryDirectory() as tmp:
         for name, mesh in (("ICT head", head), ("clustered head", Mesh.from_faces(Vc, Tc))) if args.runs else ():
