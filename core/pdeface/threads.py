@@ -11,7 +11,7 @@ this module's choice, quiet and beside a busy process.
 dependency: the ``blender`` and ``test`` extras, and a wheel in the Blender extension) and puts
 them back afterwards; without it, it changes nothing. Only BLAS pools are bounded: OpenMP's belong
 to whatever else runs in the process (Blender's renderer). The command line, the add-on's operators,
-the fit and the head binding run inside it.
+the landmarks' search, the fit and the head binding run inside it.
 """
 from __future__ import annotations
 

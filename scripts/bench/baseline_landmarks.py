@@ -17,6 +17,8 @@ from pdeface.geometry import unit_rows
 from pdeface.landmarks import pipeline, render
 from pdeface.landmarks.render import Raster
 
+from scripts.bench.benchlib import installed_env
+
 _CHUNK = 2_000_000
 
 
@@ -149,6 +151,7 @@ def cold_seconds(head, repeat=3):
     for _ in range(repeat):
         for name, seconds in runs.items():
             code = _COLD.replace("HEAD", repr(head)).replace("BEFORE", str(name == "before"))
-            out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+            out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
+                                 env=installed_env())
             seconds.append([float(x) for x in out.stdout.split()[-5:]])
     return {name: dict(zip(keys, np.median(np.array(r), axis=0).tolist())) for name, r in runs.items()}

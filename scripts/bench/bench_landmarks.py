@@ -13,7 +13,9 @@ Blender's convention (-y front, +z up) with 25° of yaw, in metres:
 - a whole-body character in metres of another topology: found, fitted, its errors;
 - speed against the renderer as it was before #35 (:mod:`scripts.bench.baseline_landmarks`), in the same run:
   each held-out head found both ways (same landmarks, bit for bit; time ratio), and a fresh process finding
-  one head from scratch (imports, detector, detect) both ways, with the machine's load beside.
+  one head from scratch (imports, detector, detect) both ways, with the machine's load beside;
+- BLAS threads both ways: held-out heads found with the BLAS pools bounded as ``detect`` runs them
+  (:mod:`pdeface.threads`) and with the library's default pools, in turn (wall, CPU and each one's share).
 Needs ``pdeface[landmarks]``.
 """
 from __future__ import annotations
@@ -31,6 +33,7 @@ from pdeface.au.retarget import retarget
 from pdeface.landmarks.detector import Detector
 from pdeface.landmarks.facemap import read_map
 from pdeface.landmarks.pipeline import detect
+from pdeface.threads import THREADS
 from pdeface.rigid import rotation_vector_matrix
 from pdeface.surface.fit import fit_face
 from pdeface.surface.frame import BLENDER_FROM_ICT
@@ -65,6 +68,31 @@ def fit_figures(Vf, Tf, L, face):
     acc = accuracy_report(model, Vf, Tf)["mean_mm"]
     caps = [r["captured"] for r in au_report(retarget(face, model), Vf, Tf, load_ict_shapes()).values()]
     return acc, float(np.median([c for c in caps if c is not None]))
+
+
+def blas_both_ways(mesh, T, shapes, names, det, rounds=2):
+    """Each head found with its BLAS pools bounded (``detect`` as it runs) and unbounded (``detect.__wrapped__``:
+    the library's default pools), in turn; medians of wall and CPU seconds per head, and their ratios."""
+    from threadpoolctl import threadpool_info
+
+    default = max((p["num_threads"] for p in threadpool_info() if p["user_api"] == "blas"), default=1)
+    times = {"bounded": [], "default": []}
+    for _ in range(rounds):
+        for name in names:
+            V = mesh.vertices + shapes[name]
+            for way, find in (("bounded", detect), ("default", detect.__wrapped__)):
+                t, c = time.perf_counter(), time.process_time()
+                find(V, T, "cm", detector=det)
+                times[way].append((time.perf_counter() - t, time.process_time() - c))
+    med = {way: np.median(np.array(v), axis=0) for way, v in times.items()}
+    print(f"== BLAS threads: {len(names)} held-out heads found {rounds} times each, the BLAS pools bounded to {THREADS} "
+          f"(as detect runs) and at the library's default ({default}), in turn ({load()})")
+    for way, (wall, cpu) in med.items():
+        print(f"  {way:8s} {wall:.2f} s wall, {cpu:.2f} s CPU per head (all threads: CPU over wall is other threads' "
+              f"work: MediaPipe's own, OpenBLAS's)")
+    print(f"  bounded / default: {med['bounded'][0] / med['default'][0]:.2f} wall, "
+          f"{med['bounded'][1] / med['default'][1]:.2f} CPU")
+    return {way: {"wall": float(w), "cpu": float(c)} for way, (w, c) in med.items()}
 
 
 def main(argv=None):
@@ -123,6 +151,7 @@ def main(argv=None):
                   f"<= {SPEED_TARGET}), {np.median(ratios):.2f} of the time before #35 (range {min(ratios):.2f}-"
                   f"{max(ratios):.2f})")
         print(f"  landmarks moved at most {max(r['moved_mm'] for r in rows):.2g} mm from before's ({load()})")
+        out["threads"] = blas_both_ways(mesh, T, shapes, held[:3], det)
         fits = rows
         acc_ratio = max(r["fit_mean_mm"] / r["fit_mean_mm_true"] for r in fits)
         cap_drop = max(r["captured_true"] - r["captured"] for r in fits)

@@ -96,6 +96,18 @@ def write_page(name, module, argv, printed, start, wall_s, load):
     return path
 
 
+def installed_env():
+    """The environment for a child process timed as an installed pdeface runs: its bytecode written now
+    (``compileall``, as pip leaves an install) and read, where this machine sets ``PYTHONDONTWRITEBYTECODE``
+    (every process would compile every pdeface module again: ~0.4 s of CPU)."""
+    import compileall
+
+    import pdeface
+
+    compileall.compile_dir(Path(pdeface.__file__).parent, quiet=1)
+    return {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
+
+
 def median_time(fn, repeat=5):
     """Median wall time of ``fn()`` over ``repeat`` calls (seconds)."""
     times = []

@@ -312,6 +312,10 @@ def test_pdeface_rig_writes_the_same_bytes_twice(tmp_path, capsys):
     assert main(["rig", str(mesh), "--landmarks", str(lm), "--no-presets", "-o", str(tmp_path / "a")]) == 0
     printed = json.loads(capsys.readouterr().out)
     assert printed["keys"]["count"] == printed["keys"]["aus"] > 60 and "bind" in printed["timings"]
+    # each step's CPU seconds (all threads) beside its wall seconds
+    assert set(printed["cpu_timings"]) == set(printed["timings"]) and printed["cpu_timings"]["fit"] > 0
+    report = json.loads((tmp_path / "a" / "report.json").read_text())
+    assert report["cpu_timings"] == printed["cpu_timings"] and report["timings"] == printed["timings"]
     assert main(["rig", str(mesh), "--landmarks", str(lm), "--no-presets", "-o", str(tmp_path / "b")]) == 0
     for name in ("landmarks.json", "face.npz", "rigged.npz", "keys.npz"):
         assert (tmp_path / "a" / name).read_bytes() == (tmp_path / "b" / name).read_bytes(), name

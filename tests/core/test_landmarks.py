@@ -9,7 +9,7 @@ import pytest
 from pdeface.assets import load_head, load_head_shapes
 from pdeface.cli import main
 from pdeface.errors import LandmarkError, MeshError
-from pdeface.geometry import ClosestPoint, similarity
+from pdeface.geometry import ClosestPoint, ray_triangle, similarity
 from pdeface.io.meshio import read_mesh, write_mesh
 from pdeface.landmarks import MissingDependencyError, available, detect
 from pdeface.landmarks import detector as detector_module
@@ -160,6 +160,29 @@ def test_back_projection_hits_the_surface_through_sub_pixel_points(rng, rotation
     px, py, _ = view.project(P)
     assert np.abs(px - x).max() < 1e-9 and np.abs(py - y).max() < 1e-9
     assert (tri >= 0).all() and np.all(np.abs(facing) > 0.5)
+
+
+def test_back_projection_tests_each_ray_triangle_pair_once_with_the_same_hits(heads, rng):
+    """Each ray's nearest exact hit among the triangles its neighbourhood shows, as testing every candidate
+    pixel's triangle one by one finds it (a triangle covers several of a ray's pixels: tested once)."""
+    mesh, T, lm, _ = heads
+    V = mesh.vertices
+    view = View.looking([0, 0.3, 1], [0, 1, 0], V[lm].mean(0), 9.0, 200)
+    r = rasterise(V, T, view)
+    x, y = rng.uniform(20, 180, 300), rng.uniform(20, 180, 300)  # face, lids and lips: many triangles per ray
+    P, tri, _ = back_project(V, T, r, x, y)
+    origins, directions = view.rays(x, y)
+    for i in range(len(x)):
+        ys, xs = np.meshgrid(np.arange(-2, 3), np.arange(-2, 3), indexing="ij")
+        cand = r.tri[np.clip(round(y[i]) + ys.ravel(), 0, 199), np.clip(round(x[i]) + xs.ravel(), 0, 199)]
+        cand = cand[cand >= 0]
+        hit, _, _, t = ray_triangle(origins[[i] * len(cand)], directions[[i] * len(cand)], V[T[cand, 0]],
+                                    V[T[cand, 1]], V[T[cand, 2]], eps=1e-7)
+        if hit.any():
+            k = np.flatnonzero(hit)[np.argmin(t[hit])]  # the nearest, the first listed on a tie
+            assert tri[i] == cand[k] and np.array_equal(P[i], origins[i] + directions[i] * t[k])
+        else:
+            assert tri[i] < 0 or tri[i] in cand  # no hit: the point seen at the nearest pixel that shows one
 
 
 def test_shade_gives_a_grey_image_of_the_mesh(heads):

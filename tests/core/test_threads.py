@@ -90,3 +90,30 @@ def test_the_resolution_choice_runs_bounded(monkeypatch, default_face):
         sampling.adaptive_resolution(model)
         assert set(blas_threads()) == {2}
     assert seen and all(set(s) == {THREADS} for s in seen)
+
+
+def test_the_landmark_search_runs_bounded(monkeypatch):
+    """Finding landmarks (numpy's products on the renders: an OpenBLAS thread beside them only spins on a busy
+    machine) runs inside the bound, called from the API as the benchmarks call it, not only from a command."""
+    from pdeface.errors import LandmarkError
+    from pdeface.landmarks import pipeline
+    from pdeface.mesh import Mesh
+
+    seen = []
+
+    def search(*args, **kwargs):  # the first step after the normals: stop there, no MediaPipe needed
+        seen.append(blas_threads())
+        raise LandmarkError("stopped")
+
+    class Unused:
+        def close(self):
+            raise AssertionError("a detector given is the caller's to close")
+
+    monkeypatch.setattr(pipeline, "search", search)
+    box = Mesh.from_faces(np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1.0]]),
+                          np.array([[0, 1, 2], [0, 1, 3], [0, 2, 3], [1, 2, 3]]))
+    with threadpoolctl.threadpool_limits(limits=2, user_api="blas"):
+        with pytest.raises(LandmarkError, match="stopped"):
+            pipeline.detect(box.vertices, box.triangles()[0], detector=Unused())
+        assert set(blas_threads()) == {2}
+    assert seen and all(set(s) == {THREADS} for s in seen)

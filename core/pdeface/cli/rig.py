@@ -19,7 +19,7 @@ def cmd_rig(args):
     for note in report["binding_notes"]:
         log(note)
     print(json.dumps({"output": str(args.output), "keys": report["keys"], "timings": report["timings"],
-                      "files": report["outputs"]}))
+                      "cpu_timings": report["cpu_timings"], "files": report["outputs"]}))
 
 
 def register(sub):

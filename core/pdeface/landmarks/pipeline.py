@@ -29,6 +29,7 @@ from ..geometry import ClosestPoint
 from ..mesh import connected_components, vertex_normals
 from ..rigid import rotation_vector_matrix
 from ..surface.frame import UNITS_MM, estimate_unit
+from ..threads import bounded
 from .brows import brows_from_template
 from .contour import upper_jaw_at_template_depth
 from .detector import Detector
@@ -305,6 +306,7 @@ def frontal_readings(V, T, skin, detector: Detector, m: LandmarkMap, pose, first
     return np.stack(Ps), np.stack(direct)
 
 
+@bounded  # numpy's small products: an OpenBLAS thread beside them only spins (issue #35; MediaPipe's are its own)
 def detect(V, T, unit=None, landmark_map: LandmarkMap | None = None, detector: Detector | None = None,
            keep_images=False, verbose=False) -> FoundLandmarks:
     """Find the 68 Multi-PIE landmarks on a mesh.
