@@ -32,6 +32,7 @@ from ..surface.frame import UNITS_MM, estimate_unit
 from .brows import brows_from_template
 from .contour import upper_jaw_at_template_depth
 from .detector import Detector
+from .eyes import lids_on_margin
 from .facemap import GROUPS, LandmarkMap, read_map, robust_similarity
 from .mouth import inner_lip_corners_at_seam_end
 from .render import Raster, View, back_project, depth_map, marked, rasterise, shade
@@ -371,6 +372,8 @@ def detect(V, T, unit=None, landmark_map: LandmarkMap | None = None, detector: D
         points, _ = snap(V, T[skin], m.apply(P2), skin_raster, 1.0 / s, closest)
         # The upper jaw's depth along the contour from the template, not from where a grazing ray met the cheek.
         points = upper_jaw_at_template_depth(V, T[skin], points)
+        # The lid points on the margin's front edge, not on its curl into the socket.
+        points = lids_on_margin(V, T[skin], points)
         # The brows with the brow ridge (ICT's brow region laid onto the skin), not at ICT's height above the eyes.
         points = brows_from_template(V, T[skin], points, closest)
         # The inner lip corners back in the commissure, not on the lips' front.
