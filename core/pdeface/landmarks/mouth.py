@@ -74,3 +74,54 @@ def inner_lip_corners_at_seam_end(V, T, points) -> np.ndarray:
         if np.isfinite(P).all():
             out[inner] = P
     return out
+
+
+#: The inner lip line's middle points: the upper lip's (61-63) and the lower lip's (65-67).
+INNER_MIDDLES = (61, 62, 63, 65, 66, 67)
+#: How far up and down (eye distances) of a found inner lip point its column is searched for the seam.
+SEAM_REACH = 0.04
+
+
+def inner_lips_in_seam(V, T, points) -> np.ndarray:
+    """``points (68, 3)`` with the inner lip line's middle points (:data:`INNER_MIDDLES`) moved to the seam of
+    closed lips: the deepest point of their column, seen straight on, within :data:`SEAM_REACH` up and down and
+    no more than :data:`REACH` behind the found point (deeper: the slit of parted lips, the mouth). A point with
+    nothing seen :data:`DEEPER` deeper stays.
+
+    The face mesh's inner lip points lie on the lips' fronts, in front of the seam where the lips meet and where
+    ICT's convention puts them (on the development set a median 0.02 eye distances in front). There the middles'
+    error against the registered skin points falls from 3.6-4.3 to 2.0-2.3 % of the eye distance (median over
+    the characters); on ICT's held-out heads, where the found points lie in the seam already, the inner points'
+    median and p95 stay (one upper middle 0.6 mm farther off).
+
+    Parameters
+    ----------
+    V, T : arrays
+        The mesh and the skin's triangles.
+    points : (68, 3) array
+        Landmarks on the skin, the mesh's space.
+    """
+    out = np.array(points, np.float64)
+    R = face_frame(out).rotation
+    eyes = eye_distance(out)
+    view = View.looking(R[2], R[1], out[48:68].mean(0), HALF * eyes, SIZE)
+    x, y, z = view.project(out)
+    px = 2 * view.half / SIZE
+    reach = round(SEAM_REACH * eyes / px)
+    cols = {j: int(np.clip(np.round(x[j]), 0, SIZE - 1)) for j in INNER_MIDDLES}
+    near = np.zeros((SIZE, SIZE), bool)
+    near[:, sorted(set(cols.values()))] = True
+    raster = rasterise(V, T, view, near=near)
+    depth = depth_map(V, T, raster)
+    for j, c in cols.items():
+        r0 = int(np.clip(np.round(y[j]), 0, SIZE - 1))
+        rows = np.arange(max(r0 - reach, 0), min(r0 + reach, SIZE - 1) + 1)
+        d = depth[rows, c]
+        d = np.where(d >= z[j] - REACH * eyes, d, np.inf)
+        k = int(np.argmin(d))
+        if not d[k] < z[j] - DEEPER * eyes:
+            continue
+        P = back_project(V, T, raster, np.array([float(c)]), np.array([float(rows[k])]), reach=1)[0][0]
+        if np.isfinite(P).all():
+            out[j] = P
+    return out
