@@ -411,3 +411,73 @@ def test_jaw_point_errors_split_along_and_across_the_jawline(ict):
     assert abs(along[8]) < 0.5 and across[8] == pytest.approx(5.0, abs=0.5)
     unmoved = [j for j in range(17) if j not in (3, 8, 13)]
     assert np.allclose(along[unmoved], 0) and np.allclose(across[unmoved], 0)
+
+
+def _moved_in_face_frame(V, T, L, rows, shift):
+    """``L`` with ``rows`` moved by ``shift`` (x, y, z: eye distances in the face frame), then onto the surface
+    ``(V, T)``."""
+    from pdeface.geometry import ClosestPoint
+
+    f, eyes = face_frame(L), eye_distance(L)
+    F = f.to_face(L[rows])
+    F += np.asarray(shift, np.float64) * eyes * f.scale
+    moved = L.copy()
+    moved[rows] = ClosestPoint(V, T).query(f.to_user(F))[3]
+    return moved
+
+
+@needs_makehuman
+def test_lid_points_on_the_margins_curl_come_back_to_its_front_edge():
+    # MakeHuman's lid margins curl back into the empty sockets: a lid point found a little into the opening
+    # lands on the curl, behind the lid (as the map's did, 0.05-0.07 eye distances); it comes back to the
+    # margin's front edge.
+    from pdeface.landmark_scheme import UPPER_LIDS
+    from pdeface.landmarks.eyes import lids_on_margin
+
+    ch = build(SPECS["base-dm"])
+    L, eyes = ch.skin_landmarks, ch.eye_distance
+    moved = _moved_in_face_frame(ch.vertices, ch.triangles, L, UPPER_LIDS, (0, -0.01, -0.06))
+    f = face_frame(L)
+    behind = (f.to_face(L) - f.to_face(moved))[UPPER_LIDS, 2] / (eyes * f.scale)
+    back = lids_on_margin(ch.vertices, ch.triangles, moved)
+    before, after = (np.linalg.norm(P[UPPER_LIDS] - L[UPPER_LIDS], axis=1) / eyes for P in (moved, back))
+    assert behind.min() > 0.03 and after.max() < 0.015, (behind, before, after)
+    others = np.setdiff1d(np.arange(68), UPPER_LIDS)
+    assert np.array_equal(back[others], moved[others])  # only the lid points move
+    assert np.abs(lids_on_margin(ch.vertices, ch.triangles, L) - L).max() < 0.01 * eyes  # on the edge: stay
+
+
+@needs_makehuman
+def test_inner_lip_middles_on_the_lips_front_go_back_into_the_seam():
+    # The face mesh's inner lip points lie on the lips' fronts; moved 0.03 eye distances forward onto the lips,
+    # the middles go back into the seam of the closed lips: the lower lip's onto its registered points, the
+    # upper lip's (registered on the upper lip, just above the seam's deepest line) within 0.035.
+    from pdeface.landmarks.mouth import INNER_MIDDLES, inner_lips_in_seam
+
+    ch = build(SPECS["base-dm"])
+    L, eyes, rows = ch.skin_landmarks, ch.eye_distance, list(INNER_MIDDLES)
+    moved = _moved_in_face_frame(ch.vertices, ch.triangles, L, rows, (0, 0, 0.03))
+    back = inner_lips_in_seam(ch.vertices, ch.triangles, moved)
+    f = face_frame(L)
+    deeper = (f.to_face(moved) - f.to_face(back))[rows, 2] / (eyes * f.scale)
+    after = np.linalg.norm(back[rows] - L[rows], axis=1) / eyes
+    assert deeper.min() > 0.02 and after[3:].max() < 0.01 and after[:3].max() < 0.035, (deeper, after)
+    others = np.setdiff1d(np.arange(68), rows)
+    assert np.array_equal(back[others], moved[others])  # only the middles move
+
+
+def test_true_lid_and_inner_lip_points_stay_on_ict_heads(ict):
+    # ICT's lid points lie on a thick margin's rounded edge and its inner lip points in the seam: neither step
+    # moves the true landmarks of a held-out identity (its skin alone, without eyeballs and lashes).
+    from pdeface.landmarks.eyes import lids_on_margin
+    from pdeface.landmarks.mouth import inner_lips_in_seam
+    from pdeface.mesh import connected_components
+
+    mesh, T, lm, shapes = ict
+    V = mesh.vertices + shapes["identity015"]
+    labels = connected_components(len(V), T)
+    skin = T[np.isin(labels[T[:, 0]], labels[lm])]
+    L = V[lm]
+    for step in (lids_on_margin, inner_lips_in_seam):
+        moved = np.linalg.norm(step(V, skin, L) - L, axis=1) * 10  # mm
+        assert moved.max() < 0.5, (step.__name__, moved.max())
