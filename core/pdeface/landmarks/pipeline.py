@@ -35,6 +35,7 @@ from .detector import Detector
 from .eyes import lids_on_margin
 from .facemap import GROUPS, LandmarkMap, read_map, robust_similarity
 from .mouth import inner_lip_corners_at_seam_end, inner_lips_in_seam
+from .nose import nose_bottom_at_subnasale
 from .render import Raster, View, back_project, depth_map, marked, rasterise, shade
 
 #: The search's view directions (towards the viewer) with an up vector each.
@@ -383,6 +384,8 @@ def detect(V, T, unit=None, landmark_map: LandmarkMap | None = None, detector: D
         points = inner_lip_corners_at_seam_end(V, T[skin], points)
         # The inner lip line's middles in the seam of closed lips, not on the lips' fronts.
         points = inner_lips_in_seam(V, T[skin], points)
+        # The nose's bottom at the subnasale, the profile's deepest point under the nose.
+        points = nose_bottom_at_subnasale(V, T[skin], points, closest)
         indices = nearest_vertices(V, T[skin], points)
         mm = UNITS_MM[unit] if unit else estimate_unit(points)[1]  # the fit's own estimate (one for both)
         spread = group_spread(m, Ps, mm)
