@@ -15,6 +15,10 @@
 4. **Map.** The shipped affine map turns 468 points into the 68 Multi-PIE
    landmarks, snapped onto the skin. Confidence per landmark group falls with
    the group's spread over the frontal renders and with rays that missed skin.
+5. **Refine.** Groups the face mesh places by its learned faces, not by the
+   surface, are taken to surface features: the upper jaw's depth, the lids' margin
+   (:mod:`.eyes`), the brow ridge, the lip line's seam (:mod:`.mouth`), the
+   subnasale (:mod:`.nose`).
 """
 from __future__ import annotations
 
@@ -382,7 +386,7 @@ def detect(V, T, unit=None, landmark_map: LandmarkMap | None = None, detector: D
         points = brows_from_template(V, T[skin], points, closest)
         # The inner lip corners back in the commissure, not on the lips' front.
         points = inner_lip_corners_at_seam_end(V, T[skin], points)
-        # The inner lip line's middles in the seam of closed lips, not on the lips' fronts.
+        # The inner lip line's middles and the mouth's corners in the seam of closed lips, not on the lips' fronts.
         points = inner_lips_in_seam(V, T[skin], points)
         # The nose's bottom at the subnasale, the profile's deepest point under the nose.
         points = nose_bottom_at_subnasale(V, T[skin], points, closest)
