@@ -84,9 +84,6 @@ MAX_RESIDUAL_MM = 12.0
 OPENING_RADIUS_MM, OPENING_DEPTH_MM = 9.0, 5.0
 #: A landmark keeps its nearest surface point when the straight-on ray finds the outer surface this near it.
 SNAP_AGREES_MM = 2.0
-#: The eye corners, and how far (mm) behind the surface seen in front of them their nearest points may lie: the
-#: map puts them inside the socket, whose nearest wall at a corner lies in the fold behind the canthus.
-EYE_CORNERS, EYE_CORNER_DEPTH_MM = (36, 39, 42, 45), 1.5
 
 
 @dataclass
@@ -539,8 +536,6 @@ def snap(V, T, L, raster: Raster | None = None, mm_per_unit=1.0, closest: Closes
         outer = outer_pixels(V, T, raster, mm_per_unit, depth)
         cast, over = onto_outer_surface(V, T, raster, L, mm_per_unit, outer)
         over |= hidden(V, T, raster, points, outer, OPENING_DEPTH_MM / mm_per_unit, depth)
-        corners = np.isin(np.arange(len(L)), EYE_CORNERS)
-        over |= corners & hidden(V, T, raster, points, outer, EYE_CORNER_DEPTH_MM / mm_per_unit, depth)
         use = over & np.isfinite(cast).all(1)
         use[use] = np.linalg.norm(cast[use] - points[use], axis=1) * mm_per_unit > SNAP_AGREES_MM
         points[use] = cast[use]
