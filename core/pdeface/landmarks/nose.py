@@ -20,6 +20,9 @@ from .render import View, back_project, depth_map, rasterise
 UPPER_LIP_TOP = 51
 #: The points beside the subnasale that move with it (the nostrils' bottom).
 BESIDE = (32, 34)
+#: How far (eye distances) the subnasale may move: a found upper lip far off (parted lips on a coarse mesh) ends
+#: the chord elsewhere, and its deepest point is then no subnasale (the found ones lie 0.01-0.07 off).
+MAX_MOVE = 0.08
 #: Pixels across the straight-on view, and its half-width (eye distances): about 0.0026 eye distances a pixel.
 SIZE, HALF = 384, 0.5
 
@@ -27,7 +30,7 @@ SIZE, HALF = 384, 0.5
 def nose_bottom_at_subnasale(V, T, points, closest: ClosestPoint | None = None) -> np.ndarray:
     """``points (68, 3)`` with the subnasale (33) at the profile's deepest point under the nose on the skin
     ``(V, T)``, and the points :data:`BESIDE` it moved up or down as far (see the module's docstring). Points
-    stay where the profile is not seen whole.
+    stay where the profile is not seen whole, or where that point lies more than :data:`MAX_MOVE` away.
 
     Parameters
     ----------
@@ -57,7 +60,7 @@ def nose_bottom_at_subnasale(V, T, points, closest: ClosestPoint | None = None) 
     chord = d[0] + (d[-1] - d[0]) * (rows - top) / (bottom - top)
     k = rows[int(np.argmax(chord - d))]
     P = back_project(V, T, raster, np.array([float(c)]), np.array([float(k)]), reach=1)[0][0]
-    if not np.isfinite(P).all():
+    if not np.isfinite(P).all() or np.linalg.norm(P - out[NOSE_BOTTOM]) > MAX_MOVE * eyes:
         return out
     lift = (P - out[NOSE_BOTTOM]) @ f.rotation[1]  # how far the subnasale moved up (mesh units)
     out[NOSE_BOTTOM] = P
