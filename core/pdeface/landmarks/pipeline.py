@@ -15,6 +15,10 @@
 4. **Map.** The shipped affine map turns 468 points into the 68 Multi-PIE
    landmarks, snapped onto the skin. Confidence per landmark group falls with
    the group's spread over the frontal renders and with rays that missed skin.
+5. **Refine.** Groups the face mesh places by its learned faces, not by the
+   surface, are taken to surface features: the upper jaw's depth, the lids' margin
+   (:mod:`.eyes`), the brow ridge, the lip line's seam (:mod:`.mouth`), the
+   subnasale (:mod:`.nose`).
 """
 from __future__ import annotations
 
@@ -33,8 +37,10 @@ from ..threads import bounded
 from .brows import brows_from_template
 from .contour import upper_jaw_at_template_depth
 from .detector import Detector
+from .eyes import lids_on_margin
 from .facemap import GROUPS, LandmarkMap, read_map, robust_similarity
-from .mouth import inner_lip_corners_at_seam_end
+from .mouth import inner_lip_corners_at_seam_end, inner_lips_in_seam
+from .nose import nose_bottom_at_subnasale
 from .render import Raster, View, back_project, depth_map, marked, rasterise, shade
 
 #: The search's view directions (towards the viewer) with an up vector each.
@@ -373,10 +379,16 @@ def detect(V, T, unit=None, landmark_map: LandmarkMap | None = None, detector: D
         points, _ = snap(V, T[skin], m.apply(P2), skin_raster, 1.0 / s, closest)
         # The upper jaw's depth along the contour from the template, not from where a grazing ray met the cheek.
         points = upper_jaw_at_template_depth(V, T[skin], points)
+        # The lid points on the margin's front edge, not on its curl into the socket.
+        points = lids_on_margin(V, T[skin], points)
         # The brows with the brow ridge (ICT's brow region laid onto the skin), not at ICT's height above the eyes.
         points = brows_from_template(V, T[skin], points, closest)
         # The inner lip corners back in the commissure, not on the lips' front.
         points = inner_lip_corners_at_seam_end(V, T[skin], points)
+        # The inner lip line's middles and the mouth's corners in the seam of closed lips, not on the lips' fronts.
+        points = inner_lips_in_seam(V, T[skin], points)
+        # The nose's bottom at the subnasale, the profile's deepest point under the nose.
+        points = nose_bottom_at_subnasale(V, T[skin], points, closest)
         indices = nearest_vertices(V, T[skin], points)
         mm = UNITS_MM[unit] if unit else estimate_unit(points)[1]  # the fit's own estimate (one for both)
         spread = group_spread(m, Ps, mm)

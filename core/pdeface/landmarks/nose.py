@@ -1,0 +1,69 @@
+"""The nose's bottom (32-34) at the subnasale: where the profile under the nose turns into the upper lip.
+
+The face mesh places the nose's bottom where the faces it learned have it relative to the rest of the face; on
+MakeHuman's longer noses (the nose bottom 0.75 eye distances below the eye centres, ICT's 0.68-0.72) the found
+points sit 0.03-0.04 eye distances too high, on the columella. The subnasale (33) is a feature of the profile:
+seen straight on, along the face's midline from the nose tip (30) down to the upper lip's top (51), the point
+farthest behind the chord between them. On ICT's held-out heads that point lies within 0.003 eye distances of
+ICT's own 33. The nostrils' bottom points (32, 34) beside it move up or down with it and back onto the skin.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..geometry import ClosestPoint
+from ..landmark_scheme import NOSE_BOTTOM, NOSE_TIP, eye_distance
+from ..surface.frame import face_frame
+from .render import View, back_project, depth_map, rasterise
+
+#: The upper lip's top, where the profile's chord from the nose tip ends.
+UPPER_LIP_TOP = 51
+#: The points beside the subnasale that move with it (the nostrils' bottom).
+BESIDE = (32, 34)
+#: How far (eye distances) the subnasale may move: a found upper lip far off (parted lips on a coarse mesh) ends
+#: the chord elsewhere, and its deepest point is then no subnasale (the found ones lie 0.01-0.07 off).
+MAX_MOVE = 0.08
+#: Pixels across the straight-on view, and its half-width (eye distances): about 0.0026 eye distances a pixel.
+SIZE, HALF = 384, 0.5
+
+
+def nose_bottom_at_subnasale(V, T, points, closest: ClosestPoint | None = None) -> np.ndarray:
+    """``points (68, 3)`` with the subnasale (33) at the profile's deepest point under the nose on the skin
+    ``(V, T)``, and the points :data:`BESIDE` it moved up or down as far (see the module's docstring). Points
+    stay where the profile is not seen whole, or where that point lies more than :data:`MAX_MOVE` away.
+
+    Parameters
+    ----------
+    V, T : arrays
+        The mesh and the skin's triangles.
+    points : (68, 3) array
+        Landmarks on the skin, the mesh's space (the nose tip and the upper lip's top are trusted).
+    closest : ClosestPoint, optional
+        On ``(V, T)``, when already built.
+    """
+    out = np.array(points, np.float64)
+    f = face_frame(out)
+    eyes = eye_distance(out)
+    view = View.looking(f.rotation[2], f.rotation[1], out[[NOSE_TIP, UPPER_LIP_TOP]].mean(0), HALF * eyes, SIZE)
+    x, y, _ = view.project(out)
+    c = int(np.clip(np.round(x[[NOSE_TIP, NOSE_BOTTOM, UPPER_LIP_TOP]].mean()), 0, SIZE - 1))
+    top, bottom = (int(np.clip(np.round(y[j]), 0, SIZE - 1)) for j in (NOSE_TIP, UPPER_LIP_TOP))
+    if bottom - top < 3:
+        return out
+    near = np.zeros((SIZE, SIZE), bool)
+    near[:, c] = True
+    raster = rasterise(V, T, view, near=near)
+    rows = np.arange(top, bottom + 1)
+    d = depth_map(V, T, raster)[rows, c]
+    if not np.isfinite(d).all():
+        return out
+    chord = d[0] + (d[-1] - d[0]) * (rows - top) / (bottom - top)
+    k = rows[int(np.argmax(chord - d))]
+    P = back_project(V, T, raster, np.array([float(c)]), np.array([float(k)]), reach=1)[0][0]
+    if not np.isfinite(P).all() or np.linalg.norm(P - out[NOSE_BOTTOM]) > MAX_MOVE * eyes:
+        return out
+    lift = (P - out[NOSE_BOTTOM]) @ f.rotation[1]  # how far the subnasale moved up (mesh units)
+    out[NOSE_BOTTOM] = P
+    closest = ClosestPoint(V, T) if closest is None else closest
+    out[list(BESIDE)] = closest.query(out[list(BESIDE)] + lift * f.rotation[1])[3]
+    return out
