@@ -121,6 +121,10 @@ def test_a_second_relaxation_reading_the_first_ones_screen_relaxes_as_one_screen
     first, fresh = screen.bent.copy(), relax._bent(D, keys, False)
     assert (first[:, keys] != fresh).any()  # the moves changed what the screen finds
     np.testing.assert_array_equal(relax._bent_since(D, screen)[:, keys], fresh)
+    # the folds it measured are read where no corner moved since, measured again elsewhere: as measured afresh
+    assert screen.folds is not None and screen.moved_mask[step, 2].all() and not screen.moved_mask[step, 0].all()
+    for kept, again in zip(relax.folded_keys(D, keys, fresh, screen), relax.folded_keys(D, keys)):
+        np.testing.assert_array_equal(kept, again)
     relax.relax(D, keys=keys, screen=screen)
     relax.relax(plain, keys=keys)
     np.testing.assert_array_equal(D, plain)

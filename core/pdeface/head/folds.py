@@ -48,16 +48,21 @@ ZONE_RINGS = 10
 
 class Screen:
     """What a relaxation of every key of ``D`` screened (:attr:`bent`, (n, k) bool: the (vertex, key) off their
-    neighbours' mean) and the (vertex, key) pairs moved since (:meth:`moved`): a later relaxation of the same ``D``
-    screens those and their neighbours again, not every vertex of its keys (the binding's second look after the
-    lids close)."""
+    neighbours' mean; :attr:`folds`: ``(ids, folded)``, the (key, flat edge) ids ``key * len(pairs) + edge`` it
+    measured, ascending, and whether each folded) and the (vertex, key) pairs moved since (:meth:`moved`;
+    :attr:`moved_mask`): a later relaxation of the same ``D`` screens those and their neighbours again, and measures
+    only the edges at a moved pair or not measured before, not every edge of its keys (the binding's second look
+    after the lids close)."""
 
     def __init__(self):
-        self.bent, self.pending = None, []
+        self.bent, self.folds, self.moved_mask, self.pending = None, None, None, []
 
     def moved(self, vertices, keys):
         """Vertices ``vertices`` of keys ``keys`` (index arrays of one length) may have moved."""
-        self.pending.append((np.asarray(vertices, np.int64).ravel(), np.asarray(keys, np.int64).ravel()))
+        vertices, keys = np.asarray(vertices, np.int64).ravel(), np.asarray(keys, np.int64).ravel()
+        self.pending.append((vertices, keys))
+        if self.moved_mask is not None:
+            self.moved_mask[vertices, keys] = True
 
 
 class FoldRelax:
@@ -110,9 +115,10 @@ class FoldRelax:
         """The flat edges (indices into :attr:`pairs`) that displacement ``d`` (n, 3) folds."""
         return self.folded_keys(d[:, None])[0]
 
-    def folded_keys(self, D, keys=None, bent=None):
+    def folded_keys(self, D, keys=None, bent=None, screen=None):
         """Per key of ``D`` (n, k, 3) (only ``keys``, indices, if given): the flat edges (indices into :attr:`pairs`,
-        ascending) its displacement folds; ``bent``: the screen's (n, keys) bool matrix where already known.
+        ascending) its displacement folds; ``bent``: the screen's (n, keys) bool matrix where already known;
+        ``screen``: a :class:`Screen` of ``D`` whose folds it keeps (every key measured) or reads (some).
 
         Only edges at a vertex whose motion is off its neighbours' mean by SCREEN of its edges' length are
         measured: a fold is a crease in the motion, a smooth motion (most of every key) folds nothing. All keys
@@ -125,14 +131,33 @@ class FoldRelax:
         pair, at = _rows_gather(self.vertex_pairs, bent_v)
         ids = _once(bent_key[at] * n_pairs + pair, k * n_pairs)  # (key, edge) at a creased vertex, each once
         slot, pair = np.divmod(ids, n_pairs)
-        faces, pair_faces = _once_inverse(slot[:, None] * len(self.faces) + self.pairs[pair], k * len(self.faces))
+        if screen is not None and screen.folds is not None:  # measured before, no corner moved since: as then
+            was, was_folded = screen.folds
+            key_ids = keys[slot] * n_pairs + pair
+            at = np.minimum(np.searchsorted(was, key_ids), max(len(was) - 1, 0))
+            kept = (was[at] == key_ids) if len(was) else np.zeros(len(ids), bool)
+            kept &= ~screen.moved_mask[self.corners[pair], keys[slot][:, None]].any(axis=1)
+            fold = np.empty(len(ids), bool)
+            fold[kept] = was_folded[at[kept]]
+            measure = ~kept
+            fold[measure] = self._folds_at(D, keys, slot[measure], pair[measure])
+        else:
+            fold = self._folds_at(D, keys, slot, pair)
+            if screen is not None and every:
+                screen.folds, screen.moved_mask = (ids, fold), np.zeros((len(D), k), bool)
+        return np.split(pair[fold], np.searchsorted(slot[fold], np.arange(1, k)))
+
+    def _folds_at(self, D, keys, slot, pair):
+        """Whether displacements ``D`` (n, k, 3) of ``keys[slot]`` fold flat edges ``pair`` (indices into
+        :attr:`pairs`), each (slot, pair) once: each (key, triangle) measured once."""
+        faces, pair_faces = _once_inverse(slot[:, None] * len(self.faces) + self.pairs[pair],
+                                          len(keys) * len(self.faces))
         face_slot, face = np.divmod(faces, len(self.faces))
         tri = self.T[self.faces[face]]  # (f, 3): each (key, triangle) once
         X = self.V[tri] + _rows_of(D, tri, keys[face_slot][:, None])
         nrm = unit_rows(cross3(X[:, 1] - X[:, 0], X[:, 2] - X[:, 0]))
         pair_faces = pair_faces.reshape(-1, 2)
-        fold = (nrm[pair_faces[:, 0]] * nrm[pair_faces[:, 1]]).sum(-1) < self.cos_fold
-        return np.split(pair[fold], np.searchsorted(slot[fold], np.arange(1, k)))
+        return (nrm[pair_faces[:, 0]] * nrm[pair_faces[:, 1]]).sum(-1) < self.cos_fold
 
     def _screen(self, D, keys, every):
         """``(vertices, slots in keys)`` where displacements ``D`` (n, k, 3) of ``keys`` (``every`` key, or some) are
@@ -207,7 +232,7 @@ class FoldRelax:
             screen = None  # a screen of some keys: not kept
         share = budget * self.piece_edges / max(self.piece_edges.sum(), 1)
         jobs, changed = [], False
-        for key, edges in zip(keys, self.folded_keys(D, keys, bent)):
+        for key, edges in zip(keys, self.folded_keys(D, keys, bent, screen)):
             if len(edges) <= budget:
                 continue
             changed = True
@@ -313,18 +338,20 @@ class FoldRelax:
                 was = live
                 rows = np.nonzero(live[job])[0]
                 swept = None
-            # the live jobs' folded edges' corners and their neighbours join the region (the neighbour map is
-            # symmetric: a row next to a marked one is a marked one's neighbour); a few hundred rows, not all
-            edges = np.flatnonzero(fold)
-            marked = _once(tri[pair_faces[edges[live[pair_job[edges]]]]].ravel(), m)
-            grown = np.concatenate([marked, _rows_gather(ring, marked)[0]])
-            region[grown[movable[grown]]] = True
-            if step and not step % GROW_EVERY:  # still folding: relax a wider ring
-                region[rows] |= (ring @ region.astype(np.float64) > 0)[rows] & movable[rows]
+            if swept is None or not swept[-1]:  # a region holding every movable row of the live jobs is whole
+                # the live jobs' folded edges' corners and their neighbours join the region (the neighbour map is
+                # symmetric: a row next to a marked one is a marked one's neighbour); a few hundred rows, not all
+                edges = np.flatnonzero(fold)
+                marked = _once(tri[pair_faces[edges[live[pair_job[edges]]]]].ravel(), m)
+                grown = np.concatenate([marked, _rows_gather(ring, marked)[0]])
+                region[grown[movable[grown]]] = True
+                if step and not step % GROW_EVERY:  # still folding: relax a wider ring
+                    region[rows] |= (ring @ region.astype(np.float64) > 0)[rows] & movable[rows]
             if swept is None or swept[0] != region.sum():  # the region only grows: its size says it changed
                 moved = rows[region[rows]]
-                swept = (region.sum(), moved, mean[moved], touched(moved), moved[in_ball[moved]])
-            _, moved, mean_moved, touch, balled = swept
+                swept = (region.sum(), moved, mean[moved], touched(moved), moved[in_ball[moved]],
+                         not (movable[rows] & ~region[rows]).any())
+            _, moved, mean_moved, touch, balled, _ = swept
             dl[moved] += RELAX_RATE * (mean_moved @ dl - dl[moved])
             self._keep_out(X, dl, vertex, balled)
             count = folded(moved, *touch)
