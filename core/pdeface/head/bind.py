@@ -509,7 +509,7 @@ class HeadBinding:
         self._jaw_pins = si[kept & ~pinned[si]]
         pinned[self._jaw_pins] = True
         # (a mouth bag left out: pinned, and not counted in the head's share of folds: the head's keys as without it)
-        self._folds = FoldRelax(Vf, fold_T, pinned, fold_L)
+        self._folds = FoldRelax(Vf, fold_T, pinned, fold_L, parts.pieces if len(fold_T) == len(T) else None)
 
         # Jaw: the chin that drives it, and the parts it turns.
         chin = covered & (P[:, 1] < Lf[LIP_LOWER_BOTTOM, 1] - 0.08 * eye_distance) & (np.abs(P[:, 0]) < abs(Lf[JAW_RIGHT_ANGLE, 0] - Lf[JAW_LEFT_ANGLE, 0]) / 2) \
