@@ -153,6 +153,20 @@ def test_keys_relaxed_side_by_side_are_each_key_relaxed_alone():
     np.testing.assert_array_equal(together[:, 2], D[:, 2])
 
 
+def test_pieces_given_are_the_pieces_found():
+    """The binding hands its parts' pieces to the relaxation (one connected-components pass): the same edges' pieces
+    and shares as found afresh, on a sheet and a second piece beside it."""
+    from pdeface.mesh import connected_components
+
+    V, T = sheet(11)
+    V2, T2 = np.r_[V, V + [20.0, 0, 0]], np.r_[T, T + len(V)]
+    found = FoldRelax(V2, T2, np.zeros(len(V2), bool))
+    given = FoldRelax(V2, T2, np.zeros(len(V2), bool), pieces=connected_components(len(V2), T2))
+    np.testing.assert_array_equal(given.edge_piece, found.edge_piece)
+    np.testing.assert_array_equal(given.piece_edges, found.piece_edges)
+    assert len(np.unique(found.edge_piece)) == 2
+
+
 def test_relaxed_lids_stay_out_of_the_eyeball():
     V, T = sheet(41)
     d = np.zeros((len(V), 1, 3))
