@@ -144,7 +144,8 @@ STILL_MM = 0.4
 #: issue's limit 13), 8 and 6 after 150; for the jaw's keys more sweeps smooth parted lips shut (african-male-old's
 #: AU27 gap 0.37 -> 0.26 eye distances).
 STEPS_NOT_JAW = 150
-#: Vertices turned to user space at a time (the keys' last step).
+#: Vertices worked on at a time where every key's rows are read and written (the prior's residuals added, the keys'
+#: last step: the turn to user space): the block's rows stay in cache.
 USER_BLOCK = 1024
 #: AUs that move the jaw, and the gaze AUs.
 JAW_AUS = frozenset({25, 26, 27, 29, 30})
@@ -646,7 +647,10 @@ class HeadBinding:
             for _, (centre, _, idx, _) in self.eyes.items() if gaze else ():
                 out[idx, i] = rigid_displacement(self.Vf[idx], centre, gaze_matrix(gaze))
         if with_prior and self.prior is not None:
-            out[self.prior.vertices] += self.prior.many([m.curve_points(c, r) for c, r, _, _ in motions])
+            prior = self.prior.many([m.curve_points(c, r) for c, r, _, _ in motions])
+            for start in range(0, len(prior), USER_BLOCK):  # by blocks of vertices: no copy of every key's rows
+                rows = self.prior.vertices[start:start + USER_BLOCK]
+                out[rows] += prior[start:start + USER_BLOCK]
         return out.transpose(1, 0, 2)
 
     def displacement(self, delta_coefficients, delta_residual, jaw=False, gaze=None, lids=None) -> np.ndarray:
