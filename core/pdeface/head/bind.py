@@ -52,7 +52,7 @@ import numpy as np
 from .. import landmark_scheme
 from ..errors import MeshError, PdeFaceError
 from ..facs import au_number, normalise_weights
-from ..geometry import ClosestPoint, cross3, smoothstep, triangle_cross, unit_rows
+from ..geometry import ClosestPoint, cross3, row_norms, smoothstep, triangle_cross, unit_rows
 from ..landmark_scheme import (
     CHIN,
     EYE_INNER_LEFT,
@@ -711,11 +711,11 @@ class HeadBinding:
     def _keep_still(self, out):
         """The back of the head and a body's neck (``out`` (n, k, 3), face frame mm, in place): each key's motion
         faded towards at most STILL_MM as :func:`still_weight` falls to 0 (its direction kept)."""
-        if not len(self._fading):
-            return
-        moved, s = out[self._fading], self._still
-        size = np.linalg.norm(moved, axis=2, keepdims=True)
-        out[self._fading] = moved * (s + (1 - s) * np.minimum(1.0, STILL_MM / np.maximum(size, 1e-12)))
+        for start in range(0, len(self._fading), USER_BLOCK):  # by blocks of vertices: no copy of every key's rows
+            rows, s = self._fading[start:start + USER_BLOCK], self._still[start:start + USER_BLOCK]
+            moved = out[rows]
+            size = row_norms(moved)[..., None]
+            out[rows] = moved * (s + (1 - s) * np.minimum(1.0, STILL_MM / np.maximum(size, 1e-12)))
 
     def _keep_out_of_eyeballs(self, out, screen=None):
         """Lids that a key takes into an eyeball put back on its surface (``out`` (n, k, 3), in place); which keys
