@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..geometry import cross3, unit_rows
+from ..geometry import cross3, row_norms, unit_rows
 from ..mesh import connected_components, cotan_laplacian, edge_face_pairs, turn_degrees
 
 #: Edges turning by less than this at rest are flat; a key folds one that then turns by more than FOLD_DEG
@@ -108,7 +108,7 @@ class FoldRelax:
         # Each vertex's flat edges (the screen's and the zones' look-up), and each edge's triangles' corners.
         self.vertex_pairs = csr_matrix((np.ones(self.corners.size, bool), (self.corners.ravel(), np.repeat(
             np.arange(len(self.pairs)), 6))), shape=(len(V), len(self.pairs)))
-        length = np.linalg.norm(V[self.T] - V[np.roll(self.T, 1, axis=1)], axis=2).ravel()  # each corner's edge
+        length = row_norms(V[self.T] - V[np.roll(self.T, 1, axis=1)]).ravel()  # each corner's edge
         self.edge_length = np.bincount(self.T.ravel(), length, len(V)) / np.maximum(np.bincount(self.T.ravel(), minlength=len(V)), 1)
         pieces = connected_components(len(V), self.T) if pieces is None else pieces
         self.edge_piece = pieces[self.T[self.faces[self.pairs[:, 0]], 0]]
