@@ -164,6 +164,25 @@ def test_keys_relaxed_side_by_side_are_each_key_relaxed_alone():
     np.testing.assert_array_equal(together[:, 2], D[:, 2])
 
 
+def test_a_relaxation_looking_every_other_sweep_ends_within_the_budget_where_the_keys_fold():
+    """The binding's first relaxation measures the folds every SWEEPS_PER_LOOK sweeps: each key still ends within
+    its budget, moved only near its folds (not its pinned vertices), and a key that folds nothing is left as bound."""
+    V, T = sheet(41)
+    D = cliff_keys(V)
+    pinned = V[:, 0] == 0
+    relaxed = D.copy()
+    FoldRelax(V, T, pinned).relax(relaxed, look=2)
+    reach = folds.ZONE_RINGS + 2
+    for key in range(2):
+        assert new_folds(V, T, relaxed[:, key]) <= max(2, 0.001 * len(edge_face_pairs(T)))
+        x, y = 19.5 - key, 30.5 - 2 * key  # the cliff's line across the sheet and the still part's edge
+        far = (V[:, 0] < x - reach) | ((V[:, 0] > x + reach) & (V[:, 1] < y - reach))
+        moved = (relaxed[:, key] != D[:, key]).any(axis=1)
+        assert moved.any() and not moved[far].any()
+    np.testing.assert_array_equal(relaxed[pinned], D[pinned])
+    np.testing.assert_array_equal(relaxed[:, 2], D[:, 2])
+
+
 def test_pieces_given_are_the_pieces_found():
     """The binding hands its parts' pieces to the relaxation (one connected-components pass): the same edges' pieces
     and shares as found afresh, on a sheet and a second piece beside it."""
@@ -176,6 +195,8 @@ def test_pieces_given_are_the_pieces_found():
     np.testing.assert_array_equal(given.edge_piece, found.edge_piece)
     np.testing.assert_array_equal(given.piece_edges, found.piece_edges)
     assert len(np.unique(found.edge_piece)) == 2
+
+
 
 
 def test_relaxed_lids_stay_out_of_the_eyeball():

@@ -685,7 +685,7 @@ class HeadBinding:
         steps = np.array([fold_relax.RELAX_STEPS if m[2] else STEPS_NOT_JAW for m in motions])
         screen = Screen()
         self._folds.relax(out, steps=steps, screen=screen, unpinned=self._jaw_pins,
-                          unpinned_keys=[i for i, m in enumerate(motions) if not m[2]])
+                          unpinned_keys=[i for i, m in enumerate(motions) if not m[2]], look=fold_relax.SWEEPS_PER_LOOK)
         screen.moved(*self._lids.apply(out, closing))
         pushed = self._keep_out_of_eyeballs(out, screen)
         # Relaxed again where the lids' closing or the eyeballs' surface folded them (a blink, a glance down), past
