@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 from pdeface.au.modelfile import load_face
-from pdeface.geometry import cross3, triangle_cross, unit_rows
+from pdeface.geometry import cross3, row_norms, triangle_cross, unit_rows
 from pdeface.head import bind, folds
 from pdeface.head.bind import HeadBinding, descriptor_motion_args
 from pdeface.head.folds import FoldRelax
@@ -121,6 +121,10 @@ def test_a_second_relaxation_reading_the_first_ones_screen_relaxes_as_one_screen
     first, fresh = screen.bent.copy(), relax._bent(D, keys, False)
     assert (first[:, keys] != fresh).any()  # the moves changed what the screen finds
     np.testing.assert_array_equal(relax._bent_since(D, screen)[:, keys], fresh)
+    # the folds it measured are read where no corner moved since, measured again elsewhere: as measured afresh
+    assert screen.folds is not None and screen.moved_mask[step, 2].all() and not screen.moved_mask[step, 0].all()
+    for kept, again in zip(relax.folded_keys(D, keys, fresh, screen), relax.folded_keys(D, keys)):
+        np.testing.assert_array_equal(kept, again)
     relax.relax(D, keys=keys, screen=screen)
     relax.relax(plain, keys=keys)
     np.testing.assert_array_equal(D, plain)
@@ -135,6 +139,17 @@ def test_cross3_is_numpys_cross_bit_for_bit():
         np.testing.assert_array_equal(cross3(u, v), np.cross(u, v))
 
 
+def test_row_norms_are_numpys_norms_bit_for_bit():
+    """The folds' triangle normals, the still back of the head's sizes: numpy.linalg.norm's numbers, faster."""
+    rng = np.random.default_rng(35)
+    for shape in ((500, 3), (40, 72, 3), (3,), (0, 3)):
+        X = rng.normal(0, 1, shape) * rng.lognormal(0, 4, shape)
+        for dtype in (np.float64, np.float32):
+            np.testing.assert_array_equal(row_norms(X.astype(dtype)), np.linalg.norm(X.astype(dtype), axis=-1))
+    X = rng.normal(0, 1, (50, 3))
+    np.testing.assert_array_equal(unit_rows(X), X / np.linalg.norm(X, axis=1, keepdims=True))
+
+
 def test_keys_relaxed_side_by_side_are_each_key_relaxed_alone():
     V, T = sheet(41)
     D = cliff_keys(V)
@@ -147,6 +162,41 @@ def test_keys_relaxed_side_by_side_are_each_key_relaxed_alone():
         np.testing.assert_allclose(together[:, key], alone[:, 0], atol=1e-12)
     assert not np.allclose(together[:, :2], D[:, :2])  # the cliffs were relaxed
     np.testing.assert_array_equal(together[:, 2], D[:, 2])
+
+
+def test_a_relaxation_looking_every_other_sweep_ends_within_the_budget_where_the_keys_fold():
+    """The binding's first relaxation measures the folds every SWEEPS_PER_LOOK sweeps: each key still ends within
+    its budget, moved only near its folds (not its pinned vertices), and a key that folds nothing is left as bound."""
+    V, T = sheet(41)
+    D = cliff_keys(V)
+    pinned = V[:, 0] == 0
+    relaxed = D.copy()
+    FoldRelax(V, T, pinned).relax(relaxed, look=2)
+    reach = folds.ZONE_RINGS + 2
+    for key in range(2):
+        assert new_folds(V, T, relaxed[:, key]) <= max(2, 0.001 * len(edge_face_pairs(T)))
+        x, y = 19.5 - key, 30.5 - 2 * key  # the cliff's line across the sheet and the still part's edge
+        far = (V[:, 0] < x - reach) | ((V[:, 0] > x + reach) & (V[:, 1] < y - reach))
+        moved = (relaxed[:, key] != D[:, key]).any(axis=1)
+        assert moved.any() and not moved[far].any()
+    np.testing.assert_array_equal(relaxed[pinned], D[pinned])
+    np.testing.assert_array_equal(relaxed[:, 2], D[:, 2])
+
+
+def test_pieces_given_are_the_pieces_found():
+    """The binding hands its parts' pieces to the relaxation (one connected-components pass): the same edges' pieces
+    and shares as found afresh, on a sheet and a second piece beside it."""
+    from pdeface.mesh import connected_components
+
+    V, T = sheet(11)
+    V2, T2 = np.r_[V, V + [20.0, 0, 0]], np.r_[T, T + len(V)]
+    found = FoldRelax(V2, T2, np.zeros(len(V2), bool))
+    given = FoldRelax(V2, T2, np.zeros(len(V2), bool), pieces=connected_components(len(V2), T2))
+    np.testing.assert_array_equal(given.edge_piece, found.edge_piece)
+    np.testing.assert_array_equal(given.piece_edges, found.piece_edges)
+    assert len(np.unique(found.edge_piece)) == 2
+
+
 
 
 def test_relaxed_lids_stay_out_of_the_eyeball():

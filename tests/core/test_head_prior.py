@@ -77,6 +77,22 @@ def test_kernel_ridge_recovers_its_samples_and_ignores_what_it_never_saw():
     np.testing.assert_allclose(prior.solver() @ (x + 2 * y), prior.solver() @ x + 2 * prior.solver() @ y)
 
 
+def test_the_solver_is_solved_once_per_prior_and_again_for_another_ridge_or_samples():
+    """Every head bound reads the prior's solver: solved once (the same read-only array), a changed prior's anew."""
+    rng = np.random.default_rng(2)
+    prior, _, _ = tiny_prior(rng, S=3)
+    first = prior.solver()
+    assert prior.solver() is first and not first.flags.writeable
+    for other in (replace(prior, ridge=1e-9), prior.without(["1"])):
+        X = other.features.reshape(len(other.features), -1)
+        G = X @ X.T
+        expected = np.linalg.solve(G + other.ridge * np.trace(G) / len(G) * np.eye(len(G)), X)
+        np.testing.assert_array_equal(other.solver(), expected)
+    prior.ridge = 1e-9  # changed in place: solved again
+    np.testing.assert_array_equal(prior.solver(), replace(prior).solver())
+    assert not np.array_equal(prior.solver(), first)
+
+
 def test_bundled_prior_is_what_the_build_script_makes():
     built, _ = build()
     bundled = load_head_prior()

@@ -53,7 +53,7 @@ import numpy as np
 from .. import landmark_scheme
 from ..errors import MeshError, PdeFaceError
 from ..facs import au_number, normalise_weights
-from ..geometry import ClosestPoint, cross3, smoothstep, triangle_cross, unit_rows
+from ..geometry import ClosestPoint, cross3, row_norms, smoothstep, triangle_cross, unit_rows
 from ..landmark_scheme import (
     CHIN,
     EYE_INNER_LEFT,
@@ -145,7 +145,8 @@ STILL_MM = 0.4
 #: issue's limit 13), 8 and 6 after 150; for the jaw's keys more sweeps smooth parted lips shut (african-male-old's
 #: AU27 gap 0.37 -> 0.26 eye distances).
 STEPS_NOT_JAW = 150
-#: Vertices turned to user space at a time (the keys' last step).
+#: Vertices worked on at a time where every key's rows are read and written (the prior's residuals added, the keys'
+#: last step: the turn to user space): the block's rows stay in cache.
 USER_BLOCK = 1024
 #: AUs that move the jaw, and the gaze AUs.
 JAW_AUS = frozenset({25, 26, 27, 29, 30})
@@ -546,7 +547,7 @@ class HeadBinding:
         self._jaw_pins = si[kept & ~pinned[si]]
         pinned[self._jaw_pins] = True
         # (a mouth bag left out: pinned, and not counted in the head's share of folds: the head's keys as without it)
-        self._folds = FoldRelax(Vf, fold_T, pinned, fold_L)
+        self._folds = FoldRelax(Vf, fold_T, pinned, fold_L, parts.pieces if len(fold_T) == len(T) else None)
 
         # Jaw: the chin that drives it, and the parts it turns.
         chin = covered & (P[:, 1] < Lf[LIP_LOWER_BOTTOM, 1] - 0.08 * eye_distance) & (np.abs(P[:, 0]) < abs(Lf[JAW_RIGHT_ANGLE, 0] - Lf[JAW_LEFT_ANGLE, 0]) / 2) \
@@ -683,7 +684,10 @@ class HeadBinding:
             for _, (centre, _, idx, _) in self.eyes.items() if gaze else ():
                 out[idx, i] = rigid_displacement(self.Vf[idx], centre, gaze_matrix(gaze))
         if with_prior and self.prior is not None:
-            out[self.prior.vertices] += self.prior.many([m.curve_points(c, r) for c, r, _, _ in motions])
+            prior = self.prior.many([m.curve_points(c, r) for c, r, _, _ in motions])
+            for start in range(0, len(prior), USER_BLOCK):  # by blocks of vertices: no copy of every key's rows
+                rows = self.prior.vertices[start:start + USER_BLOCK]
+                out[rows] += prior[start:start + USER_BLOCK]
         return out.transpose(1, 0, 2)
 
     def displacement(self, delta_coefficients, delta_residual, jaw=False, gaze=None, lids=None) -> np.ndarray:
@@ -718,7 +722,7 @@ class HeadBinding:
         steps = np.array([fold_relax.RELAX_STEPS if m[2] else STEPS_NOT_JAW for m in motions])
         screen = Screen()
         self._folds.relax(out, steps=steps, screen=screen, unpinned=self._jaw_pins,
-                          unpinned_keys=[i for i, m in enumerate(motions) if not m[2]])
+                          unpinned_keys=[i for i, m in enumerate(motions) if not m[2]], look=fold_relax.SWEEPS_PER_LOOK)
         screen.moved(*self._lids.apply(out, closing))
         pushed = self._keep_out_of_eyeballs(out, screen)
         # Relaxed again where the lids' closing or the eyeballs' surface folded them (a blink, a glance down), past
@@ -744,11 +748,11 @@ class HeadBinding:
     def _keep_still(self, out):
         """The back of the head and a body's neck (``out`` (n, k, 3), face frame mm, in place): each key's motion
         faded towards at most STILL_MM as :func:`still_weight` falls to 0 (its direction kept)."""
-        if not len(self._fading):
-            return
-        moved, s = out[self._fading], self._still
-        size = np.linalg.norm(moved, axis=2, keepdims=True)
-        out[self._fading] = moved * (s + (1 - s) * np.minimum(1.0, STILL_MM / np.maximum(size, 1e-12)))
+        for start in range(0, len(self._fading), USER_BLOCK):  # by blocks of vertices: no copy of every key's rows
+            rows, s = self._fading[start:start + USER_BLOCK], self._still[start:start + USER_BLOCK]
+            moved = out[rows]
+            size = row_norms(moved)[..., None]
+            out[rows] = moved * (s + (1 - s) * np.minimum(1.0, STILL_MM / np.maximum(size, 1e-12)))
 
     def _keep_out_of_eyeballs(self, out, screen=None):
         """Lids that a key takes into an eyeball put back on its surface (``out`` (n, k, 3), in place); which keys

@@ -119,11 +119,18 @@ class HeadPrior:
                        residuals=self.residuals[keep])
 
     def solver(self) -> np.ndarray:
-        """(S, K·J·3): a motion's sample weights ``α = solver @ x`` (kernel ridge)."""
-        X = self.features.reshape(len(self.features), -1)
-        G = X @ X.T
-        lam = self.ridge * np.trace(G) / max(len(G), 1)
-        return np.linalg.solve(G + lam * np.eye(len(G)), X)
+        """(S, K·J·3): a motion's sample weights ``α = solver @ x`` (kernel ridge); solved once per prior (every
+        head bound reads it; read-only)."""
+        built_on = (self.features, self.ridge)
+        cached = self.__dict__.get("_solver")  # not a field: replace() starts without it
+        if cached is None or any(a is not b for a, b in zip(cached[0], built_on)):
+            X = self.features.reshape(len(self.features), -1)
+            G = X @ X.T
+            lam = self.ridge * np.trace(G) / max(len(G), 1)
+            solver = np.linalg.solve(G + lam * np.eye(len(G)), X)
+            solver.flags.writeable = False
+            cached = self.__dict__["_solver"] = built_on, solver
+        return cached[1]
 
     def _kind_tree(self, name, mouth, lift):
         """``(vertices, tree)``: the prior head's vertices of part kind ``name`` on its triangles of that kind, and

@@ -33,9 +33,6 @@ def skin_vertices(V: np.ndarray, T: np.ndarray, points: np.ndarray, pieces: np.n
     counts too, the largest again. ``pieces``: the connected pieces' labels of ``(V, T)`` where ``T``'s seams are
     already joined (the binding's), so none are welded again.
     """
-    from scipy.spatial import cKDTree  # scipy is heavy: only fitting and reports need it
-
-
     used = np.unique(T)  # the mesh's size from its triangles: a stray vertex far away must not set it
     extent = np.ptp(V[used], axis=0) if len(used) else np.zeros(3)
     lab = pieces
@@ -43,10 +40,11 @@ def skin_vertices(V: np.ndarray, T: np.ndarray, points: np.ndarray, pieces: np.n
         rep = seam_welds(V, T, tol=1e-6 * float(np.linalg.norm(extent)))  # split along UV seams: still one piece
         lab = connected_components(len(V), rep[T])[rep]
     sizes = np.bincount(lab)
-    tree = cKDTree(V[used])
-    dist, _ = tree.query(points)
     local = np.searchsorted(used, T)  # the triangles' own vertices: a stray one (even non-finite) is not searched
-    on = T[ClosestPoint(V[used], local).query(points)[1], 0]
+    closest = ClosestPoint(V[used], local)
+    tree = closest.vtree  # a k-d tree of V[used]: built once for both
+    dist, _ = tree.query(points)
+    on = T[closest.query(points)[1], 0]
     scale = float(extent.max()) or 1.0
     labels = set()
     for p, d, t in zip(points, dist, on):
