@@ -79,16 +79,23 @@ def top(prof, n):
     return own, cum
 
 
-def core_seconds(prof):
-    """Seconds (cumulative) of pdeface's core functions called from the add-on: the core's share of a step."""
+def core_calls(prof):
+    """``{core function: cumulative seconds}`` of pdeface's core functions called from the add-on (the core's
+    share of a step is their sum; the add-on's own code and Blender take the rest)."""
     def in_core(file):
         return "/core/pdeface/" in file
 
     def in_addon(file):
         return "/pdeface/" in file and not in_core(file) and "site-packages" not in file
 
-    return sum(called[3] for (file, _, _), (*_, callers) in pstats.Stats(prof).stats.items() if in_core(file)
-               for (caller, _, _), called in callers.items() if in_addon(caller))
+    out = {}
+    for (file, line, name), (*_, callers) in pstats.Stats(prof).stats.items():
+        if in_core(file):
+            for (caller, _, caller_name), called in callers.items():
+                if in_addon(caller):  # a bounded function (threads.run) named by the add-on's function calling it
+                    where = f"{file.split('/core/')[-1]}:{line}({name}) from the add-on's {caller_name}"
+                    out[where] = out.get(where, 0.0) + called[3]
+    return out
 
 
 def main(argv=None):
@@ -122,9 +129,13 @@ def main(argv=None):
             print(f"  {step:45s} {s:6.2f} s  CPU {cpu:6.2f} s  {100 * s / total:4.0f}%")
             if step in profiles:
                 spent = pstats.Stats(profiles[step]).total_tt
-                core = core_seconds(profiles[step])
+                calls = core_calls(profiles[step])
+                core = sum(calls.values())
                 print(f"    profiled: {spent:.2f} s, of which pdeface's core {core:.2f} s, the add-on and Blender "
                       f"{spent - core:.2f} s")
+                print("    pdeface's core as the add-on calls it:" if calls else "", end="\n" if calls else "")
+                for fn, c in sorted(calls.items(), key=lambda kv: -kv[1])[:args.profile]:
+                    print(f"      {c:6.2f} s  {fn[:130]}")
                 own, cum = top(profiles[step], args.profile)
                 for title, listed in (("most time of their own", own), ("pdeface's, most time in all they call", cum)):
                     print(f"    {title}:" if listed else "", end="\n" if listed else "")
