@@ -111,7 +111,7 @@ KEY_BATCH = 12
 
 def head_keys(face, model, poses, users, au_name, expression_name):
     """Every AU and expression key of the user's objects, ``[(object, [(name, coords, kind, au_key, label)])]``,
-    and the binding's notes (what it decided: parts found, eyeballs missing ...).
+    and the binding (its notes say what it decided: parts found, eyeballs missing ...).
 
     ``poses`` are ``(preset, label, weights, mixer)``; ``au_name(descriptor)`` and
     ``expression_name(preset)`` name the keys. Nothing is written here.
@@ -130,7 +130,7 @@ def head_keys(face, model, poses, users, au_name, expression_name):
             for obj, coords in _split(layout, D, rests):
                 per_object[obj.name][1].append((name, coords, kind, au_key, label))
         del moved
-    return list(per_object.values()), b.notes
+    return list(per_object.values()), b
 
 
 def change_coords(face, model, delta_coefficients, delta_residual, jaw, users):

@@ -210,8 +210,8 @@ def build_keys(obj, presets):
 
     When the face drives the user's objects (:func:`.face.user_objects`), they get the
     same keys (see :mod:`.head`). A key of the user's with one of our names is
-    left alone. Returns ``{"made", "updated", "skipped", "aus", "expressions", "objects", "notes"}`` (the head
-    binding's notes).
+    left alone. Returns ``{"made", "updated", "skipped", "aus", "expressions", "objects", "notes", "warnings"}``
+    (the head binding's notes, and those of them that ask the user to change something).
     """
     model = bridge.face_model(obj)
     if not model.descriptors:
@@ -230,7 +230,8 @@ def build_keys(obj, presets):
             coords = face_mesh(model, face_resolution(obj), coefficients=C, residual=R).vertices
         expressions.append((name, label, coords))
     users = user_objects(obj)
-    head_keys, notes = head.head_keys(obj, model, poses, users, au_key_name, expression_key_name) if users else ([], [])
+    head_keys, binding = ([], None) if not users else head.head_keys(obj, model, poses, users, au_key_name,
+                                                                     expression_key_name)
 
     writer = KeyWriter(obj)
     bridge.set_key_coords(obj.data.shape_keys.reference_key, basis.neutral)
@@ -251,7 +252,7 @@ def build_keys(obj, presets):
     if head_keys:
         controls.link(obj)  # one control per key: the fitted mesh's, the others follow it
     return {**counts, "aus": len(model.descriptors), "expressions": len(expressions), "objects": 1 + len(head_keys),
-            "notes": list(notes)}
+            "notes": list(binding.notes if binding else []), "warnings": list(binding.warnings if binding else [])}
 
 
 # ------------------------------------------------------------------ posing

@@ -173,7 +173,7 @@ class PDEFACE_OT_fit_to_selected(_UserMeshOperator, Operator):
                f"{filled} curve points filled over openings")
         if r:
             msg += f"; {r['aus']} AU and {r['expressions']} expression keys on {r['objects'] - 1} object(s) of yours"
-        for warning in face.binding_warnings(obj) if r else []:  # what the user should change: a warning too
+        for warning in r["warnings"] if r else []:  # what the user should change: a warning too
             self.report({"WARNING"}, warning)
         return msg
 

@@ -93,7 +93,8 @@ def test_a_head_without_eyeballs_gets_no_gaze_keys(bpy, ict_head, monkeypatch):
     reported, rigging = [], addon("rigging")
     build = rigging.build_keys
     monkeypatch.setattr(rigging, "build_keys", lambda *a: reported.append(build(*a)) or reported[-1])
-    monkeypatch.setattr(addon("face"), "binding_notes", lambda face: pytest.fail("bound again for its notes"))
+    for asked in ("binding_notes", "binding_warnings"):  # build_keys's binding says both: not bound again to ask
+        monkeypatch.setattr(addon("face"), asked, lambda face: pytest.fail("bound again for its notes"))
     assert bpy.ops.pdeface.fit_to_selected() == {"FINISHED"}
     monkeypatch.undo()
     names = set(key_blocks(head).keys())
