@@ -505,7 +505,7 @@ def test_true_lid_and_inner_lip_points_stay_on_ict_heads(ict):
     # lips, its subnasale at the profile's deepest point under the nose: no step moves the true landmarks of a
     # held-out identity (its skin alone, without eyeballs and lashes) by more than a pixel or two.
     from pdeface.landmarks.eyes import lids_on_margin
-    from pdeface.landmarks.mouth import inner_lips_in_seam
+    from pdeface.landmarks.mouth import inner_lip_corners_inset, inner_lips_in_seam
     from pdeface.landmarks.nose import nose_bottom_at_subnasale
     from pdeface.mesh import connected_components
 
@@ -514,7 +514,7 @@ def test_true_lid_and_inner_lip_points_stay_on_ict_heads(ict):
     labels = connected_components(len(V), T)
     skin = T[np.isin(labels[T[:, 0]], labels[lm])]
     L = V[lm]
-    for step in (lids_on_margin, inner_lips_in_seam, nose_bottom_at_subnasale):
+    for step in (lids_on_margin, inner_lips_in_seam, nose_bottom_at_subnasale, inner_lip_corners_inset):
         moved = np.linalg.norm(step(V, skin, L) - L, axis=1) * 10  # mm
         assert moved.max() < 0.5, (step.__name__, moved.max())
 
@@ -534,3 +534,29 @@ def test_the_nose_bottom_found_too_high_comes_down_to_the_subnasale(name):
     assert before.min() > 0.03 and (after < 0.75 * before).all() and after.max() < 0.03, (before, after)
     others = np.setdiff1d(np.arange(68), rows)
     assert np.array_equal(back[others], moved[others])  # only the nose's bottom moves
+
+
+@needs_makehuman
+@pytest.mark.parametrize("name", ["asian-female-old-in", "parted-lips-cm"])
+def test_an_inner_lip_corner_found_beside_or_lateral_of_its_outer_corner_comes_in_from_it(name):
+    # The map put asian-female-old-in's inner corner 0.08 eye distances lateral of the mouth's corner (15 % of
+    # the eye distance off); one there, or at the outer corner itself (the seam's end found in the commissure),
+    # comes back in from it, near the registered corner, on closed and on parted lips; one in place stays.
+    from pdeface.landmarks.mouth import CORNERS, inner_lip_corners_inset
+
+    ch = build(SPECS[name])
+    L, eyes = ch.skin_landmarks, ch.eye_distance
+    rows = [inner for inner, _ in CORNERS]
+    assert np.array_equal(inner_lip_corners_inset(ch.vertices, ch.triangles, L), L)  # the true corners stay
+    for lateral in (0.0, 0.03):  # at the outer corner, and beyond it
+        moved = L.copy()
+        f = face_frame(L)
+        F = f.to_face(L)
+        for (inner, outer), side in zip(CORNERS, (1, -1)):
+            F[inner, 0] = F[outer, 0] - side * lateral * eyes * f.scale
+        moved[rows] = f.to_user(F[rows])
+        back = inner_lip_corners_inset(ch.vertices, ch.triangles, moved)
+        before, after = (np.linalg.norm(P[rows] - L[rows], axis=1) / eyes for P in (moved, back))
+        assert before.min() > 0.03 and after.max() < 0.03, (lateral, before, after)
+        others = np.setdiff1d(np.arange(68), rows)
+        assert np.array_equal(back[others], moved[others])  # only the inner corners move

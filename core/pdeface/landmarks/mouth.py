@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..geometry import ClosestPoint
 from ..landmark_scheme import eye_distance
 from ..surface.frame import face_frame
 from .render import View, back_project, depth_map, rasterise
@@ -131,4 +132,45 @@ def inner_lips_in_seam(V, T, points) -> np.ndarray:
         P = back_project(V, T, raster, np.array([float(c)]), np.array([float(rows[k])]), reach=1)[0][0]
         if np.isfinite(P).all():
             out[j] = P
+    return out
+
+
+#: How far (eye distances) in from its outer corner an inner lip corner lies, seen straight on: ICT's 21 heads
+#: 0.048-0.051, MakeHuman's 24 characters (registered) 0.030-0.072; and how far behind the outer corner (ICT's
+#: 0.005-0.013).
+INSET, INSET_BEHIND = 0.05, 0.01
+#: The insets a found inner corner may have and stay: outside them it is no inner corner (the map's corner
+#: lateral of the outer one, or the seam's end found in the commissure, at the outer corner itself).
+INSET_RANGE = (0.02, 0.09)
+
+
+def inner_lip_corners_inset(V, T, points, closest: ClosestPoint | None = None) -> np.ndarray:
+    """``points (68, 3)`` with each inner lip corner (:data:`CORNERS`) whose inset from its outer corner, across the
+    face, lies outside :data:`INSET_RANGE` put :data:`INSET` in from the outer corner (at its own height,
+    :data:`INSET_BEHIND` behind), on the nearest skin point.
+
+    On the development set the found inner corners lie from 0.08 eye distances lateral of their outer corners to
+    0.11 in from them (the truth: 0.03-0.07); the worst (15-19 % of the eye distance off) are corners the map put
+    lateral of the outer one. On ICT's held-out heads no corner moves.
+
+    Parameters
+    ----------
+    V, T : arrays
+        The mesh and the skin's triangles.
+    points : (68, 3) array
+        Landmarks on the skin, the mesh's space (the outer corners are trusted).
+    closest : ClosestPoint, optional
+        On ``(V, T)``, when already built.
+    """
+    out = np.array(points, np.float64)
+    R = face_frame(out).rotation
+    eyes = eye_distance(out)
+    for (inner, outer), side in zip(CORNERS, (1, -1)):  # 48 on the face's -x side: its inner corner at larger x
+        inset = side * (out[inner] - out[outer]) @ R[0] / eyes
+        if INSET_RANGE[0] <= inset <= INSET_RANGE[1]:
+            continue
+        closest = ClosestPoint(V, T) if closest is None else closest
+        height = (out[inner] - out[outer]) @ R[1]
+        out[inner] = closest.query((out[outer] + eyes * (side * INSET * R[0] - INSET_BEHIND * R[2])
+                                    + height * R[1])[None])[3][0]
     return out
