@@ -215,6 +215,9 @@ def test_the_gate_names_the_group_and_the_check_that_fail(ict):
         ("jaw", "smooth"): _frame_shift(L, [3], [0, 0, -0.5 * eyes_mm]),
         # the jaw angles slid forward along the contour, level with the eyes (found so on MakeHuman heads)
         ("jaw", "depth"): _frame_shift(L, [5, 11], [0, 0, 0.2 * eyes_mm]),
+        # the brows squeezed in from their ends by a tenth (found so on the stylised cheek character)
+        ("brows", "spacing"): np.where(np.isin(np.arange(68), range(17, 27))[:, None],
+                                       L * [0.9, 1, 1] + [0.1 * L[27, 0], 0, 0], L),
     }
     for (group, what), P in cases.items():
         v = check(P, V, T, "cm")
@@ -505,7 +508,7 @@ def test_true_lid_and_inner_lip_points_stay_on_ict_heads(ict):
     # lips, its subnasale at the profile's deepest point under the nose: no step moves the true landmarks of a
     # held-out identity (its skin alone, without eyeballs and lashes) by more than a pixel or two.
     from pdeface.landmarks.eyes import lids_on_margin
-    from pdeface.landmarks.mouth import inner_lips_in_seam
+    from pdeface.landmarks.mouth import inner_lip_corners_inset, inner_lips_in_seam, mouth_corners_at_seam_end
     from pdeface.landmarks.nose import nose_bottom_at_subnasale
     from pdeface.mesh import connected_components
 
@@ -514,7 +517,8 @@ def test_true_lid_and_inner_lip_points_stay_on_ict_heads(ict):
     labels = connected_components(len(V), T)
     skin = T[np.isin(labels[T[:, 0]], labels[lm])]
     L = V[lm]
-    for step in (lids_on_margin, inner_lips_in_seam, nose_bottom_at_subnasale):
+    for step in (lids_on_margin, inner_lips_in_seam, nose_bottom_at_subnasale, inner_lip_corners_inset,
+                 mouth_corners_at_seam_end):
         moved = np.linalg.norm(step(V, skin, L) - L, axis=1) * 10  # mm
         assert moved.max() < 0.5, (step.__name__, moved.max())
 
@@ -534,3 +538,50 @@ def test_the_nose_bottom_found_too_high_comes_down_to_the_subnasale(name):
     assert before.min() > 0.03 and (after < 0.75 * before).all() and after.max() < 0.03, (before, after)
     others = np.setdiff1d(np.arange(68), rows)
     assert np.array_equal(back[others], moved[others])  # only the nose's bottom moves
+
+
+@needs_makehuman
+@pytest.mark.parametrize("name", ["asian-female-old-in", "parted-lips-cm"])
+def test_an_inner_lip_corner_found_beside_or_lateral_of_its_outer_corner_comes_in_from_it(name):
+    # The map put asian-female-old-in's inner corner 0.08 eye distances lateral of the mouth's corner (15 % of
+    # the eye distance off); one there, or at the outer corner itself (the seam's end found in the commissure),
+    # comes back in from it, near the registered corner, on closed and on parted lips; one in place stays.
+    from pdeface.landmarks.mouth import CORNERS, inner_lip_corners_inset
+
+    ch = build(SPECS[name])
+    L, eyes = ch.skin_landmarks, ch.eye_distance
+    rows = [inner for inner, _ in CORNERS]
+    assert np.array_equal(inner_lip_corners_inset(ch.vertices, ch.triangles, L), L)  # the true corners stay
+    for lateral in (0.0, 0.03):  # at the outer corner, and beyond it
+        moved = L.copy()
+        f = face_frame(L)
+        F = f.to_face(L)
+        for (inner, outer), side in zip(CORNERS, (1, -1)):
+            F[inner, 0] = F[outer, 0] - side * lateral * eyes * f.scale
+        moved[rows] = f.to_user(F[rows])
+        back = inner_lip_corners_inset(ch.vertices, ch.triangles, moved)
+        before, after = (np.linalg.norm(P[rows] - L[rows], axis=1) / eyes for P in (moved, back))
+        assert before.min() > 0.03 and after.max() < 0.03, (lateral, before, after)
+        others = np.setdiff1d(np.arange(68), rows)
+        assert np.array_equal(back[others], moved[others])  # only the inner corners move
+
+
+@needs_makehuman
+@pytest.mark.parametrize("name", ["caucasian-male-old-dm-eyes", "caucasian-female-young-cm"])
+def test_a_mouth_corner_found_inside_the_seam_comes_out_to_where_the_seam_ends(name):
+    # The map put caucasian-male-old's left mouth corner 0.1 eye distances inside the commissure, in the seam
+    # between the lips; moved so (along the lip line, the lips' front), each corner comes back out to the seam's
+    # end, near the registered corner; the true corners stay.
+    from pdeface.landmarks.mouth import OUTER_CORNERS, mouth_corners_at_seam_end
+
+    ch = build(SPECS[name])
+    L, eyes, rows = ch.skin_landmarks, ch.eye_distance, list(OUTER_CORNERS)
+    assert np.array_equal(mouth_corners_at_seam_end(ch.vertices, ch.triangles, L), L)
+    moved = L.copy()
+    for j, side in zip(rows, (-1, 1)):
+        moved[j] = _moved_in_face_frame(ch.vertices, ch.triangles, L, [j], (-side * 0.08, 0, 0.02))[j]
+    back = mouth_corners_at_seam_end(ch.vertices, ch.triangles, moved)
+    before, after = (np.linalg.norm(P[rows] - L[rows], axis=1) / eyes for P in (moved, back))
+    assert before.min() > 0.07 and after.max() < 0.03, (before, after)
+    others = np.setdiff1d(np.arange(68), rows)
+    assert np.array_equal(back[others], moved[others])  # only the corners move

@@ -39,7 +39,8 @@ from .contour import upper_jaw_at_template_depth
 from .detector import Detector
 from .eyes import lids_on_margin
 from .facemap import GROUPS, LandmarkMap, read_map, robust_similarity
-from .mouth import inner_lip_corners_at_seam_end, inner_lips_in_seam
+from .mouth import (inner_lip_corners_at_seam_end, inner_lip_corners_inset, inner_lips_in_seam,
+                    mouth_corners_at_seam_end)
 from .nose import nose_bottom_at_subnasale
 from .render import Raster, View, back_project, depth_map, marked, rasterise, shade
 
@@ -387,6 +388,10 @@ def detect(V, T, unit=None, landmark_map: LandmarkMap | None = None, detector: D
         points = inner_lip_corners_at_seam_end(V, T[skin], points)
         # The inner lip line's middles and the mouth's corners in the seam of closed lips, not on the lips' fronts.
         points = inner_lips_in_seam(V, T[skin], points)
+        # The mouth's corners where the seam between the lips ends, not inside it.
+        points = mouth_corners_at_seam_end(V, T[skin], points)
+        # The inner lip corners a little in from the outer ones, not beside or lateral of them.
+        points = inner_lip_corners_inset(V, T[skin], points, closest)
         # The nose's bottom at the subnasale, the profile's deepest point under the nose.
         points = nose_bottom_at_subnasale(V, T[skin], points, closest)
         indices = nearest_vertices(V, T[skin], points)
