@@ -18,7 +18,7 @@ from .grid import grid_faces, surface_grid
 from .layout import DEFAULT_CURVES, check_sizes, place_curves
 from .model import FaceModel
 from .pde import output_grid
-from .rims import follow_rims
+from .rims import band_triangles, follow_rims
 from .sampling import mesh_resolution
 
 
@@ -252,7 +252,9 @@ def fit_face(vertices, triangles, landmarks, unit=None, n_curves=DEFAULT_CURVES,
     )
     refine, Vs, skin = refined_skin(Vf, skin, layout)
     layout = follow_rims(layout, Vs, skin)
-    sampler = place_samples(Vs, skin, layout, cavity_depths(layout, Lf), groove_depth=groove_depths(layout, Lf))
+    heights = layout.ray_heights()
+    sampler = place_samples(Vs, band_triangles(Vs, skin, heights.min(), heights.max()), layout,
+                            cavity_depths(layout, Lf), groove_depth=groove_depths(layout, Lf))
     if refine is not None:
         sampler = CurveSampler(sp.csr_matrix(sampler.matrix @ refine), sampler.status, sampler.shape, sampler.groove_mix)
     points = sampler.sample(Vf)

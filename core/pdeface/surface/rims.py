@@ -67,6 +67,9 @@ def follow_rims(layout: CurveLayout, V_face: np.ndarray, T: np.ndarray) -> Curve
         raise LayoutError(f"layout has {len(layout.openings)} openings; rims are found for the {len(OPENINGS)} "
                           "of pdeface.surface.layout.OPENINGS (a layout from place_curves)")
     spans = dict(zip(layout.openings, OPENINGS.values()))
+    reach = [layout.anchor_heights(layout.angles()[k])[[a - 1, a, a + 1, a + 2]] for a, k in layout.opening_curves()]
+    if reach:  # every walk lies between its anchors above and below: the rest of the mesh is never cast on
+        T = band_triangles(V_face, T, min(Y.min() for Y in reach), max(Y.max() for Y in reach))
     for a, k in layout.opening_curves():
         top = next(i for i, ln in enumerate(out.lines) if ln.anchor == a)
         bottom = next(i for i, ln in enumerate(out.lines) if ln.anchor == a + 1)
@@ -86,6 +89,16 @@ def follow_rims(layout: CurveLayout, V_face: np.ndarray, T: np.ndarray) -> Curve
         out.lines[top] = FeatureLine(a, t[o], np.concatenate([line.y[keep], *up])[o], line.taper)
         out.lines[bottom] = FeatureLine(a + 1, t[o], np.concatenate([lower.y[keep], *lo])[o], lower.taper)
     return out
+
+
+def band_triangles(V, T, lo, hi):
+    """The triangles of ``T`` reaching heights (``V[:, 1]``) between ``lo`` and ``hi``, in their order: the only ones
+    rays cast from the vertical axis at those heights can meet (:func:`pdeface.geometry.cast_cylinder_rays` answers
+    the same on them, its triangles indexing them). Cut once, a 100k-vertex head's other triangles are not gone
+    through again at each cast."""
+    y = np.asarray(V)[:, 1]
+    below, above = y < lo, y > hi
+    return T[~(below[T].all(axis=1) | above[T].all(axis=1))]
 
 
 def _rims(V, T, axis_z, th, y_above, y_top, y_bottom, y_below, gap):
