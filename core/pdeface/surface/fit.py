@@ -87,10 +87,10 @@ def closest_on_nearby(V, T, P, tree=None):
     # each vertex's distance to its nearest point, inf past the bound (outside the points' balls or box: not searched)
     apart = np.full(len(V), np.inf)
     if len(P) <= FEW_POINTS:
-        looked = np.unique(np.concatenate([np.asarray(b, np.int64) for b in tree.query_ball_point(P, bound)]))
+        looked = np.unique(np.concatenate([np.asarray(ball, np.int64) for ball in tree.query_ball_point(P, bound)]))
     else:
         looked = np.flatnonzero(((V >= P.min(axis=0) - bound) & (V <= P.max(axis=0) + bound)).all(axis=1))
-    apart[looked] = cKDTree(P).query(V[looked], distance_upper_bound=bound)[0]
+    apart[looked] = cKDTree(P).query(V[looked], distance_upper_bound=bound * (1 + 1e-9))[0]
     near = np.minimum(np.minimum(apart[T[:, 0]], apart[T[:, 1]]), apart[T[:, 2]]) <= reach
     keep = np.flatnonzero(near | (reach > bound))
     corner = np.zeros(len(V), bool)
