@@ -67,18 +67,23 @@ def follow_rims(layout: CurveLayout, V_face: np.ndarray, T: np.ndarray) -> Curve
         raise LayoutError(f"layout has {len(layout.openings)} openings; rims are found for the {len(OPENINGS)} "
                           "of pdeface.surface.layout.OPENINGS (a layout from place_curves)")
     spans = dict(zip(layout.openings, OPENINGS.values()))
+    # every walk lies between its anchors above and below: the rest of the mesh is never cast on
+    reach = {a: layout.anchor_heights(layout.angles()[k])[[a - 1, a, a + 1, a + 2]] for a, k in layout.opening_curves()}
+    if reach:
+        T = band_triangles(V_face, T, min(Y.min() for Y in reach.values()), max(Y.max() for Y in reach.values()))
     for a, k in layout.opening_curves():
         top = next(i for i, ln in enumerate(out.lines) if ln.anchor == a)
         bottom = next(i for i, ln in enumerate(out.lines) if ln.anchor == a + 1)
         line, lower = out.lines[top], out.lines[bottom]
         keep = np.ones(len(line.theta), bool)  # the seed's knots outside the spans (ends included)
         th_k, theta, up, lo = layout.angles()[k], [], [], []
+        band = band_triangles(V_face, T, reach[a].min(), reach[a].max())
         for s0, s1 in spans[a]:
             keep[s0 + 1:s1] = False
             clear = RIM_KNOT_GAP * np.gradient(th_k)  # the rays' spacing there
             th = th_k[(th_k > line.theta[s0] + clear) & (th_k < line.theta[s1] - clear)]
             Y = layout.anchor_heights(th)
-            rims = _rims(V_face, T, layout.axis_z, th, Y[a - 1], Y[a], Y[a + 1], Y[a + 2],
+            rims = _rims(V_face, band, layout.axis_z, th, Y[a - 1], Y[a], Y[a + 1], Y[a + 2],
                          OPENING_GAPS[ANCHOR_NAMES[a]])
             theta.append(th), up.append(rims[0]), lo.append(rims[1])
         t = np.concatenate([line.theta[keep], *theta])
@@ -86,6 +91,16 @@ def follow_rims(layout: CurveLayout, V_face: np.ndarray, T: np.ndarray) -> Curve
         out.lines[top] = FeatureLine(a, t[o], np.concatenate([line.y[keep], *up])[o], line.taper)
         out.lines[bottom] = FeatureLine(a + 1, t[o], np.concatenate([lower.y[keep], *lo])[o], lower.taper)
     return out
+
+
+def band_triangles(V, T, lo, hi):
+    """The triangles of ``T`` reaching heights (``V[:, 1]``) between ``lo`` and ``hi``, in their order: the only ones
+    rays cast from the vertical axis at those heights can meet (:func:`pdeface.geometry.cast_cylinder_rays` answers
+    the same on them, its triangles indexing them). Cut once, a 100k-vertex head's other triangles are not gone
+    through again at each cast."""
+    y = np.asarray(V)[:, 1]
+    below, above = y < lo, y > hi
+    return T[~(below[T].all(axis=1) | above[T].all(axis=1))]
 
 
 def _rims(V, T, axis_z, th, y_above, y_top, y_bottom, y_below, gap):

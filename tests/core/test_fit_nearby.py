@@ -1,0 +1,75 @@
+"""The fit's shortcuts on big meshes answer as the whole mesh does (issue #35: the fit <= 1 s at 100k vertices).
+
+``closest_on_nearby`` builds its search on the triangles near the points only; ``band_triangles`` cuts the skin to
+the rays' heights before casting. Both are checked against the whole mesh on ICT's scan and MakeHuman's base
+mesh (scripts/devset), with a stray long triangle added, so the shortcut's edge cases are met.
+"""
+import numpy as np
+import pytest
+from pdeface.geometry import ClosestPoint, cast_cylinder_rays
+from pdeface.surface.fit import FEW_POINTS, closest_on_nearby
+from pdeface.surface.frame import face_frame
+from pdeface.surface.layout import place_curves
+from pdeface.surface.rims import band_triangles
+
+from scripts.devset import makehuman
+from scripts.devset.characters import annotated_points
+
+
+def ict():
+    from pdeface.assets import load_neutral_scan
+
+    mesh, idx = load_neutral_scan()
+    return mesh.vertices, mesh.triangles()[0], mesh.vertices[idx], "cm"
+
+
+def human():
+    if not makehuman.available():
+        pytest.skip("needs ../shared/data/makehuman")
+    base = makehuman.read_base()
+    return base.vertices, makehuman.triangles(base.group_quads("body")), annotated_points(base.vertices), None
+
+
+def in_face_frame(V, T, L, unit):
+    frame = face_frame(L, unit)
+    used = np.unique(T)
+    keep = np.zeros(len(V), bool)
+    keep[used] = True
+    return frame.to_face(V[used]), (np.cumsum(keep) - 1)[T], frame.to_face(L)
+
+
+@pytest.mark.parametrize("head", [ict, human])
+@pytest.mark.parametrize("many", [False, True])
+def test_closest_points_on_the_nearby_triangles_are_the_whole_meshs(head, many, rng):
+    V, T, L = in_face_frame(*head())
+    # a long thin triangle across the face, its corners far off: never near by its corners, but near the points
+    V = np.concatenate([V, [[-400.0, 5.0, 30.0], [400.0, 5.0, 30.0], [0.0, 5.2, 30.0]]])
+    T = np.concatenate([T, [[len(V) - 3, len(V) - 2, len(V) - 1]]])
+    P = L + rng.normal(scale=2.0, size=L.shape)  # off the skin by a few mm, as the fitted face's grid points are
+    if many:  # more points than FEW_POINTS: the vertices are looked at in the points' box, not in balls
+        P = np.concatenate([P + rng.normal(scale=3.0, size=P.shape) for _ in range(FEW_POINTS // len(P) + 1)])
+        assert len(P) > FEW_POINTS
+    P = np.concatenate([P, [[0.0, 5.1, 30.5]]])  # nearest the long triangle
+    whole = ClosestPoint(V, T).query(P)
+    near = closest_on_nearby(V, T, P)
+    np.testing.assert_allclose(near[0], whole[0], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(near[3], whole[3], rtol=0, atol=1e-6)
+    assert near[1][-1] == len(T) - 1  # the long triangle, found though no corner of it is near
+    assert np.abs(np.einsum("ij,ij->i", near[2], np.ones((len(P), 3))) - 1).max() < 1e-9
+
+
+@pytest.mark.parametrize("head", [ict, human])
+def test_rays_cast_on_the_band_of_their_heights_hit_as_on_the_whole_skin(head):
+    V, T, L = in_face_frame(*head())
+    layout = place_curves(L, 12, 21)
+    theta, height = layout.angles().ravel(), layout.ray_heights().ravel()
+    band = band_triangles(V, T, height.min(), height.max())
+    assert 0 < len(band) < len(T)
+    r0, t0, b0, f0 = cast_cylinder_rays(V, T, layout.axis_z, theta, height)
+    r1, t1, b1, f1 = cast_cylinder_rays(V, band, layout.axis_z, theta, height)
+    assert (t0 >= 0).mean() > 0.8
+    np.testing.assert_array_equal(r1, r0)
+    np.testing.assert_array_equal(f1, f0)
+    np.testing.assert_array_equal(b1, b0)
+    np.testing.assert_array_equal(np.where(t1[:, None] >= 0, band[np.maximum(t1, 0)], -1),
+                                  np.where(t0[:, None] >= 0, T[np.maximum(t0, 0)], -1))  # the same triangles
