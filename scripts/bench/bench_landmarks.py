@@ -33,14 +33,14 @@ from pdeface.au.retarget import retarget
 from pdeface.landmarks.detector import Detector
 from pdeface.landmarks.facemap import read_map
 from pdeface.landmarks.pipeline import detect
-from pdeface.threads import THREADS
 from pdeface.rigid import rotation_vector_matrix
 from pdeface.surface.fit import fit_face
 from pdeface.surface.frame import BLENDER_FROM_ICT
 from pdeface.surface.report import accuracy_report
+from pdeface.threads import THREADS
 
-from scripts.bench.benchlib import bench_parser, body_character, run_bench
 from scripts.bench.baseline_landmarks import before_path, cold_seconds
+from scripts.bench.benchlib import bench_parser, body_character, run_bench
 
 #: The two ways each held-out head is seen: (name, matrix from ICT cm, unit, mm per unit).
 POSES = [("ict-cm", np.eye(3), "cm", 10.0),
@@ -85,8 +85,8 @@ def blas_both_ways(mesh, T, shapes, names, det, rounds=2):
                 find(V, T, "cm", detector=det)
                 times[way].append((time.perf_counter() - t, time.process_time() - c))
     med = {way: np.median(np.array(v), axis=0) for way, v in times.items()}
-    print(f"== BLAS threads: {len(names)} held-out heads found {rounds} times each, the BLAS pools bounded to {THREADS} "
-          f"(as detect runs) and at the library's default ({default}), in turn ({load()})")
+    print(f"== BLAS threads: {len(names)} held-out heads found {rounds} times each, "
+          f"the BLAS pools bounded to {THREADS} (as detect runs) and at the library's default ({default}), in turn ({load()})")
     for way, (wall, cpu) in med.items():
         print(f"  {way:8s} {wall:.2f} s wall, {cpu:.2f} s CPU per head (all threads: CPU over wall is other threads' "
               f"work: MediaPipe's own, OpenBLAS's)")

@@ -122,7 +122,8 @@ def main(argv=None):
         total, total_cpu = (sum(s[i] for s in timed.values()) for i in (0, 1))
         keys = len(obj.data.shape_keys.key_blocks) - 1 if obj.data.shape_keys else 0
         print(f"\n== {name}: {len(mesh.vertices)} vertices, {keys} keys on it; chain {total:.2f} s, "
-              f"CPU {total_cpu:.2f} s (target ≤ {TARGET_S:.0f} s, ratio {total / TARGET_S:.2f}); load after: {load_text()}")
+              f"CPU {total_cpu:.2f} s (target ≤ {TARGET_S:.0f} s, ratio {total / TARGET_S:.2f}); "
+              f"load after: {load_text()}")
         bindings.clear()  # profiled as a new head: bound again
         profiles = chain(bpy, path, profiled) if args.profile else {}
         for step, (s, cpu) in timed.items():

@@ -46,13 +46,13 @@ MOUTH_BAG = (NO_MOUTH_INSIDE.name, "voxel-m" + CUT)
 #: again after a change to the binding, these are to be looked at and written again.
 SEEN = {
     "voxel-m": "fused lips (one surface, no opening): AU27 drops the chin and lower lip and stretches the skin joining "
-               "the lips into a sheet with a crease down its middle (8 new folds): no opening without cutting the mesh, "
-               "so the binding warns (lips joined: cut the mouth open); AU12 a fold on one cheek (1); AU45 closes the "
+               "the lips into a sheet with a crease down its middle (8 new folds): no opening without cutting the "
+               "mesh, so the binding warns (lips joined: cut the mouth open); AU12 a fold on one cheek (1); AU45 closes the "
                "jagged voxel lids part way, a fold on the right upper lid (3, as before the lower lids were held); "
                "happy a fold at one corner (1)",
     "body-A-cm": "AU27 opens a round mouth over the dark lining, folds at both lip corners (16); happy parts the lips "
-                 "over the lining (11); AU45 closes the lids to a thin line, the lower lids at their rest height, folds "
-                 "at an outer lid corner (14); AU12 folds at the corners (4); no beak",
+                 "over the lining (11); AU45 closes the lids to a thin line, the lower lids at their rest height, "
+                 "folds at an outer lid corner (14); AU12 folds at the corners (4); no beak",
     "eyes-teeth-separate-in": "AU27: the tongue (red) and lower teeth (ivory) turn down whole with the jaw, no spikes "
                               "or stretched teeth; the folds left are skin at the lip corners (8); happy shows tongue "
                               "and lower teeth (4); AU45 closes the lids to a thin line (7); AU12 no folds",
@@ -60,8 +60,8 @@ SEEN = {
                                     "parted lips show the dark lining; AU27 opens wide (2 folds); AU45 closes the lids "
                                     "with folds at a corner of each eye (4); AU12 and happy no folds",
     "stylised-chin-cheek-in": "AU27 opens the mouth over the dark lining (2); AU45 closes the lids to a thin line (4); "
-                              "AU12 and happy read as smiles, a fold at the upper lip's middle (4, 4); the dark shading "
-                              "on the cheeks is the style's cheek bones, at rest too",
+                              "AU12 and happy read as smiles, a fold at the upper lip's middle (4, 4); the dark "
+                              "shading on the cheeks is the style's cheek bones, at rest too",
     NO_MOUTH_INSIDE.name: "lips that open onto the inside of the head, with the add-on's mouth bag: AU27 and happy show "
                           "the dark bag between the lips, no hole; folds at the lip corners (5 in AU27, 2 in happy); "
                           "AU12 (4) and AU45 (3, the lids closed to a thin line) as on the others",

@@ -307,7 +307,8 @@ def _inner_lip_middles(P, Lf, eye_distance, lines=((61, 62), (62, 63), (65, 66),
     """Skin on the inner lips' middle thirds (landmarks 61-63, 65-67): kept by the jaw keys' fold relaxation on lips
     joined in the mesh, which it would otherwise smooth shut in AU27 where they meet in one row of vertices (a
     decimated head). Lips apart are not kept: the step between a kept middle and its relaxed neighbours folded parted
-    lips' AU27 (36 edges on parted-lips-cm, 4 without)."""
+    lips' AU27 (36 edges on parted-lips-cm, 4 without). ``lines``: the landmark pairs whose segments are the middles
+    (the default: both inner lips' middle thirds; ``_merged_rims`` passes one lip's)."""
     from scipy.spatial import cKDTree
 
     t = np.linspace(0, 1, 8, endpoint=False)[:, None]

@@ -48,8 +48,10 @@ ZONE_RINGS = 10
 #: The binding's first relaxation measures its folds every SWEEPS_PER_LOOK sweeps (issue #35: ICT's 72 keys' relaxation
 #: 0.41 -> 0.27 s CPU; its keys move at most 0.14 mm on the skin, 0.9 mm on the lashes). The lids' second one looks at
 #: every sweep: it stops at the first within the limit (each sweep opens a closed lid a little; at 2
-#: asian-male-young's AU45 closure fell from 0.86 to 0.79).
+#: asian-male-young's AU45 closure fell from 0.86 to 0.79). GROW_EVERY and STALL_STEPS must be multiples of it (the
+#: region grows and a piece stalls only on sweeps that look).
 SWEEPS_PER_LOOK = 2
+assert GROW_EVERY % SWEEPS_PER_LOOK == 0 and STALL_STEPS % SWEEPS_PER_LOOK == 0
 
 
 class Screen:
@@ -286,11 +288,12 @@ class FoldRelax:
         cols = self._rings(zone, 2, len(jobs))  # the zone and two rings around it (its edges' far corners), sorted
         job, vertex = np.divmod(cols, n)
         m = len(cols)
-        local = np.full(len(jobs) * n, -1)  # each (job, vertex) id's row
-        local[cols] = np.arange(m)
+        # Each (job, vertex) id's row + 1 (0: not a row): zeros are mapped lazily, so only the pages touched cost memory
+        local = np.zeros(len(jobs) * n, np.int64)
+        local[cols] = np.arange(1, m + 1)
         # The neighbours' mean among the jobs' vertices: each job's block of the mesh's.
         pos, row = _rows_entries(self.mean, vertex)
-        at = local[job[row] * n + self.mean.indices[pos]]
+        at = local[job[row] * n + self.mean.indices[pos]] - 1
         inside = at >= 0
         mean = csr_matrix((self.mean.data[pos[inside]], (row[inside], at[inside])), shape=(m, m))
         ring = mean.copy()
@@ -308,7 +311,7 @@ class FoldRelax:
         faces, pair_faces = _once_inverse(pair_job[:, None] * len(self.T) + self.faces[self.pairs[pair]],
                                           len(jobs) * len(self.T))
         face_job, face = np.divmod(faces, len(self.T))
-        tri = local[face_job[:, None] * n + self.T[face]]  # (f, 3) local
+        tri = local[face_job[:, None] * n + self.T[face]] - 1  # (f, 3) local
         X, dl = self.V[vertex], _rows_of(D, vertex, key_of[job])
         position = X + dl  # the rows' positions, kept up to date as they move
         nrm = np.zeros((len(faces), 3))
@@ -337,7 +340,7 @@ class FoldRelax:
         in_ball = np.zeros(m, bool)
         in_ball[ball] = True
         mark = np.zeros(m, bool)
-        mark[local[np.concatenate(seeds)]] = True
+        mark[local[np.concatenate(seeds)] - 1] = True
         region = (mark | (ring @ mark.astype(np.float64) > 0)) & movable
         count = folded(np.arange(m), *touched(np.arange(m)))
         best, best_d = count.copy(), dl.copy()  # never worse than as bound

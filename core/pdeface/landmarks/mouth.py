@@ -9,6 +9,12 @@ point of that line (from a little inside the found corner out to the outer one),
 A corner with nothing seen more than :data:`DEEPER` deeper stays: on ICT's heads the found corners already lie in the
 crease (the true ones often hidden behind the lips' fronts). On the development set the inner corners' error falls
 from 8.5 to 5.6 % of the eye distance (median over the characters; better on 18, worse on 1); ICT's stay.
+
+The module also holds the other steps on the lips, each with its own docstring, run in this order after the one
+above: :func:`inner_lips_in_seam` (the inner lip line's middles and the mouth corners into the seam of closed
+lips), :func:`mouth_corners_at_seam_end` (the mouth corners where the seam ends) and
+:func:`inner_lip_corners_inset` (inner corners beside or lateral of the outer ones, 0.05 in from them).
+:data:`REACH` and :data:`DEEPER` serve the first two as well.
 """
 from __future__ import annotations
 
