@@ -225,8 +225,8 @@ def test_the_aus_that_close_the_eyes_say_which():
     assert eyes_closed_by({"45": 1.0}) == {"R": 1.0, "L": 1.0}
     assert eyes_closed_by({"45L": 0.5, "12": 1.0}) == {"L": 0.5}
     assert eyes_closed_by({"43": 0.7, "45": 0.6}) == {"R": 1.0, "L": 1.0}  # at most closed
-    assert eyes_closed_by({"46": 1.0}) == {"?": 1.0, "wink": 1.0}  # a wink: the eye its motion closes more
-    assert eyes_closed_by({"46L": 0.5, "45": 0.2}) == {"L": 0.7, "R": 0.2, "wink": 0.5}
+    assert eyes_closed_by({"46": 1.0}) == {"?": 1.0}  # a wink: the eye its motion closes more
+    assert eyes_closed_by({"46L": 0.5, "45": 0.2}) == {"L": 0.7, "R": 0.2, "winkL": 0.5}  # the right eye blinks
     assert eyes_closed_by({"6": 1.0, "7": 1.0, "12": 1.0}) is None  # narrowed, not closed
 
 

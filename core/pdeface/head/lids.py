@@ -113,12 +113,13 @@ class LidClosure:
         gaps = np.array([np.linalg.norm(U - L, axis=1) / max(gap0, 1e-12) for U, L, gap0 in ends])  # (eyes, k)
         for j, (side, (U1, L1, _)) in enumerate(zip(LIDS, ends)):
             w = np.array([closing[i].get(side, 0.0) for i in keys])
-            wink = np.array([closing[i].get("?", 0.0) for i in keys])
-            w = np.minimum(w + wink * (gaps[j] <= gaps.min(0)), 1.0)  # a wink: the eye its motion closes more
+            wink = np.array([closing[i].get("?", 0.0) for i in keys]) * (gaps[j] <= gaps.min(0))
+            w = np.minimum(w + wink, 1.0)  # a wink without a side: the eye its motion closes more
             # In a blink the lower lid keeps its height (its slide along kept): the closing is the upper lid's (ICT's
             # scanned blink raises the lower middle 0.02 of the gap, MakeHuman's eye closure not at all; the
             # retargeted motion raised it up to 0.16 on the development set, that much less travel for the upper lid).
-            held = w * (1 - np.array([closing[i].get("wink", 0.0) for i in keys]))  # a wink's cheek raises it
+            winked = np.minimum(np.array([closing[i].get("wink" + side, 0.0) for i in keys]) + wink, 1.0)
+            held = w * (1 - winked)  # a wink's cheek raises this eye's lower lid
             rise = np.maximum(L1[:, 1] - self.Vf[self.eyes[j][1], 1].mean(), 0) * held  # (k,)
             low, w_low = self.lower[j]
             sub[low, :, 1] -= w_low[:, None] * rise[None]
@@ -156,13 +157,14 @@ def eyes_or_sockets(Lf, eye_distance, eyeballs=None) -> dict:
 
 
 def eyes_closed_by(weights) -> dict | None:
-    """``{"R": w, "L": w, "?": w, "wink": w}``: how far normalised AU ``weights`` close each eye ("?": a wink's,
-    on the eye its motion closes more) and, where a wink closes them, its weight ("wink": its lower lid rises
-    with the cheek); None where they close none."""
+    """``{"R": w, "L": w, "?": w, "winkR": w, "winkL": w}``: how far normalised AU ``weights`` close each eye ("?": a
+    wink without a side, on the eye its motion closes more) and, per eye, how much of that a wink does ("winkR",
+    "winkL"; an unsided wink's is "?" itself): a wink's lower lid rises with the cheek. None where they close none."""
     out = {}
     for key, w in weights.items():
         au, side = split_au_key(key)
         if au in CLOSING_AUS and w:
-            for s in ((side,) if side else ("?",) if au == WINK else ("R", "L")) + (("wink",) if au == WINK else ()):
+            sides = (side,) if side else ("?",) if au == WINK else ("R", "L")
+            for s in sides + (tuple("wink" + s for s in sides if s != "?") if au == WINK else ()):
                 out[s] = min(1.0, out.get(s, 0.0) + w)
     return out or None
