@@ -103,6 +103,13 @@ def _split(layout, displacement, rests=None):
             for (obj, s, n, back), rest in zip(layout, rests)]
 
 
+def _split_into(layout, displacement, rests, held, key):
+    """:func:`_split` written into each object's block of keys ``held[object name][key]`` (the same float32 numbers:
+    the float64 sum cast on assignment)."""
+    for (obj, s, n, back), rest in zip(layout, rests):
+        held[obj.name][key] = rest + displacement[s:s + n] @ back.T
+
+
 #: Keys displaced per batch: a whole head's 82 keys in float64 at once, with the solve's temporaries, peaked
 #: ~150 MB over the float32 keys themselves (issue #35: the ICT head's rig 779 → 626 MB in batches of 24, and
 #: ~50 MB less in batches of 12, at the same CPU time within this machine's noise).
@@ -124,12 +131,18 @@ def head_keys(face, model, poses, users, au_name, expression_name):
     keys += [(expression_name(name), "EXPRESSION", "", label) for name, label, _, _ in poses]
     motions = ([descriptor_motion_args(d) for d in keyed]
                + [b.pose_motion_args(weights, mixer) for _, _, weights, mixer in poses])
+    # Each object's keys in one block (82 keys of a 27k-vertex head: 26 MB): one allocation the system takes back
+    # whole once written, before Blender evaluates its own copy of them (scattered key by key, they stayed resident in
+    # the heap half of the time: the rig's peak 458 or 488 MB; issue #35)
+    held = {obj.name: np.empty((len(keys), n, 3), np.float32) for obj, _, n, _ in layout}
     for start in range(0, len(motions), KEY_BATCH):  # a few batches: each one solve, float64 only while solved
         moved = b.displacements(motions[start:start + KEY_BATCH])
-        for (name, kind, au_key, label), D in zip(keys[start:start + KEY_BATCH], moved):
-            for obj, coords in _split(layout, D, rests):
-                per_object[obj.name][1].append((name, coords, kind, au_key, label))
+        for i, D in enumerate(moved, start):
+            _split_into(layout, D, rests, held, i)
         del moved
+    for obj_name, (_, out) in per_object.items():
+        out.extend((name, coords, kind, au_key, label) for (name, kind, au_key, label), coords in
+                   zip(keys, held[obj_name]))
     return list(per_object.values()), b
 
 

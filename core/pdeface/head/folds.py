@@ -288,12 +288,9 @@ class FoldRelax:
         cols = self._rings(zone, 2, len(jobs))  # the zone and two rings around it (its edges' far corners), sorted
         job, vertex = np.divmod(cols, n)
         m = len(cols)
-        # Each (job, vertex) id's row + 1 (0: not a row): zeros are mapped lazily, so only the pages touched cost memory
-        local = np.zeros(len(jobs) * n, np.int64)
-        local[cols] = np.arange(1, m + 1)
         # The neighbours' mean among the jobs' vertices: each job's block of the mesh's.
         pos, row = _rows_entries(self.mean, vertex)
-        at = local[job[row] * n + self.mean.indices[pos]] - 1
+        at = _row_in(cols, job[row] * n + self.mean.indices[pos])
         inside = at >= 0
         mean = csr_matrix((self.mean.data[pos[inside]], (row[inside], at[inside])), shape=(m, m))
         ring = mean.copy()
@@ -311,7 +308,7 @@ class FoldRelax:
         faces, pair_faces = _once_inverse(pair_job[:, None] * len(self.T) + self.faces[self.pairs[pair]],
                                           len(jobs) * len(self.T))
         face_job, face = np.divmod(faces, len(self.T))
-        tri = local[face_job[:, None] * n + self.T[face]] - 1  # (f, 3) local
+        tri = _row_in(cols, face_job[:, None] * n + self.T[face])  # (f, 3) local
         X, dl = self.V[vertex], _rows_of(D, vertex, key_of[job])
         position = X + dl  # the rows' positions, kept up to date as they move
         nrm = np.zeros((len(faces), 3))
@@ -340,7 +337,7 @@ class FoldRelax:
         in_ball = np.zeros(m, bool)
         in_ball[ball] = True
         mark = np.zeros(m, bool)
-        mark[local[np.concatenate(seeds)] - 1] = True
+        mark[_row_in(cols, np.concatenate(seeds))] = True
         region = (mark | (ring @ mark.astype(np.float64) > 0)) & movable
         count = folded(np.arange(m), *touched(np.arange(m)))
         best, best_d = count.copy(), dl.copy()  # never worse than as bound
@@ -434,9 +431,11 @@ def _cross(P, tri):
 
 def _once_inverse(idx, size):
     """``(values, inverse)``: :func:`numpy.unique` of ``idx`` (all below ``size``) with ``return_inverse``, from a
-    mask and a look-up table (no sort, no search); ``inverse`` shaped as ``idx``."""
+    mask (no sort) and a binary search (a look-up table of ``size`` entries cost its pages whenever the allocator
+    reused freed memory for it: up to 10 MB per call on a 27k-vertex head's keys; issue #35); ``inverse`` shaped as
+    ``idx``."""
     values = _once(idx.ravel(), size)
-    return values, _slots(values, size)[idx]
+    return values, np.searchsorted(values, idx)
 
 
 def _slots(values, size):
@@ -444,6 +443,15 @@ def _slots(values, size):
     slot = np.empty(size, np.int64)  # only the values' entries are read
     slot[values] = np.arange(len(values))
     return slot
+
+
+def _row_in(ids, wanted):
+    """Each of ``wanted``'s slot in the sorted distinct ``ids``, -1 where it is not one of them (a binary search: no
+    look-up table as long as the largest id, whose pages the allocator may have to clear; issue #35)."""
+    if not len(ids):
+        return np.full(np.shape(wanted), -1, np.int64)
+    slot = np.minimum(np.searchsorted(ids, wanted), len(ids) - 1)
+    return np.where(ids[slot] == wanted, slot, -1)
 
 
 def _once(idx, size):
