@@ -18,7 +18,7 @@ import numpy as np
 
 from ..landmark_scheme import UPPER_LIDS, eye_distance
 from ..surface.frame import face_frame
-from .render import View, back_project, depth_map, rasterise
+from .render import View, back_project, column_depths
 
 #: How far (eye distances) along its column a lid point may move, either way.
 REACH = 0.04
@@ -78,15 +78,11 @@ def lids_on_margin(V, T, points) -> np.ndarray:
     for ring, upper, lower in EYES:
         view = View.looking(R[2], R[1], out[list(ring)].mean(0), HALF * eyes, SIZE)
         x, y, z = view.project(out)
-        px = 2 * view.half / SIZE  # mesh units per pixel
         cols = {j: int(np.clip(np.round(x[j]), 0, SIZE - 1)) for j in (*upper, *lower)}
-        near = np.zeros((SIZE, SIZE), bool)
-        near[:, sorted(set(cols.values()))] = True
-        raster = rasterise(V, T, view, near=near)
-        depth = depth_map(V, T, raster)
+        raster, depth = column_depths(V, T, view, list(cols.values()))
         for j, c in cols.items():
             r = _margin_row(depth[:, c], int(np.clip(np.round(y[j]), 0, SIZE - 1)), z[j], j in UPPER_LIDS,
-                            round(REACH * eyes / px), DEEPER * eyes, DROP * eyes, JUMP * eyes)
+                            round(REACH * eyes / view.pixel), DEEPER * eyes, DROP * eyes, JUMP * eyes)
             if r is None:
                 continue
             P = back_project(V, T, raster, np.array([float(c)]), np.array([float(r)]), reach=1)[0][0]

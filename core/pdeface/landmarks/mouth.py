@@ -23,7 +23,7 @@ import numpy as np
 from ..geometry import ClosestPoint
 from ..landmark_scheme import eye_distance
 from ..surface.frame import face_frame
-from .render import View, back_project, depth_map, rasterise
+from .render import View, back_project, column_depths, depth_map, rasterise
 
 #: Each inner corner and its outer corner.
 CORNERS = ((60, 48), (64, 54))
@@ -39,6 +39,14 @@ DEEPER = 0.02
 SIZE, HALF = 384, 1.0
 
 
+def _mouth_view(points):
+    """``(eye distance, view)``: the mouth seen straight on (the face frame's front), :data:`HALF` eye distances
+    each way from the mouth's landmarks' centre, :data:`SIZE` pixels across."""
+    R = face_frame(points).rotation
+    eyes = eye_distance(points)
+    return eyes, View.looking(R[2], R[1], points[48:68].mean(0), HALF * eyes, SIZE)
+
+
 def inner_lip_corners_at_seam_end(V, T, points) -> np.ndarray:
     """``points (68, 3)`` with the inner lip corners (:data:`CORNERS`) moved to the deepest point of the lip line
     on the skin ``(V, T)`` (see the module's docstring); a corner stays where no pixel of the line is seen
@@ -52,11 +60,9 @@ def inner_lip_corners_at_seam_end(V, T, points) -> np.ndarray:
         Landmarks on the skin, the mesh's space.
     """
     out = np.array(points, np.float64)
-    R = face_frame(out).rotation
-    eyes = eye_distance(out)
-    view = View.looking(R[2], R[1], out[48:68].mean(0), HALF * eyes, SIZE)
+    eyes, view = _mouth_view(out)
     x, y, z = view.project(out)
-    px = 2 * view.half / SIZE  # mesh units per pixel
+    px = view.pixel
     yy, xx = np.mgrid[:SIZE, :SIZE]
     lines = {}
     for inner, outer in CORNERS:
@@ -115,17 +121,12 @@ def inner_lips_in_seam(V, T, points) -> np.ndarray:
         Landmarks on the skin, the mesh's space.
     """
     out = np.array(points, np.float64)
-    R = face_frame(out).rotation
-    eyes = eye_distance(out)
-    view = View.looking(R[2], R[1], out[48:68].mean(0), HALF * eyes, SIZE)
+    eyes, view = _mouth_view(out)
     x, y, z = view.project(out)
-    px = 2 * view.half / SIZE
+    px = view.pixel
     reach = round(SEAM_REACH * eyes / px)
     cols = {j: int(np.clip(np.round(x[j]), 0, SIZE - 1)) for j in (*OUTER_CORNERS, *INNER_MIDDLES)}
-    near = np.zeros((SIZE, SIZE), bool)
-    near[:, sorted(set(cols.values()))] = True
-    raster = rasterise(V, T, view, near=near)
-    depth = depth_map(V, T, raster)
+    raster, depth = column_depths(V, T, view, list(cols.values()))
     for j, c in cols.items():
         r0 = int(np.clip(np.round(y[j]), 0, SIZE - 1))
         rows = np.arange(max(r0 - reach, 0), min(r0 + reach, SIZE - 1) + 1)
@@ -240,11 +241,9 @@ def mouth_corners_at_seam_end(V, T, points) -> np.ndarray:
         Landmarks on the skin, the mesh's space.
     """
     out = np.array(points, np.float64)
-    R = face_frame(out).rotation
-    eyes = eye_distance(out)
-    view = View.looking(R[2], R[1], out[48:68].mean(0), HALF * eyes, SIZE)
+    eyes, view = _mouth_view(out)
     x, y, _ = view.project(out)
-    px = 2 * view.half / SIZE
+    px = view.pixel
     reach, wide = round(CORNER_REACH * eyes / px), max(1, round(GROOVE_WIDE * eyes / px))
     near = np.zeros((SIZE, SIZE), bool)
     for j in OUTER_CORNERS:

@@ -14,7 +14,7 @@ import numpy as np
 from ..geometry import ClosestPoint
 from ..landmark_scheme import NOSE_BOTTOM, NOSE_TIP, eye_distance
 from ..surface.frame import face_frame
-from .render import View, back_project, depth_map, rasterise
+from .render import View, back_project, column_depths
 
 #: The upper lip's top, where the profile's chord from the nose tip ends.
 UPPER_LIP_TOP = 51
@@ -50,11 +50,9 @@ def nose_bottom_at_subnasale(V, T, points, closest: ClosestPoint | None = None) 
     top, bottom = (int(np.clip(np.round(y[j]), 0, SIZE - 1)) for j in (NOSE_TIP, UPPER_LIP_TOP))
     if bottom - top < 3:
         return out
-    near = np.zeros((SIZE, SIZE), bool)
-    near[:, c] = True
-    raster = rasterise(V, T, view, near=near)
+    raster, depth = column_depths(V, T, view, c)
     rows = np.arange(top, bottom + 1)
-    d = depth_map(V, T, raster)[rows, c]
+    d = depth[rows, c]
     if not np.isfinite(d).all():
         return out
     chord = d[0] + (d[-1] - d[0]) * (rows - top) / (bottom - top)

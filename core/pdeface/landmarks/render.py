@@ -60,6 +60,11 @@ class View:
         """The view whose image is ``np.fliplr(image)`` of this one's (a mirror: its right points left)."""
         return View(self.rotation * [[-1], [1], [1]], self.centre, self.half, self.size)
 
+    @property
+    def pixel(self) -> float:
+        """Mesh units per pixel."""
+        return 2 * self.half / self.size
+
     def project(self, P):
         """Pixel x (right), pixel y (down) and depth (larger: nearer the viewer) of points ``P (n, 3)``."""
         q = (np.asarray(P, np.float64) - self.centre) @ self.rotation.T
@@ -300,6 +305,15 @@ def marked(img, pixels, r=2, colour=(230, 30, 30)):
     for x, y in np.round(pixels).astype(int):
         img[max(y - r, 0):min(y + r + 1, h), max(x - r, 0):min(x + r + 1, w)] = colour
     return img
+
+
+def column_depths(V, T, view: View, columns) -> tuple[Raster, np.ndarray]:
+    """``(raster, depth)`` of ``view`` drawn only over the pixel ``columns`` (the rest shows nothing): for steps that
+    read the skin's profile down a few columns of a straight-on view."""
+    near = np.zeros((view.size, view.size), bool)
+    near[:, sorted(set(np.atleast_1d(columns).tolist()))] = True
+    raster = rasterise(V, T, view, near=near)
+    return raster, depth_map(V, T, raster)
 
 
 def depth_map(V, T, raster: Raster) -> np.ndarray:
