@@ -344,9 +344,9 @@ def _merged_rims(P, covered, fixed, Lf, eye_distance, skin_tree):
         if len(rim) and len(lip):
             held.append(rim)
             anchors.append(lip[cKDTree(P[lip]).query(P[rim])[1]])
-    held, anchors = np.concatenate(held), np.concatenate(anchors)
-    first = np.unique(held, return_index=True)[1]  # a landmark's vertex on the other side: the upper lip's
-    return held[first], anchors[first]
+    # The two rims share no vertex: each drops the other lip's landmark vertices, and their middles lie on opposite
+    # sides of the mouth line.
+    return np.concatenate(held), np.concatenate(anchors)
 
 
 def _upper_lip(P, Lf, eye_distance):
