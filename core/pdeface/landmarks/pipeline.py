@@ -40,7 +40,7 @@ from .detector import Detector
 from .eyes import lids_on_margin
 from .facemap import GROUPS, LandmarkMap, read_map, robust_similarity
 from .mouth import (inner_lip_corners_at_seam_end, inner_lip_corners_inset, inner_lips_in_seam,
-                    mouth_corners_at_seam_end)
+                    lower_lip_on_its_edge, mouth_corners_at_seam_end)
 from .nose import bridge_at_ict_shares, nose_bottom_at_subnasale
 from .render import Raster, View, back_project, depth_map, marked, rasterise, shade
 
@@ -392,6 +392,8 @@ def detect(V, T, unit=None, landmark_map: LandmarkMap | None = None, detector: D
         points = mouth_corners_at_seam_end(V, T[skin], points)
         # The inner lip corners a little in from the outer ones, not beside or lateral of them.
         points = inner_lip_corners_inset(V, T[skin], points, closest)
+        # The lower lip's middle points on its edge, not on the curve under it.
+        points = lower_lip_on_its_edge(V, T[skin], points)
         # The nose's bottom at the subnasale, the profile's deepest point under the nose.
         points = nose_bottom_at_subnasale(V, T[skin], points, closest)
         # The bridge's middle points at ICT's shares of the nasion-to-tip chord, not nearer the nasion.
