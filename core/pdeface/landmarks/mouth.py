@@ -279,7 +279,7 @@ def lower_lip_on_its_edge(V, T, points) -> np.ndarray:
 
     The lower lip's front is the column's most forward point between the seam (the deepest point within
     :data:`SEAM_REACH` of the inner lip point above) and the found point. The face mesh puts these points 0.02-0.08
-    eye distances behind it on MakeHuman's development set, 0.02-0.07 too low, where the lip turns back towards
+    eye distances behind it on MakeHuman's development set, up to 0.08 too low, where the lip turns back towards
     the chin (56-58 against the registered skin points: median 3.6-3.9 % of the eye distance, p90 7.3-8.7). A point
     stays where its column shows no such front below the seam, or no profile falling that far behind it above the
     point; on ICT's held-out heads the points already lie on the edge, and stay.
