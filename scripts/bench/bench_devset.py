@@ -119,6 +119,42 @@ def print_jaw_points(rows):
                                                  np.median(np.array([c for _, c in skin]), 0))))
 
 
+def point_offsets(found, true, eyes):
+    """``found - true`` per landmark in the true landmarks' face frame (x across, y up, z forward), in % of the eye
+    distance."""
+    frame = face_frame(true)
+    return (frame.to_face(found) - frame.to_face(true)) / (eyes * frame.scale) * 100
+
+
+def print_points(rows):
+    """Where the inner points go wrong, point by point over the characters: the error against the annotated
+    vertices and against the registered skin points (median, p90), the truth's own grain there (the skin points
+    against the vertices: what a perfect detector scores), the found points' median offset from the skin points
+    (x, y, z; left points mirrored, + outwards), and in how many characters' worst four inner points each lies."""
+    print("== inner points over the characters: error against the annotated vertices / the registered skin points "
+          "(median, p90), the truth's grain there (skin points against vertices, median), the found points' median "
+          "offset from the skin points (x outwards, y up, z forward), characters where it is among the worst 4 "
+          "(against the vertices) (% of the true eye distance)")
+    print(f"  {'point':>5s} {'vertices':>11s} {'skin':>11s} {'grain':>5s}   {'offset x/y/z':>17s}  worst 4")
+    found = [(np.array(r["points"]), np.array(r["truth"]), np.array(r["skin_truth"]), r["eyes"]) for r in rows.values()]
+    if not found:
+        return
+    V = np.array([np.linalg.norm(point_offsets(P, T, e), axis=1) for P, T, _, e in found])
+    S = np.array([point_offsets(P, K, e) for P, _, K, e in found])
+    G = np.array([np.linalg.norm(point_offsets(K, T, e), axis=1) for _, T, K, e in found])
+    across = np.array([face_frame(T).to_face(T)[:, 0] / (e * face_frame(T).scale) for _, T, _, e in found])
+    S_out = S.copy()
+    S_out[:, :, 0] *= np.where(np.abs(across) < 0.03, 1.0, np.sign(across))  # + outwards; +x on the midline
+    worst = np.zeros(68, int)
+    for v in V:
+        worst[17 + np.argsort(-v[17:])[:4]] += 1
+    Sn = np.linalg.norm(S, axis=2)
+    for j in range(17, 68):
+        print(f"  {j:5d} {np.median(V[:, j]):5.1f}/{np.percentile(V[:, j], 90):5.1f} {np.median(Sn[:, j]):5.1f}/"
+              f"{np.percentile(Sn[:, j], 90):5.1f} {np.median(G[:, j]):5.1f}   "
+              + "/".join(f"{v:+5.1f}" for v in np.median(S_out[:, j], 0)) + f"  {worst[j]:5d}")
+
+
 def main(argv=None):
     ap = bench_parser(__doc__)
     ap.add_argument("--only", help="comma-separated character names")
@@ -173,6 +209,7 @@ def main(argv=None):
     print_groups({n: {**r, **r["skin"]} for n, r in rows.items() if r["found"]},
                  "the registered skin points (before the snap to a vertex)")
     print_jaw_points({n: r for n, r in rows.items() if r["found"]})
+    print_points({n: r for n, r in rows.items() if r["found"]})
     print("== summary")
     print(f"  found {len(ok)}/{len(rows)} = {share:.0%} (target >= {TARGETS['found_share']:.0%})")
     if ok:

@@ -505,11 +505,13 @@ def test_inner_lip_middles_on_the_lips_front_go_back_into_the_seam_of_closed_lip
 
 def test_true_lid_and_inner_lip_points_stay_on_ict_heads(ict):
     # ICT's lid points lie on a thick margin's rounded edge, its inner lip points in front of a slit between the
-    # lips, its subnasale at the profile's deepest point under the nose: no step moves the true landmarks of a
-    # held-out identity (its skin alone, without eyeballs and lashes) by more than a pixel or two.
+    # lips, its subnasale at the profile's deepest point under the nose, its bridge's middle at the generic head's
+    # shares of the nasion-to-tip chord, its lower lip's middle on the lip's edge: no step moves the true landmarks of a held-out identity (its skin alone,
+    # without eyeballs and lashes) by more than a pixel or two.
     from pdeface.landmarks.eyes import lids_on_margin
-    from pdeface.landmarks.mouth import inner_lip_corners_inset, inner_lips_in_seam, mouth_corners_at_seam_end
-    from pdeface.landmarks.nose import nose_bottom_at_subnasale
+    from pdeface.landmarks.mouth import (inner_lip_corners_inset, inner_lips_in_seam, lower_lip_on_its_edge,
+                                         mouth_corners_at_seam_end)
+    from pdeface.landmarks.nose import bridge_at_ict_shares, nose_bottom_at_subnasale
     from pdeface.mesh import connected_components
 
     mesh, T, lm, shapes = ict
@@ -518,7 +520,7 @@ def test_true_lid_and_inner_lip_points_stay_on_ict_heads(ict):
     skin = T[np.isin(labels[T[:, 0]], labels[lm])]
     L = V[lm]
     for step in (lids_on_margin, inner_lips_in_seam, nose_bottom_at_subnasale, inner_lip_corners_inset,
-                 mouth_corners_at_seam_end):
+                 mouth_corners_at_seam_end, bridge_at_ict_shares, lower_lip_on_its_edge):
         moved = np.linalg.norm(step(V, skin, L) - L, axis=1) * 10  # mm
         assert moved.max() < 0.5, (step.__name__, moved.max())
 
@@ -538,6 +540,47 @@ def test_the_nose_bottom_found_too_high_comes_down_to_the_subnasale(name):
     assert before.min() > 0.03 and (after < 0.75 * before).all() and after.max() < 0.03, (before, after)
     others = np.setdiff1d(np.arange(68), rows)
     assert np.array_equal(back[others], moved[others])  # only the nose's bottom moves
+
+
+@needs_makehuman
+@pytest.mark.parametrize("name", ["base-dm", "african-male-old-m"])
+def test_the_bridge_middle_found_near_the_nasion_comes_down_to_icts_shares(name):
+    # The face mesh puts the bridge's middle (28, 29) nearer the nasion on MakeHuman's long noses (0.28-0.34 and
+    # 0.59-0.66 of the chord from 27 to 30, ICT's 0.33 and 0.65): moved up the bridge, they come back down onto the
+    # profile at ICT's shares, near the registered points (which lie at 0.35-0.41 and 0.66-0.73); nothing else moves.
+    from pdeface.geometry import ClosestPoint
+    from pdeface.landmarks.nose import BRIDGE_MIDDLE, bridge_at_ict_shares, ict_bridge_shares
+
+    ch = build(SPECS[name])
+    L, eyes, rows = ch.skin_landmarks, ch.eye_distance, list(BRIDGE_MIDDLE)
+    moved = _moved_in_face_frame(ch.vertices, ch.triangles, L, rows, (0, 0.05, -0.02))
+    back = bridge_at_ict_shares(ch.vertices, ch.triangles, moved)
+    before, after = (np.linalg.norm(P[rows] - L[rows], axis=1) / eyes for P in (moved, back))
+    assert before.min() > 0.04 and (after < 0.75 * before).all() and after.max() < 0.035, (before, after)
+    chord = L[30] - L[27]
+    assert np.allclose((back[rows] - L[27]) @ chord / (chord @ chord), ict_bridge_shares(), atol=0.005)
+    assert (ClosestPoint(ch.vertices, ch.triangles).query(back[rows])[0] < 0.002 * eyes).all()  # on the skin
+    others = np.setdiff1d(np.arange(68), rows)
+    assert np.array_equal(back[others], moved[others])
+
+
+@needs_makehuman
+@pytest.mark.parametrize("name", ["base-dm", "eyes-teeth-merged-cm"])
+def test_lower_lip_points_found_on_the_curve_under_the_lip_come_up_to_its_edge(name):
+    # The face mesh puts the lower lip's middle (56-58) up to 0.08 eye distances behind the lip's front, low on the
+    # curve under the lip; moved there, they come back up their column to the lip's edge, near the registered
+    # points; the registered points (on the edge) stay; nothing else moves.
+    from pdeface.landmarks.mouth import LOWER_LIP, lower_lip_on_its_edge
+
+    ch = build(SPECS[name])
+    L, eyes, rows = ch.skin_landmarks, ch.eye_distance, list(LOWER_LIP)
+    assert np.array_equal(lower_lip_on_its_edge(ch.vertices, ch.triangles, L), L)
+    moved = _moved_in_face_frame(ch.vertices, ch.triangles, L, rows, (0, -0.05, -0.03))
+    back = lower_lip_on_its_edge(ch.vertices, ch.triangles, moved)
+    before, after = (np.linalg.norm(P[rows] - L[rows], axis=1) / eyes for P in (moved, back))
+    assert before.min() > 0.035 and (after < 0.5 * before).all() and after.max() < 0.03, (before, after)
+    others = np.setdiff1d(np.arange(68), rows)
+    assert np.array_equal(back[others], moved[others])
 
 
 @needs_makehuman

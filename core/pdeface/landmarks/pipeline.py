@@ -18,7 +18,7 @@
 5. **Refine.** Groups the face mesh places by its learned faces, not by the
    surface, are taken to surface features: the upper jaw's depth, the lids' margin
    (:mod:`.eyes`), the brow ridge, the lip line's seam (:mod:`.mouth`), the
-   subnasale (:mod:`.nose`).
+   subnasale and the bridge's middle (:mod:`.nose`).
 """
 from __future__ import annotations
 
@@ -40,8 +40,8 @@ from .detector import Detector
 from .eyes import lids_on_margin
 from .facemap import GROUPS, LandmarkMap, read_map, robust_similarity
 from .mouth import (inner_lip_corners_at_seam_end, inner_lip_corners_inset, inner_lips_in_seam,
-                    mouth_corners_at_seam_end)
-from .nose import nose_bottom_at_subnasale
+                    lower_lip_on_its_edge, mouth_corners_at_seam_end)
+from .nose import bridge_at_ict_shares, nose_bottom_at_subnasale
 from .render import Raster, View, back_project, depth_map, marked, rasterise, shade
 
 #: The search's view directions (towards the viewer) with an up vector each.
@@ -392,8 +392,12 @@ def detect(V, T, unit=None, landmark_map: LandmarkMap | None = None, detector: D
         points = mouth_corners_at_seam_end(V, T[skin], points)
         # The inner lip corners a little in from the outer ones, not beside or lateral of them.
         points = inner_lip_corners_inset(V, T[skin], points, closest)
+        # The lower lip's middle points on its edge, not on the curve under it.
+        points = lower_lip_on_its_edge(V, T[skin], points)
         # The nose's bottom at the subnasale, the profile's deepest point under the nose.
         points = nose_bottom_at_subnasale(V, T[skin], points, closest)
+        # The bridge's middle points at ICT's shares of the nasion-to-tip chord, not nearer the nasion.
+        points = bridge_at_ict_shares(V, T[skin], points)
         indices = nearest_vertices(V, T[skin], points)
         mm = UNITS_MM[unit] if unit else estimate_unit(points)[1]  # the fit's own estimate (one for both)
         spread = group_spread(m, Ps, mm)
