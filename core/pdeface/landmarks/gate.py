@@ -19,7 +19,8 @@ from the face), against the eye distance, so they hold at any scale, orientation
 - **smooth**: the jawline a smooth curve: no point more than :data:`JAW_BEND` off the middle of its two
   neighbours (a jaw point sunk or lifted along the contour, where a frontal detector cannot see depth);
 - **depth**: the jaw angles behind the mouth corners (:data:`JAW_ANGLES_BACK`): a jaw slid forward along its
-  contour, level with the mouth, is no face's.
+  contour, level with the mouth, is no face's; the lids not far behind their eye's corners (:data:`LIDS_BEHIND`):
+  in a head without eyeballs, a lid fallen into the socket is seen through the eye's opening, nothing in front.
 
 A group failing any check is named with the check; ``pdeface landmarks`` and ``pdeface fit`` then stop
 (exit 2) unless told ``--accept``.
@@ -80,6 +81,11 @@ JAW_BEND = 0.42
 #: MakeHuman's 24 characters 0.36-0.69; found 0.30-0.54; ICT's jaw angles slid 0.2 eye distances forward along the
 #: contour 0.17-0.24. 0.27 lies a quarter under the least true one.
 JAW_ANGLES_BACK = 0.27
+#: How far (eye distances) a lid point (37, 38, 40, 41; 43, 44, 46, 47) may lie behind the middle of its eye's
+#: corners, in the face frame. True lids lie in front of it, over the eyeball: ICT's 21 heads 0.05-0.06, MakeHuman's
+#: characters 0.015-0.065; found ones down to 0.03 behind. The lower lids pushed 0.2 into an empty socket lie 0.15
+#: and more behind, where the surface check sees nothing in front of them (the socket seen through the opening).
+LIDS_BEHIND = 0.10
 #: Pixels of the visibility renders.
 SIZE = 256
 
@@ -240,6 +246,11 @@ def check(points, V=None, T=None, unit=None) -> Verdict:
     if back < JAW_ANGLES_BACK:
         verdict.fail("jaw", "depth", f"jaw angles {back:.2f} eye distances behind the mouth corners (faces: at "
                                      f"least {JAW_ANGLES_BACK})")
+    for lids, corners in (([37, 38, 40, 41], [36, 39]), ([43, 44, 46, 47], [42, 45])):
+        behind = F[corners, 2].mean() - F[lids, 2]
+        if behind.max() > LIDS_BEHIND:
+            verdict.fail("eyes", "depth", f"landmark {lids[int(np.argmax(behind))]} {behind.max():.2f} eye distances "
+                                          f"behind its eye's corners (lids: at most {LIDS_BEHIND}; inside the socket?)")
     if V is not None:
         V, T = np.asarray(V, np.float64), np.asarray(T, np.int64)
         depth = buried(V, landmark_parts(V, T, P), P, frame, eyes) / eyes
