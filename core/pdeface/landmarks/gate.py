@@ -69,14 +69,16 @@ SPACING = {"jaw": [(0, 16, 1.3, 3.2)], "brows": [(17, 26, 1.66, 2.6)],
 #: The brows' mean height above the eye centres (eye distances): rows, least, most. True brows: ICT's 21 heads
 #: outer 0.31-0.33, inner 0.40-0.41; MakeHuman's 24 characters (each annotated on its own shape) 0.32-0.37 and
 #: 0.32-0.45. The least lie just under every true head of both families; brows found on the upper lid's fold
-#: of a hairless head, or too low on MakeHuman's (outer 0.28-0.30), fall under them.
+#: of a hairless head, or too low on MakeHuman's (outer 0.28-0.30), fall under them. Outer brows found at
+#: 0.29-0.30 are as often 10-12 % off (asian-male-young, stylised-parted-decimated) as 8 % (eyes-teeth-separate), the
+#: detector's arch on flatter brows: no lower limit tells them apart (and a decimated head's true ones lie at 0.292).
 BROW_HEIGHT = {"outer": ([17, 18, 25, 26], 0.30, 0.65), "inner": ([20, 21, 22, 23], 0.31, 0.70)}
 #: How far (eye distances) a jaw point may lie from the middle of its neighbours: true jawlines bend 0.10 (ICT's
 #: identities) to 0.41 (MakeHuman's chin target at weight 2); found on ICT, 0.18.
 JAW_BEND = 0.42
 #: How far (eye distances) the jaw angles (5, 11) lie at least behind the mouth corners (48, 54), in the face
 #: frame. Measured against the mouth corners, at about their height, not the eye centres: the frame's up runs from
-#: the chin to the nose bridge, so a chin found a little forward pitches it, and the eyes' own depth varies (deep-set
+#: the chin to the nose bridge, so a chin found a little off pitches it, and the eyes' own depth varies (deep-set
 #: on MakeHuman's old women); behind the eyes, true jaws lie 0.14-0.58, found ones on correct jaws down to 0.04
 #: (parted-lips-teeth-separate, its jaw 8 % off). Behind the mouth corners: true jaws, ICT's 21 heads 0.37-0.44,
 #: MakeHuman's 24 characters 0.36-0.69; found 0.30-0.54; ICT's jaw angles slid 0.2 eye distances forward along the
