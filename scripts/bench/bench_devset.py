@@ -229,6 +229,9 @@ def main(argv=None):
         bad_pass = [n for n, r in rows.items() if r["found"] and r["passed_with_group_off"]]
         print(f"  gate: refused {len(refused)} ({', '.join(refused) or 'none'}); passed with a group > "
               f"{TARGETS['passed_group_off_pct']} % off: {len(bad_pass)} ({', '.join(bad_pass) or 'none'})")
+        good = [n for n in refused if max(rows[n]["groups"].values()) <= TARGETS["passed_group_off_pct"]]
+        print(f"  refused with every group <= {TARGETS['passed_group_off_pct']:g} % off: {len(good)} "
+              f"({', '.join(good) or 'none'})")
     truth_units = [abs(r["unit_true_landmarks_pct"]) for r in rows.values()]
     truth_refused = [n for n, r in rows.items() if not r["gate_truth"]["passed"]]
     print(f"  unit from the true landmarks: worst {max(truth_units):.1f} %; gate refuses the truth on "

@@ -32,6 +32,7 @@ from pdeface.au.modelfile import load_face
 from pdeface.au.retarget import retarget
 from pdeface.landmarks.detector import Detector
 from pdeface.landmarks.facemap import read_map
+from pdeface.landmarks.gate import check
 from pdeface.landmarks.pipeline import detect
 from pdeface.rigid import rotation_vector_matrix
 from pdeface.surface.fit import fit_face
@@ -95,6 +96,13 @@ def blas_both_ways(mesh, T, shapes, names, det, rounds=2):
     return {way: {"wall": float(w), "cpu": float(c)} for way, (w, c) in med.items()}
 
 
+def gate_word(verdict: dict) -> str:
+    """The landmark gate's verdict in a few words: pass, or the failing groups and checks."""
+    if verdict["passed"]:
+        return "pass"
+    return "REFUSED " + "; ".join(f"{g}: " + ", ".join(c["check"] for c in cs) for g, cs in verdict["failures"].items())
+
+
 def main(argv=None):
     ap = bench_parser(__doc__)
     ap.add_argument("--heads", type=int, default=6, help="held-out heads to measure (at most 20 - trained)")
@@ -131,6 +139,7 @@ def main(argv=None):
                 e["seconds"], e["seconds_before"], e["cpu"], e["cpu_before"] = sec, before, cpu, cpu_before
                 e["moved_mm"] = float(np.abs(found.points - was.points).max() * mm)
                 e["confidence"] = found.confidence
+                e["gate"] = check(found.points, Vp, T if found.skin is None else T[found.skin], unit).to_json()
                 # The fit only sees landmarks relative to the mesh: the found points taken back to ICT's frame
                 # fit ICT's face region as they would fit the turned head.
                 e["fit_mean_mm"], e["captured"] = fit_figures(V[:nf], Tf, found.points @ np.linalg.inv(M).T, face)
@@ -141,7 +150,7 @@ def main(argv=None):
                 low = min(found.confidence, key=found.confidence.get)
                 print(f"  {name:12s} {pose:16s} {e['inner_median']:9.2f} {e['inner_p95']:9.2f} {e['jaw_median']:8.2f} "
                       f"{sec:5.2f} {before:6.2f} {sec / before:5.2f} {cpu:5.2f} {cpu_before:6.2f} {cpu / cpu_before:5.2f}  "
-                      f"{low} {found.confidence[low]:.2f}", flush=True)
+                      f"{low} {found.confidence[low]:.2f}; gate {gate_word(e['gate'])}", flush=True)
         rows = list(out["heads"].values())
         worst = {k: max(r[k] for r in rows) for k in ("inner_median", "inner_p95", "jaw_median", "seconds")}
         print("  worst head: " + ", ".join(f"{k} {v:.2f} (target <= {TARGETS[k]})" for k, v in worst.items()))
@@ -172,9 +181,13 @@ def main(argv=None):
                 t = time.perf_counter()
                 found = detect(V @ M.T, T, detector=det)
                 e = {**errors(found.points, V[lm] @ M.T, mm), "seconds": time.perf_counter() - t, "view": found.view}
+                e["gate"] = check(found.points, V @ M.T, T if found.skin is None else T[found.skin]).to_json()
                 out["turned"][f"{turn} {conv}"] = e
                 print(f"  {turn:13s} {conv:10s} view {found.view:12s} inner median {e['inner_median']:.2f} mm, "
-                      f"p95 {e['inner_p95']:.2f}, jaw median {e['jaw_median']:.2f}, {e['seconds']:.2f} s", flush=True)
+                      f"p95 {e['inner_p95']:.2f}, jaw median {e['jaw_median']:.2f}, {e['seconds']:.2f} s; "
+                      f"gate {gate_word(e['gate'])}", flush=True)
+        refused = [k for part in ("heads", "turned") for k, r in out[part].items() if not r["gate"]["passed"]]
+        print(f"  the landmark gate refused {len(refused)} of the held-out and turned heads ({', '.join(refused) or 'none'})")
         print("== a whole body in metres, Blender's axes, another topology (head clustered at 3 mm)")
         Vb, Tb, M, shift = body_character(mesh.vertices + shapes[held[0]], T)
         t = time.perf_counter()

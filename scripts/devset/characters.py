@@ -311,16 +311,20 @@ def voxel_remesh(V, T, voxel):
     return W, F
 
 
-def build(spec: Spec) -> Character:
-    """Make one character (a second or two; a voxel remesh a few)."""
+def build(spec: Spec, own=None) -> Character:
+    """Make one character (a second or two; a voxel remesh a few). ``own``: a character not in the development
+    set's annotation, its shape's own (vertices (68,), corners (68, 3), weights (68, 3)), as
+    ``scripts.devset.annotate.annotate_shape`` gives them; else the annotation's (the base's, for an unknown name)."""
     base = read_base()
     V = _identity(spec)
     if spec.pose == "T":
         V = _t_pose(V)
     if spec.head_turn:
         V = _turn_head(V, spec.head_turn)
-    L = annotated_points(V, spec.name)
-    S = annotated_skin_points(V, spec.name)
+    if own is None:
+        L, S = annotated_points(V, spec.name), annotated_skin_points(V, spec.name)
+    else:
+        L, S = V[np.asarray(own[0])], np.einsum("ij,ijk->ik", np.asarray(own[2]), V[np.asarray(own[1])])
     cut = base.joint("neck", V)[1] - HEAD_CUT
 
     def keep(T):
