@@ -509,8 +509,12 @@ def test_true_lid_and_inner_lip_points_stay_on_ict_heads(ict):
     # shares of the nasion-to-tip chord, its lower lip's middle on the lip's edge: no step moves the true landmarks of a held-out identity (its skin alone,
     # without eyeballs and lashes) by more than a pixel or two.
     from pdeface.landmarks.eyes import lids_on_margin
-    from pdeface.landmarks.mouth import (inner_lip_corners_inset, inner_lips_in_seam, lower_lip_on_its_edge,
-                                         mouth_corners_at_seam_end)
+    from pdeface.landmarks.mouth import (
+        inner_lip_corners_inset,
+        inner_lips_in_seam,
+        lower_lip_on_its_edge,
+        mouth_corners_at_seam_end,
+    )
     from pdeface.landmarks.nose import bridge_at_ict_shares, nose_bottom_at_subnasale
     from pdeface.mesh import connected_components
 

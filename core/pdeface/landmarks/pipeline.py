@@ -39,8 +39,13 @@ from .contour import upper_jaw_at_template_depth
 from .detector import Detector
 from .eyes import lids_on_margin
 from .facemap import GROUPS, LandmarkMap, read_map, robust_similarity
-from .mouth import (inner_lip_corners_at_seam_end, inner_lip_corners_inset, inner_lips_in_seam,
-                    lower_lip_on_its_edge, mouth_corners_at_seam_end)
+from .mouth import (
+    inner_lip_corners_at_seam_end,
+    inner_lip_corners_inset,
+    inner_lips_in_seam,
+    lower_lip_on_its_edge,
+    mouth_corners_at_seam_end,
+)
 from .nose import bridge_at_ict_shares, nose_bottom_at_subnasale
 from .render import Raster, View, back_project, depth_map, marked, rasterise, shade
 
