@@ -5,7 +5,8 @@ Usage: python -m scripts.bench.bench_rig [--runs 3] [--import-runs 7]
 ICT-FaceKit's whole head (26,719 vertices, written as OBJ from the bundled asset) and the same head
 clustered on a grid to about 8k vertices (another topology), each rigged by ``pdeface rig`` in a fresh
 process (its imports included, landmarks found with MediaPipe): the process's wall and CPU seconds, each step's
-wall and CPU seconds from its report (read, landmarks, fit, retarget, bind, keys; median of the runs) and the
+wall and CPU seconds from its report (read; load: the libraries and the head prior that the first step needing
+them paid before, ``pdeface.rig.warm_up``; landmarks, fit, retarget, bind, keys; median of the runs) and the
 ratio to the 3 s target. Then the command line's own imports before a command runs, median of fresh processes
 (``python -X importtime``): ``pdeface rig`` importing its own group only, against every group imported
 (as before issue #35), in the same run, and its own group compiled from source in each process, as on a machine
@@ -34,7 +35,7 @@ from pdeface.mesh import Mesh
 from scripts.bench.benchlib import bench_parser, clustered, installed_env, run_bench
 
 TARGET_S = 3.0
-STEPS = ("read", "landmarks", "fit", "retarget", "bind", "keys")
+STEPS = ("read", "load", "landmarks", "fit", "retarget", "bind", "keys")
 
 
 def load_text():
