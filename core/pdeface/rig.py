@@ -31,7 +31,7 @@ from .head.bind import HeadBinding
 from .head.parts import read_overrides, skin_mask
 from .head.prior import load_head_prior
 from .headless import run_headless
-from .io.files import load_npz, npz_bytes, parse_json, write_bytes
+from .io.files import load_npz, parse_json, write_bytes, write_npz
 from .landmarks.checked import find_checked
 from .landmarks.detector import available
 from .presets import key_poses, merged_presets
@@ -76,7 +76,7 @@ def save_keys(path, vertices, triangles, landmarks, names, deltas, unit, source=
               "landmarks": np.asarray(landmarks, np.float64), "deltas": np.asarray(deltas, np.float32)}
     # stored, not deflated: the deltas (float32, 26 MB for the 27k head's 82 keys) deflate only to 55 % and took
     # 0.5-1 s of the rig's 3 s (issue #35); numpy.load reads either
-    return write_bytes(path, npz_bytes(arrays, compress=False))
+    return write_npz(path, arrays, compress=False)
 
 
 def load_keys(path) -> dict:
@@ -175,8 +175,7 @@ def rig_head(mesh_arg, out, landmarks=None, unit=None, parts=None, descriptors=D
     save_keys(out / "keys.npz", V, T, lm, list(poses), deltas, model.frame.unit, str(mesh_arg))
     report["keys"] = {"count": len(poses), "aus": sum(n.startswith("AU") for n in poses),
                       "left_out": sorted({f"AU{d.key}" for d in rigged.descriptors} - set(poses)),
-                      "largest_mm": round(float(np.linalg.norm(deltas, axis=2).max(initial=0.0))
-                                          * model.frame.scale, 2)}
+                      "largest_mm": round(_largest_move(deltas) * model.frame.scale, 2)}
     report["binding_notes"] = list(binding.notes)
     lap("keys")
 
@@ -191,6 +190,13 @@ def rig_head(mesh_arg, out, landmarks=None, unit=None, parts=None, descriptors=D
     write_bytes(out / "report.json", json.dumps(report, indent=1).encode())
     say(f"{mesh_arg}: rigged {len(poses)} keys on {len(V)} vertices in {report['timings']['total']:.1f} s")
     return report
+
+
+def _largest_move(deltas) -> float:
+    """The longest of the vertex moves ``deltas (k, n, 3)`` (0 for none), without an array of their lengths."""
+    if deltas.size == 0:
+        return 0.0
+    return float(np.sqrt(np.einsum("knj,knj->kn", deltas, deltas).max()))
 
 
 def _saved(path, model):
