@@ -3,7 +3,8 @@
 A first Find Landmarks or Fit in a session pays for scipy's imports, MediaPipe's models and the bundled head
 prior (:func:`pdeface.rig.warm_up`, about 0.7 s of CPU). A few seconds after the add-on is enabled (at
 Blender's start, as a rule) a thread of its own loads them, while the artist opens or imports a mesh; every
-operator waits for it first (:func:`wait`), so the core is never loaded from two threads at once. Not in
+operator waits for it first (:func:`wait`), so the core is never loaded from two threads at once. The thread
+touches no Blender data (bpy is not thread-safe): it only imports and reads pdeface's own files. Not in
 background mode (a headless render or a script): no one is idling there, and a thread must not outlive the
 script it is in.
 """
@@ -43,7 +44,8 @@ def wait():
 
 def register():
     if not bpy.app.background:
-        bpy.app.timers.register(start, first_interval=WARM_AFTER_S)
+        # persistent: a file opened at start-up (a .blend double-clicked) must not cancel it
+        bpy.app.timers.register(start, first_interval=WARM_AFTER_S, persistent=True)
 
 
 def unregister():
