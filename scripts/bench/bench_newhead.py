@@ -117,8 +117,8 @@ def warmed_chain(path):
 
 def warmed_in_a_fresh_process(path, env):
     """:func:`warmed_chain` of ``path`` in a fresh process: its ``{step: (wall, CPU)}``."""
-    done = subprocess.run([sys.executable, "-m", "scripts.bench.bench_newhead", "--warmed", str(path)], env=env,
-                          capture_output=True, text=True, check=False, cwd=ROOT)
+    done = subprocess.run([sys.executable, "-m", "scripts.bench.bench_newhead", "--warmed", str(path), "--no-page"],
+                          env=env, capture_output=True, text=True, check=False, cwd=ROOT)
     if done.returncode:
         raise SystemExit(f"the warmed chain failed: {done.stderr.strip()[-600:]}")
     return json.loads(done.stdout.strip().splitlines()[-1])
