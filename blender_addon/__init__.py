@@ -19,9 +19,9 @@ def _ensure_core():
 
 _ensure_core()
 
-from . import landmarks, operators, panels, properties  # noqa: E402
+from . import landmarks, operators, panels, properties, warm  # noqa: E402
 
-_modules = (properties, operators, panels)
+_modules = (properties, operators, panels, warm)
 
 
 def register():

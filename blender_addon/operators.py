@@ -18,7 +18,7 @@ from pdeface.fdt.table import load_fdt
 from pdeface.muscles.placement import MUSCLE_NAMES
 from pdeface.threads import bounded_threads
 
-from . import animation, compat, face, keys, landmarks, live, muscles, rigging, texturing
+from . import animation, compat, face, keys, landmarks, live, muscles, rigging, texturing, warm
 
 #: How an unexpected exception's report starts (the tests look for it).
 BUG = "pdeface internal error, please report it with the console's traceback"
@@ -30,6 +30,7 @@ class _Operator:
     bl_options = {"REGISTER", "UNDO"}
 
     def execute(self, context):
+        warm.wait()  # the core's warm-up (if still running) done first: nothing loaded from two threads
         try:
             with bounded_threads():  # BLAS threads that do not spin beside Blender's own (pdeface.threads)
                 message = self.run(context)

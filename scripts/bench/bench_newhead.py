@@ -12,21 +12,27 @@ Python-heavy steps), where each step's time goes: how much of it pdeface's core 
 functions the add-on calls) and the add-on with Blender the rest, and the ``N`` functions of the
 most time of their own, pdeface's and the libraries'. The second run binds the head again (the
 add-on's binding cache is emptied first), as a new head would be. The ICT head runs first in the
-process: its first Find Landmarks pays scipy's and MediaPipe's imports. The machine's load average
-is printed. Needs ``pdeface[blender,landmarks]``.
+process: its first Find Landmarks pays scipy's and MediaPipe's imports and the first Fit the head prior's read.
+Then the ICT head's chain in a fresh process after the add-on's warm-up (``blender_addon/warm.py``, which
+Blender runs on a thread a few seconds after its start: here started and waited for before the import, as
+when the artist opens a mesh a few seconds after Blender starts): its wall and CPU seconds beside the cold
+chain's of this run, and the warm-up's own. pdeface's bytecode is compiled first and read by both
+(``benchlib.installed_env``). The machine's load average is printed. Needs ``pdeface[blender,landmarks]``.
 """
 from __future__ import annotations
 
 import cProfile
 import importlib
+import json
 import os
 import pstats
+import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
 
-from scripts.bench.benchlib import bench_parser, clustered, enable_addon, run_bench
+from scripts.bench.benchlib import bench_parser, clustered, enable_addon, installed_env, run_bench
 
 ROOT = Path(__file__).resolve().parents[2]
 TARGET_S = 3.0
@@ -98,10 +104,35 @@ def core_calls(prof):
     return out
 
 
+def warmed_chain(path):
+    """In this (fresh) process: the add-on's warm-up started and waited for, then the chain on ``path``; prints
+    ``{"warm-up": (wall, CPU), step: (wall, CPU), ...}`` as JSON (CPU: the process's, the warm-up's thread's too)."""
+    addon = enable_addon()
+    import bpy
+
+    warm = importlib.import_module(f"{addon.__name__}.warm")
+    steps = {"warm-up": time_only(lambda: (warm.start(), warm.wait()))}
+    print(json.dumps(steps | chain(bpy, path, time_only)))
+
+
+def warmed_in_a_fresh_process(path, env):
+    """:func:`warmed_chain` of ``path`` in a fresh process: its ``{step: (wall, CPU)}``."""
+    done = subprocess.run([sys.executable, "-m", "scripts.bench.bench_newhead", "--warmed", str(path), "--no-page"],
+                          env=env, capture_output=True, text=True, check=False, cwd=ROOT)
+    if done.returncode:
+        raise SystemExit(f"the warmed chain failed: {done.stderr.strip()[-600:]}")
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
 def main(argv=None):
     ap = bench_parser(__doc__)
     ap.add_argument("--profile", type=int, default=8, help="functions listed per step")
+    ap.add_argument("--warmed", metavar="OBJ", help="(its own child) the chain on OBJ after the add-on's warm-up")
     args = ap.parse_args(argv)
+    if args.warmed:
+        warmed_chain(args.warmed)
+        return 0
+    env = installed_env()  # pdeface's bytecode compiled now and read, here and in the warmed child alike
     addon = enable_addon()
     import bpy
     from pdeface.assets import load_head
@@ -114,10 +145,12 @@ def main(argv=None):
     Vc, Tc = clustered(V, T, 0.42)  # cm: about 8k vertices
     heads = {"ICT head": head, f"clustered head ({len(Vc) / 1000:.0f}k)": Mesh.from_faces(Vc, Tc)}
     print(f"{os.cpu_count()} cores; load average at the start: {load_text()}")
+    cold = {}
     for name, mesh in heads.items():
         path = tmp / f"{len(mesh.vertices)}.obj"
         write_obj(path, mesh)
         timed = chain(bpy, path, time_only)
+        cold.setdefault("ICT head", (path, timed))
         obj = bpy.context.view_layer.objects.active
         total, total_cpu = (sum(s[i] for s in timed.values()) for i in (0, 1))
         keys = len(obj.data.shape_keys.key_blocks) - 1 if obj.data.shape_keys else 0
@@ -142,6 +175,20 @@ def main(argv=None):
                     print(f"    {title}:" if listed else "", end="\n" if listed else "")
                     for o, c, calls, fn, _ in listed:
                         print(f"      {o:6.2f} s own {c:6.2f} s cum {calls:7d}×  {fn[:110]}")
+    path, timed = cold["ICT head"]
+    warmed = warmed_in_a_fresh_process(path, env)
+    warm_s, warm_cpu = warmed.pop("warm-up")
+    print(f"\n== ICT head after the add-on's warm-up, in a fresh process (the warm-up itself {warm_s:.2f} s, CPU "
+          f"{warm_cpu:.2f} s, on its thread before the import); cold: this run's first chain above; load after: "
+          f"{load_text()}")
+    print(f"  {'step':45s} {'warmed':>8s} {'cold':>8s} {'ratio':>6s}   {'CPU warmed':>10s} {'cold':>6s} {'ratio':>6s}")
+    for step, (s, cpu) in timed.items():
+        ws, wc = warmed[step]
+        print(f"  {step:45s} {ws:7.2f}s {s:7.2f}s {ws / s:6.2f}   {wc:9.2f}s {cpu:5.2f}s {wc / cpu:6.2f}")
+    total = [sum(v[i] for v in d.values()) for d in (warmed, timed) for i in (0, 1)]
+    print(f"  {'chain':45s} {total[0]:7.2f}s {total[2]:7.2f}s {total[0] / total[2]:6.2f}   {total[1]:9.2f}s "
+          f"{total[3]:5.2f}s {total[1] / total[3]:6.2f}   (target ≤ {TARGET_S:.0f} s: "
+          f"{'met' if total[0] <= TARGET_S else 'NOT met'} warmed)")
     return 0
 
 

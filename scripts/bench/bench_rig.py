@@ -1,20 +1,25 @@
 """Benchmark ``pdeface rig MESH -o OUT`` end to end (issue #35: a new head rigged in ≤ 3 s on the command line).
 
-Usage: python -m scripts.bench.bench_rig [--runs 3] [--import-runs 7]
+Usage: python -m scripts.bench.bench_rig [--runs 3] [--import-runs 7] [--baseline REF]
 
 ICT-FaceKit's whole head (26,719 vertices, written as OBJ from the bundled asset) and the same head
 clustered on a grid to about 8k vertices (another topology), each rigged by ``pdeface rig`` in a fresh
 process (its imports included, landmarks found with MediaPipe): the process's wall and CPU seconds, each step's
-wall and CPU seconds from its report (read, landmarks, fit, retarget, bind, keys; median of the runs) and the
+wall and CPU seconds from its report (read; load: the libraries and the head prior that the first step needing
+them paid before, ``pdeface.rig.warm_up``; landmarks, fit, retarget, bind, keys; median of the runs) and the
 ratio to the 3 s target. Then the command line's own imports before a command runs, median of fresh processes
 (``python -X importtime``): ``pdeface rig`` importing its own group only, against every group imported
 (as before issue #35), in the same run, and its own group compiled from source in each process, as on a machine
 where ``PYTHONDONTWRITEBYTECODE`` is set (this one's): pip compiles an installed pdeface's bytecode and a checkout
 writes it on its first run, so the rigs are timed with it (``benchlib.installed_env``). The machine's load average is
-printed: other work beside it slows every figure. Needs ``pdeface[landmarks]``.
+printed: other work beside it slows every figure. With ``--baseline REF`` (a git revision, e.g. ``main``), each
+head is also rigged by REF's core (``git archive``, its bytecode compiled too), its runs interleaved with this
+checkout's so that the machine's load falls on both alike: each step's median CPU seconds both ways and their
+ratio, and whether every output file but the report is the same, byte for byte. Needs ``pdeface[landmarks]``.
 """
 from __future__ import annotations
 
+import io
 import json
 import os
 import resource
@@ -22,6 +27,7 @@ import shutil
 import statistics
 import subprocess
 import sys
+import tarfile
 import tempfile
 import time
 from pathlib import Path
@@ -34,7 +40,10 @@ from pdeface.mesh import Mesh
 from scripts.bench.benchlib import bench_parser, clustered, installed_env, run_bench
 
 TARGET_S = 3.0
-STEPS = ("read", "landmarks", "fit", "retarget", "bind", "keys")
+STEPS = ("read", "load", "landmarks", "fit", "retarget", "bind", "keys")
+#: The files of a rig compared with the baseline's (the report holds timings).
+SAME_FILES = ("landmarks.json", "face.npz", "rigged.npz", "keys.npz")
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def load_text():
@@ -57,10 +66,24 @@ def child_env(source_only=None):
     return env
 
 
-def rig_once(path, out):
+def baseline_core(ref, folder):
+    """The core of git revision ``ref`` in ``folder`` (its bytecode compiled); returns the folder for PYTHONPATH."""
+    tar = subprocess.run(["git", "archive", ref, "core/pdeface"], capture_output=True, check=True, cwd=ROOT).stdout
+    with tarfile.open(fileobj=io.BytesIO(tar)) as archive:
+        archive.extractall(folder, filter="data")
+    subprocess.run([sys.executable, "-m", "compileall", "-q", str(Path(folder) / "core")], check=True,
+                   capture_output=True)
+    return Path(folder) / "core"
+
+
+def rig_once(path, out, core=None):
     """(process wall seconds, its CPU seconds, each step's (wall, CPU) seconds from the report) of ``pdeface rig
-    path -o out`` in a fresh process."""
+    path -o out`` in a fresh process; ``core``: another core folder first on the path (the baseline's), reading
+    this checkout's assets. A step the rig does not time counts 0."""
     env = child_env()  # compiles the bytecode first: not the rig's time
+    if core is not None:
+        env |= {"PYTHONPATH": os.pathsep.join(p for p in (str(core), env.get("PYTHONPATH")) if p)}
+        env.setdefault("PDEFACE_ASSETS", str(ROOT / "assets"))
     t, c = time.perf_counter(), child_cpu()
     done = subprocess.run([sys.executable, "-m", "pdeface.cli", "rig", str(path), "-o", str(out)],
                           capture_output=True, text=True, check=False, env=env)
@@ -68,7 +91,29 @@ def rig_once(path, out):
     if done.returncode:
         raise SystemExit(f"pdeface rig {path} failed: {done.stderr.strip()[-600:]}")
     printed = json.loads(done.stdout.strip().splitlines()[-1])
-    return wall, cpu, {k: (printed["timings"][k], printed["cpu_timings"][k]) for k in STEPS}
+    return wall, cpu, {k: (printed["timings"].get(k, 0.0), printed["cpu_timings"].get(k, 0.0)) for k in STEPS}
+
+
+def against_baseline(path, tmp, runs, core):
+    """Rig ``path`` with this checkout's core and the baseline's, in turn; print the CPU medians side by side."""
+    now, before = [], []
+    for _ in range(runs):
+        now.append(rig_once(path, Path(tmp) / "now"))
+        before.append(rig_once(path, Path(tmp) / "before", core))
+    same = [n for n in SAME_FILES if (Path(tmp) / "now" / n).read_bytes() == (Path(tmp) / "before" / n).read_bytes()]
+    rows = [("process", [r[1] for r in now], [r[1] for r in before])]
+    rows += [(k, [r[2][k][1] for r in now], [r[2][k][1] for r in before]) for k in STEPS]
+    rows.append(("the rest", [r[1] - sum(t[1] for t in r[2].values()) for r in now],
+                 [r[1] - sum(t[1] for t in r[2].values()) for r in before]))
+    print(f"  against the baseline, CPU seconds (median of {runs} each, interleaved; load after: {load_text()}):")
+    print(f"  {'step':10s} {'now':>6s} {'before':>6s} {'ratio':>6s}")
+    for k, a, b in rows:
+        a, b = statistics.median(a), statistics.median(b)
+        print(f"  {k:10s} {a:6.2f} {b:6.2f} {f'{a / b:6.2f}' if b else '   new'}")  # a step REF did not time
+    wall_now, wall_before = statistics.median(r[0] for r in now), statistics.median(r[0] for r in before)
+    print(f"  process wall {wall_now:.2f} s now, {wall_before:.2f} s before: ratio {wall_now / wall_before:.2f}; "
+          f"the same bytes as before: {', '.join(same) or 'none'}"
+          f"{'' if len(same) == len(SAME_FILES) else ' (DIFFERENT: ' + ', '.join(set(SAME_FILES) - set(same)) + ')'}")
 
 
 def import_seconds(command, source_only=None):
@@ -86,12 +131,14 @@ def main(argv=None):
     ap = bench_parser(__doc__)
     ap.add_argument("--runs", type=int, default=3, help="rigs per head (0: the imports alone)")
     ap.add_argument("--import-runs", type=int, default=7)
+    ap.add_argument("--baseline", metavar="REF", help="also rig each head with git revision REF's core, interleaved")
     args = ap.parse_args(argv)
     head, _ = load_head()
     V, T = head.vertices, head.triangles()[0]
     Vc, Tc = clustered(V, T, 0.42)  # cm: about 8k vertices
     print(f"{os.cpu_count()} cores; load average at the start: {load_text()}")
     with tempfile.TemporaryDirectory() as tmp:
+        core = baseline_core(args.baseline, Path(tmp) / "baseline") if args.baseline else None
         for name, mesh in (("ICT head", head), ("clustered head", Mesh.from_faces(Vc, Tc))) if args.runs else ():
             path = Path(tmp) / f"{len(mesh.vertices)}.obj"
             write_obj(path, mesh)
@@ -111,6 +158,8 @@ def main(argv=None):
             rest, rest_cpu = wall - sum(steps.values()), cpu - sum(steps_cpu.values())
             print(f"  {'the rest':10s} {rest:6.2f} {100 * rest / wall:4.0f}%  "
                   f"{rest_cpu:6.2f} {100 * rest_cpu / cpu:4.0f}%  (Python's start, imports, writing)")
+            if core is not None:
+                against_baseline(path, tmp, args.runs, core)
     own, every, compiled = [], [], []
     with tempfile.TemporaryDirectory() as source_only:
         shutil.copytree(Path(pdeface.__file__).parent, Path(source_only) / "pdeface",

@@ -65,3 +65,23 @@ def test_import_au_writes_only_timelines_its_reader_accepts(tmp_path, capsys):
     capsys.readouterr()
     assert main(["import-au", str(fas), "--fps", "5000", "-o", str(tmp_path / "u.json")]) == 2
     assert "fps must be in (0, 1000]" in capsys.readouterr().err and not (tmp_path / "u.json").exists()
+
+
+def test_write_npz_writes_the_bytes_npz_bytes_gives_and_keeps_the_old_file_on_failure(tmp_path):
+    """Written member by member (a head's keys without a whole copy in memory), the same bytes, deflated or
+    stored; an array that cannot be written leaves the old file and no part."""
+    import numpy as np
+    from pdeface.io.files import npz_bytes, write_npz
+
+    arrays = {"format": np.array("x"), "a": np.arange(1000, dtype=np.float32).reshape(10, 100), "b": np.eye(3)}
+    for compress in (True, False):
+        path = tmp_path / f"{compress}.npz"
+        assert write_npz(path, arrays, compress) == len(npz_bytes(arrays, compress))
+        assert path.read_bytes() == npz_bytes(arrays, compress)
+        with np.load(path) as z:
+            assert np.array_equal(z["a"], arrays["a"]) and str(z["format"]) == "x"
+    before = (tmp_path / "True.npz").read_bytes()
+    with pytest.raises(ValueError):
+        write_npz(tmp_path / "True.npz", {"a": np.array([{}], dtype=object)})  # no pickles
+    assert (tmp_path / "True.npz").read_bytes() == before
+    assert [p.name for p in tmp_path.iterdir() if p.suffix == ".part"] == []

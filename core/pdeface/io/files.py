@@ -216,17 +216,29 @@ def write_bytes(path, data: bytes) -> int:
 def npz_bytes(arrays: dict, compress: bool = True) -> bytes:
     """The bytes of a NumPy ``.npz`` archive of ``arrays`` (``numpy.load`` reads it), the same bytes for the same
     arrays: unlike ``numpy.savez``, no member carries the time it was written (batch jobs compare outputs)."""
+    buf = io.BytesIO()
+    _write_npz(buf, arrays, compress)
+    return buf.getvalue()
+
+
+def write_npz(path, arrays: dict, compress: bool = True) -> int:
+    """Write the bytes :func:`npz_bytes` gives to ``path`` atomically (see :func:`atomic_open`), member by member
+    (no copy of the whole archive in memory: a head's keys are tens of MB); returns the file's length."""
+    with atomic_open(path, "wb") as fh:
+        _write_npz(fh, arrays, compress)
+        return fh.tell()
+
+
+def _write_npz(fh, arrays, compress):
     import numpy as np
 
-    buf = io.BytesIO()
     method = zipfile.ZIP_DEFLATED if compress else zipfile.ZIP_STORED
-    with zipfile.ZipFile(buf, "w", compression=method) as zf:
+    with zipfile.ZipFile(fh, "w", compression=method) as zf:
         for name, value in arrays.items():
             info = zipfile.ZipInfo(name + ".npy", date_time=(1980, 1, 1, 0, 0, 0))
             info.compress_type = method
-            with zf.open(info, "w", force_zip64=True) as fh:
-                np.lib.format.write_array(fh, np.asanyarray(value), allow_pickle=False)
-    return buf.getvalue()
+            with zf.open(info, "w", force_zip64=True) as member:
+                np.lib.format.write_array(member, np.asanyarray(value), allow_pickle=False)
 
 
 def check_output(output, *inputs) -> None:

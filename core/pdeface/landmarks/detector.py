@@ -9,6 +9,7 @@ from __future__ import annotations
 import importlib.util
 import os
 import sys
+import threading
 from contextlib import contextmanager
 from dataclasses import dataclass
 
@@ -81,13 +82,18 @@ def native_logs_silenced(show=False):
 #: The packages whose ``__init__`` imports far more than the two models: ``mediapipe`` (every solution, the tasks
 #: API with its audio recorder) and ``mediapipe.python.solutions`` (the drawing utilities, hence matplotlib).
 BARE_PACKAGES = ("mediapipe", "mediapipe.python.solutions")
+#: Held while the bare packages are put in place and the models imported: the add-on warms them on a thread of
+#: its own (:func:`pdeface.rig.warm_up`), and a half-made bare package seen from another thread would be taken as
+#: the whole one.
+_IMPORTING = threading.Lock()
 
 
 def _mediapipe():
     try:
-        if "mediapipe" not in sys.modules:
-            _bare_packages()
-        from mediapipe.python.solutions import face_detection, face_mesh
+        with _IMPORTING:
+            if "mediapipe" not in sys.modules:
+                _bare_packages()
+            from mediapipe.python.solutions import face_detection, face_mesh
     except ImportError:
         raise MissingDependencyError(INSTALL_HINT) from None
     return face_detection, face_mesh
