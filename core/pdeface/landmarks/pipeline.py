@@ -383,8 +383,8 @@ def detect(V, T, unit=None, landmark_map: LandmarkMap | None = None, detector: D
                                       closest=closest, normals=normals)
         P2 = np.nanmean(Ps, axis=0)
         points, _ = snap(V, T[skin], m.apply(P2), skin_raster, 1.0 / s, closest)
-        # The upper jaw's depth along the contour from the template, not from where a grazing ray met the cheek.
-        points = upper_jaw_at_template_depth(V, T[skin], points)
+        # The jaw's sides where ICT's head puts them once laid onto the skin, not where a grazing ray met the cheek.
+        points = upper_jaw_at_template_depth(V, T[skin], points, closest)
         # The lid points on the margin's front edge, not on its curl into the socket.
         points = lids_on_margin(V, T[skin], points)
         # The brows with the brow ridge (ICT's brow region laid onto the skin), not at ICT's height above the eyes.
