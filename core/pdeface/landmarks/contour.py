@@ -1,24 +1,39 @@
-"""The jaw's sides, where the jawline is a contour seen edge on: where ICT's generic head puts them once each side
-of its face is laid onto the skin.
+"""The jaw's sides, where the jawline is a contour seen edge on: their depth from ICT's generic head, then where its
+side of the face laid onto the skin puts them.
 
-The jaw points 0-4 and 12-16 lie where the side of the face turns away from the viewer. A frontal detector
-places them well across (x), but where along the contour they sit (how high, how far back) it guesses from the
-face's oval on a render with no ear or hairline to go by: on MakeHuman's development set (each character annotated
-in ICT's convention, ICT's face registered onto it) its heights lie 0.05-0.08 eye distances (rms) from the truth's,
-whose jaw ends spread from 0.1 below to 0.2 above the eye centres (higher where the jaw's angle lies farther back).
-So, per side, ICT's generic head's side of the face (the cheek, the jaw and its angle: more than :data:`SIDE` from
-the midline, :data:`BAND` about the eyes, in front of :data:`DEPTH`) is posed and scaled by the found eye corners,
-nose and mouth corners, then registered rigidly onto the skin by iterated closest points (the anchors stay in the
-fit, holding it to the face); ICT's jaw points carried along and taken to the nearest skin point are the sides.
+The jaw points 0-3 and 13-16 lie where the side of the face turns away from the viewer. A frontal detector
+places them well across (x) and in height (y), but their depth along the contour is what a ray grazing the cheek
+happens to hit first. So each keeps its height and takes the depth ICT's generic head (the convention the map
+follows) gives it behind the eye centres; its side then comes from the skin, the first surface met coming in from
+just outside the found point at that height and depth.
 
-On the development set (offline, on the detector's output) the jaw's median error against the registered skin
-points falls from 6.6 to 4.5 % of the eye distance, against the annotated vertices from 7.4 to 6.7 % (their grain:
-a perfect point scores 5.3 % there). The pose from the anchors does most of it (no iterations: 4.8 and 7.0 %);
-point-to-plane iterations, which slide further along the skin, scored 4.6-7.1 % against the skin points as the
-anchors' weight went 3 to 0.3. Before, each side point kept the detector's height and took ICT's depth behind
-the eyes (or behind the chin's points 6, 10). The jaw angles (5, 11) and the chin's points (6-10) keep the
-detector's: the angles taken along let a stylised character's jaw pass the gate wrongly before; the chin's face
-the viewer, the detector sees them squarely.
+Lower down (2-4, 12-14) the jaw's own depth may say otherwise: a long chin or a heavy jaw carries the lower
+sides back with it. There the template's depth behind the jaw point beside the chin (6, 10; it faces the viewer,
+so the detector sees its depth) counts instead, where it disagrees with the eyes' by more than ICT's own heads
+ever make them (:data:`AGREE`). On MakeHuman's development set (each character annotated in ICT's convention) the
+true depths of points 2-4 behind the eye centres spread 0.07-0.11 eye distances (standard deviation), behind
+points 6 and 10 0.02-0.05; at the upper ends (0, 1) the eyes are the better reference (0.03-0.05 against
+0.08-0.10). On ICT's heads the two agree (within 0.015) and points 4 and 12 keep the detector's depth (at the
+template's, identity019's jaw came nearer ICT's own, but the fit's AU capture fell 0.003-0.009 on two heads).
+
+The jaw angles (5, 11) keep the detector's depth: taken behind 6 and 10 as well, they come nearer the truth on
+most characters, but on one stylised character the jaw then passes the gate 13.7 % of the eye distance off.
+
+Where along the contour the sides sit (how high, how far back) the detector guesses from the face's oval, on a
+render with no ear or hairline to go by: on MakeHuman's development set its heights lie 0.05-0.08 eye distances
+(rms) from the truth's, whose jaw ends spread from 0.1 below to 0.2 above the eye centres (higher where the jaw's
+angle lies farther back). So then (:func:`jaw_sides_from_template`), per side, ICT's generic head's side of the
+face (the cheek, the jaw and its angle: more than :data:`SIDE` from the midline, :data:`BAND` about the eyes, in
+front of :data:`DEPTH`) is posed and scaled by the found eye corners, nose and mouth corners, then registered
+rigidly onto the skin by iterated closest points (the anchors stay in the fit, holding it to the face); ICT's jaw
+points 0-4 and 12-16 carried along and taken to the nearest skin point replace the found ones where the two
+disagree by more than ICT's own heads make them (:data:`DISAGREE`, faded). On the development set (offline, on
+the detector's output) the jaw's median error against the registered skin points falls from 6.6 to 4.2 % of the
+eye distance, against the annotated vertices from 7.4 to 6.3 % (their grain: a perfect point scores 5.3 % there).
+The anchors' pose does most of it (no iterations: 4.8 and 7.0 %, unfaded); point-to-plane iterations, which slide
+farther along the skin, scored 4.6-7.1 % against the skin points as the anchors' weight went from 3 to 0.3.
+Unfaded, ICT's held-out heads' AU capture fell 0.016 on one (their found jaw points, trained on ICT, are nearer
+their own than the generic head's sides laid onto them).
 """
 from __future__ import annotations
 
@@ -27,14 +42,99 @@ from functools import lru_cache
 import numpy as np
 
 from ..assets import load_head
-from ..geometry import ClosestPoint, similarity
+from ..geometry import ClosestPoint, ray_triangle, similarity, smoothstep
 from ..landmark_scheme import eye_distance
 from ..mesh import connected_components
 from ..surface.frame import face_frame
 
+#: The jaw points taken to the template's depth behind the eyes. The chin's (6-10) face the viewer, their ray hits
+#: them squarely; the angles (5, 11) keep the detector's depth (see the module's docstring).
+UPPER_JAW = (0, 1, 2, 3, 13, 14, 15, 16)
+#: The lower sides, each with the jaw point beside the chin on its side whose depth may count instead (points 4
+#: and 12 are moved only then).
+BEHIND_CHIN = {2: 6, 3: 6, 4: 6, 12: 10, 13: 10, 14: 10}
+#: How far (eye distances) the depths behind the eyes and behind the chin's point may disagree before the chin's
+#: begins to count, and where it counts alone (ICT's held-out heads: at most 0.015; MakeHuman's characters: a
+#: median 0.08).
+AGREE = (0.02, 0.04)
+#: How far outside the found point (eye distances) the ray into the side of the face starts, and how far in from
+#: there it may meet the skin; met nowhere, the point stays.
+OUTSIDE, REACH = 0.2, 0.4
+
+
+def template_depths(template68) -> np.ndarray:
+    """How far behind the eye centres each landmark of ``template68 (68, 3)`` lies (eye distances)."""
+    f = face_frame(template68)
+    F = f.to_face(template68) / (eye_distance(template68) * f.scale)
+    return F[36:48, 2].mean() - F[:, 2]
+
+
+@lru_cache(maxsize=1)
+def _ict_landmarks() -> np.ndarray:
+    mesh, landmarks = load_head()
+    return mesh.vertices[landmarks]
+
+
+def upper_jaw_at_template_depth(V, T, points, template68=None) -> np.ndarray:
+    """``points (68, 3)`` with the jaw's sides at the template's depth behind the eyes (:data:`UPPER_JAW`), or for
+    the lower ones (:data:`BEHIND_CHIN`) behind the jaw point beside the chin where the two disagree
+    (:data:`AGREE`), on the skin ``(V, T)`` at their own height (see the module's docstring).
+
+    Parameters
+    ----------
+    V, T : arrays
+        The mesh and the skin's triangles.
+    points : (68, 3) array
+        Landmarks on the skin, the mesh's space.
+    template68 : (68, 3) array, optional
+        The landmarks whose depths are taken; by default ICT's generic head's own (the convention the map
+        follows; the map's 468-point template mapped lies up to 0.05 eye distances off them at the jaw's ends,
+        which cost the fit 0.01-0.02 of AU capture on ICT's held-out heads).
+    """
+    out = np.array(points, np.float64)
+    f = face_frame(out)
+    eyes = eye_distance(out) * f.scale
+    F = f.to_face(out)
+    behind = template_depths(_ict_landmarks() if template68 is None else template68) * eyes
+    behind_eyes = F[36:48, 2].mean() - behind
+    depth = F[:, 2].copy()
+    depth[list(UPPER_JAW)] = behind_eyes[list(UPPER_JAW)]
+    rows = list(UPPER_JAW)
+    for j, ref in BEHIND_CHIN.items():
+        behind_chin = F[ref, 2] - (behind[j] - behind[ref])
+        w = smoothstep((abs(behind_chin - behind_eyes[j]) / eyes - AGREE[0]) / (AGREE[1] - AGREE[0]))
+        depth[j] += w * (behind_chin - depth[j])
+        if w > 0 and j not in rows:
+            rows.append(j)
+    FV = f.to_face(np.asarray(V, np.float64))
+    T = np.asarray(T)
+    # Only the triangles with a corner in the band of heights and depths the rays pass (a triangle reaching into
+    # it from outside has a corner within an edge of it: the band is widened by the longest edge).
+    edge = max(np.linalg.norm(FV[T[:, a]] - FV[T[:, b]], axis=1).max() for a, b in ((0, 1), (1, 2), (2, 0)))
+    lo_b = np.array([F[rows, 1].min(), depth[rows].min()]) - edge
+    hi_b = np.array([F[rows, 1].max(), depth[rows].max()]) + edge
+    inside = ((FV[:, 1:] >= lo_b) & (FV[:, 1:] <= hi_b)).all(1)
+    tri = FV[T[inside[T].any(1)]]
+    lo = np.minimum(np.minimum(tri[:, 0], tri[:, 1]), tri[:, 2])
+    hi = np.maximum(np.maximum(tri[:, 0], tri[:, 1]), tri[:, 2])
+    for j in rows:
+        side = np.sign(F[j, 0])
+        y, z = F[j, 1], depth[j]
+        near = (lo[:, 1] <= y) & (hi[:, 1] >= y) & (lo[:, 2] <= z) & (hi[:, 2] >= z) & (side * hi[:, 0] > 0)
+        if not near.any():
+            continue
+        x0 = side * (abs(F[j, 0]) + OUTSIDE * eyes)
+        k = int(near.sum())
+        hit, _, _, t = ray_triangle(np.tile([x0, y, z], (k, 1)), np.tile([-side, 0.0, 0.0], (k, 1)),
+                                    tri[near, 0], tri[near, 1], tri[near, 2])
+        t = np.where(hit, t, np.inf).min()
+        if t <= (OUTSIDE + REACH) * eyes:
+            out[j] = f.to_user(np.array([[x0 - side * t, y, z]]))[0]
+    return out
+
+
 #: The jaw points placed, per side (the subject's right side first, as ICT numbers them: 0-4, then 16-12).
 SIDES = ((0, 1, 2, 3, 4), (16, 15, 14, 13, 12))
-UPPER_JAW = SIDES[0] + SIDES[1]
 #: ICT's side of the face: farther than ``SIDE`` from the midline, heights ``BAND`` about the eye centres, in front
 #: of ``DEPTH`` behind them (eye distances; its jaw ends lie 0.84-0.89 behind the eyes, the chin 1.6-1.7 below).
 #: Nearer the midline the nose and the chin's middle would hold the side to the face's front (on the development set
@@ -48,6 +148,10 @@ ANCHORS = (36, 39, 42, 45, 30, 33, 48, 54)
 ITERATIONS, KEEP, SETTLED = 15, 0.9, 1e-3
 #: At most this many of a side's vertices take part (evenly spread by their numbering).
 MAX_POINTS = 600
+#: How far (eye distances) a found side point and the registered one may lie apart before the registered one begins
+#: to count, and where it counts alone: ICT's held-out heads' own jaw points lie a median 0.003-0.009 from the
+#: generic head's sides laid onto them, MakeHuman's found ones a median 0.07 (0.02-0.04 and 0.04-0.08 scored alike).
+DISAGREE = (0.03, 0.06)
 
 
 @lru_cache(maxsize=1)
@@ -72,9 +176,10 @@ def _ict_sides() -> tuple[tuple[np.ndarray, np.ndarray], np.ndarray]:
     return tuple(sides), L
 
 
-def upper_jaw_at_template_depth(V, T, points, closest: ClosestPoint | None = None) -> np.ndarray:
+def jaw_sides_from_template(V, T, points, closest: ClosestPoint | None = None) -> np.ndarray:
     """``points (68, 3)`` with the jaw's sides (:data:`SIDES`) where ICT's generic head puts them once each side of
-    its face is registered onto the skin ``(V, T)`` (see the module's docstring).
+    its face is registered onto the skin ``(V, T)``, where that and the found ones disagree (:data:`DISAGREE`; see
+    the module's docstring).
 
     Parameters
     ----------
@@ -102,5 +207,9 @@ def upper_jaw_at_template_depth(V, T, points, closest: ClosestPoint | None = Non
             Q, was = s * region @ R.T + t, Q
             if np.abs(Q - was).max() < SETTLED * eye_distance(out):
                 break
-        out[list(rows)] = closest.query(s * L[list(rows)] @ R.T + t)[3]
+        rows = list(rows)
+        registered = closest.query(s * L[rows] @ R.T + t)[3]
+        gap = np.linalg.norm(registered - out[rows], axis=1) / eye_distance(out)
+        w = smoothstep((gap - DISAGREE[0]) / (DISAGREE[1] - DISAGREE[0]))[:, None]
+        out[rows] = np.where(w > 0, closest.query(out[rows] + w * (registered - out[rows]))[3], out[rows])
     return out
