@@ -444,6 +444,32 @@ def test_the_jaws_lower_sides_come_back_to_the_characters_own_depth(name, monkey
     assert off(slid) > 0.1 and placed < 0.035 and eyes_only > 2 * placed, (off(slid), placed, eyes_only)
 
 
+@needs_makehuman
+@pytest.mark.parametrize("name", ["base-dm", "asian-female-old-in", "caucasian-male-old-dm-eyes", "stylised-nose-mouth-cm",
+                                  "body-A-cm"])
+def test_the_jaws_sides_slid_along_the_contour_come_back_to_the_characters_own(name):
+    # How high along the contour MakeHuman's jaw sides lie differs from character to character (the true jaw ends
+    # from 0.1 below to 0.2 above the eye centres): the sides (0-4, 12-16) of the registered skin points, slid 0.15
+    # eye distances up or down on the skin, come back near their own once ICT's sides are laid onto the skin.
+    from pdeface.geometry import ClosestPoint
+    from pdeface.landmarks import contour
+
+    ch = build(SPECS[name])
+    V, T, L = ch.vertices, ch.triangles, ch.skin_landmarks
+    rows = list(contour.SIDES[0] + contour.SIDES[1])
+    f, eyes = face_frame(L), eye_distance(L)
+    F = f.to_face(L[rows])
+    F[:, 1] += np.resize([0.15, -0.15], len(rows)) * eyes * f.scale
+    slid = L.copy()
+    slid[rows] = ClosestPoint(V, T).query(f.to_user(F))[3]
+
+    def off(P):  # the sides' median distance from their own (eye distances)
+        return np.median(np.linalg.norm(P[rows] - L[rows], axis=1)) / eyes
+
+    placed = contour.jaw_sides_from_template(V, T, slid)
+    assert off(slid) > 0.1 and off(placed) < 0.045, (off(slid), off(placed))
+
+
 def _moved_in_face_frame(V, T, L, rows, shift):
     """``L`` with ``rows`` moved by ``shift`` (x, y, z: eye distances in the face frame), then onto the surface
     ``(V, T)``."""

@@ -494,6 +494,28 @@ def test_the_jaw_sides_lower_points_follow_the_chins_depth(heads):
     assert np.array_equal(as_is[[4, 12]], L[[4, 12]])
 
 
+@pytest.mark.parametrize("name", ["identity002", "identity015", "identity019"])
+def test_jaw_sides_slid_along_the_contour_come_back_to_the_identitys_own(heads, name):
+    # A frontal detector guesses how high along the contour the jaw's sides lie. Slid 0.15 eye distances up or down
+    # on the skin, they come back near the identity's own: ICT's generic head's sides laid onto the identity carry
+    # its jaw points there (identity002: ICT's farthest, 0.04). Left where they are, a held-out identity's own stay.
+    from pdeface.landmarks.contour import SIDES, jaw_sides_from_template
+
+    mesh, T, lm, shapes = heads
+    V = mesh.vertices + shapes[name]
+    L = V[lm]
+    rows = list(SIDES[0] + SIDES[1])
+    moved, _, eyes = _moved_on_skin(V, T, L, rows, 1, [0.15, -0.15] * 5)
+    before = np.linalg.norm(moved - L, axis=1)[rows] / eyes
+    back = jaw_sides_from_template(V, T, moved)
+    after = np.linalg.norm(back - L, axis=1)[rows] / eyes
+    assert np.median(before) > 0.1 and np.median(after) < 0.04 and after.max() < 0.05, (before, after)
+    others = np.setdiff1d(np.arange(68), rows)
+    assert np.array_equal(back[others], moved[others])  # only the jaw's sides move
+    if name != "identity002":  # held out of the map's fit: agreeing with the registration, they stay
+        assert np.array_equal(jaw_sides_from_template(V, T, L), L)
+
+
 @pytest.mark.parametrize("name", ["identity015", "identity019"])
 def test_inner_lip_corners_on_the_lips_front_go_back_into_the_lip_line(heads, name):
     # The map may put the inner lip corners on the lips' front, in front of the commissure (MakeHuman's
