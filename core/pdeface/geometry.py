@@ -288,12 +288,18 @@ class ClosestPoint:
 
         self.V, self.T = np.asarray(V, dtype=np.float64), np.asarray(T, dtype=np.int64)
         self.k = k
-        self.centroids = self.V[self.T].mean(axis=1)
+        from scipy.sparse import csr_matrix
+
+        V, T = self.V, self.T
+        self.centroids = V[T[:, 0]] + V[T[:, 1]]  # V[T].mean(axis=1)'s sums in its order, a third of the time
+        self.centroids += V[T[:, 2]]
+        self.centroids /= 3
         self.tree = cKDTree(self.centroids)
         nv = len(self.V)
-        order = np.argsort(self.T.ravel(), kind="stable")
-        self._vt = order // 3  # triangles sorted by corner vertex
-        self._vstart = np.searchsorted(self.T.ravel()[order], np.arange(nv + 1))
+        # the corners sorted by vertex, each vertex's in their order (a stable sort): the transpose's counting sort
+        corners = csr_matrix((np.ones(T.size, np.int8), T.ravel(), np.arange(T.size + 1)), shape=(T.size, nv)).tocsc()
+        self._vt = corners.indices // 3  # triangles sorted by corner vertex
+        self._vstart = corners.indptr.astype(np.int64)
         self.vtree = cKDTree(self.V)
 
     def query(self, P, nearest=None):
