@@ -4,6 +4,8 @@ All functions take ``V (n, 3)`` and triangles ``T (t, 3)`` in the face frame.
 """
 from __future__ import annotations
 
+from functools import cached_property
+
 import numpy as np
 
 
@@ -300,7 +302,14 @@ class ClosestPoint:
         corners = csr_matrix((np.ones(T.size, np.int8), T.ravel(), np.arange(T.size + 1)), shape=(T.size, nv)).tocsc()
         self._vt = corners.indices // 3  # triangles sorted by corner vertex
         self._vstart = corners.indptr.astype(np.int64)
-        self.vtree = cKDTree(self.V)
+
+    @cached_property
+    def vtree(self):
+        """A search tree of the vertices, built on first use (a caller that knows each point's nearest vertex needs
+        none)."""
+        from scipy.spatial import cKDTree
+
+        return cKDTree(self.V)
 
     def query(self, P, nearest=None):
         """Closest points on the mesh; ``nearest``: each point's nearest vertex where already found (a query of

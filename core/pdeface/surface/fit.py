@@ -105,7 +105,8 @@ def closest_on_nearby(V, T, P, tree=None, edge=None):
     if len(T) == 0 or len(P) == 0 or not (np.isfinite(V).all() and np.isfinite(P).all()):
         return ClosestPoint(V, T).query(P)
     tree = cKDTree(V, balanced_tree=False, compact_nodes=False) if tree is None else tree  # for distances only
-    reach = float(tree.query(P)[0].max()) * (1 + 1e-9) + (longest_edges(V, T) if edge is None else edge)
+    gap, nearest = tree.query(P)
+    reach = float(gap.max()) * (1 + 1e-9) + (longest_edges(V, T) if edge is None else edge)
     bound = float(np.percentile(reach, 99))
     # each vertex's distance to its nearest point, inf past the bound (outside the points' balls or box: not searched)
     apart = np.full(len(V), np.inf)
@@ -118,7 +119,8 @@ def closest_on_nearby(V, T, P, tree=None, edge=None):
     keep = np.flatnonzero(near | (reach > bound))
     corner = np.zeros(len(V), bool)
     corner[T[keep].ravel()] = True
-    dist, tri, bary, point = ClosestPoint(V[corner], (np.cumsum(corner) - 1)[T[keep]]).query(P)
+    local = np.cumsum(corner) - 1  # each point's nearest vertex is a corner of a kept triangle: its search is done
+    dist, tri, bary, point = ClosestPoint(V[corner], local[T[keep]]).query(P, nearest=local[nearest])
     return dist, keep[tri], bary, point
 
 
