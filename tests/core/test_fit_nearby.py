@@ -7,7 +7,7 @@ mesh (scripts/devset), with a stray long triangle added, so the shortcut's edge 
 import numpy as np
 import pytest
 from pdeface.errors import LandmarkError
-from pdeface.geometry import ClosestPoint, cast_cylinder_rays
+from pdeface.geometry import ClosestPoint, any_corner, cast_cylinder_rays, every_corner, in_box
 from pdeface.mesh import border_vertices, connected_components
 from pdeface.surface.fit import FEW_POINTS, check_landmarks_on_mesh, closest_on_nearby
 from pdeface.surface.frame import face_frame
@@ -115,6 +115,20 @@ def test_border_vertices_and_pieces_are_those_counted_edge_by_edge(rng):
         lab = connected_components(n, T)
         roots = [_root(parent, v) for v in range(n)]
         assert all((lab[i] == lab[j]) == (roots[i] == roots[j]) for i in range(n) for j in range(n))
+
+
+def test_corner_and_box_masks_are_numpys_reductions(rng):
+    """every_corner, any_corner and in_box (the fit's triangle and box filters, written corner by corner) answer as
+    ``mask[T].all/any(axis=1)`` and the box's comparisons do; a NaN point lies in no box."""
+    mask = rng.random(50) < 0.7
+    T = rng.integers(0, 50, size=(200, 3))
+    np.testing.assert_array_equal(every_corner(mask, T), mask[T].all(axis=1))
+    np.testing.assert_array_equal(any_corner(mask, T), mask[T].any(axis=1))
+    P = rng.normal(size=(300, 3))
+    P[::17, 1] = np.nan
+    lo, hi = np.array([-1.0, -0.5, -2.0]), np.array([1.0, 0.5, 0.0])
+    np.testing.assert_array_equal(in_box(P, lo, hi), ((P >= lo) & (P <= hi)).all(axis=1))
+    assert not in_box(P, -np.inf, np.inf)[::17].any() and in_box(P, -np.inf, np.inf).sum() == 300 - len(P[::17])
 
 
 def _root(parent, v):

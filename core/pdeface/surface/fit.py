@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import LandmarkError, LayoutError, MeshError
-from ..geometry import ClosestPoint, row_norms, triangle_cross, unit_rows
+from ..geometry import ClosestPoint, any_corner, every_corner, in_box, row_norms, triangle_cross, unit_rows
 from ..mesh import Mesh, border_vertices, butterfly_step, connected_components, seam_welds
 from ..threads import bounded
 from .fourier import fit_fourier
@@ -113,7 +113,7 @@ def closest_on_nearby(V, T, P, tree=None, edge=None):
     if len(P) <= FEW_POINTS:
         looked = np.unique(np.concatenate([np.asarray(ball, np.int64) for ball in tree.query_ball_point(P, bound)]))
     else:
-        looked = np.flatnonzero(((V >= P.min(axis=0) - bound) & (V <= P.max(axis=0) + bound)).all(axis=1))
+        looked = np.flatnonzero(in_box(V, P.min(axis=0) - bound, P.max(axis=0) + bound))
     apart[looked] = cKDTree(P).query(V[looked], distance_upper_bound=bound * (1 + 1e-9))[0]
     near = np.minimum(np.minimum(apart[T[:, 0]], apart[T[:, 1]]), apart[T[:, 2]]) <= reach
     keep = np.flatnonzero(near | (reach > bound))
@@ -147,7 +147,7 @@ def check_landmarks_on_mesh(V_face, L_face, reach_mm=20.0):
     # Only the vertices in the landmarks' box widened by the reach can be within it (a coordinate that overflowed
     # into the face frame, 1e308 in the file, or NaN is in no box): a 200k head's tree in a third of the time.
     lo, hi = L_face[near].min(axis=0, initial=np.inf) - reach_mm, L_face[near].max(axis=0, initial=-np.inf) + reach_mm
-    dist = nearest(V_face[((V_face >= lo) & (V_face <= hi)).all(axis=1)])
+    dist = nearest(V_face[in_box(V_face, lo, hi)])
     if dist.max() > reach_mm:
         dist = nearest(V_face[np.isfinite(V_face).all(axis=1)])  # how far they lie, for the message
         worst = int(np.argmax(dist))
@@ -157,8 +157,7 @@ def check_landmarks_on_mesh(V_face, L_face, reach_mm=20.0):
 
 def reachable_triangles(V_face: np.ndarray, T: np.ndarray) -> np.ndarray:
     """The triangles whose corners all lie within :data:`FACE_REACH_MM` of the nose tip (face frame)."""
-    near = np.linalg.norm(V_face, axis=1) <= FACE_REACH_MM
-    return T[near[T].all(axis=1)]
+    return T[every_corner(row_norms(V_face) <= FACE_REACH_MM, T)]
 
 
 #: A skin whose median edge is longer than this fraction of the curves' median spacing is read off a
@@ -282,7 +281,7 @@ def fit_face(vertices, triangles, landmarks, unit=None, n_curves=DEFAULT_CURVES,
         skin = np.asarray(skin, bool)
         if skin.shape != (len(V),):
             raise MeshError(f"skin mask must have one entry per vertex ({len(V)}), got {skin.shape}")
-        skin = T[skin[T].all(axis=1)]
+        skin = T[every_corner(skin, T)]
         if len(skin) == 0:
             raise MeshError("the skin given has no triangles")
     from .curves import (  # scipy: loaded only when a face is fitted
@@ -323,7 +322,7 @@ def check_on_mesh(model, Vf, T, Lf, search: UsedVertices | None = None):
     ed = eye_distance(Lf)
     search = UsedVertices(Vf, T) if search is None else search
     lo, hi = X.min(axis=0) - ed, X.max(axis=0) + ed
-    if not ((search.V > lo) & (search.V < hi)).all(axis=1)[search.T].all(axis=1).any():
+    if not every_corner(in_box(search.V, lo, hi), search.T).any():
         raise LayoutError("fit: the fitted face lies nowhere near the mesh")
     # only the triangles near the face's points are searched (a body, the back of a head: the fit's cost is the face's)
     dist, tri, _, at = search.closest(X)
@@ -334,7 +333,7 @@ def check_on_mesh(model, Vf, T, Lf, search: UsedVertices | None = None):
     hit = np.zeros(len(Vf), bool)
     hit[on.ravel()] = True
     edge = np.zeros(len(Vf), bool)
-    edge[border_vertices(len(Vf), T[hit[T].any(axis=1)])] = True
+    edge[border_vertices(len(Vf), T[any_corner(hit, T)])] = True
     past = (edge & hit)[on].any(axis=1)
     n = unit_rows(triangle_cross(Vf, on[past]))
     dist[past] = np.abs(((X[past] - at[past]) * n).sum(axis=1))
