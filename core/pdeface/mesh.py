@@ -153,8 +153,8 @@ def connected_components(n_vertices: int, T: np.ndarray) -> np.ndarray:
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components as cc
 
-    i = np.concatenate([T[:, 0], T[:, 1], T[:, 2]])
-    j = np.concatenate([T[:, 1], T[:, 2], T[:, 0]])
+    i = np.concatenate([T[:, 0], T[:, 1]])  # two edges of each triangle join its three corners
+    j = np.concatenate([T[:, 1], T[:, 2]])
     graph = coo_matrix((np.ones(len(i)), (i, j)), shape=(n_vertices, n_vertices))
     return cc(graph, directed=False)[1]
 
@@ -186,11 +186,17 @@ def cotan_laplacian(V: np.ndarray, T: np.ndarray):
 def border_vertices(n, T) -> np.ndarray:
     """The vertices (sorted indices) on a border of triangles ``T`` over ``n`` vertices: on an edge that only one
     triangle has."""
+    from scipy.sparse import csr_matrix
+
     T = np.asarray(T, np.int64)
-    edges = np.sort(np.concatenate([T[:, [0, 1]], T[:, [1, 2]], T[:, [2, 0]]]), axis=1)
-    keys, counts = np.unique(edges[:, 0] * n + edges[:, 1], return_counts=True)  # 1-D: much faster
-    once = keys[counts == 1]
-    return np.unique(np.concatenate([once // n, once % n]))
+    a, b = np.concatenate([T[:, 0], T[:, 1], T[:, 2]]), np.concatenate([T[:, 1], T[:, 2], T[:, 0]])
+    # each edge's triangles counted in a sparse matrix (its duplicates summed row by row: no sort of all edges)
+    count = csr_matrix((np.ones(len(a), np.int32), (np.minimum(a, b), np.maximum(a, b))), shape=(n, n))
+    once = count.data == 1
+    border = np.zeros(n, bool)
+    border[np.repeat(np.arange(n), np.diff(count.indptr))[once]] = True
+    border[count.indices[once]] = True
+    return np.flatnonzero(border)
 
 
 def seam_welds(V: np.ndarray, T: np.ndarray, tol: float | None = None, min_piece: int | None = None) -> np.ndarray:

@@ -266,6 +266,9 @@ WELL_FORMED = {
         "mtllib a.mtl\nmtllib b c.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl Haut\u00e9\nf 1 2 3\nusemtl x\nf 3 2 1\n"
         "usemtl Haut\u00e9\nf 1 3 2\n# \u00fcber\n"),
     "long decimals (read by float() one by one)": "v 0.12345678901234567 1 2\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+    "six decimals in every number, as exporters write them (one power of ten for all)": (
+        "v 0.000000 -2.482510 11.838700\nv -0.503397 3.454130 10.638700\nv 1.000000 0.000001 -0.000001\n"
+        "vt 0.480491 0.185494\nvt 0.000000 1.000000\nvt 1.000000 0.999999\nf 1/1 2/2 3/3\n"),
 }
 
 

@@ -58,6 +58,8 @@ def test_candidates_and_hits_are_those_of_every_triangle(rng, n_around, n_up):
     rays, tris = cylinder_ray_candidates(V, T, 5.0, theta, height)
     assert len(set(zip(rays, tris))) == len(rays)  # no pair twice
     assert set(zip(rays, tris)) == brute_pairs(V, T, 5.0, theta, height)
+    # by ray, then triangle: the cast keeps the first of two equally far hits, so the order is part of the answer
+    assert (np.lexsort((tris, rays)) == np.arange(len(rays))).all()
     radius = cast_cylinder_rays(V, T, 5.0, theta, height)[0]
     expected = brute_hits(V, T, 5.0, theta, height)
     assert np.isnan(expected).any() and np.isfinite(expected).sum() > 200
@@ -94,3 +96,19 @@ def test_no_rays_or_no_triangles():
     for theta, T in ((np.zeros(0), np.array([[0, 1, 2]])), (np.zeros(2), np.zeros((0, 3), int))):
         rays, tris = cylinder_ray_candidates(V, T, 0.0, theta, np.zeros(len(theta)))
         assert len(rays) == len(tris) == 0
+
+
+def test_rays_that_are_not_finite_meet_nothing_and_leave_the_others_as_they_were(rng):
+    """NaN and infinite rays among finite ones: none is paired, and the finite rays' pairs are those they have
+    cast alone (the triangles no ray's cell holds are dropped before binning: the rays kept must not lose theirs)."""
+    V, T = bumpy_cylinder(60, 30, rng)
+    theta, height = rng.uniform(-np.pi, np.pi, 200), rng.uniform(-90, 90, 200)
+    alone = cylinder_ray_candidates(V, T, 5.0, theta, height)
+    theta_bad, height_bad = theta.copy(), height.copy()
+    theta_bad[::7], height_bad[3::11] = np.nan, np.inf
+    rays, tris = cylinder_ray_candidates(V, T, 5.0, theta_bad, height_bad)
+    finite = np.isfinite(theta_bad) & np.isfinite(height_bad)
+    assert finite[rays].all() and not finite.all()
+    kept = finite[alone[0]]
+    np.testing.assert_array_equal(rays, alone[0][kept])
+    np.testing.assert_array_equal(tris, alone[1][kept])

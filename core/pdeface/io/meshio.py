@@ -217,12 +217,6 @@ def _tokens(b, sep):
     return edge[::2], edge[1::2]
 
 
-def _chars(*groups: bytes):
-    table = np.zeros(256, bool)
-    table[list(b"".join(groups))] = True
-    return table
-
-
 #: The bytes of number lines and of face lines but their tags (``bytes.translate`` deletes them in one C pass).
 _NUMBER_BYTES = b"0123456789+-.eE \t\n\x0b\x0c"
 _CORNER_BYTES = b"0123456789-/ \t\n\x0b\x0c"
@@ -279,11 +273,13 @@ def _plain_decimals(text: bytes, b, at, end):
     minus = b[at] == ord("-")
     digits = end - at - minus - has_dot
     bad = np.full(len(at), np.nan)
-    if (len(dot) != np.count_nonzero(has_dot) or not _DIGIT[b[dot - 1]].all() or not _DIGIT[b[dot + 1]].all()
-            or (digits > 15).any()):
+    if (len(dot) != np.count_nonzero(has_dot) or (b[dot - 1] - 48 > 9).any() or (b[dot + 1] - 48 > 9).any()
+            or (digits > 15).any()):  # (uint8: a byte below '0' wraps round past 9 too)
         return bad
     frac_digits = np.zeros(len(at), np.int64)
     frac_digits[of] = end[of] - dot - 1
+    if len(dot) == len(at) and len(at) and (frac_digits == frac_digits[0]).all():  # as many decimals in each (the usual file)
+        frac_digits = frac_digits[0]  # one power of ten for all: no table look-up per number
     if len(dot) == len(at) and np.count_nonzero(b[:len(text)] == ord("-")) == np.count_nonzero(minus):
         # -digits.digits each (a sign only in front): the two runs of digits read digit by digit.
         mantissa = _digit_values(b, at + minus, dot) * _IPOW10[frac_digits] + _digit_values(b, dot + 1, end)
@@ -322,7 +318,6 @@ def _digit_values(b, at, end):
     return values.astype(np.int64)
 
 
-_DIGIT = _chars(b"0123456789")
 _DOT_TO_SPACE = bytes.maketrans(b".vtnf", b"     ")
 
 

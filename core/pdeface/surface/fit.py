@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import LandmarkError, LayoutError, MeshError
-from ..geometry import ClosestPoint, triangle_cross, unit_rows
+from ..geometry import ClosestPoint, any_corner, every_corner, in_box, row_norms, triangle_cross, unit_rows
 from ..mesh import Mesh, border_vertices, butterfly_step, connected_components, seam_welds
 from ..threads import bounded
 from .fourier import fit_fourier
@@ -22,7 +22,33 @@ from .rims import band_triangles, follow_rims
 from .sampling import mesh_resolution
 
 
-def skin_vertices(V: np.ndarray, T: np.ndarray, points: np.ndarray, pieces: np.ndarray | None = None) -> np.ndarray:
+class UsedVertices:
+    """The vertices triangles ``T`` of ``V`` use (``used``: their indices; ``V``: their positions; ``T``: the triangles
+    on them), their search tree and the triangles' longest edges: built once per fit (a 200k-vertex head's tree and
+    edges cost 0.06 s), searched by :func:`skin_vertices` and :func:`check_on_mesh`. A stray vertex no triangle uses
+    (even a non-finite one) is not among them."""
+
+    def __init__(self, V: np.ndarray, T: np.ndarray):
+        from scipy.spatial import cKDTree  # scipy is heavy: only fitting and reports need it
+
+        T = np.asarray(T, np.int64).reshape(-1, 3)
+        corner = np.zeros(len(V), bool)
+        corner[T.ravel()] = True
+        self.used = np.flatnonzero(corner)
+        self.V = np.asarray(V, np.float64)[self.used]
+        self.T = (np.cumsum(corner) - 1)[T]
+        # Distances and sorted balls only: an unbalanced tree answers the same, built in half the time.
+        self.tree = cKDTree(self.V, balanced_tree=False, compact_nodes=False)
+        self.edge = longest_edges(self.V, self.T)
+
+    def closest(self, P):
+        """:func:`closest_on_nearby` of points ``P`` on the triangles: ``(distance, tri, bary, point)``, ``tri``
+        indexing ``T``."""
+        return closest_on_nearby(self.V, self.T, P, self.tree, self.edge)
+
+
+def skin_vertices(V: np.ndarray, T: np.ndarray, points: np.ndarray, pieces: np.ndarray | None = None,
+                  search: UsedVertices | None = None) -> np.ndarray:
     """Mask of the vertices of the connected pieces that lie under ``points`` (the landmarks).
 
     Separate pieces (eyeballs, teeth) are left out; copies an exporter split along
@@ -31,31 +57,30 @@ def skin_vertices(V: np.ndarray, T: np.ndarray, points: np.ndarray, pieces: np.n
     point, the largest is the skin. A point on the skin between its vertices (a lid margin's point)
     may lie nearer to an eyeball's vertex than to the skin's: the piece of the nearest triangle
     counts too, the largest again. ``pieces``: the connected pieces' labels of ``(V, T)`` where ``T``'s seams are
-    already joined (the binding's), so none are welded again.
+    already joined (the binding's), so none are welded again; ``search``: ``UsedVertices(V, T)`` where built already.
     """
-    from scipy.spatial import cKDTree  # scipy is heavy: only fitting and reports need it
-
-    corner = np.zeros(len(V), bool)
-    corner[np.ravel(T)] = True
-    used = np.flatnonzero(corner)  # the mesh's size from its triangles: a stray vertex far away must not set it
-    Vu = V[used]
+    search = UsedVertices(V, T) if search is None else search
+    used, Vu = search.used, search.V  # the mesh's size from its triangles: a stray vertex far away must not set it
     extent = np.ptp(Vu, axis=0) if len(used) else np.zeros(3)
     lab = pieces
     if lab is None:
         rep = seam_welds(V, T, tol=1e-6 * float(np.linalg.norm(extent)))  # split along UV seams: still one piece
         lab = connected_components(len(V), rep[T])[rep]
     sizes = np.bincount(lab)
-    # Distances and sorted balls only: an unbalanced tree answers the same, built in half the time.
-    tree = cKDTree(Vu, balanced_tree=False, compact_nodes=False)
-    dist, _ = tree.query(points)
-    local = (np.cumsum(corner) - 1)[T]  # the triangles' own vertices: a stray one (even non-finite) is not searched
-    on = T[closest_on_nearby(Vu, local, points, tree)[1], 0]
+    dist, _ = search.tree.query(points)
+    on = T[search.closest(points)[1], 0]
     scale = float(extent.max()) or 1.0
     labels = set()
     for p, d, t in zip(points, dist, on):
-        near = [*used[tree.query_ball_point(p, d + 1e-6 * scale)], t]
+        near = [*used[search.tree.query_ball_point(p, d + 1e-6 * scale)], t]
         labels.add(int(lab[max(near, key=lambda i: sizes[lab[i]])]))
     return np.isin(lab, list(labels))
+
+
+def longest_edges(V: np.ndarray, T: np.ndarray) -> np.ndarray:
+    """Each triangle's longest edge: its diameter (a point on it lies within this of each corner)."""
+    a, b, c = V[T[:, 0]], V[T[:, 1]], V[T[:, 2]]
+    return np.maximum(np.maximum(row_norms(b - a), row_norms(c - b)), row_norms(a - c))
 
 
 #: Up to this many points (the landmarks), :func:`closest_on_nearby` looks for the vertices near them in balls around
@@ -63,15 +88,16 @@ def skin_vertices(V: np.ndarray, T: np.ndarray, points: np.ndarray, pieces: np.n
 FEW_POINTS = 256
 
 
-def closest_on_nearby(V, T, P, tree=None):
+def closest_on_nearby(V, T, P, tree=None, edge=None):
     """:meth:`pdeface.geometry.ClosestPoint.query` of points ``P`` on triangles ``T`` of ``V``, built on only the
     triangles that can hold a point's nearest: a corner within the points' farthest nearest-vertex distance plus
     the triangle's longest edge (triangles longer than 99 % of them are all kept). For a few thousand points on a
     100k-vertex head all triangles' search trees cost 0.2 s.
 
-    Every vertex of ``V`` must be a corner of ``T``; ``tree``: a ``cKDTree`` of ``V`` where one is built already.
-    Each answer is as near as the whole mesh's or nearer (the search is exact on the fine, even meshes it is meant
-    for). Returns ``(distance, tri, bary, point)``, ``tri`` indexing ``T``.
+    Every vertex of ``V`` must be a corner of ``T``; ``tree``: a ``cKDTree`` of ``V`` where one is built already;
+    ``edge``: :func:`longest_edges` of ``(V, T)`` where known. Each answer is as near as the whole mesh's or nearer
+    (the search is exact on the fine, even meshes it is meant for). Returns ``(distance, tri, bary, point)``,
+    ``tri`` indexing ``T``.
     """
     from scipy.spatial import cKDTree
 
@@ -79,28 +105,28 @@ def closest_on_nearby(V, T, P, tree=None):
     if len(T) == 0 or len(P) == 0 or not (np.isfinite(V).all() and np.isfinite(P).all()):
         return ClosestPoint(V, T).query(P)
     tree = cKDTree(V, balanced_tree=False, compact_nodes=False) if tree is None else tree  # for distances only
-    a, b, c = V[T[:, 0]], V[T[:, 1]], V[T[:, 2]]
-    edge = np.sqrt(np.maximum.reduce([np.einsum("ij,ij->i", e, e) for e in (b - a, c - b, a - c)]))
-    reach = float(tree.query(P)[0].max()) * (1 + 1e-9) + edge
+    gap, nearest = tree.query(P)
+    reach = float(gap.max()) * (1 + 1e-9) + (longest_edges(V, T) if edge is None else edge)
     bound = float(np.percentile(reach, 99))
     # each vertex's distance to its nearest point, inf past the bound (outside the points' balls or box: not searched)
     apart = np.full(len(V), np.inf)
     if len(P) <= FEW_POINTS:
         looked = np.unique(np.concatenate([np.asarray(ball, np.int64) for ball in tree.query_ball_point(P, bound)]))
     else:
-        looked = np.flatnonzero(((V >= P.min(axis=0) - bound) & (V <= P.max(axis=0) + bound)).all(axis=1))
+        looked = np.flatnonzero(in_box(V, P.min(axis=0) - bound, P.max(axis=0) + bound))
     apart[looked] = cKDTree(P).query(V[looked], distance_upper_bound=bound * (1 + 1e-9))[0]
     near = np.minimum(np.minimum(apart[T[:, 0]], apart[T[:, 1]]), apart[T[:, 2]]) <= reach
     keep = np.flatnonzero(near | (reach > bound))
     corner = np.zeros(len(V), bool)
     corner[T[keep].ravel()] = True
-    dist, tri, bary, point = ClosestPoint(V[corner], (np.cumsum(corner) - 1)[T[keep]]).query(P)
+    local = np.cumsum(corner) - 1  # each point's nearest vertex is a corner of a kept triangle: its search is done
+    dist, tri, bary, point = ClosestPoint(V[corner], local[T[keep]]).query(P, nearest=local[nearest])
     return dist, keep[tri], bary, point
 
 
-def skin_triangles(V: np.ndarray, T: np.ndarray, points: np.ndarray) -> np.ndarray:
+def skin_triangles(V: np.ndarray, T: np.ndarray, points: np.ndarray, search: UsedVertices | None = None) -> np.ndarray:
     """Triangles of the skin: the pieces under ``points`` (see :func:`skin_vertices`)."""
-    return T[skin_vertices(V, T, points)[T[:, 0]]]
+    return T[skin_vertices(V, T, points, search=search)[T[:, 0]]]
 
 
 def check_landmarks_on_mesh(V_face, L_face, reach_mm=20.0):
@@ -111,22 +137,27 @@ def check_landmarks_on_mesh(V_face, L_face, reach_mm=20.0):
     from scipy.spatial import cKDTree
 
 
-    # a coordinate that overflowed into the face frame (1e308 in the file) is no vertex or landmark near anything
-    V_face = V_face[np.isfinite(V_face).all(axis=1)]
+    def nearest(V):  # each landmark's distance to its nearest vertex of V (inf where there is none)
+        dist = np.full(len(L_face), np.inf)
+        if len(V) and near.any():
+            dist[near] = cKDTree(V, balanced_tree=False, compact_nodes=False).query(L_face[near])[0]  # same distances
+        return dist
+
     near = np.isfinite(L_face).all(axis=1)
-    dist = np.full(len(L_face), np.inf)
-    if len(V_face) and near.any():
-        dist[near] = cKDTree(V_face, balanced_tree=False, compact_nodes=False).query(L_face[near])[0]  # same distances
-    worst = int(np.argmax(dist))
-    if dist[worst] > reach_mm:
+    # Only the vertices in the landmarks' box widened by the reach can be within it (a coordinate that overflowed
+    # into the face frame, 1e308 in the file, or NaN is in no box): a 200k head's tree in a third of the time.
+    lo, hi = L_face[near].min(axis=0, initial=np.inf) - reach_mm, L_face[near].max(axis=0, initial=-np.inf) + reach_mm
+    dist = nearest(V_face[in_box(V_face, lo, hi)])
+    if dist.max() > reach_mm:
+        dist = nearest(V_face[np.isfinite(V_face).all(axis=1)])  # how far they lie, for the message
+        worst = int(np.argmax(dist))
         raise LandmarkError(f"landmark {worst} lies {dist[worst]:.3g} mm from the mesh (limit {reach_mm:g} mm): "
                             "are these this mesh's landmarks, in its unit?")
 
 
 def reachable_triangles(V_face: np.ndarray, T: np.ndarray) -> np.ndarray:
     """The triangles whose corners all lie within :data:`FACE_REACH_MM` of the nose tip (face frame)."""
-    near = np.linalg.norm(V_face, axis=1) <= FACE_REACH_MM
-    return T[near[T].all(axis=1)]
+    return T[every_corner(row_norms(V_face) <= FACE_REACH_MM, T)]
 
 
 #: A skin whose median edge is longer than this fraction of the curves' median spacing is read off a
@@ -158,8 +189,8 @@ def refined_skin(V_face, skin, layout):
         y = V[:, 1]
         c = (y[T[:, 0]] + y[T[:, 1]] + y[T[:, 2]]) / 3  # the centres' heights (all a 100k head's centres: 0.05 s)
         near = (c > layout.heights.min() - 10) & (c < layout.heights.max() + 10)
-        E = T[near][:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
-        edge = np.median(np.linalg.norm(V[E[:, 0]] - V[E[:, 1]], axis=1)) if near.any() else 0.0
+        a, b, c = (V[T[near, k]] for k in range(3))  # every edge of each triangle: a 100k head's in 0.02 s
+        edge = float(np.median(np.concatenate([row_norms(b - a), row_norms(c - b), row_norms(a - c)]))) if near.any() else 0.0
         if edge <= (COARSE_EDGE if S is None else FINE_EDGE) * spacing:
             break
         step, fine = butterfly_step(len(V), T[near])
@@ -243,13 +274,14 @@ def fit_face(vertices, triangles, landmarks, unit=None, n_curves=DEFAULT_CURVES,
     if len(T) == 0:
         raise MeshError(f"no triangle of the mesh lies within {FACE_REACH_MM:g} mm of the nose tip")
     layout = place_curves(Lf, n_curves, n_points, follow_lips=follow_lips)
+    search = UsedVertices(Vf, T)
     if skin is None:
-        skin = skin_triangles(Vf, T, Lf)
+        skin = skin_triangles(Vf, T, Lf, search)
     else:
         skin = np.asarray(skin, bool)
         if skin.shape != (len(V),):
             raise MeshError(f"skin mask must have one entry per vertex ({len(V)}), got {skin.shape}")
-        skin = T[skin[T].all(axis=1)]
+        skin = T[every_corner(skin, T)]
         if len(skin) == 0:
             raise MeshError("the skin given has no triangles")
     from .curves import (  # scipy: loaded only when a face is fitted
@@ -269,12 +301,13 @@ def fit_face(vertices, triangles, landmarks, unit=None, n_curves=DEFAULT_CURVES,
     coef, res = fit_fourier(points, n_modes)
     model = FaceModel(layout, chord_knots(points), coef, res, frame, feature_points(Lf), a=a,
                       assembly=assembly, source=source, status=sampler.status.copy(), landmarks=Lf)
-    check_on_mesh(model, Vf, T, Lf)
+    check_on_mesh(model, Vf, T, Lf, search)
     return model, sampler
 
 
-def check_on_mesh(model, Vf, T, Lf):
-    """Refuse a fitted face that leaves the mesh it was fitted on (``Vf``, ``T``: face frame).
+def check_on_mesh(model, Vf, T, Lf, search: UsedVertices | None = None):
+    """Refuse a fitted face that leaves the mesh it was fitted on (``Vf``, ``T``: face frame; ``search``:
+    ``UsedVertices(Vf, T)`` where built already).
 
     A face whose curves could not follow the mesh (on a few stylised heads they run off tens of millimetres
     below the brows) would rig keys on the wrong surface without a word. Over ICT-FaceKit's heads, its
@@ -287,25 +320,22 @@ def check_on_mesh(model, Vf, T, Lf):
 
     X = surface_grid(model, OFF_MESH_STEPS, OFF_MESH_STEPS).reshape(-1, 3)[::OFF_MESH_STRIDE]
     ed = eye_distance(Lf)
-    # Only the mesh around the face is searched (a body, the back of a head: the fit's cost is the face's).
+    search = UsedVertices(Vf, T) if search is None else search
     lo, hi = X.min(axis=0) - ed, X.max(axis=0) + ed
-    inside = ((Vf > lo) & (Vf < hi)).all(axis=1)
-    near = T[inside[T].all(axis=1)]
-    if not len(near):
+    if not every_corner(in_box(search.V, lo, hi), search.T).any():
         raise LayoutError("fit: the fitted face lies nowhere near the mesh")
-    corner = np.zeros(len(Vf), bool)
-    corner[near.ravel()] = True
-    used = np.flatnonzero(corner)
-    dist, tri, _, at = closest_on_nearby(Vf[used], (np.cumsum(corner) - 1)[near], X)
+    # only the triangles near the face's points are searched (a body, the back of a head: the fit's cost is the face's)
+    dist, tri, _, at = search.closest(X)
+    on = T[tri]
     # Where the mesh ends (a face mask, an unlined opening) the face may go on past it, along the surface: there
     # only its distance off the surface's plane counts. A vertex's borders are read off the triangles it is a
     # corner of (the whole mesh's edges cost 0.06 s at 100k vertices).
     hit = np.zeros(len(Vf), bool)
-    hit[near[tri].ravel()] = True
+    hit[on.ravel()] = True
     edge = np.zeros(len(Vf), bool)
-    edge[border_vertices(len(Vf), T[hit[T].any(axis=1)])] = True
-    past = (edge & hit)[near[tri]].any(axis=1)
-    n = unit_rows(triangle_cross(Vf, near[tri[past]]))
+    edge[border_vertices(len(Vf), T[any_corner(hit, T)])] = True
+    past = (edge & hit)[on].any(axis=1)
+    n = unit_rows(triangle_cross(Vf, on[past]))
     dist[past] = np.abs(((X[past] - at[past]) * n).sum(axis=1))
     off = float(np.percentile(dist, 95))
     if off > OFF_MESH_IOD * ed:

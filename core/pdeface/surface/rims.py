@@ -15,7 +15,7 @@ import copy
 import numpy as np
 
 from ..errors import LayoutError
-from ..geometry import cast_cylinder_rays
+from ..geometry import cast_cylinder_rays, every_corner
 from .layout import ANCHOR_NAMES, OPENING_GAPS, OPENINGS, CurveLayout, FeatureLine
 
 #: Skin seen more obliquely than this (cosine between normal and ray, ~72°) faces away.
@@ -100,7 +100,7 @@ def band_triangles(V, T, lo, hi):
     through again at each cast."""
     y = np.asarray(V)[:, 1]
     below, above = y < lo, y > hi
-    return T[~(below[T].all(axis=1) | above[T].all(axis=1))]
+    return T[~(every_corner(below, T) | every_corner(above, T))]
 
 
 def _rims(V, T, axis_z, th, y_above, y_top, y_bottom, y_below, gap):
