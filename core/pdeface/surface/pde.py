@@ -424,6 +424,19 @@ class SurfaceOperator:
         X = self.cos_nv @ F + self.remainder_v @ Ru  # (n_v, n_u * c)
         return np.ascontiguousarray(X.reshape(-1, n_u, c).transpose(1, 0, 2))
 
+    def planes(self, coefficients: np.ndarray, residual: np.ndarray) -> np.ndarray:
+        """:meth:`apply` as (c, n_u, n_v) planes, one per coordinate of each surface: what a computation over the
+        grid's rows and columns reads whole (no strided copy of the interleaved grid); one matrix product."""
+        K, J, c = residual.shape
+        modes = self.modes if self.modes.ndim == 4 else self.modes[None]
+        b, n1, n_u, _ = modes.shape
+        A = np.empty((c, n_u, b * (n1 + J)))  # per plane and row: its mode values, then its remainder's per sample
+        A[:, :, :b * n1] = np.matmul(modes, np.transpose(coefficients, (1, 0, 2))).reshape(b * n1, n_u, c).T
+        Ru = (self.remainder_u.reshape(b * n_u, K) @ residual.reshape(K, J * c)).reshape(b, n_u, J, c)
+        A[:, :, b * n1:] = Ru.transpose(3, 1, 0, 2).reshape(c, n_u, b * J)
+        V = np.hstack([self.cos_nv, self.remainder_v])  # (n_v, b (N+1) + b J)
+        return (A.reshape(c * n_u, -1) @ V.T).reshape(c, n_u, -1)
+
 
 @lru_cache(maxsize=64)
 def surface_operator(knots: tuple, n_points: int, n_modes: int, a: float, w: float, sub_u, sub_v,
@@ -471,7 +484,7 @@ def merged_operator(knots: tuple, n_points: int, n_modes: int, a: float, w: floa
 
 
 def solve_surface(coefficients, residual, knots, a=1.0, w=None, sub_u=4, sub_v=4,
-                  assembly="smooth", deriv=(0, 0), breaks=(), break_slope=BREAK_SLOPE, confine=()):
+                  assembly="smooth", deriv=(0, 0), breaks=(), break_slope=BREAK_SLOPE, confine=(), planes=False):
     """Evaluate the PDE surface (or a derivative) on the output grid.
 
     Parameters
@@ -503,6 +516,9 @@ def solve_surface(coefficients, residual, knots, a=1.0, w=None, sub_u=4, sub_v=4
         where it is 0 (beyond an opening's corners) the surface is the one with that break's rims merged
         (:func:`merged_operator`), C2 across them, blended in between. Fixed weights: still linear.
 
+    planes : bool
+        Return (3, n_u, n_v) coordinate planes (3m for m surfaces: :meth:`SurfaceOperator.planes`).
+
     Returns
     -------
     (n_u, n_v, 3) array
@@ -519,9 +535,11 @@ def solve_surface(coefficients, residual, knots, a=1.0, w=None, sub_u=4, sub_v=4
     args = (kn, residual.shape[1], N1 - 1, float(a), float(w), sampling_key(sub_u), sampling_key(sub_v))
     br = tuple(int(b) for b in breaks)
     if assembly != "smooth" or not confine:
-        return surface_operator(*args, assembly, tuple(deriv), br, float(break_slope)).apply(coefficients, residual)
-    key = tuple((int(b), tuple(np.asarray(wt, float)), tuple(np.asarray(sl, float))) for b, wt, sl in confine)
-    return confined_operator(*args, tuple(deriv), br, float(break_slope), key).apply(coefficients, residual)
+        op = surface_operator(*args, assembly, tuple(deriv), br, float(break_slope))
+    else:
+        key = tuple((int(b), tuple(np.asarray(wt, float)), tuple(np.asarray(sl, float))) for b, wt, sl in confine)
+        op = confined_operator(*args, tuple(deriv), br, float(break_slope), key)
+    return op.planes(coefficients, residual) if planes else op.apply(coefficients, residual)
 
 
 @lru_cache(maxsize=16)
