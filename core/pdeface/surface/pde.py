@@ -32,7 +32,7 @@ solve is a few small matrix products.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cached_property, lru_cache
 
 import numpy as np
 
@@ -426,16 +426,29 @@ class SurfaceOperator:
 
     def planes(self, coefficients: np.ndarray, residual: np.ndarray) -> np.ndarray:
         """:meth:`apply` as (c, n_u, n_v) planes, one per coordinate of each surface: what a computation over the
-        grid's rows and columns reads whole (no strided copy of the interleaved grid); one matrix product."""
+        grid's rows and columns reads whole (no strided copy of the interleaved grid). The u factors are made
+        per plane and row, so the v factors' products write the planes as they are."""
         K, J, c = residual.shape
+        modes_u, remainder_u, v_modes, v_remainder = self._plane_factors
+        n1, _, n_u, b = modes_u.shape
+        F = np.matmul(np.transpose(coefficients, (1, 2, 0)), modes_u.reshape(n1, K, n_u * b))  # (n1, c, n_u b)
+        F = F.reshape(n1, c, n_u, b).transpose(1, 2, 0, 3).reshape(c * n_u, n1 * b)
+        Ru = np.matmul(remainder_u, np.ascontiguousarray(np.transpose(residual, (2, 0, 1))))  # (c, n_u b, J)
+        X = Ru.reshape(c * n_u, b * J) @ v_remainder
+        X += F @ v_modes
+        return X.reshape(c, n_u, -1)
+
+    @cached_property
+    def _plane_factors(self):
+        """:meth:`planes`' factors: the modes (N+1, K, n_u, B), the remainder's (n_u B, K) and the v factors of
+        each, (N+1) B and B J rows by n_v, their rows in the same (mode, block) and (block, sample) order."""
         modes = self.modes if self.modes.ndim == 4 else self.modes[None]
-        b, n1, n_u, _ = modes.shape
-        A = np.empty((c, n_u, b * (n1 + J)))  # per plane and row: its mode values, then its remainder's per sample
-        A[:, :, :b * n1] = np.matmul(modes, np.transpose(coefficients, (1, 0, 2))).reshape(b * n1, n_u, c).T
-        Ru = (self.remainder_u.reshape(b * n_u, K) @ residual.reshape(K, J * c)).reshape(b, n_u, J, c)
-        A[:, :, b * n1:] = Ru.transpose(3, 1, 0, 2).reshape(c, n_u, b * J)
-        V = np.hstack([self.cos_nv, self.remainder_v])  # (n_v, b (N+1) + b J)
-        return (A.reshape(c * n_u, -1) @ V.T).reshape(c, n_u, -1)
+        rem = self.remainder_u if self.remainder_u.ndim == 3 else self.remainder_u[None]
+        b, n1, n_u, K = modes.shape
+        cos = self.cos_nv.reshape(-1, b, n1).transpose(0, 2, 1).reshape(-1, n1 * b)  # its columns as F's
+        return (np.ascontiguousarray(modes.transpose(1, 3, 2, 0)),
+                np.ascontiguousarray(rem.transpose(1, 0, 2)).reshape(n_u * b, K),
+                np.ascontiguousarray(cos.T), np.ascontiguousarray(self.remainder_v.T))
 
 
 @lru_cache(maxsize=64)
