@@ -244,18 +244,40 @@ def test_smooth_rows_evaluated_together_are_the_straightforward_ones(deriv):
                 np.testing.assert_allclose(got, want, rtol=1e-10, atol=1e-10 * np.abs(want).max())
 
 
-def test_surface_planes_are_the_grid(rng, default_face):
-    """SurfaceOperator.planes gives apply's grid as coordinate planes, for a face with breaks confined to its
-    openings and for several surfaces solved together, at uneven steps and for a v-derivative."""
-    from pdeface.surface.grid import surface_grid
+def straightforward_surface(op, coefficients, residual):
+    """A SurfaceOperator's surface (n_u, n_v, c) written out: each block's modes times cos(n v) (its weights
+    folded in) plus its remainder's rows times its v spline, summed over the blocks."""
+    modes = op.modes if op.modes.ndim == 4 else op.modes[None]
+    rem_u = op.remainder_u if op.remainder_u.ndim == 3 else op.remainder_u[None]
+    b, n1 = modes.shape[:2]
+    J = residual.shape[1]
+    X = 0.0
+    for k in range(b):
+        A = np.einsum("nuk,knc->unc", modes[k], coefficients)  # (n_u, N+1, c): each mode's values on the rows
+        X = X + np.einsum("unc,vn->uvc", A, op.cos_nv[:, k * n1:(k + 1) * n1])
+        Ru = np.einsum("uk,kjc->ujc", rem_u[k], residual)
+        X = X + np.einsum("ujc,vj->uvc", Ru, op.remainder_v[:, k * J:(k + 1) * J])
+    return X
+
+
+def test_surface_planes_are_the_straightforward_sums(rng, default_face):
+    """SurfaceOperator.planes (and apply, the same as a grid) are the sums written out, for a face with breaks
+    confined to its openings and for several surfaces solved together, at uneven steps and for a v-derivative."""
+    from pdeface.surface import pde
+    from pdeface.surface.grid import break_weights
 
     m = default_face
     K, J = len(m.knots), m.layout.n_points
-    rows, cols = rng.integers(1, 6, K - 1), rng.integers(1, 6, J - 1)
+    rows, cols = tuple(rng.integers(1, 6, K - 1)), tuple(rng.integers(1, 6, J - 1))
     C = rng.normal(size=m.coefficients.shape[:2] + (6,))
     R = rng.normal(size=m.residual.shape[:2] + (6,))
+    key = tuple((int(b), tuple(w), tuple(s)) for b, w, s in break_weights(m, cols))
+    args = (tuple(m.knots), J, C.shape[1] - 1, float(m.a), float(m.remainder_w), rows, cols)
     for deriv in ((0, 0), (0, 1)):
-        grid = surface_grid(m, rows, cols, coefficients=C, residual=R, deriv=deriv)
-        planes = surface_grid(m, rows, cols, coefficients=C, residual=R, deriv=deriv, planes=True)
-        assert planes.shape == (6,) + grid.shape[:2]
-        np.testing.assert_allclose(planes, np.moveaxis(grid, 2, 0), atol=1e-9 * np.abs(grid).max())
+        for op in (pde.surface_operator(*args, "smooth", deriv, m.layout.breaks()),
+                   pde.confined_operator(*args, deriv, m.layout.breaks(), BREAK_SLOPE, key)):
+            want = straightforward_surface(op, C, R)
+            planes = op.planes(C, R)
+            assert planes.shape == (6,) + want.shape[:2]
+            np.testing.assert_allclose(planes, np.moveaxis(want, 2, 0), atol=1e-9 * np.abs(want).max())
+            np.testing.assert_array_equal(op.apply(C, R), np.moveaxis(planes, 0, 2))

@@ -399,7 +399,7 @@ def residual_v_operator(n_points: int, sub_v, deriv: int = 0) -> np.ndarray:
 class SurfaceOperator:
     """The PDE solve for one layout and grid as precomputed matrices.
 
-    ``apply(coefficients, residual)`` is then three small matrix products. A
+    ``planes(coefficients, residual)`` is then four small matrix products. A
     blend of B surfaces with v-dependent weights (:func:`confined_operator`) is
     one operator too: B blocks of modes, their weights folded into the v factors.
     """
@@ -414,20 +414,13 @@ class SurfaceOperator:
 
         ``c`` is 3 for one face; stacking several along it solves them all at once.
         """
-        K, J, c = residual.shape
-        modes = self.modes if self.modes.ndim == 4 else self.modes[None]
-        b, n1, n_u, _ = modes.shape
-        # Work in (v, u·c) layout so each part is one matrix product.
-        F = np.matmul(modes, np.transpose(coefficients, (1, 0, 2))).reshape(b * n1, n_u * c)
-        Ru = (self.remainder_u.reshape(b * n_u, K) @ residual.reshape(K, J * c)).reshape(b, n_u, J, c)
-        Ru = Ru.transpose(0, 2, 1, 3).reshape(b * J, n_u * c)
-        X = self.cos_nv @ F + self.remainder_v @ Ru  # (n_v, n_u * c)
-        return np.ascontiguousarray(X.reshape(-1, n_u, c).transpose(1, 0, 2))
+        return np.ascontiguousarray(self.planes(coefficients, residual).transpose(1, 2, 0))
 
     def planes(self, coefficients: np.ndarray, residual: np.ndarray) -> np.ndarray:
-        """:meth:`apply` as (c, n_u, n_v) planes, one per coordinate of each surface: what a computation over the
-        grid's rows and columns reads whole (no strided copy of the interleaved grid). The u factors are made
-        per plane and row, so the v factors' products write the planes as they are."""
+        """(K, N+1, c) coefficients and (K, J, c) residual → the surface as (c, n_u, n_v) planes, one per
+        coordinate of each surface: what a computation over the grid's rows and columns reads whole (no strided
+        copy of an interleaved grid). The u factors are made per plane and row, so the v factors' products write
+        the planes as they are."""
         K, J, c = residual.shape
         modes_u, remainder_u, v_modes, v_remainder = self._plane_factors
         n1, _, n_u, b = modes_u.shape
