@@ -139,12 +139,14 @@ def classify_parts(Vf, T, Lf, hinge, overrides=None, welded=False) -> Parts:
     kind[skin] = CODE["skin"]
     skin_tree = cKDTree(Vf[skin])
 
-    # Each other part's vertices (ascending) and its gap to the skin: one sort and one query for them all.
+    # Each other part's vertices (ascending) and its gap to the skin: one sort and one query for them all, as far as
+    # NEAR_IOD (inf beyond: only the gaps within it are read; the bound prunes the search of the far parts: teeth)
     rest = np.nonzero(~skin)[0]
     rest = rest[np.argsort(lab[rest], kind="stable")]
     others, starts = np.unique(lab[rest], return_index=True)
     members = dict(zip(others.tolist(), np.split(rest, starts[1:])))
-    gaps = np.minimum.reduceat(skin_tree.query(Vf[rest])[0], starts) if len(rest) else []
+    gaps = np.minimum.reduceat(skin_tree.query(Vf[rest], distance_upper_bound=NEAR_IOD * s)[0], starts) \
+        if len(rest) else []
     gap = dict(zip(others.tolist(), map(float, gaps)))
 
     # Eyeballs: the roundest part of the right size behind each eye, and what lies inside its sphere.
