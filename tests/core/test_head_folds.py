@@ -277,22 +277,3 @@ def test_keys_on_heads_not_tuned_on_fold_no_edge_and_close_the_eyes(name, monkey
     assert gap["relaxed"] >= min(0.25, 0.85 * gap["raw"]), gap
     np.testing.assert_allclose(eyes_of(posed["happy"][near])[0]["L"], eyes_of(raw["happy"][near])[0]["L"],
                                atol=0.02 * ed)  # a smile narrows the eyes as bound: no lids closed
-
-
-def test_the_binding_turns_numpys_huge_page_hint_off_and_puts_it_back():
-    # Issue #35: on a busy machine the kernel's compaction for huge pages stalled the rig (system time 0.2-0.45 s).
-    if bind._SET_HUGEPAGE is None:
-        pytest.skip("this numpy has no huge-page hint")
-    original = bind._SET_HUGEPAGE(True)
-    try:
-        inside = bind.small_pages(lambda: bind._SET_HUGEPAGE(False))()  # the hint as the call finds it
-        assert inside is False and bind._SET_HUGEPAGE(True) is True  # off inside, back on after
-
-        def fails():
-            raise ValueError("bad input")
-        with pytest.raises(ValueError):
-            bind.small_pages(fails)()
-        assert bind._SET_HUGEPAGE(True) is True  # put back after an error too
-        assert all(hasattr(f, "__wrapped__") for f in (HeadBinding.__init__, HeadBinding.displacements))
-    finally:
-        bind._SET_HUGEPAGE(original)

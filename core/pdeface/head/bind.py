@@ -48,8 +48,6 @@ one linear shape key per AU or expression, as on the PDE face.
 """
 from __future__ import annotations
 
-import functools
-
 import numpy as np
 
 from .. import landmark_scheme
@@ -153,41 +151,6 @@ USER_BLOCK = 1024
 #: AUs that move the jaw, and the gaze AUs.
 JAW_AUS = frozenset({25, 26, 27, 29, 30})
 GAZE_AUS = frozenset({61, 62, 63, 64})
-
-
-def _madvise_hugepage_setter():
-    """numpy's switch for asking the kernel for huge pages under its large arrays (None where it has none)."""
-    from importlib import import_module
-
-    for module in ("numpy._core.multiarray", "numpy.core.multiarray"):  # numpy 2, numpy 1.20+
-        try:
-            return import_module(module)._set_madvise_hugepage
-        except (ImportError, AttributeError):
-            continue
-    return None
-
-
-_SET_HUGEPAGE = _madvise_hugepage_setter()
-
-
-def small_pages(fn):
-    """Run ``fn`` with numpy's huge-page hint off, then put it back as it was.
-
-    numpy asks the kernel for 2 MB pages under arrays of 4 MB and more; where memory is fragmented (a busy
-    machine) each first touch of one may stall while the kernel compacts memory for it. ICT's rig, runs interleaved
-    in one process on a loaded machine: CPU median 1.27 s without the hint, 1.44 s with it, system time 0.11 s
-    (worst 0.17) against 0.21 s (worst 0.45) (issue #35). A hint only: the numbers are the same.
-    """
-    @functools.wraps(fn)
-    def run(*args, **kwargs):
-        if _SET_HUGEPAGE is None:
-            return fn(*args, **kwargs)
-        was = _SET_HUGEPAGE(False)
-        try:
-            return fn(*args, **kwargs)
-        finally:
-            _SET_HUGEPAGE(was)
-    return run
 
 
 def _barycentric_matrix(tri_vertices, bary, n_columns):
@@ -461,7 +424,6 @@ class HeadBinding:
         ICT-FaceKit's by default; None for the PDE face and its extension alone.
     """
 
-    @small_pages
     @bounded
     def __init__(self, model, vertices, triangles, landmarks=None, overrides=None, resolution=RESOLUTION,
                  prior="bundled"):
@@ -751,7 +713,6 @@ class HeadBinding:
         """
         return self.displacements([(delta_coefficients, delta_residual, jaw, gaze, lids)])[0]
 
-    @small_pages
     def displacements(self, motions) -> np.ndarray:
         """:meth:`displacement` of several ``(delta_coefficients, delta_residual, jaw, gaze[, lids])`` at once,
         (k, n, 3)."""
