@@ -15,7 +15,9 @@ lid's middle landmarks), each landmark followed by its nearest vertex:
 - AU12: each mouth corner rises ≥ 0.04 ED; L/R differ ≤ 25 %;
 - folds: edges of the user's mesh over 40° in a key that were under 20° at rest, ≤ 0.1 % of the edges
   or 2, for every key (the worst key is named); beside it the same over edges between skin faces alone
-  (ICT's own AU45 folds are its lashes and occlusion meshes: 345 of 401);
+  (ICT's own AU45 folds are its lashes and occlusion meshes: 345 of 401). Films on the eyes (the binding's
+  ``films``: ICT's occlusion and tear-line meshes, hidden under the lids; its own AU45 folds them 253 edges) are
+  left out, as the binding leaves them out of its relaxation;
 - spill: motion (mm, estimated unit) of the back of the head (more than 0.6 head depths behind the nose
   tip) and, on bodies, of everything more than 1.5 ED below the chin: ≤ 0.5 mm in every key;
 - the parts found (eyeballs, jaw pieces) and the binding's notes.
@@ -113,6 +115,7 @@ def measure(V, T, L, body, source, quick):
     rest_turn = turn_degrees(Vf, T, pairs)
     flat = rest_turn < 20
     on_skin = b.parts.mask("skin")[T[pairs]].all(axis=(1, 2))  # both faces skin (not lashes, teeth, eyeballs)
+    flat &= ~b.films[T[pairs]].all(axis=(1, 2))  # films on the eyes: their folds do not count (see HeadBinding)
     new = {n: flat & (turn_degrees(P, T, pairs) > 40) for n, P in posed.items()}
     folds = {n: int(m.sum()) for n, m in new.items()}
     skin_folds = {n: int((m & on_skin).sum()) for n, m in new.items()}

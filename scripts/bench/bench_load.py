@@ -1,6 +1,6 @@
 """Benchmark the head rig on a busy machine (issue #35: binding + all keys ≤ 1 s, quiet and beside other work).
 
-Usage: python -m scripts.bench.bench_load [--runs N] [--fit-runs N]
+Usage: python -m scripts.bench.bench_load [--runs N] [--fit-runs N] [--keys FILE.npy] [--profile N]
 
 The bundled ICT-FaceKit whole head (26,719 vertices) is fitted and the bundled descriptors retargeted
 once; then the timed work is what a rig does each time: ``HeadBinding`` (the PDE reads, the cotangent
@@ -12,6 +12,11 @@ same ways, fewer times. Every figure is also a ratio to the bounded, quiet media
 the machine's load average is printed, since other people's work runs beside it too.
 
 Target: binding + all keys ≤ 1 s in ≥ 9 of 10 runs beside the busy process, and ≤ 1 s quiet.
+
+``--keys FILE.npy``: the keys of the warm-up rig written to FILE where it does not exist, else compared with it (the
+largest difference printed): a change meant to leave the keys as they were, checked before and after it.
+``--profile N``: one rig under cProfile (CPU time, pdeface's bound), its N largest functions by own and by cumulative
+time, before the timed runs.
 """
 from __future__ import annotations
 
@@ -67,10 +72,40 @@ def times(work, threads, runs):
     return np.array(wall), np.array(cpu)
 
 
+def compare_keys(keys, path):
+    """Write ``keys`` (k, n, 3) to ``path`` where it does not exist, else print their largest difference from it."""
+    if not os.path.exists(path):
+        np.save(path, keys)
+        print(f"keys ({keys.shape[0]} keys, {keys.shape[1]} vertices) written to {path}")
+        return
+    was = np.load(path)
+    if was.shape != keys.shape:
+        print(f"keys: {path} holds {was.shape}, this run {keys.shape}: not comparable")
+        return
+    diff = np.abs(keys - was).max(axis=(1, 2))
+    print(f"keys against {path}: largest difference {diff.max():.3g} (the head's unit; largest key motion "
+          f"{np.abs(was).max():.3g}); {int((diff > 0).sum())} of {len(diff)} keys differ at all")
+
+
+def profile(work, top):
+    """Print ``work``'s ``top`` functions by own and by cumulative CPU time (cProfile, pdeface's BLAS bound)."""
+    import cProfile
+    import pstats
+
+    prof = cProfile.Profile(time.process_time)
+    with bounded_threads(THREADS):
+        prof.runcall(work)
+    stats = pstats.Stats(prof, stream=sys.stdout)
+    for order in ("tottime", "cumtime"):
+        stats.sort_stats(order).print_stats(top)
+
+
 def main(argv=None):
     ap = bench_parser(__doc__)
     ap.add_argument("--runs", type=int, default=10)
     ap.add_argument("--fit-runs", type=int, default=3)
+    ap.add_argument("--profile", type=int, default=0, help="print one rig's N largest functions (cProfile)")
+    ap.add_argument("--keys", help="a .npy of ICT's keys: written where missing, else compared with this run's")
     args = ap.parse_args(argv)
     cores = os.cpu_count()
     mesh, lm = load_head()
@@ -82,9 +117,13 @@ def main(argv=None):
     model = retarget(load_face("default"), fit())
 
     def rig():
-        HeadBinding(model, V, T).descriptor_displacements(model.descriptors)
+        return HeadBinding(model, V, T).descriptor_displacements(model.descriptors)
 
-    rig()  # warm: imports, the bundled prior read once
+    keys = rig()  # warm: imports, the bundled prior read once
+    if args.keys:
+        compare_keys(keys, args.keys)
+    if args.profile:
+        profile(rig, args.profile)
     print(f"{cores} cores; load average at the start: {load_text()}")
     print(f"the ICT head: {len(V)} vertices, {len(model.descriptors)} keys; {args.runs} runs of binding + all keys, "
           f"{args.fit_runs} of the fit, per row")

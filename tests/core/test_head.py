@@ -62,6 +62,22 @@ def test_parts_of_an_ict_head(head, generic):
     assert 10 < radius < 16 and centre[0] > 0  # mm; the subject's left is +x
 
 
+def test_the_films_on_the_eyes_are_icts_tear_and_occlusion_meshes_and_not_relaxed(generic):
+    # Left out of the folds' relaxation (issue #35): hidden under the lids, ICT's own blink crumples them.
+    from pdeface.head.bind import descriptor_motion_args
+
+    model, b = generic
+    named = np.concatenate([part_range(f"{part}_{side}") for part in ("lacrimal_fluid", "eye_occlusion")
+                            for side in ("left", "right")])
+    assert b.films[named].all() and b.films.sum() == len(named)  # the lashes, the eyes' blend meshes: not films
+    blink = next(d for d in model.descriptors if d.key == "45")
+    D = b.face_motions([descriptor_motion_args(blink)[:4]]).transpose(1, 0, 2)  # (n, 1, 3), as the keys relax it
+    bound = D.copy()
+    assert b._folds.relax(D)  # the blink folds the lids' margins: relaxed there
+    np.testing.assert_array_equal(D[b.films], bound[b.films])
+    assert np.abs(D - bound).max() > 0.01  # cm
+
+
 def test_keys_are_one_pose_each_and_linear_on_the_skin(generic):
     model, b = generic
     by_key = {d.key: d for d in model.descriptors}

@@ -80,7 +80,7 @@ from . import folds as fold_relax
 from .folds import FoldRelax, Screen
 from .lids import LidClosure, eyes_closed_by, eyes_or_sockets
 from .mouth import has_mouth_inside, lower_share
-from .parts import TOUCH_IOD, classify_parts, mouth_line, read_overrides
+from .parts import TOUCH_IOD, classify_parts, eye_films, mouth_line, read_overrides
 from .prior import load_head_prior
 
 #: The PDE face as the binding reads it: between an opening's rims the runs carry their own motion into the
@@ -505,7 +505,12 @@ class HeadBinding:
         depths = _depths(P, covered, Lf, eye_distance, parts.eyes)
         # The folds' relaxation's Laplacian (the head but a mouth bag) holds the skin's, where no triangle joins the
         # skin to another part (an override may): the same sums in the same order, built once.
-        fold_T = T[~parts.mask("mouth")[T].all(axis=1)]
+        # The films on the eyes (ICT's occlusion and tear-line meshes) are left out of it with the mouth bag: hidden under
+        # the lids, they crumple in ICT's own scanned blink (AU45: 253 folded edges, three times the issue's limit)
+        # and relaxing them took 0.2 s CPU of ICT's rig (issue #35); see docs/design/head.md.
+        self.films = eye_films(parts, Vf)
+        folded_T = ~(parts.mask("mouth") | self.films)[T].all(axis=1)
+        fold_T = T[folded_T]
         fold_L = cotan_laplacian(Vf, fold_T)
         self._L = L = fold_L[si][:, si] if len(Ts) == skin[fold_T].any(axis=1).sum() else cotan_laplacian(P, Ts)
         cov = np.nonzero(covered)[0]  # the grid read at every skin vertex (rows of the covered ones)
@@ -548,7 +553,8 @@ class HeadBinding:
         self._jaw_pins = si[kept & ~pinned[si]]
         pinned[self._jaw_pins] = True
         # (a mouth bag left out: pinned, and not counted in the head's share of folds: the head's keys as without it)
-        self._folds = FoldRelax(Vf, fold_T, pinned, fold_L, parts.pieces if len(fold_T) == len(T) else None)
+        whole = not np.isin(parts.pieces[T[~folded_T, 0]], parts.pieces[fold_T[:, 0]]).any()  # pieces left out whole
+        self._folds = FoldRelax(Vf, fold_T, pinned, fold_L, parts.pieces if whole else None)
 
         # Jaw: the chin that drives it, and the parts it turns.
         chin = covered & (P[:, 1] < Lf[LIP_LOWER_BOTTOM, 1] - 0.08 * eye_distance) & (np.abs(P[:, 0]) < abs(Lf[JAW_RIGHT_ANGLE, 0] - Lf[JAW_LEFT_ANGLE, 0]) / 2) \

@@ -64,6 +64,9 @@ TOUCH_IOD = 0.008
 NEAR_IOD = 0.15
 #: Eyeball diameter range, in eye distances (adults ~24 mm for ~63 mm IOD: 0.38).
 EYEBALL_IOD = (0.2, 0.6)
+#: An attached part lying within this many radii of an eyeball's centre, every vertex of it, is a film on the eye
+#: (ICT's occlusion and tear-line meshes: 0.96-1.16; its lashes reach 1.4-1.7).
+FILM_RADII = 1.2
 
 
 @dataclass
@@ -139,12 +142,14 @@ def classify_parts(Vf, T, Lf, hinge, overrides=None, welded=False) -> Parts:
     kind[skin] = CODE["skin"]
     skin_tree = cKDTree(Vf[skin])
 
-    # Each other part's vertices (ascending) and its gap to the skin: one sort and one query for them all.
+    # Each other part's vertices (ascending) and its gap to the skin: one sort and one query for them all, as far as
+    # NEAR_IOD (inf beyond: only the gaps within it are read; the bound prunes the search of the far parts: teeth)
     rest = np.nonzero(~skin)[0]
     rest = rest[np.argsort(lab[rest], kind="stable")]
     others, starts = np.unique(lab[rest], return_index=True)
     members = dict(zip(others.tolist(), np.split(rest, starts[1:])))
-    gaps = np.minimum.reduceat(skin_tree.query(Vf[rest])[0], starts) if len(rest) else []
+    gaps = np.minimum.reduceat(skin_tree.query(Vf[rest], distance_upper_bound=NEAR_IOD * s)[0], starts) \
+        if len(rest) else []
     gap = dict(zip(others.tolist(), map(float, gaps)))
 
     # Eyeballs: the roundest part of the right size behind each eye, and what lies inside its sphere.
@@ -220,6 +225,22 @@ JAW_CUT_IOD = 0.15
 #: its back stayed with the skull while its tip turned with the jaw, stretched into spikes and folded 14-40 edges in
 #: AU27 (issue #40); whole, it turns with the jaw and keeps its shape.
 SPLIT_REACH_IOD = 0.25
+
+
+def eye_films(parts: Parts, Vf) -> np.ndarray:
+    """(n,) bool: the attached parts that lie on an eyeball (within FILM_RADII of its centre, every vertex): films
+    over the eye under the lids (ICT's occlusion and tear-line meshes), ``Vf`` the vertices in the face frame."""
+    films = np.zeros(len(Vf), bool)
+    attached = np.nonzero(parts.mask("follow"))[0]
+    if not parts.eyes or not len(attached) or parts.pieces is None:
+        return films
+    order = np.argsort(parts.pieces[attached], kind="stable")
+    attached = attached[order]
+    pieces, starts = np.unique(parts.pieces[attached], return_index=True)
+    for centre, radius in parts.eyes.values():
+        reach = np.maximum.reduceat(np.linalg.norm(Vf[attached] - centre, axis=1), starts)
+        films |= np.isin(parts.pieces, pieces[reach < FILM_RADII * radius])
+    return films & parts.mask("follow")
 
 
 def override_indices(kind, indices, n_vertices) -> np.ndarray:
