@@ -30,20 +30,23 @@ def world_vertices(obj) -> np.ndarray:
     return V @ M[:3, :3].T + M[:3, 3]
 
 
-def triangles(mesh):
-    """Loop triangles: (t, 3) vertex indices and (t, 3) loop indices."""
+def triangles(mesh, loops=True):
+    """Loop triangles: (t, 3) vertex indices and (t, 3) loop indices (None unless ``loops``: not read)."""
     mesh.calc_loop_triangles()
     n = len(mesh.loop_triangles)
     tv = np.empty(n * 3, dtype=np.int32)
-    tl = np.empty(n * 3, dtype=np.int32)
     mesh.loop_triangles.foreach_get("vertices", tv)
+    if not loops:
+        return tv.reshape(-1, 3).astype(np.int64), None
+    tl = np.empty(n * 3, dtype=np.int32)
     mesh.loop_triangles.foreach_get("loops", tl)
     return tv.reshape(-1, 3).astype(np.int64), tl.reshape(-1, 3).astype(np.int64)
 
 
-def as_pdeface_mesh(mesh):
+def as_pdeface_mesh(mesh, coords=True):
     """A Blender mesh's polygons as a pdeface Mesh (object space), corners in polygon order,
-    with the active UV layer's coordinates where it has one."""
+    with the active UV layer's coordinates where it has one; ``coords=False``: the polygons alone (vertices
+    left unset, no UVs), not read."""
     counts = np.empty(len(mesh.polygons), dtype=np.int32)
     starts = np.empty(len(mesh.polygons), dtype=np.int32)
     mesh.polygons.foreach_get("loop_total", counts)
@@ -52,8 +55,9 @@ def as_pdeface_mesh(mesh):
     mesh.loops.foreach_get("vertex_index", corners)
     first = np.repeat(np.cumsum(counts) - counts, counts)
     loops = np.repeat(starts, counts) + np.arange(counts.sum()) - first  # each polygon's loops, in polygon order
-    out = Mesh(vertices(mesh), counts.astype(np.int64), corners[loops].astype(np.int64))
-    if mesh.uv_layers.active is not None:
+    V = vertices(mesh) if coords else np.empty((len(mesh.vertices), 3))
+    out = Mesh(V, counts.astype(np.int64), corners[loops].astype(np.int64))
+    if coords and mesh.uv_layers.active is not None:
         out.uvs, out.face_uv_indices = loop_uvs(mesh), loops.astype(np.int64)
     return out
 
@@ -71,7 +75,7 @@ def polygon_triangles(mesh) -> np.ndarray:
     binding a head on the same triangles as ``pdeface pose --mesh`` makes the
     keys equal to its poses.
     """
-    return as_pdeface_mesh(mesh).triangles()[0]
+    return as_pdeface_mesh(mesh, coords=False).triangles()[0]
 
 
 def loop_uvs(mesh, layer=None) -> np.ndarray:
@@ -108,9 +112,19 @@ def new_mesh(name, pde_mesh):
 
 
 def store_model(obj, model, data=None):
-    """Keep the model on the object; ``data``: its file's bytes when at hand (saves re-encoding)."""
-    obj.pdeface.model_data = base64.b64encode(data or model_to_bytes(model)).decode("ascii")
-    _models.pop(obj.as_pointer(), None)
+    """Keep the model on the object; ``data``: the file's bytes ``model`` was read from, when at hand (saves
+    re-encoding, and reading them back: ``model`` is cached as what they read to).
+
+    Encoded anew, the model is read back once it is asked for (:func:`face_model`): keys are made from what the
+    .blend keeps, so a reopened file makes the same. Written ``fast`` (the same format, deflated less): a third of
+    the time, as a fitted head is made.
+    """
+    text = base64.b64encode(data or model_to_bytes(model, fast=True)).decode("ascii")
+    obj.pdeface.model_data = text
+    if data is None:
+        _models.pop(obj.as_pointer(), None)
+    else:
+        _models[obj.as_pointer()] = (hash(text), model)
 
 
 def face_model(obj):

@@ -182,7 +182,7 @@ def fit_face_object(context, src, landmarks, unit=None, resolution="default", re
     """
     step = progress or (lambda i, msg: None)
     V = bridge.vertices(src.data)
-    T, _ = bridge.triangles(src.data)
+    T, _ = bridge.triangles(src.data, loops=False)
     if len(T) == 0:
         raise PdeFaceError(f"{src.name} has no faces")
     skin, listed = None, head.group_members(src, "skin")

@@ -176,7 +176,7 @@ def snap(context, obj):
         raise LandmarkError(f"{obj.name} has no landmark empties: Find Landmarks or Import Landmarks first")
     points = empty_points(obj)
     V = bridge.vertices(obj.data)
-    T, _ = bridge.triangles(obj.data)
+    T, _ = bridge.triangles(obj.data, loops=False)
     eyes = eye_distance(points)
     frame = face_frame(points)
     R = frame.rotation
@@ -198,7 +198,7 @@ def snap(context, obj):
 def mesh_arrays(obj):
     """Vertices (object space) and triangles of mesh object ``obj``, read from Blender once for a find and its
     gate."""
-    return bridge.vertices(obj.data), bridge.triangles(obj.data)[0]
+    return bridge.vertices(obj.data), bridge.triangles(obj.data, loops=False)[0]
 
 
 def gate(obj, points, unit=None, skin=None, arrays=None):

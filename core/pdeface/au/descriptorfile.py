@@ -148,14 +148,14 @@ def descriptor_from_json(obj, where="descriptor") -> Descriptor:
                       source=str(obj.get("source", "")), notice=str(obj.get("notice", "")), extra=extra)
 
 
-def descriptor_to_bytes(d: Descriptor) -> bytes:
-    """The compact binary form (see the module docs)."""
+def descriptor_to_bytes(d: Descriptor, level: int = 9) -> bytes:
+    """The compact binary form (see the module docs), deflated at zlib ``level`` (any level reads the same)."""
     meta = _meta(d)
     codes, step = encode_residual(d.points(), POINT_STEP_MM, order=2)
     meta["point_step"] = step
     head = json.dumps(meta, separators=(",", ":")).encode()
     body = d.curves.astype(np.uint8).tobytes() + np.ascontiguousarray(codes.transpose(0, 2, 1)).astype("<i2").tobytes()
-    return MAGIC + zlib.compress(struct.pack("<I", len(head)) + head + body, 9)
+    return MAGIC + zlib.compress(struct.pack("<I", len(head)) + head + body, level)
 
 
 def descriptor_from_bytes(data: bytes, where="descriptor") -> Descriptor:
@@ -203,9 +203,9 @@ def load_descriptor(path) -> Descriptor:
     return descriptor_from_json(parse_json(data, f"{path} (neither a binary descriptor nor JSON)"), str(path))
 
 
-def pack_descriptors(descriptors) -> dict:
-    """npz members carrying descriptors inside a face model file."""
-    blobs = [descriptor_to_bytes(d) for d in descriptors]
+def pack_descriptors(descriptors, level: int = 9) -> dict:
+    """npz members carrying descriptors inside a face model file (each deflated at zlib ``level``)."""
+    blobs = [descriptor_to_bytes(d, level) for d in descriptors]
     offsets = np.cumsum([0] + [len(b) for b in blobs]).astype(np.int64)
     return {"descriptors": np.frombuffer(b"".join(blobs), np.uint8), "descriptor_offsets": offsets}
 

@@ -93,8 +93,12 @@ def _member(z, name, path):
         raise ModelFormatError(f"{path}: field {name!r} is not a plain array ({exc})") from None
 
 
-def model_to_bytes(model: FaceModel, descriptors: bool = True) -> bytes:
-    """The model file's bytes (with or without the descriptors it carries)."""
+def model_to_bytes(model: FaceModel, descriptors: bool = True, fast: bool = False) -> bytes:
+    """The model file's bytes (with or without the descriptors it carries).
+
+    ``fast``: written in a third of the time, about 10 % larger (the descriptors deflated at zlib's level 1, the
+    archive stored): the same file format, read back to the same model; for a copy kept in memory or a .blend.
+    """
     q, step = encode_residual(model.residual, order=2)
     cq, cstep = encode_coefficients(model.coefficients)
     meta = {"format": FORMAT, "version": VERSION, "unit": model.frame.unit, "n_modes": model.n_modes,
@@ -121,8 +125,8 @@ def model_to_bytes(model: FaceModel, descriptors: bool = True) -> bytes:
     if model.status is not None:
         arrays["status"] = np.asarray(model.status, np.uint8)
     if descriptors and model.descriptors:
-        arrays.update(pack_descriptors(model.descriptors))
-    return npz_bytes(arrays)
+        arrays.update(pack_descriptors(model.descriptors, level=1 if fast else 9))
+    return npz_bytes(arrays, compress=not fast)
 
 
 def model_nbytes(model: FaceModel) -> int:
