@@ -21,6 +21,7 @@ from ..geometry import ClosestPoint, similarity
 from ..landmark_scheme import eye_distance
 from ..mesh import connected_components
 from ..surface.frame import face_frame
+from .register import settle_on_skin
 
 #: The brow region of ICT's generic head: heights above the eye centres and half its width (eye distances);
 #: its points lie in front of :data:`DEPTH` behind the eye centres (the face, not the temples' sides).
@@ -28,9 +29,6 @@ BAND, HALF_WIDTH, DEPTH = (0.0, 0.6), 0.8, 0.35
 #: The found landmarks that pose the region and stay in its fit: the eyes and the nose bridge's top.
 ANCHORS = (*range(36, 48), 27, 28)
 BROWS = range(17, 27)
-#: Closest-point iterations at most, and the share of pairs kept each time (the nearest: a region's edge may hang
-#: over the skin's); they stop once the region moves less than :data:`SETTLED` (eye distances).
-ITERATIONS, KEEP, SETTLED = 15, 0.9, 1e-3
 #: At most this many of the region's vertices take part (evenly spread by their numbering).
 MAX_POINTS = 600
 
@@ -73,15 +71,6 @@ def brows_from_template(V, T, points, closest: ClosestPoint | None = None) -> np
     anchors = list(ANCHORS)
     closest = ClosestPoint(V, T) if closest is None else closest
     s, R, t = similarity(L[anchors], out[anchors])
-    Q = s * region @ R.T + t
-    for _ in range(ITERATIONS):
-        C = closest.query(Q)[3]
-        d = np.linalg.norm(C - Q, axis=1)
-        near = d <= np.quantile(d, KEEP)
-        _, R, t = similarity(s * np.concatenate([region[near], L[anchors]]),
-                             np.concatenate([C[near], out[anchors]]), scale=False)
-        Q, was = s * region @ R.T + t, Q
-        if np.abs(Q - was).max() < SETTLED * eye_distance(out):
-            break
+    R, t = settle_on_skin(closest, region, L[anchors], out[anchors], (s, R, t), eye_distance(out))
     out[list(BROWS)] = closest.query(s * L[list(BROWS)] @ R.T + t)[3]
     return out

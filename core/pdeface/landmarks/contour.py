@@ -46,6 +46,7 @@ from ..geometry import ClosestPoint, ray_triangle, similarity, smoothstep
 from ..landmark_scheme import eye_distance
 from ..mesh import connected_components
 from ..surface.frame import face_frame
+from .register import settle_on_skin
 
 #: The jaw points taken to the template's depth behind the eyes. The chin's (6-10) face the viewer, their ray hits
 #: them squarely; the angles (5, 11) keep the detector's depth (see the module's docstring).
@@ -143,9 +144,6 @@ SIDE, BAND, DEPTH = 0.3, (-1.9, 0.4), 1.0
 #: The found landmarks that pose each side and stay in its fit: the eye corners, the nose's tip and bottom, the
 #: mouth's corners.
 ANCHORS = (36, 39, 42, 45, 30, 33, 48, 54)
-#: Closest-point iterations at most, and the share of pairs kept each time (the nearest: the region's edge may hang
-#: over the skin's); they stop once the region moves less than :data:`SETTLED` (eye distances).
-ITERATIONS, KEEP, SETTLED = 15, 0.9, 1e-3
 #: At most this many of a side's vertices take part (evenly spread by their numbering).
 MAX_POINTS = 600
 #: How far (eye distances) a found side point and the registered one may lie apart before the registered one begins
@@ -196,17 +194,7 @@ def jaw_sides_from_template(V, T, points, closest: ClosestPoint | None = None) -
     closest = ClosestPoint(V, T) if closest is None else closest
     s, R0, t0 = similarity(L[anchors], out[anchors])
     for rows, region in zip(SIDES, sides):
-        R, t = R0, t0
-        Q = s * region @ R.T + t
-        for _ in range(ITERATIONS):
-            C = closest.query(Q)[3]
-            d = np.linalg.norm(C - Q, axis=1)
-            near = d <= np.quantile(d, KEEP)
-            _, R, t = similarity(s * np.concatenate([region[near], L[anchors]]),
-                                 np.concatenate([C[near], out[anchors]]), scale=False)
-            Q, was = s * region @ R.T + t, Q
-            if np.abs(Q - was).max() < SETTLED * eye_distance(out):
-                break
+        R, t = settle_on_skin(closest, region, L[anchors], out[anchors], (s, R0, t0), eye_distance(out))
         rows = list(rows)
         registered = closest.query(s * L[rows] @ R.T + t)[3]
         gap = np.linalg.norm(registered - out[rows], axis=1) / eye_distance(out)

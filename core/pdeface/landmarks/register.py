@@ -1,0 +1,50 @@
+"""A region of ICT's generic head laid rigidly onto a character's skin by iterated closest points.
+
+Shared by the brows (:mod:`.brows`) and the jaw's sides (:mod:`.contour`): each poses its region by found
+landmarks it trusts (a similarity), then lets the region settle on the skin with those anchors kept in the fit, so
+the region's own landmarks can be read off where they land.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..geometry import ClosestPoint, similarity
+
+#: Closest-point iterations at most, and the share of pairs kept each time (the nearest: a region's edge may hang
+#: over the skin's); they stop once the region moves less than :data:`SETTLED` (eye distances).
+ITERATIONS, KEEP, SETTLED = 15, 0.9, 1e-3
+
+
+def settle_on_skin(closest: ClosestPoint, region, model_anchors, found_anchors, pose, eye_distance: float):
+    """The rigid motion that lays ``region`` onto the skin, its scale held.
+
+    Parameters
+    ----------
+    closest : ClosestPoint
+        On the character's skin.
+    region : (n, 3) array
+        The region's points on ICT's generic head.
+    model_anchors, found_anchors : (a, 3) arrays
+        The anchors on ICT's head and where they were found on the character; they stay in every fit.
+    pose : tuple
+        ``(s, R, t)``: the starting similarity (from the anchors); ``s`` is kept.
+    eye_distance : float
+        The character's eye distance (the stopping rule's unit).
+
+    Returns
+    -------
+    R, t : arrays
+        The rotation (3, 3) and translation (3,) such that ``s * region @ R.T + t`` lies on the skin.
+    """
+    s, R, t = pose
+    Q = s * region @ R.T + t
+    for _ in range(ITERATIONS):
+        C = closest.query(Q)[3]
+        d = np.linalg.norm(C - Q, axis=1)
+        near = d <= np.quantile(d, KEEP)
+        _, R, t = similarity(s * np.concatenate([region[near], model_anchors]),
+                             np.concatenate([C[near], found_anchors]), scale=False)
+        Q, was = s * region @ R.T + t, Q
+        if np.abs(Q - was).max() < SETTLED * eye_distance:
+            break
+    return R, t
