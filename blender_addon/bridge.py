@@ -46,7 +46,7 @@ def triangles(mesh, loops=True):
 def as_pdeface_mesh(mesh, coords=True):
     """A Blender mesh's polygons as a pdeface Mesh (object space), corners in polygon order,
     with the active UV layer's coordinates where it has one; ``coords=False``: the polygons alone (vertices
-    left unset, no UVs), not read."""
+    zero, no UVs), not read."""
     counts = np.empty(len(mesh.polygons), dtype=np.int32)
     starts = np.empty(len(mesh.polygons), dtype=np.int32)
     mesh.polygons.foreach_get("loop_total", counts)
@@ -55,7 +55,7 @@ def as_pdeface_mesh(mesh, coords=True):
     mesh.loops.foreach_get("vertex_index", corners)
     first = np.repeat(np.cumsum(counts) - counts, counts)
     loops = np.repeat(starts, counts) + np.arange(counts.sum()) - first  # each polygon's loops, in polygon order
-    V = vertices(mesh) if coords else np.empty((len(mesh.vertices), 3))
+    V = vertices(mesh) if coords else np.zeros((len(mesh.vertices), 3))  # zeros: never garbage or NaN
     out = Mesh(V, counts.astype(np.int64), corners[loops].astype(np.int64))
     if coords and mesh.uv_layers.active is not None:
         out.uvs, out.face_uv_indices = loop_uvs(mesh), loops.astype(np.int64)

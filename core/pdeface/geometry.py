@@ -158,7 +158,8 @@ def cylinder_ray_candidates(V, T, axis_z, theta, height) -> tuple[np.ndarray, np
     cell = (i0[tid] + k % span_i[tid]) * ncell[1] + j0[tid] + k // span_i[tid]
     order = np.argsort(cell, kind="stable")
     cell, tid = cell[order], tid[order]
-    qcell = np.where(q_ok, cell_of(np.where(q_ok, theta, qlo[0]), 0) * ncell[1] + cell_of(np.where(q_ok, height, qlo[1]), 1), -1)
+    qcell = np.where(q_ok, cell_of(np.where(q_ok, theta, qlo[0]), 0) * ncell[1]
+                     + cell_of(np.where(q_ok, height, qlo[1]), 1), -1)
     start = np.searchsorted(cell, qcell, "left")
     counts = np.where(q_ok, np.searchsorted(cell, qcell, "right") - start, 0)
     rays = np.repeat(np.arange(len(theta)), counts)

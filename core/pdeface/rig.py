@@ -58,12 +58,12 @@ def warm_up(landmarks=True):
     """
     for name in CHAIN_MODULES:
         importlib.import_module(name)
-    if landmarks:
-        available()
     try:
         load_head_prior()
     except PdeFaceError:
         pass  # an install without it: the binding says so when it runs
+    if landmarks:  # last: an optional extra that fails to load leaves the rest loaded
+        available()
 
 
 def save_keys(path, vertices, triangles, landmarks, names, deltas, unit, source="") -> int:

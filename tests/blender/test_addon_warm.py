@@ -13,8 +13,8 @@ def test_warm_up_is_off_in_background_and_loads_the_core_on_its_thread_when_star
     assert bpy.app.background and not bpy.app.timers.is_registered(warm.start)  # no thread beside a script
     warm.start()
     warm.start()  # once a session
-    assert len(warm._thread) == 1 and warm._thread[0].name == "pdeface warm-up"
+    assert len(warm._started) == 1 and warm._started[0].name == "pdeface warm-up"
     assert bpy.ops.pdeface.add_default_face() == {"FINISHED"}  # an operator waits for it first
-    assert not warm._thread[0].is_alive()
+    assert not warm._started[0].is_alive()
     assert all(m in sys.modules for m in CHAIN_MODULES)
     assert load_head_prior.cache_info().currsize == 1

@@ -505,12 +505,12 @@ class HeadBinding:
         depths = _depths(P, covered, Lf, eye_distance, parts.eyes)
         # The folds' relaxation's Laplacian (the head but a mouth bag) holds the skin's, where no triangle joins the
         # skin to another part (an override may): the same sums in the same order, built once.
-        # The films on the eyes (ICT's occlusion and tear-line meshes) are left out of it with the mouth bag: hidden under
-        # the lids, they crumple in ICT's own scanned blink (AU45: 253 folded edges, three times the issue's limit)
-        # and relaxing them took 0.2 s CPU of ICT's rig (issue #35); see docs/design/head.md.
+        # The films on the eyes (ICT's occlusion and tear-line meshes) are left out of it with the mouth bag: hidden
+        # under the lids, they crumple in ICT's own scanned blink (AU45: 253 folded edges, three times the issue's
+        # limit) and relaxing them took 0.2 s CPU of ICT's rig (issue #35); see docs/design/head.md.
         self.films = eye_films(parts, Vf)
-        folded_T = ~(parts.mask("mouth") | self.films)[T].all(axis=1)
-        fold_T = T[folded_T]
+        relaxed_T = ~(parts.mask("mouth") | self.films)[T].all(axis=1)
+        fold_T = T[relaxed_T]
         fold_L = cotan_laplacian(Vf, fold_T)
         self._L = L = fold_L[si][:, si] if len(Ts) == skin[fold_T].any(axis=1).sum() else cotan_laplacian(P, Ts)
         cov = np.nonzero(covered)[0]  # the grid read at every skin vertex (rows of the covered ones)
@@ -553,7 +553,7 @@ class HeadBinding:
         self._jaw_pins = si[kept & ~pinned[si]]
         pinned[self._jaw_pins] = True
         # (a mouth bag left out: pinned, and not counted in the head's share of folds: the head's keys as without it)
-        whole = not np.isin(parts.pieces[T[~folded_T, 0]], parts.pieces[fold_T[:, 0]]).any()  # pieces left out whole
+        whole = not np.isin(parts.pieces[T[~relaxed_T, 0]], parts.pieces[fold_T[:, 0]]).any()  # pieces left out whole
         self._folds = FoldRelax(Vf, fold_T, pinned, fold_L, parts.pieces if whole else None)
 
         # Jaw: the chin that drives it, and the parts it turns.

@@ -223,7 +223,22 @@ def npz_bytes(arrays: dict, compress: bool = True) -> bytes:
 
 def write_npz(path, arrays: dict, compress: bool = True) -> int:
     """Write the bytes :func:`npz_bytes` gives to ``path`` atomically (see :func:`atomic_open`), member by member
-    (no copy of the whole archive in memory: a head's keys are tens of MB); returns the file's length."""
+    (no copy of the whole archive in memory: a head's keys are tens of MB).
+
+    Parameters
+    ----------
+    path : str or Path
+        The archive to write; an existing file there is replaced only once the new one is whole.
+    arrays : dict
+        Member name (without ``.npy``) to array.
+    compress : bool
+        Deflate the members (as ``numpy.savez_compressed``) or store them.
+
+    Returns
+    -------
+    int
+        The file's length in bytes.
+    """
     with atomic_open(path, "wb") as fh:
         _write_npz(fh, arrays, compress)
         return fh.tell()

@@ -278,7 +278,8 @@ def _plain_decimals(text: bytes, b, at, end):
         return bad
     frac_digits = np.zeros(len(at), np.int64)
     frac_digits[of] = end[of] - dot - 1
-    if len(dot) == len(at) and len(at) and (frac_digits == frac_digits[0]).all():  # as many decimals in each (the usual file)
+    # as many decimals in each number (the usual file)
+    if len(dot) == len(at) and len(at) and (frac_digits == frac_digits[0]).all():
         frac_digits = frac_digits[0]  # one power of ten for all: no table look-up per number
     if len(dot) == len(at) and np.count_nonzero(b[:len(text)] == ord("-")) == np.count_nonzero(minus):
         # -digits.digits each (a sign only in front): the two runs of digits read digit by digit.

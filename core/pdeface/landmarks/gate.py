@@ -172,9 +172,19 @@ def buried(V, T, points, frame, eyes) -> np.ndarray:
 
 
 def jaw_pair_offsets(F) -> np.ndarray:
-    """How far each right jaw point (0-7, in the face frame ``F``, eye distances) lies from its left partner's
-    mirror image once a shift and a turn of the midline are fitted out: the pairs' offsets less their least-squares
-    fit, linear in the pair's width."""
+    """How far each right jaw point lies from its left partner's mirror image, the jaw's own midline fitted out.
+
+    Parameters
+    ----------
+    F : (68, 3) array
+        The landmarks in the face frame, in eye distances.
+
+    Returns
+    -------
+    (8,) array
+        For jaw points 0-7: the pair's offset from mirror images less its least-squares fit linear in the pair's
+        width (a shift and a turn of the midline), so one point off shows where a turned frame does not.
+    """
     right = np.arange(8)
     d = F[right] - F[[MIRROR[i] for i in right]] * [-1, 1, 1]
     A = np.stack([np.ones(len(right)), F[right, 0]], 1)

@@ -190,7 +190,8 @@ def refined_skin(V_face, skin, layout):
         c = (y[T[:, 0]] + y[T[:, 1]] + y[T[:, 2]]) / 3  # the centres' heights (all a 100k head's centres: 0.05 s)
         near = (c > layout.heights.min() - 10) & (c < layout.heights.max() + 10)
         a, b, c = (V[T[near, k]] for k in range(3))  # every edge of each triangle: a 100k head's in 0.02 s
-        edge = float(np.median(np.concatenate([row_norms(b - a), row_norms(c - b), row_norms(a - c)]))) if near.any() else 0.0
+        sides = [row_norms(b - a), row_norms(c - b), row_norms(a - c)]
+        edge = float(np.median(np.concatenate(sides))) if near.any() else 0.0
         if edge <= (COARSE_EDGE if S is None else FINE_EDGE) * spacing:
             break
         step, fine = butterfly_step(len(V), T[near])

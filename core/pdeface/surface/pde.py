@@ -247,7 +247,8 @@ def _smooth_coefficients(knots: tuple, k: float, breaks: tuple = (), break_slope
     # derivative continuous at the second and last-but-one curves of each run
     joins = [(i, d) for i in range(1, K - 1) for d in ((1,) if i in ends else (1, 2))]
     bounds = [0, *sorted(ends), K - 1]
-    joins += [(i, 3) for first, last in zip(bounds[0::2], bounds[1::2]) for i in (first + 1, last - 1)] if K >= 4 else []
+    if K >= 4:
+        joins += [(i, 3) for first, last in zip(bounds[0::2], bounds[1::2]) for i in (first + 1, last - 1)]
     i, d = np.array(joins, dtype=np.int64).reshape(-1, 2).T
     # Into and out of a break piece the u-slope shrinks to break_slope of the run's: the same tangent
     # direction (so no crease), but the piece no longer overshoots where its rims nearly meet.
