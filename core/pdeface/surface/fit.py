@@ -187,8 +187,8 @@ def refined_skin(V_face, skin, layout):
     for _ in range(MAX_REFINE):
         V = V_face if S is None else S @ V_face
         y = V[:, 1]
-        c = (y[T[:, 0]] + y[T[:, 1]] + y[T[:, 2]]) / 3  # the centres' heights (all a 100k head's centres: 0.05 s)
-        near = (c > layout.heights.min() - 10) & (c < layout.heights.max() + 10)
+        centre_y = (y[T[:, 0]] + y[T[:, 1]] + y[T[:, 2]]) / 3  # the centres' heights (a 100k head's: 0.05 s)
+        near = (centre_y > layout.heights.min() - 10) & (centre_y < layout.heights.max() + 10)
         a, b, c = (V[T[near, k]] for k in range(3))  # every edge of each triangle: a 100k head's in 0.02 s
         sides = [row_norms(b - a), row_norms(c - b), row_norms(a - c)]
         edge = float(np.median(np.concatenate(sides))) if near.any() else 0.0
