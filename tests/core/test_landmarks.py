@@ -516,6 +516,28 @@ def test_jaw_sides_slid_along_the_contour_come_back_to_the_identitys_own(heads, 
         assert np.array_equal(jaw_sides_from_template(V, T, L), L)
 
 
+@pytest.mark.parametrize("name", ["identity002", "identity015", "identity019"])
+def test_jaw_angles_slid_along_the_contour_come_back_to_the_identitys_own(heads, name):
+    # A frontal detector sees the jaw's angle edge on: it may lie anywhere along the contour. Slid 0.12 eye
+    # distances forward (toward the chin) or back on the skin, each comes back near the identity's own, where ICT's
+    # points around it place it; left where they are, an identity's own angles stay (bit for bit).
+    from pdeface.landmarks.contour import ANGLES, jaw_angles_from_neighbours
+
+    mesh, T, lm, shapes = heads
+    V = mesh.vertices + shapes[name]
+    L = V[lm]
+    rows = list(ANGLES)
+    for shift in (0.12, -0.12):
+        moved, _, eyes = _moved_on_skin(V, T, L, rows, 2, shift)
+        before = np.linalg.norm(moved - L, axis=1)[rows] / eyes
+        back = jaw_angles_from_neighbours(V, T, moved)
+        after = np.linalg.norm(back - L, axis=1)[rows] / eyes
+        assert before.min() > 0.08 and after.max() < 0.015, (shift, before, after)
+        others = np.setdiff1d(np.arange(68), rows)
+        assert np.array_equal(back[others], moved[others])  # only the angles move
+    assert np.array_equal(jaw_angles_from_neighbours(V, T, L), L)
+
+
 @pytest.mark.parametrize("name", ["identity015", "identity019"])
 def test_inner_lip_corners_on_the_lips_front_go_back_into_the_lip_line(heads, name):
     # The map may put the inner lip corners on the lips' front, in front of the commissure (MakeHuman's

@@ -35,7 +35,7 @@ from ..rigid import rotation_vector_matrix
 from ..surface.frame import UNITS_MM, estimate_unit
 from ..threads import bounded
 from .brows import brows_from_template
-from .contour import jaw_sides_from_template, upper_jaw_at_template_depth
+from .contour import jaw_angles_from_neighbours, jaw_sides_from_template, upper_jaw_at_template_depth
 from .detector import Detector
 from .eyes import lids_on_margin
 from .facemap import GROUPS, LandmarkMap, read_map, robust_similarity
@@ -387,6 +387,8 @@ def detect(V, T, unit=None, landmark_map: LandmarkMap | None = None, detector: D
         points = upper_jaw_at_template_depth(V, T[skin], points)
         # The jaw's sides where ICT's side of the face laid onto the skin puts them, where the two disagree.
         points = jaw_sides_from_template(V, T[skin], points, closest)
+        # The jaw's angles where the points around them say, not where a ray grazing the angle met it.
+        points = jaw_angles_from_neighbours(V, T[skin], points, closest)
         # The lid points on the margin's front edge, not on its curl into the socket.
         points = lids_on_margin(V, T[skin], points)
         # The brows with the brow ridge (ICT's brow region laid onto the skin), not at ICT's height above the eyes.
