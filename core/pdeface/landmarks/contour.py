@@ -43,7 +43,7 @@ are seen better: up the ramus (2-4, after the steps above) and along the lower b
 viewer). Where the lines through them meet is the angle, so ICT's generic head's six points, laid onto those six by
 a similarity, carry its own angle there, taken to the nearest skin point, wherever that and the found one disagree by
 more than ICT's heads make them (:data:`ANGLE_DISAGREE`, faded). Development set, angles against the skin points
-6.5/7.2 -> 3.8/3.9 % (with the skin points themselves as the six: 2.6); fewer points (4 and 6 alone) left the
+6.5/7.2 -> 3.9/3.9 % (with the skin points themselves as the six: 2.6); fewer points (4 and 6 alone) left the
 border's line unsaid and scored 9.3/8.4.
 """
 from __future__ import annotations
