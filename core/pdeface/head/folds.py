@@ -392,6 +392,8 @@ class FoldRelax:
     def _keep_out(self, X, d, vertex, rows):
         """Rows ``rows`` of displacements ``d`` (of vertices ``vertex``, at rest ``X``) inside their ball put back on
         its surface, in place."""
+        if not len(rows):  # most sweeps keep no lid out of an eyeball
+            return
         c, r = self.ball_centre[vertex[rows]], self.ball_radius[vertex[rows], None]
         p = X[rows] + d[rows] - c
         rho = np.linalg.norm(p, axis=1, keepdims=True)
