@@ -147,7 +147,9 @@ class FoldRelax:
             key_ids = keys[slot] * n_pairs + pair
             at = np.minimum(np.searchsorted(was, key_ids), max(len(was) - 1, 0))
             kept = (was[at] == key_ids) if len(was) else np.zeros(len(ids), bool)
-            kept &= ~screen.moved_mask[self.corners[pair], keys[slot][:, None]].any(axis=1)
+            # each corner's (vertex, key) read from the flat mask: faster than numpy's two-array indexing
+            moved = screen.moved_mask.reshape(-1)[self.corners[pair] * D.shape[1] + keys[slot][:, None]]
+            kept &= ~moved.any(axis=1)
             fold = np.empty(len(ids), bool)
             fold[kept] = was_folded[at[kept]]
             measure = ~kept
