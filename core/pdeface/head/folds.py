@@ -189,15 +189,18 @@ class FoldRelax:
         """
         n, k = len(D), len(keys)
         D32 = (D if every else D[:, keys]).astype(np.float32, order="C").reshape(n, 3 * k)
-        off = (self._mean32 @ D32 - D32).reshape(n, k, 3)
+        off = self._mean32 @ D32
+        off -= D32  # in place: no second fresh (n, 3k) array
+        off = off.reshape(n, k, 3)
         line = SCREEN * self.edge_length[:, None]
         # float32's error in a (vertex, key)'s offset: a unit of rounding of the largest displacement per term of its
         # sum (a neighbour, itself, the cast), per axis; twice that is a wide margin
         largest = max(float(D32.max(initial=0.0)), -float(D32.min(initial=0.0)))
         margin = 2 * (self._most_neighbours + 3) * np.finfo(np.float32).eps * largest
         d2 = off[..., 0] * off[..., 0]  # (twice as fast as einsum's sum over an axis of 3)
-        d2 += off[..., 1] * off[..., 1]
-        d2 += off[..., 2] * off[..., 2]
+        square = np.multiply(off[..., 1], off[..., 1])
+        d2 += square
+        d2 += np.multiply(off[..., 2], off[..., 2], out=square)
         bent = d2 > ((line + margin) ** 2).astype(np.float32)
         near_v, near_k = np.nonzero((d2 > (np.maximum(line - margin, 0.0) ** 2).astype(np.float32)) & ~bent)
         if len(near_v):
