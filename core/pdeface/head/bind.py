@@ -379,12 +379,12 @@ def _depths(P, covered, Lf, eye_distance, eyes):
 
 
 def _seam_smoother(P, L, covered, rest, Lf, eye_distance):
-    """``(band, reads, S, at, weight, steps)``: the skin at the openings' corners near their lining (skin the PDE
-    face does not cover), the skin those steps read (the band and its neighbours), the map from the read skin to
-    each band vertex's neighbours' mean motion (cotangent weights: a harmonic lining is left as it is), the band's
-    rows among the read ones, and how far each relaxes per step (fading to 0 at the band's edges: no new step
-    there); None when SEAM_STEPS is 0 or there is no band."""
-    from scipy.sparse import diags
+    """``(band, reads, S, weight, steps)``: the skin at the openings' corners near their lining (skin the PDE
+    face does not cover), the skin those steps read (the band first, then its other neighbours), the map from the
+    read skin to each band vertex's neighbours' mean motion (cotangent weights: a harmonic lining is left as it is),
+    and how far each relaxes per step (fading to 0 at the band's edges: no new step there); None when SEAM_STEPS is
+    0 or there is no band."""
+    from scipy.sparse import csr_matrix, diags
     from scipy.spatial import cKDTree
 
     lining = ~covered & ~rest
@@ -402,7 +402,15 @@ def _seam_smoother(P, L, covered, rest, Lf, eye_distance):
     W = (diags(L.diagonal()) - L).tocsr()  # the Laplacian's (clamped, positive) neighbour weights
     S = (diags(1.0 / np.maximum(L.diagonal(), 1e-300)) @ W)[band].tocsr()
     reads = np.union1d(band, S.indices)  # a few hundred rows of the skin's, not all of it for every key
-    return band, reads, S[:, reads].tocsr(), np.searchsorted(reads, band), weight[band, None], SEAM_STEPS
+    S = S[:, reads].tocsr()
+    # The band's rows first: each step reads and writes them as one slice. The columns renamed in place, each row's
+    # terms kept in their order: the same sums.
+    at = np.searchsorted(reads, band)
+    order = np.concatenate([at, np.setdiff1d(np.arange(len(reads)), at)])
+    renamed = np.empty(len(reads), S.indices.dtype)
+    renamed[order] = np.arange(len(reads))
+    S = csr_matrix((S.data, renamed[S.indices], S.indptr), shape=S.shape)
+    return band, reads[order], S, weight[band, None], SEAM_STEPS
 
 
 class HeadBinding:
@@ -721,11 +729,15 @@ class HeadBinding:
         closing = [m[4] if len(m) > 4 else None for m in motions]
         out = self.face_motions([tuple(m[:4]) for m in motions]).transpose(1, 0, 2)  # (n, k, 3)
         if self._seam is not None:
-            band, reads, S, at, w, steps = self._seam
+            band, reads, S, w, steps = self._seam
             flat = out[self.skin[reads]].reshape(len(reads), -1)
+            moving = flat[:len(band)]  # the band's rows (a view: 2x faster than gathering and scattering them)
             for _ in range(steps):
-                flat[at] += w * (S @ flat - flat[at])
-            out[self.skin[band]] = flat[at].reshape(len(band), -1, 3)
+                step = S @ flat
+                step -= moving
+                step *= w
+                moving += step
+            out[self.skin[band]] = moving.reshape(len(band), -1, 3)
         # The jaw's keys in RELAX_STEPS sweeps, the others in up to STEPS_NOT_JAW and free to move a joined upper lip
         # (one relaxation: one screen kept).
         steps = np.array([fold_relax.RELAX_STEPS if m[2] else STEPS_NOT_JAW for m in motions])
