@@ -783,13 +783,14 @@ class HeadBinding:
             if len(guard):
                 g = self.skin[guard]
                 p = self.Vf[g, None] + out[g]  # (guard, motions, 3)
-                rho = np.linalg.norm(p - centre, axis=-1, keepdims=True)
-                pushed = centre + (p - centre) * (radius / np.maximum(rho, 1e-12)) - self.Vf[g, None]
-                inside = rho[..., 0] < radius
-                out[g] = np.where(inside[..., None], pushed, out[g])
+                p -= centre
+                rho = row_norms(p)
+                inside = rho < radius
+                rows, keys = np.nonzero(inside)  # only those inside are put back
+                out[g[rows], keys] = centre + p[rows, keys] * (radius / np.maximum(rho[rows, keys], 1e-12))[:, None] \
+                    - self.Vf[g[rows]]
                 changed |= inside.any(axis=0)
                 if screen is not None:
-                    rows, keys = np.nonzero(inside)
                     screen.moved(g[rows], keys)
         return changed
 
