@@ -507,8 +507,12 @@ class HeadBinding:
         self.covered = covered
         # every vertex's distance to the covered skin, as far as the rest region and the prior's fade read it (inf
         # beyond). The covered skin is a sheet, most queries far from it: a tree without shrunk boxes answers 2× faster.
-        from_covered = cKDTree(P[covered], balanced_tree=False, compact_nodes=False).query(
-            Vf, distance_upper_bound=REST_IOD * eye_distance * (1 + 1e-9))[0]  # exact up to the edge
+        # The covered vertices themselves are at 0 (a sixth of ICT's head's queries).
+        from_covered = np.zeros(len(Vf))
+        uncovered = np.ones(len(Vf), bool)
+        uncovered[si[covered]] = False
+        from_covered[uncovered] = cKDTree(P[covered], balanced_tree=False, compact_nodes=False).query(
+            Vf[uncovered], distance_upper_bound=REST_IOD * eye_distance * (1 + 1e-9))[0]  # exact up to the edge
         self.rest = rest = _rest_region(P, Ts, covered, from_covered[si], Lf, eye_distance)
         depths = _depths(P, covered, Lf, eye_distance, parts.eyes)
         # The folds' relaxation's Laplacian (the head but a mouth bag) holds the skin's, where no triangle joins the
