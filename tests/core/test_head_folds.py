@@ -150,6 +150,42 @@ def test_row_norms_are_numpys_norms_bit_for_bit():
     np.testing.assert_array_equal(unit_rows(X), X / np.linalg.norm(X, axis=1, keepdims=True))
 
 
+def test_the_relaxations_look_up_tables_are_numpys_unique_and_a_search():
+    """The (key, triangle) ids measured once each and the jobs' rows found from int32 tables, never cleared (issue
+    #35): numpy.unique's values and inverse, each id's slot or -1, whatever the table held before."""
+    rng = np.random.default_rng(35)
+    for size, count in ((50, 400), (3_600_000, 300_000), (10, 0)):
+        idx = rng.integers(0, size, (count // 2, 2)) if count else np.zeros((0, 2), np.int64)
+        values, inverse = folds._once_inverse(idx, size)
+        want, want_inverse = np.unique(idx, return_inverse=True)
+        np.testing.assert_array_equal(values, want)
+        np.testing.assert_array_equal(inverse, want_inverse.reshape(idx.shape))
+        assert inverse.shape == idx.shape
+        table = folds._lookup(want, size)
+        wanted = rng.integers(0, size, 1000)
+        slot = np.searchsorted(want, wanted).clip(0, max(len(want) - 1, 0))
+        hit = want[slot] == wanted if len(want) else np.zeros(len(wanted), bool)
+        np.testing.assert_array_equal(table[wanted], np.where(hit, slot, -1))
+
+
+def test_the_priors_curve_motions_stacked_are_each_keys():
+    """The binding hands the prior every key's curve-point motion from one evaluation (issue #35): each key's own
+    curve points, and the prior's residuals as from a list of them."""
+    from pdeface.head.prior import PriorOnHead
+
+    model = load_face("default")
+    args = [descriptor_motion_args(d) for d in model.descriptors[:9]]
+    C, R = (np.concatenate([a[i] for a in args], axis=2) for i in (0, 1))
+    stacked = np.moveaxis(model.curve_points(C, R).reshape(*R.shape[:2], len(args), 3), 2, 0)
+    for one, (c, r, *_) in zip(stacked, args):
+        np.testing.assert_array_equal(one, model.curve_points(c, r))
+    rng = np.random.default_rng(35)
+    S, q = 5, 40
+    on_head = PriorOnHead(np.arange(q), rng.normal(0, 1, (3 * q, S)).astype(np.float32),
+                          rng.normal(0, 1, (S, stacked[0].size)), np.array([1.0, 1.1, 0.9]))
+    np.testing.assert_array_equal(on_head.many(stacked), on_head.many(list(stacked)))
+
+
 def test_keys_relaxed_side_by_side_are_each_key_relaxed_alone():
     V, T = sheet(41)
     D = cliff_keys(V)

@@ -147,7 +147,9 @@ class FoldRelax:
             key_ids = keys[slot] * n_pairs + pair
             at = np.minimum(np.searchsorted(was, key_ids), max(len(was) - 1, 0))
             kept = (was[at] == key_ids) if len(was) else np.zeros(len(ids), bool)
-            kept &= ~screen.moved_mask[self.corners[pair], keys[slot][:, None]].any(axis=1)
+            # each corner's (vertex, key) read from the flat mask: faster than numpy's two-array indexing
+            moved = screen.moved_mask.reshape(-1)[self.corners[pair] * D.shape[1] + keys[slot][:, None]]
+            kept &= ~moved.any(axis=1)
             fold = np.empty(len(ids), bool)
             fold[kept] = was_folded[at[kept]]
             measure = ~kept
@@ -168,7 +170,10 @@ class FoldRelax:
         X = self.V[tri] + _rows_of(D, tri, keys[face_slot][:, None])
         nrm = unit_rows(cross3(X[:, 1] - X[:, 0], X[:, 2] - X[:, 0]))
         pair_faces = pair_faces.reshape(-1, 2)
-        return (nrm[pair_faces[:, 0]] * nrm[pair_faces[:, 1]]).sum(-1) < self.cos_fold
+        a, b = nrm[pair_faces[:, 0]], nrm[pair_faces[:, 1]]
+        cos = a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1]  # numpy.sum's order, without its slow reduction over an axis of 3
+        cos += a[:, 2] * b[:, 2]
+        return cos < self.cos_fold
 
     def _screen(self, D, keys, every):
         """``(vertices, slots in keys)`` where displacements ``D`` (n, k, 3) of ``keys`` (``every`` key, or some) are
@@ -184,15 +189,18 @@ class FoldRelax:
         """
         n, k = len(D), len(keys)
         D32 = (D if every else D[:, keys]).astype(np.float32, order="C").reshape(n, 3 * k)
-        off = (self._mean32 @ D32 - D32).reshape(n, k, 3)
+        off = self._mean32 @ D32
+        off -= D32  # in place: no second fresh (n, 3k) array
+        off = off.reshape(n, k, 3)
         line = SCREEN * self.edge_length[:, None]
         # float32's error in a (vertex, key)'s offset: a unit of rounding of the largest displacement per term of its
         # sum (a neighbour, itself, the cast), per axis; twice that is a wide margin
         largest = max(float(D32.max(initial=0.0)), -float(D32.min(initial=0.0)))
         margin = 2 * (self._most_neighbours + 3) * np.finfo(np.float32).eps * largest
         d2 = off[..., 0] * off[..., 0]  # (twice as fast as einsum's sum over an axis of 3)
-        d2 += off[..., 1] * off[..., 1]
-        d2 += off[..., 2] * off[..., 2]
+        square = np.multiply(off[..., 1], off[..., 1])
+        d2 += square
+        d2 += np.multiply(off[..., 2], off[..., 2], out=square)
         bent = d2 > ((line + margin) ** 2).astype(np.float32)
         near_v, near_k = np.nonzero((d2 > (np.maximum(line - margin, 0.0) ** 2).astype(np.float32)) & ~bent)
         if len(near_v):
@@ -288,9 +296,10 @@ class FoldRelax:
         cols = self._rings(zone, 2, len(jobs))  # the zone and two rings around it (its edges' far corners), sorted
         job, vertex = np.divmod(cols, n)
         m = len(cols)
+        local = _lookup(cols, len(jobs) * n)  # (job, vertex) id → its row, -1 for one outside
         # The neighbours' mean among the jobs' vertices: each job's block of the mesh's.
         pos, row = _rows_entries(self.mean, vertex)
-        at = _row_in(cols, job[row] * n + self.mean.indices[pos])
+        at = local[job[row] * n + self.mean.indices[pos]]
         inside = at >= 0
         mean = csr_matrix((self.mean.data[pos[inside]], (row[inside], at[inside])), shape=(m, m))
         ring = mean.copy()
@@ -308,7 +317,7 @@ class FoldRelax:
         faces, pair_faces = _once_inverse(pair_job[:, None] * len(self.T) + self.faces[self.pairs[pair]],
                                           len(jobs) * len(self.T))
         face_job, face = np.divmod(faces, len(self.T))
-        tri = _row_in(cols, face_job[:, None] * n + self.T[face])  # (f, 3) local
+        tri = local[face_job[:, None] * n + self.T[face]]  # (f, 3) local
         X, dl = self.V[vertex], _rows_of(D, vertex, key_of[job])
         position = X + dl  # the rows' positions, kept up to date as they move
         nrm = np.zeros((len(faces), 3))
@@ -337,7 +346,7 @@ class FoldRelax:
         in_ball = np.zeros(m, bool)
         in_ball[ball] = True
         mark = np.zeros(m, bool)
-        mark[_row_in(cols, np.concatenate(seeds))] = True
+        mark[local[np.concatenate(seeds)]] = True
         region = (mark | (ring @ mark.astype(np.float64) > 0)) & movable
         count = folded(np.arange(m), *touched(np.arange(m)))
         best, best_d = count.copy(), dl.copy()  # never worse than as bound
@@ -391,6 +400,8 @@ class FoldRelax:
     def _keep_out(self, X, d, vertex, rows):
         """Rows ``rows`` of displacements ``d`` (of vertices ``vertex``, at rest ``X``) inside their ball put back on
         its surface, in place."""
+        if not len(rows):  # most sweeps keep no lid out of an eyeball
+            return
         c, r = self.ball_centre[vertex[rows]], self.ball_radius[vertex[rows], None]
         p = X[rows] + d[rows] - c
         rho = np.linalg.norm(p, axis=1, keepdims=True)
@@ -431,11 +442,13 @@ def _cross(P, tri):
 
 def _once_inverse(idx, size):
     """``(values, inverse)``: :func:`numpy.unique` of ``idx`` (all below ``size``) with ``return_inverse``, from a
-    mask (no sort) and a binary search (a look-up table of ``size`` entries cost its pages whenever the allocator
-    reused freed memory for it: up to 10 MB per call on a 27k-vertex head's keys; issue #35); ``inverse`` shaped as
-    ``idx``."""
+    mask (no sort) and an int32 look-up table, never cleared (only the values' entries are written and read): on
+    ICT's 72 keys 14 MB, 4 ms against a binary search's 19 ms (an int64 one, 29 MB, cost more in its pages than it
+    saved; issue #35); ``inverse`` shaped as ``idx``."""
     values = _once(idx.ravel(), size)
-    return values, np.searchsorted(values, idx)
+    table = np.empty(size, np.int32)
+    table[values] = np.arange(len(values), dtype=np.int32)
+    return values, table[idx]
 
 
 def _slots(values, size):
@@ -445,13 +458,13 @@ def _slots(values, size):
     return slot
 
 
-def _row_in(ids, wanted):
-    """Each of ``wanted``'s slot in the sorted distinct ``ids``, -1 where it is not one of them (a binary search: no
-    look-up table as long as the largest id, whose pages the allocator may have to clear; issue #35)."""
-    if not len(ids):
-        return np.full(np.shape(wanted), -1, np.int64)
-    slot = np.minimum(np.searchsorted(ids, wanted), len(ids) - 1)
-    return np.where(ids[slot] == wanted, slot, -1)
+def _lookup(ids, size):
+    """A look-up table (``size``,) of each of the distinct ``ids``' (all below ``size``) slot in them, -1 for any other
+    value. int32: the relaxation's (jobs × vertices, 0.4 M entries on ICT's head) is 1.7 MB, cheaper to fill than a
+    binary search of its three look-ups (13 ms of ICT's 72 keys; issue #35)."""
+    table = np.full(size, -1, np.int32)
+    table[ids] = np.arange(len(ids), dtype=np.int32)
+    return table
 
 
 def _once(idx, size):

@@ -299,7 +299,8 @@ class PriorOnHead:
         return self.many([curve_motion])[:, 0]
 
     def many(self, curve_motions) -> np.ndarray:
-        """:meth:`__call__` of several curve-point motions, (q, k, 3): two matrix products."""
+        """:meth:`__call__` of several curve-point motions (a sequence, or a (k, K, J, 3) array), (q, k, 3): two matrix
+        products."""
         X = np.stack([(np.asarray(x, np.float64) / self.ratio).ravel() for x in curve_motions], axis=1)
         weights = (self.solver @ X).astype(self.residuals.dtype)  # the small factor: the big one stays as it is
         return (self.residuals @ weights).reshape(len(self.vertices), 3, -1).transpose(0, 2, 1)
