@@ -5,8 +5,8 @@ motion to all of the user's mesh, once per fit:
 
 - **covered skin** (within ``COVER_IOD`` of the PDE surface and facing the same
   way) reads the PDE displacement at its closest (u, v); skin whose closest point
-  lies on the strip between an opening's two rims is not covered (the strip is
-  no skin: it blends both lips' motion);
+  lies on the strip between an opening's two rims, or on a rim's line (skin beyond the rim), is not covered (the
+  strip is no skin: it blends both lips' motion);
 - **the rest of the skin** (cheeks to the ears, forehead to the hairline, under
   the chin, inner lips, lid margins, nostrils, the mouth's lining) is the
   harmonic extension of that motion over the mesh (cotangent Laplacian,
@@ -213,8 +213,11 @@ def _read_pde(model, P, N, eye_distance, resolution, skin_strips=(), on_strip=No
     # Each closest point's place on the grid (rows, columns), not its triangle's: skin beyond a convex grid line
     # (an opening's rim, where the strip turns in) is closest to a point on the line, as near the triangles on
     # either side of it, and which one the query returns is rounding's choice (issue #35: 4e-11 in the operators
-    # moved a lid vertex from its rim onto the strip, uncovered, and the blink closed 0.77 of the gap, not 0.86).
-    # A point on a line counts as on the covered side of it (the rim is skin), within GRID_LINE_TOL of a step.
+    # moved a lid vertex of asian-male-young-blender-m from its rim onto the strip, and the folds' relaxation after
+    # the blink then took 16 sweeps, not 10: closed 0.77 of the gap, not 0.86). A point on a line (within
+    # GRID_LINE_TOL of a step) counts as on its side that is not covered: skin beyond a rim follows the lid's or
+    # lip's extension, as it did in most draws (ICT's head covered then 5,749 vertices, now 5,715; the head prior
+    # relearned with it).
     u, v = ((bary * (Tp[tri] // nv)).sum(1), (bary * (Tp[tri] % nv)).sum(1))
     inside = (u > 1 + GRID_LINE_TOL) & (u < nu - 2 - GRID_LINE_TOL) & (v > 1 + GRID_LINE_TOL) & (v < nv - 2 - GRID_LINE_TOL)
     sub_u = resolution[0]  # curve k is grid row k * sub_u
