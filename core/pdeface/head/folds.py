@@ -6,9 +6,9 @@ motion meets another across a few vertices: the inner lips' rim against the lini
 jaw's split gums (turned against the fixed upper ones), lashes anchored on different lid vertices. There the
 key's displacement steps from one vertex to the next; :class:`FoldRelax` smooths it (each vertex towards its
 neighbours' mean displacement, cotangent weights) on the folded edges' vertices and one ring around them, until no
-edge folds, it folds no fewer for ``STALL_STEPS`` sweeps or ``RELAX_STEPS`` have run (then the sweep folding fewest, and of those
-fewest past the issue's ``LIMIT_DEG``, is kept) (the binding's first
-relaxation looks at the folds every ``SWEEPS_PER_LOOK`` sweeps). Elsewhere the key is left exactly as bound. Every
+edge folds, it folds no fewer for ``STALL_STEPS`` sweeps or ``RELAX_STEPS`` have run (the binding's first
+relaxation looks at the folds every ``SWEEPS_PER_LOOK`` sweeps); it keeps the sweep folding fewest, of those the one
+folding fewest past the issue's ``LIMIT_DEG``. Elsewhere the key is left exactly as bound. Every
 key is screened at once, and every key's folding pieces relaxed side by side (issue #35: the 27k-vertex head's 72
 keys).
 """
