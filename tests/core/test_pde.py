@@ -9,9 +9,11 @@ from pdeface.surface.pde import (
     merged_operator,
     mode_operator,
     mode_values,
+    ode_bases,
     ode_basis,
     output_grid,
     solve_surface,
+    subdivide,
 )
 
 T01 = np.linspace(0, 1, 11)
@@ -202,3 +204,80 @@ def test_own_cubic_spline_matches_scipy(deriv):
     xe = np.linspace(x[0], x[-1], 40)
     expect = CubicSpline(x, np.eye(11), bc_type="not-a-knot")(xe, deriv)
     np.testing.assert_allclose(cubic_spline_operator(x, xe, deriv), expect, atol=1e-10)
+
+
+@pytest.mark.parametrize("deriv", [0, 1, 2, 3])
+def test_bases_of_many_wavenumbers_are_each_ones(deriv):
+    """ode_bases (one batched Taylor sum) is ode_basis per wavenumber, at shared and at per-wavenumber t."""
+    kappas = np.array([0.0, 1e-9, 0.2, 0.7, 0.999, 1.0, 4.0, 90.0])
+    T = np.random.default_rng(1).random((len(kappas), 6))
+    for t, rows in ((T01, [T01] * len(kappas)), (T, T)):
+        got = ode_bases(kappas, t, deriv)
+        for k, r, g in zip(kappas, rows, got):
+            want = ode_basis(k, r, deriv)
+            np.testing.assert_allclose(g, want, rtol=1e-12, atol=1e-12 * max(1.0, np.abs(want).max()))
+
+
+def straightforward_mode_operator(knots, k, steps, deriv, breaks):
+    """mode_operator's smooth rows written out: each interval's own basis at its own steps, the last curve
+    from the piece above."""
+    from pdeface.surface.pde import _smooth_coefficients
+
+    h = np.diff(knots)
+    C = _smooth_coefficients(tuple(knots), k, breaks)
+    rows = [ode_basis(k * h[i], subdivide([0.0, 1.0], s)[:-1], deriv) / h[i] ** deriv @ C[4 * i:4 * i + 4]
+            for i, s in enumerate(steps)]
+    rows.append(ode_basis(k * h[-1], np.array([1.0]), deriv) / h[-1] ** deriv @ C[-4:])
+    return np.vstack(rows)
+
+
+@pytest.mark.parametrize("deriv", [0, 1])
+def test_smooth_rows_evaluated_together_are_the_straightforward_ones(deriv):
+    """The smooth assembly's rows, evaluated for all intervals of a step count at once, equal each interval's
+    own evaluation: even and uneven steps, with and without a break, wavenumbers on both sides of 1."""
+    kn = tuple(np.cumsum(np.r_[0, 1, 1, 1, 1, 1, 0.05, 1, 1, 1, 1]) / 9.05)
+    for k in (0.0, 2.0, 60.0):
+        for steps in ((4,) * 10, (2, 3, 5, 4, 4, 7, 1, 2, 6, 3)):
+            for breaks in ((), (5,)):
+                want = straightforward_mode_operator(np.array(kn), k, steps, deriv, breaks)
+                got = mode_operator(kn, k, steps, "smooth", deriv, breaks)
+                np.testing.assert_allclose(got, want, rtol=1e-10, atol=1e-10 * np.abs(want).max())
+
+
+def straightforward_surface(op, coefficients, residual):
+    """A SurfaceOperator's surface (n_u, n_v, c) written out: each block's modes times cos(n v) (its weights
+    folded in) plus its remainder's rows times its v spline, summed over the blocks."""
+    modes = op.modes if op.modes.ndim == 4 else op.modes[None]
+    rem_u = op.remainder_u if op.remainder_u.ndim == 3 else op.remainder_u[None]
+    b, n1 = modes.shape[:2]
+    J = residual.shape[1]
+    X = 0.0
+    for k in range(b):
+        A = np.einsum("nuk,knc->unc", modes[k], coefficients)  # (n_u, N+1, c): each mode's values on the rows
+        X = X + np.einsum("unc,vn->uvc", A, op.cos_nv[:, k * n1:(k + 1) * n1])
+        Ru = np.einsum("uk,kjc->ujc", rem_u[k], residual)
+        X = X + np.einsum("ujc,vj->uvc", Ru, op.remainder_v[:, k * J:(k + 1) * J])
+    return X
+
+
+def test_surface_planes_are_the_straightforward_sums(rng, default_face):
+    """SurfaceOperator.planes (and apply, the same as a grid) are the sums written out, for a face with breaks
+    confined to its openings and for several surfaces solved together, at uneven steps and for a v-derivative."""
+    from pdeface.surface import pde
+    from pdeface.surface.grid import break_weights
+
+    m = default_face
+    K, J = len(m.knots), m.layout.n_points
+    rows, cols = tuple(rng.integers(1, 6, K - 1)), tuple(rng.integers(1, 6, J - 1))
+    C = rng.normal(size=m.coefficients.shape[:2] + (6,))
+    R = rng.normal(size=m.residual.shape[:2] + (6,))
+    key = tuple((int(b), tuple(w), tuple(s)) for b, w, s in break_weights(m, cols))
+    args = (tuple(m.knots), J, C.shape[1] - 1, float(m.a), float(m.remainder_w), rows, cols)
+    for deriv in ((0, 0), (0, 1)):
+        for op in (pde.surface_operator(*args, "smooth", deriv, m.layout.breaks()),
+                   pde.confined_operator(*args, deriv, m.layout.breaks(), BREAK_SLOPE, key)):
+            want = straightforward_surface(op, C, R)
+            planes = op.planes(C, R)
+            assert planes.shape == (6,) + want.shape[:2]
+            np.testing.assert_allclose(planes, np.moveaxis(want, 2, 0), atol=1e-9 * np.abs(want).max())
+            np.testing.assert_array_equal(op.apply(C, R), np.moveaxis(planes, 0, 2))

@@ -50,17 +50,18 @@ def break_weights(model: FaceModel, sub_v) -> tuple:
 
 
 def surface_grid(model: FaceModel, sub_u=4, sub_v=4, assembly=None, coefficients=None, residual=None, deriv=(0, 0),
-                 break_slope=BREAK_SLOPE, confine=True):
+                 break_slope=BREAK_SLOPE, confine=True, planes=False):
     """PDE surface (or a derivative) on the output grid, in the face frame (mm).
 
     ``confine``: each break only within its opening's span (:func:`break_weights`); the head binding
     reads the breaks across the whole width instead, so skin hidden behind a lip follows its rim.
+    ``planes``: as (3, n_u, n_v) coordinate planes (:meth:`pdeface.surface.pde.SurfaceOperator.planes`).
     """
     return solve_surface(model.coefficients if coefficients is None else coefficients,
                          model.residual if residual is None else residual,
                          model.knots, model.a, model.remainder_w, sub_u, sub_v,
                          assembly or model.assembly, deriv, model.layout.breaks(), break_slope,
-                         break_weights(model, sub_v) if confine else ())
+                         break_weights(model, sub_v) if confine else (), planes)
 
 
 #: Descriptors solved together by :func:`key_grids`: all of a face's 72 at once held ~5 copies of their
@@ -68,14 +69,15 @@ def surface_grid(model: FaceModel, sub_u=4, sub_v=4, assembly=None, coefficients
 KEY_BATCH = 16
 
 
-def key_grids(model: FaceModel, sub_u, sub_v, assembly=None, batch=KEY_BATCH):
+def key_grids(model: FaceModel, sub_u, sub_v, assembly=None, batch=KEY_BATCH, planes=False):
     """Each descriptor's change of the surface (face frame, mm) on the output grid, a few solves at a time:
-    yields ``(first, grids)``, ``grids`` (n_u, n_v, m, 3) for descriptors ``first .. first + m - 1``."""
+    yields ``(first, grids)``, ``grids`` (n_u, n_v, m, 3) for descriptors ``first .. first + m - 1``
+    (``planes``: (m, 3, n_u, n_v))."""
     for first in range(0, len(model.descriptors), batch):
         dense = [d.dense() for d in model.descriptors[first:first + batch]]
         C, R = (np.concatenate(parts, axis=2) for parts in zip(*dense))  # stacked: the solve is linear
-        X = surface_grid(model, sub_u, sub_v, assembly, coefficients=C, residual=R)
-        yield first, X.reshape(X.shape[:2] + (len(dense), 3))
+        X = surface_grid(model, sub_u, sub_v, assembly, coefficients=C, residual=R, planes=planes)
+        yield first, (X.reshape((len(dense), 3) + X.shape[1:]) if planes else X.reshape(X.shape[:2] + (len(dense), 3)))
 
 
 def grid_faces(n_u: int, n_v: int) -> np.ndarray:

@@ -32,7 +32,7 @@ solve is a few small matrix products.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cached_property, lru_cache
 
 import numpy as np
 
@@ -72,6 +72,34 @@ def ode_basis(kappa: float, t: np.ndarray, deriv: int = 0) -> np.ndarray:
         poly = lam ** deriv * s ** p + (p * deriv * lam ** (deriv - 1) if deriv else 0.0)
         out[:, m] = poly * np.exp(lam * s)
     return out
+
+
+def ode_bases(kappas, t, deriv: int = 0) -> np.ndarray:
+    """:func:`ode_basis` of many wavenumbers at once: ``(len(kappas), p, 4)``, at the same ``t`` (p,) for each or
+    at its own row of ``t`` (len(kappas), p). A mesh's operators ask for one basis per curve interval and mode:
+    the Taylor sums of all of them are one batched product."""
+    kappas = np.asarray(kappas, dtype=np.float64)
+    t = np.asarray(t, dtype=np.float64)
+    T = np.broadcast_to(t, (len(kappas), t.shape[-1])) if t.ndim == 1 else t
+    out = np.empty(T.shape + (4,))
+    small = kappas < 1.0
+    if small.any():
+        D1j, above, power, fact, orders = _taylor_constants(deriv)
+        # powers as running products: ``**`` of an integer array is ~50 ns an element
+        scale = _powers(kappas[small], power.max())[:, power] * above
+        coef = D1j * scale / fact  # (I, 4, terms)
+        out[small] = np.matmul(_powers(T[small], orders.max()), np.swapaxes(coef, 1, 2))
+    for i in np.nonzero(~small)[0]:
+        out[i] = ode_basis(float(kappas[i]), T[i], deriv)
+    return out
+
+
+def _powers(x, n: int) -> np.ndarray:
+    """``x ** 0 .. x ** n`` along a new last axis."""
+    out = np.empty(np.shape(x) + (n + 1,))
+    out[..., 0] = 1.0
+    out[..., 1:] = np.asarray(x)[..., None]
+    return np.cumprod(out, axis=-1, out=out)
 
 
 @lru_cache(maxsize=1)
@@ -193,13 +221,6 @@ def _check_breaks(K: int, breaks: tuple):
                           f"each break ({K} curves)")
 
 
-@lru_cache(maxsize=4096)
-def _end_values(kh: float, deriv: int) -> np.ndarray:
-    """The basis (its ``deriv``-th derivative) at both ends of an interval of scaled wavenumber ``kh``: shared by
-    the solves of curve sets that have the interval in common (a break's surface and its merged one)."""
-    return ode_basis(kh, np.array([0.0, 1.0]), deriv)
-
-
 @lru_cache(maxsize=512)
 def _smooth_coefficients(knots: tuple, k: float, breaks: tuple = (), break_slope: float = BREAK_SLOPE) -> np.ndarray:
     """Per-interval basis coefficients (4(K-1), K) of the C2 interpolant.
@@ -216,31 +237,30 @@ def _smooth_coefficients(knots: tuple, k: float, breaks: tuple = (), break_slope
     n = 4 * (K - 1)
     A = np.zeros((n, n))
     B = np.zeros((n, K))
-    phi = [[_end_values(float(k * h[i]), d) / h[i] ** d for d in range(4)] for i in range(K - 1)]
-    r = 0
-    for i in range(K - 1):
-        A[r, 4 * i:4 * i + 4] = phi[i][0][0]; B[r, i] = 1; r += 1
-        A[r, 4 * i:4 * i + 4] = phi[i][0][1]; B[r, i + 1] = 1; r += 1
-    starts = set(breaks)
-    for i in range(1, K - 1):
-        for d in ((1,) if i in ends else (1, 2)):
-            # Into and out of a break piece the u-slope shrinks to break_slope of the run's: the same tangent
-            # direction (so no crease), but the piece no longer overshoots where its rims nearly meet.
-            above = break_slope if i in starts else 1.0
-            below = break_slope if i - 1 in starts else 1.0
-            A[r, 4 * (i - 1):4 * i] = phi[i - 1][d][1] * above
-            A[r, 4 * i:4 * i + 4] = -phi[i][d][0] * below
-            r += 1
-    if K >= 4:  # not-a-knot: third derivative continuous at the second and last-but-one curves of each run
-        bounds = [0, *sorted(ends), K - 1]
-        for first, last in zip(bounds[0::2], bounds[1::2]):
-            for i in (first + 1, last - 1):
-                A[r, 4 * (i - 1):4 * i] = phi[i - 1][3][1]
-                A[r, 4 * i:4 * i + 4] = -phi[i][3][0]
-                r += 1
-    else:  # natural ends
-        A[r, 0:4] = phi[0][2][0]; r += 1
-        A[r, n - 4:n] = phi[-1][2][1]; r += 1
+    # (K-1, 4, 2, 4): each interval's basis, its derivatives 0-3, at its two ends
+    phi = np.stack([ode_bases(k * h, (0.0, 1.0), d) / (h ** d)[:, None, None] for d in range(4)], axis=1)
+    I = np.arange(K - 1)
+    corners = 4 * I[:, None] + np.arange(4)
+    A[2 * I[:, None], corners], B[2 * I, I] = phi[:, 0, 0], 1  # each interval through its two curves
+    A[2 * I[:, None] + 1, corners], B[2 * I + 1, I + 1] = phi[:, 0, 1], 1
+    # the joins at inner curves: (curve, derivative) C1 at a break's rims, C2 elsewhere; then not-a-knot: third
+    # derivative continuous at the second and last-but-one curves of each run
+    joins = [(i, d) for i in range(1, K - 1) for d in ((1,) if i in ends else (1, 2))]
+    bounds = [0, *sorted(ends), K - 1]
+    if K >= 4:
+        joins += [(i, 3) for first, last in zip(bounds[0::2], bounds[1::2]) for i in (first + 1, last - 1)]
+    i, d = np.array(joins, dtype=np.int64).reshape(-1, 2).T
+    # Into and out of a break piece the u-slope shrinks to break_slope of the run's: the same tangent
+    # direction (so no crease), but the piece no longer overshoots where its rims nearly meet.
+    above = np.where(np.isin(i, breaks) & (d < 3), break_slope, 1.0)[:, None]
+    below = np.where(np.isin(i - 1, breaks) & (d < 3), break_slope, 1.0)[:, None]
+    rows = 2 * (K - 1) + np.arange(len(i))[:, None]
+    A[rows, 4 * i[:, None] - 4 + np.arange(4)] = phi[i - 1, d, 1] * above
+    A[rows, 4 * i[:, None] + np.arange(4)] = -phi[i, d, 0] * below
+    if K < 4:  # natural ends
+        r = 2 * (K - 1) + len(i)
+        A[r, 0:4] = phi[0][2][0]
+        A[r + 1, n - 4:n] = phi[-1][2][1]
     return np.linalg.solve(A, B)
 
 
@@ -289,6 +309,8 @@ def mode_operator(knots: tuple, k: float, sub_u, assembly: str = "smooth", deriv
     _check(np.array(knots), assembly)
     K = len(knots)
     steps = interval_steps(sub_u, K - 1)
+    if assembly == "smooth":
+        return _smooth_rows(knots, k, steps, deriv, breaks, break_slope)
     rows = []
     for a, H, tk, C, cols in _pieces(knots, k, assembly, breaks, break_slope):
         t = subdivide(tk, steps[a:a + len(tk) - 1])[:-1]
@@ -298,6 +320,22 @@ def mode_operator(knots: tuple, k: float, sub_u, assembly: str = "smooth", deriv
         M[:, cols] = ode_basis(k * H, t, deriv) / H ** deriv @ C
         rows.append(M)
     return np.vstack(rows)
+
+
+def _smooth_rows(knots: tuple, k: float, steps: tuple, deriv: int, breaks: tuple, break_slope: float) -> np.ndarray:
+    """:func:`mode_operator` of the smooth assembly: the intervals of each step count evaluated together."""
+    K = len(knots)
+    h = np.diff(np.array(knots))
+    C = _smooth_coefficients(knots, k, breaks, break_slope).reshape(K - 1, 4, K)
+    steps = np.array(steps)
+    start = np.concatenate([[0], np.cumsum(steps)])
+    M = np.empty((start[-1] + 1, K))
+    for s in np.unique(steps):
+        i = np.nonzero(steps == s)[0]
+        B = ode_bases(k * h[i], np.arange(s) / s, deriv) / (h[i] ** deriv)[:, None, None]
+        M[(start[i][:, None] + np.arange(s)).ravel()] = np.matmul(B, C[i]).reshape(-1, K)
+    M[-1] = ode_bases(k * h[-1:], (1.0,), deriv)[0] / h[-1] ** deriv @ C[-1]  # the last curve, from the piece above
+    return M
 
 
 @lru_cache(maxsize=512)
@@ -362,7 +400,7 @@ def residual_v_operator(n_points: int, sub_v, deriv: int = 0) -> np.ndarray:
 class SurfaceOperator:
     """The PDE solve for one layout and grid as precomputed matrices.
 
-    ``apply(coefficients, residual)`` is then three small matrix products. A
+    ``planes(coefficients, residual)`` is then four small matrix products. A
     blend of B surfaces with v-dependent weights (:func:`confined_operator`) is
     one operator too: B blocks of modes, their weights folded into the v factors.
     """
@@ -377,15 +415,34 @@ class SurfaceOperator:
 
         ``c`` is 3 for one face; stacking several along it solves them all at once.
         """
+        return np.ascontiguousarray(self.planes(coefficients, residual).transpose(1, 2, 0))
+
+    def planes(self, coefficients: np.ndarray, residual: np.ndarray) -> np.ndarray:
+        """(K, N+1, c) coefficients and (K, J, c) residual → the surface as (c, n_u, n_v) planes, one per
+        coordinate of each surface: what a computation over the grid's rows and columns reads whole (no strided
+        copy of an interleaved grid). The u factors are made per plane and row, so the v factors' products write
+        the planes as they are."""
         K, J, c = residual.shape
+        modes_u, remainder_u, v_modes, v_remainder = self._plane_factors
+        n1, _, n_u, b = modes_u.shape
+        F = np.matmul(np.transpose(coefficients, (1, 2, 0)), modes_u.reshape(n1, K, n_u * b))  # (n1, c, n_u b)
+        F = F.reshape(n1, c, n_u, b).transpose(1, 2, 0, 3).reshape(c * n_u, n1 * b)
+        Ru = np.matmul(remainder_u, np.ascontiguousarray(np.transpose(residual, (2, 0, 1))))  # (c, n_u b, J)
+        X = Ru.reshape(c * n_u, b * J) @ v_remainder
+        X += F @ v_modes
+        return X.reshape(c, n_u, -1)
+
+    @cached_property
+    def _plane_factors(self):
+        """:meth:`planes`' factors: the modes (N+1, K, n_u, B), the remainder's (n_u B, K) and the v factors of
+        each, (N+1) B and B J rows by n_v, their rows in the same (mode, block) and (block, sample) order."""
         modes = self.modes if self.modes.ndim == 4 else self.modes[None]
-        b, n1, n_u, _ = modes.shape
-        # Work in (v, u·c) layout so each part is one matrix product.
-        F = np.matmul(modes, np.transpose(coefficients, (1, 0, 2))).reshape(b * n1, n_u * c)
-        Ru = (self.remainder_u.reshape(b * n_u, K) @ residual.reshape(K, J * c)).reshape(b, n_u, J, c)
-        Ru = Ru.transpose(0, 2, 1, 3).reshape(b * J, n_u * c)
-        X = self.cos_nv @ F + self.remainder_v @ Ru  # (n_v, n_u * c)
-        return np.ascontiguousarray(X.reshape(-1, n_u, c).transpose(1, 0, 2))
+        rem = self.remainder_u if self.remainder_u.ndim == 3 else self.remainder_u[None]
+        b, n1, n_u, K = modes.shape
+        cos = self.cos_nv.reshape(-1, b, n1).transpose(0, 2, 1).reshape(-1, n1 * b)  # its columns as F's
+        return (np.ascontiguousarray(modes.transpose(1, 3, 2, 0)),
+                np.ascontiguousarray(rem.transpose(1, 0, 2)).reshape(n_u * b, K),
+                np.ascontiguousarray(cos.T), np.ascontiguousarray(self.remainder_v.T))
 
 
 @lru_cache(maxsize=64)
@@ -411,11 +468,8 @@ def mode_values(knots: tuple, k: float, u: np.ndarray, deriv: int = 0, breaks: t
     C = _smooth_coefficients(tuple(knots), k, tuple(breaks), break_slope)
     i = np.clip(np.searchsorted(kn, u, side="right") - 1, 0, len(kn) - 2)
     t = (u - kn[i]) / h[i]
-    M = np.zeros((len(u), len(kn)))
-    for p in np.unique(i):
-        rows = i == p
-        M[rows] = ode_basis(k * h[p], t[rows], deriv) / h[p] ** deriv @ C[4 * p:4 * p + 4]
-    return M
+    B = ode_bases(k * h[i], t[:, None], deriv)[:, 0] / (h[i] ** deriv)[:, None]  # (len(u), 4): each its interval's
+    return np.matmul(B[:, None], C.reshape(-1, 4, len(kn))[i])[:, 0]
 
 
 @lru_cache(maxsize=64)
@@ -437,7 +491,7 @@ def merged_operator(knots: tuple, n_points: int, n_modes: int, a: float, w: floa
 
 
 def solve_surface(coefficients, residual, knots, a=1.0, w=None, sub_u=4, sub_v=4,
-                  assembly="smooth", deriv=(0, 0), breaks=(), break_slope=BREAK_SLOPE, confine=()):
+                  assembly="smooth", deriv=(0, 0), breaks=(), break_slope=BREAK_SLOPE, confine=(), planes=False):
     """Evaluate the PDE surface (or a derivative) on the output grid.
 
     Parameters
@@ -469,6 +523,9 @@ def solve_surface(coefficients, residual, knots, a=1.0, w=None, sub_u=4, sub_v=4
         where it is 0 (beyond an opening's corners) the surface is the one with that break's rims merged
         (:func:`merged_operator`), C2 across them, blended in between. Fixed weights: still linear.
 
+    planes : bool
+        Return (3, n_u, n_v) coordinate planes (3m for m surfaces: :meth:`SurfaceOperator.planes`).
+
     Returns
     -------
     (n_u, n_v, 3) array
@@ -485,9 +542,11 @@ def solve_surface(coefficients, residual, knots, a=1.0, w=None, sub_u=4, sub_v=4
     args = (kn, residual.shape[1], N1 - 1, float(a), float(w), sampling_key(sub_u), sampling_key(sub_v))
     br = tuple(int(b) for b in breaks)
     if assembly != "smooth" or not confine:
-        return surface_operator(*args, assembly, tuple(deriv), br, float(break_slope)).apply(coefficients, residual)
-    key = tuple((int(b), tuple(np.asarray(wt, float)), tuple(np.asarray(sl, float))) for b, wt, sl in confine)
-    return confined_operator(*args, tuple(deriv), br, float(break_slope), key).apply(coefficients, residual)
+        op = surface_operator(*args, assembly, tuple(deriv), br, float(break_slope))
+    else:
+        key = tuple((int(b), tuple(np.asarray(wt, float)), tuple(np.asarray(sl, float))) for b, wt, sl in confine)
+        op = confined_operator(*args, tuple(deriv), br, float(break_slope), key)
+    return op.planes(coefficients, residual) if planes else op.apply(coefficients, residual)
 
 
 @lru_cache(maxsize=16)

@@ -228,7 +228,8 @@ def interval_turns(model, rows, cols, W, floor=0.0):
     the skin: only its moved block is measured. A pose of one key is measured as its key's batch is solved;
     only the keys of poses of several are kept.
     """
-    X0 = surface_grid(model, rows, cols)
+    planes0 = surface_grid(model, rows, cols, planes=True)
+    X0 = np.ascontiguousarray(np.moveaxis(planes0, 0, 2))
     n_u, n_v, _ = X0.shape
     K, J = len(model.knots), model.layout.n_points
     interval = [np.repeat(np.arange(K - 1), rows), np.repeat(np.arange(J - 1), cols)]  # of each quad row, column
@@ -267,10 +268,9 @@ def interval_turns(model, rows, cols, W, floor=0.0):
         if len(found) == SETTLE_POSES:
             settle()
 
-    planes0 = [np.ascontiguousarray(X0[..., i]) for i in range(3)]
     counts = np.count_nonzero(W, axis=1)
     if (counts == 0).any():  # the rest first: its needs spare most poses' edges the openings' test
-        measure(planes0, np.s_[0:n_u, 0:n_v], np.zeros_like(rest_at_landmarks))
+        measure(list(planes0), np.s_[0:n_u, 0:n_v], np.zeros_like(rest_at_landmarks))
         settle()
     single = {}  # key → the poses of it alone
     for p in np.nonzero(counts == 1)[0]:
@@ -279,29 +279,29 @@ def interval_turns(model, rows, cols, W, floor=0.0):
     kept = {int(k): None for k in np.nonzero(W[several].any(axis=0))[0]}  # key → its grid, for poses of several
     n = W.shape[1]
     rows_moved, cols_moved = np.zeros((n, n_u), bool), np.zeros((n, n_v), bool)
-    for first, grids in key_grids(model, rows, cols):
-        m = grids.shape[2]
-        size = np.abs(grids.reshape(n_u, n_v, m * 3))  # the largest per row and per column (a reduction over the
-        # axis of 3 is slow in numpy: over the grid's first)
-        rows_moved[first:first + m] = size.max(axis=1).reshape(n_u, m, 3).max(axis=2).T > MOVED_MM
-        cols_moved[first:first + m] = size.max(axis=0).reshape(n_v, m, 3).max(axis=2).T > MOVED_MM
-        at_landmarks_moved = grids.reshape(n_u * n_v, m, 3)[at_landmarks]
+    for first, grids in key_grids(model, rows, cols, planes=True):  # (m, 3, n_u, n_v): each key's planes
+        m = len(grids)
+        size = np.abs(grids).max(axis=3)  # the largest per row and per column
+        rows_moved[first:first + m] = size.max(axis=1) > MOVED_MM
+        cols_moved[first:first + m] = np.abs(grids).max(axis=2).max(axis=1) > MOVED_MM
+        at_landmarks_moved = grids.reshape(m, 3, n_u * n_v)[:, :, at_landmarks]
         for j, k in enumerate(range(first, first + m)):
             if k in kept:
-                kept[k] = np.ascontiguousarray(grids[:, :, j])
+                kept[k] = grids[j].copy()
             block = _moved_block(rows_moved[k], cols_moved[k])
             for p in single.get(k, ()) if block is not None else ():
                 w = W[p, k]
-                measure([w * grids[block + (j, i)] + planes0[i][block] for i in range(3)], block,
-                        w * at_landmarks_moved[:, j])
+                measure([w * grids[(j, i) + block] + planes0[(i,) + block] for i in range(3)], block,
+                        w * at_landmarks_moved[j].T)
     for p in several:
         keys = np.nonzero(W[p])[0]
         block = _moved_block(rows_moved[keys].any(axis=0), cols_moved[keys].any(axis=0))
         if block is None:
             continue
-        X = X0[block] + np.tensordot(W[p, keys], np.stack([kept[k][block] for k in keys]), axes=1)
-        moved = np.tensordot(W[p, keys], np.stack([kept[k].reshape(-1, 3)[at_landmarks] for k in keys]), axes=1)
-        measure([X[..., i] for i in range(3)], block, moved)
+        X = planes0[(slice(None),) + block] + np.tensordot(W[p, keys], np.stack([kept[k][(slice(None),) + block]
+                                                                                  for k in keys]), axes=1)
+        moved = np.tensordot(W[p, keys], np.stack([kept[k].reshape(3, -1)[:, at_landmarks].T for k in keys]), axes=1)
+        measure(list(X), block, moved)
     settle()
     return need
 
