@@ -505,6 +505,27 @@ def test_lid_points_on_the_margins_curl_come_back_to_its_front_edge():
 
 
 @needs_makehuman
+def test_eye_corners_sunk_into_the_crease_come_forward_onto_the_skin_in_front():
+    # The snap takes a mapped eye corner to its nearest skin point: in a deep crease its back wall, behind the
+    # lids' fold (found 0.04-0.26 eye distances behind the true corners). Pushed 0.06 back and onto the skin, the
+    # corners come forward onto the skin seen straight on, near the registered points; true corners stay.
+    from pdeface.landmarks.eyes import CORNERS, corners_on_skin_front
+
+    rows = [j for pair in CORNERS for j in pair]
+    ch = build(SPECS["base-dm"])
+    L, eyes = ch.skin_landmarks, ch.eye_distance
+    moved = _moved_in_face_frame(ch.vertices, ch.triangles, L, rows, (0, 0, -0.06))
+    f = face_frame(L)
+    behind = (f.to_face(L) - f.to_face(moved))[rows, 2] / (eyes * f.scale)
+    back = corners_on_skin_front(ch.vertices, ch.triangles, moved)
+    before, after = (np.linalg.norm(P[rows] - L[rows], axis=1) / eyes for P in (moved, back))
+    assert behind.min() > 0.05 and after.max() < 0.025, (behind, before, after)
+    others = np.setdiff1d(np.arange(68), rows)
+    assert np.array_equal(back[others], moved[others])  # only the corners move
+    assert np.array_equal(corners_on_skin_front(ch.vertices, ch.triangles, L), L)  # on the skin's front: stay
+
+
+@needs_makehuman
 def test_inner_lip_middles_on_the_lips_front_go_back_into_the_seam_of_closed_lips():
     # The face mesh's inner lip points lie on the lips' fronts; moved 0.03 eye distances forward onto the closed
     # lips, the middles go back into the seam, nearer the registered points (the seam's bottom lies a little
@@ -530,11 +551,11 @@ def test_inner_lip_middles_on_the_lips_front_go_back_into_the_seam_of_closed_lip
 
 
 def test_true_lid_and_inner_lip_points_stay_on_ict_heads(ict):
-    # ICT's lid points lie on a thick margin's rounded edge, its inner lip points in front of a slit between the
+    # ICT's lid points lie on a thick margin's rounded edge, its eye corners on the skin's front, its inner lip points in front of a slit between the
     # lips, its subnasale at the profile's deepest point under the nose, its bridge's middle at the generic head's
     # shares of the nasion-to-tip chord, its lower lip's middle on the lip's edge: no step moves the true landmarks of a held-out identity (its skin alone,
     # without eyeballs and lashes) by more than a pixel or two.
-    from pdeface.landmarks.eyes import lids_on_margin
+    from pdeface.landmarks.eyes import corners_on_skin_front, lids_on_margin
     from pdeface.landmarks.mouth import (
         inner_lip_corners_inset,
         inner_lips_in_seam,
@@ -549,7 +570,7 @@ def test_true_lid_and_inner_lip_points_stay_on_ict_heads(ict):
     labels = connected_components(len(V), T)
     skin = T[np.isin(labels[T[:, 0]], labels[lm])]
     L = V[lm]
-    for step in (lids_on_margin, inner_lips_in_seam, nose_bottom_at_subnasale, inner_lip_corners_inset,
+    for step in (lids_on_margin, corners_on_skin_front, inner_lips_in_seam, nose_bottom_at_subnasale, inner_lip_corners_inset,
                  mouth_corners_at_seam_end, bridge_at_ict_shares, lower_lip_on_its_edge):
         moved = np.linalg.norm(step(V, skin, L) - L, axis=1) * 10  # mm
         assert moved.max() < 0.5, (step.__name__, moved.max())

@@ -37,7 +37,7 @@ from ..threads import bounded
 from .brows import brows_from_template
 from .contour import jaw_sides_from_template, upper_jaw_at_template_depth
 from .detector import Detector
-from .eyes import lids_on_margin
+from .eyes import corners_on_skin_front, lids_on_margin
 from .facemap import GROUPS, LandmarkMap, read_map, robust_similarity
 from .mouth import (
     inner_lip_corners_at_seam_end,
@@ -391,6 +391,9 @@ def detect(V, T, unit=None, landmark_map: LandmarkMap | None = None, detector: D
         points = lids_on_margin(V, T[skin], points)
         # The brows with the brow ridge (ICT's brow region laid onto the skin), not at ICT's height above the eyes.
         points = brows_from_template(V, T[skin], points, closest)
+        # The eye corners out of the crease's back onto the skin in front (after the brows: their registration
+        # holds the region by the eyes as found; with the corners moved first their p95 grows 0.6 %).
+        points = corners_on_skin_front(V, T[skin], points)
         # The inner lip corners back in the commissure, not on the lips' front.
         points = inner_lip_corners_at_seam_end(V, T[skin], points)
         # The inner lip line's middles and the mouth's corners in the seam of closed lips, not on the lips' fronts.
