@@ -550,6 +550,29 @@ def test_inner_lip_middles_on_the_lips_front_go_back_into_the_seam_of_closed_lip
             deeper, before, after)
 
 
+@needs_makehuman
+def test_lower_inner_lip_points_on_the_slits_top_edge_go_down_under_the_slit():
+    # The face mesh reads parted lips as nearly closed and puts the lower lip's inner points (65-67) with the upper
+    # lip's, on the slit's top edge: put there, they go down under the slit, onto the lower lip, near the registered
+    # points; true points stay (beside a slit, and on closed lips).
+    from pdeface.landmarks.mouth import lower_inner_lips_under_the_slit
+
+    rows = [65, 66, 67]
+    ch = build(SPECS["parted-lips-cm"])
+    L, eyes = ch.skin_landmarks, ch.eye_distance
+    moved = L.copy()
+    moved[rows] = L[[63, 62, 61]]  # the upper lip's inner points above them
+    back = lower_inner_lips_under_the_slit(ch.vertices, ch.triangles, moved)
+    before, after = (np.linalg.norm(P[rows] - L[rows], axis=1) / eyes for P in (moved, back))
+    assert before.min() > 0.1 and after.max() < 0.02, (before, after)
+    others = np.setdiff1d(np.arange(68), rows)
+    assert np.array_equal(back[others], moved[others])  # only the lower inner points move
+    assert np.abs(lower_inner_lips_under_the_slit(ch.vertices, ch.triangles, L) - L).max() < 0.015 * eyes
+    closed = build(SPECS["base-dm"])
+    assert np.array_equal(lower_inner_lips_under_the_slit(closed.vertices, closed.triangles, closed.skin_landmarks),
+                          closed.skin_landmarks)
+
+
 def test_true_lid_and_inner_lip_points_stay_on_ict_heads(ict):
     # ICT's lid points lie on a thick margin's rounded edge, its eye corners on the skin's front, its inner lip points in front of a slit between the
     # lips, its subnasale at the profile's deepest point under the nose, its bridge's middle at the generic head's
@@ -559,6 +582,7 @@ def test_true_lid_and_inner_lip_points_stay_on_ict_heads(ict):
     from pdeface.landmarks.mouth import (
         inner_lip_corners_inset,
         inner_lips_in_seam,
+        lower_inner_lips_under_the_slit,
         lower_lip_on_its_edge,
         mouth_corners_at_seam_end,
     )
@@ -571,7 +595,7 @@ def test_true_lid_and_inner_lip_points_stay_on_ict_heads(ict):
     skin = T[np.isin(labels[T[:, 0]], labels[lm])]
     L = V[lm]
     for step in (lids_on_margin, corners_on_skin_front, inner_lips_in_seam, nose_bottom_at_subnasale, inner_lip_corners_inset,
-                 mouth_corners_at_seam_end, bridge_at_ict_shares, lower_lip_on_its_edge):
+                 mouth_corners_at_seam_end, bridge_at_ict_shares, lower_lip_on_its_edge, lower_inner_lips_under_the_slit):
         moved = np.linalg.norm(step(V, skin, L) - L, axis=1) * 10  # mm
         assert moved.max() < 0.5, (step.__name__, moved.max())
 

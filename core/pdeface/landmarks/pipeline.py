@@ -43,6 +43,7 @@ from .mouth import (
     inner_lip_corners_at_seam_end,
     inner_lip_corners_inset,
     inner_lips_in_seam,
+    lower_inner_lips_under_the_slit,
     lower_lip_on_its_edge,
     mouth_corners_at_seam_end,
 )
@@ -404,6 +405,8 @@ def detect(V, T, unit=None, landmark_map: LandmarkMap | None = None, detector: D
         points = inner_lip_corners_inset(V, T[skin], points, closest)
         # The lower lip's middle points on its edge, not on the curve under it.
         points = lower_lip_on_its_edge(V, T[skin], points)
+        # The lower lip's inner points under the slit of parted lips, not on its top edge with the upper lip's.
+        points = lower_inner_lips_under_the_slit(V, T[skin], points)
         # The nose's bottom at the subnasale, the profile's deepest point under the nose.
         points = nose_bottom_at_subnasale(V, T[skin], points, closest)
         # The bridge's middle points at ICT's shares of the nasion-to-tip chord, not nearer the nasion.
