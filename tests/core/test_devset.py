@@ -551,6 +551,25 @@ def test_inner_lip_middles_on_the_lips_front_go_back_into_the_seam_of_closed_lip
 
 
 @needs_makehuman
+@pytest.mark.parametrize("name", ["base-dm", "parted-lips-cm"])
+def test_outer_eye_corners_on_the_upper_lid_go_to_the_end_of_the_eyes_opening(name):
+    # The face mesh puts an outer eye corner up to 0.09 eye distances up and forward on the upper lid: moved 0.05 up
+    # and 0.03 forward onto the skin, the outer corners go to the lateral end of the eye's opening, near the
+    # registered corners; nothing else moves, and true corners stay.
+    from pdeface.landmarks.eyes import outer_corners_at_opening_end
+
+    ch = build(SPECS[name])
+    L, eyes, rows = ch.skin_landmarks, ch.eye_distance, [36, 45]
+    moved = _moved_in_face_frame(ch.vertices, ch.triangles, L, rows, (0, 0.05, 0.03))
+    back = outer_corners_at_opening_end(ch.vertices, ch.triangles, moved)
+    before, after = (np.linalg.norm(P[rows] - L[rows], axis=1) / eyes for P in (moved, back))
+    assert before.min() > 0.05 and after.max() < 0.02, (before, after)
+    others = np.setdiff1d(np.arange(68), rows)
+    assert np.array_equal(back[others], moved[others])
+    assert np.array_equal(outer_corners_at_opening_end(ch.vertices, ch.triangles, L), L)
+
+
+@needs_makehuman
 def test_lower_inner_lip_points_on_the_slits_top_edge_go_down_under_the_slit():
     # The face mesh reads parted lips as nearly closed and puts the lower lip's inner points (65-67) with the upper
     # lip's, on the slit's top edge: put there, they go down under the slit, onto the lower lip, near the registered
@@ -578,7 +597,7 @@ def test_true_lid_and_inner_lip_points_stay_on_ict_heads(ict):
     # lips, its subnasale at the profile's deepest point under the nose, its bridge's middle at the generic head's
     # shares of the nasion-to-tip chord, its lower lip's middle on the lip's edge: no step moves the true landmarks of a held-out identity (its skin alone,
     # without eyeballs and lashes) by more than a pixel or two.
-    from pdeface.landmarks.eyes import corners_on_skin_front, lids_on_margin
+    from pdeface.landmarks.eyes import corners_on_skin_front, lids_on_margin, outer_corners_at_opening_end
     from pdeface.landmarks.mouth import (
         inner_lip_corners_inset,
         inner_lips_in_seam,
@@ -594,7 +613,7 @@ def test_true_lid_and_inner_lip_points_stay_on_ict_heads(ict):
     labels = connected_components(len(V), T)
     skin = T[np.isin(labels[T[:, 0]], labels[lm])]
     L = V[lm]
-    for step in (lids_on_margin, corners_on_skin_front, inner_lips_in_seam, nose_bottom_at_subnasale, inner_lip_corners_inset,
+    for step in (lids_on_margin, corners_on_skin_front, outer_corners_at_opening_end, inner_lips_in_seam, nose_bottom_at_subnasale, inner_lip_corners_inset,
                  mouth_corners_at_seam_end, bridge_at_ict_shares, lower_lip_on_its_edge, lower_inner_lips_under_the_slit):
         moved = np.linalg.norm(step(V, skin, L) - L, axis=1) * 10  # mm
         assert moved.max() < 0.5, (step.__name__, moved.max())

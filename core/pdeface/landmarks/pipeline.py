@@ -37,7 +37,7 @@ from ..threads import bounded
 from .brows import brows_from_template
 from .contour import jaw_sides_from_template, upper_jaw_at_template_depth
 from .detector import Detector
-from .eyes import corners_on_skin_front, lids_on_margin
+from .eyes import corners_on_skin_front, lids_on_margin, outer_corners_at_opening_end
 from .facemap import GROUPS, LandmarkMap, read_map, robust_similarity
 from .mouth import (
     inner_lip_corners_at_seam_end,
@@ -395,6 +395,8 @@ def detect(V, T, unit=None, landmark_map: LandmarkMap | None = None, detector: D
         # The eye corners out of the crease's back onto the skin in front (after the brows: their registration
         # holds the region by the eyes as found; with the corners moved first their p95 grows 0.6 %).
         points = corners_on_skin_front(V, T[skin], points)
+        # The outer eye corners at the lateral end of the eye's opening, not on the upper lid or behind the corner.
+        points = outer_corners_at_opening_end(V, T[skin], points)
         # The inner lip corners back in the commissure, not on the lips' front.
         points = inner_lip_corners_at_seam_end(V, T[skin], points)
         # The inner lip line's middles and the mouth's corners in the seam of closed lips, not on the lips' fronts.
