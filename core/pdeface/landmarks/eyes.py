@@ -158,9 +158,9 @@ def outer_corners_at_opening_end(V, T, points) -> np.ndarray:
     0.09 eye distances up and forward on the upper lid, or sunk behind the corner (36 and 45 a median 3.5 and 5.6 %
     of the eye distance from the registered skin points). At the opening's end: 2.0 and 2.0 % (35 of 48 moved,
     4.7 → 2.0 % median; better on 29, worse by more than 1 on 4: asian-female-old's two, voxel's and
-    eyes-teeth-separate's 36, whose opening ends short of the corner); a corner within :data:`OPENING_END_SLACK` of
-    it stays. The inner corners are not moved so: there the opening ends at the caruncle, beside the true corner
-    (median 2.4 → 3.8 %).
+    eyes-teeth-separate's 36, where the lids' slit runs on past the true corner); a corner within
+    :data:`OPENING_END_SLACK` of it stays. The inner corners are not moved so: there the opening ends at the
+    caruncle, beside the true corner (median 2.4 → 3.8 %).
 
     Parameters
     ----------
