@@ -531,6 +531,27 @@ def test_lid_points_on_the_margins_curl_come_back_to_its_front_edge():
 
 
 @needs_makehuman
+def test_eye_corners_sunk_into_the_crease_come_forward_onto_the_skin_in_front():
+    # The snap takes a mapped eye corner to its nearest skin point: in a deep crease its back wall, behind the
+    # lids' fold (found 0.04-0.26 eye distances behind the true corners). Pushed 0.06 back and onto the skin, the
+    # corners come forward onto the skin seen straight on, near the registered points; true corners stay.
+    from pdeface.landmarks.eyes import CORNERS, corners_on_skin_front
+
+    rows = [j for pair in CORNERS for j in pair]
+    ch = build(SPECS["base-dm"])
+    L, eyes = ch.skin_landmarks, ch.eye_distance
+    moved = _moved_in_face_frame(ch.vertices, ch.triangles, L, rows, (0, 0, -0.06))
+    f = face_frame(L)
+    behind = (f.to_face(L) - f.to_face(moved))[rows, 2] / (eyes * f.scale)
+    back = corners_on_skin_front(ch.vertices, ch.triangles, moved)
+    before, after = (np.linalg.norm(P[rows] - L[rows], axis=1) / eyes for P in (moved, back))
+    assert behind.min() > 0.05 and after.max() < 0.025, (behind, before, after)
+    others = np.setdiff1d(np.arange(68), rows)
+    assert np.array_equal(back[others], moved[others])  # only the corners move
+    assert np.array_equal(corners_on_skin_front(ch.vertices, ch.triangles, L), L)  # on the skin's front: stay
+
+
+@needs_makehuman
 def test_inner_lip_middles_on_the_lips_front_go_back_into_the_seam_of_closed_lips():
     # The face mesh's inner lip points lie on the lips' fronts; moved 0.03 eye distances forward onto the closed
     # lips, the middles go back into the seam, nearer the registered points (the seam's bottom lies a little
@@ -555,15 +576,58 @@ def test_inner_lip_middles_on_the_lips_front_go_back_into_the_seam_of_closed_lip
             deeper, before, after)
 
 
+@needs_makehuman
+@pytest.mark.parametrize("name", ["base-dm", "parted-lips-cm"])
+def test_outer_eye_corners_on_the_upper_lid_go_to_the_end_of_the_eyes_opening(name):
+    # The face mesh puts an outer eye corner up to 0.09 eye distances up and forward on the upper lid: moved 0.05 up
+    # and 0.03 forward onto the skin, the outer corners go to the lateral end of the eye's opening, near the
+    # registered corners; nothing else moves, and true corners stay.
+    from pdeface.landmarks.eyes import outer_corners_at_opening_end
+
+    ch = build(SPECS[name])
+    L, eyes, rows = ch.skin_landmarks, ch.eye_distance, [36, 45]
+    moved = _moved_in_face_frame(ch.vertices, ch.triangles, L, rows, (0, 0.05, 0.03))
+    back = outer_corners_at_opening_end(ch.vertices, ch.triangles, moved)
+    before, after = (np.linalg.norm(P[rows] - L[rows], axis=1) / eyes for P in (moved, back))
+    assert before.min() > 0.05 and after.max() < 0.02, (before, after)
+    others = np.setdiff1d(np.arange(68), rows)
+    assert np.array_equal(back[others], moved[others])
+    assert np.array_equal(outer_corners_at_opening_end(ch.vertices, ch.triangles, L), L)
+
+
+@needs_makehuman
+def test_lower_inner_lip_points_on_the_slits_top_edge_go_down_under_the_slit():
+    # The face mesh reads parted lips as nearly closed and puts the lower lip's inner points (65-67) with the upper
+    # lip's, on the slit's top edge: put there, they go down under the slit, onto the lower lip, near the registered
+    # points; true points stay (beside a slit, and on closed lips).
+    from pdeface.landmarks.mouth import lower_inner_lips_under_the_slit
+
+    rows = [65, 66, 67]
+    ch = build(SPECS["parted-lips-cm"])
+    L, eyes = ch.skin_landmarks, ch.eye_distance
+    moved = L.copy()
+    moved[rows] = L[[63, 62, 61]]  # the upper lip's inner points above them
+    back = lower_inner_lips_under_the_slit(ch.vertices, ch.triangles, moved)
+    before, after = (np.linalg.norm(P[rows] - L[rows], axis=1) / eyes for P in (moved, back))
+    assert before.min() > 0.1 and after.max() < 0.02, (before, after)
+    others = np.setdiff1d(np.arange(68), rows)
+    assert np.array_equal(back[others], moved[others])  # only the lower inner points move
+    assert np.abs(lower_inner_lips_under_the_slit(ch.vertices, ch.triangles, L) - L).max() < 0.015 * eyes
+    closed = build(SPECS["base-dm"])
+    assert np.array_equal(lower_inner_lips_under_the_slit(closed.vertices, closed.triangles, closed.skin_landmarks),
+                          closed.skin_landmarks)
+
+
 def test_true_lid_and_inner_lip_points_stay_on_ict_heads(ict):
-    # ICT's lid points lie on a thick margin's rounded edge, its inner lip points in front of a slit between the
+    # ICT's lid points lie on a thick margin's rounded edge, its eye corners on the skin's front, its inner lip points in front of a slit between the
     # lips, its subnasale at the profile's deepest point under the nose, its bridge's middle at the generic head's
     # shares of the nasion-to-tip chord, its lower lip's middle on the lip's edge: no step moves the true landmarks of a held-out identity (its skin alone,
     # without eyeballs and lashes) by more than a pixel or two.
-    from pdeface.landmarks.eyes import lids_on_margin
+    from pdeface.landmarks.eyes import corners_on_skin_front, lids_on_margin, outer_corners_at_opening_end
     from pdeface.landmarks.mouth import (
         inner_lip_corners_inset,
         inner_lips_in_seam,
+        lower_inner_lips_under_the_slit,
         lower_lip_on_its_edge,
         mouth_corners_at_seam_end,
     )
@@ -575,8 +639,8 @@ def test_true_lid_and_inner_lip_points_stay_on_ict_heads(ict):
     labels = connected_components(len(V), T)
     skin = T[np.isin(labels[T[:, 0]], labels[lm])]
     L = V[lm]
-    for step in (lids_on_margin, inner_lips_in_seam, nose_bottom_at_subnasale, inner_lip_corners_inset,
-                 mouth_corners_at_seam_end, bridge_at_ict_shares, lower_lip_on_its_edge):
+    for step in (lids_on_margin, corners_on_skin_front, outer_corners_at_opening_end, inner_lips_in_seam, nose_bottom_at_subnasale, inner_lip_corners_inset,
+                 mouth_corners_at_seam_end, bridge_at_ict_shares, lower_lip_on_its_edge, lower_inner_lips_under_the_slit):
         moved = np.linalg.norm(step(V, skin, L) - L, axis=1) * 10  # mm
         assert moved.max() < 0.5, (step.__name__, moved.max())
 
@@ -663,6 +727,27 @@ def test_an_inner_lip_corner_found_beside_or_lateral_of_its_outer_corner_comes_i
         assert before.min() > 0.03 and after.max() < 0.03, (lateral, before, after)
         others = np.setdiff1d(np.arange(68), rows)
         assert np.array_equal(back[others], moved[others])  # only the inner corners move
+
+
+@needs_makehuman
+@pytest.mark.parametrize("name", ["base-dm", "african-male-old-m"])
+def test_an_inner_lip_corner_found_on_the_lips_front_goes_back_beside_its_outer_corner(name):
+    # The face mesh leaves an inner lip corner on the lips' front where the commissure's groove is shallow (found
+    # 0.03-0.1 eye distances in front of its outer corner, up to 0.07 above; true ones lie at most 0.018 in front):
+    # moved 0.06 forward and 0.04 up onto the lips, the inner corners come back in the commissure, near the
+    # registered corners.
+    from pdeface.landmarks.mouth import INSET_FRONT, inner_lip_corners_inset
+
+    ch = build(SPECS[name])
+    L, eyes, rows = ch.skin_landmarks, ch.eye_distance, [60, 64]
+    moved = _moved_in_face_frame(ch.vertices, ch.triangles, L, rows, (0, 0.04, 0.06))
+    f = face_frame(L)
+    front = (f.to_face(moved[rows]) - f.to_face(moved[[48, 54]]))[:, 2] / (eyes * f.scale)
+    back = inner_lip_corners_inset(ch.vertices, ch.triangles, moved)
+    before, after = (np.linalg.norm(P[rows] - L[rows], axis=1) / eyes for P in (moved, back))
+    assert front.min() > INSET_FRONT and before.min() > 0.06 and after.max() < 0.025, (front, before, after)
+    others = np.setdiff1d(np.arange(68), rows)
+    assert np.array_equal(back[others], moved[others])
 
 
 @needs_makehuman

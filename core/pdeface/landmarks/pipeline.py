@@ -37,12 +37,13 @@ from ..threads import bounded
 from .brows import brows_from_template
 from .contour import jaw_angles_from_neighbours, jaw_sides_from_template, upper_jaw_at_template_depth
 from .detector import Detector
-from .eyes import lids_on_margin
+from .eyes import corners_on_skin_front, lids_on_margin, outer_corners_at_opening_end
 from .facemap import GROUPS, LandmarkMap, read_map, robust_similarity
 from .mouth import (
     inner_lip_corners_at_seam_end,
     inner_lip_corners_inset,
     inner_lips_in_seam,
+    lower_inner_lips_under_the_slit,
     lower_lip_on_its_edge,
     mouth_corners_at_seam_end,
 )
@@ -393,6 +394,11 @@ def detect(V, T, unit=None, landmark_map: LandmarkMap | None = None, detector: D
         points = lids_on_margin(V, T[skin], points)
         # The brows with the brow ridge (ICT's brow region laid onto the skin), not at ICT's height above the eyes.
         points = brows_from_template(V, T[skin], points, closest)
+        # The eye corners out of the crease's back onto the skin in front (after the brows: their registration
+        # holds the region by the eyes as found; with the corners moved first their p95 grows 0.6 %).
+        points = corners_on_skin_front(V, T[skin], points)
+        # The outer eye corners at the lateral end of the eye's opening, not on the upper lid or behind the corner.
+        points = outer_corners_at_opening_end(V, T[skin], points)
         # The inner lip corners back in the commissure, not on the lips' front.
         points = inner_lip_corners_at_seam_end(V, T[skin], points)
         # The inner lip line's middles and the mouth's corners in the seam of closed lips, not on the lips' fronts.
@@ -403,6 +409,8 @@ def detect(V, T, unit=None, landmark_map: LandmarkMap | None = None, detector: D
         points = inner_lip_corners_inset(V, T[skin], points, closest)
         # The lower lip's middle points on its edge, not on the curve under it.
         points = lower_lip_on_its_edge(V, T[skin], points)
+        # The lower lip's inner points under the slit of parted lips, not on its top edge with the upper lip's.
+        points = lower_inner_lips_under_the_slit(V, T[skin], points)
         # The nose's bottom at the subnasale, the profile's deepest point under the nose.
         points = nose_bottom_at_subnasale(V, T[skin], points, closest)
         # The bridge's middle points at ICT's shares of the nasion-to-tip chord, not nearer the nasion.
