@@ -174,7 +174,7 @@ def test_every_package_is_in_the_distribution():
 #: below its own. The package docstring (``pdeface/__init__.py``) describes the same order.
 FLOORS = [
     ["errors"],
-    ["geometry", "landmark_scheme", "facs", "threads"],
+    ["geometry", "landmark_scheme", "facs", "threads", "heap"],
     ["mesh", "rigid"],
     ["assets", "io", "headless"],
     ["presets"],
