@@ -15,7 +15,7 @@ from bpy.types import Operator
 from pdeface.errors import PdeFaceError, one_line
 from pdeface.fdt.quadratic import MODELS as FDT_MODELS
 from pdeface.fdt.table import load_fdt
-from pdeface.heap import kept_heap
+from pdeface.heap import keep_heap
 from pdeface.muscles.placement import MUSCLE_NAMES
 from pdeface.threads import bounded_threads
 
@@ -32,10 +32,9 @@ class _Operator:
 
     def execute(self, context):
         warm.wait()  # the core's warm-up (if still running) done first: nothing loaded from two threads
+        keep_heap()  # numpy's big arrays reuse freed memory: fewer page faults (pdeface.heap)
         try:
-            # BLAS threads that do not spin beside Blender's own (pdeface.threads); numpy's big arrays reusing
-            # freed memory, given back to the system after (pdeface.heap)
-            with bounded_threads(), kept_heap():
+            with bounded_threads():  # BLAS threads that do not spin beside Blender's own (pdeface.threads)
                 message = self.run(context)
         except PdeFaceError as exc:
             self.report({"ERROR"}, one_line(exc))

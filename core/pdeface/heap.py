@@ -3,69 +3,49 @@
 glibc's ``malloc`` takes each block over its threshold (128 KiB at first, rising to the largest freed since)
 straight from the system (``mmap``) and gives it back when freed: the next array of that size is fresh memory,
 every 4 KiB page of it a fault the kernel fills with zeros. The landmarks' renders, the fit and the head
-binding make and drop thousands of arrays of 0.1-50 MB: a 27k-vertex head's ``pdeface rig`` took 139k page
-faults, and half the renders' time went to them on a virtual machine (issue #35). Inside :func:`kept_heap`,
+binding make and drop thousands of arrays of 0.1-50 MB: a 27k-vertex head's ``pdeface rig`` took 134k page
+faults, and half the renders' time went to them on a virtual machine (issue #35). After :func:`keep_heap`,
 blocks under :data:`MMAP_THRESHOLD` come from the heap and up to :data:`TRIM_THRESHOLD` of free memory stays at
-its top, so a freed array's pages serve the next one; leaving the outermost block gives the free memory back to
-the system (``malloc_trim``) unless told not to. The two thresholds stay set after it (once set, glibc's
-threshold no longer rises; its first 128 KiB would fault more than its moving one did). Elsewhere than glibc
-(macOS, Windows, musl) it changes nothing.
+its top, so a freed array's pages serve the next one: the rig faults half as often, its CPU time 10 % less.
+It is process-wide and stays (the rig, the landmarks' search and the add-on's operators call it); the memory
+kept free is at most that threshold beyond glibc's own (which keeps twice its moving threshold, up to 64 MiB).
+Elsewhere than glibc (macOS, Windows, musl) it changes nothing.
 """
 from __future__ import annotations
 
 import ctypes
 import threading
-from contextlib import contextmanager
 
-#: Blocks under this many bytes come from the heap inside :func:`kept_heap` (a 27k head's largest arrays are ~30 MB).
+#: Blocks under this many bytes come from the heap (a 27k head's largest arrays are ~30 MB).
 MMAP_THRESHOLD = 64 << 20
-#: Free bytes kept at the heap's top inside :func:`kept_heap` before any is given back.
+#: Free bytes kept at the heap's top before any is given back to the system.
 TRIM_THRESHOLD = 128 << 20
 _M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3  # glibc's malloc.h
 
 _lock = threading.Lock()
-_depth = 0
-_libc = []  # [glibc, or None where the C library is another], found once
+_kept = []  # [whether the thresholds were set], once per process
 
 
 def _glibc():
-    if not _libc:
-        try:
-            libc = ctypes.CDLL(None)
-            if not hasattr(libc, "gnu_get_libc_version"):  # glibc's own: musl's mallopt does nothing
-                raise AttributeError("not glibc")
-            libc.mallopt.argtypes = [ctypes.c_int, ctypes.c_int]
-            libc.malloc_trim.argtypes = [ctypes.c_size_t]
-        except (OSError, TypeError, AttributeError):  # Windows (CDLL(None)), macOS, musl
-            libc = None
-        _libc.append(libc)
-    return _libc[0]
-
-
-@contextmanager
-def kept_heap(give_back: bool = True):
-    """Run the block with numpy's big arrays kept in the C heap between uses (see the module's notes).
-
-    Parameters
-    ----------
-    give_back : bool
-        On leaving the outermost block, give the heap's free memory back to the system (an application that
-        lives on: the add-on). A process about to end (the command line) leaves it to the exit.
-    """
-    global _depth
-    libc = _glibc()
-    if libc is None:
-        yield
-        return
-    with _lock:
-        if _depth == 0:
-            libc.mallopt(_M_MMAP_THRESHOLD, MMAP_THRESHOLD)
-            libc.mallopt(_M_TRIM_THRESHOLD, TRIM_THRESHOLD)
-        _depth += 1
+    """The C library when it is glibc, else None."""
     try:
-        yield
-    finally:
-        with _lock:
-            _depth -= 1
-            if _depth == 0 and give_back:
-                libc.malloc_trim(0)
+        libc = ctypes.CDLL(None)
+        if not hasattr(libc, "gnu_get_libc_version"):  # glibc's own: musl's mallopt does nothing
+            return None
+        libc.mallopt.argtypes = [ctypes.c_int, ctypes.c_int]
+    except (OSError, TypeError, AttributeError):  # Windows (no CDLL(None)), macOS
+        return None
+    return libc
+
+
+def keep_heap() -> bool:
+    """Keep numpy's big arrays in the C heap from now on, in this process (see the module's notes); a second call
+    does nothing. Returns whether the C library is glibc (elsewhere nothing is changed)."""
+    with _lock:
+        if not _kept:
+            libc = _glibc()
+            if libc is not None:
+                libc.mallopt(_M_MMAP_THRESHOLD, MMAP_THRESHOLD)
+                libc.mallopt(_M_TRIM_THRESHOLD, TRIM_THRESHOLD)
+            _kept.append(libc is not None)
+    return _kept[0]

@@ -31,7 +31,7 @@ from .head.bind import HeadBinding
 from .head.parts import read_overrides, skin_mask
 from .head.prior import load_head_prior
 from .headless import run_headless
-from .heap import kept_heap
+from .heap import keep_heap
 from .io.files import load_npz, parse_json, write_bytes, write_npz
 from .landmarks.checked import find_checked
 from .landmarks.detector import available
@@ -92,7 +92,6 @@ def load_keys(path) -> dict:
     return out | {"names": list(meta["names"]), "unit": meta["unit"], "source": meta.get("source", "")}
 
 
-@kept_heap()  # numpy's big arrays reuse freed memory: half the page faults (issue #35)
 def rig_head(mesh_arg, out, landmarks=None, unit=None, parts=None, descriptors=DEFAULT, presets=True,
              blend=False, accept=False, log=None) -> dict:
     """Rig the head ``mesh_arg`` (a file, ``head`` or ``default``) into the folder ``out``; returns the report.
@@ -124,6 +123,7 @@ def rig_head(mesh_arg, out, landmarks=None, unit=None, parts=None, descriptors=D
     PdeFaceError
         A broken mesh, landmarks refused by the gate, a fit or binding that cannot be made.
     """
+    keep_heap()  # numpy's big arrays reuse freed memory: half the page faults (pdeface.heap)
     say = log or (lambda msg: None)
     out = Path(out)
     try:
