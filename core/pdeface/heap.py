@@ -8,7 +8,7 @@ faults, and half the renders' time went to them on a virtual machine (issue #35)
 blocks under :data:`MMAP_THRESHOLD` come from the heap and up to :data:`TRIM_THRESHOLD` of free memory stays at
 its top, so a freed array's pages serve the next one: the rig faults half as often, its CPU time 10 % less.
 It is process-wide and stays (the OBJ reader, the landmarks' search, the rig and the add-on's operators call
-it); the memory kept free is at most that threshold beyond glibc's own (twice its moving threshold, ≤ 64 MiB).
+it); the memory kept free is at most ``trim_threshold`` (glibc's own keeps twice its moving threshold, ≤ 64 MiB).
 Elsewhere than glibc (macOS, Windows, musl) it changes nothing.
 """
 from __future__ import annotations
@@ -18,8 +18,9 @@ import threading
 
 #: Blocks under this many bytes come from the heap (a 27k head's largest arrays are ~30 MB).
 MMAP_THRESHOLD = 64 << 20
-#: Free bytes kept at the heap's top before any is given back to the system.
-TRIM_THRESHOLD = 128 << 20
+#: Free bytes kept at the heap's top before any is given back to the system (at 32 MiB the rig faulted 82k times, at
+#: 64 or 128 MiB 64k).
+TRIM_THRESHOLD = 64 << 20
 _M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3  # glibc's malloc.h
 
 _lock = threading.Lock()
@@ -38,14 +39,15 @@ def _glibc():
     return libc
 
 
-def keep_heap() -> bool:
-    """Keep numpy's big arrays in the C heap from now on, in this process (see the module's notes); a second call
-    does nothing. Returns whether the C library is glibc (elsewhere nothing is changed)."""
+def keep_heap(trim_threshold: int = TRIM_THRESHOLD) -> bool:
+    """Keep numpy's big arrays in the C heap from now on, in this process (see the module's notes), with up to
+    ``trim_threshold`` bytes of free memory kept; the first call's settings hold, a later call does nothing.
+    Returns whether the C library is glibc (elsewhere nothing is changed)."""
     with _lock:
         if not _kept:
             libc = _glibc()
             if libc is not None:
                 libc.mallopt(_M_MMAP_THRESHOLD, MMAP_THRESHOLD)
-                libc.mallopt(_M_TRIM_THRESHOLD, TRIM_THRESHOLD)
+                libc.mallopt(_M_TRIM_THRESHOLD, int(trim_threshold))
             _kept.append(libc is not None)
     return _kept[0]

@@ -46,8 +46,8 @@ def test_keep_heap_sets_the_thresholds_once(monkeypatch):
     fake = _FakeLibc()
     monkeypatch.setattr(heap, "_kept", [])
     monkeypatch.setattr(heap, "_glibc", lambda: fake)
-    assert heap.keep_heap() and heap.keep_heap()
-    assert fake.calls == [(-3, heap.MMAP_THRESHOLD), (-1, heap.TRIM_THRESHOLD)]  # M_MMAP_, M_TRIM_THRESHOLD
+    assert heap.keep_heap(trim_threshold=5 << 20) and heap.keep_heap()  # the first call's settings hold
+    assert fake.calls == [(-3, heap.MMAP_THRESHOLD), (-1, 5 << 20)]  # M_MMAP_THRESHOLD, M_TRIM_THRESHOLD
 
 
 def test_keep_heap_changes_nothing_without_glibc(monkeypatch):
