@@ -16,7 +16,9 @@ process: its first Find Landmarks pays scipy's and MediaPipe's imports and the f
 Then the ICT head's chain in a fresh process after the add-on's warm-up (``blender_addon/warm.py``, which
 Blender runs on a thread a few seconds after its start: here started and waited for before the import, as
 when the artist opens a mesh a few seconds after Blender starts): its wall and CPU seconds beside the cold
-chain's of this run, and the warm-up's own. pdeface's bytecode is compiled first and read by both
+chain's of this run, and the warm-up's own; ``--heap-runs N`` such fresh processes each with the C heap kept
+(:mod:`pdeface.heap`, as the add-on's operators run) and at glibc's default (as before), in turn: each step's
+median wall and CPU seconds and page faults both ways, and the processes' peak memory. pdeface's bytecode is compiled first and read by both
 (``benchlib.installed_env``). The machine's load average is printed. Needs ``pdeface[blender,landmarks]``.
 """
 from __future__ import annotations
@@ -26,6 +28,8 @@ import importlib
 import json
 import os
 import pstats
+import resource
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -104,33 +108,71 @@ def core_calls(prof):
     return out
 
 
-def warmed_chain(path):
+def with_faults(fn):
+    """``fn()``'s (wall, CPU) seconds and the page faults it took (minor: memory the kernel gave the process)."""
+    before = resource.getrusage(resource.RUSAGE_SELF).ru_minflt
+    wall, cpu = time_only(fn)
+    return wall, cpu, resource.getrusage(resource.RUSAGE_SELF).ru_minflt - before
+
+
+def warmed_chain(path, default_heap=False):
     """In this (fresh) process: the add-on's warm-up started and waited for, then the chain on ``path``; prints
-    ``{"warm-up": (wall, CPU), step: (wall, CPU), ...}`` as JSON (CPU: the process's, the warm-up's thread's too)."""
+    ``{"warm-up": (wall, CPU, faults), step: (wall, CPU, faults), ..., "peak MB": ...}`` as JSON (CPU: the
+    process's, the warm-up's thread's too). ``default_heap``: glibc's heap as it was before :mod:`pdeface.heap`."""
+    if default_heap:
+        from pdeface import heap
+
+        heap._kept.append(False)  # as if kept once already: the add-on's calls leave glibc's default
     addon = enable_addon()
     import bpy
 
     warm = importlib.import_module(f"{addon.__name__}.warm")
-    steps = {"warm-up": time_only(lambda: (warm.start(), warm.wait()))}
-    print(json.dumps(steps | chain(bpy, path, time_only)))
+    steps = {"warm-up": with_faults(lambda: (warm.start(), warm.wait()))}
+    steps |= chain(bpy, path, with_faults)
+    print(json.dumps(steps | {"peak MB": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))
 
 
-def warmed_in_a_fresh_process(path, env):
-    """:func:`warmed_chain` of ``path`` in a fresh process: its ``{step: (wall, CPU)}``."""
-    done = subprocess.run([sys.executable, "-m", "scripts.bench.bench_newhead", "--warmed", str(path), "--no-page"],
+def warmed_in_a_fresh_process(path, env, default_heap=False):
+    """:func:`warmed_chain` of ``path`` in a fresh process: its ``{step: (wall, CPU, faults)}`` and peak MB."""
+    argv = ["--warmed", str(path), "--no-page"] + (["--default-heap"] if default_heap else [])
+    done = subprocess.run([sys.executable, "-m", "scripts.bench.bench_newhead", *argv],
                           env=env, capture_output=True, text=True, check=False, cwd=ROOT)
     if done.returncode:
         raise SystemExit(f"the warmed chain failed: {done.stderr.strip()[-600:]}")
     return json.loads(done.stdout.strip().splitlines()[-1])
 
 
+def heap_both_ways(path, env, runs):
+    """The warmed chain on ``path`` in fresh processes with the C heap kept and at glibc's default, in turn (the
+    machine's load falls on both alike): each step's medians both ways."""
+    ways = {"kept": [], "default": []}
+    for _ in range(runs):
+        for way, rows in ways.items():
+            rows.append(warmed_in_a_fresh_process(path, env, default_heap=way == "default"))
+    print(f"\n== ICT head after the warm-up, {runs} fresh processes each way in turn: the C heap kept "
+          f"(pdeface.heap, as the add-on runs) and at glibc's default (as before); medians; load after: {load_text()}")
+    print(f"  {'step':45s} {'wall kept':>9s} {'default':>8s} {'ratio':>6s}  {'CPU kept':>8s} {'default':>8s} "
+          f"{'ratio':>6s}  {'faults kept':>11s} {'default':>8s}")
+    steps = [k for k in ways["kept"][0] if k not in ("warm-up", "peak MB")]
+    for step in [*steps, "chain"]:
+        med = {way: [statistics.median(sum(r[s][i] for s in (steps if step == "chain" else [step])) for r in rows)
+                     for i in range(3)] for way, rows in ways.items()}
+        (kw, kc, kf), (dw, dc, df) = med["kept"], med["default"]
+        print(f"  {step:45s} {kw:8.2f}s {dw:7.2f}s {kw / dw:6.2f}  {kc:7.2f}s {dc:7.2f}s {kc / dc:6.2f}  "
+              f"{kf:11.0f} {df:8.0f}")
+    peaks = {way: statistics.median(r["peak MB"] for r in rows) for way, rows in ways.items()}
+    print(f"  peak memory of the process: {peaks['kept']:.0f} MB kept, {peaks['default']:.0f} MB at the default")
+
+
 def main(argv=None):
     ap = bench_parser(__doc__)
     ap.add_argument("--profile", type=int, default=8, help="functions listed per step")
     ap.add_argument("--warmed", metavar="OBJ", help="(its own child) the chain on OBJ after the add-on's warm-up")
+    ap.add_argument("--default-heap", action="store_true", help="(with --warmed) glibc's heap as before pdeface.heap")
+    ap.add_argument("--heap-runs", type=int, default=3, help="fresh processes each way, heap kept and default")
     args = ap.parse_args(argv)
     if args.warmed:
-        warmed_chain(args.warmed)
+        warmed_chain(args.warmed, args.default_heap)
         return 0
     env = installed_env()  # pdeface's bytecode compiled now and read, here and in the warmed child alike
     addon = enable_addon()
@@ -177,18 +219,21 @@ def main(argv=None):
                         print(f"      {o:6.2f} s own {c:6.2f} s cum {calls:7d}×  {fn[:110]}")
     path, timed = cold["ICT head"]
     warmed = warmed_in_a_fresh_process(path, env)
-    warm_s, warm_cpu = warmed.pop("warm-up")
+    warmed.pop("peak MB")
+    warm_s, warm_cpu, _ = warmed.pop("warm-up")
     print(f"\n== ICT head after the add-on's warm-up, in a fresh process (the warm-up itself {warm_s:.2f} s, CPU "
           f"{warm_cpu:.2f} s, on its thread before the import); cold: this run's first chain above; load after: "
           f"{load_text()}")
     print(f"  {'step':45s} {'warmed':>8s} {'cold':>8s} {'ratio':>6s}   {'CPU warmed':>10s} {'cold':>6s} {'ratio':>6s}")
     for step, (s, cpu) in timed.items():
-        ws, wc = warmed[step]
+        ws, wc, _ = warmed[step]
         print(f"  {step:45s} {ws:7.2f}s {s:7.2f}s {ws / s:6.2f}   {wc:9.2f}s {cpu:5.2f}s {wc / cpu:6.2f}")
     total = [sum(v[i] for v in d.values()) for d in (warmed, timed) for i in (0, 1)]
     print(f"  {'chain':45s} {total[0]:7.2f}s {total[2]:7.2f}s {total[0] / total[2]:6.2f}   {total[1]:9.2f}s "
           f"{total[3]:5.2f}s {total[1] / total[3]:6.2f}   (target ≤ {TARGET_S:.0f} s: "
           f"{'met' if total[0] <= TARGET_S else 'NOT met'} warmed)")
+    if args.heap_runs:
+        heap_both_ways(path, env, args.heap_runs)
     return 0
 
 

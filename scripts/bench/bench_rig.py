@@ -15,7 +15,8 @@ writes it on its first run, so the rigs are timed with it (``benchlib.installed_
 printed: other work beside it slows every figure. With ``--baseline REF`` (a git revision, e.g. ``main``), each
 head is also rigged by REF's core (``git archive``, its bytecode compiled too), its runs interleaved with this
 checkout's so that the machine's load falls on both alike: each step's median CPU seconds both ways and their
-ratio, and whether every output file but the report is the same, byte for byte. Needs ``pdeface[landmarks]``.
+ratio, their page faults (minor: memory the kernel gave the process, see :mod:`pdeface.heap`), and whether every
+output file but the report is the same, byte for byte. Needs ``pdeface[landmarks]``.
 """
 from __future__ import annotations
 
@@ -55,6 +56,11 @@ def child_cpu():
     return use.ru_utime + use.ru_stime
 
 
+def child_faults():
+    """The page faults of this process's finished children (minor: memory the kernel gave them)."""
+    return resource.getrusage(resource.RUSAGE_CHILDREN).ru_minflt
+
+
 def child_env(source_only=None):
     """The environment of a child: reading pdeface's bytecode (:func:`~scripts.bench.benchlib.installed_env`), or
     with ``source_only`` (a folder holding a copy of the package without its bytecode, first on the path)
@@ -77,21 +83,21 @@ def baseline_core(ref, folder):
 
 
 def rig_once(path, out, core=None):
-    """(process wall seconds, its CPU seconds, each step's (wall, CPU) seconds from the report) of ``pdeface rig
-    path -o out`` in a fresh process; ``core``: another core folder first on the path (the baseline's), reading
+    """(process wall seconds, its CPU seconds, each step's (wall, CPU) seconds from the report, its page faults)
+    of ``pdeface rig path -o out`` in a fresh process; ``core``: another core folder first on the path (the baseline's), reading
     this checkout's assets. A step the rig does not time counts 0."""
     env = child_env()  # compiles the bytecode first: not the rig's time
     if core is not None:
         env |= {"PYTHONPATH": os.pathsep.join(p for p in (str(core), env.get("PYTHONPATH")) if p)}
         env.setdefault("PDEFACE_ASSETS", str(ROOT / "assets"))
-    t, c = time.perf_counter(), child_cpu()
+    t, c, f = time.perf_counter(), child_cpu(), child_faults()
     done = subprocess.run([sys.executable, "-m", "pdeface.cli", "rig", str(path), "-o", str(out)],
                           capture_output=True, text=True, check=False, env=env)
-    wall, cpu = time.perf_counter() - t, child_cpu() - c
+    wall, cpu, faults = time.perf_counter() - t, child_cpu() - c, child_faults() - f
     if done.returncode:
         raise SystemExit(f"pdeface rig {path} failed: {done.stderr.strip()[-600:]}")
     printed = json.loads(done.stdout.strip().splitlines()[-1])
-    return wall, cpu, {k: (printed["timings"].get(k, 0.0), printed["cpu_timings"].get(k, 0.0)) for k in STEPS}
+    return wall, cpu, {k: (printed["timings"].get(k, 0.0), printed["cpu_timings"].get(k, 0.0)) for k in STEPS}, faults
 
 
 def against_baseline(path, tmp, runs, core):
@@ -111,6 +117,8 @@ def against_baseline(path, tmp, runs, core):
         a, b = statistics.median(a), statistics.median(b)
         print(f"  {k:10s} {a:6.2f} {b:6.2f} {f'{a / b:6.2f}' if b else '   new'}")  # a step REF did not time
     wall_now, wall_before = statistics.median(r[0] for r in now), statistics.median(r[0] for r in before)
+    faults_now, faults_before = statistics.median(r[3] for r in now), statistics.median(r[3] for r in before)
+    print(f"  page faults {faults_now:.0f} now, {faults_before:.0f} before: ratio {faults_now / faults_before:.2f}")
     print(f"  process wall {wall_now:.2f} s now, {wall_before:.2f} s before: ratio {wall_now / wall_before:.2f}; "
           f"the same bytes as before: {', '.join(same) or 'none'}"
           f"{'' if len(same) == len(SAME_FILES) else ' (DIFFERENT: ' + ', '.join(set(SAME_FILES) - set(same)) + ')'}")
@@ -143,13 +151,13 @@ def main(argv=None):
             path = Path(tmp) / f"{len(mesh.vertices)}.obj"
             write_obj(path, mesh)
             runs = [rig_once(path, Path(tmp) / "out") for _ in range(args.runs)]
-            wall = statistics.median(w for w, _, _ in runs)
-            cpu = statistics.median(c for _, c, _ in runs)
-            steps = {k: statistics.median(t[k][0] for _, _, t in runs) for k in STEPS}
-            steps_cpu = {k: statistics.median(t[k][1] for _, _, t in runs) for k in STEPS}
+            wall = statistics.median(r[0] for r in runs)
+            cpu = statistics.median(r[1] for r in runs)
+            steps = {k: statistics.median(r[2][k][0] for r in runs) for k in STEPS}
+            steps_cpu = {k: statistics.median(r[2][k][1] for r in runs) for k in STEPS}
             print(f"\n== {name} ({len(mesh.vertices)} vertices): pdeface rig {wall:.2f} s per process ({cpu:.2f} s of "
                   f"CPU: less sensitive to other work), median of {args.runs} (runs "
-                  f"{', '.join(f'{w:.2f}' for w, _, _ in runs)}); target ≤ {TARGET_S:.0f} s: ratio "
+                  f"{', '.join(f'{r[0]:.2f}' for r in runs)}; {statistics.median(r[3] for r in runs):.0f} page faults); target ≤ {TARGET_S:.0f} s: ratio "
                   f"{wall / TARGET_S:.2f}, {'met' if wall <= TARGET_S else 'NOT met'}; load after: {load_text()}")
             print(f"  {'step':10s} {'wall s':>6s} {'share':>5s}  {'CPU s':>6s} {'share':>5s}")
             for k, s in steps.items():

@@ -168,3 +168,23 @@ def test_each_command_imports_only_its_group(capsys):
     with pytest.raises(SystemExit):  # an unknown command still lists every command
         main(["no-such-command"])
     assert "'fit'" in capsys.readouterr().err
+
+
+def test_the_command_ends_with_everything_written(tmp_path):
+    """``pdeface`` (``cli.run``) ends the process without the interpreter's teardown: its output is whole, the
+    exit handlers ran, and the exit status is ``main``'s, on success and on an error."""
+    import os
+    import sys
+
+    probe = ("import atexit, os\nfrom pathlib import Path\nfrom pdeface import cli\n"
+             "atexit.register(lambda: Path(os.environ['MARKER']).write_text('ran'))\ncli.run()\n")
+    whole = subprocess.run([sys.executable, "-c", "from pdeface.cli import main; main(['aus', 'default'])"],
+                           check=True, capture_output=True, text=True).stdout
+    for face, code in (("default", 0), (str(tmp_path / "missing.npz"), 2)):
+        marker = tmp_path / f"handler{code}.txt"
+        res = subprocess.run([sys.executable, "-c", probe, "aus", face], check=False, capture_output=True,
+                             text=True, env={**os.environ, "MARKER": str(marker)})
+        assert res.returncode == code, res.stderr
+        assert marker.read_text() == "ran"
+        assert res.stdout == (whole if code == 0 else "")
+        assert code == 0 or "missing.npz: cannot open" in res.stderr

@@ -34,7 +34,7 @@ def test_the_core_never_imports_bpy():
 
 def test_only_the_entry_point_imports_the_cli():
     """The command line is one room, ``pdeface/cli/``: its modules import each other only from within it
-    (relatively), nothing else imports them (the entry point names ``pdeface.cli:main``), and no concern
+    (relatively), nothing else imports them (the entry point names ``pdeface.cli:run``), and no concern
     keeps a ``cli`` module of its own."""
     room = CORE / "cli"
     assert (room / "__init__.py").is_file() and (room / "__main__.py").is_file()
@@ -174,7 +174,7 @@ def test_every_package_is_in_the_distribution():
 #: below its own. The package docstring (``pdeface/__init__.py``) describes the same order.
 FLOORS = [
     ["errors"],
-    ["geometry", "landmark_scheme", "facs", "threads"],
+    ["geometry", "landmark_scheme", "facs", "threads", "heap"],
     ["mesh", "rigid"],
     ["assets", "io", "headless"],
     ["presets"],

@@ -1,6 +1,4 @@
 """``python -m pdeface.cli``: the ``pdeface`` command."""
-import sys
+from . import run
 
-from . import main
-
-sys.exit(main())
+run()
