@@ -15,14 +15,11 @@ from bpy.types import Operator
 from pdeface.errors import PdeFaceError, one_line
 from pdeface.fdt.quadratic import MODELS as FDT_MODELS
 from pdeface.fdt.table import load_fdt
-from pdeface.heap import keep_heap
 from pdeface.muscles.placement import MUSCLE_NAMES
 from pdeface.threads import bounded_threads
 
 from . import animation, compat, face, keys, landmarks, live, muscles, rigging, texturing, warm
 
-#: Free memory (bytes) the C heap keeps for the next arrays in Blender's process (pdeface.heap.keep_heap).
-KEPT_FREE = 32 << 20
 #: How an unexpected exception's report starts (the tests look for it).
 BUG = "pdeface internal error, please report it with the console's traceback"
 
@@ -34,9 +31,6 @@ class _Operator:
 
     def execute(self, context):
         warm.wait()  # the core's warm-up (if still running) done first: nothing loaded from two threads
-        # numpy's big arrays reuse freed memory: fewer page faults (pdeface.heap); Blender lives on, so less free memory
-        # is kept than the command line keeps (Add ICT Head (rigged)'s peak: 457 MB as before, 461 MB, 486 at 64 MiB)
-        keep_heap(trim_threshold=KEPT_FREE)
         try:
             with bounded_threads():  # BLAS threads that do not spin beside Blender's own (pdeface.threads)
                 message = self.run(context)

@@ -7,8 +7,10 @@ binding make and drop thousands of arrays of 0.1-50 MB: a 27k-vertex head's ``pd
 faults, and half the renders' time went to them on a virtual machine (issue #35). After :func:`keep_heap`,
 blocks under :data:`MMAP_THRESHOLD` come from the heap and up to :data:`TRIM_THRESHOLD` of free memory stays at
 its top, so a freed array's pages serve the next one: the rig faults half as often, its CPU time 10 % less.
-It is process-wide and stays (the OBJ reader, the landmarks' search, the rig and the add-on's operators call
-it); the memory kept free is at most ``trim_threshold`` (glibc's own keeps twice its moving threshold, ≤ 64 MiB).
+It is process-wide and stays, so only a process's owner calls it: the ``pdeface`` command (``cli.run``), or your
+own script; the library's functions and the add-on do not (in Blender, which lives on, it made no clear difference:
+``bench_newhead --heap-runs``). The memory kept free is at most ``trim_threshold`` (glibc's own keeps twice its
+moving threshold, ≤ 64 MiB).
 Elsewhere than glibc (macOS, Windows, musl) it changes nothing.
 """
 from __future__ import annotations

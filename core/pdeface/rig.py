@@ -31,7 +31,6 @@ from .head.bind import HeadBinding
 from .head.parts import read_overrides, skin_mask
 from .head.prior import load_head_prior
 from .headless import run_headless
-from .heap import keep_heap
 from .io.files import load_npz, parse_json, write_bytes, write_npz
 from .landmarks.checked import find_checked
 from .landmarks.detector import available
@@ -123,7 +122,6 @@ def rig_head(mesh_arg, out, landmarks=None, unit=None, parts=None, descriptors=D
     PdeFaceError
         A broken mesh, landmarks refused by the gate, a fit or binding that cannot be made.
     """
-    keep_heap()  # numpy's big arrays reuse freed memory: half the page faults (pdeface.heap)
     say = log or (lambda msg: None)
     out = Path(out)
     try:

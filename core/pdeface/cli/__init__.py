@@ -24,6 +24,7 @@ import threading
 
 from .. import __version__
 from ..errors import PdeFaceError, one_line
+from ..heap import keep_heap
 from ..threads import bounded_threads
 from .common import HelpFormatter
 
@@ -96,7 +97,12 @@ def run():
     after a ``pdeface rig`` had written everything (issue #35). What exit would still do is done first: the
     exit handlers registered with :mod:`atexit` (temporary folders, logging, Dask's clients), then stdout and
     stderr flushed. A thread still working (not a daemon) is waited for as ever: the plain exit.
+
+    The command's process keeps numpy's big arrays in the C heap (:func:`pdeface.heap.keep_heap`: half the page
+    faults of a 27k head's rig). The library's functions leave the allocator as they find it: a script or Blender
+    that imports them decides for its own process.
     """
+    keep_heap()
     code = main()
     if any(t.is_alive() and not t.daemon for t in threading.enumerate() if t is not threading.main_thread()):
         sys.exit(code)

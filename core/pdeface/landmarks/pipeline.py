@@ -30,7 +30,6 @@ import numpy as np
 
 from ..errors import LandmarkError, MeshError
 from ..geometry import ClosestPoint
-from ..heap import keep_heap
 from ..mesh import connected_components, vertex_normals
 from ..rigid import rotation_vector_matrix
 from ..surface.frame import UNITS_MM, estimate_unit
@@ -350,7 +349,6 @@ def detect(V, T, unit=None, landmark_map: LandmarkMap | None = None, detector: D
     LandmarkError
         No face, two faces, or points that are not a face.
     """
-    keep_heap()  # the renders' arrays reuse freed memory: fewer page faults (pdeface.heap)
     V, T = np.asarray(V, np.float64), np.asarray(T, np.int64)
     if V.ndim != 2 or V.shape[1] != 3 or len(V) < 3 or not np.isfinite(V).all():
         raise MeshError("vertices must be (n, 3) finite numbers")
