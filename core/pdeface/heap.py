@@ -9,8 +9,8 @@ blocks under :data:`MMAP_THRESHOLD` come from the heap and up to :data:`TRIM_THR
 its top, so a freed array's pages serve the next one: the rig faults half as often, its CPU time 10 % less.
 It is process-wide and stays, so only a process's owner calls it: the ``pdeface`` command (``cli.run``), or your
 own script; the library's functions and the add-on do not (in Blender, which lives on, it made no clear difference:
-``bench_newhead --heap-runs``). The memory kept free is at most ``trim_threshold`` (glibc's own keeps twice its
-moving threshold, ≤ 64 MiB).
+``bench_newhead --heap-runs``). Free memory at the heap's top beyond ``trim_threshold`` goes back to the system; memory
+freed below a block still in use stays with the process until it ends (a command's process ends after one run).
 Elsewhere than glibc (macOS, Windows, musl) it changes nothing.
 """
 from __future__ import annotations
@@ -18,8 +18,9 @@ from __future__ import annotations
 import ctypes
 import threading
 
-#: Blocks under this many bytes come from the heap (a 27k head's largest arrays are ~30 MB).
-MMAP_THRESHOLD = 64 << 20
+#: Blocks under this many bytes come from the heap (a 27k head's largest arrays are ~30 MB); glibc's largest allowed
+#: on 64-bit systems (``mallopt(3)``: HEAP_MAX_SIZE / 2; older glibc refuses more).
+MMAP_THRESHOLD = 32 << 20
 #: Free bytes kept at the heap's top before any is given back to the system (at 32 MiB the rig faulted 82k times, at
 #: 64 or 128 MiB 64k).
 TRIM_THRESHOLD = 64 << 20
@@ -44,12 +45,14 @@ def _glibc():
 def keep_heap(trim_threshold: int = TRIM_THRESHOLD) -> bool:
     """Keep numpy's big arrays in the C heap from now on, in this process (see the module's notes), with up to
     ``trim_threshold`` bytes of free memory kept; the first call's settings hold, a later call does nothing.
-    Returns whether the C library is glibc (elsewhere nothing is changed)."""
+    Returns whether the heap is kept (glibc that took the settings; elsewhere nothing is changed)."""
     with _lock:
         if not _kept:
             libc = _glibc()
-            if libc is not None:
-                libc.mallopt(_M_MMAP_THRESHOLD, MMAP_THRESHOLD)
+            # mallopt returns 0 for a value refused: then the trim threshold is left too (setting it alone would
+            # freeze glibc's moving mmap threshold at its first 128 KiB: more faults, not fewer)
+            kept = libc is not None and libc.mallopt(_M_MMAP_THRESHOLD, MMAP_THRESHOLD) == 1
+            if kept:
                 libc.mallopt(_M_TRIM_THRESHOLD, int(trim_threshold))
-            _kept.append(libc is not None)
+            _kept.append(kept)
     return _kept[0]

@@ -54,3 +54,14 @@ def test_keep_heap_changes_nothing_without_glibc(monkeypatch):
     monkeypatch.setattr(heap, "_kept", [])
     monkeypatch.setattr(heap, "_glibc", lambda: None)
     assert heap.keep_heap() is False and heap._kept == [False]
+
+
+def test_keep_heap_sets_nothing_more_where_glibc_refuses_the_threshold(monkeypatch):
+    """An older glibc that refuses the mmap threshold (mallopt returns 0): the trim threshold is left too (alone it
+    would freeze glibc's moving threshold at 128 KiB) and the heap is reported as not kept."""
+    fake = _FakeLibc()
+    fake.mallopt = lambda option, value: fake.calls.append((option, value)) or 0
+    monkeypatch.setattr(heap, "_kept", [])
+    monkeypatch.setattr(heap, "_glibc", lambda: fake)
+    assert heap.keep_heap() is False
+    assert fake.calls == [(-3, heap.MMAP_THRESHOLD)]

@@ -219,7 +219,8 @@ def _read_pde(model, P, N, eye_distance, resolution, skin_strips=(), on_strip=No
     # lip's extension, as it did in most draws (ICT's head covered then 5,749 vertices, now 5,715; the head prior
     # relearned with it).
     u, v = ((bary * (Tp[tri] // nv)).sum(1), (bary * (Tp[tri] % nv)).sum(1))
-    inside = (u > 1 + GRID_LINE_TOL) & (u < nu - 2 - GRID_LINE_TOL) & (v > 1 + GRID_LINE_TOL) & (v < nv - 2 - GRID_LINE_TOL)
+    inside = ((u > 1 + GRID_LINE_TOL) & (u < nu - 2 - GRID_LINE_TOL)
+              & (v > 1 + GRID_LINE_TOL) & (v < nv - 2 - GRID_LINE_TOL))
     sub_u = resolution[0]  # curve k is grid row k * sub_u
     facing_free = np.zeros(len(P), bool)
     for k in model.layout.breaks():  # the strip between the rims is no skin: what lies under it follows its rim
@@ -230,7 +231,9 @@ def _read_pde(model, P, N, eye_distance, resolution, skin_strips=(), on_strip=No
             strip &= ~facing_free
         inside &= ~strip
     n_pde = unit_rows(triangle_cross(X0, Tp[tri]))
-    on_line = bary.min(1) < GRID_LINE_TOL  # the same normal whichever triangle: the grid's, interpolated there
+    # On a triangle's edge (a grid line or a quad's diagonal) the same normal whichever triangle the query returned:
+    # the grid's, interpolated there (points not near the grid were not queried and read nothing)
+    on_line = near & (bary.min(1) < GRID_LINE_TOL)
     if on_line.any():
         n_pde[on_line] = unit_rows(np.einsum("pc,pcx->px", bary[on_line], vertex_normals(X0, Tp)[Tp[tri[on_line]]]))
     covered = inside & (dist < COVER_IOD * eye_distance) & (facing_free | ((N * n_pde).sum(1) > COVER_COS))
