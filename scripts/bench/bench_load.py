@@ -139,7 +139,8 @@ def main(argv=None):
     for busy in (False, True):
         with Busy(busy):
             for name, threads in settings:
-                (rig_s, rig_cpu, phases), (fit_s, _, _) = times(rig, threads, args.runs), times(fit, threads, args.fit_runs)
+                (rig_s, rig_cpu, phases), (fit_s, _, _) = (times(rig, threads, args.runs),
+                                                           times(fit, threads, args.fit_runs))
                 rows.append((name, busy, rig_s, rig_cpu, np.median(phases, axis=0), fit_s, load_text()))
                 base.setdefault("rig", np.median(rig_s))
                 base.setdefault("fit", np.median(fit_s))

@@ -18,9 +18,9 @@ Blender runs on a thread a few seconds after its start: here started and waited 
 when the artist opens a mesh a few seconds after Blender starts): its wall and CPU seconds beside the cold
 chain's of this run, and the warm-up's own; ``--heap-runs N`` such fresh processes each with the C heap kept
 (:func:`pdeface.heap.keep_heap` with 32 MiB kept free, called first) and at glibc's default (as the add-on runs), in
-turn: each step's
-median wall and CPU seconds and page faults both ways, and the processes' peak memory. pdeface's bytecode is compiled first and read by both
-(``benchlib.installed_env``). The machine's load average is printed. Needs ``pdeface[blender,landmarks]``.
+turn: each step's median wall and CPU seconds and page faults both ways, and the processes' peak memory. pdeface's
+bytecode is compiled first and read by both (``benchlib.installed_env``). The machine's load average is printed.
+Needs ``pdeface[blender,landmarks]``.
 """
 from __future__ import annotations
 

@@ -84,8 +84,8 @@ def baseline_core(ref, folder):
 
 def rig_once(path, out, core=None):
     """(process wall seconds, its CPU seconds, each step's (wall, CPU) seconds from the report, its page faults)
-    of ``pdeface rig path -o out`` in a fresh process; ``core``: another core folder first on the path (the baseline's), reading
-    this checkout's assets. A step the rig does not time counts 0."""
+    of ``pdeface rig path -o out`` in a fresh process; ``core``: another core folder first on the path (the
+    baseline's), reading this checkout's assets. A step the rig does not time counts 0."""
     env = child_env()  # compiles the bytecode first: not the rig's time
     if core is not None:
         env |= {"PYTHONPATH": os.pathsep.join(p for p in (str(core), env.get("PYTHONPATH")) if p)}
@@ -157,7 +157,8 @@ def main(argv=None):
             steps_cpu = {k: statistics.median(r[2][k][1] for r in runs) for k in STEPS}
             print(f"\n== {name} ({len(mesh.vertices)} vertices): pdeface rig {wall:.2f} s per process ({cpu:.2f} s of "
                   f"CPU: less sensitive to other work), median of {args.runs} (runs "
-                  f"{', '.join(f'{r[0]:.2f}' for r in runs)}; {statistics.median(r[3] for r in runs):.0f} page faults); target ≤ {TARGET_S:.0f} s: ratio "
+                  f"{', '.join(f'{r[0]:.2f}' for r in runs)}; {statistics.median(r[3] for r in runs):.0f} page "
+                  f"faults); target ≤ {TARGET_S:.0f} s: ratio "
                   f"{wall / TARGET_S:.2f}, {'met' if wall <= TARGET_S else 'NOT met'}; load after: {load_text()}")
             print(f"  {'step':10s} {'wall s':>6s} {'share':>5s}  {'CPU s':>6s} {'share':>5s}")
             for k, s in steps.items():

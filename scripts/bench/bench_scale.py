@@ -17,7 +17,8 @@ distort, and wall seconds beside them):
 - peak resident memory (of the whole process tree) of ``pdeface demo --no-render`` (``--demo-render``:
   with the render) against a bare ``import numpy, scipy, pdeface`` (with ``--demo-render``, also the
   demo's contact sheet alone, rendered in bands as the demo does against the whole sheet in one render,
-  as before), and of *Add ICT Head (rigged)* in bpy against bpy with the add-on enabled. Targets: demo ≤ 1.5 GB, the rig ≤ 500 MB.
+  as before), and of *Add ICT Head (rigged)* in bpy against bpy with the add-on enabled. Targets: demo ≤ 1.5 GB,
+  the rig ≤ 500 MB.
 """
 from __future__ import annotations
 
@@ -191,7 +192,8 @@ def resolution_times(heads, L, fit_cpu, repeat):
     n = (sum(steps[0]) + 1) * (sum(steps[1]) + 1)
     solve_cpu, _, _ = timed(lambda: list(grid.key_grids(model, *steps, planes=True)), repeat)  # operator cached
     print(f"resolution choice of the face fitted on the 27k head ({len(model.descriptors)} descriptors, "
-          f"{n} vertices chosen): {cpu:.2f} s CPU ({wall:.2f} wall), {cpu / fit_cpu:.1f}x its fit, {cpu / solve_cpu:.1f}x "
+          f"{n} vertices chosen): {cpu:.2f} s CPU ({wall:.2f} wall), {cpu / fit_cpu:.1f}x its fit, "
+          f"{cpu / solve_cpu:.1f}x "
           f"solving its keys once on the chosen mesh ({solve_cpu:.3f} s: what any check of that mesh costs); target "
           f"<= 0.2 s: {'met' if cpu <= 0.2 else 'NOT met'}")
     for name in CHARACTERS:
@@ -271,7 +273,8 @@ def memory(args):
         raise SystemExit(f"the rig in bpy failed: {done.stderr[-800:]}")
     r = json.loads(done.stdout.strip().splitlines()[-1])
     print(f"peak RSS: Add ICT Head (rigged) in bpy, {r['keys']} keys on {r['vertices']} vertices, {r['peak']:.0f} MB "
-          f"({r['seconds']:.0f} s) against bpy with the add-on enabled {r['base']:.0f} MB: +{r['peak'] - r['base']:.0f} "
+          f"({r['seconds']:.0f} s) against bpy with the add-on enabled {r['base']:.0f} MB: "
+          f"+{r['peak'] - r['base']:.0f} "
           f"MB, {r['peak'] / r['base']:.1f}x; target <= 500 MB: {'met' if r['peak'] <= 500 else 'NOT met'}")
 
 

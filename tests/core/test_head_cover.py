@@ -36,7 +36,8 @@ def test_skin_beyond_an_openings_rim_is_covered_the_same_under_rounding_noise():
     covered, read = _read_pde(model, Vf, N, ed, RESOLUTION)
     rng = np.random.default_rng(0)
     for _ in range(3):
-        noisy = replace(model, coefficients=model.coefficients * (1 + 1e-9 * rng.standard_normal(model.coefficients.shape)))
+        noisy = replace(model,
+                        coefficients=model.coefficients * (1 + 1e-9 * rng.standard_normal(model.coefficients.shape)))
         again, read_again = _read_pde(noisy, Vf, N, ed, RESOLUTION)
         assert (again == covered).all(), np.nonzero(again != covered)[0]
         assert abs(read_again - read).max() < 1e-6  # each covered vertex reads the same grid points

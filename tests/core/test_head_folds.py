@@ -300,7 +300,8 @@ def test_keys_on_heads_not_tuned_on_fold_no_edge_and_close_the_eyes(name, monkey
     assert max(new_folds(Vf, T, P - Vf) for P in raw.values()) > budget  # what the relaxation removed
     rest, ed = eyes_of(Lf)
     closed, was = eyes_of(posed["AU45"][near])[0], eyes_of(raw["AU45"][near])[0]
-    shrink = {s: 1 - np.linalg.norm(closed[s][0] - closed[s][1]) / np.linalg.norm(rest[s][0] - rest[s][1]) for s in LIDS}
+    shrink = {s: 1 - np.linalg.norm(closed[s][0] - closed[s][1]) / np.linalg.norm(rest[s][0] - rest[s][1])
+              for s in LIDS}
     assert min(shrink.values()) >= 0.8 and abs(shrink["L"] - shrink["R"]) <= 0.25 * max(shrink.values()), shrink
     for s in LIDS:  # closed further than the PDE motion alone took them, where that fell short of the target
         gap_rest, gap_was = (np.linalg.norm(e[s][0] - e[s][1]) for e in (rest, was))

@@ -125,7 +125,8 @@ def test_rig_and_all_keys_leave_out_gaze_keys_on_a_head_without_eyeballs(tmp_pat
 @needs_makehuman
 def test_the_lip_and_eye_corners_fold_less_and_the_mouth_opens_as_wide(monkeypatch):
     V, T, L, model, smoothed = rig("base-dm")
-    monkeypatch.setattr(fold_relax, "RELAX_STEPS", 0)  # the seam smoother alone (the folds' relaxation: test_head_folds)
+    # the seam smoother alone (the folds' relaxation: test_head_folds)
+    monkeypatch.setattr(fold_relax, "RELAX_STEPS", 0)
     monkeypatch.setattr(bind, "STEPS_NOT_JAW", 0)
     monkeypatch.setattr(bind, "SEAM_STEPS", 0)
     raw = HeadBinding(model, V, T, landmarks=L)
@@ -440,7 +441,9 @@ def test_the_blink_does_not_hang_on_rounding_in_the_face():
     closure = lid_closure(V, L, model, b)
     rng = np.random.default_rng(0)
     for _ in range(3):
-        noisy = replace(model, coefficients=model.coefficients * (1 + 1e-9 * rng.standard_normal(model.coefficients.shape)),
-                        residual=model.residual + 1e-9 * np.abs(model.residual).max() * rng.standard_normal(model.residual.shape))
+        noisy = replace(model,
+                        coefficients=model.coefficients * (1 + 1e-9 * rng.standard_normal(model.coefficients.shape)),
+                        residual=model.residual
+                        + 1e-9 * np.abs(model.residual).max() * rng.standard_normal(model.residual.shape))
         moved = lid_closure(V, L, noisy, HeadBinding(noisy, V, T, landmarks=L))
         assert max(abs(moved[s] - closure[s]) for s in closure) < 0.01, (moved, closure)

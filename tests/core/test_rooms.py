@@ -236,8 +236,11 @@ def test_heavy_modules_load_only_when_needed():
     and landmarks load them when called. The stream player (a lightweight process) needs no numpy."""
     import subprocess
     import sys
-    probe = ("import sys, pdeface.cli, pdeface.posing, pdeface.head.bind, pdeface.fdt.deform, pdeface.landmarks.pipeline; "
+    probe = ("import sys, pdeface.cli, pdeface.posing, pdeface.head.bind, pdeface.fdt.deform, "
+             "pdeface.landmarks.pipeline; "
              "print(sorted(m for m in ('scipy', 'mediapipe', 'trimesh') if m in sys.modules))")
-    assert subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True).stdout.strip() == "[]"
+    assert subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True,
+                          check=True).stdout.strip() == "[]"
     probe = "import sys, pdeface.stream.player, pdeface.stream.sender; print('numpy' in sys.modules)"
-    assert subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True).stdout.strip() == "False"
+    assert subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True,
+                          check=True).stdout.strip() == "False"

@@ -120,8 +120,8 @@ PRIOR_FADE = 0.3
 #: relaxation once kept their skin as bound on joined lips: stylised-nose-mouth's AU27 folded 21 edges against it.)
 LIP_LINE_IOD = 0.03
 #: Lips joined in the mesh (a voxel remesh, a decimated mouth): the inner lips' middles (landmarks 62, 66) are joined
-#: by skin no longer than FUSED_PATH times their distance apart plus FUSED_IOD eye distances (touching lips with a mouth behind them:
-#: the shortest way runs round a corner or through the mouth).
+#: by skin no longer than FUSED_PATH times their distance apart plus FUSED_IOD eye distances (touching lips with a
+#: mouth behind them: the shortest way runs round a corner or through the mouth).
 FUSED_PATH = 3.0
 FUSED_IOD = 0.05
 #: On joined lips the skin under the strip between the rims within this share of the mouth's width reads it.
@@ -522,8 +522,8 @@ class HeadBinding:
                                             mouth_strip if self.lips_one_line else (), _mouth_middle(P, Lf))
         self.covered = covered
         # every vertex's distance to the covered skin, as far as the rest region and the prior's fade read it (inf
-        # beyond). The covered skin is a sheet, most queries far from it: a tree without shrunk boxes answers 2× faster.
-        # The covered vertices themselves are at 0 (a sixth of ICT's head's queries).
+        # beyond). The covered skin is a sheet, most queries far from it: a tree without shrunk boxes answers
+        # 2× faster. The covered vertices themselves are at 0 (a sixth of ICT's head's queries).
         from_covered = np.zeros(len(Vf))
         uncovered = np.ones(len(Vf), bool)
         uncovered[si[covered]] = False
@@ -585,7 +585,8 @@ class HeadBinding:
         self._folds = FoldRelax(Vf, fold_T, pinned, fold_L, parts.pieces if whole else None)
 
         # Jaw: the chin that drives it, and the parts it turns.
-        chin = covered & (P[:, 1] < Lf[LIP_LOWER_BOTTOM, 1] - 0.08 * eye_distance) & (np.abs(P[:, 0]) < abs(Lf[JAW_RIGHT_ANGLE, 0] - Lf[JAW_LEFT_ANGLE, 0]) / 2) \
+        chin = covered & (P[:, 1] < Lf[LIP_LOWER_BOTTOM, 1] - 0.08 * eye_distance) \
+            & (np.abs(P[:, 0]) < abs(Lf[JAW_RIGHT_ANGLE, 0] - Lf[JAW_LEFT_ANGLE, 0]) / 2) \
             & (P[:, 2] > min(Lf[JAW_RIGHT_ANGLE, 2], Lf[JAW_LEFT_ANGLE, 2]))
         self.chin = chin if chin.sum() >= 10 else None
         if self.chin is None:
@@ -637,7 +638,8 @@ class HeadBinding:
                     self.notes.append(f"no head prior ({exc}): the skin beyond the PDE face follows its harmonic "
                                       "extension alone")
             reach = _prior_reach(Vf, from_covered, si[rest], Lf, eye_distance, parts.eyes) * original
-            self.prior = prior.on(model, Vf, parts.kind, reach, eye_distance=eye_distance) if prior is not None else None
+            self.prior = (prior.on(model, Vf, parts.kind, reach, eye_distance=eye_distance)
+                          if prior is not None else None)
             if prior is not None and self.prior is None:
                 self.notes.append("the face's curve layout is not the head prior's: the skin beyond the PDE face "
                                   "follows its harmonic extension alone")

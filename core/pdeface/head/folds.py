@@ -120,7 +120,8 @@ class FoldRelax:
         self.vertex_pairs = csr_matrix((np.ones(self.corners.size, bool), (self.corners.ravel(), np.repeat(
             np.arange(len(self.pairs)), 6))), shape=(len(V), len(self.pairs)))
         length = row_norms(V[self.T] - V[np.roll(self.T, 1, axis=1)]).ravel()  # each corner's edge
-        self.edge_length = np.bincount(self.T.ravel(), length, len(V)) / np.maximum(np.bincount(self.T.ravel(), minlength=len(V)), 1)
+        self.edge_length = (np.bincount(self.T.ravel(), length, len(V))
+                            / np.maximum(np.bincount(self.T.ravel(), minlength=len(V)), 1))
         pieces = connected_components(len(V), self.T) if pieces is None else pieces
         self.edge_piece = pieces[self.T[self.faces[self.pairs[:, 0]], 0]]
         self.piece_edges = np.bincount(self.edge_piece)

@@ -537,7 +537,8 @@ def solve_surface(coefficients, residual, knots, a=1.0, w=None, sub_u=4, sub_v=4
     K, N1 = coefficients.shape[:2]
     kn = tuple(float(x) for x in knots)
     if len(kn) != K or residual.shape[0] != K:
-        raise LayoutError(f"{K} curves of coefficients but {len(kn)} curve parameters and {residual.shape[0]} residual rows")
+        raise LayoutError(f"{K} curves of coefficients but {len(kn)} curve parameters and "
+                          f"{residual.shape[0]} residual rows")
     w = a * N1 if w is None else w
     args = (kn, residual.shape[1], N1 - 1, float(a), float(w), sampling_key(sub_u), sampling_key(sub_v))
     br = tuple(int(b) for b in breaks)
