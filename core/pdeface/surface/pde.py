@@ -529,6 +529,7 @@ def solve_surface(coefficients, residual, knots, a=1.0, w=None, sub_u=4, sub_v=4
     Returns
     -------
     (n_u, n_v, 3) array
+        The surface's grid; with ``planes``, (3, n_u, n_v) (3m, n_u, n_v) its coordinate planes instead.
     """
     coefficients = np.asarray(coefficients, dtype=np.float64)
     residual = np.asarray(residual, dtype=np.float64)
