@@ -132,13 +132,15 @@ def edge_face_pairs(T: np.ndarray) -> np.ndarray:
     """The two triangles at each interior edge of a triangle mesh, (e, 2) (edges with other than two
     triangles are left out)."""
     T = np.asarray(T, np.int64)
-    E = np.sort(np.concatenate([T[:, [0, 1]], T[:, [1, 2]], T[:, [2, 0]]]), axis=1)
+    if len(T) == 0:
+        return np.zeros((0, 2), np.int64)
+    a, b = T.T.ravel(), T[:, [1, 2, 0]].T.ravel()  # the edges (0, 1), (1, 2), (2, 0) of every triangle in turn
+    key = np.minimum(a, b) * (int(T.max()) + 1) + np.maximum(a, b)  # an edge's ends sorted, as one number
     face = np.tile(np.arange(len(T)), 3)
-    key = E[:, 0] * (int(T.max()) + 1) + E[:, 1]
     order = np.argsort(key, kind="stable")
     key, face = key[order], face[order]
-    _, start, count = np.unique(key, return_index=True, return_counts=True)
-    two = count == 2
+    start = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])  # each edge's first place (np.unique's, without a sort)
+    two = np.diff(np.r_[start, len(key)]) == 2
     return np.stack([face[start[two]], face[start[two] + 1]], 1)
 
 
