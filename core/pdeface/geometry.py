@@ -368,7 +368,7 @@ class ClosestPoint:
         point, tri = np.nonzero(new)[0], ranked[new]
         Pr = P[point]
         Q, w = closest_point_on_triangles(Pr, self.V[self.T[tri, 0]], self.V[self.T[tri, 1]], self.V[self.T[tri, 2]])
-        du = np.linalg.norm(Q - Pr, axis=1)
+        du = row_norms(Q - Pr)
         d = np.empty((npt, nc))
         np.put_along_axis(d, order, du[pair].reshape(npt, nc), axis=1)
         slot = np.empty((npt, nc), np.int64)

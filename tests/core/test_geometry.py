@@ -48,3 +48,12 @@ def test_closest_point_on_a_mesh_with_fewer_triangles_than_candidates():
     assert np.allclose(d, _brute_force(V, T, P), atol=1e-12)
     assert tri[0] == 0 and np.allclose(point[0], [0.2, 0.2, 0])
     assert np.allclose(np.einsum("pc,pcx->px", bary, V[T[tri]]), point, atol=1e-12)
+
+
+def test_some_vertices_normals_are_the_whole_meshs():
+    from pdeface.mesh import vertex_normals
+
+    V, T = _bumpy_grid()
+    only = np.array([0, 5, 41, 600, len(V) - 1, 41])  # a corner, a border, the middle, a repeat
+    assert np.array_equal(vertex_normals(V, T, only=only), vertex_normals(V, T)[only])
+    assert vertex_normals(V, T, only=np.zeros(0, np.int64)).shape == (0, 3)
