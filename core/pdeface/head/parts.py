@@ -140,7 +140,7 @@ def classify_parts(Vf, T, Lf, hinge, overrides=None, welded=False) -> Parts:
     # under the landmarks it has (a model file keeps some)
     skin = skin_vertices(Vf, T, Lf[np.isfinite(Lf).all(axis=1)], pieces=lab if welded else None)
     kind[skin] = CODE["skin"]
-    skin_tree = cKDTree(Vf[skin])
+    skin_tree = cKDTree(Vf[skin], balanced_tree=False, compact_nodes=False)  # built 2x faster, the same distances
 
     # Each other part's vertices (ascending) and its gap to the skin: one sort and one query for them all, as far as
     # NEAR_IOD (inf beyond: only the gaps within it are read; the bound prunes the search of the far parts: teeth)
