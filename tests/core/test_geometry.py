@@ -38,6 +38,9 @@ def test_closest_point_is_the_nearest_of_all_triangles_and_consistent():
     nearest = closest.vtree.query(P)[1]
     for got, want in zip(closest.query(P, nearest), (d, tri, bary, point)):
         assert np.array_equal(got, want)
+    # unbalanced trees (the PDE face's grid's): the same answers
+    for got, want in zip(ClosestPoint(V, T, balanced=False).query(P), (d, tri, bary, point)):
+        assert np.array_equal(got, want)
 
 
 def test_closest_point_on_a_mesh_with_fewer_triangles_than_candidates():

@@ -204,7 +204,7 @@ def _read_pde(model, P, N, eye_distance, resolution, skin_strips=(), on_strip=No
     Tp = np.concatenate([Q[:, [0, 1, 2]], Q[:, [0, 2, 3]]])
     # Only skin near the grid can be under it (the back of a head, a body: skip the exact query).
     edge = np.linalg.norm(X0[Tp[:, 0]] - X0[Tp[:, 1]], axis=1).max()
-    closest = ClosestPoint(X0, Tp)
+    closest = ClosestPoint(X0, Tp, balanced=False)  # a grid: no point repeated
     gap, nearest = closest.vtree.query(P, distance_upper_bound=COVER_IOD * eye_distance + edge)  # its grid's tree
     near = gap < np.inf
     dist, tri, bary = np.full(len(P), np.inf), np.zeros(len(P), np.int64), np.zeros((len(P), 3))
