@@ -118,8 +118,13 @@ class Mesh:
         return T, polygon
 
 
-def vertex_normals(V: np.ndarray, T: np.ndarray) -> np.ndarray:
-    """Area-weighted unit vertex normals of a triangle mesh."""
+def vertex_normals(V: np.ndarray, T: np.ndarray, only=None) -> np.ndarray:
+    """Area-weighted unit vertex normals of a triangle mesh; ``only``: these vertices' alone, (len(only), 3) (the
+    same numbers, from their triangles alone)."""
+    if only is not None:
+        touches = np.zeros(len(V), bool)
+        touches[only] = True
+        return vertex_normals(V, np.asarray(T)[touches[T].any(axis=1)])[only]
     n = triangle_cross(V, T)
     # bincount sums in input order: corner 0 of every triangle, then 1, then 2 (as np.add.at did, 5x slower).
     corners = np.asarray(T).T.ravel()
@@ -132,20 +137,26 @@ def edge_face_pairs(T: np.ndarray) -> np.ndarray:
     """The two triangles at each interior edge of a triangle mesh, (e, 2) (edges with other than two
     triangles are left out)."""
     T = np.asarray(T, np.int64)
-    E = np.sort(np.concatenate([T[:, [0, 1]], T[:, [1, 2]], T[:, [2, 0]]]), axis=1)
+    if len(T) == 0:
+        return np.zeros((0, 2), np.int64)
+    a, b = T.T.ravel(), T[:, [1, 2, 0]].T.ravel()  # the edges (0, 1), (1, 2), (2, 0) of every triangle in turn
+    key = np.minimum(a, b) * (int(T.max()) + 1) + np.maximum(a, b)  # an edge's ends sorted, as one number
     face = np.tile(np.arange(len(T)), 3)
-    key = E[:, 0] * (int(T.max()) + 1) + E[:, 1]
     order = np.argsort(key, kind="stable")
     key, face = key[order], face[order]
-    _, start, count = np.unique(key, return_index=True, return_counts=True)
-    two = count == 2
+    start = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])  # each edge's first place (np.unique's, without a sort)
+    two = np.diff(np.r_[start, len(key)]) == 2
     return np.stack([face[start[two]], face[start[two] + 1]], 1)
 
 
 def turn_degrees(V: np.ndarray, T: np.ndarray, pairs: np.ndarray) -> np.ndarray:
     """The angle (degrees) the two triangles of each pair (:func:`edge_face_pairs`) turn by at their edge."""
     n = unit_rows(triangle_cross(V, T))
-    return np.degrees(np.arccos(np.clip((n[pairs[:, 0]] * n[pairs[:, 1]]).sum(1), -1, 1)))
+    a, b = n[pairs[:, 0]], n[pairs[:, 1]]
+    cos = a[:, 0] * b[:, 0]  # the sum(1)'s numbers without its reduction over a short axis
+    cos += a[:, 1] * b[:, 1]
+    cos += a[:, 2] * b[:, 2]
+    return np.degrees(np.arccos(np.clip(cos, -1, 1)))
 
 
 def connected_components(n_vertices: int, T: np.ndarray) -> np.ndarray:

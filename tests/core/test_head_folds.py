@@ -314,3 +314,19 @@ def test_keys_on_heads_not_tuned_on_fold_no_edge_and_close_the_eyes(name, monkey
     assert gap["relaxed"] >= min(0.25, 0.85 * gap["raw"]), gap
     np.testing.assert_allclose(eyes_of(posed["happy"][near])[0]["L"], eyes_of(raw["happy"][near])[0]["L"],
                                atol=0.02 * ed)  # a smile narrows the eyes as bound: no lids closed
+
+
+def test_edge_face_pairs_are_each_edge_with_two_triangles_in_order():
+    """Every edge that two triangles share, once, ordered by its (smaller, larger) ends; its triangles in the order
+    their edges come (each triangle's edge (0, 1), then (1, 2), then (2, 0)); edges of one or three triangles left
+    out."""
+    rng = np.random.default_rng(3)
+    meshes = [sheet(6)[1], np.array([[0, 1, 2], [1, 0, 3], [0, 1, 4], [2, 1, 5]]),  # (0, 1): three triangles
+              rng.integers(0, 12, (40, 3)), np.zeros((0, 3), np.int64)]
+    for T in meshes:
+        faces = {}
+        for slot in ((0, 1), (1, 2), (2, 0)):
+            for f, t in enumerate(T):
+                faces.setdefault(tuple(sorted((int(t[slot[0]]), int(t[slot[1]])))), []).append(f)
+        want = [fs for _, fs in sorted(faces.items()) if len(fs) == 2]
+        assert edge_face_pairs(T).tolist() == want

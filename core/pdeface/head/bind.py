@@ -204,7 +204,7 @@ def _read_pde(model, P, N, eye_distance, resolution, skin_strips=(), on_strip=No
     Tp = np.concatenate([Q[:, [0, 1, 2]], Q[:, [0, 2, 3]]])
     # Only skin near the grid can be under it (the back of a head, a body: skip the exact query).
     edge = np.linalg.norm(X0[Tp[:, 0]] - X0[Tp[:, 1]], axis=1).max()
-    closest = ClosestPoint(X0, Tp)
+    closest = ClosestPoint(X0, Tp, balanced=False)  # a grid: no point repeated
     gap, nearest = closest.vtree.query(P, distance_upper_bound=COVER_IOD * eye_distance + edge)  # its grid's tree
     near = gap < np.inf
     dist, tri, bary = np.full(len(P), np.inf), np.zeros(len(P), np.int64), np.zeros((len(P), 3))
@@ -235,7 +235,10 @@ def _read_pde(model, P, N, eye_distance, resolution, skin_strips=(), on_strip=No
     # the grid's, interpolated there (points not near the grid were not queried and read nothing)
     on_line = near & (bary.min(1) < GRID_LINE_TOL)
     if on_line.any():
-        n_pde[on_line] = unit_rows(np.einsum("pc,pcx->px", bary[on_line], vertex_normals(X0, Tp)[Tp[tri[on_line]]]))
+        corners = Tp[tri[on_line]]  # the normals at their corners alone (from the grid's triangles around them)
+        at, where = np.unique(corners, return_inverse=True)
+        n_pde[on_line] = unit_rows(np.einsum("pc,pcx->px", bary[on_line],
+                                             vertex_normals(X0, Tp, only=at)[where.reshape(corners.shape)]))
     covered = inside & (dist < COVER_IOD * eye_distance) & (facing_free | ((N * n_pde).sum(1) > COVER_COS))
     if covered.sum() < 100:
         raise MeshError(f"only {int(covered.sum())} skin vertices lie under the PDE face: "

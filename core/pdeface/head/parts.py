@@ -140,7 +140,7 @@ def classify_parts(Vf, T, Lf, hinge, overrides=None, welded=False) -> Parts:
     # under the landmarks it has (a model file keeps some)
     skin = skin_vertices(Vf, T, Lf[np.isfinite(Lf).all(axis=1)], pieces=lab if welded else None)
     kind[skin] = CODE["skin"]
-    skin_tree = cKDTree(Vf[skin])
+    skin_tree = cKDTree(Vf[skin], balanced_tree=False, compact_nodes=False)  # built 2x faster, the same distances
 
     # Each other part's vertices (ascending) and its gap to the skin: one sort and one query for them all, as far as
     # NEAR_IOD (inf beyond: only the gaps within it are read; the bound prunes the search of the far parts: teeth)
@@ -151,6 +151,12 @@ def classify_parts(Vf, T, Lf, hinge, overrides=None, welded=False) -> Parts:
     gaps = np.minimum.reduceat(skin_tree.query(Vf[rest], distance_upper_bound=NEAR_IOD * s)[0], starts) \
         if len(rest) else []
     gap = dict(zip(others.tolist(), map(float, gaps)))
+    # Each part's centre and box, once: the loops below read them (mean's own sums: reduceat's differ in rounding).
+    centre, box_lo, box_hi = {c: Vf[m].mean(0) for c, m in members.items()}, {}, {}
+    if len(rest):
+        Vr = Vf[rest]
+        box_lo = dict(zip(others.tolist(), np.minimum.reduceat(Vr, starts, axis=0)))
+        box_hi = dict(zip(others.tolist(), np.maximum.reduceat(Vr, starts, axis=0)))
 
     # Eyeballs: the roundest part of the right size behind each eye, and what lies inside its sphere.
     eyes = {}
@@ -158,13 +164,12 @@ def classify_parts(Vf, T, Lf, hinge, overrides=None, welded=False) -> Parts:
         E = Lf[sl].mean(0)
         best = None
         for c, m in members.items():
-            P = Vf[m]
-            ctr = P.mean(0)
-            ext = P.max(0) - P.min(0)
+            ctr, ext = centre[c], box_hi[c] - box_lo[c]
             if np.hypot(*(ctr[:2] - E[:2])) > 0.3 * s or not (E[2] - 0.5 * s < ctr[2] < E[2] + 0.1 * s):
                 continue
             if not (EYEBALL_IOD[0] * s < ext.max() < EYEBALL_IOD[1] * s) or ext.min() < 0.5 * ext.max():
                 continue
+            P = Vf[m]
             c0, r = fit_sphere(P)
             err = np.abs(np.linalg.norm(P - c0, axis=1) - r).mean() / r
             if err < 0.1 and (best is None or r > best[0]):  # the outermost sphere: sclera, not iris
@@ -181,11 +186,11 @@ def classify_parts(Vf, T, Lf, hinge, overrides=None, welded=False) -> Parts:
     for c, m in members.items():
         if c in balls:
             continue
-        P = Vf[m]
-        ctr = P.mean(0)
+        ctr = centre[c]
         in_mouth = (abs(ctr[0] - Lf[MOUTH_CORNERS, 0].mean()) < half_width and Lf[CHIN, 1] < ctr[1] < Lf[NOSE_BOTTOM, 1]
                     and lips_z - 2 * s < ctr[2] < lips_z)
         if in_mouth:
+            P = Vf[m]
             reach = SPLIT_REACH_IOD * s
             spans = P[:, 1].min() < ymouth - reach and P[:, 1].max() > ymouth + reach
             if spans and np.ptp(P[:, 0]) > 0.5 * abs(Lf[MOUTH_CORNER_LEFT, 0] - Lf[MOUTH_CORNER_RIGHT, 0]):
@@ -194,7 +199,9 @@ def classify_parts(Vf, T, Lf, hinge, overrides=None, welded=False) -> Parts:
                 lower = np.full(len(m), (P[:, 1].min() + P[:, 1].max()) / 2 < ymouth and ctr[2] > zcut)
             kind[m] = np.where(lower, CODE["jaw"], CODE["skull"])
             continue
-        eye = next((e for e, (c0, r) in eyes.items() if np.linalg.norm(P - c0, axis=1).max() < r + 0.03 * s), None)
+        # (a part whose centre is outside the sphere reaches outside it: its points need no look)
+        eye = next((e for e, (c0, r) in eyes.items() if np.linalg.norm(ctr - c0) < (r + 0.03 * s) * (1 + 1e-9)
+                    and np.linalg.norm(Vf[m] - c0, axis=1).max() < r + 0.03 * s), None)
         if eye:  # iris, cornea: inside the eyeball's sphere
             kind[m] = CODE[eye]
             continue

@@ -1,0 +1,62 @@
+"""Closest points on triangle meshes (pdeface.geometry)."""
+import numpy as np
+from pdeface.geometry import ClosestPoint, closest_point_on_triangles
+
+
+def _bumpy_grid(n_u=30, n_v=40, seed=0):
+    """A regular grid of quads, each split in two triangles, on a bumpy sheet (as the PDE face's reads are)."""
+    rng = np.random.default_rng(seed)
+    u, v = np.meshgrid(np.linspace(0, 3, n_u), np.linspace(0, 4, n_v), indexing="ij")
+    V = np.stack([u, v, 0.3 * np.sin(2 * u) * np.cos(3 * v) + 0.01 * rng.normal(size=u.shape)], -1).reshape(-1, 3)
+    r, c = np.meshgrid(np.arange(n_u - 1), np.arange(n_v - 1), indexing="ij")
+    i = (r * n_v + c).ravel()
+    Q = np.stack([i, i + n_v, i + n_v + 1, i + 1], axis=1)
+    return V, np.concatenate([Q[:, [0, 1, 2]], Q[:, [0, 2, 3]]])
+
+
+def _brute_force(V, T, P):
+    """Every point's distance to every triangle: the smallest."""
+    Pr = np.repeat(P, len(T), axis=0)
+    Tt = np.tile(T, (len(P), 1))
+    Q, _ = closest_point_on_triangles(Pr, V[Tt[:, 0]], V[Tt[:, 1]], V[Tt[:, 2]])
+    return np.linalg.norm(Q - Pr, axis=1).reshape(len(P), len(T)).min(axis=1)
+
+
+def test_closest_point_is_the_nearest_of_all_triangles_and_consistent():
+    V, T = _bumpy_grid()
+    rng = np.random.default_rng(1)
+    P = np.concatenate([rng.uniform([0, 0, -0.2], [3, 4, 0.2], (300, 3)),  # near the sheet
+                        V[rng.integers(0, len(V), 20)],  # on its vertices
+                        (V[T[:20, 0]] + V[T[:20, 2]]) / 2])  # on its quads' diagonals: two triangles as near
+    closest = ClosestPoint(V, T)
+    d, tri, bary, point = closest.query(P)
+    assert np.allclose(d, _brute_force(V, T, P), rtol=0, atol=1e-12)
+    assert np.allclose(np.einsum("pc,pcx->px", bary, V[T[tri]]), point, atol=1e-12)
+    assert np.allclose(np.linalg.norm(point - P, axis=1), d, atol=1e-12)
+    assert np.allclose(bary.sum(1), 1) and (bary >= -1e-12).all()
+    # the nearest vertices handed in give the same answer as those it finds itself
+    nearest = closest.vtree.query(P)[1]
+    for got, want in zip(closest.query(P, nearest), (d, tri, bary, point)):
+        assert np.array_equal(got, want)
+    # unbalanced trees (the PDE face's grid's): the same answers
+    for got, want in zip(ClosestPoint(V, T, balanced=False).query(P), (d, tri, bary, point)):
+        assert np.array_equal(got, want)
+
+
+def test_closest_point_on_a_mesh_with_fewer_triangles_than_candidates():
+    V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0.5]], float)
+    T = np.array([[0, 1, 2], [1, 3, 2]])
+    P = np.array([[0.2, 0.2, 1.0], [0.9, 0.9, 0.0], [2.0, 2.0, 0.0], [0.5, 0.5, 0.1]])
+    d, tri, bary, point = ClosestPoint(V, T).query(P)
+    assert np.allclose(d, _brute_force(V, T, P), atol=1e-12)
+    assert tri[0] == 0 and np.allclose(point[0], [0.2, 0.2, 0])
+    assert np.allclose(np.einsum("pc,pcx->px", bary, V[T[tri]]), point, atol=1e-12)
+
+
+def test_some_vertices_normals_are_the_whole_meshs():
+    from pdeface.mesh import vertex_normals
+
+    V, T = _bumpy_grid()
+    only = np.array([0, 5, 41, 600, len(V) - 1, 41])  # a corner, a border, the middle, a repeat
+    assert np.array_equal(vertex_normals(V, T, only=only), vertex_normals(V, T)[only])
+    assert vertex_normals(V, T, only=np.zeros(0, np.int64)).shape == (0, 3)
