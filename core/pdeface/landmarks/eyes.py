@@ -22,7 +22,7 @@ import numpy as np
 
 from ..landmark_scheme import UPPER_LIDS, eye_distance
 from ..surface.frame import face_frame
-from .render import View, back_project, column_depths, depth_map, rasterise
+from .render import View, back_project, column_depths, depth_map, pixel_boxes, rasterise
 
 #: How far (eye distances) along its column a lid point may move, either way.
 REACH = 0.04
@@ -126,9 +126,9 @@ def corners_on_skin_front(V, T, points) -> np.ndarray:
     for (ring, _, _), corners in zip(EYES, CORNERS):
         view = View.looking(R[2], R[1], out[list(ring)].mean(0), HALF * eyes, SIZE)
         x, y, _ = view.project(out)
-        cols = [c + k for j in corners for c in [int(np.clip(np.round(x[j]), 0, SIZE - 1))] for k in (-1, 0, 1)]
-        raster, _ = column_depths(V, T, view, np.clip(cols, 0, SIZE - 1))
         j = list(corners)
+        spots = [(c - 1, c + 1, r - 1, r + 1) for c, r in zip(np.round(x[j]).astype(int), np.round(y[j]).astype(int))]
+        raster = rasterise(V, T, view, near=pixel_boxes(SIZE, spots))  # the pixels back_project reads, no more
         P = back_project(V, T, raster, x[j], y[j], reach=1)[0]
         for k, Pk in zip(j, P):
             if np.isfinite(Pk).all() and (Pk - out[k]) @ R[2] > CORNER_HIDDEN * eyes:

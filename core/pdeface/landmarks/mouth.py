@@ -25,7 +25,7 @@ import numpy as np
 from ..geometry import ClosestPoint
 from ..landmark_scheme import eye_distance
 from ..surface.frame import face_frame
-from .render import View, back_project, column_depths, depth_map, rasterise
+from .render import View, back_project, column_depths, depth_map, pixel_boxes, rasterise
 
 #: Each inner corner and its outer corner.
 CORNERS = ((60, 48), (64, 54))
@@ -362,9 +362,15 @@ def lower_inner_lips_under_the_slit(V, T, points) -> np.ndarray:
     x, y, z = view.project(out)
     inner_of = {inner: outer for outer, inner in LOWER_LIP.items()}
     cols = {j: int(np.clip(np.round(x[j]), 0, SIZE - 1)) for j in inner_of}
-    raster, depth = column_depths(V, T, view, list(cols.values()))
+    spans = {j: tuple(int(np.clip(np.round(y[i]), 0, SIZE - 1)) for i in (j, k)) for j, k in inner_of.items()}
+    # Each column from the inner point down to the outer one, and the pixels beside it that back_project reads.
+    near = pixel_boxes(SIZE, [(cols[j] - 1, cols[j] + 1, rj, rk + 1) for j, (rj, rk) in spans.items() if rj <= rk])
+    if not near.any():
+        return out
+    raster = rasterise(V, T, view, near=near)
+    depth = depth_map(V, T, raster)
     for j, k in inner_of.items():
-        rj, rk = (int(np.clip(np.round(y[i]), 0, SIZE - 1)) for i in (j, k))
+        rj, rk = spans[j]
         rows = np.arange(rj, rk + 1)  # down from the inner point to the lower lip's outer one
         opening = np.flatnonzero(~(depth[rows, cols[j]] >= z[k] - REACH * eyes))  # -inf (nothing seen) too
         if not len(opening) or rows[opening[-1]] >= rk:

@@ -307,6 +307,16 @@ def marked(img, pixels, r=2, colour=(230, 30, 30)):
     return img
 
 
+def pixel_boxes(size, boxes) -> np.ndarray:
+    """A bool image ``(size, size)`` true in each box ``(x0, x1, y0, y1)`` (inclusive pixel bounds, each clipped into
+    the image as :func:`back_project` clips its candidates): :func:`rasterise`'s ``near`` for a look at a few spots."""
+    near = np.zeros((size, size), bool)
+    for x0, x1, y0, y1 in boxes:
+        (x0, x1), (y0, y1) = np.clip((x0, x1), 0, size - 1), np.clip((y0, y1), 0, size - 1)
+        near[y0:y1 + 1, x0:x1 + 1] = True
+    return near
+
+
 def column_depths(V, T, view: View, columns) -> tuple[Raster, np.ndarray]:
     """``(raster, depth)`` of ``view`` drawn only over the pixel ``columns`` (the rest shows nothing): for steps that
     read the skin's profile down a few columns of a straight-on view."""
@@ -319,7 +329,8 @@ def column_depths(V, T, view: View, columns) -> tuple[Raster, np.ndarray]:
 def depth_map(V, T, raster: Raster) -> np.ndarray:
     """Each pixel's depth towards the viewer (mesh units), -inf where the raster shows nothing."""
     depth = np.full(raster.tri.shape, -np.inf)
-    seen = raster.tri >= 0
-    Q = np.einsum("pk,pkj->pj", raster.bary[seen], V[T[raster.tri[seen]]])
-    depth[seen] = (Q - raster.view.centre) @ raster.view.rotation[2]
+    seen = np.flatnonzero(raster.tri >= 0)  # flat indices and take: half the time of boolean masks, same values
+    corners = np.asarray(V, np.float64).take(np.asarray(T).take(raster.tri.take(seen), 0), 0)
+    Q = np.einsum("pk,pkj->pj", raster.bary.reshape(-1, 3).take(seen, 0), corners)
+    depth.reshape(-1)[seen] = (Q - raster.view.centre) @ raster.view.rotation[2]
     return depth
