@@ -419,7 +419,7 @@ def test_on_a_closed_face_the_cast_landmarks_are_the_nearest_points():
     assert not outer[round(y[0]), round(x[0])] and outer[round(y[1]), round(x[1])]
 
 
-@pytest.mark.parametrize("r", [1, 2, 5, 13])
+@pytest.mark.parametrize("r", [1, 2, 5, 13, 26])
 def test_the_disc_closing_is_scipys_grey_closing_value_for_value(rng, r):
     from scipy.ndimage import grey_closing
 
