@@ -89,10 +89,12 @@ def lids_on_margin(V, T, points) -> np.ndarray:
         view = View.looking(R[2], R[1], out[list(ring)].mean(0), HALF * eyes, SIZE)
         x, y, z = view.project(out)
         cols = {j: int(np.clip(np.round(x[j]), 0, SIZE - 1)) for j in (*upper, *lower)}
-        raster, depth = column_depths(V, T, view, list(cols.values()))
+        r0 = {j: int(np.clip(np.round(y[j]), 0, SIZE - 1)) for j in cols}
+        reach = round(REACH * eyes / view.pixel)  # _margin_row reads twice it either way, back_project a row more
+        raster, depth = column_depths(V, T, view, list(cols.values()),
+                                      (min(r0.values()) - 2 * reach - 1, max(r0.values()) + 2 * reach + 1))
         for j, c in cols.items():
-            r = _margin_row(depth[:, c], int(np.clip(np.round(y[j]), 0, SIZE - 1)), z[j], j in UPPER_LIDS,
-                            round(REACH * eyes / view.pixel), DEEPER * eyes, DROP * eyes, JUMP * eyes)
+            r = _margin_row(depth[:, c], r0[j], z[j], j in UPPER_LIDS, reach, DEEPER * eyes, DROP * eyes, JUMP * eyes)
             if r is None:
                 continue
             P = back_project(V, T, raster, np.array([float(c)]), np.array([float(r)]), reach=1)[0][0]
