@@ -596,6 +596,33 @@ def test_outer_eye_corners_on_the_upper_lid_go_to_the_end_of_the_eyes_opening(na
 
 
 @needs_makehuman
+@pytest.mark.parametrize("name", ["parted-lips-cm", "eyes-teeth-separate-in"])
+def test_the_eyes_opening_looked_for_about_the_eye_is_the_whole_pictures(name):
+    # outer_corners_at_opening_end draws the rows about the eye, not the whole picture: the same opening (and
+    # raster there); a band that cuts the opening asks for the whole picture.
+    from pdeface.landmark_scheme import eye_distance
+    from pdeface.landmarks.eyes import EYES, HALF, SIZE, _opening_part
+    from pdeface.landmarks.render import View
+    from pdeface.surface.frame import face_frame
+
+    ch = build(SPECS[name])
+    L = ch.skin_landmarks
+    R, eyes = face_frame(L).rotation, eye_distance(L)
+    for ring, upper, lower in EYES:
+        view = View.looking(R[2], R[1], L[list(ring)].mean(0), HALF * eyes, SIZE)
+        x, y, _ = view.project(L)
+        cx, cy = (int(np.round(c[[*upper, *lower]].mean())) for c in (x, y))
+        whole_raster, whole = _opening_part(ch.vertices, ch.triangles, view, cx, cy, eyes)
+        assert whole is not None and 1000 < whole.sum() < 0.2 * SIZE ** 2  # an opening between the lids
+        rows = np.flatnonzero(whole.any(1))
+        raster, part = _opening_part(ch.vertices, ch.triangles, view, cx, cy, eyes, (rows[0] - 1, rows[-1] + 1))
+        assert np.array_equal(part, whole)
+        near = slice(rows[0] - 4, rows[-1] + 5)  # what back_project may read beside the opening
+        assert np.array_equal(raster.tri[near], whole_raster.tri[near])
+        assert _opening_part(ch.vertices, ch.triangles, view, cx, cy, eyes, (cy, cy))[1] is False
+
+
+@needs_makehuman
 def test_lower_inner_lip_points_on_the_slits_top_edge_go_down_under_the_slit():
     # The face mesh reads parted lips as nearly closed and puts the lower lip's inner points (65-67) with the upper
     # lip's, on the slit's top edge: put there, they go down under the slit, onto the lower lip, near the registered

@@ -22,7 +22,7 @@ from pdeface.landmarks.facemap import (
     robust_similarity,
 )
 from pdeface.landmarks.pipeline import OPENING_DEPTH_MM, disc_closing, group_spread, outer_pixels, snap
-from pdeface.landmarks.render import View, back_project, rasterise, shade
+from pdeface.landmarks.render import View, back_project, column_depths, depth_map, pixel_boxes, rasterise, shade
 from pdeface.mesh import Mesh, connected_components
 from pdeface.rigid import rotation_vector_matrix
 from pdeface.surface.frame import BLENDER_FROM_ICT
@@ -103,6 +103,39 @@ def test_a_render_near_some_pixels_is_the_whole_render_there(heads, rng):
     part = rasterise(mesh.vertices, T, view, near=near)
     assert np.array_equal(part.tri[near], whole.tri[near]) and np.array_equal(part.bary[near], whole.bary[near])
     assert (part.tri[~near] >= 0).sum() < (whole.tri[~near] >= 0).sum() / 2  # far fewer triangles drawn
+
+
+def test_columns_drawn_over_some_rows_are_the_whole_columns_there_and_beside(heads):
+    # The refine steps read a few rows of a few columns and back_project looks a pixel to each side.
+    mesh, T, lm, _ = heads
+    view = View.looking([0.2, 0.1, 1], [0, 1, 0], mesh.vertices[lm[48:68]].mean(0), 3.0, 160)
+    cols, rows = [40, 41, 77, 120], (50, 90)
+    raster, depth = column_depths(mesh.vertices, T, view, cols)
+    part, part_depth = column_depths(mesh.vertices, T, view, cols, rows)
+    read = np.zeros((160, 160), bool)
+    read[rows[0]:rows[1] + 1, [c + k for c in cols for k in (-1, 0, 1)]] = True
+    assert (raster.tri[read] >= 0).mean() > 0.9  # the columns and their sides see the skin there
+    assert np.array_equal(part.tri[read], raster.tri[read]) and np.array_equal(part.bary[read], raster.bary[read])
+    assert np.array_equal(part_depth[read], depth[read])
+    assert (part.tri >= 0).sum() < (raster.tri >= 0).sum() / 2  # far fewer pixels drawn
+    whole = rasterise(mesh.vertices, T, view)
+    assert np.array_equal(raster.tri[:, cols], whole.tri[:, cols])
+
+
+def test_the_depth_map_is_each_seen_points_depth(heads):
+    mesh, T, lm, _ = heads
+    view = View.looking([0.2, 0.1, 1], [0, 1, 0], mesh.vertices[lm].mean(0), 12.0, 96)
+    r = rasterise(mesh.vertices, T, view)
+    depth, seen = depth_map(mesh.vertices, T, r), r.tri >= 0
+    Q = np.einsum("pk,pkj->pj", r.bary[seen], mesh.vertices[T[r.tri[seen]]])
+    assert np.array_equal(depth[seen], (Q - view.centre) @ view.rotation[2]) and np.isneginf(depth[~seen]).all()
+    flipped = r.flipped()  # a raster of views into another's arrays
+    assert np.array_equal(depth_map(mesh.vertices, T, flipped), depth[:, ::-1])
+
+
+def test_pixel_boxes_clip_into_the_image_as_back_project_clips_its_candidates():
+    near = pixel_boxes(10, [(-3, -1, 4, 5), (8, 11, 9, 12)])
+    assert near[4:6, 0].all() and near[9, 8:].all() and near.sum() == 4
 
 
 def test_on_a_tie_the_lowest_numbered_triangle_wins(heads):
@@ -419,7 +452,7 @@ def test_on_a_closed_face_the_cast_landmarks_are_the_nearest_points():
     assert not outer[round(y[0]), round(x[0])] and outer[round(y[1]), round(x[1])]
 
 
-@pytest.mark.parametrize("r", [1, 2, 5, 13])
+@pytest.mark.parametrize("r", [1, 2, 5, 13, 26])
 def test_the_disc_closing_is_scipys_grey_closing_value_for_value(rng, r):
     from scipy.ndimage import grey_closing
 

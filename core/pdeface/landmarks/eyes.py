@@ -22,7 +22,7 @@ import numpy as np
 
 from ..landmark_scheme import UPPER_LIDS, eye_distance
 from ..surface.frame import face_frame
-from .render import View, back_project, column_depths, depth_map, rasterise
+from .render import Raster, View, back_project, column_depths, depth_map, pixel_boxes, rasterise
 
 #: How far (eye distances) along its column a lid point may move, either way.
 REACH = 0.04
@@ -89,10 +89,12 @@ def lids_on_margin(V, T, points) -> np.ndarray:
         view = View.looking(R[2], R[1], out[list(ring)].mean(0), HALF * eyes, SIZE)
         x, y, z = view.project(out)
         cols = {j: int(np.clip(np.round(x[j]), 0, SIZE - 1)) for j in (*upper, *lower)}
-        raster, depth = column_depths(V, T, view, list(cols.values()))
+        r0 = {j: int(np.clip(np.round(y[j]), 0, SIZE - 1)) for j in cols}
+        reach = round(REACH * eyes / view.pixel)  # _margin_row reads twice it either way, back_project a row more
+        raster, depth = column_depths(V, T, view, list(cols.values()),
+                                      (min(r0.values()) - 2 * reach - 1, max(r0.values()) + 2 * reach + 1))
         for j, c in cols.items():
-            r = _margin_row(depth[:, c], int(np.clip(np.round(y[j]), 0, SIZE - 1)), z[j], j in UPPER_LIDS,
-                            round(REACH * eyes / view.pixel), DEEPER * eyes, DROP * eyes, JUMP * eyes)
+            r = _margin_row(depth[:, c], r0[j], z[j], j in UPPER_LIDS, reach, DEEPER * eyes, DROP * eyes, JUMP * eyes)
             if r is None:
                 continue
             P = back_project(V, T, raster, np.array([float(c)]), np.array([float(r)]), reach=1)[0][0]
@@ -126,9 +128,9 @@ def corners_on_skin_front(V, T, points) -> np.ndarray:
     for (ring, _, _), corners in zip(EYES, CORNERS):
         view = View.looking(R[2], R[1], out[list(ring)].mean(0), HALF * eyes, SIZE)
         x, y, _ = view.project(out)
-        cols = [c + k for j in corners for c in [int(np.clip(np.round(x[j]), 0, SIZE - 1))] for k in (-1, 0, 1)]
-        raster, _ = column_depths(V, T, view, np.clip(cols, 0, SIZE - 1))
         j = list(corners)
+        spots = [(c - 1, c + 1, r - 1, r + 1) for c, r in zip(np.round(x[j]).astype(int), np.round(y[j]).astype(int))]
+        raster = rasterise(V, T, view, near=pixel_boxes(SIZE, spots))  # the pixels back_project reads, no more
         P = back_project(V, T, raster, x[j], y[j], reach=1)[0]
         for k, Pk in zip(j, P):
             if np.isfinite(Pk).all() and (Pk - out[k]) @ R[2] > CORNER_HIDDEN * eyes:
@@ -141,9 +143,52 @@ OUTER_CORNERS = ((36, 39, (37, 38, 40, 41)), (45, 42, (43, 44, 46, 47)))
 #: The eye's opening seen straight on: pixels more than :data:`OPENING_DEPTH` (eye distances) behind the face's
 #: front closed over them by a disc of radius :data:`OPENING_RADIUS` (wider than the lids' opening is high).
 OPENING_RADIUS, OPENING_DEPTH = 0.08, 0.03
+#: How far (eye distances) above and below the eye's landmarks its opening is looked for first (drawing the rows
+#: there and the closing's reach around them, not the whole picture); where it runs on farther, in the whole picture.
+OPENING_BAND = 0.05
 #: How far (eye distances) from the opening's end an outer corner may lie and stay: ICT's true corners lie up to 0.02
 #: from it (their lids meet a little beyond the opening seen straight on).
 OPENING_END_SLACK = 0.03
+
+
+def _opening_part(V, T, view: View, cx, cy, eyes, rows=None):
+    """``(raster, part)``: the eye's opening (see :func:`outer_corners_at_opening_end`) that holds pixel ``(cx, cy)``,
+    a bool image; None where no opening holds it or it runs out of the picture. ``rows``: ``(first, last)``, the rows
+    it is looked for in (with ``cy``), drawn with the closing's reach (twice its radius) around them: the same opening
+    as in the whole picture where it stays inside them (the closing at a pixel sees no farther, and any background
+    depth below the face's gives the same opening); False where it reaches their edge inside the picture."""
+    from scipy.ndimage import label
+
+    from .pipeline import disc_closing  # the pipeline runs this step: imported here, not at the module's top
+
+    n = view.size
+    radius = max(round(OPENING_RADIUS * eyes / view.pixel), 1)
+    first, last = (0, n - 1) if rows is None else (max(min(rows[0], cy), 0), min(max(rows[1], cy), n - 1))
+    lo, hi = max(first - 2 * radius - 1, 0), min(last + 2 * radius + 1, n - 1)
+    first, last = (0 if lo == 0 else first), (n - 1 if hi == n - 1 else last)  # the picture's edge: exact up to it
+    near = None
+    if lo > 0 or hi < n - 1:
+        near = np.zeros((n, n), bool)
+        near[lo:hi + 1] = True
+    raster = rasterise(V, T, view, near=near)
+    depth = depth_map(V, T, Raster(view, raster.tri[lo:hi + 1], raster.bary[lo:hi + 1]))
+    seen = np.isfinite(depth)
+    if not seen.any():
+        return raster, None
+    floor = depth[seen].min() - 1.0  # the background, far behind (closing must not spill it onto the face)
+    closed = disc_closing(np.where(seen, depth, floor), radius)
+    opening = (~seen | (depth < closed - OPENING_DEPTH * eyes))[first - lo:last - lo + 1]
+    parts, _ = label(opening)
+    if parts[cy - first, cx] == 0:
+        return raster, None
+    part = parts == parts[cy - first, cx]
+    if part[:, 0].any() or part[:, -1].any() or (part[0].any() and first == 0) or (part[-1].any() and last == n - 1):
+        return raster, None  # not an opening between the lids: it runs out of the eye's picture
+    if part[0].any() or part[-1].any():
+        return raster, False
+    whole = np.zeros((n, n), bool)
+    whole[first:last + 1] = part
+    return raster, whole
 
 
 def outer_corners_at_opening_end(V, T, points) -> np.ndarray:
@@ -169,31 +214,20 @@ def outer_corners_at_opening_end(V, T, points) -> np.ndarray:
     points : (68, 3) array
         Landmarks on the skin, the mesh's space (the lid points and the inner corners are trusted).
     """
-    from scipy.ndimage import label
-
-    from .pipeline import disc_closing  # the pipeline runs this step: imported here, not at the module's top
-
     out = np.array(points, np.float64)
     R = face_frame(out).rotation
     eyes = eye_distance(out)
     for (ring, _, _), (outer, inner, lids) in zip(EYES, OUTER_CORNERS):
         view = View.looking(R[2], R[1], out[list(ring)].mean(0), HALF * eyes, SIZE)
-        raster = rasterise(V, T, view)
-        depth = depth_map(V, T, raster)
-        seen = np.isfinite(depth)
-        if not seen.any():
-            continue
-        floor = depth[seen].min() - 1.0  # the background, far behind (closing must not spill it onto the face)
-        closed = disc_closing(np.where(seen, depth, floor), max(round(OPENING_RADIUS * eyes / view.pixel), 1))
-        opening = ~seen | (depth < closed - OPENING_DEPTH * eyes)
         x, y, _ = view.project(out)
         cx, cy = (int(np.clip(np.round(c[list(lids)].mean()), 0, SIZE - 1)) for c in (x, y))
-        parts, _ = label(opening)
-        if parts[cy, cx] == 0:
+        margin = OPENING_BAND * eyes / view.pixel
+        band = (int(np.floor(y[list(ring)].min() - margin)), int(np.ceil(y[list(ring)].max() + margin)))
+        raster, part = _opening_part(V, T, view, cx, cy, eyes, band)
+        if part is False:  # the opening runs on above or below the band: the whole picture
+            raster, part = _opening_part(V, T, view, cx, cy, eyes)
+        if part is None:
             continue
-        part = parts == parts[cy, cx]
-        if part[0].any() or part[-1].any() or part[:, 0].any() or part[:, -1].any():
-            continue  # not an opening between the lids: it runs out of the eye's picture
         axis = np.array([x[outer] - x[inner], y[outer] - y[inner]])
         axis /= np.linalg.norm(axis)
         rows, cols = np.nonzero(part)

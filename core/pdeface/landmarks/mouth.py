@@ -128,7 +128,8 @@ def inner_lips_in_seam(V, T, points) -> np.ndarray:
     px = view.pixel
     reach = round(SEAM_REACH * eyes / px)
     cols = {j: int(np.clip(np.round(x[j]), 0, SIZE - 1)) for j in (*OUTER_CORNERS, *INNER_MIDDLES)}
-    raster, depth = column_depths(V, T, view, list(cols.values()))
+    r0s = [int(np.clip(np.round(y[j]), 0, SIZE - 1)) for j in cols]  # searched within reach, back_project a row more
+    raster, depth = column_depths(V, T, view, list(cols.values()), (min(r0s) - reach - 1, max(r0s) + reach + 1))
     for j, c in cols.items():
         r0 = int(np.clip(np.round(y[j]), 0, SIZE - 1))
         rows = np.arange(max(r0 - reach, 0), min(r0 + reach, SIZE - 1) + 1)
@@ -306,7 +307,9 @@ def lower_lip_on_its_edge(V, T, points) -> np.ndarray:
     x, y, z = view.project(out)
     reach = round(SEAM_REACH * eyes / view.pixel)
     cols = {j: int(np.clip(np.round(x[j]), 0, SIZE - 1)) for j in LOWER_LIP}
-    raster, depth = column_depths(V, T, view, list(cols.values()))
+    ys = [int(np.clip(np.round(y[k]), 0, SIZE - 1)) for j, inner in LOWER_LIP.items() for k in (j, inner)]
+    # From the seam (within reach of the inner points) down to the found points, and a row more for back_project.
+    raster, depth = column_depths(V, T, view, list(cols.values()), (min(ys) - reach - 1, max(ys) + reach + 1))
     for j, inner in LOWER_LIP.items():
         d = depth[:, cols[j]]
         ri, rj = (int(np.clip(np.round(y[k]), 0, SIZE - 1)) for k in (inner, j))
@@ -362,9 +365,12 @@ def lower_inner_lips_under_the_slit(V, T, points) -> np.ndarray:
     x, y, z = view.project(out)
     inner_of = {inner: outer for outer, inner in LOWER_LIP.items()}
     cols = {j: int(np.clip(np.round(x[j]), 0, SIZE - 1)) for j in inner_of}
-    raster, depth = column_depths(V, T, view, list(cols.values()))
+    spans = {j: tuple(int(np.clip(np.round(y[i]), 0, SIZE - 1)) for i in (j, k)) for j, k in inner_of.items()}
+    # From the inner points down to the outer ones, and the row under them that back_project reads.
+    raster, depth = column_depths(V, T, view, list(cols.values()),
+                                  (min(s[0] for s in spans.values()), max(s[1] for s in spans.values()) + 1))
     for j, k in inner_of.items():
-        rj, rk = (int(np.clip(np.round(y[i]), 0, SIZE - 1)) for i in (j, k))
+        rj, rk = spans[j]
         rows = np.arange(rj, rk + 1)  # down from the inner point to the lower lip's outer one
         opening = np.flatnonzero(~(depth[rows, cols[j]] >= z[k] - REACH * eyes))  # -inf (nothing seen) too
         if not len(opening) or rows[opening[-1]] >= rk:

@@ -481,23 +481,29 @@ def disc_closing(img, r):
     value for value (borders reflected alike), several times faster at r = 13.
 
     The disc is a stack of centred rows, one per row offset dy, ``2 w(dy) + 1`` pixels wide: its max (min)
-    filter is the max (min), over the offsets, of a 1-D filter along the rows (O(pixels) each, whatever the
-    width) shifted by dy; the 2-D footprint filter costs O(pixels · r²).
+    filter is the max (min), over the offsets, of a 1-D filter along the rows shifted by dy; the 2-D footprint
+    filter costs O(pixels · r²). The row filters of widths 3, 5, 7, ... are each the max (min) of the one before
+    shifted a pixel either way (a third of the time of scipy's 1-D filters; max and min are exact, in any order).
     """
-    from scipy.ndimage import maximum_filter1d, minimum_filter1d
-
     half = [int(np.sqrt(r * r - dy * dy)) for dy in range(-r, r + 1)]  # exact for integers: w² <= r² - dy²
     n, m = img.shape
 
-    def filtered(a, filter1d, pick):
+    def filtered(a, pick):
         padded = np.pad(a, r, mode="symmetric")  # scipy's default border, "reflect"
-        rows = {w: filter1d(padded, 2 * w + 1, axis=1) for w in set(half)}
-        out = rows[half[0]][:n, r:r + m].copy()
+        rows, level = {}, padded  # level w: column i is the filter of width 2 w + 1 about padded's column i + w
+        for w in range(max(half) + 1):
+            if w == 1:
+                level = pick(pick(level[:, :-2], level[:, 1:-1]), level[:, 2:])
+            elif w:  # two of width 2 w - 1 two apart overlap: together they are 2 w + 1 wide
+                level = pick(level[:, :-2], level[:, 2:])
+            if w in half:
+                rows[w] = level[:, r - w:r - w + m]
+        out = rows[half[0]][:n].copy()
         for k, w in enumerate(half[1:], 1):
-            pick(out, rows[w][k:k + n, r:r + m], out=out)
+            pick(out, rows[w][k:k + n], out=out)
         return out
 
-    return filtered(filtered(img, maximum_filter1d, np.maximum), minimum_filter1d, np.minimum)
+    return filtered(filtered(img, np.maximum), np.minimum)
 
 
 def onto_outer_surface(V, T, raster: Raster, L, mm_per_unit, outer=None):

@@ -307,11 +307,25 @@ def marked(img, pixels, r=2, colour=(230, 30, 30)):
     return img
 
 
-def column_depths(V, T, view: View, columns) -> tuple[Raster, np.ndarray]:
+def pixel_boxes(size, boxes) -> np.ndarray:
+    """A bool image ``(size, size)`` true in each box ``(x0, x1, y0, y1)`` (inclusive pixel bounds, each clipped into
+    the image as :func:`back_project` clips its candidates): :func:`rasterise`'s ``near`` for a look at a few spots."""
+    near = np.zeros((size, size), bool)
+    for x0, x1, y0, y1 in boxes:
+        (x0, x1), (y0, y1) = np.clip((x0, x1), 0, size - 1), np.clip((y0, y1), 0, size - 1)
+        near[y0:y1 + 1, x0:x1 + 1] = True
+    return near
+
+
+def column_depths(V, T, view: View, columns, rows=None) -> tuple[Raster, np.ndarray]:
     """``(raster, depth)`` of ``view`` drawn only over the pixel ``columns`` (the rest shows nothing): for steps that
-    read the skin's profile down a few columns of a straight-on view."""
+    read the skin's profile down a few columns of a straight-on view. ``rows``: ``(first, last)``, the rows read
+    (all when None); the columns' pixels there, and those beside them (:func:`back_project`'s candidates), are as
+    drawn over the whole columns (a triangle over a pixel there and over a column is over that column's pixel in
+    the same row), in a fraction of the time."""
     near = np.zeros((view.size, view.size), bool)
-    near[:, sorted(set(np.atleast_1d(columns).tolist()))] = True
+    lo, hi = (0, view.size - 1) if rows is None else np.clip(rows, 0, view.size - 1)
+    near[lo:hi + 1, sorted(set(np.atleast_1d(columns).tolist()))] = True
     raster = rasterise(V, T, view, near=near)
     return raster, depth_map(V, T, raster)
 
@@ -319,7 +333,8 @@ def column_depths(V, T, view: View, columns) -> tuple[Raster, np.ndarray]:
 def depth_map(V, T, raster: Raster) -> np.ndarray:
     """Each pixel's depth towards the viewer (mesh units), -inf where the raster shows nothing."""
     depth = np.full(raster.tri.shape, -np.inf)
-    seen = raster.tri >= 0
-    Q = np.einsum("pk,pkj->pj", raster.bary[seen], V[T[raster.tri[seen]]])
-    depth[seen] = (Q - raster.view.centre) @ raster.view.rotation[2]
+    seen = np.flatnonzero(raster.tri >= 0)  # flat indices and take: half the time of boolean masks, same values
+    corners = np.asarray(V, np.float64).take(np.asarray(T).take(raster.tri.take(seen), 0), 0)
+    Q = np.einsum("pk,pkj->pj", raster.bary.reshape(-1, 3).take(seen, 0), corners)
+    depth.reshape(-1)[seen] = (Q - raster.view.centre) @ raster.view.rotation[2]
     return depth
