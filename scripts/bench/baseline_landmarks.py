@@ -107,7 +107,7 @@ def before_path():
     """:mod:`pdeface.landmarks` renders as before #35 inside the block."""
     swaps = [(pipeline, "rasterise", rasterise), (render, "vertex_normals", vertex_normals),
              (pipeline, "vertex_normals", vertex_normals), (render, "triangle_cross", triangle_cross),
-             (pipeline, "disc_closing", disc_closing)]
+             (render, "disc_closing", disc_closing)]
     saved = [(mod, name, getattr(mod, name)) for mod, name, _ in swaps]
     try:
         for mod, name, fn in swaps:

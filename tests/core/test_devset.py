@@ -596,6 +596,22 @@ def test_outer_eye_corners_on_the_upper_lid_go_to_the_end_of_the_eyes_opening(na
 
 
 @needs_makehuman
+def test_an_outer_eye_corner_far_from_the_openings_end_stays():
+    # Farther than OPENING_END_REACH from the opening's end the opening is not this corner's (a crease or a groove
+    # joined to the slit): a corner put 0.2 eye distances up on the lid's skin stays where it is, the other goes.
+    from pdeface.landmarks.eyes import OPENING_END_REACH, outer_corners_at_opening_end
+
+    ch = build(SPECS["base-dm"])
+    L, eyes = ch.skin_landmarks, ch.eye_distance
+    moved = _moved_in_face_frame(ch.vertices, ch.triangles, L, [36], (0, 0.2, 0.03))
+    moved = _moved_in_face_frame(ch.vertices, ch.triangles, moved, [45], (0, 0.05, 0.03))
+    assert np.linalg.norm(moved[36] - L[36]) / eyes > OPENING_END_REACH
+    back = outer_corners_at_opening_end(ch.vertices, ch.triangles, moved)
+    assert np.array_equal(back[36], moved[36])
+    assert np.linalg.norm(back[45] - L[45]) / eyes < 0.02
+
+
+@needs_makehuman
 @pytest.mark.parametrize("name", ["parted-lips-cm", "eyes-teeth-separate-in"])
 def test_the_eyes_opening_looked_for_about_the_eye_is_the_whole_pictures(name):
     # outer_corners_at_opening_end draws the rows about the eye, not the whole picture: the same opening (and

@@ -21,8 +21,17 @@ from pdeface.landmarks.facemap import (
     read_map,
     robust_similarity,
 )
-from pdeface.landmarks.pipeline import OPENING_DEPTH_MM, disc_closing, group_spread, outer_pixels, snap
-from pdeface.landmarks.render import View, back_project, column_depths, depth_map, pixel_boxes, rasterise, shade
+from pdeface.landmarks.pipeline import OPENING_DEPTH_MM, group_spread, outer_pixels, snap
+from pdeface.landmarks.render import (
+    View,
+    back_project,
+    column_depths,
+    depth_map,
+    disc_closing,
+    pixel_boxes,
+    rasterise,
+    shade,
+)
 from pdeface.mesh import Mesh, connected_components
 from pdeface.rigid import rotation_vector_matrix
 from pdeface.surface.frame import BLENDER_FROM_ICT

@@ -22,7 +22,7 @@ import numpy as np
 
 from ..landmark_scheme import UPPER_LIDS, eye_distance
 from ..surface.frame import face_frame
-from .render import Raster, View, back_project, column_depths, depth_map, pixel_boxes, rasterise
+from .render import Raster, View, back_project, closed_depth, column_depths, depth_map, pixel_boxes, rasterise
 
 #: How far (eye distances) along its column a lid point may move, either way.
 REACH = 0.04
@@ -149,6 +149,10 @@ OPENING_BAND = 0.05
 #: How far (eye distances) from the opening's end an outer corner may lie and stay: ICT's true corners lie up to 0.02
 #: from it (their lids meet a little beyond the opening seen straight on).
 OPENING_END_SLACK = 0.03
+#: How far (eye distances) from the opening's end an outer corner may lie and still go there: MakeHuman's found
+#: corners lay at most 0.09 from it; farther, the opening ran on into something else (a crease, a groove joined to
+#: the slit on a stylised or low-poly socket) and the corner stays.
+OPENING_END_REACH = 0.12
 
 
 def _opening_part(V, T, view: View, cx, cy, eyes, rows=None):
@@ -158,8 +162,6 @@ def _opening_part(V, T, view: View, cx, cy, eyes, rows=None):
     as in the whole picture where it stays inside them (the closing at a pixel sees no farther, and any background
     depth below the face's gives the same opening); False where it reaches their edge inside the picture."""
     from scipy.ndimage import label
-
-    from .pipeline import disc_closing  # the pipeline runs this step: imported here, not at the module's top
 
     n = view.size
     radius = max(round(OPENING_RADIUS * eyes / view.pixel), 1)
@@ -172,12 +174,10 @@ def _opening_part(V, T, view: View, cx, cy, eyes, rows=None):
         near[lo:hi + 1] = True
     raster = rasterise(V, T, view, near=near)
     depth = depth_map(V, T, Raster(view, raster.tri[lo:hi + 1], raster.bary[lo:hi + 1]))
-    seen = np.isfinite(depth)
-    if not seen.any():
+    closed = closed_depth(depth, radius)
+    if closed is None:
         return raster, None
-    floor = depth[seen].min() - 1.0  # the background, far behind (closing must not spill it onto the face)
-    closed = disc_closing(np.where(seen, depth, floor), radius)
-    opening = (~seen | (depth < closed - OPENING_DEPTH * eyes))[first - lo:last - lo + 1]
+    opening = (~np.isfinite(depth) | (depth < closed - OPENING_DEPTH * eyes))[first - lo:last - lo + 1]
     parts, _ = label(opening)
     if parts[cy - first, cx] == 0:
         return raster, None
@@ -204,7 +204,7 @@ def outer_corners_at_opening_end(V, T, points) -> np.ndarray:
     of the eye distance from the registered skin points). At the opening's end: 2.0 and 2.0 % (35 of 48 moved,
     4.7 → 2.0 % median; better on 29, worse by more than 1 on 4: asian-female-old's two, voxel's and
     eyes-teeth-separate's 36, where the lids' slit runs on past the true corner); a corner within
-    :data:`OPENING_END_SLACK` of it stays. The inner corners are not moved so: there the opening ends at the
+    :data:`OPENING_END_SLACK` of it stays, and one beyond :data:`OPENING_END_REACH`. The inner corners are not moved so: there the opening ends at the
     caruncle, beside the true corner (median 2.4 → 3.8 %).
 
     Parameters
@@ -234,6 +234,6 @@ def outer_corners_at_opening_end(V, T, points) -> np.ndarray:
         k = int(np.argmax((cols - cx) * axis[0] + (rows - cy) * axis[1]))
         P = back_project(V, T, raster, np.array([cols[k] + 1.5 * axis[0]]), np.array([rows[k] + 1.5 * axis[1]]),
                          reach=2)[0][0]  # the skin just beyond the opening's end
-        if np.isfinite(P).all() and np.linalg.norm(P - out[outer]) > OPENING_END_SLACK * eyes:
+        if np.isfinite(P).all() and OPENING_END_SLACK < np.linalg.norm(P - out[outer]) / eyes < OPENING_END_REACH:
             out[outer] = P
     return out

@@ -48,7 +48,7 @@ from .mouth import (
     mouth_corners_at_seam_end,
 )
 from .nose import bridge_at_ict_shares, nose_bottom_at_subnasale
-from .render import Raster, View, back_project, depth_map, marked, rasterise, shade
+from .render import Raster, View, back_project, closed_depth, depth_map, marked, rasterise, shade
 
 #: The search's view directions (towards the viewer) with an up vector each.
 SEARCH_AXES = {"+z": ((0, 0, 1), (0, 1, 0)), "-y": ((0, -1, 0), (0, 0, 1)), "+x": ((1, 0, 0), (0, 1, 0)),
@@ -466,44 +466,11 @@ def outer_pixels(V, T, raster: Raster, mm_per_unit, depth=None) -> np.ndarray:
     """Pixels that show the face's outer surface, not the inside of an opening (see :data:`OPENING_DEPTH_MM`).
     ``depth``: :func:`depth_map`, when already drawn."""
     depth = depth_map(V, T, raster) if depth is None else depth
-    seen = np.isfinite(depth)
-    if not seen.any():
-        return seen
-    floor = depth[seen].min() - 1.0  # the background, far behind (closing must not spill it onto the face)
     px_mm = 2 * raster.view.half / raster.view.size * mm_per_unit
-    r = max(round(OPENING_RADIUS_MM / px_mm), 1)
-    closed = disc_closing(np.where(seen, depth, floor), r)
-    return seen & (depth >= closed - OPENING_DEPTH_MM / mm_per_unit)
-
-
-def disc_closing(img, r):
-    """``scipy.ndimage.grey_closing(img, footprint=disc)`` for the disc of radius ``r`` pixels, equal to it
-    value for value (borders reflected alike), several times faster at r = 13.
-
-    The disc is a stack of centred rows, one per row offset dy, ``2 w(dy) + 1`` pixels wide: its max (min)
-    filter is the max (min), over the offsets, of a 1-D filter along the rows shifted by dy; the 2-D footprint
-    filter costs O(pixels · r²). The row filters of widths 3, 5, 7, ... are each the max (min) of the one before
-    shifted a pixel either way (a third of the time of scipy's 1-D filters; max and min are exact, in any order).
-    """
-    half = [int(np.sqrt(r * r - dy * dy)) for dy in range(-r, r + 1)]  # exact for integers: w² <= r² - dy²
-    n, m = img.shape
-
-    def filtered(a, pick):
-        padded = np.pad(a, r, mode="symmetric")  # scipy's default border, "reflect"
-        rows, level = {}, padded  # level w: column i is the filter of width 2 w + 1 about padded's column i + w
-        for w in range(max(half) + 1):
-            if w == 1:
-                level = pick(pick(level[:, :-2], level[:, 1:-1]), level[:, 2:])
-            elif w:  # two of width 2 w - 1 two apart overlap: together they are 2 w + 1 wide
-                level = pick(level[:, :-2], level[:, 2:])
-            if w in half:
-                rows[w] = level[:, r - w:r - w + m]
-        out = rows[half[0]][:n].copy()
-        for k, w in enumerate(half[1:], 1):
-            pick(out, rows[w][k:k + n], out=out)
-        return out
-
-    return filtered(filtered(img, np.maximum), np.minimum)
+    closed = closed_depth(depth, max(round(OPENING_RADIUS_MM / px_mm), 1))
+    if closed is None:
+        return np.zeros(depth.shape, bool)
+    return np.isfinite(depth) & (depth >= closed - OPENING_DEPTH_MM / mm_per_unit)
 
 
 def onto_outer_surface(V, T, raster: Raster, L, mm_per_unit, outer=None):

@@ -338,3 +338,44 @@ def depth_map(V, T, raster: Raster) -> np.ndarray:
     Q = np.einsum("pk,pkj->pj", raster.bary.reshape(-1, 3).take(seen, 0), corners)
     depth.reshape(-1)[seen] = (Q - raster.view.centre) @ raster.view.rotation[2]
     return depth
+
+
+def disc_closing(img, r):
+    """``scipy.ndimage.grey_closing(img, footprint=disc)`` for the disc of radius ``r`` pixels, equal to it
+    value for value (borders reflected alike), several times faster at r = 13.
+
+    The disc is a stack of centred rows, one per row offset dy, ``2 w(dy) + 1`` pixels wide: its max (min)
+    filter is the max (min), over the offsets, of a 1-D filter along the rows shifted by dy; the 2-D footprint
+    filter costs O(pixels · r²). The row filters of widths 3, 5, 7, ... are each the max (min) of the one before
+    shifted a pixel either way (a third of the time of scipy's 1-D filters; max and min are exact, in any order).
+    """
+    half = [int(np.sqrt(r * r - dy * dy)) for dy in range(-r, r + 1)]  # exact for integers: w² <= r² - dy²
+    n, m = img.shape
+
+    def filtered(a, pick):
+        padded = np.pad(a, r, mode="symmetric")  # scipy's default border, "reflect"
+        rows, level = {}, padded  # level w: column i is the filter of width 2 w + 1 about padded's column i + w
+        for w in range(max(half) + 1):
+            if w == 1:
+                level = pick(pick(level[:, :-2], level[:, 1:-1]), level[:, 2:])
+            elif w:  # two of width 2 w - 1 two apart overlap: together they are 2 w + 1 wide
+                level = pick(level[:, :-2], level[:, 2:])
+            if w in half:
+                rows[w] = level[:, r - w:r - w + m]
+        out = rows[half[0]][:n].copy()
+        for k, w in enumerate(half[1:], 1):
+            pick(out, rows[w][k:k + n], out=out)
+        return out
+
+    return filtered(filtered(img, np.maximum), np.minimum)
+
+
+def closed_depth(depth, r):
+    """A depth map (NaN where nothing was seen) closed by a disc of radius ``r`` pixels (:func:`disc_closing`), the
+    unseen background held far behind the face (the closing must not spill it onto the face): where the surface
+    seen lies well behind it, an opening (an empty socket, a slit between the lips) shows. None where nothing was
+    seen."""
+    seen = np.isfinite(depth)
+    if not seen.any():
+        return None
+    return disc_closing(np.where(seen, depth, depth[seen].min() - 1.0), r)
