@@ -5,7 +5,7 @@ straight from the system (``mmap``) and gives it back when freed: the next array
 every 4 KiB page of it a fault the kernel fills with zeros. The landmarks' renders, the fit and the head
 binding make and drop thousands of arrays of 0.1-50 MB: a 27k-vertex head's ``pdeface rig`` took 134k page
 faults, and half the renders' time went to them on a virtual machine (issue #35). After :func:`keep_heap`,
-blocks under :data:`MMAP_THRESHOLD` come from the heap and up to :data:`TRIM_THRESHOLD` of free memory stays at
+blocks under :data:`MMAP_THRESHOLDS` come from the heap and up to :data:`TRIM_THRESHOLD` of free memory stays at
 its top, so a freed array's pages serve the next one: the rig faults half as often, its CPU time 10 % less.
 It is process-wide and stays, so only a process's owner calls it: the ``pdeface`` command (``cli.run``), or your
 own script; the library's functions and the add-on do not (in Blender, which lives on, it made no clear difference:
@@ -18,9 +18,10 @@ from __future__ import annotations
 import ctypes
 import threading
 
-#: Blocks under this many bytes come from the heap (a 27k head's largest arrays are ~30 MB); glibc's largest allowed
-#: on 64-bit systems (``mallopt(3)``: HEAP_MAX_SIZE / 2; older glibc refuses more).
-MMAP_THRESHOLD = 32 << 20
+#: Blocks under this many bytes come from the heap (a 27k head's largest arrays are ~30 MB; at 64 MiB its rig faulted
+#: 66-71k times, at 32 MiB 90k); the second where glibc refuses the first (older glibc: at most HEAP_MAX_SIZE / 2,
+#: 32 MiB on 64-bit systems, ``mallopt(3)``).
+MMAP_THRESHOLDS = (64 << 20, 32 << 20)
 #: Free bytes kept at the heap's top before any is given back to the system (at 32 MiB the rig faulted 82k times, at
 #: 64 or 128 MiB 64k).
 TRIM_THRESHOLD = 64 << 20
@@ -51,7 +52,7 @@ def keep_heap(trim_threshold: int = TRIM_THRESHOLD) -> bool:
             libc = _glibc()
             # mallopt returns 0 for a value refused: then the trim threshold is left too (setting it alone would
             # freeze glibc's moving mmap threshold at its first 128 KiB: more faults, not fewer)
-            kept = libc is not None and libc.mallopt(_M_MMAP_THRESHOLD, MMAP_THRESHOLD) == 1
+            kept = libc is not None and any(libc.mallopt(_M_MMAP_THRESHOLD, size) == 1 for size in MMAP_THRESHOLDS)
             if kept:
                 libc.mallopt(_M_TRIM_THRESHOLD, int(trim_threshold))
             _kept.append(kept)

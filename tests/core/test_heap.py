@@ -47,7 +47,7 @@ def test_keep_heap_sets_the_thresholds_once(monkeypatch):
     monkeypatch.setattr(heap, "_kept", [])
     monkeypatch.setattr(heap, "_glibc", lambda: fake)
     assert heap.keep_heap(trim_threshold=5 << 20) and heap.keep_heap()  # the first call's settings hold
-    assert fake.calls == [(-3, heap.MMAP_THRESHOLD), (-1, 5 << 20)]  # M_MMAP_THRESHOLD, M_TRIM_THRESHOLD
+    assert fake.calls == [(-3, heap.MMAP_THRESHOLDS[0]), (-1, 5 << 20)]  # M_MMAP_THRESHOLD, M_TRIM_THRESHOLD
 
 
 def test_keep_heap_changes_nothing_without_glibc(monkeypatch):
@@ -56,12 +56,23 @@ def test_keep_heap_changes_nothing_without_glibc(monkeypatch):
     assert heap.keep_heap() is False and heap._kept == [False]
 
 
-def test_keep_heap_sets_nothing_more_where_glibc_refuses_the_threshold(monkeypatch):
-    """An older glibc that refuses the mmap threshold (mallopt returns 0): the trim threshold is left too (alone it
-    would freeze glibc's moving threshold at 128 KiB) and the heap is reported as not kept."""
+def test_keep_heap_falls_back_to_the_threshold_older_glibc_takes(monkeypatch):
+    """An older glibc refuses an mmap threshold over 32 MiB (mallopt returns 0): the smaller is set, then the trim
+    threshold."""
+    fake = _FakeLibc()
+    fake.mallopt = lambda option, value: fake.calls.append((option, value)) or int(value <= 32 << 20)
+    monkeypatch.setattr(heap, "_kept", [])
+    monkeypatch.setattr(heap, "_glibc", lambda: fake)
+    assert heap.keep_heap() is True
+    assert fake.calls == [(-3, 64 << 20), (-3, 32 << 20), (-1, heap.TRIM_THRESHOLD)]
+
+
+def test_keep_heap_sets_nothing_more_where_glibc_refuses_every_threshold(monkeypatch):
+    """Every mmap threshold refused: the trim threshold is left too (alone it would freeze glibc's moving threshold
+    at 128 KiB) and the heap is reported as not kept."""
     fake = _FakeLibc()
     fake.mallopt = lambda option, value: fake.calls.append((option, value)) or 0
     monkeypatch.setattr(heap, "_kept", [])
     monkeypatch.setattr(heap, "_glibc", lambda: fake)
     assert heap.keep_heap() is False
-    assert fake.calls == [(-3, heap.MMAP_THRESHOLD)]
+    assert fake.calls == [(-3, size) for size in heap.MMAP_THRESHOLDS]
