@@ -71,6 +71,14 @@ def _margin_row(column, r0, z0, upper, reach, deeper, drop, jump):
     return int(rows[drops[0] - 1]) if len(drops) else None
 
 
+def _eye_views(points):
+    """``(eye distance, face frame's rotation, views)``: each eye seen straight on (the face frame's front, its up)
+    about its ring's middle, :data:`HALF` eye distances either way, :data:`SIZE` pixels square."""
+    R = face_frame(points).rotation
+    eyes = eye_distance(points)
+    return eyes, R, [View.looking(R[2], R[1], points[list(ring)].mean(0), HALF * eyes, SIZE) for ring, _, _ in EYES]
+
+
 def lids_on_margin(V, T, points) -> np.ndarray:
     """``points (68, 3)`` with the lid points moved to the front edge of the lid margin on the skin ``(V, T)``
     (see the module's docstring).
@@ -83,10 +91,8 @@ def lids_on_margin(V, T, points) -> np.ndarray:
         Landmarks on the skin, the mesh's space.
     """
     out = np.array(points, np.float64)
-    R = face_frame(out).rotation
-    eyes = eye_distance(out)
-    for ring, upper, lower in EYES:
-        view = View.looking(R[2], R[1], out[list(ring)].mean(0), HALF * eyes, SIZE)
+    eyes, _, views = _eye_views(out)
+    for (ring, upper, lower), view in zip(EYES, views):
         x, y, z = view.project(out)
         cols = {j: int(np.clip(np.round(x[j]), 0, SIZE - 1)) for j in (*upper, *lower)}
         r0 = {j: int(np.clip(np.round(y[j]), 0, SIZE - 1)) for j in cols}
@@ -123,10 +129,8 @@ def corners_on_skin_front(V, T, points) -> np.ndarray:
         Landmarks on the skin, the mesh's space.
     """
     out = np.array(points, np.float64)
-    R = face_frame(out).rotation
-    eyes = eye_distance(out)
-    for (ring, _, _), corners in zip(EYES, CORNERS):
-        view = View.looking(R[2], R[1], out[list(ring)].mean(0), HALF * eyes, SIZE)
+    eyes, R, views = _eye_views(out)
+    for view, corners in zip(views, CORNERS):
         x, y, _ = view.project(out)
         j = list(corners)
         spots = [(c - 1, c + 1, r - 1, r + 1) for c, r in zip(np.round(x[j]).astype(int), np.round(y[j]).astype(int))]
@@ -215,10 +219,8 @@ def outer_corners_at_opening_end(V, T, points) -> np.ndarray:
         Landmarks on the skin, the mesh's space (the lid points and the inner corners are trusted).
     """
     out = np.array(points, np.float64)
-    R = face_frame(out).rotation
-    eyes = eye_distance(out)
-    for (ring, _, _), (outer, inner, lids) in zip(EYES, OUTER_CORNERS):
-        view = View.looking(R[2], R[1], out[list(ring)].mean(0), HALF * eyes, SIZE)
+    eyes, _, views = _eye_views(out)
+    for (ring, _, _), view, (outer, inner, lids) in zip(EYES, views, OUTER_CORNERS):
         x, y, _ = view.project(out)
         cx, cy = (int(np.clip(np.round(c[list(lids)].mean()), 0, SIZE - 1)) for c in (x, y))
         margin = OPENING_BAND * eyes / view.pixel
