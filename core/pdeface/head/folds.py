@@ -171,7 +171,7 @@ class FoldRelax:
                                           len(keys) * len(self.faces))
         face_slot, face = np.divmod(faces, len(self.faces))
         tri = self.T[self.faces[face]]  # (f, 3): each (key, triangle) once
-        X = self.V[tri] + _rows_of(D, tri, keys[face_slot][:, None])
+        X = np.take(self.V, tri, axis=0) + _rows_of(D, tri, keys[face_slot][:, None])
         nrm = unit_rows(cross3(X[:, 1] - X[:, 0], X[:, 2] - X[:, 0]))
         pair_faces = pair_faces.reshape(-1, 2)
         a, b = nrm[pair_faces[:, 0]], nrm[pair_faces[:, 1]]
@@ -437,15 +437,16 @@ class FoldRelax:
 
 def _rows_of(D, vertices, keys):
     """``D[vertices, keys]`` of displacements ``D`` (n, k, 3) (index arrays broadcast together): one gather of the
-    (vertex, key) rows, 3-4 times faster than numpy's two-array indexing."""
-    return np.reshape(D, (-1, 3))[vertices * D.shape[1] + keys]
+    (vertex, key) rows, 3-4 times faster than numpy's two-array indexing (and numpy.take's gather of whole rows 2-3
+    times faster than indexing's)."""
+    return np.take(np.reshape(D, (-1, 3)), vertices * D.shape[1] + keys, axis=0)
 
 
 def _cross(P, tri):
     """Cross product of triangles ``tri``'s two edges from their first corner, corners at rows of ``P``
     (:func:`pdeface.geometry.triangle_cross`'s numbers, without numpy.cross's axis shuffling)."""
-    a = P[tri[:, 0]]
-    u, v = P[tri[:, 1]] - a, P[tri[:, 2]] - a
+    a = np.take(P, tri[:, 0], axis=0)  # (numpy.take's gather of whole rows: 2-3 times faster than indexing's)
+    u, v = np.take(P, tri[:, 1], axis=0) - a, np.take(P, tri[:, 2], axis=0) - a
     out = np.empty_like(u)
     out[:, 0] = u[:, 1] * v[:, 2] - u[:, 2] * v[:, 1]
     out[:, 1] = u[:, 2] * v[:, 0] - u[:, 0] * v[:, 2]
