@@ -170,11 +170,11 @@ class FoldRelax:
         faces, pair_faces = _once_inverse(slot[:, None] * len(self.faces) + self.pairs[pair],
                                           len(keys) * len(self.faces))
         face_slot, face = np.divmod(faces, len(self.faces))
-        tri = self.T[self.faces[face]]  # (f, 3): each (key, triangle) once
+        tri = np.take(self.T, self.faces[face], axis=0)  # (f, 3): each (key, triangle) once
         X = np.take(self.V, tri, axis=0) + _rows_of(D, tri, keys[face_slot][:, None])
         nrm = unit_rows(cross3(X[:, 1] - X[:, 0], X[:, 2] - X[:, 0]))
         pair_faces = pair_faces.reshape(-1, 2)
-        a, b = nrm[pair_faces[:, 0]], nrm[pair_faces[:, 1]]
+        a, b = np.take(nrm, pair_faces[:, 0], axis=0), np.take(nrm, pair_faces[:, 1], axis=0)
         cos = a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1]  # numpy.sum's order, without its slow reduction over an axis of 3
         cos += a[:, 2] * b[:, 2]
         return cos < self.cos_fold
@@ -335,12 +335,12 @@ class FoldRelax:
             at_face = in_rows[tri[:, 0]] | in_rows[tri[:, 1]] | in_rows[tri[:, 2]]
             edges = np.flatnonzero(at_face[pair_faces[:, 0]] | at_face[pair_faces[:, 1]])
             at = np.flatnonzero(at_face)
-            return at, tri[at], edges, pair_faces[edges, 0], pair_faces[edges, 1]
+            return at, np.take(tri, at, axis=0), edges, pair_faces[edges, 0], pair_faces[edges, 1]
 
         def folded(rows, faces, corners, edges, first, second):  # the folds once ``rows`` (touching them) moved
             position[rows] = X[rows] + dl[rows]
             nrm[faces] = unit_rows(_cross(position, corners))
-            a, b = nrm[first], nrm[second]
+            a, b = np.take(nrm, first, axis=0), np.take(nrm, second, axis=0)
             cos = (a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1]) + a[:, 2] * b[:, 2]
             for flags, tally, now in ((fold, count, cos < self.cos_fold), (over, count_over, cos < self.cos_limit)):
                 tally[:] += np.bincount(pair_job[edges[now & ~flags[edges]]], minlength=len(jobs))
