@@ -338,7 +338,7 @@ class FoldRelax:
             return at, np.take(tri, at, axis=0), edges, pair_faces[edges, 0], pair_faces[edges, 1]
 
         def folded(rows, faces, corners, edges, first, second):  # the folds once ``rows`` (touching them) moved
-            position[rows] = X[rows] + dl[rows]
+            position[rows] = np.take(X, rows, axis=0) + np.take(dl, rows, axis=0)
             nrm[faces] = unit_rows(_cross(position, corners))
             a, b = np.take(nrm, first, axis=0), np.take(nrm, second, axis=0)
             cos = (a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1]) + a[:, 2] * b[:, 2]
@@ -382,8 +382,13 @@ class FoldRelax:
                 swept = (region.sum(), moved, mean[moved], touched(moved), moved[in_ball[moved]],
                          not (movable[rows] & ~region[rows]).any())
             _, moved, mean_moved, touch, balled, _ = swept
-            for _ in range(look):
-                dl[moved] += RELAX_RATE * (mean_moved @ dl - dl[moved])
+            for _ in range(look):  # dl[moved] += RELAX_RATE * (mean_moved @ dl - dl[moved]), its rows gathered once
+                rows_now = np.take(dl, moved, axis=0)
+                step = mean_moved @ dl
+                step -= rows_now
+                step *= RELAX_RATE
+                rows_now += step
+                dl[moved] = rows_now
                 self._keep_out(X, dl, vertex, balled)
             count = folded(moved, *touch)
             better = count < best
