@@ -351,3 +351,17 @@ def test_many_landmark_sets_at_once_are_each_set_alone():
         alone[which == s] = opening_mask(points[which == s], sets[s])
     assert together.any() and (~together).any()
     np.testing.assert_array_equal(together, alone)
+
+
+def test_relaxation_gathers_are_numpys_indexing():
+    """The relaxation's row gathers (numpy.take, for speed) give numpy's indexing's numbers bit for bit: the keys
+    stay as they were (issue #35's speed-ups leave every key unchanged)."""
+    from pdeface.head.folds import _cross, _rows_of
+
+    rng = np.random.default_rng(3)
+    D = rng.normal(size=(50, 7, 3))
+    vertices, keys = rng.integers(0, 50, (40, 3)), rng.integers(0, 7, (40, 1))  # _folds_at's (f, 3) corners
+    assert np.array_equal(_rows_of(D, vertices, keys), D[vertices, keys])
+    assert np.array_equal(_rows_of(D, vertices[:, 0], keys[:, 0]), D[vertices[:, 0], keys[:, 0]])
+    P, tri = rng.normal(size=(50, 3)), rng.integers(0, 50, (40, 3))
+    assert np.array_equal(_cross(P, tri), np.cross(P[tri[:, 1]] - P[tri[:, 0]], P[tri[:, 2]] - P[tri[:, 0]]))
