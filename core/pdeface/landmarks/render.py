@@ -221,8 +221,9 @@ def shade(V, T, raster: Raster, background=0.0, lights=None, normals=None) -> np
     :func:`~pdeface.mesh.vertex_normals`, when several renders of one mesh share them.
     """
     N = vertex_normals(np.asarray(V, np.float64), np.asarray(T, np.int64)) if normals is None else normals
-    seen = raster.tri >= 0
-    n = unit_rows(np.einsum("pk,pkj->pj", raster.bary[seen], N[T[raster.tri[seen]]]))
+    seen = np.flatnonzero(raster.tri >= 0)  # flat indices and take, as depth_map's: the same values sooner
+    corners = N.take(np.asarray(T).take(raster.tri.take(seen), 0), 0)
+    n = unit_rows(np.einsum("pk,pkj->pj", raster.bary.reshape(-1, 3).take(seen, 0), corners))
     R = raster.view.rotation
     if lights is None:
         # Left-right symmetric light: a sideways light would shift what the face mesh sees as the midline.
@@ -234,7 +235,7 @@ def shade(V, T, raster: Raster, background=0.0, lights=None, normals=None) -> np
         for direction, strength in lights:
             lit += float(strength) * np.maximum(n @ unit_rows(np.asarray(direction, np.float64)[None])[0], 0.0)
     img = np.full(raster.tri.shape, float(background))
-    img[seen] = 0.12 + 0.88 * lit
+    img.reshape(-1)[seen] = 0.12 + 0.88 * lit
     return np.round(np.clip(img, 0, 1) * 255).astype(np.uint8)
 
 
