@@ -383,7 +383,7 @@ def detect(V, T, unit=None, landmark_map: LandmarkMap | None = None, detector: D
         Ps, direct = frontal_readings(V, T, skin, detector, m, (s, R, t), first=(raster, img, px, skin_raster),
                                       closest=closest, normals=normals)
         P2 = np.nanmean(Ps, axis=0)
-        points, _ = snap(V, T[skin], m.apply(P2), skin_raster, 1.0 / s, closest)
+        points = snapped(V, T[skin], m.apply(P2), skin_raster, 1.0 / s, closest)  # their vertices found at the end
         # The upper jaw's depth along the contour from the template, not from where a grazing ray met the cheek.
         points = upper_jaw_at_template_depth(V, T[skin], points)
         # The jaw's sides where ICT's side of the face laid onto the skin puts them, where the two disagree.
@@ -521,7 +521,13 @@ def hidden(V, T, raster: Raster, P, outer, depth, seen=None):
 
 
 def snap(V, T, L, raster: Raster | None = None, mm_per_unit=1.0, closest: ClosestPoint | None = None):
-    """Landmarks moved onto the surface ``(V, T)`` and the nearest vertex of it to each.
+    """Landmarks moved onto the surface ``(V, T)`` (:func:`snapped`) and the nearest vertex of it to each."""
+    points = snapped(V, T, L, raster, mm_per_unit, closest)
+    return points, nearest_vertices(V, T, points)
+
+
+def snapped(V, T, L, raster: Raster | None = None, mm_per_unit=1.0, closest: ClosestPoint | None = None):
+    """Landmarks ``L (68, 3)`` moved onto the surface ``(V, T)``.
 
     Each goes to the nearest surface point, as the map was fitted (on ICT's closed heads), unless it or that
     point lies over an opening seen in ``raster`` (a straight-on view showing ``T``), or that point is hidden
@@ -540,7 +546,7 @@ def snap(V, T, L, raster: Raster | None = None, mm_per_unit=1.0, closest: Closes
         use = over & np.isfinite(cast).all(1)
         use[use] = np.linalg.norm(cast[use] - points[use], axis=1) * mm_per_unit > SNAP_AGREES_MM
         points[use] = cast[use]
-    return points, nearest_vertices(V, T, points)
+    return points
 
 
 def nearest_vertices(V, T, points) -> np.ndarray:

@@ -111,9 +111,10 @@ class Raster:
             raise ValueError("Raster.showing needs the fragments: rasterise(..., keep_fragments=True)")
         only = np.asarray(only, bool)
         f = self.fragments
-        keep = only[f.tri]
+        keep = np.flatnonzero(only.take(f.tri))  # indices and take: the same values as masks, sooner
         number = np.cumsum(only) - 1
-        return _resolved(self.view, f.pix[keep], f.z[keep], number[f.tri[keep]], f.l0[keep], f.l1[keep])
+        return _resolved(self.view, f.pix.take(keep), f.z.take(keep), number.take(f.tri.take(keep)), f.l0.take(keep),
+                         f.l1.take(keep))
 
 
 @dataclass
