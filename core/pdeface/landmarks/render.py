@@ -16,8 +16,9 @@ import numpy as np
 from ..geometry import ray_triangle, triangle_cross, unit_rows
 from ..mesh import vertex_normals
 
-#: Candidate (pixel, triangle) pairs evaluated at once while rasterising.
-_CHUNK = 2_000_000
+#: Candidate (pixel, triangle) pairs evaluated at once while rasterising: a chunk's arrays (1 MiB each) stay in the
+#: cache (ICT's head's renders: 0.7x the CPU of chunks of 2M, the same fragments in the same order).
+_CHUNK = 131_072
 
 
 @dataclass
