@@ -169,6 +169,14 @@ def test_the_depth_map_is_each_seen_points_depth(heads):
     assert np.array_equal(depth_map(mesh.vertices, T, flipped), depth[:, ::-1])
 
 
+def test_the_detector_reads_a_grey_render_as_three_equal_channels(rng):
+    grey = rng.integers(0, 256, (40, 30)).astype(np.uint8)
+    for img in (grey, np.rot90(grey), np.fliplr(grey)):  # renders are read rolled and mirrored: views
+        rgb = detector_module.Detector._rgb(img)
+        assert rgb.dtype == np.uint8 and rgb.shape == (*img.shape, 3) and rgb.flags.c_contiguous
+        assert all(np.array_equal(rgb[..., k], img) for k in range(3))
+
+
 def test_pixel_boxes_clip_into_the_image_as_back_project_clips_its_candidates():
     near = pixel_boxes(10, [(-3, -1, 4, 5), (8, 11, 9, 12)])
     assert near[4:6, 0].all() and near[9, 8:].all() and near.sum() == 4

@@ -183,10 +183,8 @@ class Detector:
 
     @staticmethod
     def _rgb(gray):
-        gray = np.asarray(gray, np.uint8)
-        rgb = np.empty((*gray.shape, 3), np.uint8)
-        rgb[...] = gray[..., None]  # a broadcast copy: np.repeat's byte by byte takes several times as long
-        return rgb
+        gray = np.ascontiguousarray(gray, np.uint8)  # a rolled or mirrored render is a view
+        return np.stack((gray, gray, gray), axis=-1)  # np.repeat's byte by byte: several times as long
 
     def faces(self, gray) -> list[Detection]:
         """Faces in a grey image, best first (any score; compare with ``min_score``)."""
