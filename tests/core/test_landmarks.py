@@ -13,6 +13,7 @@ from pdeface.geometry import ClosestPoint, ray_triangle, similarity
 from pdeface.io.meshio import read_mesh, write_mesh
 from pdeface.landmarks import MissingDependencyError, available, detect
 from pdeface.landmarks import detector as detector_module
+from pdeface.landmarks import render as render_module
 from pdeface.landmarks.facemap import (
     DEFAULT_MAP,
     LandmarkMap,
@@ -21,7 +22,7 @@ from pdeface.landmarks.facemap import (
     read_map,
     robust_similarity,
 )
-from pdeface.landmarks.pipeline import OPENING_DEPTH_MM, group_spread, outer_pixels, snap
+from pdeface.landmarks.pipeline import OPENING_DEPTH_MM, group_spread, outer_pixels, snap, snapped
 from pdeface.landmarks.render import (
     View,
     back_project,
@@ -101,6 +102,32 @@ def test_a_subset_drawn_from_one_pass_is_that_subset_rendered(heads):
         alone.showing(np.ones(skin.sum(), bool))
 
 
+def test_the_chunks_a_render_is_drawn_in_change_nothing(heads, monkeypatch):
+    # Candidates are evaluated a chunk at a time (for the cache): any chunk size gives the same fragments and raster.
+    mesh, T, lm, _ = heads
+    view = View.looking([0.2, 0.1, 1], [0, 1, 0], mesh.vertices[lm].mean(0), 13.0, 160)
+    whole = rasterise(mesh.vertices, T, view, keep_fragments=True)
+    monkeypatch.setattr(render_module, "_CHUNK", 997)  # many chunks, their ends anywhere in a triangle's list
+    chunked = rasterise(mesh.vertices, T, view, keep_fragments=True)
+    assert (whole.tri >= 0).mean() > 0.5 and len(whole.fragments.pix) > 30 * 997
+    assert np.array_equal(chunked.tri, whole.tri) and np.array_equal(chunked.bary, whole.bary)
+    for name in ("pix", "z", "tri", "l0", "l1"):
+        assert np.array_equal(getattr(chunked.fragments, name), getattr(whole.fragments, name))
+
+
+def test_a_rolled_or_flipped_raster_shades_to_the_rolled_or_flipped_image(heads):
+    mesh, T, lm, _ = heads
+    view = View.looking([0.2, 0.1, 1], [0, 1, 0], mesh.vertices[lm].mean(0), 13.0, 96)
+    r = rasterise(mesh.vertices, T, view)
+    lights = [([1.0, 0.3, 1.0], 0.6), ([-1.0, 0.0, 0.5], 0.4)]
+    for kw in ({}, {"lights": lights}):  # the default light is above the view's middle: a mirror keeps it
+        img = shade(mesh.vertices, T, r, **kw)
+        assert 0.3 < (img > 0).mean() < 1
+        assert np.array_equal(shade(mesh.vertices, T, r.flipped(), **kw), np.fliplr(img))
+    for k in (1, 2, 3):  # lights fixed on the mesh; a rolled raster's arrays are views, not contiguous
+        assert np.array_equal(shade(mesh.vertices, T, r.rolled(k), lights=lights), np.rot90(img, k))
+
+
 def test_a_render_near_some_pixels_is_the_whole_render_there(heads, rng):
     # The gate looks at a few pixels around each landmark: only the triangles over them are drawn.
     mesh, T, lm, _ = heads
@@ -140,6 +167,14 @@ def test_the_depth_map_is_each_seen_points_depth(heads):
     assert np.array_equal(depth[seen], (Q - view.centre) @ view.rotation[2]) and np.isneginf(depth[~seen]).all()
     flipped = r.flipped()  # a raster of views into another's arrays
     assert np.array_equal(depth_map(mesh.vertices, T, flipped), depth[:, ::-1])
+
+
+def test_the_detector_reads_a_grey_render_as_three_equal_channels(rng):
+    grey = rng.integers(0, 256, (40, 30)).astype(np.uint8)
+    for img in (grey, np.rot90(grey), np.fliplr(grey)):  # renders are read rolled and mirrored: views
+        rgb = detector_module.Detector._rgb(img)
+        assert rgb.dtype == np.uint8 and rgb.shape == (*img.shape, 3) and rgb.flags.c_contiguous
+        assert all(np.array_equal(rgb[..., k], img) for k in range(3))
 
 
 def test_pixel_boxes_clip_into_the_image_as_back_project_clips_its_candidates():
@@ -442,6 +477,7 @@ def test_a_landmark_over_an_opening_lands_on_its_rim_on_the_outer_surface():
     L = np.array([[5.0, 1.5, -10.0], [-8.0, -2.0, -15.0], [30.0, 20.0, 0.5]])  # two in the socket, one on the face
     nearest, _ = snap(V, T, L)
     cast, idx = snap(V, T, L, raster, mm_per_unit=1.0)
+    np.testing.assert_array_equal(snapped(V, T, L, raster, mm_per_unit=1.0), cast)  # the points alone, as detect's
     assert nearest[0, 2] < -5 and nearest[1, 2] < -5  # the nearest point is the socket's wall or back
     assert np.all(cast[:2, 2] >= -OPENING_DEPTH_MM)  # cast: the outer surface, at the rim nearest in the image
     assert abs(cast[0, 1] - 5) < 1.5 and abs(cast[1, 1] + 5) < 1.5

@@ -183,7 +183,8 @@ class Detector:
 
     @staticmethod
     def _rgb(gray):
-        return np.ascontiguousarray(np.repeat(np.asarray(gray, np.uint8)[..., None], 3, axis=2))
+        gray = np.ascontiguousarray(gray, np.uint8)  # a rolled or mirrored render is a view
+        return np.stack((gray, gray, gray), axis=-1)  # np.repeat's byte by byte: several times as long
 
     def faces(self, gray) -> list[Detection]:
         """Faces in a grey image, best first (any score; compare with ``min_score``)."""

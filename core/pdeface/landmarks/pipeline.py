@@ -379,43 +379,44 @@ def detect(V, T, unit=None, landmark_map: LandmarkMap | None = None, detector: D
             raise LandmarkError(f"the points found in view {name} do not make a face (RMS {residual:.1f} mm from "
                                 f"the template, over {MAX_RESIDUAL_MM} mm): give the landmarks by hand")
         skin = skin_triangles(V, T, tri)
-        closest, skin_raster = ClosestPoint(V, T[skin]), raster.showing(skin)
+        Ts = T[skin]  # the skin's triangles, for every step below
+        closest, skin_raster = ClosestPoint(V, Ts), raster.showing(skin)
         Ps, direct = frontal_readings(V, T, skin, detector, m, (s, R, t), first=(raster, img, px, skin_raster),
                                       closest=closest, normals=normals)
         P2 = np.nanmean(Ps, axis=0)
-        points, _ = snap(V, T[skin], m.apply(P2), skin_raster, 1.0 / s, closest)
+        points = snapped(V, Ts, m.apply(P2), skin_raster, 1.0 / s, closest)  # their vertices found at the end
         # The upper jaw's depth along the contour from the template, not from where a grazing ray met the cheek.
-        points = upper_jaw_at_template_depth(V, T[skin], points)
+        points = upper_jaw_at_template_depth(V, Ts, points)
         # The jaw's sides where ICT's side of the face laid onto the skin puts them, where the two disagree.
-        points = jaw_sides_from_template(V, T[skin], points, closest)
+        points = jaw_sides_from_template(V, Ts, points, closest)
         # The jaw's angles where the points around them say, not where a ray grazing the angle met it.
-        points = jaw_angles_from_neighbours(V, T[skin], points, closest)
+        points = jaw_angles_from_neighbours(V, Ts, points, closest)
         # The lid points on the margin's front edge, not on its curl into the socket.
-        points = lids_on_margin(V, T[skin], points)
+        points = lids_on_margin(V, Ts, points)
         # The brows with the brow ridge (ICT's brow region laid onto the skin), not at ICT's height above the eyes.
-        points = brows_from_template(V, T[skin], points, closest)
+        points = brows_from_template(V, Ts, points, closest)
         # The eye corners out of the crease's back onto the skin in front (after the brows: their registration
         # holds the region by the eyes as found; with the corners moved first their p95 grows 0.6 %).
-        points = corners_on_skin_front(V, T[skin], points)
+        points = corners_on_skin_front(V, Ts, points)
         # The outer eye corners at the lateral end of the eye's opening, not on the upper lid or behind the corner.
-        points = outer_corners_at_opening_end(V, T[skin], points)
+        points = outer_corners_at_opening_end(V, Ts, points)
         # The inner lip corners back in the commissure, not on the lips' front.
-        points = inner_lip_corners_at_seam_end(V, T[skin], points)
+        points = inner_lip_corners_at_seam_end(V, Ts, points)
         # The inner lip line's middles and the mouth's corners in the seam of closed lips, not on the lips' fronts.
-        points = inner_lips_in_seam(V, T[skin], points)
+        points = inner_lips_in_seam(V, Ts, points)
         # The mouth's corners where the seam between the lips ends, not inside it.
-        points = mouth_corners_at_seam_end(V, T[skin], points)
+        points = mouth_corners_at_seam_end(V, Ts, points)
         # The inner lip corners a little in from the outer ones, not beside or lateral of them.
-        points = inner_lip_corners_inset(V, T[skin], points, closest)
+        points = inner_lip_corners_inset(V, Ts, points, closest)
         # The lower lip's middle points on its edge, not on the curve under it.
-        points = lower_lip_on_its_edge(V, T[skin], points)
+        points = lower_lip_on_its_edge(V, Ts, points)
         # The lower lip's inner points under the slit of parted lips, not on its top edge with the upper lip's.
-        points = lower_inner_lips_under_the_slit(V, T[skin], points)
+        points = lower_inner_lips_under_the_slit(V, Ts, points)
         # The nose's bottom at the subnasale, the profile's deepest point under the nose.
-        points = nose_bottom_at_subnasale(V, T[skin], points, closest)
+        points = nose_bottom_at_subnasale(V, Ts, points, closest)
         # The bridge's middle points at ICT's shares of the nasion-to-tip chord, not nearer the nasion.
-        points = bridge_at_ict_shares(V, T[skin], points)
-        indices = nearest_vertices(V, T[skin], points)
+        points = bridge_at_ict_shares(V, Ts, points)
+        indices = nearest_vertices(V, Ts, points)
         mm = UNITS_MM[unit] if unit else estimate_unit(points)[1]  # the fit's own estimate (one for both)
         spread = group_spread(m, Ps, mm)
         direct = direct.mean(0)
@@ -521,7 +522,13 @@ def hidden(V, T, raster: Raster, P, outer, depth, seen=None):
 
 
 def snap(V, T, L, raster: Raster | None = None, mm_per_unit=1.0, closest: ClosestPoint | None = None):
-    """Landmarks moved onto the surface ``(V, T)`` and the nearest vertex of it to each.
+    """Landmarks moved onto the surface ``(V, T)`` (:func:`snapped`) and the nearest vertex of it to each."""
+    points = snapped(V, T, L, raster, mm_per_unit, closest)
+    return points, nearest_vertices(V, T, points)
+
+
+def snapped(V, T, L, raster: Raster | None = None, mm_per_unit=1.0, closest: ClosestPoint | None = None):
+    """Landmarks ``L (68, 3)`` moved onto the surface ``(V, T)``.
 
     Each goes to the nearest surface point, as the map was fitted (on ICT's closed heads), unless it or that
     point lies over an opening seen in ``raster`` (a straight-on view showing ``T``), or that point is hidden
@@ -540,7 +547,7 @@ def snap(V, T, L, raster: Raster | None = None, mm_per_unit=1.0, closest: Closes
         use = over & np.isfinite(cast).all(1)
         use[use] = np.linalg.norm(cast[use] - points[use], axis=1) * mm_per_unit > SNAP_AGREES_MM
         points[use] = cast[use]
-    return points, nearest_vertices(V, T, points)
+    return points
 
 
 def nearest_vertices(V, T, points) -> np.ndarray:

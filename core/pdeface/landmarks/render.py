@@ -16,8 +16,9 @@ import numpy as np
 from ..geometry import ray_triangle, triangle_cross, unit_rows
 from ..mesh import vertex_normals
 
-#: Candidate (pixel, triangle) pairs evaluated at once while rasterising.
-_CHUNK = 2_000_000
+#: Candidate (pixel, triangle) pairs evaluated at once while rasterising: a chunk's arrays (1 MiB each) stay in the
+#: cache (ICT's head's renders: 0.7x the CPU of chunks of 2M, the same fragments in the same order).
+_CHUNK = 131_072
 
 
 @dataclass
@@ -111,9 +112,10 @@ class Raster:
             raise ValueError("Raster.showing needs the fragments: rasterise(..., keep_fragments=True)")
         only = np.asarray(only, bool)
         f = self.fragments
-        keep = only[f.tri]
+        keep = np.flatnonzero(only.take(f.tri))  # indices and take: the same values as masks, sooner
         number = np.cumsum(only) - 1
-        return _resolved(self.view, f.pix[keep], f.z[keep], number[f.tri[keep]], f.l0[keep], f.l1[keep])
+        return _resolved(self.view, f.pix.take(keep), f.z.take(keep), number.take(f.tri.take(keep)), f.l0.take(keep),
+                         f.l1.take(keep))
 
 
 @dataclass
@@ -221,8 +223,9 @@ def shade(V, T, raster: Raster, background=0.0, lights=None, normals=None) -> np
     :func:`~pdeface.mesh.vertex_normals`, when several renders of one mesh share them.
     """
     N = vertex_normals(np.asarray(V, np.float64), np.asarray(T, np.int64)) if normals is None else normals
-    seen = raster.tri >= 0
-    n = unit_rows(np.einsum("pk,pkj->pj", raster.bary[seen], N[T[raster.tri[seen]]]))
+    seen = np.flatnonzero(raster.tri >= 0)  # flat indices and take, as depth_map's: the same values sooner
+    corners = N.take(np.asarray(T).take(raster.tri.take(seen), 0), 0)
+    n = unit_rows(np.einsum("pk,pkj->pj", raster.bary.reshape(-1, 3).take(seen, 0), corners))
     R = raster.view.rotation
     if lights is None:
         # Left-right symmetric light: a sideways light would shift what the face mesh sees as the midline.
@@ -234,7 +237,7 @@ def shade(V, T, raster: Raster, background=0.0, lights=None, normals=None) -> np
         for direction, strength in lights:
             lit += float(strength) * np.maximum(n @ unit_rows(np.asarray(direction, np.float64)[None])[0], 0.0)
     img = np.full(raster.tri.shape, float(background))
-    img[seen] = 0.12 + 0.88 * lit
+    img.reshape(-1)[seen] = 0.12 + 0.88 * lit
     return np.round(np.clip(img, 0, 1) * 255).astype(np.uint8)
 
 
