@@ -94,8 +94,8 @@ def lids_on_margin(V, T, points) -> np.ndarray:
     eyes, _, views = _eye_views(out)
     for (ring, upper, lower), view in zip(EYES, views):
         x, y, z = view.project(out)
-        cols = {j: int(np.clip(np.round(x[j]), 0, SIZE - 1)) for j in (*upper, *lower)}
-        r0 = {j: int(np.clip(np.round(y[j]), 0, SIZE - 1)) for j in cols}
+        cols = {j: view.nearest_pixel(x[j]) for j in (*upper, *lower)}
+        r0 = {j: view.nearest_pixel(y[j]) for j in cols}
         reach = round(REACH * eyes / view.pixel)  # _margin_row reads twice it either way, back_project a row more
         raster, depth = column_depths(V, T, view, list(cols.values()),
                                       (min(r0.values()) - 2 * reach - 1, max(r0.values()) + 2 * reach + 1))
@@ -208,8 +208,8 @@ def outer_corners_at_opening_end(V, T, points) -> np.ndarray:
     of the eye distance from the registered skin points). At the opening's end: 2.0 and 2.0 % (35 of 48 moved,
     4.7 → 2.0 % median; better on 29, worse by more than 1 on 4: asian-female-old's two, voxel's and
     eyes-teeth-separate's 36, where the lids' slit runs on past the true corner); a corner within
-    :data:`OPENING_END_SLACK` of it stays, and one beyond :data:`OPENING_END_REACH`. The inner corners are not moved so: there the opening ends at the
-    caruncle, beside the true corner (median 2.4 → 3.8 %).
+    :data:`OPENING_END_SLACK` of it stays, and one beyond :data:`OPENING_END_REACH`. The inner corners are not moved
+    so: there the opening ends at the caruncle, beside the true corner (median 2.4 → 3.8 %).
 
     Parameters
     ----------
@@ -222,7 +222,7 @@ def outer_corners_at_opening_end(V, T, points) -> np.ndarray:
     eyes, _, views = _eye_views(out)
     for (ring, _, _), view, (outer, inner, lids) in zip(EYES, views, OUTER_CORNERS):
         x, y, _ = view.project(out)
-        cx, cy = (int(np.clip(np.round(c[list(lids)].mean()), 0, SIZE - 1)) for c in (x, y))
+        cx, cy = (view.nearest_pixel(c[list(lids)].mean()) for c in (x, y))
         margin = OPENING_BAND * eyes / view.pixel
         band = (int(np.floor(y[list(ring)].min() - margin)), int(np.ceil(y[list(ring)].max() + margin)))
         raster, part = _opening_part(V, T, view, cx, cy, eyes, band)

@@ -74,7 +74,8 @@ def parse_map(data, name="landmark map") -> LandmarkMap:
     if not isinstance(data, dict) or data.get("format") != MAP_FORMAT:
         raise LandmarkError(f"{name}: not a {MAP_FORMAT} file")
     if data.get("version") != MAP_VERSION:
-        raise LandmarkError(f"{name}: version {str(data.get('version'))[:20]} is not supported (expected {MAP_VERSION})")
+        raise LandmarkError(f"{name}: version {str(data.get('version'))[:20]} is not supported "
+                            f"(expected {MAP_VERSION})")
     try:
         template = np.array(data.get("template"), np.float64)
     except (TypeError, ValueError, OverflowError):
@@ -133,8 +134,8 @@ def read_map(path=None) -> LandmarkMap:
 
 
 def robust_similarity(A, B, keep=0.85, rounds=3):
-    """:func:`pdeface.geometry.similarity` refitted on the best-matching ``keep`` share of rows (a few points may hit the wrong
-    surface). Returns ``s, R, t`` and the RMS residual of the kept rows, in the units of ``A``."""
+    """:func:`pdeface.geometry.similarity` refitted on the best-matching ``keep`` share of rows (a few points may hit
+    the wrong surface). Returns ``s, R, t`` and the RMS residual of the kept rows, in the units of ``A``."""
     ok = np.isfinite(A).all(1) & np.isfinite(B).all(1)
     use = ok.copy()
     for _ in range(rounds):

@@ -287,8 +287,8 @@ def check(points, V=None, T=None, unit=None) -> Verdict:
             rows = list(rows)
             worst = int(np.argmax(depth[rows] - tolerance[rows]))
             if depth[rows][worst] > tolerance[rows][worst]:
-                verdict.fail(g, "surface", f"landmark {rows[worst]} {depth[rows][worst]:.2f} eye distances "
-                                           "behind the surface in front of it (inside a socket, the mouth or the skull?)")
+                verdict.fail(g, "surface", f"landmark {rows[worst]} {depth[rows][worst]:.2f} eye distances behind "
+                                           "the surface in front of it (inside a socket, the mouth or the skull?)")
     return verdict
 
 

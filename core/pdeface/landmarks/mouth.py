@@ -127,11 +127,11 @@ def inner_lips_in_seam(V, T, points) -> np.ndarray:
     x, y, z = view.project(out)
     px = view.pixel
     reach = round(SEAM_REACH * eyes / px)
-    cols = {j: int(np.clip(np.round(x[j]), 0, SIZE - 1)) for j in (*OUTER_CORNERS, *INNER_MIDDLES)}
-    r0s = [int(np.clip(np.round(y[j]), 0, SIZE - 1)) for j in cols]  # searched within reach, back_project a row more
+    cols = {j: view.nearest_pixel(x[j]) for j in (*OUTER_CORNERS, *INNER_MIDDLES)}
+    r0s = [view.nearest_pixel(y[j]) for j in cols]  # searched within reach, back_project a row more
     raster, depth = column_depths(V, T, view, list(cols.values()), (min(r0s) - reach - 1, max(r0s) + reach + 1))
     for j, c in cols.items():
-        r0 = int(np.clip(np.round(y[j]), 0, SIZE - 1))
+        r0 = view.nearest_pixel(y[j])
         rows = np.arange(max(r0 - reach, 0), min(r0 + reach, SIZE - 1) + 1)
         d = depth[rows, c]
         if not (d >= z[j] - REACH * eyes).all():
@@ -306,13 +306,13 @@ def lower_lip_on_its_edge(V, T, points) -> np.ndarray:
     eyes, view = _mouth_view(out)
     x, y, z = view.project(out)
     reach = round(SEAM_REACH * eyes / view.pixel)
-    cols = {j: int(np.clip(np.round(x[j]), 0, SIZE - 1)) for j in LOWER_LIP}
-    ys = [int(np.clip(np.round(y[k]), 0, SIZE - 1)) for j, inner in LOWER_LIP.items() for k in (j, inner)]
+    cols = {j: view.nearest_pixel(x[j]) for j in LOWER_LIP}
+    ys = [view.nearest_pixel(y[k]) for j, inner in LOWER_LIP.items() for k in (j, inner)]
     # From the seam (within reach of the inner points) down to the found points, and a row more for back_project.
     raster, depth = column_depths(V, T, view, list(cols.values()), (min(ys) - reach - 1, max(ys) + reach + 1))
     for j, inner in LOWER_LIP.items():
         d = depth[:, cols[j]]
-        ri, rj = (int(np.clip(np.round(y[k]), 0, SIZE - 1)) for k in (inner, j))
+        ri, rj = (view.nearest_pixel(y[k]) for k in (inner, j))
         near = np.arange(max(ri - reach, 0), min(ri + reach, SIZE - 1) + 1)
         seam = int(near[np.argmin(d[near])])  # -inf (a slit between parted lips) counts as deepest
         if rj <= seam + 1:
@@ -364,8 +364,8 @@ def lower_inner_lips_under_the_slit(V, T, points) -> np.ndarray:
     eyes, view = _mouth_view(out)
     x, y, z = view.project(out)
     inner_of = {inner: outer for outer, inner in LOWER_LIP.items()}
-    cols = {j: int(np.clip(np.round(x[j]), 0, SIZE - 1)) for j in inner_of}
-    spans = {j: tuple(int(np.clip(np.round(y[i]), 0, SIZE - 1)) for i in (j, k)) for j, k in inner_of.items()}
+    cols = {j: view.nearest_pixel(x[j]) for j in inner_of}
+    spans = {j: tuple(view.nearest_pixel(y[i]) for i in (j, k)) for j, k in inner_of.items()}
     # From the inner points down to the outer ones, and the row under them that back_project reads.
     raster, depth = column_depths(V, T, view, list(cols.values()),
                                   (min(s[0] for s in spans.values()), max(s[1] for s in spans.values()) + 1))

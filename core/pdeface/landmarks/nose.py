@@ -58,8 +58,8 @@ def nose_bottom_at_subnasale(V, T, points, closest: ClosestPoint | None = None) 
     eyes = eye_distance(out)
     view = View.looking(f.rotation[2], f.rotation[1], out[[NOSE_TIP, UPPER_LIP_TOP]].mean(0), HALF * eyes, SIZE)
     x, y, _ = view.project(out)
-    c = int(np.clip(np.round(x[[NOSE_TIP, NOSE_BOTTOM, UPPER_LIP_TOP]].mean()), 0, SIZE - 1))
-    top, bottom = (int(np.clip(np.round(y[j]), 0, SIZE - 1)) for j in (NOSE_TIP, UPPER_LIP_TOP))
+    c = view.nearest_pixel(x[[NOSE_TIP, NOSE_BOTTOM, UPPER_LIP_TOP]].mean())
+    top, bottom = (view.nearest_pixel(y[j]) for j in (NOSE_TIP, UPPER_LIP_TOP))
     if bottom - top < 3:
         return out
     raster, depth = column_depths(V, T, view, c)
@@ -106,8 +106,8 @@ def bridge_at_ict_shares(V, T, points) -> np.ndarray:
     view = View.looking(f.rotation[2], f.rotation[1], out[[NOSE_BRIDGE_TOP, NOSE_TIP]].mean(0),
                         HALF * eye_distance(out), SIZE)
     x, y, _ = view.project(out)
-    c = int(np.clip(np.round(x[NOSE_BRIDGE_TOP:NOSE_TIP + 1].mean()), 0, SIZE - 1))
-    top, bottom = (int(np.clip(np.round(y[j]), 0, SIZE - 1)) for j in (NOSE_BRIDGE_TOP, NOSE_TIP))
+    c = view.nearest_pixel(x[NOSE_BRIDGE_TOP:NOSE_TIP + 1].mean())
+    top, bottom = (view.nearest_pixel(y[j]) for j in (NOSE_BRIDGE_TOP, NOSE_TIP))
     if bottom - top < 3:
         return out
     raster, _ = column_depths(V, T, view, c)

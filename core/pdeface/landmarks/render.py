@@ -66,6 +66,10 @@ class View:
         """Mesh units per pixel."""
         return 2 * self.half / self.size
 
+    def nearest_pixel(self, c) -> int:
+        """The pixel row or column nearest the pixel coordinate ``c`` (a :meth:`project` x or y), kept in the image."""
+        return int(np.clip(np.round(c), 0, self.size - 1))
+
     def project(self, P):
         """Pixel x (right), pixel y (down) and depth (larger: nearer the viewer) of points ``P (n, 3)``."""
         q = (np.asarray(P, np.float64) - self.centre) @ self.rotation.T
