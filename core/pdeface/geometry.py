@@ -79,6 +79,15 @@ def row_norms(X: np.ndarray) -> np.ndarray:
     return np.sqrt(s)
 
 
+def row_dots(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """Dot products of the rows of ``A`` and ``B`` (n, 3): ``(A * B).sum(1)``'s numbers (the same sums in the same
+    order) without numpy's slow reduction over an axis of 3."""
+    d = A[:, 0] * B[:, 0]
+    d += A[:, 1] * B[:, 1]
+    d += A[:, 2] * B[:, 2]
+    return d
+
+
 def unit_rows(X: np.ndarray) -> np.ndarray:
     """Rows (vectors along the last axis) scaled to unit length (zero rows stay zero)."""
     return X / np.maximum(row_norms(X)[..., None], 1e-300)

@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .errors import MeshError
-from .geometry import triangle_cross, unit_rows
+from .geometry import degrees_from_cos, row_dots, triangle_cross, unit_rows
 
 
 @dataclass
@@ -152,11 +152,7 @@ def edge_face_pairs(T: np.ndarray) -> np.ndarray:
 def turn_degrees(V: np.ndarray, T: np.ndarray, pairs: np.ndarray) -> np.ndarray:
     """The angle (degrees) the two triangles of each pair (:func:`edge_face_pairs`) turn by at their edge."""
     n = unit_rows(triangle_cross(V, T))
-    a, b = n[pairs[:, 0]], n[pairs[:, 1]]
-    cos = a[:, 0] * b[:, 0]  # the sum(1)'s numbers without its reduction over a short axis
-    cos += a[:, 1] * b[:, 1]
-    cos += a[:, 2] * b[:, 2]
-    return np.degrees(np.arccos(np.clip(cos, -1, 1)))
+    return degrees_from_cos(row_dots(n[pairs[:, 0]], n[pairs[:, 1]]))
 
 
 def connected_components(n_vertices: int, T: np.ndarray) -> np.ndarray:

@@ -60,3 +60,11 @@ def test_some_vertices_normals_are_the_whole_meshs():
     only = np.array([0, 5, 41, 600, len(V) - 1, 41])  # a corner, a border, the middle, a repeat
     assert np.array_equal(vertex_normals(V, T, only=only), vertex_normals(V, T)[only])
     assert vertex_normals(V, T, only=np.zeros(0, np.int64)).shape == (0, 3)
+
+
+def test_row_dots_are_the_sums_numpy_makes():
+    from pdeface.geometry import row_dots
+
+    rng = np.random.default_rng(3)
+    A, B = rng.normal(size=(1000, 3)), rng.normal(size=(1000, 3))
+    assert np.array_equal(row_dots(A, B), (A * B).sum(1))

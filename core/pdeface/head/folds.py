@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..geometry import cross3, row_norms, unit_rows
+from ..geometry import cross3, row_dots, row_norms, unit_rows
 from ..mesh import connected_components, cotan_laplacian, edge_face_pairs, turn_degrees
 
 #: Edges turning by less than this at rest are flat; a key folds one that then turns by more than FOLD_DEG
@@ -175,9 +175,7 @@ class FoldRelax:
         nrm = unit_rows(cross3(X[:, 1] - X[:, 0], X[:, 2] - X[:, 0]))
         pair_faces = pair_faces.reshape(-1, 2)
         a, b = np.take(nrm, pair_faces[:, 0], axis=0), np.take(nrm, pair_faces[:, 1], axis=0)
-        cos = a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1]  # numpy.sum's order, without its slow reduction over an axis of 3
-        cos += a[:, 2] * b[:, 2]
-        return cos < self.cos_fold
+        return row_dots(a, b) < self.cos_fold
 
     def _screen(self, D, keys, every):
         """``(vertices, slots in keys)`` where displacements ``D`` (n, k, 3) of ``keys`` (``every`` key, or some) are
@@ -341,7 +339,7 @@ class FoldRelax:
             position[rows] = np.take(X, rows, axis=0) + np.take(dl, rows, axis=0)
             nrm[faces] = unit_rows(_cross(position, corners))
             a, b = np.take(nrm, first, axis=0), np.take(nrm, second, axis=0)
-            cos = (a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1]) + a[:, 2] * b[:, 2]
+            cos = row_dots(a, b)
             for flags, tally, now in ((fold, count, cos < self.cos_fold), (over, count_over, cos < self.cos_limit)):
                 tally[:] += np.bincount(pair_job[edges[now & ~flags[edges]]], minlength=len(jobs))
                 tally[:] -= np.bincount(pair_job[edges[flags[edges] & ~now]], minlength=len(jobs))
