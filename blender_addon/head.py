@@ -101,19 +101,25 @@ def _in_object_space(displacement, back):
     return displacement if np.array_equal(back, np.eye(3)) else displacement @ back.T
 
 
+def _shares(layout, displacement, rests):
+    """Per object: ``(object, its rest coordinates plus its share of displacement)`` (source space → object space),
+    float64 as computed."""
+    for (obj, s, n, back), rest in zip(layout, rests):
+        yield obj, rest + _in_object_space(displacement[s:s + n], back)
+
+
 def _split(layout, displacement, rests=None):
-    """Per object: its rest coordinates plus its share of ``displacement`` (source space → object space),
-    float32 as Blender keeps them (a whole head's 82 keys are held until written: half the memory)."""
+    """:func:`_shares` as float32, as Blender keeps them (a whole head's 82 keys are held until written: half the
+    memory)."""
     rests = rests or [rest_coords(obj) for obj, *_ in layout]
-    return [(obj, (rest + _in_object_space(displacement[s:s + n], back)).astype(np.float32))
-            for (obj, s, n, back), rest in zip(layout, rests)]
+    return [(obj, coords.astype(np.float32)) for obj, coords in _shares(layout, displacement, rests)]
 
 
 def _split_into(layout, displacement, rests, held, key):
-    """:func:`_split` written into each object's block of keys ``held[object name][key]`` (the same float32 numbers:
+    """:func:`_shares` written into each object's block of keys ``held[object name][key]`` (the same float32 numbers:
     the float64 sum cast on assignment)."""
-    for (obj, s, n, back), rest in zip(layout, rests):
-        held[obj.name][key] = rest + _in_object_space(displacement[s:s + n], back)
+    for obj, coords in _shares(layout, displacement, rests):
+        held[obj.name][key] = coords
 
 
 #: Keys displaced per batch: a whole head's 82 keys in float64 at once, with the solve's temporaries, peaked
