@@ -109,17 +109,20 @@ class FoldRelax:
         W = (diags(L.diagonal()) - L).tocsr()
         W.eliminate_zeros()
         W.sort_indices()
-        self.mean = (diags(1.0 / np.maximum(np.asarray(W.sum(axis=1)).ravel(), 1e-300)) @ W).tocsr()
-        self.mean.sort_indices()
+        # each row scaled by its sum's inverse in place of a product by a diagonal (the same numbers, sorted already)
+        self.mean = W.copy()
+        self.mean.data *= np.repeat(1.0 / np.maximum(np.asarray(W.sum(axis=1)).ravel(), 1e-300), np.diff(W.indptr))
+        self.mean.eliminate_zeros()  # (as the product drops a weight whose scaled value underflows)
         self._mean32 = self.mean.astype(np.float32)  # the screen's (see _screen)
         self._most_neighbours = int(np.diff(self.mean.indptr).max(initial=0))
         self.free = ~np.asarray(pinned, bool)
         self.ball_centre, self.ball_radius = np.zeros((len(V), 3)), np.zeros(len(V))  # none: keep_outside
-        self.corners = self.T[self.faces[self.pairs]].reshape(len(self.pairs), 6)
+        self.corners = np.take(self.T, self.faces[self.pairs].ravel(), axis=0).reshape(len(self.pairs), 6)
         # Each vertex's flat edges (the screen's and the zones' look-up), and each edge's triangles' corners.
         self.vertex_pairs = csr_matrix((np.ones(self.corners.size, bool), (self.corners.ravel(), np.repeat(
             np.arange(len(self.pairs)), 6))), shape=(len(V), len(self.pairs)))
-        length = row_norms(V[self.T] - V[np.roll(self.T, 1, axis=1)]).ravel()  # each corner's edge
+        # each corner's edge (numpy.take's gathers: 3 times faster than indexing's)
+        length = row_norms(np.take(V, self.T, axis=0) - np.take(V, self.T[:, [2, 0, 1]], axis=0)).ravel()
         self.edge_length = (np.bincount(self.T.ravel(), length, len(V))
                             / np.maximum(np.bincount(self.T.ravel(), minlength=len(V)), 1))
         pieces = connected_components(len(V), self.T) if pieces is None else pieces
@@ -204,16 +207,20 @@ class FoldRelax:
         d2 += square
         d2 += np.multiply(off[..., 2], off[..., 2], out=square)
         bent = d2 > ((line + margin) ** 2).astype(np.float32)
-        near_v, near_k = np.nonzero((d2 > (np.maximum(line - margin, 0.0) ** 2).astype(np.float32)) & ~bent)
+        # (the line's square rounds to no more than its margin's: the bent ones are all over the lower line)
+        near = d2 > (np.maximum(line - margin, 0.0) ** 2).astype(np.float32)
+        near ^= bent
+        near_v, near_k = np.divmod(np.flatnonzero(near), k)  # (a flat nonzero, faster than two arrays')
         if len(near_v):
-            bent[near_v, near_k] = self._bent_exactly(D, near_v, keys[near_k])
+            bent.reshape(-1)[near_v * k + near_k] = self._bent_exactly(D, near_v, keys[near_k])
         return bent
 
     def _bent_exactly(self, D, vertices, keys):
         """The float64 screen of (vertex, key) pairs of ``D`` (n, k, 3): the same sums in the same order."""
         pos, slot = _rows_entries(self.mean, vertices)
-        exact = np.zeros((len(vertices), 3))
-        np.add.at(exact, slot, self.mean.data[pos, None] * _rows_of(D, self.mean.indices[pos], keys[slot]))
+        terms = self.mean.data[pos, None] * _rows_of(D, self.mean.indices[pos], keys[slot])
+        # each axis summed by bincount: entry after entry from 0, as numpy.add.at and the sparse product (4x faster)
+        exact = np.stack([np.bincount(slot, terms[:, c], len(vertices)) for c in range(3)], axis=1)
         exact -= _rows_of(D, vertices, keys)
         exact = np.einsum("nc,nc->n", exact, exact)
         return exact > (SCREEN * self.edge_length[vertices]) ** 2
@@ -434,7 +441,7 @@ class FoldRelax:
             new = frontier[row] // n * n + nb
             new = new[~seen[new]]
             seen[new] = True
-            frontier = _once(new, len(seen))
+            frontier = np.unique(new)  # a few thousand: a sort, not a pass over the jobs × vertices mask
         return np.flatnonzero(seen)
 
 
