@@ -53,6 +53,8 @@ ZONE_RINGS = 10
 #: asian-male-young's AU45 closure fell from 0.86 to 0.79). GROW_EVERY and STALL_STEPS must be multiples of it (the
 #: region grows and a piece stalls only on sweeps that look).
 SWEEPS_PER_LOOK = 2
+#: The screen works on this many floats of every key's rows at a time (a block of vertices in cache: 1 MB).
+SCREEN_BLOCK = 1 << 18
 assert GROW_EVERY % SWEEPS_PER_LOOK == 0 and STALL_STEPS % SWEEPS_PER_LOOK == 0
 
 
@@ -193,24 +195,36 @@ class FoldRelax:
         line are measured again in float64, as a float64 screen would (the same sums in the same order): the same set.
         """
         n, k = len(D), len(keys)
-        D32 = (D if every else D[:, keys]).astype(np.float32, order="C").reshape(n, 3 * k)
-        off = self._mean32 @ D32
-        off -= D32  # in place: no second fresh (n, 3k) array
-        off = off.reshape(n, k, 3)
-        line = SCREEN * self.edge_length[:, None]
+        src = (D if every else D[:, keys]).reshape(n, 3 * k)
+        # Block by block of vertices (each block's rows stay in cache from one pass to the next): the float32 copy
+        # and its largest value first, then the neighbours' mean, the offsets' squares and the lines.
+        D32, largest = np.empty((n, 3 * k), np.float32), 0.0
+        step = max(1, SCREEN_BLOCK // max(3 * k, 1))
+        blocks = [slice(start, start + step) for start in range(0, n, step)]
+        for block in blocks:
+            rows = D32[block]
+            rows[...] = src[block]
+            largest = max(largest, float(rows.max(initial=0.0)), -float(rows.min(initial=0.0)))
         # float32's error in a (vertex, key)'s offset: a unit of rounding of the largest displacement per term of its
         # sum (a neighbour, itself, the cast), per axis; twice that is a wide margin
-        largest = max(float(D32.max(initial=0.0)), -float(D32.min(initial=0.0)))
         margin = 2 * (self._most_neighbours + 3) * np.finfo(np.float32).eps * largest
-        d2 = off[..., 0] * off[..., 0]  # (twice as fast as einsum's sum over an axis of 3)
-        square = np.multiply(off[..., 1], off[..., 1])
-        d2 += square
-        d2 += np.multiply(off[..., 2], off[..., 2], out=square)
-        bent = d2 > ((line + margin) ** 2).astype(np.float32)
-        # (the line's square rounds to no more than its margin's: the bent ones are all over the lower line)
-        near = d2 > (np.maximum(line - margin, 0.0) ** 2).astype(np.float32)
-        near ^= bent
-        near_v, near_k = np.divmod(np.flatnonzero(near), k)  # (a flat nonzero, faster than two arrays')
+        line = SCREEN * self.edge_length
+        over = ((line + margin) ** 2).astype(np.float32)[:, None]
+        under = (np.maximum(line - margin, 0.0) ** 2).astype(np.float32)[:, None]
+        bent, near = np.empty((n, k), bool), []
+        for block in blocks:
+            off = self._mean32[block] @ D32
+            off -= D32[block]
+            off *= off  # the squares, in place: (x² + y²) + z² below, as a sum over the axis of 3 would (2x faster)
+            off = off.reshape(-1, k, 3)
+            d2 = off[..., 0] + off[..., 1]
+            d2 += off[..., 2]
+            np.greater(d2, over[block], out=bent[block])
+            # (the line's square rounds to no more than its margin's: the bent ones are all over the lower line)
+            close = d2 > under[block]
+            close ^= bent[block]
+            near.append(np.flatnonzero(close) + block.start * k)
+        near_v, near_k = np.divmod(np.concatenate([np.zeros(0, np.int64), *near]), k)
         if len(near_v):
             bent.reshape(-1)[near_v * k + near_k] = self._bent_exactly(D, near_v, keys[near_k])
         return bent
@@ -310,7 +324,10 @@ class FoldRelax:
         pos, row = _rows_entries(self.mean, vertex)
         at = local[job[row] * n + self.mean.indices[pos]]
         inside = at >= 0
-        mean = csr_matrix((self.mean.data[pos[inside]], (row[inside], at[inside])), shape=(m, m))
+        # (the rows in order, each row's columns ascending as the mesh's: a canonical CSR built as it is)
+        indptr = np.zeros(m + 1, np.int64)
+        np.cumsum(np.bincount(row[inside], minlength=m), out=indptr[1:])
+        mean = csr_matrix((self.mean.data[pos[inside]], at[inside], indptr), shape=(m, m))
         ring = mean.copy()
         ring.data[:] = 1.0
         in_zone = np.zeros(len(jobs) * n, bool)
@@ -342,15 +359,23 @@ class FoldRelax:
             at = np.flatnonzero(at_face)
             return at, np.take(tri, at, axis=0), edges, pair_faces[edges, 0], pair_faces[edges, 1]
 
+        newly = []  # the edges that folded since the region last grew
+
         def folded(rows, faces, corners, edges, first, second):  # the folds once ``rows`` (touching them) moved
             position[rows] = np.take(X, rows, axis=0) + np.take(dl, rows, axis=0)
             nrm[faces] = unit_rows(_cross(position, corners))
             a, b = np.take(nrm, first, axis=0), np.take(nrm, second, axis=0)
             cos = row_dots(a, b)
-            for flags, tally, now in ((fold, count, cos < self.cos_fold), (over, count_over, cos < self.cos_limit)):
-                tally[:] += np.bincount(pair_job[edges[now & ~flags[edges]]], minlength=len(jobs))
-                tally[:] -= np.bincount(pair_job[edges[flags[edges] & ~now]], minlength=len(jobs))
-                flags[edges] = now
+            for flags, tally, limit in ((fold, count, self.cos_fold), (over, count_over, self.cos_limit)):
+                now = cos < limit
+                flip = now != np.take(flags, edges)
+                if flip.any():  # a few edges a sweep: the tallies changed by theirs alone
+                    flipped, up = edges[flip], now[flip]
+                    tally[:] += np.bincount(pair_job[flipped[up]], minlength=len(jobs))
+                    tally[:] -= np.bincount(pair_job[flipped[~up]], minlength=len(jobs))
+                    flags[flipped] = up
+                    if flags is fold:
+                        newly.append(flipped[up])
             return count.copy()
 
         ball = np.nonzero(self.ball_radius[vertex] > 0)[0]  # rows kept out of an eyeball
@@ -376,8 +401,12 @@ class FoldRelax:
             if swept is None or not swept[-1]:  # a region holding every movable row of the live jobs is whole
                 # the live jobs' folded edges' corners and their neighbours join the region (the neighbour map is
                 # symmetric: a row next to a marked one is a marked one's neighbour); a few hundred rows, not all
-                edges = np.flatnonzero(fold)
-                marked = _once(tri[pair_faces[edges[live[pair_job[edges]]]]].ravel(), m)
+                # (only the edges folded since it last grew: the region only grows, a job once done never lives again,
+                # so the others' corners joined it already)
+                edges = np.concatenate([np.zeros(0, np.int64), *newly])
+                newly.clear()
+                edges = edges[np.take(fold, edges) & live[pair_job[edges]]]
+                marked = _once(tri[pair_faces[edges]].ravel(), m)
                 grown = np.concatenate([marked, _rows_gather(ring, marked)[0]])
                 region[grown[movable[grown]]] = True
                 if step and not step % GROW_EVERY:  # still folding: relax a wider ring
@@ -500,9 +529,12 @@ def _once(idx, size):
 def _rows_entries(A, rows):
     """``(positions, slots)``: where the entries of CSR ``A``'s ``rows`` lie in its ``indices``/``data`` (row by row),
     and each entry's slot in ``rows``."""
-    starts, counts = A.indptr[rows], np.diff(A.indptr)[rows]
-    slot = np.repeat(np.arange(len(rows)), counts)
-    return starts[slot] + np.arange(len(slot)) - (np.cumsum(counts) - counts)[slot], slot
+    starts = A.indptr[rows]
+    counts = A.indptr[np.add(rows, 1)] - starts
+    ends = np.cumsum(counts)
+    # each row's entries at its start on from where they begin in the result: one repeat, no gathers by slot
+    pos = np.arange(ends[-1] if len(ends) else 0, dtype=np.int64) + np.repeat(starts - (ends - counts), counts)
+    return pos, np.repeat(np.arange(len(rows)), counts)
 
 
 def _rows_gather(A, rows):
