@@ -53,6 +53,10 @@ ZONE_RINGS = 10
 #: asian-male-young's AU45 closure fell from 0.86 to 0.79). GROW_EVERY and STALL_STEPS must be multiples of it (the
 #: region grows and a piece stalls only on sweeps that look).
 SWEEPS_PER_LOOK = 2
+#: The screen's and the relaxation's look-up tables (one entry per (key or job, vertex, edge or triangle) id) hold at
+#: most this many entries (a mask 8 MB, an int32 table 32 MB; ICT's largest: 4.8 M): past it, on a mesh of a few
+#: hundred thousand vertices, the ids are found by a sort and a binary search instead (the same ids, slower).
+TABLE_MAX = 1 << 23
 #: The screen works on this many floats of every key's rows at a time (a block of vertices in cache: 1 MB).
 SCREEN_BLOCK = 1 << 18
 assert GROW_EVERY % SWEEPS_PER_LOOK == 0 and STALL_STEPS % SWEEPS_PER_LOOK == 0
@@ -319,10 +323,10 @@ class FoldRelax:
         cols = self._rings(zone, 2, len(jobs))  # the zone and two rings around it (its edges' far corners), sorted
         job, vertex = np.divmod(cols, n)
         m = len(cols)
-        local = _lookup(cols, len(jobs) * n)  # (job, vertex) id → its row, -1 for one outside
+        local = _lookup(cols, len(jobs) * n)  # (job, vertex) ids → their rows, -1 for one outside
         # The neighbours' mean among the jobs' vertices: each job's block of the mesh's.
         pos, row = _rows_entries(self.mean, vertex)
-        at = local[job[row] * n + self.mean.indices[pos]]
+        at = local(job[row] * n + self.mean.indices[pos])
         inside = at >= 0
         # (the rows in order, each row's columns ascending as the mesh's: a canonical CSR built as it is)
         indptr = np.zeros(m + 1, np.int64)
@@ -343,7 +347,7 @@ class FoldRelax:
         faces, pair_faces = _once_inverse(pair_job[:, None] * len(self.T) + self.faces[self.pairs[pair]],
                                           len(jobs) * len(self.T))
         face_job, face = np.divmod(faces, len(self.T))
-        tri = local[face_job[:, None] * n + self.T[face]]  # (f, 3) local
+        tri = local(face_job[:, None] * n + self.T[face])  # (f, 3) local
         X, dl = self.V[vertex], _rows_of(D, vertex, key_of[job])
         position = X + dl  # the rows' positions, kept up to date as they move
         nrm = np.zeros((len(faces), 3))
@@ -382,7 +386,7 @@ class FoldRelax:
         in_ball = np.zeros(m, bool)
         in_ball[ball] = True
         mark = np.zeros(m, bool)
-        mark[local[np.concatenate(seeds)]] = True
+        mark[local(np.concatenate(seeds))] = True
         region = (mark | (ring @ mark.astype(np.float64) > 0)) & movable
         count = folded(np.arange(m), *touched(np.arange(m)))
         best, best_d = count.copy(), dl.copy()  # never worse than as bound
@@ -497,7 +501,10 @@ def _once_inverse(idx, size):
     """``(values, inverse)``: :func:`numpy.unique` of ``idx`` (all below ``size``) with ``return_inverse``, from a
     mask (no sort) and an int32 look-up table, never cleared (only the values' entries are written and read): on
     ICT's 72 keys 14 MB, 4 ms against a binary search's 19 ms (an int64 one, 29 MB, cost more in its pages than it
-    saved; issue #35); ``inverse`` shaped as ``idx``."""
+    saved; issue #35); past TABLE_MAX, numpy.unique's sort; ``inverse`` (int32) shaped as ``idx``."""
+    if size > TABLE_MAX:
+        values, inverse = np.unique(idx, return_inverse=True)
+        return values, inverse.astype(np.int32).reshape(np.shape(idx))
     values = _once(idx.ravel(), size)
     return values, _slots(values, size, np.int32)[idx]
 
@@ -511,16 +518,29 @@ def _slots(values, size, dtype=np.int64):
 
 
 def _lookup(ids, size):
-    """A look-up table (``size``,) of each of the distinct ``ids``' (all below ``size``) slot in them, -1 for any other
-    value. int32: the relaxation's (jobs × vertices, 0.4 M entries on ICT's head) is 1.7 MB, cheaper to fill than a
-    binary search of its three look-ups (13 ms of ICT's 72 keys; issue #35)."""
-    table = np.full(size, -1, np.int32)
-    table[ids] = np.arange(len(ids), dtype=np.int32)
-    return table
+    """A function of ids (an array, all below ``size``) giving each one's slot in the distinct, sorted ``ids``, -1 for
+    any other value (int32): a look-up table (the relaxation's, jobs × vertices, 0.4 M entries on ICT's head, is
+    1.7 MB, cheaper to fill than a binary search of its three look-ups: 13 ms of ICT's 72 keys; issue #35), past
+    TABLE_MAX entries a binary search (the same slots)."""
+    if size <= TABLE_MAX:
+        table = np.full(size, -1, np.int32)
+        table[ids] = np.arange(len(ids), dtype=np.int32)
+        return table.__getitem__
+    last = max(len(ids) - 1, 0)
+
+    def search(wanted):
+        if not len(ids):
+            return np.full(np.shape(wanted), -1, np.int32)
+        at = np.minimum(np.searchsorted(ids, wanted), last)
+        return np.where(ids[at] == wanted, at, -1).astype(np.int32)
+
+    return search
 
 
 def _once(idx, size):
-    """The distinct values of ``idx`` (all below ``size``), sorted: a mask's, no sort."""
+    """The distinct values of ``idx`` (all below ``size``), sorted: a mask's, no sort (past TABLE_MAX, a sort's)."""
+    if size > TABLE_MAX:
+        return np.unique(idx)
     mask = np.zeros(size, bool)
     mask[idx] = True
     return np.flatnonzero(mask)
