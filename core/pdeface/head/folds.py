@@ -116,8 +116,9 @@ class FoldRelax:
         W.eliminate_zeros()
         W.sort_indices()
         # each row scaled by its sum's inverse in place of a product by a diagonal (the same numbers, sorted already)
-        self.mean = W.copy()
-        self.mean.data *= np.repeat(1.0 / np.maximum(np.asarray(W.sum(axis=1)).ravel(), 1e-300), np.diff(W.indptr))
+        scale = 1.0 / np.maximum(np.asarray(W.sum(axis=1)).ravel(), 1e-300)
+        self.mean = W
+        self.mean.data *= np.repeat(scale, np.diff(W.indptr))
         self.mean.eliminate_zeros()  # (as the product drops a weight whose scaled value underflows)
         self._mean32 = self.mean.astype(np.float32)  # the screen's (see _screen)
         self._most_neighbours = int(np.diff(self.mean.indptr).max(initial=0))
@@ -161,8 +162,10 @@ class FoldRelax:
             at = np.minimum(np.searchsorted(was, key_ids), max(len(was) - 1, 0))
             kept = (was[at] == key_ids) if len(was) else np.zeros(len(ids), bool)
             # each corner's (vertex, key) read from the flat mask: faster than numpy's two-array indexing
-            moved = screen.moved_mask.reshape(-1)[self.corners[pair] * D.shape[1] + keys[slot][:, None]]
-            kept &= ~moved.any(axis=1)
+            moved = np.take(screen.moved_mask.reshape(-1),
+                            np.take(self.corners, pair, axis=0) * D.shape[1] + keys[slot][:, None])
+            for corner in range(6):  # (corner by corner: a reduction over an axis of 6 is slow in numpy)
+                kept &= ~moved[:, corner]
             fold = np.empty(len(ids), bool)
             fold[kept] = was_folded[at[kept]]
             measure = ~kept
