@@ -183,10 +183,10 @@ class FoldRelax:
         faces, pair_faces = _once_inverse(self.pairs[pair] * len(keys) + slot[:, None], len(keys) * len(self.faces))
         face, face_slot = np.divmod(faces, len(keys))
         tri = np.take(self.T, self.faces[face], axis=0)  # (f, 3): each (key, triangle) once
-        X = np.empty((3, 3, len(tri)))  # (coordinate, corner, triangle): the corners' positions, coordinates first
-        np.add(np.take(self.V, tri, axis=0).T, _rows_of(D, tri, keys[face_slot][:, None]).T, out=X)
+        X = np.take(self.V, tri, axis=0) + _rows_of(D, tri, keys[face_slot][:, None])  # the corners' positions
+        X = np.ascontiguousarray(X.transpose(1, 2, 0))  # (corner, coordinate, triangle): coordinates first
         pair_faces = pair_faces.reshape(-1, 2).T
-        return _cosines(_unit_normals(*X.transpose(1, 0, 2)), *pair_faces) < self.cos_fold
+        return _cosines(_unit_normals(*X), *pair_faces) < self.cos_fold
 
     def _screen(self, D, keys, every):
         """``(vertices, slots in keys)`` where displacements ``D`` (n, k, 3) of ``keys`` (``every`` key, or some) are
