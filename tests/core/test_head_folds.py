@@ -258,6 +258,22 @@ def test_keys_relaxed_side_by_side_are_each_key_relaxed_alone():
     np.testing.assert_array_equal(together[:, 2], D[:, 2])
 
 
+def test_a_relaxation_of_a_view_writes_into_it():
+    """Keys laid key-major and handed over as an (n, k, 3) view (the binding's layout before its last step) are
+    relaxed in place as a contiguous copy of them is."""
+    V, T = sheet(41)
+    D = cliff_keys(V)
+    pinned = V[:, 0] == 0
+    contiguous = D.copy()
+    FoldRelax(V, T, pinned).relax(contiguous)
+    key_major = np.ascontiguousarray(D.transpose(1, 0, 2))
+    view = key_major.transpose(1, 0, 2)
+    assert not view.flags.c_contiguous
+    FoldRelax(V, T, pinned).relax(view)
+    assert not np.array_equal(contiguous, D)
+    np.testing.assert_array_equal(key_major.transpose(1, 0, 2), contiguous)
+
+
 def test_a_relaxation_looking_every_other_sweep_ends_within_the_budget_where_the_keys_fold():
     """The binding's first relaxation measures the folds every SWEEPS_PER_LOOK sweeps: each key still ends within
     its budget, moved only near its folds (not its pinned vertices), and a key that folds nothing is left as bound."""
