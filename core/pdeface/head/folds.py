@@ -228,7 +228,7 @@ class FoldRelax:
                                at[start:stop + 1] - at[start]), shape=(stop - start, n))
             off = rows @ D32
             off -= D32[block]
-            off *= off  # the squares, in place: (x² + y²) + z² below, as a sum over the axis of 3 would (2x faster)
+            off *= off  # the squares in place, summed axis by axis below: (x² + y²) + z², as before (2x faster)
             off = off.reshape(-1, k, 3)
             d2 = off[..., 0] + off[..., 1]
             d2 += off[..., 2]
@@ -237,9 +237,10 @@ class FoldRelax:
             close = d2 > under[block]
             close ^= bent[block]
             near.append(np.flatnonzero(close) + block.start * k)
-        near_v, near_k = np.divmod(np.concatenate([np.zeros(0, np.int64), *near]), k)
-        if len(near_v):
-            bent.reshape(-1)[near_v * k + near_k] = self._bent_exactly(D, near_v, keys[near_k])
+        near = np.concatenate([np.zeros(0, np.int64), *near])  # flat (vertex, key) ids, vertex-major
+        if len(near):
+            near_v, near_k = np.divmod(near, k)
+            bent.reshape(-1)[near] = self._bent_exactly(D, near_v, keys[near_k])
         return bent
 
     def _bent_exactly(self, D, vertices, keys):
