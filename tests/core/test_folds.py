@@ -356,7 +356,8 @@ def test_many_landmark_sets_at_once_are_each_set_alone():
 def test_relaxation_gathers_are_numpys_indexing():
     """The relaxation's row gathers (numpy.take, for speed) give numpy's indexing's numbers bit for bit: the keys
     stay as they were (issue #35's speed-ups leave every key unchanged)."""
-    from pdeface.head.folds import _cross, _rows_of
+    from pdeface.geometry import unit_rows
+    from pdeface.head.folds import _cosines, _rows_of, _unit_normals
 
     rng = np.random.default_rng(3)
     D = rng.normal(size=(50, 7, 3))
@@ -364,4 +365,9 @@ def test_relaxation_gathers_are_numpys_indexing():
     assert np.array_equal(_rows_of(D, vertices, keys), D[vertices, keys])
     assert np.array_equal(_rows_of(D, vertices[:, 0], keys[:, 0]), D[vertices[:, 0], keys[:, 0]])
     P, tri = rng.normal(size=(50, 3)), rng.integers(0, 50, (40, 3))
-    assert np.array_equal(_cross(P, tri), np.cross(P[tri[:, 1]] - P[tri[:, 0]], P[tri[:, 2]] - P[tri[:, 0]]))
+    P[tri[0]] = 0.0  # a triangle of no area: its normal stays zero
+    normals = unit_rows(np.cross(P[tri[:, 1]] - P[tri[:, 0]], P[tri[:, 2]] - P[tri[:, 0]]))
+    coordinates_first = _unit_normals(*(P[tri[:, c]].T for c in range(3)))
+    assert np.array_equal(coordinates_first, normals.T) and not coordinates_first[:, 0].any()
+    first, second = rng.integers(0, 40, 30), rng.integers(0, 40, 30)
+    assert np.array_equal(_cosines(coordinates_first, first, second), (normals[first] * normals[second]).sum(1))

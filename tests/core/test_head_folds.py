@@ -161,11 +161,69 @@ def test_the_relaxations_look_up_tables_are_numpys_unique_and_a_search():
         np.testing.assert_array_equal(values, want)
         np.testing.assert_array_equal(inverse, want_inverse.reshape(idx.shape))
         assert inverse.shape == idx.shape
-        table = folds._lookup(want, size)
+        find = folds._lookup(want, size)
         wanted = rng.integers(0, size, 1000)
         slot = np.searchsorted(want, wanted).clip(0, max(len(want) - 1, 0))
         hit = want[slot] == wanted if len(want) else np.zeros(len(wanted), bool)
-        np.testing.assert_array_equal(table[wanted], np.where(hit, slot, -1))
+        np.testing.assert_array_equal(find(wanted), np.where(hit, slot, -1))
+        np.testing.assert_array_equal(folds._once(idx, size), want)
+
+
+def test_past_the_table_limit_the_ids_are_found_by_a_sort_the_same(monkeypatch):
+    """Tables past TABLE_MAX entries (a mesh of a few hundred thousand vertices) give way to numpy's sort and binary
+    search: the same ids, slots and inverse, and the same relaxed keys, a screen kept and read again included."""
+    rng = np.random.default_rng(35)
+    idx, size = rng.integers(0, 5000, (300, 2)), 5000
+    found = folds._once_inverse(idx, size), folds._lookup(np.unique(idx), size)(np.arange(size)), folds._once(idx, size)
+    V, T = sheet(41)
+    D = cliff_keys(V)
+    pinned = V[:, 0] == 0
+
+    def relaxed():
+        out, screen = D.copy(), folds.Screen()
+        relax = FoldRelax(V, T, pinned)
+        relax.relax(out, screen=screen, look=2)
+        out[200:260, 0, 2] += 0.4  # a second look at what moved since (the binding's after the lids close)
+        screen.moved(np.arange(200, 260), np.zeros(60, np.int64))
+        relax.relax(out, keys=[0], budget=relax.limit, screen=screen)
+        return out
+
+    table = relaxed()
+    monkeypatch.setattr(folds, "TABLE_MAX", 100)
+    (values, inverse), slots, once = found
+    np.testing.assert_array_equal(folds._once_inverse(idx, size)[0], values)
+    np.testing.assert_array_equal(folds._once_inverse(idx, size)[1], inverse)
+    assert folds._once_inverse(idx, size)[1].shape == idx.shape
+    np.testing.assert_array_equal(folds._lookup(np.unique(idx), size)(np.arange(size)), slots)
+    np.testing.assert_array_equal(folds._once(idx, size), once)
+    assert not np.array_equal(table, D)
+    np.testing.assert_array_equal(relaxed(), table)
+
+
+def test_the_screen_block_by_block_is_the_screen_at_once(monkeypatch):
+    """The screen works a block of vertices at a time: any block size gives the same (vertex, key) set."""
+    V, T = sheet(21)
+    rng = np.random.default_rng(7)
+    D = rng.normal(0, 0.05, (len(V), 5, 3)) * (V[:, 0] > 10)[:, None, None]  # rough on half the sheet, still on half
+    relax = FoldRelax(V, T, np.zeros(len(V), bool))
+    keys = np.arange(5)
+    whole = relax._bent(D, keys, True)
+    assert 0 < whole.sum() < whole.size
+    for floats in (1, 15, 16, 3 * 5 * 7):  # a vertex, a vertex's keys, one over, 7 vertices
+        monkeypatch.setattr(folds, "SCREEN_BLOCK", floats)
+        np.testing.assert_array_equal(relax._bent(D, keys, True), whole)
+        np.testing.assert_array_equal(relax._bent(D[:, [1, 3]], np.arange(2), True), whole[:, [1, 3]])
+
+
+def test_the_rows_entries_are_each_rows_entries_in_turn():
+    from scipy.sparse import random as sparse_random
+
+    A = sparse_random(60, 50, 0.1, format="csr", random_state=3)
+    for rows in (np.array([5, 3, 5, 59, 0]), np.zeros(0, np.int64), np.arange(60)):
+        pos, slot = folds._rows_entries(A, rows)
+        want = [np.arange(A.indptr[r], A.indptr[r + 1]) for r in rows]
+        np.testing.assert_array_equal(pos, np.concatenate([np.zeros(0, np.int64), *want]))
+        np.testing.assert_array_equal(slot, np.repeat(np.arange(len(rows)), [len(w) for w in want]))
 
 
 def test_the_priors_curve_motions_stacked_are_each_keys():
@@ -198,6 +256,22 @@ def test_keys_relaxed_side_by_side_are_each_key_relaxed_alone():
         np.testing.assert_allclose(together[:, key], alone[:, 0], atol=1e-12)
     assert not np.allclose(together[:, :2], D[:, :2])  # the cliffs were relaxed
     np.testing.assert_array_equal(together[:, 2], D[:, 2])
+
+
+def test_a_relaxation_of_a_view_writes_into_it():
+    """Keys laid key-major and handed over as an (n, k, 3) view (the binding's layout before its last step) are
+    relaxed in place as a contiguous copy of them is."""
+    V, T = sheet(41)
+    D = cliff_keys(V)
+    pinned = V[:, 0] == 0
+    contiguous = D.copy()
+    FoldRelax(V, T, pinned).relax(contiguous)
+    key_major = np.ascontiguousarray(D.transpose(1, 0, 2))
+    view = key_major.transpose(1, 0, 2)
+    assert not view.flags.c_contiguous
+    FoldRelax(V, T, pinned).relax(view)
+    assert not np.array_equal(contiguous, D)
+    np.testing.assert_array_equal(key_major.transpose(1, 0, 2), contiguous)
 
 
 def test_a_relaxation_looking_every_other_sweep_ends_within_the_budget_where_the_keys_fold():

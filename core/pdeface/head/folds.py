@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..geometry import cross3, row_dots, row_norms, unit_rows
+from ..geometry import row_norms
 from ..mesh import connected_components, cotan_laplacian, edge_face_pairs, turn_degrees
 
 #: Edges turning by less than this at rest are flat; a key folds one that then turns by more than FOLD_DEG
@@ -53,6 +53,12 @@ ZONE_RINGS = 10
 #: asian-male-young's AU45 closure fell from 0.86 to 0.79). GROW_EVERY and STALL_STEPS must be multiples of it (the
 #: region grows and a piece stalls only on sweeps that look).
 SWEEPS_PER_LOOK = 2
+#: The screen's and the relaxation's look-up tables (one entry per (key or job, vertex, edge or triangle) id) hold at
+#: most this many entries (a mask 8 MB, an int32 table 32 MB; ICT's largest: 4.8 M): past it, on a mesh of a few
+#: hundred thousand vertices, the ids are found by a sort and a binary search instead (the same ids, slower).
+TABLE_MAX = 1 << 23
+#: The screen works on this many floats of every key's rows at a time (a block of vertices in cache: 1 MB).
+SCREEN_BLOCK = 1 << 18
 assert GROW_EVERY % SWEEPS_PER_LOOK == 0 and STALL_STEPS % SWEEPS_PER_LOOK == 0
 
 
@@ -109,17 +115,21 @@ class FoldRelax:
         W = (diags(L.diagonal()) - L).tocsr()
         W.eliminate_zeros()
         W.sort_indices()
-        self.mean = (diags(1.0 / np.maximum(np.asarray(W.sum(axis=1)).ravel(), 1e-300)) @ W).tocsr()
-        self.mean.sort_indices()
+        # each row scaled by its sum's inverse in place of a product by a diagonal (the same numbers, sorted already)
+        scale = 1.0 / np.maximum(np.asarray(W.sum(axis=1)).ravel(), 1e-300)
+        self.mean = W
+        self.mean.data *= np.repeat(scale, np.diff(W.indptr))
+        self.mean.eliminate_zeros()  # (as the product drops a weight whose scaled value underflows)
         self._mean32 = self.mean.astype(np.float32)  # the screen's (see _screen)
         self._most_neighbours = int(np.diff(self.mean.indptr).max(initial=0))
         self.free = ~np.asarray(pinned, bool)
         self.ball_centre, self.ball_radius = np.zeros((len(V), 3)), np.zeros(len(V))  # none: keep_outside
-        self.corners = self.T[self.faces[self.pairs]].reshape(len(self.pairs), 6)
+        self.corners = np.take(self.T, self.faces[self.pairs].ravel(), axis=0).reshape(len(self.pairs), 6)
         # Each vertex's flat edges (the screen's and the zones' look-up), and each edge's triangles' corners.
         self.vertex_pairs = csr_matrix((np.ones(self.corners.size, bool), (self.corners.ravel(), np.repeat(
             np.arange(len(self.pairs)), 6))), shape=(len(V), len(self.pairs)))
-        length = row_norms(V[self.T] - V[np.roll(self.T, 1, axis=1)]).ravel()  # each corner's edge
+        # each corner's edge (numpy.take's gathers: 3 times faster than indexing's)
+        length = row_norms(np.take(V, self.T, axis=0) - np.take(V, self.T[:, [2, 0, 1]], axis=0)).ravel()
         self.edge_length = (np.bincount(self.T.ravel(), length, len(V))
                             / np.maximum(np.bincount(self.T.ravel(), minlength=len(V)), 1))
         pieces = connected_components(len(V), self.T) if pieces is None else pieces
@@ -142,7 +152,7 @@ class FoldRelax:
         keys = np.arange(D.shape[1]) if keys is None else np.asarray(keys, np.int64)
         every = len(keys) == D.shape[1] and (keys == np.arange(D.shape[1])).all()
         k, n_pairs = len(keys), len(self.pairs)
-        bent_v, bent_key = np.nonzero(self._bent(D, keys, every) if bent is None else bent)
+        bent_v, bent_key = np.divmod(np.flatnonzero(self._bent(D, keys, every) if bent is None else bent), k)
         pair, at = _rows_gather(self.vertex_pairs, bent_v)
         ids = _once(bent_key[at] * n_pairs + pair, k * n_pairs)  # (key, edge) at a creased vertex, each once
         slot, pair = np.divmod(ids, n_pairs)
@@ -152,8 +162,10 @@ class FoldRelax:
             at = np.minimum(np.searchsorted(was, key_ids), max(len(was) - 1, 0))
             kept = (was[at] == key_ids) if len(was) else np.zeros(len(ids), bool)
             # each corner's (vertex, key) read from the flat mask: faster than numpy's two-array indexing
-            moved = screen.moved_mask.reshape(-1)[self.corners[pair] * D.shape[1] + keys[slot][:, None]]
-            kept &= ~moved.any(axis=1)
+            moved = np.take(screen.moved_mask.reshape(-1),
+                            np.take(self.corners, pair, axis=0) * D.shape[1] + keys[slot][:, None])
+            for corner in range(6):  # (corner by corner: a reduction over an axis of 6 is slow in numpy)
+                kept &= ~moved[:, corner]
             fold = np.empty(len(ids), bool)
             fold[kept] = was_folded[at[kept]]
             measure = ~kept
@@ -167,15 +179,14 @@ class FoldRelax:
     def _folds_at(self, D, keys, slot, pair):
         """Whether displacements ``D`` (n, k, 3) of ``keys[slot]`` fold flat edges ``pair`` (indices into
         :attr:`pairs`), each (slot, pair) once: each (key, triangle) measured once."""
-        faces, pair_faces = _once_inverse(slot[:, None] * len(self.faces) + self.pairs[pair],
-                                          len(keys) * len(self.faces))
-        face_slot, face = np.divmod(faces, len(self.faces))
+        # (triangle, key) ids, triangle-major: a triangle's keys' rows of D lie side by side (3x fewer cache misses)
+        faces, pair_faces = _once_inverse(self.pairs[pair] * len(keys) + slot[:, None], len(keys) * len(self.faces))
+        face, face_slot = np.divmod(faces, len(keys))
         tri = np.take(self.T, self.faces[face], axis=0)  # (f, 3): each (key, triangle) once
-        X = np.take(self.V, tri, axis=0) + _rows_of(D, tri, keys[face_slot][:, None])
-        nrm = unit_rows(cross3(X[:, 1] - X[:, 0], X[:, 2] - X[:, 0]))
-        pair_faces = pair_faces.reshape(-1, 2)
-        a, b = np.take(nrm, pair_faces[:, 0], axis=0), np.take(nrm, pair_faces[:, 1], axis=0)
-        return row_dots(a, b) < self.cos_fold
+        X = np.take(self.V, tri, axis=0) + _rows_of(D, tri, keys[face_slot][:, None])  # the corners' positions
+        X = np.ascontiguousarray(X.transpose(1, 2, 0))  # (corner, coordinate, triangle): coordinates first
+        pair_faces = pair_faces.reshape(-1, 2).T
+        return _cosines(_unit_normals(*X), *pair_faces) < self.cos_fold
 
     def _screen(self, D, keys, every):
         """``(vertices, slots in keys)`` where displacements ``D`` (n, k, 3) of ``keys`` (``every`` key, or some) are
@@ -189,31 +200,55 @@ class FoldRelax:
         In float32 (half the memory to stream), with a margin for its rounding: the few (vertex, key) within it of the
         line are measured again in float64, as a float64 screen would (the same sums in the same order): the same set.
         """
+        from scipy.sparse import csr_matrix
+
         n, k = len(D), len(keys)
-        D32 = (D if every else D[:, keys]).astype(np.float32, order="C").reshape(n, 3 * k)
-        off = self._mean32 @ D32
-        off -= D32  # in place: no second fresh (n, 3k) array
-        off = off.reshape(n, k, 3)
-        line = SCREEN * self.edge_length[:, None]
+        src = (D if every else D[:, keys]).reshape(n, 3 * k)
+        # Block by block of vertices (each block's rows stay in cache from one pass to the next): the float32 copy
+        # and its largest value first, then the neighbours' mean, the offsets' squares and the lines.
+        D32, largest = np.empty((n, 3 * k), np.float32), 0.0
+        step = max(1, SCREEN_BLOCK // max(3 * k, 1))
+        blocks = [slice(start, start + step) for start in range(0, n, step)]
+        for block in blocks:
+            rows = D32[block]
+            rows[...] = src[block]
+            largest = max(largest, float(rows.max(initial=0.0)), -float(rows.min(initial=0.0)))
         # float32's error in a (vertex, key)'s offset: a unit of rounding of the largest displacement per term of its
         # sum (a neighbour, itself, the cast), per axis; twice that is a wide margin
-        largest = max(float(D32.max(initial=0.0)), -float(D32.min(initial=0.0)))
         margin = 2 * (self._most_neighbours + 3) * np.finfo(np.float32).eps * largest
-        d2 = off[..., 0] * off[..., 0]  # (twice as fast as einsum's sum over an axis of 3)
-        square = np.multiply(off[..., 1], off[..., 1])
-        d2 += square
-        d2 += np.multiply(off[..., 2], off[..., 2], out=square)
-        bent = d2 > ((line + margin) ** 2).astype(np.float32)
-        near_v, near_k = np.nonzero((d2 > (np.maximum(line - margin, 0.0) ** 2).astype(np.float32)) & ~bent)
-        if len(near_v):
-            bent[near_v, near_k] = self._bent_exactly(D, near_v, keys[near_k])
+        line = SCREEN * self.edge_length
+        over = ((line + margin) ** 2).astype(np.float32)[:, None]
+        under = (np.maximum(line - margin, 0.0) ** 2).astype(np.float32)[:, None]
+        bent, near = np.empty((n, k), bool), []
+        mean, at = self._mean32, self._mean32.indptr
+        for block in blocks:
+            start, stop = block.start, min(block.stop, n)
+            # the block's rows, views of the matrix's arrays (slicing the matrix costs 0.2 ms a block)
+            rows = csr_matrix((mean.data[at[start]:at[stop]], mean.indices[at[start]:at[stop]],
+                               at[start:stop + 1] - at[start]), shape=(stop - start, n))
+            off = rows @ D32
+            off -= D32[block]
+            off *= off  # the squares in place, summed axis by axis below: (x² + y²) + z², as before (2x faster)
+            off = off.reshape(-1, k, 3)
+            d2 = off[..., 0] + off[..., 1]
+            d2 += off[..., 2]
+            np.greater(d2, over[block], out=bent[block])
+            # (the line's square rounds to no more than its margin's: the bent ones are all over the lower line)
+            close = d2 > under[block]
+            close ^= bent[block]
+            near.append(np.flatnonzero(close) + block.start * k)
+        near = np.concatenate([np.zeros(0, np.int64), *near])  # flat (vertex, key) ids, vertex-major
+        if len(near):
+            near_v, near_k = np.divmod(near, k)
+            bent.reshape(-1)[near] = self._bent_exactly(D, near_v, keys[near_k])
         return bent
 
     def _bent_exactly(self, D, vertices, keys):
         """The float64 screen of (vertex, key) pairs of ``D`` (n, k, 3): the same sums in the same order."""
         pos, slot = _rows_entries(self.mean, vertices)
-        exact = np.zeros((len(vertices), 3))
-        np.add.at(exact, slot, self.mean.data[pos, None] * _rows_of(D, self.mean.indices[pos], keys[slot]))
+        terms = self.mean.data[pos, None] * _rows_of(D, self.mean.indices[pos], keys[slot])
+        # each axis summed by bincount: entry after entry from 0, as numpy.add.at and the sparse product (4x faster)
+        exact = np.stack([np.bincount(slot, terms[:, c], len(vertices)) for c in range(3)], axis=1)
         exact -= _rows_of(D, vertices, keys)
         exact = np.einsum("nc,nc->n", exact, exact)
         return exact > (SCREEN * self.edge_length[vertices]) ** 2
@@ -225,9 +260,9 @@ class FoldRelax:
             n = len(D)
             vertices, keys = (np.concatenate(a) for a in zip(*screen.pending))
             nb, slot = _rows_gather(self.mean, vertices)  # a vertex's screen reads its neighbours (a symmetric map)
-            ids = _once(np.concatenate([keys * n + vertices, keys[slot] * n + nb]), D.shape[1] * n)
-            keys, vertices = np.divmod(ids, n)
-            screen.bent[vertices, keys] = self._bent_exactly(D, vertices, keys)
+            k = D.shape[1]  # (vertex, key) ids, vertex-major: a vertex's keys' rows of D lie side by side
+            ids = _once(np.concatenate([vertices * k + keys, nb * k + keys[slot]]), k * n)
+            screen.bent.reshape(-1)[ids] = self._bent_exactly(D, *np.divmod(ids, k))
             screen.pending = []
         return screen.bent
 
@@ -298,12 +333,15 @@ class FoldRelax:
         cols = self._rings(zone, 2, len(jobs))  # the zone and two rings around it (its edges' far corners), sorted
         job, vertex = np.divmod(cols, n)
         m = len(cols)
-        local = _lookup(cols, len(jobs) * n)  # (job, vertex) id → its row, -1 for one outside
+        local = _lookup(cols, len(jobs) * n)  # (job, vertex) ids → their rows, -1 for one outside
         # The neighbours' mean among the jobs' vertices: each job's block of the mesh's.
         pos, row = _rows_entries(self.mean, vertex)
-        at = local[job[row] * n + self.mean.indices[pos]]
+        at = local(job[row] * n + self.mean.indices[pos])
         inside = at >= 0
-        mean = csr_matrix((self.mean.data[pos[inside]], (row[inside], at[inside])), shape=(m, m))
+        # (the rows in order, each row's columns ascending as the mesh's: a canonical CSR built as it is)
+        indptr = np.zeros(m + 1, np.int64)
+        np.cumsum(np.bincount(row[inside], minlength=m), out=indptr[1:])
+        mean = csr_matrix((self.mean.data[pos[inside]], at[inside], indptr), shape=(m, m))
         ring = mean.copy()
         ring.data[:] = 1.0
         in_zone = np.zeros(len(jobs) * n, bool)
@@ -319,10 +357,11 @@ class FoldRelax:
         faces, pair_faces = _once_inverse(pair_job[:, None] * len(self.T) + self.faces[self.pairs[pair]],
                                           len(jobs) * len(self.T))
         face_job, face = np.divmod(faces, len(self.T))
-        tri = local[face_job[:, None] * n + self.T[face]]  # (f, 3) local
+        tri = local(face_job[:, None] * n + self.T[face])  # (f, 3) local
+        corner_rows, edge_faces = np.ascontiguousarray(tri.T), np.ascontiguousarray(pair_faces.T)  # (3, f), (2, e)
         X, dl = self.V[vertex], _rows_of(D, vertex, key_of[job])
-        position = X + dl  # the rows' positions, kept up to date as they move
-        nrm = np.zeros((len(faces), 3))
+        position = (X + dl).T.copy()  # the rows' positions (3, m), coordinates first, kept up to date as they move
+        nrm = np.zeros((3, len(faces)))  # the triangles' normals, coordinates first
         fold, over = np.zeros(len(pair_job), bool), np.zeros(len(pair_job), bool)
         count = np.zeros(len(jobs), np.int64)  # folded edges per job
         count_over = np.zeros(len(jobs), np.int64)  # of them, over the issue's LIMIT_DEG
@@ -330,27 +369,34 @@ class FoldRelax:
         def touched(rows):  # the triangles at ``rows`` (their corners) and their flat edges (their triangles)
             in_rows = np.zeros(m, bool)
             in_rows[rows] = True
-            at_face = in_rows[tri[:, 0]] | in_rows[tri[:, 1]] | in_rows[tri[:, 2]]
-            edges = np.flatnonzero(at_face[pair_faces[:, 0]] | at_face[pair_faces[:, 1]])
+            at_face = in_rows[corner_rows[0]] | in_rows[corner_rows[1]] | in_rows[corner_rows[2]]
+            edges = np.flatnonzero(at_face[edge_faces[0]] | at_face[edge_faces[1]])
             at = np.flatnonzero(at_face)
-            return at, np.take(tri, at, axis=0), edges, pair_faces[edges, 0], pair_faces[edges, 1]
+            return at, np.take(corner_rows, at, axis=1), edges, edge_faces[0, edges], edge_faces[1, edges]
+
+        newly = []  # the edges that folded since the region last grew
 
         def folded(rows, faces, corners, edges, first, second):  # the folds once ``rows`` (touching them) moved
-            position[rows] = np.take(X, rows, axis=0) + np.take(dl, rows, axis=0)
-            nrm[faces] = unit_rows(_cross(position, corners))
-            a, b = np.take(nrm, first, axis=0), np.take(nrm, second, axis=0)
-            cos = row_dots(a, b)
-            for flags, tally, now in ((fold, count, cos < self.cos_fold), (over, count_over, cos < self.cos_limit)):
-                tally[:] += np.bincount(pair_job[edges[now & ~flags[edges]]], minlength=len(jobs))
-                tally[:] -= np.bincount(pair_job[edges[flags[edges] & ~now]], minlength=len(jobs))
-                flags[edges] = now
+            position[:, rows] = (np.take(X, rows, axis=0) + np.take(dl, rows, axis=0)).T
+            nrm[:, faces] = _unit_normals(*(np.take(position, c, axis=1) for c in corners))
+            cos = _cosines(nrm, first, second)
+            for flags, tally, limit in ((fold, count, self.cos_fold), (over, count_over, self.cos_limit)):
+                now = cos < limit
+                flip = now != np.take(flags, edges)
+                if flip.any():  # a few edges a sweep: the tallies changed by theirs alone
+                    flipped, up = edges[flip], now[flip]
+                    tally[:] += np.bincount(pair_job[flipped[up]], minlength=len(jobs))
+                    tally[:] -= np.bincount(pair_job[flipped[~up]], minlength=len(jobs))
+                    flags[flipped] = up
+                    if flags is fold:
+                        newly.append(flipped[up])
             return count.copy()
 
         ball = np.nonzero(self.ball_radius[vertex] > 0)[0]  # rows kept out of an eyeball
         in_ball = np.zeros(m, bool)
         in_ball[ball] = True
         mark = np.zeros(m, bool)
-        mark[local[np.concatenate(seeds)]] = True
+        mark[local(np.concatenate(seeds))] = True
         region = (mark | (ring @ mark.astype(np.float64) > 0)) & movable
         count = folded(np.arange(m), *touched(np.arange(m)))
         best, best_d = count.copy(), dl.copy()  # never worse than as bound
@@ -369,8 +415,12 @@ class FoldRelax:
             if swept is None or not swept[-1]:  # a region holding every movable row of the live jobs is whole
                 # the live jobs' folded edges' corners and their neighbours join the region (the neighbour map is
                 # symmetric: a row next to a marked one is a marked one's neighbour); a few hundred rows, not all
-                edges = np.flatnonzero(fold)
-                marked = _once(tri[pair_faces[edges[live[pair_job[edges]]]]].ravel(), m)
+                # (only the edges folded since it last grew: the region only grows, a job once done never lives again,
+                # so the others' corners joined it already)
+                edges = np.concatenate([np.zeros(0, np.int64), *newly])
+                newly.clear()
+                edges = edges[np.take(fold, edges) & live[pair_job[edges]]]
+                marked = _once(tri[pair_faces[edges]].ravel(), m)
                 grown = np.concatenate([marked, _rows_gather(ring, marked)[0]])
                 region[grown[movable[grown]]] = True
                 if step and not step % GROW_EVERY:  # still folding: relax a wider ring
@@ -402,9 +452,13 @@ class FoldRelax:
                 best = np.where(better, count, best)
                 best_over = np.where(better, count_over, best_over)
         if screen is not None:  # the rows it moved, for the screen kept
-            moved = (best_d != _rows_of(D, vertex, key_of[job])).any(axis=1)
+            changed = best_d != _rows_of(D, vertex, key_of[job])
+            moved = changed[:, 0] | changed[:, 1] | changed[:, 2]
             screen.moved(vertex[moved], key_of[job[moved]])
-        D[vertex, key_of[job]] = best_d
+        if D.flags.c_contiguous:  # the (vertex, key) rows written flat: faster than two index arrays
+            D.reshape(-1, 3)[vertex * D.shape[1] + key_of[job]] = best_d
+        else:
+            D[vertex, key_of[job]] = best_d
         return best
 
     def keep_outside(self, vertices, centre, radius):
@@ -434,7 +488,7 @@ class FoldRelax:
             new = frontier[row] // n * n + nb
             new = new[~seen[new]]
             seen[new] = True
-            frontier = _once(new, len(seen))
+            frontier = np.unique(new)  # a few thousand: a sort, not a pass over the jobs × vertices mask
         return np.flatnonzero(seen)
 
 
@@ -445,23 +499,40 @@ def _rows_of(D, vertices, keys):
     return np.take(np.reshape(D, (-1, 3)), vertices * D.shape[1] + keys, axis=0)
 
 
-def _cross(P, tri):
-    """Cross product of triangles ``tri``'s two edges from their first corner, corners at rows of ``P``
-    (:func:`pdeface.geometry.triangle_cross`'s numbers, without numpy.cross's axis shuffling)."""
-    a = np.take(P, tri[:, 0], axis=0)  # (numpy.take's gather of whole rows: 2-3 times faster than indexing's)
-    u, v = np.take(P, tri[:, 1], axis=0) - a, np.take(P, tri[:, 2], axis=0) - a
-    out = np.empty_like(u)
-    out[:, 0] = u[:, 1] * v[:, 2] - u[:, 2] * v[:, 1]
-    out[:, 1] = u[:, 2] * v[:, 0] - u[:, 0] * v[:, 2]
-    out[:, 2] = u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]
-    return out
+def _unit_normals(P0, P1, P2):
+    """Unit normals (3, f) of triangles with corners at ``P0``, ``P1``, ``P2`` (3, f), coordinates first:
+    ``unit_rows(cross3(P1 - P0, P2 - P0))``'s numbers (the same products, sums and quotients in the same order),
+    each coordinate one contiguous row: 3 times faster than rows of 3."""
+    u, v = P1 - P0, P2 - P0
+    n = np.empty_like(u)
+    for i, j, k in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):
+        np.multiply(u[j], v[k], out=n[i])
+        n[i] -= u[k] * v[j]
+    length = n[0] * n[0]
+    length += n[1] * n[1]
+    length += n[2] * n[2]
+    n /= np.maximum(np.sqrt(length), 1e-300)
+    return n
+
+
+def _cosines(N, first, second):
+    """Dot products of columns ``first`` and ``second`` (index arrays) of unit normals ``N`` (3, f): ``row_dots``'
+    numbers."""
+    a, b = np.take(N, first, axis=1), np.take(N, second, axis=1)
+    dot = a[0] * b[0]
+    dot += a[1] * b[1]
+    dot += a[2] * b[2]
+    return dot
 
 
 def _once_inverse(idx, size):
     """``(values, inverse)``: :func:`numpy.unique` of ``idx`` (all below ``size``) with ``return_inverse``, from a
     mask (no sort) and an int32 look-up table, never cleared (only the values' entries are written and read): on
     ICT's 72 keys 14 MB, 4 ms against a binary search's 19 ms (an int64 one, 29 MB, cost more in its pages than it
-    saved; issue #35); ``inverse`` shaped as ``idx``."""
+    saved; issue #35); past TABLE_MAX, numpy.unique's sort; ``inverse`` (int32) shaped as ``idx``."""
+    if size > TABLE_MAX:
+        values, inverse = np.unique(idx, return_inverse=True)
+        return values, inverse.astype(np.int32).reshape(np.shape(idx))
     values = _once(idx.ravel(), size)
     return values, _slots(values, size, np.int32)[idx]
 
@@ -475,16 +546,29 @@ def _slots(values, size, dtype=np.int64):
 
 
 def _lookup(ids, size):
-    """A look-up table (``size``,) of each of the distinct ``ids``' (all below ``size``) slot in them, -1 for any other
-    value. int32: the relaxation's (jobs × vertices, 0.4 M entries on ICT's head) is 1.7 MB, cheaper to fill than a
-    binary search of its three look-ups (13 ms of ICT's 72 keys; issue #35)."""
-    table = np.full(size, -1, np.int32)
-    table[ids] = np.arange(len(ids), dtype=np.int32)
-    return table
+    """A function of ids (an array, all below ``size``) giving each one's slot in the distinct, sorted ``ids``, -1 for
+    any other value (int32): a look-up table (the relaxation's, jobs × vertices, 0.4 M entries on ICT's head, is
+    1.7 MB, cheaper to fill than a binary search of its three look-ups: 13 ms of ICT's 72 keys; issue #35), past
+    TABLE_MAX entries a binary search (the same slots)."""
+    if size <= TABLE_MAX:
+        table = np.full(size, -1, np.int32)
+        table[ids] = np.arange(len(ids), dtype=np.int32)
+        return table.__getitem__
+    last = max(len(ids) - 1, 0)
+
+    def search(wanted):
+        if not len(ids):
+            return np.full(np.shape(wanted), -1, np.int32)
+        at = np.minimum(np.searchsorted(ids, wanted), last)
+        return np.where(ids[at] == wanted, at, -1).astype(np.int32)
+
+    return search
 
 
 def _once(idx, size):
-    """The distinct values of ``idx`` (all below ``size``), sorted: a mask's, no sort."""
+    """The distinct values of ``idx`` (all below ``size``), sorted: a mask's, no sort (past TABLE_MAX, a sort's)."""
+    if size > TABLE_MAX:
+        return np.unique(idx)
     mask = np.zeros(size, bool)
     mask[idx] = True
     return np.flatnonzero(mask)
@@ -493,9 +577,12 @@ def _once(idx, size):
 def _rows_entries(A, rows):
     """``(positions, slots)``: where the entries of CSR ``A``'s ``rows`` lie in its ``indices``/``data`` (row by row),
     and each entry's slot in ``rows``."""
-    starts, counts = A.indptr[rows], np.diff(A.indptr)[rows]
-    slot = np.repeat(np.arange(len(rows)), counts)
-    return starts[slot] + np.arange(len(slot)) - (np.cumsum(counts) - counts)[slot], slot
+    starts = A.indptr[rows]
+    counts = A.indptr[np.add(rows, 1)] - starts
+    ends = np.cumsum(counts)
+    # each row's entries at its start on from where they begin in the result: one repeat, no gathers by slot
+    pos = np.arange(ends[-1] if len(ends) else 0, dtype=np.int64) + np.repeat(starts - (ends - counts), counts)
+    return pos, np.repeat(np.arange(len(rows)), counts)
 
 
 def _rows_gather(A, rows):

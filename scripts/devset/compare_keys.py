@@ -1,0 +1,85 @@
+"""Every key of a few development-set characters written, or compared with those written before: a change meant to
+leave the keys as they were (issue #35's speed-ups) checked on MakeHuman heads, beside ``bench_load --keys``' ICT.
+
+Usage: python -m scripts.devset.compare_keys DIR [NAME ...]
+
+Each character (default: three not tuned on: a head with eyeballs, a decimated one, a Blender-axes one in metres) is
+built, fitted with its true landmarks and the bundled descriptors retargeted to it; the fit is kept in DIR, so a second
+run binds the same model. Then every pose's key (the descriptors' and the presets' sums, as ``bench_keys_devset``) is
+bound (:class:`pdeface.head.bind.HeadBinding`) and written to ``DIR/NAME.npy`` where missing, else compared with it:
+the largest difference is printed, and the exit status is 1 where any key differs at all.
+"""
+from __future__ import annotations
+
+import argparse
+import pickle
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+from pdeface.au.modelfile import load_face
+from pdeface.au.retarget import retarget
+from pdeface.head.bind import HeadBinding, descriptor_motion_args
+from pdeface.presets import every_pose
+from pdeface.surface.fit import fit_face
+
+from scripts.devset.characters import SPECS, build
+
+NAMES = ("caucasian-female-young-cm", "decimated-cm", "asian-male-young-blender-m")
+
+
+def fitted(name, folder):
+    """The character's mesh, landmarks and retargeted model, fitted once and kept in ``folder``."""
+    path = folder / f"{name}.model.pkl"
+    if path.exists():
+        return pickle.loads(path.read_bytes())
+    ch = build(SPECS[name])
+    (V, T), L = ch.joined(), ch.landmarks
+    out = V, T, L, retarget(load_face("default"), fit_face(V, T, L)[0])
+    path.write_bytes(pickle.dumps(out))
+    return out
+
+
+def keys(V, T, L, model):
+    """Every pose's key (k, n, 3) and the binding's and the keys' CPU seconds."""
+    c = time.process_time()
+    b = HeadBinding(model, V, T, landmarks=L)
+    bound = time.process_time()
+    poses = every_pose(model)
+    descr = {f"AU{d.key}": d for d in model.descriptors}
+    motions = [descriptor_motion_args(descr[n]) if n in descr else b.pose_motion_args(poses[n], "sum")
+               for n in poses if n != "neutral"]
+    D = b.displacements(motions)
+    return D, bound - c, time.process_time() - bound
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("folder", type=Path, help="where the fits and keys are kept")
+    ap.add_argument("names", nargs="*", default=NAMES, help="characters of scripts.devset.characters.SPECS")
+    args = ap.parse_args(argv)
+    args.folder.mkdir(parents=True, exist_ok=True)
+    same = True
+    for name in args.names:
+        D, bind_s, keys_s = keys(*fitted(name, args.folder))
+        path = args.folder / f"{name}.npy"
+        said = f"{name}: {D.shape[1]} vertices, {len(D)} keys; CPU binding {bind_s:.2f} s, keys {keys_s:.2f} s; "
+        if not path.exists():
+            np.save(path, D)
+            print(said + f"written to {path}")
+            continue
+        was = np.load(path)
+        if was.shape != D.shape:
+            print(said + f"{path} holds {was.shape}: not comparable")
+            same = False
+            continue
+        diff = np.abs(D - was).max(axis=(1, 2))
+        same &= not diff.any()
+        print(said + f"largest difference {diff.max():.3g} (largest key motion {np.abs(was).max():.3g}); "
+              f"{int((diff > 0).sum())} of {len(diff)} keys differ")
+    return 0 if same else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
