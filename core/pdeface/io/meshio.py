@@ -125,12 +125,18 @@ def read_obj(path) -> Mesh:
     return mesh
 
 
-#: Bytes that end a token in a line (ASCII whitespace and the newline), as ``bytes.split`` splits.
-_SEP = np.zeros(256, bool)
-_SEP[[9, 10, 11, 12, 13, 32]] = True
-#: Bytes that may begin whitespace ``str.split`` knows and ``bytes.split`` does not (non-ASCII, \x1c-\x1f).
-_UNSPLIT = np.zeros(256, bool)
-_UNSPLIT[0x1c:0x20] = _UNSPLIT[0x80:] = True
+def _is_sep(x):
+    """Whether each byte of the uint8 array ``x`` ends a token in a line (ASCII whitespace and the newline), as
+    ``bytes.split`` splits; by arithmetic, a few passes 10× sooner than a table look-up."""
+    return (x == 32) | (x - np.uint8(9) <= 4)  # 9-13 (uint8: below 9 wraps round past 4)
+
+
+def _is_unsplit(x):
+    """Whether each byte of ``x`` may begin whitespace ``str.split`` knows and ``bytes.split`` does not (non-ASCII,
+    \\x1c-\\x1f)."""
+    return (x - np.uint8(0x1c) <= 3) | (x >= 0x80)
+
+
 _V, _VT, _VN, _F = 1, 2, 3, 4
 
 
@@ -146,15 +152,18 @@ def _obj_blocks(data: bytes) -> Mesh | None:
     starts = np.concatenate([[0], newlines + 1])
     lines = _Lines(data, starts, np.concatenate([newlines, [len(data)]]))
     b0, b1, b2 = buf[starts], buf[starts + 1], buf[starts + 2]
-    odd = (_SEP[b0] & (b0 != 10)) | _UNSPLIT[b0] | (((b0 == ord("v")) | (b0 == ord("f"))) & (_UNSPLIT[b1] | _UNSPLIT[b2]))
+    sep1, sep2 = _is_sep(b1), _is_sep(b2)
+    odd = (_is_sep(b0) & (b0 != 10)) | _is_unsplit(b0) | (((b0 == ord("v")) | (b0 == ord("f")))
+                                                          & (_is_unsplit(b1) | _is_unsplit(b2)))
     for i in np.flatnonzero(odd).tolist():  # indented, or maybe split by Unicode whitespace: what is the tag?
         if lines[i].decode("utf-8", "replace").split()[:1] in (["v"], ["vt"], ["vn"], ["f"], ["usemtl"], ["mtllib"]):
             return None
     kind = np.zeros(len(starts), np.int8)
-    kind[(b0 == ord("v")) & _SEP[b1]] = _V
-    kind[(b0 == ord("v")) & (b1 == ord("t")) & _SEP[b2]] = _VT
-    kind[(b0 == ord("v")) & (b1 == ord("n")) & _SEP[b2]] = _VN
-    kind[(b0 == ord("f")) & _SEP[b1]] = _F
+    is_v = b0 == ord("v")
+    kind[is_v & sep1] = _V
+    kind[is_v & (b1 == ord("t")) & sep2] = _VT
+    kind[is_v & (b1 == ord("n")) & sep2] = _VN
+    kind[(b0 == ord("f")) & sep1] = _F
     rows = {k: np.flatnonzero(kind == k) for k in (_V, _VT, _VN, _F)}
     blocks = {k: _numbers(lines, rows[k], tag, n)
               for k, tag, n in ((_V, b"v", 3), (_VT, b"vt", 2), (_VN, b"vn", 3))}
@@ -444,7 +453,7 @@ def _faces(lines: _Lines, rows: dict):
         slash = np.flatnonzero(text == ord("/"))
         # A slash stands between two fields, or is the first of "//" (no texture index).
         double = slash[b[slash + 1] == ord("/")]
-        if ((counts < 3).any() or _SEP[b[slash - 1]].any() or _SEP[b[slash + 1]].any()
+        if ((counts < 3).any() or _is_sep(b[slash - 1]).any() or _is_sep(b[slash + 1]).any()
                 or (b[double + 2] == ord("/")).any()):
             return None
         field_at, field_end = _tokens(text, space | (text == ord("/")) | (text == ord("f")))
