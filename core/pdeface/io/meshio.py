@@ -244,11 +244,14 @@ def _decimals(text: bytes, b, at, end):
     digits) are read by float() itself.
     """
     t = b[:len(text)]
+    long = end - at > 15
     if b"+" in text or b"e" in text or b"E" in text:  # + e E: the only other letters allowed
         other = np.flatnonzero((t == ord("+")) | ((t | 32) == ord("e")))
+    elif not long.any():  # the usual file
+        return _plain_decimals(text, b, at, end)
     else:
         other = np.zeros(0, np.int64)
-    other = np.union1d(np.searchsorted(at, other, side="right") - 1, np.flatnonzero(end - at > 15))
+    other = np.union1d(np.searchsorted(at, other, side="right") - 1, np.flatnonzero(long))
     if len(other) > 1000:
         return None
     if len(other):  # blanked for the integer reading, read one by one
@@ -272,11 +275,12 @@ def _decimals(text: bytes, b, at, end):
 
 
 def _plain_decimals(text: bytes, b, at, end):
-    """:func:`_decimals` of numbers ``-?digits[.digits]`` of at most 15 digits; NaN everywhere if any is not."""
+    """:func:`_decimals` of numbers ``-?digits[.digits]`` written in at most 15 bytes; NaN everywhere if any is
+    not."""
     dot = np.flatnonzero(b == ord("."))
     every = len(dot) == len(at) and (at < dot).all() and (dot < end).all()  # a dot in each number (the usual file)
     if every:
-        has_dot, frac_digits = np.ones(len(at), bool), end - dot - 1
+        has_dot, frac_digits = True, end - dot - 1
     else:
         has_dot = np.zeros(len(at), bool)
         of = np.searchsorted(at, dot, side="right") - 1
@@ -284,11 +288,9 @@ def _plain_decimals(text: bytes, b, at, end):
         frac_digits = np.zeros(len(at), np.int64)
         frac_digits[of] = end[of] - dot - 1
     minus = b[at] == ord("-")
-    digits = end - at - minus - has_dot
-    bad = np.full(len(at), np.nan)
     if ((not every and len(dot) != np.count_nonzero(has_dot)) or (b[dot - 1] - 48 > 9).any()
-            or (b[dot + 1] - 48 > 9).any() or (digits > 15).any()):  # (uint8: a byte below '0' wraps round past 9 too)
-        return bad
+            or (b[dot + 1] - 48 > 9).any()):  # (uint8: a byte below '0' wraps round past 9 too)
+        return np.full(len(at), np.nan)
     # as many decimals in each number (the usual file)
     if every and len(at) and (frac_digits == frac_digits[0]).all():
         frac_digits = frac_digits[0]  # one power of ten for all: no table look-up per number
@@ -300,7 +302,8 @@ def _plain_decimals(text: bytes, b, at, end):
             warnings.simplefilter("ignore", DeprecationWarning)  # fromstring stops early on a bad token: counted
             ints = np.fromstring(text.translate(_DOT_TO_SPACE), np.int64, sep=" ")
         if len(ints) != len(at) + len(dot):
-            return bad
+            return np.full(len(at), np.nan)
+        has_dot = np.broadcast_to(has_dot, at.shape)
         first = np.arange(len(at)) + np.cumsum(has_dot) - has_dot
         mantissa = np.abs(ints[first]) * _IPOW10[frac_digits]
         mantissa[has_dot] += ints[first[has_dot] + 1]
