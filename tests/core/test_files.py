@@ -85,32 +85,3 @@ def test_write_npz_writes_the_bytes_npz_bytes_gives_and_keeps_the_old_file_on_fa
         write_npz(tmp_path / "True.npz", {"a": np.array([{}], dtype=object)})  # no pickles
     assert (tmp_path / "True.npz").read_bytes() == before
     assert [p.name for p in tmp_path.iterdir() if p.suffix == ".part"] == []
-
-
-def test_npz_members_are_the_bytes_numpy_writes(tmp_path):
-    """The members are written without numpy's copy of the data, byte for byte as ``numpy.lib.format.write_array``
-    writes them: C- and Fortran-ordered, 0-d and empty, strings, structured and big-endian arrays."""
-    import io
-    import zipfile
-
-    import numpy as np
-    from pdeface.io.files import npz_bytes
-
-    arrays = {"format": np.array("pdeface.keys"), "deltas": np.linspace(-1, 1, 6000, dtype=np.float32).reshape(2, -1, 3),
-              "fortran": np.asfortranarray(np.arange(12.0).reshape(3, 4)), "strided": np.arange(20)[::3],
-              "empty": np.zeros((0, 3), np.int32), "flags": np.array([True, False]),
-              "pairs": np.array([(1, 2.5)], dtype=[("i", "<i4"), ("x", ">f8")]), "big": np.arange(5, dtype=">i8")}
-    for compress in (True, False):
-        method = zipfile.ZIP_DEFLATED if compress else zipfile.ZIP_STORED
-        reference = io.BytesIO()
-        with zipfile.ZipFile(reference, "w", compression=method) as zf:
-            for name, value in arrays.items():
-                info = zipfile.ZipInfo(name + ".npy", date_time=(1980, 1, 1, 0, 0, 0))
-                info.compress_type = method
-                with zf.open(info, "w", force_zip64=True) as member:
-                    np.lib.format.write_array(member, value, allow_pickle=False)
-        data = npz_bytes(arrays, compress)
-        assert data == reference.getvalue()
-        with np.load(io.BytesIO(data)) as z:
-            for name, value in arrays.items():
-                assert z[name].dtype == value.dtype and np.array_equal(z[name], value)

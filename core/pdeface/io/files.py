@@ -252,15 +252,8 @@ def _write_npz(fh, arrays, compress):
         for name, value in arrays.items():
             info = zipfile.ZipInfo(name + ".npy", date_time=(1980, 1, 1, 0, 0, 0))
             info.compress_type = method
-            array = np.asanyarray(value)
             with zf.open(info, "w", force_zip64=True) as member:
-                if array.flags.c_contiguous and not array.dtype.hasobject:
-                    # numpy.lib.format.write_array's bytes without its copy of the data (tobytes, 16 MiB at a
-                    # time): a 27k head's keys are 26 MB, issue #35
-                    np.lib.format.write_array_header_1_0(member, np.lib.format.header_data_from_array_1_0(array))
-                    member.write(array.reshape(-1).view(np.uint8))
-                else:
-                    np.lib.format.write_array(member, array, allow_pickle=False)
+                np.lib.format.write_array(member, np.asanyarray(value), allow_pickle=False)
 
 
 def check_output(output, *inputs) -> None:
