@@ -27,7 +27,6 @@ The module names of pdeface 0.1 (``pdeface.fit``, ``pdeface.model``, ``pdeface.m
 still import: each is an alias of the module(s) its contents moved to (:data:`MOVED`).
 """
 import importlib
-import importlib.abc
 import importlib.util
 import sys
 import types
@@ -71,8 +70,13 @@ def __getattr__(name):
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
-class _MovedModules(importlib.abc.MetaPathFinder, importlib.abc.Loader):
-    """Imports ``pdeface.<0.1 name>`` as a module that reads its names from where they moved."""
+class _MovedModules:
+    """Imports ``pdeface.<0.1 name>`` as a module that reads its names from where they moved.
+
+    A meta path finder and its loader by their methods (the import system asks for no more): subclassing
+    ``importlib.abc``'s classes imported ``importlib.resources``, ``tempfile`` & co. at every command's start
+    (about 20 ms, issue #35).
+    """
 
     def find_spec(self, fullname, path=None, target=None):
         prefix, _, old = fullname.rpartition(".")

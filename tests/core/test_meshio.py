@@ -316,6 +316,32 @@ def test_obj_blocks_read_random_meshes_exactly(tmp_path, rng):
         _same_mesh(read_obj(path), meshio._obj_lines(path, data.decode().split("\n")))
 
 
+def test_obj_blocks_read_numbers_of_every_length_exactly(tmp_path, rng):
+    """Numbers of 1 to 15 digits (integer and fraction parts of any split, signs; indices padded with zeros) in
+    files whose longest has 1 to 15 (8 digits at a time up to 8, digit by digit above), the first ending in a
+    block's first 8 bytes; every number with a dot, or some without: read as float() and int() read them."""
+    from pdeface.io import meshio
+
+    def number(total, whole):
+        digits = "".join(str(d) for d in rng.integers(0, 10, total))
+        return ("-" if rng.random() < 0.5 else "") + digits[:whole] + ("." + digits[whole:] if whole < total else "")
+
+    for longest in range(1, 16):
+        for dotted in (True, False):
+            splits = [(t, w) for t in range(1, longest + 1) for w in range(t + 1)
+                      if not dotted or 0 < w < t] or [(1, 1)]
+            out = [f"v {number(*s)} {number(*splits[-1])} {number(*splits[0])}" for s in splits]
+            out += [f"vt {number(*s)} {number(*splits[-1])}" for s in splits] + ["v 1 2 3", "vt 0 1"] * 3
+            out += [f"f {'1'.zfill(k)}/{'3'.zfill(longest)} {'2'.zfill(longest)}/{'1'.zfill(k)} "
+                    f"{str(1 + k % 3).zfill(1 + (longest - k) % longest)}/{'2'.zfill(1 + k % longest)}"
+                    for k in range(1, longest + 1)]
+            path = tmp_path / f"{longest}{dotted}.obj"
+            path.write_text("\n".join(out) + "\n")
+            data = path.read_bytes()
+            assert meshio._obj_blocks(data) is not None
+            _same_mesh(read_obj(path), meshio._obj_lines(path, data.decode().split("\n")))
+
+
 @pytest.mark.parametrize("text", [
     "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3 # a comment\n",       # a comment after a face: a bad index
     "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1/1/1/1 2 3\n",               # four fields

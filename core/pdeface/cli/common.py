@@ -24,6 +24,45 @@ def log(msg):
     print(msg, file=sys.stderr, flush=True)
 
 
+def plain_scipy_docs():
+    """Have scipy keep its functions' docstrings as written in this process, not rewrite them when imported.
+
+    scipy ≥ 1.15 parses and rewrites some 300 docstrings as its modules load (a note on the Array API backends
+    each, through ``scipy._lib._docscrape.FunctionDoc``): 0.15 s of CPU of ``pdeface rig``'s 3 s (issue #35),
+    for docstrings a command never shows. Before scipy's subpackages load, the decorators doing it are handed
+    :class:`_DocAsWritten`; a scipy whose internals differ, or where they no longer take it, is left alone.
+    Only the commands call it: a script or Blender importing pdeface keeps scipy's docstrings.
+    """
+    try:
+        from scipy._lib import _array_api, _util
+    except ImportError:  # no scipy, or another layout: nothing to do
+        return
+    users = [m for m in (_array_api, _util) if isinstance(getattr(m, "FunctionDoc", None), type)]
+    saved = {m: m.FunctionDoc for m in users}
+    for m in users:
+        m.FunctionDoc = _DocAsWritten
+    try:  # the decorator as scipy's modules apply it, on a function of ours
+        _array_api.xp_capabilities(capabilities_table={})(plain_scipy_docs)
+    except Exception:  # noqa: BLE001 - whatever broke: scipy's own docstring rewriting as before
+        for m, cls in saved.items():
+            m.FunctionDoc = cls
+
+
+class _DocAsWritten(dict):
+    """What scipy's docstring decorators use of a ``FunctionDoc``: sections to add to (empty) and the text,
+    which is the docstring as written (after a signature line, which they cut)."""
+
+    def __init__(self, func, *args, **kwargs):
+        super().__init__()
+        self.text = getattr(func, "__doc__", None) or ""
+
+    def __missing__(self, section):
+        return self.setdefault(section, [])
+
+    def __str__(self):
+        return "\n" + self.text
+
+
 class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
     """Shows each option's default, where it has one worth showing."""
 

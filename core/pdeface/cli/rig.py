@@ -6,13 +6,14 @@ import json
 from ..assets import DEFAULT
 from ..io.files import check_output
 from ..rig import rig_head
-from .common import log, unit_option
+from .common import log, plain_scipy_docs, unit_option
 from .landmarks import accept_option
 
 
 def cmd_rig(args):
     for name in ("keys.npz", "face.npz", "rigged.npz", "landmarks.json", "report.json"):
         check_output(f"{args.output}/{name}", args.mesh, args.landmarks, args.parts)
+    plain_scipy_docs()  # before the chain loads scipy's subpackages
     report = rig_head(args.mesh, args.output, landmarks=args.landmarks, unit=args.unit, parts=args.parts,
                       descriptors=args.descriptors, presets=not args.no_presets, blend=args.blend,
                       accept=args.accept, log=log)

@@ -125,12 +125,18 @@ def read_obj(path) -> Mesh:
     return mesh
 
 
-#: Bytes that end a token in a line (ASCII whitespace and the newline), as ``bytes.split`` splits.
-_SEP = np.zeros(256, bool)
-_SEP[[9, 10, 11, 12, 13, 32]] = True
-#: Bytes that may begin whitespace ``str.split`` knows and ``bytes.split`` does not (non-ASCII, \x1c-\x1f).
-_UNSPLIT = np.zeros(256, bool)
-_UNSPLIT[0x1c:0x20] = _UNSPLIT[0x80:] = True
+def _is_sep(x):
+    """Whether each byte of the uint8 array ``x`` ends a token in a line (ASCII whitespace and the newline), as
+    ``bytes.split`` splits; by arithmetic, a few passes 10× sooner than a table look-up."""
+    return (x == 32) | (x - np.uint8(9) <= 4)  # 9-13 (uint8: below 9 wraps round past 4)
+
+
+def _is_unsplit(x):
+    """Whether each byte of ``x`` may begin whitespace ``str.split`` knows and ``bytes.split`` does not (non-ASCII,
+    \\x1c-\\x1f)."""
+    return (x - np.uint8(0x1c) <= 3) | (x >= 0x80)
+
+
 _V, _VT, _VN, _F = 1, 2, 3, 4
 
 
@@ -146,15 +152,18 @@ def _obj_blocks(data: bytes) -> Mesh | None:
     starts = np.concatenate([[0], newlines + 1])
     lines = _Lines(data, starts, np.concatenate([newlines, [len(data)]]))
     b0, b1, b2 = buf[starts], buf[starts + 1], buf[starts + 2]
-    odd = (_SEP[b0] & (b0 != 10)) | _UNSPLIT[b0] | (((b0 == ord("v")) | (b0 == ord("f"))) & (_UNSPLIT[b1] | _UNSPLIT[b2]))
+    sep1, sep2 = _is_sep(b1), _is_sep(b2)
+    odd = (_is_sep(b0) & (b0 != 10)) | _is_unsplit(b0) | (((b0 == ord("v")) | (b0 == ord("f")))
+                                                          & (_is_unsplit(b1) | _is_unsplit(b2)))
     for i in np.flatnonzero(odd).tolist():  # indented, or maybe split by Unicode whitespace: what is the tag?
         if lines[i].decode("utf-8", "replace").split()[:1] in (["v"], ["vt"], ["vn"], ["f"], ["usemtl"], ["mtllib"]):
             return None
     kind = np.zeros(len(starts), np.int8)
-    kind[(b0 == ord("v")) & _SEP[b1]] = _V
-    kind[(b0 == ord("v")) & (b1 == ord("t")) & _SEP[b2]] = _VT
-    kind[(b0 == ord("v")) & (b1 == ord("n")) & _SEP[b2]] = _VN
-    kind[(b0 == ord("f")) & _SEP[b1]] = _F
+    is_v = b0 == ord("v")
+    kind[is_v & sep1] = _V
+    kind[is_v & (b1 == ord("t")) & sep2] = _VT
+    kind[is_v & (b1 == ord("n")) & sep2] = _VN
+    kind[(b0 == ord("f")) & sep1] = _F
     rows = {k: np.flatnonzero(kind == k) for k in (_V, _VT, _VN, _F)}
     blocks = {k: _numbers(lines, rows[k], tag, n)
               for k, tag, n in ((_V, b"v", 3), (_VT, b"vt", 2), (_VN, b"vn", 3))}
@@ -213,7 +222,8 @@ class _Lines:
 
 def _tokens(b, sep):
     """Where each token of the bytes ``b`` starts and ends (``sep``: ``b``'s separator bytes, a bool array)."""
-    edge = np.flatnonzero(sep[1:] != sep[:-1]) + 1  # b starts and ends with a separator (the callers pad it)
+    edge = np.flatnonzero(sep[1:] != sep[:-1])  # b starts and ends with a separator (the callers pad it)
+    edge += 1  # in place: a head's faces have 420k edges
     return edge[::2], edge[1::2]
 
 
@@ -234,11 +244,14 @@ def _decimals(text: bytes, b, at, end):
     digits) are read by float() itself.
     """
     t = b[:len(text)]
+    long = end - at > 15
     if b"+" in text or b"e" in text or b"E" in text:  # + e E: the only other letters allowed
         other = np.flatnonzero((t == ord("+")) | ((t | 32) == ord("e")))
+    elif not long.any():  # the usual file
+        return _plain_decimals(text, b, at, end)
     else:
         other = np.zeros(0, np.int64)
-    other = np.union1d(np.searchsorted(at, other, side="right") - 1, np.flatnonzero(end - at > 15))
+    other = np.union1d(np.searchsorted(at, other, side="right") - 1, np.flatnonzero(long))
     if len(other) > 1000:
         return None
     if len(other):  # blanked for the integer reading, read one by one
@@ -262,54 +275,98 @@ def _decimals(text: bytes, b, at, end):
 
 
 def _plain_decimals(text: bytes, b, at, end):
-    """:func:`_decimals` of numbers ``-?digits[.digits]`` of at most 15 digits; NaN everywhere if any is not."""
+    """:func:`_decimals` of numbers ``-?digits[.digits]`` written in at most 15 bytes; NaN everywhere if any is
+    not."""
     dot = np.flatnonzero(b == ord("."))
-    if len(dot) == len(at) and (at < dot).all() and (dot < end).all():  # a dot in every number (the usual file)
-        has_dot, of = np.ones(len(at), bool), np.arange(len(at))
+    every = len(dot) == len(at) and (at < dot).all() and (dot < end).all()  # a dot in each number (the usual file)
+    if every:
+        has_dot, frac_digits = True, end - dot - 1
     else:
         has_dot = np.zeros(len(at), bool)
         of = np.searchsorted(at, dot, side="right") - 1
         has_dot[of] = True
+        frac_digits = np.zeros(len(at), np.int64)
+        frac_digits[of] = end[of] - dot - 1
     minus = b[at] == ord("-")
-    digits = end - at - minus - has_dot
-    bad = np.full(len(at), np.nan)
-    if (len(dot) != np.count_nonzero(has_dot) or (b[dot - 1] - 48 > 9).any() or (b[dot + 1] - 48 > 9).any()
-            or (digits > 15).any()):  # (uint8: a byte below '0' wraps round past 9 too)
-        return bad
-    frac_digits = np.zeros(len(at), np.int64)
-    frac_digits[of] = end[of] - dot - 1
+    if ((not every and len(dot) != np.count_nonzero(has_dot)) or (b[dot - 1] - 48 > 9).any()
+            or (b[dot + 1] - 48 > 9).any()):  # (uint8: a byte below '0' wraps round past 9 too)
+        return np.full(len(at), np.nan)
     # as many decimals in each number (the usual file)
-    if len(dot) == len(at) and len(at) and (frac_digits == frac_digits[0]).all():
+    if every and len(at) and (frac_digits == frac_digits[0]).all():
         frac_digits = frac_digits[0]  # one power of ten for all: no table look-up per number
-    if len(dot) == len(at) and np.count_nonzero(b[:len(text)] == ord("-")) == np.count_nonzero(minus):
-        # -digits.digits each (a sign only in front): the two runs of digits read digit by digit.
+    if every and np.count_nonzero(b[:len(text)] == ord("-")) == np.count_nonzero(minus):
+        # -digits.digits each (a sign only in front): the two runs of digits read as integers.
         mantissa = _digit_values(b, at + minus, dot) * _IPOW10[frac_digits] + _digit_values(b, dot + 1, end)
     else:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", DeprecationWarning)  # fromstring stops early on a bad token: counted
             ints = np.fromstring(text.translate(_DOT_TO_SPACE), np.int64, sep=" ")
         if len(ints) != len(at) + len(dot):
-            return bad
+            return np.full(len(at), np.nan)
+        has_dot = np.broadcast_to(has_dot, at.shape)
         first = np.arange(len(at)) + np.cumsum(has_dot) - has_dot
         mantissa = np.abs(ints[first]) * _IPOW10[frac_digits]
         mantissa[has_dot] += ints[first[has_dot] + 1]
     values = mantissa / _POW10[frac_digits]
-    values[minus] *= -1
-    return values
+    return np.negative(values, out=values, where=minus)
 
 
 def _digit_values(b, at, end):
-    """The integers written at ``b[at:end]`` (``b``: bytes as uint8), each 1 to 15 decimal digits and nothing else.
+    """The integers written at ``b[at:end]`` (``b``: bytes as uint8), each 1 to 15 decimal digits and nothing else;
+    ``end`` ascending (the numbers in the order they are written).
 
-    Digit by digit from the right, all numbers at once: a few passes over the numbers, where parsing the text
-    (``np.fromstring``) is a pass over its bytes.
+    All numbers at once, a few passes over the numbers where parsing the text (``np.fromstring``) is a pass over its
+    bytes: digit by digit from the right where they are short or all as long (fractions written with a fixed count
+    of decimals), else (indices) each from the 8 bytes ending it (:func:`_eight_digits`: a head's faces 5-10 % sooner).
     """
     length = end - at
     width = int(length.max(initial=1))
+    alike = bool((length == width).all())
+    if alike or width <= 3 or width > 8:
+        return _digit_by_digit(b, end, length, width, alike)
+    head = int(np.searchsorted(end, 8))  # the few ending in the text's first 8 bytes: no 8 bytes before their end
+    values = _eight_digits(b, end, length, head)
+    values[:head] = _digit_by_digit(b, end[:head], length[:head], width, alike)
+    return values
+
+
+#: Masks keeping the last ``k`` bytes (k = 0 to 8) of 8 read as a little-endian word (the first in its lowest byte).
+_LAST_BYTES = np.array([0] + [(1 << 64) - (1 << 8 * (8 - k)) for k in range(1, 9)], np.uint64)
+_U64 = {k: np.uint64(v) for k, v in (("nibbles", 0x0F0F0F0F0F0F0F0F), ("pairs", 0x000000FF000000FF),
+                                     ("by100", 0x000F424000000064), ("by1", 0x0000271000000001),
+                                     (10, 10), (8, 8), (16, 16), (32, 32))}
+
+
+def _eight_digits(b, end, length, head=0):
+    """:func:`_digit_values` of numbers of 1 to 8 digits ending at ``end`` (``end >= 8`` but for the first ``head``,
+    left to the caller): the 8 bytes before each end as one integer, the bytes before the number masked off (leading
+    zeros), its digits combined pairwise in 3 multiplications (the "eight digits at once" of Lemire's fast_float):
+    some 15 passes over the numbers, not 5 per digit, most in place."""
+    words = np.ndarray((len(b) - 7,), "<u8", b, 0, (1,))  # the 8 bytes at each offset (unaligned)
+    at = end - 8
+    at[:head] = 0
+    v = words[at]
+    v &= _LAST_BYTES[length]
+    v &= _U64["nibbles"]  # '0'-'9' to 0-9 (the masked bytes are 0)
+    low = v >> _U64[8]
+    v *= _U64[10]
+    v += low  # each even byte: two digits
+    np.bitwise_and(v, _U64["pairs"], out=low)
+    low *= _U64["by100"]
+    v >>= _U64[16]
+    v &= _U64["pairs"]
+    v *= _U64["by1"]
+    v += low
+    v >>= _U64[32]
+    return v.view(np.int64)  # (under 10**8: the same bits)
+
+
+def _digit_by_digit(b, end, length, width, alike):
+    """:func:`_digit_values` of numbers ending at ``end``, ``length`` digits each (at most ``width``; ``alike``: all
+    ``width``)."""
     kind = np.int32 if width <= 9 else np.int64  # half the memory to go through, where the numbers fit
     values = b[end - 1].astype(kind) - 48
     at_digit = end - 1
-    alike = (length == width).all()  # as fractions written with a fixed count of decimals are
     for j in range(1, width):
         at_digit = at_digit - 1
         digit = b[at_digit].astype(kind) - 48
@@ -399,7 +456,7 @@ def _faces(lines: _Lines, rows: dict):
         slash = np.flatnonzero(text == ord("/"))
         # A slash stands between two fields, or is the first of "//" (no texture index).
         double = slash[b[slash + 1] == ord("/")]
-        if ((counts < 3).any() or _SEP[b[slash - 1]].any() or _SEP[b[slash + 1]].any()
+        if ((counts < 3).any() or _is_sep(b[slash - 1]).any() or _is_sep(b[slash + 1]).any()
                 or (b[double + 2] == ord("/")).any()):
             return None
         field_at, field_end = _tokens(text, space | (text == ord("/")) | (text == ord("f")))
