@@ -55,6 +55,16 @@ MOVED_MM = 0.005
 SETTLE_POSES = 16
 #: Largest explicit steps per interval.
 MAX_STEPS = 64
+#: Poses of one key whose turns are screened in one array operation (over the whole grid, in float32): a few
+#: arrays of this many grids at a time.
+SCREEN_POSES = 8
+#: The float32 screen passes every edge within this many degrees of the floor; each it passes is measured again
+#: in float64, as :func:`quad_turn_cosines` measures it. Its turns differ from float64's by under 0.01° on quads
+#: larger than :data:`SCREEN_TINY_MM2` (float32 keeps 7 digits of the diagonals, their normals' cross product 6).
+SCREEN_MARGIN_DEG = 0.5
+#: A quad whose normal (the cross product of its diagonals, mm²) is shorter than this, its float32 turns
+#: unreliable: the screen passes its edges.
+SCREEN_TINY_MM2 = 1e-3
 
 
 def _checked(steps, what):
@@ -217,6 +227,51 @@ def _edges_over(X, block, shut_at_rest, interval, need, floor):
     return edges
 
 
+def _diagonals(planes):
+    """A grid's quad diagonals ``(d1, d2)``, each as three coordinate planes: :func:`quad_turn_cosines`' own."""
+    return ([p[..., 1:, 1:] - p[..., :-1, :-1] for p in planes], [p[..., :-1, 1:] - p[..., 1:, :-1] for p in planes])
+
+
+def _screened(rest_diagonals, G, w, looked_cos):
+    """Which inner edges of each pose ``rest + w[p] G[p]`` may turn past ``looked_cos`` (the cosine each edge must
+    fall under to be looked at; -2 where none is): ``(across rows, across columns)`` masks (poses, ...) as
+    :func:`quad_turn_cosines` shapes them, a few more than do.
+
+    ``rest_diagonals``: :func:`_diagonals` of the rest grid in float32; ``G`` (poses, 3, n_u, n_v) float32 key
+    grids. Each pose's diagonals are the rest's plus its keys': float32 then keeps their own digits, not the
+    coordinates'. A quad under :data:`SCREEN_TINY_MM2` counts as turning by 90°.
+    """
+    scale = None if (w == 1).all() else w.astype(np.float32)[:, None, None]
+    d1, d2 = ([r + (k if scale is None else scale * k) for r, k in zip(rest, key)]
+              for rest, key in zip(rest_diagonals, _diagonals(list(np.moveaxis(G, 1, 0)))))
+    N = [d2[1] * d1[2] - d2[2] * d1[1], d2[2] * d1[0] - d2[0] * d1[2], d2[0] * d1[1] - d2[1] * d1[0]]
+    square = N[0] * N[0] + N[1] * N[1] + N[2] * N[2]
+    tiny = square < np.float32(SCREEN_TINY_MM2 ** 2)
+    square[tiny] = 1.0
+    inverse = 1.0 / np.sqrt(square)
+    inverse[tiny] = 0.0  # its normal 0: a cosine of 0 with either neighbour
+    N = [c * inverse for c in N]
+    return ((N[0][:, :-1] * N[0][:, 1:] + N[1][:, :-1] * N[1][:, 1:] + N[2][:, :-1] * N[2][:, 1:]) < looked_cos[0],
+            (N[0][:, :, :-1] * N[0][:, :, 1:] + N[1][:, :, :-1] * N[1][:, :, 1:] + N[2][:, :, :-1] * N[2][:, :, 1:])
+            < looked_cos[1])
+
+
+def _edge_cosines(vertex, axis, r, c):
+    """:func:`quad_turn_cosines` of the edges (r, c) across rows (``axis`` 0) or columns (1), the same products
+    in the same order (so the same numbers): ``vertex(dr, dc)`` gives the posed grid's three coordinates at
+    (r + dr, c + dc)."""
+    def normal(dr, dc):  # the quad (r + dr, c + dc)'s unit normal
+        a, b = vertex(dr + 1, dc + 1), vertex(dr, dc)
+        e, f = vertex(dr, dc + 1), vertex(dr + 1, dc)
+        d1, d2 = [p - q for p, q in zip(a, b)], [p - q for p, q in zip(e, f)]
+        N = [d2[1] * d1[2] - d2[2] * d1[1], d2[2] * d1[0] - d2[0] * d1[2], d2[0] * d1[1] - d2[1] * d1[0]]
+        length = np.sqrt(N[0] ** 2 + N[1] ** 2 + N[2] ** 2)
+        length[length == 0] = 1.0
+        return [x / length for x in N]
+    before, after = normal(0, 0), normal(1, 0) if axis == 0 else normal(0, 1)
+    return sum(x * y for x, y in zip(before, after))
+
+
 def interval_turns(model, rows, cols, W, floor=0.0):
     """Largest turn (degrees) of the edges in each curve interval and each point interval, outside the
     openings, over the poses ``W`` (:func:`pose_weights`), on the mesh of ``rows``, ``cols`` steps.
@@ -279,20 +334,72 @@ def interval_turns(model, rows, cols, W, floor=0.0):
     kept = {int(k): None for k in np.nonzero(W[several].any(axis=0))[0]}  # key → its grid, for poses of several
     n = W.shape[1]
     rows_moved, cols_moved = np.zeros((n, n_u), bool), np.zeros((n, n_v), bool)
+    rest_diagonals = [[p.astype(np.float32) for p in d] for d in _diagonals(planes0)]
+    floor_cos = np.cos(np.radians(floor)) + 1e-9
+
+    def measure_single(grids, screen, at_landmarks_moved, poses):
+        """The poses of one key each, ``(grid, key, pose, block)``: screened together, their candidates measured
+        as :func:`_edges_over` measures a block (the same numbers)."""
+        j = np.array([g for g, _, _, _ in poses])
+        w = W[[p for _, _, p, _ in poses], [k for _, k, _, _ in poses]]
+        R0, R1, C0, C1 = (np.array(a) for a in zip(*[(b[0].start, min(b[0].stop, n_u), b[1].start, min(b[1].stop, n_v))
+                                                    for _, _, _, b in poses]))
+        edges = [[] for _ in poses]
+        # an edge is looked at past the floor and past the need of one of its intervals (the others cannot raise
+        # one), shut at rest; the screen passes those a margin under that
+        looked_cos = []
+        for axis in (0, 1):
+            lower = np.maximum(floor, np.minimum(need[axis][interval[axis][:-1]], need[axis][interval[axis][1:]]))
+            cos = np.cos(np.radians(np.maximum(lower - SCREEN_MARGIN_DEG, 0.0))).astype(np.float32)
+            looked_cos.append(np.where(shut_at_rest[axis], cos[:, None] if axis == 0 else cos[None, :],
+                                       np.float32(-2.0)))
+        G = screen[j[0]:j[-1] + 1] if (np.diff(j) == 1).all() else screen[j]
+        for axis, mask in enumerate(_screened(rest_diagonals, G, w, looked_cos)):
+            q, r, c = np.nonzero(mask)
+            # the edge and both its quads in the pose's block (as _edges_over's block slices give them)
+            inside = (r >= R0[q]) & (r <= R1[q] - 3 + axis) & (c >= C0[q]) & (c <= C1[q] - 2 - axis)
+            q, r, c = q[inside], r[inside], c[inside]
+            wq, gq = w[q], j[q]
+
+            def vertex(dr, dc, q=q, r=r, c=c, wq=wq, gq=gq):
+                return [wq * grids[gq, i, r + dr, c + dc] + planes0[i, r + dr, c + dc] for i in range(3)]
+            cos = _edge_cosines(vertex, axis, r, c)
+            looked = cos < floor_cos
+            t = degrees_from_cos(cos[looked])
+            over = t > floor
+            q, r, c, t = q[looked][over], r[looked][over], c[looked][over], t[over]
+            first = (r, c)[axis]
+            before, after = interval[axis][first], interval[axis][first + 1]
+            keep = (t > need[axis][before]) | (t > need[axis][after])
+            q, r, c, wq, gq = q[keep], r[keep], c[keep], w[q[keep]], j[q[keep]]
+            ends = ((1, 0), (1, 1)) if axis == 0 else ((0, 1), (1, 1))
+            a, b = (vertex(*e, q=q, r=r, c=c, wq=wq, gq=gq) for e in ends)
+            mid = np.stack([0.5 * (x + y) for x, y in zip(a, b)], axis=1)
+            for i in range(len(poses)):
+                at = q == i
+                edges[i].append((before[keep][at], after[keep][at], t[keep][at], mid[at]))
+        for (g, _, _, _), wi, e in zip(poses, w, edges):
+            if sum(len(x[2]) for x in e):
+                found.append((wi * at_landmarks_moved[g].T, e))
+            if len(found) == SETTLE_POSES:
+                settle()
+
     for first, grids in key_grids(model, rows, cols, planes=True):  # (m, 3, n_u, n_v): each key's planes
         m = len(grids)
-        size = np.abs(grids).max(axis=3)  # the largest per row and per column
-        rows_moved[first:first + m] = size.max(axis=1) > MOVED_MM
-        cols_moved[first:first + m] = np.abs(grids).max(axis=2).max(axis=1) > MOVED_MM
+        size = np.abs(grids)  # the largest per row and per column
+        rows_moved[first:first + m] = size.max(axis=3).max(axis=1) > MOVED_MM
+        cols_moved[first:first + m] = size.max(axis=2).max(axis=1) > MOVED_MM
+        del size
         at_landmarks_moved = grids.reshape(m, 3, n_u * n_v)[:, :, at_landmarks]
+        poses = []
         for j, k in enumerate(range(first, first + m)):
             if k in kept:
                 kept[k] = grids[j].copy()
             block = _moved_block(rows_moved[k], cols_moved[k])
-            for p in single.get(k, ()) if block is not None else ():
-                w = W[p, k]
-                measure([w * grids[(j, i) + block] + planes0[(i,) + block] for i in range(3)], block,
-                        w * at_landmarks_moved[j].T)
+            poses += [(j, k, p, block) for p in single.get(k, ())] if block is not None else []
+        screen = grids.astype(np.float32) if poses else None
+        for start in range(0, len(poses), SCREEN_POSES):
+            measure_single(grids, screen, at_landmarks_moved, poses[start:start + SCREEN_POSES])
     for p in several:
         keys = np.nonzero(W[p])[0]
         block = _moved_block(rows_moved[keys].any(axis=0), cols_moved[keys].any(axis=0))
