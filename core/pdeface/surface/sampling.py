@@ -24,7 +24,7 @@ from ..errors import MeshError
 from ..geometry import degrees_from_cos
 from ..presets import every_pose
 from ..threads import bounded
-from .folds import carried, nearest_vertices, opening_mask
+from .folds import GROW, OPENINGS, carried, nearest_vertices, opening_mask
 from .grid import key_grids, surface_grid
 from .model import model_landmarks
 
@@ -256,10 +256,10 @@ def _screened(rest_diagonals, G, w, looked_cos):
             < looked_cos[1])
 
 
-def _edge_cosines(vertex, axis, r, c):
-    """:func:`quad_turn_cosines` of the edges (r, c) across rows (``axis`` 0) or columns (1), the same products
+def _edge_cosines(vertex, axis):
+    """:func:`quad_turn_cosines` of some edges (r, c) across rows (``axis`` 0) or columns (1), the same products
     in the same order (so the same numbers): ``vertex(dr, dc)`` gives the posed grid's three coordinates at
-    (r + dr, c + dc)."""
+    (r + dr, c + dc) of each."""
     def normal(dr, dc):  # the quad (r + dr, c + dc)'s unit normal
         a, b = vertex(dr + 1, dc + 1), vertex(dr, dc)
         e, f = vertex(dr, dc + 1), vertex(dr + 1, dc)
@@ -270,6 +270,25 @@ def _edge_cosines(vertex, axis, r, c):
         return [x / length for x in N]
     before, after = normal(0, 0), normal(1, 0) if axis == 0 else normal(0, 1)
     return sum(x * y for x, y in zip(before, after))
+
+
+def _opened_at_rest(points, L):
+    """:func:`~pdeface.surface.folds.opening_mask` of many points (n, 3): tested only where an opening's grown
+    polygon can reach (a millimetre beyond its box), the rest outside (one pass over them, not one per opening)."""
+    boxes = []
+    for idx in OPENINGS.values():
+        poly = L[idx, :2][np.isfinite(L[idx, :2]).all(axis=1)]
+        if len(poly) >= 3:
+            centre = poly.mean(axis=0)
+            boxes.append((centre + (1 + GROW) * (poly.min(axis=0) - centre) - 1.0,
+                          centre + (1 + GROW) * (poly.max(axis=0) - centre) + 1.0))
+    mask = np.zeros(len(points), bool)
+    if boxes:
+        lo, hi = np.min([b[0] for b in boxes], axis=0), np.max([b[1] for b in boxes], axis=0)
+        x, y = points[:, 0], points[:, 1]
+        near = np.nonzero((x >= lo[0]) & (x <= hi[0]) & (y >= lo[1]) & (y <= hi[1]))[0]
+        mask[near] = opening_mask(points[near], L)
+    return mask
 
 
 def interval_turns(model, rows, cols, W, floor=0.0):
@@ -292,7 +311,7 @@ def interval_turns(model, rows, cols, W, floor=0.0):
     nearest = nearest_vertices(X0.reshape(-1, 3), L)
     # each inner edge's midpoint at rest: across rows (on row r + 1), across columns (on column c + 1)
     mids = (0.5 * (X0[1:-1, :-1] + X0[1:-1, 1:]), 0.5 * (X0[:-1, 1:-1] + X0[1:, 1:-1]))
-    shut_at_rest = [~opening_mask(m.reshape(-1, 3), L).reshape(m.shape[:2]) for m in mids]
+    shut_at_rest = [~_opened_at_rest(m.reshape(-1, 3), L).reshape(m.shape[:2]) for m in mids]
     flat0 = X0.reshape(-1, 3)
     need = [np.zeros(K - 1), np.zeros(J - 1)]
     known = nearest >= 0
@@ -337,14 +356,13 @@ def interval_turns(model, rows, cols, W, floor=0.0):
     rest_diagonals = [[p.astype(np.float32) for p in d] for d in _diagonals(planes0)]
     floor_cos = np.cos(np.radians(floor)) + 1e-9
 
-    def measure_single(grids, screen, at_landmarks_moved, poses):
-        """The poses of one key each, ``(grid, key, pose, block)``: screened together, their candidates measured
-        as :func:`_edges_over` measures a block (the same numbers)."""
-        j = np.array([g for g, _, _, _ in poses])
-        w = W[[p for _, _, p, _ in poses], [k for _, k, _, _ in poses]]
+    def measure_screened(G, w, blocks, vertex, moved_landmarks):
+        """Poses ``rest + w[p] G[p]`` (``G`` float32 (poses, 3, n_u, n_v)), each on its block: screened together,
+        their candidates measured as :func:`_edges_over` measures a block, from ``vertex(pose, rows, cols)``: the
+        posed grid's three coordinates in float64, as its block is posed (the same numbers)."""
         R0, R1, C0, C1 = (np.array(a) for a in zip(*[(b[0].start, min(b[0].stop, n_u), b[1].start, min(b[1].stop, n_v))
-                                                    for _, _, _, b in poses]))
-        edges = [[] for _ in poses]
+                                                    for b in blocks]))
+        edges = [[] for _ in blocks]
         # an edge is looked at past the floor and past the need of one of its intervals (the others cannot raise
         # one), shut at rest; the screen passes those a margin under that
         looked_cos = []
@@ -353,17 +371,12 @@ def interval_turns(model, rows, cols, W, floor=0.0):
             cos = np.cos(np.radians(np.maximum(lower - SCREEN_MARGIN_DEG, 0.0))).astype(np.float32)
             looked_cos.append(np.where(shut_at_rest[axis], cos[:, None] if axis == 0 else cos[None, :],
                                        np.float32(-2.0)))
-        G = screen[j[0]:j[-1] + 1] if (np.diff(j) == 1).all() else screen[j]
         for axis, mask in enumerate(_screened(rest_diagonals, G, w, looked_cos)):
             q, r, c = np.nonzero(mask)
             # the edge and both its quads in the pose's block (as _edges_over's block slices give them)
             inside = (r >= R0[q]) & (r <= R1[q] - 3 + axis) & (c >= C0[q]) & (c <= C1[q] - 2 - axis)
             q, r, c = q[inside], r[inside], c[inside]
-            wq, gq = w[q], j[q]
-
-            def vertex(dr, dc, q=q, r=r, c=c, wq=wq, gq=gq):
-                return [wq * grids[gq, i, r + dr, c + dc] + planes0[i, r + dr, c + dc] for i in range(3)]
-            cos = _edge_cosines(vertex, axis, r, c)
+            cos = _edge_cosines(lambda dr, dc, q=q, r=r, c=c: vertex(q, r + dr, c + dc), axis)
             looked = cos < floor_cos
             t = degrees_from_cos(cos[looked])
             over = t > floor
@@ -371,19 +384,20 @@ def interval_turns(model, rows, cols, W, floor=0.0):
             first = (r, c)[axis]
             before, after = interval[axis][first], interval[axis][first + 1]
             keep = (t > need[axis][before]) | (t > need[axis][after])
-            q, r, c, wq, gq = q[keep], r[keep], c[keep], w[q[keep]], j[q[keep]]
-            ends = ((1, 0), (1, 1)) if axis == 0 else ((0, 1), (1, 1))
-            a, b = (vertex(*e, q=q, r=r, c=c, wq=wq, gq=gq) for e in ends)
+            q, r, c, before, after, t = q[keep], r[keep], c[keep], before[keep], after[keep], t[keep]
+            # the edge's ends: across rows (r + 1, c) and (r + 1, c + 1), across columns (r, c + 1) and (r + 1, c + 1)
+            a, b = (vertex(q, r + dr, c + dc) for dr, dc in (((1, 0), (1, 1)) if axis == 0 else ((0, 1), (1, 1))))
             mid = np.stack([0.5 * (x + y) for x, y in zip(a, b)], axis=1)
-            for i in range(len(poses)):
+            for i in range(len(blocks)):
                 at = q == i
-                edges[i].append((before[keep][at], after[keep][at], t[keep][at], mid[at]))
-        for (g, _, _, _), wi, e in zip(poses, w, edges):
+                edges[i].append((before[at], after[at], t[at], mid[at]))
+        for moved, e in zip(moved_landmarks, edges):
             if sum(len(x[2]) for x in e):
-                found.append((wi * at_landmarks_moved[g].T, e))
+                found.append((moved, e))
             if len(found) == SETTLE_POSES:
                 settle()
 
+    kept32 = {}
     for first, grids in key_grids(model, rows, cols, planes=True):  # (m, 3, n_u, n_v): each key's planes
         m = len(grids)
         size = np.abs(grids)  # the largest per row and per column
@@ -391,24 +405,33 @@ def interval_turns(model, rows, cols, W, floor=0.0):
         cols_moved[first:first + m] = size.max(axis=2).max(axis=1) > MOVED_MM
         del size
         at_landmarks_moved = grids.reshape(m, 3, n_u * n_v)[:, :, at_landmarks]
-        poses = []
+        screen = grids.astype(np.float32)
+        poses = []  # (its key's grid, key, pose, block)
         for j, k in enumerate(range(first, first + m)):
             if k in kept:
-                kept[k] = grids[j].copy()
+                kept[k], kept32[k] = grids[j].copy(), screen[j].copy()
             block = _moved_block(rows_moved[k], cols_moved[k])
             poses += [(j, k, p, block) for p in single.get(k, ())] if block is not None else []
-        screen = grids.astype(np.float32) if poses else None
-        for start in range(0, len(poses), SCREEN_POSES):
-            measure_single(grids, screen, at_landmarks_moved, poses[start:start + SCREEN_POSES])
+        for part in (poses[i:i + SCREEN_POSES] for i in range(0, len(poses), SCREEN_POSES)):
+            j = np.array([g for g, _, _, _ in part])
+            w = W[[p for _, _, p, _ in part], [k for _, k, _, _ in part]]
+
+            def vertex(q, r, c, grids=grids, j=j, w=w):
+                return [w[q] * grids[j[q], i, r, c] + planes0[i, r, c] for i in range(3)]
+            measure_screened(screen[j[0]:j[-1] + 1] if (np.diff(j) == 1).all() else screen[j], w,
+                             [b for _, _, _, b in part], vertex, [wi * at_landmarks_moved[g].T for (g, _, _, _), wi
+                                                                  in zip(part, w)])
     for p in several:
         keys = np.nonzero(W[p])[0]
         block = _moved_block(rows_moved[keys].any(axis=0), cols_moved[keys].any(axis=0))
         if block is None:
             continue
-        X = planes0[(slice(None),) + block] + np.tensordot(W[p, keys], np.stack([kept[k][(slice(None),) + block]
-                                                                                  for k in keys]), axes=1)
+        G = sum(np.float32(W[p, k]) * kept32[k] for k in keys)[None]
+
+        def vertex(q, r, c, keys=keys, p=p):
+            return list(planes0[:, r, c] + np.tensordot(W[p, keys], np.stack([kept[k][:, r, c] for k in keys]), axes=1))
         moved = np.tensordot(W[p, keys], np.stack([kept[k].reshape(3, -1)[:, at_landmarks].T for k in keys]), axes=1)
-        measure(list(X), block, moved)
+        measure_screened(G, np.ones(1), [block], vertex, [moved])
     settle()
     return need
 
