@@ -65,6 +65,9 @@ SCREEN_MARGIN_DEG = 0.5
 #: A quad whose normal (the cross product of its diagonals, mm²) is shorter than this, its float32 turns
 #: unreliable: the screen passes its edges.
 SCREEN_TINY_MM2 = 1e-3
+#: A key's largest displacement in a row or column, rounded to float32, is within this share of MOVED_MM of its
+#: float64 value when near it (float32 keeps 7 digits): those nearer are taken again from float64.
+SCREEN_SLACK = 1e-5
 
 
 def _checked(steps, what):
@@ -400,12 +403,18 @@ def interval_turns(model, rows, cols, W, floor=0.0):
     kept32 = {}
     for first, grids in key_grids(model, rows, cols, planes=True):  # (m, 3, n_u, n_v): each key's planes
         m = len(grids)
-        size = np.abs(grids)  # the largest per row and per column
-        rows_moved[first:first + m] = size.max(axis=3).max(axis=1) > MOVED_MM
-        cols_moved[first:first + m] = size.max(axis=2).max(axis=1) > MOVED_MM
+        screen = grids.astype(np.float32)
+        # the largest per row and per column from float32 (half the bytes to read), again in float64 where its
+        # rounding could put it on either side of MOVED_MM
+        size = np.abs(screen)
+        for axis, moved in ((0, rows_moved), (1, cols_moved)):
+            largest = size.max(axis=3 - axis).max(axis=1)
+            unsure = np.abs(largest - np.float32(MOVED_MM)) <= SCREEN_SLACK * MOVED_MM
+            moved[first:first + m] = largest > MOVED_MM
+            for j, i in zip(*np.nonzero(unsure)):
+                moved[first + j, i] = np.abs(grids[j, :, i] if axis == 0 else grids[j, :, :, i]).max() > MOVED_MM
         del size
         at_landmarks_moved = grids.reshape(m, 3, n_u * n_v)[:, :, at_landmarks]
-        screen = grids.astype(np.float32)
         poses = []  # (its key's grid, key, pose, block)
         for j, k in enumerate(range(first, first + m)):
             if k in kept:
