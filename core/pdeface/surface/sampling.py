@@ -379,18 +379,24 @@ def interval_turns(model, rows, cols, W, floor=0.0):
             # the edge and both its quads in the pose's block (as _edges_over's block slices give them)
             inside = (r >= R0[q]) & (r <= R1[q] - 3 + axis) & (c >= C0[q]) & (c <= C1[q] - 2 - axis)
             q, r, c = q[inside], r[inside], c[inside]
-            cos = _edge_cosines(lambda dr, dc, q=q, r=r, c=c: vertex(q, r + dr, c + dc), axis)
+            # the posed corners of both quads, read at once: rows r .. r + 2 (across rows) or columns c .. c + 2
+            corners = [(dr, dc) for dr in range(3 - axis) for dc in range(2 + axis)]
+            posed = vertex(np.tile(q, len(corners)), np.concatenate([r + dr for dr, _ in corners]),
+                           np.concatenate([c + dc for _, dc in corners]))
+            corner = dict(zip(corners, zip(*(np.split(p, len(corners)) for p in posed))))
+            cos = _edge_cosines(lambda dr, dc, corner=corner: corner[dr, dc], axis)
             looked = cos < floor_cos
             t = degrees_from_cos(cos[looked])
             over = t > floor
-            q, r, c, t = q[looked][over], r[looked][over], c[looked][over], t[over]
+            chosen, t = np.nonzero(looked)[0][over], t[over]
+            q, r, c = q[chosen], r[chosen], c[chosen]
             first = (r, c)[axis]
             before, after = interval[axis][first], interval[axis][first + 1]
             keep = (t > need[axis][before]) | (t > need[axis][after])
-            q, r, c, before, after, t = q[keep], r[keep], c[keep], before[keep], after[keep], t[keep]
+            q, before, after, t, chosen = q[keep], before[keep], after[keep], t[keep], chosen[keep]
             # the edge's ends: across rows (r + 1, c) and (r + 1, c + 1), across columns (r, c + 1) and (r + 1, c + 1)
-            a, b = (vertex(q, r + dr, c + dc) for dr, dc in (((1, 0), (1, 1)) if axis == 0 else ((0, 1), (1, 1))))
-            mid = np.stack([0.5 * (x + y) for x, y in zip(a, b)], axis=1)
+            a, b = (corner[e] for e in (((1, 0), (1, 1)) if axis == 0 else ((0, 1), (1, 1))))
+            mid = np.stack([0.5 * (x[chosen] + y[chosen]) for x, y in zip(a, b)], axis=1)
             for i in range(len(blocks)):
                 at = q == i
                 edges[i].append((before[at], after[at], t[at], mid[at]))
