@@ -55,12 +55,13 @@ MOVED_MM = 0.005
 SETTLE_POSES = 16
 #: Largest explicit steps per interval.
 MAX_STEPS = 64
-#: Poses of one key whose turns are screened in one array operation (over the whole grid, in float32): a few
-#: arrays of this many grids at a time.
+#: Poses of one key whose turns are screened in one array operation (over the whole grid, in float32): the
+#: screen's arrays hold this many grids.
 SCREEN_POSES = 8
-#: The float32 screen passes every edge within this many degrees of the floor; each it passes is measured again
-#: in float64, as :func:`quad_turn_cosines` measures it. Its turns differ from float64's by under 0.01° on quads
-#: larger than :data:`SCREEN_TINY_MM2` (float32 keeps 7 digits of the diagonals, their normals' cross product 6).
+#: The float32 screen passes every edge within this many degrees of the turn it must pass; each it passes is
+#: measured again in float64, as :func:`quad_turn_cosines` measures it. Float32 keeps 7 digits of the quads'
+#: diagonals (the rest's and the key's apart), so its turns are within thousandths of a degree on quads larger than
+#: :data:`SCREEN_TINY_MM2`; it passes 1.02-1.2x the edges float64 puts past a floor (tests/core/test_sampling.py).
 SCREEN_MARGIN_DEG = 0.5
 #: A quad whose normal (the cross product of its diagonals, mm²) is shorter than this, its float32 turns
 #: unreliable: the screen passes its edges.
@@ -303,7 +304,9 @@ def interval_turns(model, rows, cols, W, floor=0.0):
     :func:`pdeface.surface.folds.fold_edges` allows: the landmark polygons at rest, where the pose carries
     them, and the edges that lie in them at rest. A pose turns edges as the rest does where it does not move
     the skin: only its moved block is measured. A pose of one key is measured as its key's batch is solved;
-    only the keys of poses of several are kept.
+    only the keys of poses of several are kept. The poses' edges are screened in float32, a few poses in one array
+    operation over the whole grid, for those that could raise a need (:data:`SCREEN_MARGIN_DEG`); only those are
+    measured in float64, with :func:`quad_turn_cosines`' products: the same turns as measuring each block.
     """
     planes0 = surface_grid(model, rows, cols, planes=True)
     X0 = np.ascontiguousarray(np.moveaxis(planes0, 0, 2))
@@ -413,12 +416,12 @@ def interval_turns(model, rows, cols, W, floor=0.0):
         # the largest per row and per column from float32 (half the bytes to read), again in float64 where its
         # rounding could put it on either side of MOVED_MM
         size = np.abs(screen)
-        for axis, moved in ((0, rows_moved), (1, cols_moved)):
+        for axis, moved_lines in ((0, rows_moved), (1, cols_moved)):
             largest = size.max(axis=3 - axis).max(axis=1)
             unsure = np.abs(largest - np.float32(MOVED_MM)) <= SCREEN_SLACK * MOVED_MM
-            moved[first:first + m] = largest > MOVED_MM
+            moved_lines[first:first + m] = largest > MOVED_MM
             for j, i in zip(*np.nonzero(unsure)):
-                moved[first + j, i] = np.abs(grids[j, :, i] if axis == 0 else grids[j, :, :, i]).max() > MOVED_MM
+                moved_lines[first + j, i] = np.abs(grids[j, :, i] if axis == 0 else grids[j, :, :, i]).max() > MOVED_MM
         del size
         at_landmarks_moved = grids.reshape(m, 3, n_u * n_v)[:, :, at_landmarks]
         poses = []  # (its key's grid, key, pose, block)
