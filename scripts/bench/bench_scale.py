@@ -1,6 +1,11 @@
 """Fit and resolution-choice time across mesh sizes, and peak memory (issue #35 targets).
 
 Usage: python -m scripts.bench.bench_scale [--repeat 3] [--no-rig] [--demo-render]
+       python -m scripts.bench.bench_scale --steps STEPS.json --no-page
+
+``--steps``: only the resolution choice's steps on 11 faces (the bundled face, faces fitted on ICT's generic head
+and identities 000, 007 and 013, and on six MakeHuman characters), with its CPU seconds: written to the file, or,
+where it exists, compared with it (run it on main first: a faster choice must choose the same steps).
 
 Prints, measured in this run (CPU seconds of this process, the figure a busy machine does not
 distort, and wall seconds beside them):
@@ -221,6 +226,58 @@ def resolution_times(heads, L, fit_cpu, repeat):
           f"{cpu_u / cpu_h:.1f}x")
 
 
+#: MakeHuman development-set characters whose faces' steps ``--steps`` compares (the two timed, and four more).
+STEPS_CHARACTERS = CHARACTERS + ("caucasian-female-young-cm", "asian-male-young-blender-m", "stylised-nose-mouth-cm",
+                                 "decimated-cm")
+
+
+def steps_check(path, repeat):
+    """The resolution choice's steps on 11 faces, and its CPU seconds on each: written to ``path``, or compared
+    with the steps there."""
+    from pdeface.assets import load_head, load_head_shapes
+    from pdeface.au.modelfile import load_face
+    from pdeface.au.retarget import retarget
+    from pdeface.surface import pde, sampling
+    from pdeface.surface.fit import fit_face
+
+    from scripts.devset.characters import SPECS, build
+
+    source = load_face("default")
+    head, idx = load_head()
+    T, _ = head.triangles()
+    shapes = load_head_shapes()
+    faces = {"bundled": source}
+    for name, V in (("ICT generic", head.vertices), *((f"ICT identity{i:03d}", head.vertices + shapes[f"identity{i:03d}"])
+                                                        for i in (0, 7, 13))):
+        faces[name] = retarget(source, fit_face(V, T, V[idx])[0])
+    for name in STEPS_CHARACTERS:
+        ch = build(SPECS[name])
+        faces[name] = retarget(source, fit_face(*ch.joined(), ch.landmarks)[0])
+
+    def choose(m):
+        sampling._CHOSEN.clear()
+        for cache in (pde.surface_operator, pde.confined_operator, pde.merged_operator, pde.mode_operator,
+                      pde._smooth_coefficients):
+            cache.cache_clear()
+        return [list(s) for s in sampling.adaptive_resolution(m)]
+
+    before = json.loads(Path(path).read_text()) if Path(path).exists() else None
+    chosen, total, changed = {}, 0.0, []
+    for name, m in faces.items():
+        cpu, wall, chosen[name] = timed(lambda m=m: choose(m), repeat)
+        total += cpu
+        n = (sum(chosen[name][0]) + 1) * (sum(chosen[name][1]) + 1)
+        same = "" if before is None else ("the same steps" if before.get(name) == chosen[name] else "OTHER STEPS")
+        changed += [name] if same == "OTHER STEPS" else []
+        print(f"  {name:28s} {n:6d} vertices chosen: {cpu:.2f} s CPU ({wall:.2f} wall) {same}")
+    if before is None:
+        Path(path).write_text(json.dumps(chosen))
+        print(f"resolution choice on {len(faces)} faces: {total:.2f} s CPU; steps written to {path}")
+    else:
+        print(f"resolution choice on {len(faces)} faces: {total:.2f} s CPU; steps against {path}: "
+              f"{'all the same' if not changed else 'OTHER on ' + ', '.join(changed)}")
+
+
 def child_peak_mb(argv, env=None):
     """Peak RSS (MB) of the whole process tree a child running ``argv`` starts, its processes' RSS summed (polled
     every 20 ms: a fork inherits its parent's ``ru_maxrss``, so the children's own figure would be this
@@ -327,12 +384,18 @@ def main(argv=None):
     ap.add_argument("--no-rig", action="store_true", help="leave out the bpy rig's memory")
     ap.add_argument("--no-memory", action="store_true", help="leave out the peak-memory figures")
     ap.add_argument("--demo-render", action="store_true", help="measure the whole demo, render included (minutes)")
+    ap.add_argument("--steps", metavar="JSON", help="only the resolution choice's steps on 11 faces: written to "
+                    "JSON, or compared with it where it exists")
     ap.add_argument("--rig-child", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.rig_child:
         return rig_child()
     print(f"threads: OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS', 'unset')}; "
           f"load average at the start {os.getloadavg()[0]:.2f}")
+    if args.steps:
+        steps_check(args.steps, args.repeat)
+        print(f"load average at the end {os.getloadavg()[0]:.2f}")
+        return
     heads, L, fit_cpu = fit_times(args.repeat)
     resolution_times(heads, L, fit_cpu, args.repeat)
     if not args.no_memory:

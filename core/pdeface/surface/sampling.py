@@ -24,7 +24,7 @@ from ..errors import MeshError
 from ..geometry import degrees_from_cos
 from ..presets import every_pose
 from ..threads import bounded
-from .folds import carried, nearest_vertices, opening_mask
+from .folds import GROW, OPENINGS, carried, nearest_vertices, opening_mask
 from .grid import key_grids, surface_grid
 from .model import model_landmarks
 
@@ -55,6 +55,20 @@ MOVED_MM = 0.005
 SETTLE_POSES = 16
 #: Largest explicit steps per interval.
 MAX_STEPS = 64
+#: Poses of one key whose turns are screened in one array operation (over the whole grid, in float32): the
+#: screen's arrays hold this many grids.
+SCREEN_POSES = 8
+#: The float32 screen passes every edge within this many degrees of the turn it must pass; each it passes is
+#: measured again in float64, as :func:`quad_turn_cosines` measures it. Float32 keeps 7 digits of the quads'
+#: diagonals (the rest's and the key's apart), so its turns are within thousandths of a degree on quads larger than
+#: :data:`SCREEN_TINY_MM2`; it passes 1.02-1.2x the edges float64 puts past a floor (tests/core/test_sampling.py).
+SCREEN_MARGIN_DEG = 0.5
+#: A quad whose normal (the cross product of its diagonals, mm²) is shorter than this, its float32 turns
+#: unreliable: the screen passes its edges.
+SCREEN_TINY_MM2 = 1e-3
+#: A key's largest displacement in a row or column, rounded to float32, is within this share of MOVED_MM of its
+#: float64 value when near it (float32 keeps 7 digits): those nearer are taken again from float64.
+SCREEN_SLACK = 1e-5
 
 
 def _checked(steps, what):
@@ -217,6 +231,70 @@ def _edges_over(X, block, shut_at_rest, interval, need, floor):
     return edges
 
 
+def _diagonals(planes):
+    """A grid's quad diagonals ``(d1, d2)``, each as three coordinate planes: :func:`quad_turn_cosines`' own."""
+    return ([p[..., 1:, 1:] - p[..., :-1, :-1] for p in planes], [p[..., :-1, 1:] - p[..., 1:, :-1] for p in planes])
+
+
+def _screened(rest_diagonals, G, w, looked_cos):
+    """Which inner edges of each pose ``rest + w[p] G[p]`` may turn past ``looked_cos`` (the cosine each edge must
+    fall under to be looked at; -2 where none is): ``(across rows, across columns)`` masks (poses, ...) as
+    :func:`quad_turn_cosines` shapes them, a few more than do.
+
+    ``rest_diagonals``: :func:`_diagonals` of the rest grid in float32; ``G`` (poses, 3, n_u, n_v) float32 key
+    grids. Each pose's diagonals are the rest's plus its keys': float32 then keeps their own digits, not the
+    coordinates'. A quad under :data:`SCREEN_TINY_MM2` counts as turning by 90°.
+    """
+    scale = None if (w == 1).all() else w.astype(np.float32)[:, None, None]
+    d1, d2 = ([r + (k if scale is None else scale * k) for r, k in zip(rest, key)]
+              for rest, key in zip(rest_diagonals, _diagonals(list(np.moveaxis(G, 1, 0)))))
+    N = [d2[1] * d1[2] - d2[2] * d1[1], d2[2] * d1[0] - d2[0] * d1[2], d2[0] * d1[1] - d2[1] * d1[0]]
+    square = N[0] * N[0] + N[1] * N[1] + N[2] * N[2]
+    tiny = square < np.float32(SCREEN_TINY_MM2 ** 2)
+    square[tiny] = 1.0
+    inverse = 1.0 / np.sqrt(square)
+    inverse[tiny] = 0.0  # its normal 0: a cosine of 0 with either neighbour
+    N = [c * inverse for c in N]
+    return ((N[0][:, :-1] * N[0][:, 1:] + N[1][:, :-1] * N[1][:, 1:] + N[2][:, :-1] * N[2][:, 1:]) < looked_cos[0],
+            (N[0][:, :, :-1] * N[0][:, :, 1:] + N[1][:, :, :-1] * N[1][:, :, 1:] + N[2][:, :, :-1] * N[2][:, :, 1:])
+            < looked_cos[1])
+
+
+def _edge_cosines(vertex, axis):
+    """:func:`quad_turn_cosines` of some edges (r, c) across rows (``axis`` 0) or columns (1), the same products
+    in the same order (so the same numbers): ``vertex(dr, dc)`` gives the posed grid's three coordinates at
+    (r + dr, c + dc) of each."""
+    def normal(dr, dc):  # the quad (r + dr, c + dc)'s unit normal
+        a, b = vertex(dr + 1, dc + 1), vertex(dr, dc)
+        e, f = vertex(dr, dc + 1), vertex(dr + 1, dc)
+        d1, d2 = [p - q for p, q in zip(a, b)], [p - q for p, q in zip(e, f)]
+        N = [d2[1] * d1[2] - d2[2] * d1[1], d2[2] * d1[0] - d2[0] * d1[2], d2[0] * d1[1] - d2[1] * d1[0]]
+        length = np.sqrt(N[0] ** 2 + N[1] ** 2 + N[2] ** 2)
+        length[length == 0] = 1.0
+        return [x / length for x in N]
+    before, after = normal(0, 0), normal(1, 0) if axis == 0 else normal(0, 1)
+    return sum(x * y for x, y in zip(before, after))
+
+
+def _opened_at_rest(points, L):
+    """:func:`~pdeface.surface.folds.opening_mask` of many points (n, 3): tested only where an opening's grown
+    polygon can reach (a millimetre beyond its box), the rest outside (one pass over them, not one per opening)."""
+    boxes = []
+    for idx in OPENINGS.values():
+        poly = L[idx, :2][np.isfinite(L[idx, :2]).all(axis=1)]
+        if len(poly) >= 3:
+            centre = poly.mean(axis=0)
+            boxes.append((centre + (1 + GROW) * (poly.min(axis=0) - centre) - 1.0,
+                          centre + (1 + GROW) * (poly.max(axis=0) - centre) + 1.0))
+    mask = np.zeros(len(points), bool)
+    if boxes:
+        lo, hi = np.min([b[0] for b in boxes], axis=0), np.max([b[1] for b in boxes], axis=0)
+        x, y = points[:, 0], points[:, 1]
+        near = np.nonzero((x >= lo[0]) & (x <= hi[0]) & (y >= lo[1]) & (y <= hi[1]))[0]
+        mask[near] = opening_mask(points[near], L)
+    return mask
+
+
 def interval_turns(model, rows, cols, W, floor=0.0):
     """Largest turn (degrees) of the edges in each curve interval and each point interval, outside the
     openings, over the poses ``W`` (:func:`pose_weights`), on the mesh of ``rows``, ``cols`` steps.
@@ -226,7 +304,9 @@ def interval_turns(model, rows, cols, W, floor=0.0):
     :func:`pdeface.surface.folds.fold_edges` allows: the landmark polygons at rest, where the pose carries
     them, and the edges that lie in them at rest. A pose turns edges as the rest does where it does not move
     the skin: only its moved block is measured. A pose of one key is measured as its key's batch is solved;
-    only the keys of poses of several are kept.
+    only the keys of poses of several are kept. The poses' edges are screened in float32, a few poses in one array
+    operation over the whole grid, for those that could raise a need (:data:`SCREEN_MARGIN_DEG`); only those are
+    measured in float64, with :func:`quad_turn_cosines`' products: the same turns as measuring each block.
     """
     planes0 = surface_grid(model, rows, cols, planes=True)
     X0 = np.ascontiguousarray(np.moveaxis(planes0, 0, 2))
@@ -237,7 +317,7 @@ def interval_turns(model, rows, cols, W, floor=0.0):
     nearest = nearest_vertices(X0.reshape(-1, 3), L)
     # each inner edge's midpoint at rest: across rows (on row r + 1), across columns (on column c + 1)
     mids = (0.5 * (X0[1:-1, :-1] + X0[1:-1, 1:]), 0.5 * (X0[:-1, 1:-1] + X0[1:, 1:-1]))
-    shut_at_rest = [~opening_mask(m.reshape(-1, 3), L).reshape(m.shape[:2]) for m in mids]
+    shut_at_rest = [~_opened_at_rest(m.reshape(-1, 3), L).reshape(m.shape[:2]) for m in mids]
     flat0 = X0.reshape(-1, 3)
     need = [np.zeros(K - 1), np.zeros(J - 1)]
     known = nearest >= 0
@@ -279,29 +359,97 @@ def interval_turns(model, rows, cols, W, floor=0.0):
     kept = {int(k): None for k in np.nonzero(W[several].any(axis=0))[0]}  # key → its grid, for poses of several
     n = W.shape[1]
     rows_moved, cols_moved = np.zeros((n, n_u), bool), np.zeros((n, n_v), bool)
+    rest_diagonals = [[p.astype(np.float32) for p in d] for d in _diagonals(planes0)]
+    floor_cos = np.cos(np.radians(floor)) + 1e-9
+
+    def measure_screened(G, w, blocks, vertex, moved_landmarks):
+        """Poses ``rest + w[p] G[p]`` (``G`` float32 (poses, 3, n_u, n_v)), each on its block: screened together,
+        their candidates measured as :func:`_edges_over` measures a block, from ``vertex(pose, rows, cols)``: the
+        posed grid's three coordinates in float64, as its block is posed (the same numbers)."""
+        R0, R1, C0, C1 = (np.array(a) for a in zip(*[(b[0].start, min(b[0].stop, n_u), b[1].start, min(b[1].stop, n_v))
+                                                    for b in blocks]))
+        edges = [[] for _ in blocks]
+        # an edge is looked at past the floor and past the need of one of its intervals (the others cannot raise
+        # one), shut at rest; the screen passes those a margin under that
+        looked_cos = []
+        for axis in (0, 1):
+            lower = np.maximum(floor, np.minimum(need[axis][interval[axis][:-1]], need[axis][interval[axis][1:]]))
+            cos = np.cos(np.radians(np.maximum(lower - SCREEN_MARGIN_DEG, 0.0))).astype(np.float32)
+            looked_cos.append(np.where(shut_at_rest[axis], cos[:, None] if axis == 0 else cos[None, :],
+                                       np.float32(-2.0)))
+        for axis, mask in enumerate(_screened(rest_diagonals, G, w, looked_cos)):
+            q, r, c = np.nonzero(mask)
+            # the edge and both its quads in the pose's block (as _edges_over's block slices give them)
+            inside = (r >= R0[q]) & (r <= R1[q] - 3 + axis) & (c >= C0[q]) & (c <= C1[q] - 2 - axis)
+            q, r, c = q[inside], r[inside], c[inside]
+            # the posed corners of both quads, read at once: rows r .. r + 2 (across rows) or columns c .. c + 2
+            corners = [(dr, dc) for dr in range(3 - axis) for dc in range(2 + axis)]
+            posed = vertex(np.tile(q, len(corners)), np.concatenate([r + dr for dr, _ in corners]),
+                           np.concatenate([c + dc for _, dc in corners]))
+            corner = dict(zip(corners, zip(*(np.split(p, len(corners)) for p in posed))))
+            cos = _edge_cosines(lambda dr, dc, corner=corner: corner[dr, dc], axis)
+            looked = cos < floor_cos
+            t = degrees_from_cos(cos[looked])
+            over = t > floor
+            chosen, t = np.nonzero(looked)[0][over], t[over]
+            q, r, c = q[chosen], r[chosen], c[chosen]
+            first = (r, c)[axis]
+            before, after = interval[axis][first], interval[axis][first + 1]
+            keep = (t > need[axis][before]) | (t > need[axis][after])
+            q, before, after, t, chosen = q[keep], before[keep], after[keep], t[keep], chosen[keep]
+            # the edge's ends: across rows (r + 1, c) and (r + 1, c + 1), across columns (r, c + 1) and (r + 1, c + 1)
+            a, b = (corner[e] for e in (((1, 0), (1, 1)) if axis == 0 else ((0, 1), (1, 1))))
+            mid = np.stack([0.5 * (x[chosen] + y[chosen]) for x, y in zip(a, b)], axis=1)
+            for i in range(len(blocks)):
+                at = q == i
+                edges[i].append((before[at], after[at], t[at], mid[at]))
+        for moved, e in zip(moved_landmarks, edges):
+            if sum(len(x[2]) for x in e):
+                found.append((moved, e))
+            if len(found) == SETTLE_POSES:
+                settle()
+
+    kept32 = {}
     for first, grids in key_grids(model, rows, cols, planes=True):  # (m, 3, n_u, n_v): each key's planes
         m = len(grids)
-        size = np.abs(grids).max(axis=3)  # the largest per row and per column
-        rows_moved[first:first + m] = size.max(axis=1) > MOVED_MM
-        cols_moved[first:first + m] = np.abs(grids).max(axis=2).max(axis=1) > MOVED_MM
+        screen = grids.astype(np.float32)
+        # the largest per row and per column from float32 (half the bytes to read), again in float64 where its
+        # rounding could put it on either side of MOVED_MM
+        size = np.abs(screen)
+        for axis, moved_lines in ((0, rows_moved), (1, cols_moved)):
+            largest = size.max(axis=3 - axis).max(axis=1)
+            unsure = np.abs(largest - np.float32(MOVED_MM)) <= SCREEN_SLACK * MOVED_MM
+            moved_lines[first:first + m] = largest > MOVED_MM
+            for j, i in zip(*np.nonzero(unsure)):
+                moved_lines[first + j, i] = np.abs(grids[j, :, i] if axis == 0 else grids[j, :, :, i]).max() > MOVED_MM
+        del size
         at_landmarks_moved = grids.reshape(m, 3, n_u * n_v)[:, :, at_landmarks]
+        poses = []  # (its key's grid, key, pose, block)
         for j, k in enumerate(range(first, first + m)):
             if k in kept:
-                kept[k] = grids[j].copy()
+                kept[k], kept32[k] = grids[j].copy(), screen[j].copy()
             block = _moved_block(rows_moved[k], cols_moved[k])
-            for p in single.get(k, ()) if block is not None else ():
-                w = W[p, k]
-                measure([w * grids[(j, i) + block] + planes0[(i,) + block] for i in range(3)], block,
-                        w * at_landmarks_moved[j].T)
+            poses += [(j, k, p, block) for p in single.get(k, ())] if block is not None else []
+        for part in (poses[i:i + SCREEN_POSES] for i in range(0, len(poses), SCREEN_POSES)):
+            j = np.array([g for g, _, _, _ in part])
+            w = W[[p for _, _, p, _ in part], [k for _, k, _, _ in part]]
+
+            def vertex(q, r, c, grids=grids, j=j, w=w):
+                return [w[q] * grids[j[q], i, r, c] + planes0[i, r, c] for i in range(3)]
+            measure_screened(screen[j[0]:j[-1] + 1] if (np.diff(j) == 1).all() else screen[j], w,
+                             [b for _, _, _, b in part], vertex, [wi * at_landmarks_moved[g].T for (g, _, _, _), wi
+                                                                  in zip(part, w)])
     for p in several:
         keys = np.nonzero(W[p])[0]
         block = _moved_block(rows_moved[keys].any(axis=0), cols_moved[keys].any(axis=0))
         if block is None:
             continue
-        X = planes0[(slice(None),) + block] + np.tensordot(W[p, keys], np.stack([kept[k][(slice(None),) + block]
-                                                                                  for k in keys]), axes=1)
+        G = sum(np.float32(W[p, k]) * kept32[k] for k in keys)[None]
+
+        def vertex(q, r, c, keys=keys, p=p):
+            return list(planes0[:, r, c] + np.tensordot(W[p, keys], np.stack([kept[k][:, r, c] for k in keys]), axes=1))
         moved = np.tensordot(W[p, keys], np.stack([kept[k].reshape(3, -1)[:, at_landmarks].T for k in keys]), axes=1)
-        measure(list(X), block, moved)
+        measure_screened(G, np.ones(1), [block], vertex, [moved])
     settle()
     return need
 
