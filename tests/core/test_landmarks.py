@@ -654,3 +654,23 @@ def test_brows_come_from_ict_brow_region_laid_onto_the_skin(heads, name):
     assert before.min() > 0.06 and after.max() < 0.015, (before, after)
     others = np.setdiff1d(np.arange(68), rows)
     assert np.array_equal(back[others], moved[others])  # only the brows move
+
+
+@pytest.mark.parametrize("name", ["identity015", "identity019"])
+def test_nasion_and_inner_brows_come_from_the_midline_strip_laid_onto_the_skin(heads, name):
+    # The brow region slides up and down the forehead: on MakeHuman's low-nasion characters it leaves the nasion and
+    # the inner brows 0.05-0.10 eye distances too high. ICT's midline strip between the eyes, curved along the
+    # profile, does not slide: the nasion and inner brows moved 0.06 eye distances up the skin (and the nasion with
+    # them, so the strip's starting pose is off too) come back to the identity's own; nothing else moves.
+    from pdeface.landmarks.brows import STRIP_PLACES, nasion_and_inner_brows_from_strip
+
+    mesh, T, lm, shapes = heads
+    V = mesh.vertices + shapes[name]
+    L = V[lm]
+    rows = list(STRIP_PLACES)
+    moved, _, eyes = _moved_on_skin(V, T, L, rows, 1, 0.06)
+    back = nasion_and_inner_brows_from_strip(V, T, moved)
+    before, after = (np.linalg.norm(P[rows] - L[rows], axis=1) / eyes for P in (moved, back))
+    assert before.min() > 0.045 and after.max() < 0.015, (before, after)
+    others = np.setdiff1d(np.arange(68), rows)
+    assert np.array_equal(back[others], moved[others])  # only the nasion and the inner brows move

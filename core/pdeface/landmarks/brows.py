@@ -9,6 +9,13 @@ points, from the pose the found eyes and nose bridge give it (they stay in the f
 face), at the scale they give; ICT's brow landmarks carried along and taken to the nearest skin point are the
 brows. On the development set the brows' median error falls from 8.2 to 6.4 % of the eye distance (outer brows
 8.3 to 5.5 %); on ICT's held-out heads they lie 0.2-0.6 mm from ICT's own, as the map's did.
+
+That region is a wide, gently curved sheet: it slides up and down the forehead with little to hold it, and on the
+characters whose nasion lies low (0.04-0.06 eye distances below the eye centres) it carries ICT's arched inner
+brows 0.05-0.10 too high. The midline between the eyes is curved along the profile (the glabella above, the nasal
+root's saddle below), which fixes its height: ICT's strip there (:data:`STRIP`) registered on its own, held by the
+inner eye corners, places the nasion (27) and the inner brows it covers (21, 22; 20 and 23 lie 0.4 out, beyond it):
+:func:`nasion_and_inner_brows_from_strip`.
 """
 from __future__ import annotations
 
@@ -31,12 +38,21 @@ ANCHORS = (*range(36, 48), 27, 28)
 BROWS = range(17, 27)
 #: At most this many of the region's vertices take part (evenly spread by their numbering).
 MAX_POINTS = 600
+#: The midline strip between the eyes on ICT's generic head: heights from the eye centres (from the nasal root, above
+#: the dorsum's hump, up the glabella) and half its width (inside the inner eye corners, 0.3 out: off the orbits),
+#: eye distances. On the development set the inner brows' height errors spread 0.055-0.06 eye distances (p90-p10)
+#: for half-widths 0.15-0.25, lower edges 0.30-0.40 below and upper 0.50-0.60 above the eyes, against the brow
+#: region's 0.14; a strip down to 0.5 below takes in the dorsum and fails (0.11).
+STRIP, STRIP_HALF_WIDTH = (-0.35, 0.55), 0.2
+#: What the strip places, and the found landmarks that hold it (the inner eye corners: its roll about the profile).
+STRIP_PLACES, STRIP_ANCHORS = (27, 21, 22), (39, 42)
 
 
-@lru_cache(maxsize=1)
-def _ict_brow_region() -> tuple[np.ndarray, np.ndarray]:
-    """ICT's generic head: its brow region's skin vertices (:data:`BAND`; not the eyeballs, lashes or sockets
-    behind, separate parts) and its 68 landmarks."""
+@lru_cache(maxsize=2)
+def _ict_skin_region(band=BAND, half_width=HALF_WIDTH) -> tuple[np.ndarray, np.ndarray]:
+    """ICT's generic head: the skin vertices (not the eyeballs, lashes or sockets behind, separate parts) from
+    ``band`` (heights above the eye centres) and ``half_width`` to each side, in front of :data:`DEPTH` behind the
+    eye centres (eye distances; at most :data:`MAX_POINTS`), and its 68 landmarks."""
     mesh, landmarks = load_head()
     V, T = mesh.vertices, mesh.triangles()[0]
     L = V[landmarks]
@@ -47,10 +63,15 @@ def _ict_brow_region() -> tuple[np.ndarray, np.ndarray]:
     region = np.zeros(len(V), bool)
     region[np.unique(T)] = True
     region &= np.isin(labels, labels[landmarks])
-    region &= ((np.abs(F[:, 0]) < HALF_WIDTH) & (F[:, 1] > eyes[1] + BAND[0]) & (F[:, 1] < eyes[1] + BAND[1])
+    region &= ((np.abs(F[:, 0]) < half_width) & (F[:, 1] > eyes[1] + band[0]) & (F[:, 1] < eyes[1] + band[1])
                & (F[:, 2] > eyes[2] - DEPTH))
     P = V[region]
     return P[:: max(1, len(P) // MAX_POINTS)], L
+
+
+def _ict_brow_region() -> tuple[np.ndarray, np.ndarray]:
+    """ICT's generic head: its brow region's skin vertices (:data:`BAND`, :data:`HALF_WIDTH`) and its 68 landmarks."""
+    return _ict_skin_region(BAND, HALF_WIDTH)
 
 
 def brows_from_template(V, T, points, closest: ClosestPoint | None = None) -> np.ndarray:
@@ -73,4 +94,28 @@ def brows_from_template(V, T, points, closest: ClosestPoint | None = None) -> np
     s, R, t = similarity(L[anchors], out[anchors])
     R, t = settle_on_skin(closest, region, L[anchors], out[anchors], (s, R, t), eye_distance(out))
     out[list(BROWS)] = closest.query(s * L[list(BROWS)] @ R.T + t)[3]
+    return out
+
+
+def nasion_and_inner_brows_from_strip(V, T, points, closest: ClosestPoint | None = None) -> np.ndarray:
+    """``points (68, 3)`` with the nasion (27) and the inner brows (21, 22) where ICT's midline strip between the eyes
+    (:data:`STRIP`), registered rigidly onto the skin ``(V, T)`` and held by the inner eye corners, carries ICT's
+    (see the module's docstring).
+
+    Parameters
+    ----------
+    V, T : arrays
+        The mesh and the skin's triangles.
+    points : (68, 3) array
+        Landmarks on the skin, the mesh's space (the eyes and the nose bridge's top pose the strip).
+    closest : ClosestPoint, optional
+        On ``(V, T)``, when already built.
+    """
+    out = np.array(points, np.float64)
+    strip, L = _ict_skin_region(STRIP, STRIP_HALF_WIDTH)
+    closest = ClosestPoint(V, T) if closest is None else closest
+    anchors, held = list(ANCHORS), list(STRIP_ANCHORS)
+    s, R, t = similarity(L[anchors], out[anchors])
+    R, t = settle_on_skin(closest, strip, L[held], out[held], (s, R, t), eye_distance(out))
+    out[list(STRIP_PLACES)] = closest.query(s * L[list(STRIP_PLACES)] @ R.T + t)[3]
     return out
