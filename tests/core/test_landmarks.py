@@ -661,7 +661,7 @@ def test_the_nasion_comes_from_the_midline_strip_laid_onto_the_skin(heads, name)
     # The face mesh puts the nasion at the eye centres' height, as on ICT's heads; on MakeHuman's low-nasion
     # characters it lies 0.07-0.09 eye distances too high. ICT's midline strip between the eyes, curved along the
     # profile, does not slide: a nasion moved 0.06 eye distances up or down the skin (so the strip's starting pose
-    # is off too) comes back to the identity's own; nothing else moves.
+    # is off too) comes back to the identity's own; nothing else moves. The identity's own nasion stays, bit for bit.
     from pdeface.landmarks.brows import nasion_from_midline_strip
 
     mesh, T, lm, shapes = heads
@@ -674,3 +674,4 @@ def test_the_nasion_comes_from_the_midline_strip_laid_onto_the_skin(heads, name)
         assert before > 0.04 and after < 0.015, (shift, before, after)
         others = np.setdiff1d(np.arange(68), [27])
         assert np.array_equal(back[others], moved[others])  # only the nasion moves
+    assert np.array_equal(nasion_from_midline_strip(V, T, L), L)
