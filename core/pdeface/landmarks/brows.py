@@ -14,10 +14,10 @@ The nasion (27) is found at the eye centres' height, as on ICT, where on the dev
 nasion lies low (0.04-0.06 eye distances below the eye centres) it lies 0.07-0.09 too high. The midline between the
 eyes is curved along the profile (the glabella above, the nasal root's saddle below), which fixes its height where
 the brow region, a wide gently curved sheet, slides: ICT's strip there (:data:`STRIP`) registered on its own, held by
-the inner eye corners, places the nasion (:func:`nasion_from_midline_strip`; the nose's bridge, 28 and 29, follows
-it in :mod:`.nose`). It places the inner brows (21, 22) better too on the development set, but not on a held-out
-decimated head whose brows then pass the gate 11.6 % off: they stay the brow region's (design note, *The midline
-strip*).
+the inner eye corners, places the nasion where the two disagree by more than on ICT's heads
+(:func:`nasion_from_midline_strip`; the nose's bridge, 28 and 29, follows it in :mod:`.nose`). It places the inner
+brows (21, 22) better too on the development set, but not on a held-out decimated head whose brows then pass the
+gate 11.6 % off: they stay the brow region's (design note, *The midline strip*).
 """
 from __future__ import annotations
 
