@@ -34,7 +34,7 @@ from ..mesh import connected_components, vertex_normals
 from ..rigid import rotation_vector_matrix
 from ..surface.frame import UNITS_MM, estimate_unit
 from ..threads import bounded
-from .brows import brows_from_template
+from .brows import brows_from_template, nasion_from_midline_strip
 from .contour import jaw_angles_from_neighbours, jaw_sides_from_template, upper_jaw_at_template_depth
 from .detector import Detector
 from .eyes import corners_on_skin_front, lids_on_margin, outer_corners_at_opening_end
@@ -395,6 +395,8 @@ def detect(V, T, unit=None, landmark_map: LandmarkMap | None = None, detector: D
         points = lids_on_margin(V, Ts, points)
         # The brows with the brow ridge (ICT's brow region laid onto the skin), not at ICT's height above the eyes.
         points = brows_from_template(V, Ts, points, closest)
+        # The nasion where ICT's midline between the eyes, laid onto the skin, puts it, not at the eye centres' height.
+        points = nasion_from_midline_strip(V, Ts, points, closest)
         # The eye corners out of the crease's back onto the skin in front (after the brows: their registration
         # holds the region by the eyes as found; with the corners moved first their p95 grows 0.6 %).
         points = corners_on_skin_front(V, Ts, points)
