@@ -53,7 +53,7 @@ import numpy as np
 from .. import landmark_scheme
 from ..errors import MeshError, PdeFaceError
 from ..facs import au_number, normalise_weights
-from ..geometry import ClosestPoint, cross3, row_norms, smoothstep, triangle_cross, unit_rows
+from ..geometry import ClosestPoint, any_corner, cross3, row_norms, smoothstep, triangle_cross, unit_rows
 from ..landmark_scheme import (
     CHIN,
     EYE_INNER_LEFT,
@@ -81,7 +81,7 @@ from .folds import FoldRelax, Screen
 from .lids import LidClosure, eyes_closed_by, eyes_or_sockets
 from .mouth import has_mouth_inside, lower_share
 from .parts import TOUCH_IOD, classify_parts, eye_films, mouth_line, read_overrides
-from .prior import load_head_prior
+from .prior import CARRIED_KINDS, load_head_prior
 
 #: The PDE face as the binding reads it: between an opening's rims the runs carry their own motion into the
 #: strip (the break piece at their full slope), so skin hidden behind a lip or lid follows its rim, while the
@@ -259,9 +259,14 @@ def _lips_joined(P, Ts, Lf, eye_distance, skin_tree) -> tuple:
         return False, False
     a, b = skin_tree.query(ends)[1]
     apart = np.linalg.norm(P[a] - P[b])
-    i, j = Ts.ravel(), np.roll(Ts, -1, axis=1).ravel()
-    graph = coo_matrix((np.linalg.norm(P[i] - P[j], axis=1), (i, j)), shape=(len(P), len(P))).tocsr()
     reach = FUSED_PATH * apart + FUSED_IOD * eye_distance
+    # A way that short stays within its length of a: the edges inside that ball alone (the same answer; the whole
+    # skin's edges' lengths cost ICT's binding 6 ms).
+    ball = np.zeros(len(P), bool)
+    ball[skin_tree.query_ball_point(P[a], reach * (1 + 1e-9))] = True
+    i, j = Ts.ravel(), np.roll(Ts, -1, axis=1).ravel()
+    i, j = i[ball[i] & ball[j]], j[ball[i] & ball[j]]
+    graph = coo_matrix((row_norms(P[i] - P[j]), (i, j)), shape=(len(P), len(P))).tocsr()
     joined = a == b or bool(np.isfinite(dijkstra(graph, directed=False, indices=a, limit=reach)[b]))
     return joined, joined and apart < LIP_LINE_IOD * eye_distance  # touching lips (ICT's) are as near, not joined
 
@@ -411,9 +416,12 @@ def _seam_smoother(P, L, covered, rest, Lf, eye_distance):
         return None
     at_corner = np.zeros(len(P))
     for i, r in SEAM_CORNERS:
-        at_corner = np.maximum(at_corner, smoothstep(1 - np.linalg.norm(P - Lf[i], axis=1) / (r * eye_distance)))
-    near = smoothstep(1 - cKDTree(P[lining]).query(P, distance_upper_bound=SEAM_IOD * eye_distance)[0]
-                      / (SEAM_IOD * eye_distance))  # inf (0) beyond the band
+        at_corner = np.maximum(at_corner, smoothstep(1 - row_norms(P - Lf[i]) / (r * eye_distance)))
+    near = np.zeros(len(P))  # read at the corners alone: elsewhere the weight is 0 whatever it is
+    corner = np.flatnonzero(at_corner > 0)
+    if len(corner):
+        near[corner] = smoothstep(1 - cKDTree(P[lining]).query(P[corner], distance_upper_bound=SEAM_IOD * eye_distance)[0]
+                                  / (SEAM_IOD * eye_distance))  # inf (0) beyond the band
     weight = at_corner * near * ~rest
     band = np.nonzero(weight > 0)[0]
     if not len(band):
@@ -525,13 +533,15 @@ class HeadBinding:
                                             mouth_strip if self.lips_one_line else (), _mouth_middle(P, Lf))
         self.covered = covered
         # every vertex's distance to the covered skin, as far as the rest region and the prior's fade read it (inf
-        # beyond). The covered skin is a sheet, most queries far from it: a tree without shrunk boxes answers
-        # 2× faster. The covered vertices themselves are at 0 (a sixth of ICT's head's queries).
-        from_covered = np.zeros(len(Vf))
-        uncovered = np.ones(len(Vf), bool)
-        uncovered[si[covered]] = False
-        from_covered[uncovered] = cKDTree(P[covered], balanced_tree=False, compact_nodes=False).query(
-            Vf[uncovered], distance_upper_bound=REST_IOD * eye_distance * (1 + 1e-9))[0]  # exact up to the edge
+        # beyond, and on the parts the prior does not carry: their fade is never read; ICT's eyeballs, teeth and gums
+        # were half the queries). The covered skin is a sheet, most queries far from it: a tree without shrunk boxes
+        # answers 2× faster. The covered vertices themselves are at 0 (a sixth of ICT's head's queries).
+        from_covered = np.full(len(Vf), np.inf)
+        from_covered[si[covered]] = 0.0
+        measured = parts.mask(*CARRIED_KINDS)
+        measured[si[covered]] = False
+        from_covered[measured] = cKDTree(P[covered], balanced_tree=False, compact_nodes=False).query(
+            Vf[measured], distance_upper_bound=REST_IOD * eye_distance * (1 + 1e-9))[0]  # exact up to the edge
         self.rest = rest = _rest_region(P, Ts, covered, from_covered[si], Lf, eye_distance)
         depths = _depths(P, covered, Lf, eye_distance, parts.eyes)
         # The folds' relaxation's Laplacian (the head but a mouth bag) holds the skin's, where no triangle joins the
@@ -543,7 +553,7 @@ class HeadBinding:
         relaxed_T = ~(parts.mask("mouth") | self.films)[T].all(axis=1)
         fold_T = T[relaxed_T]
         fold_L = cotan_laplacian(Vf, fold_T)
-        self._L = L = fold_L[si][:, si] if len(Ts) == skin[fold_T].any(axis=1).sum() else cotan_laplacian(P, Ts)
+        self._L = L = fold_L[si][:, si] if len(Ts) == any_corner(skin, fold_T).sum() else cotan_laplacian(P, Ts)
         cov = np.nonzero(covered)[0]  # the grid read at every skin vertex (rows of the covered ones)
         self._read_skin = csr_matrix((np.ones(len(cov)), (cov, np.arange(len(cov)))),
                                      shape=(len(P), len(cov))) @ self.read_grid
@@ -607,9 +617,9 @@ class HeadBinding:
             self.follow_offset = Vf[follow] - P[self.anchor]
             # The anchors' normals, read off the skin triangles around them alone (each key turns them).
             anchors, self._anchor_of = np.unique(self.anchor, return_inverse=True)
-            ring = Ts[np.isin(Ts, anchors).any(axis=1)]
             slot = np.full(len(si), -1)
             slot[anchors] = np.arange(len(anchors))
+            ring = Ts[any_corner(slot >= 0, Ts)]
             r, c = np.nonzero(slot[ring] >= 0)
             self._ring_vertices, ring_local = np.unique(si[ring], return_inverse=True)  # head indices
             self._ring = ring_local.reshape(ring.shape)
