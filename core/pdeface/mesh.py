@@ -234,7 +234,8 @@ def border_vertices(n, T) -> np.ndarray:
     return np.flatnonzero(border)
 
 
-def seam_welds(V: np.ndarray, T: np.ndarray, tol: float | None = None, min_piece: int | None = None) -> np.ndarray:
+def seam_welds(V: np.ndarray, T: np.ndarray, tol: float | None = None, min_piece: int | None = None,
+               pieces: np.ndarray | None = None) -> np.ndarray:
     """Representative of every vertex, joining copies split along open seams.
 
     Exporters split vertices where UVs or normals break (FBX, glTF, many PLYs): the
@@ -242,7 +243,7 @@ def seam_welds(V: np.ndarray, T: np.ndarray, tol: float | None = None, min_piece
     open border and coincide (within ``tol``, default 1e-6 of the mesh's size) are
     joined when both their pieces have at least ``min_piece`` vertices (default:
     1 % of the mesh, at least 50; so lash strips and eye helper meshes sewn along a
-    lid's edge stay pieces of their own).
+    lid's edge stay pieces of their own). ``pieces``: ``connected_components(len(V), T)`` where found already.
 
     Returns
     -------
@@ -268,7 +269,7 @@ def seam_welds(V: np.ndarray, T: np.ndarray, tol: float | None = None, min_piece
     i, j = border[pairs[:, 0]], border[pairs[:, 1]]
     if min_piece is None:
         min_piece = max(50, n // 100)
-    piece = connected_components(n, T)
+    piece = connected_components(n, T) if pieces is None else pieces
     size = np.bincount(piece)
     big = (size[piece[i]] >= min_piece) & (size[piece[j]] >= min_piece)
     i, j = i[big], j[big]

@@ -278,12 +278,12 @@ def _lips_joined(P, Ts, Lf, eye_distance, skin_tree) -> tuple:
     return joined, joined and apart < LIP_LINE_IOD * eye_distance  # touching lips (ICT's) are as near, not joined
 
 
-def _rest_region(P, Ts, covered, from_covered, Lf, eye_distance):
+def _rest_region(P, Ts, covered, from_covered, Lf, eye_distance, pieces=None):
     """Skin that never moves: far from the covered skin (``from_covered``: distances to it), well below the
-    chin, or in a piece it misses."""
+    chin, or in a piece it misses (``pieces``: each skin vertex's piece label, where known)."""
 
     far = from_covered > REST_IOD * eye_distance
-    lab = connected_components(len(P), Ts)
+    lab = connected_components(len(P), Ts) if pieces is None else pieces
     return ((far | _below_chin(P, Lf, eye_distance)) & ~covered) | ~np.isin(lab, np.unique(lab[covered]))
 
 
@@ -480,11 +480,13 @@ class HeadBinding:
         if len(T) == 0 or T.min() < 0 or T.max() >= len(V):
             raise MeshError("head triangles are empty or index missing vertices")
         # Copies split along UV or normal seams: one vertex for the skin's topology; the copies ride on it.
-        rep = seam_welds(V, T)
+        pieces = connected_components(len(V), T)  # the welding's, and the parts' where it joins nothing
+        rep = seam_welds(V, T, pieces=pieces)
         seams = int((rep != np.arange(len(V))).sum())
         if seams:
             T = rep[T]
             T = T[(T[:, 0] != T[:, 1]) & (T[:, 1] != T[:, 2]) & (T[:, 2] != T[:, 0])]
+            pieces = None
         self.model, self.resolution = model, resolution
         self.frame = frame = model.frame
         self.V = V
@@ -499,7 +501,7 @@ class HeadBinding:
         self.face_landmarks = Lf
         self.eye_distance = eye_distance = landmark_scheme.eye_distance(Lf)
         self.hinge = jaw_hinge(Lf, eye_distance)
-        self.parts = parts = classify_parts(Vf, T, Lf, self.hinge, overrides, welded=True)
+        self.parts = parts = classify_parts(Vf, T, Lf, self.hinge, overrides, welded=True, pieces=pieces)
         # Seam copies take their vertex's kind and, in the end, its motion; nothing else counts them.
         self._copies = np.nonzero(rep != np.arange(len(V)))[0]
         self._copy_of = rep[self._copies]
@@ -549,7 +551,11 @@ class HeadBinding:
         measured[si[covered]] = False
         from_covered[measured] = cKDTree(P[covered], balanced_tree=False, compact_nodes=False).query(
             Vf[measured], distance_upper_bound=REST_IOD * eye_distance * (1 + 1e-9))[0]  # exact up to the edge
-        self.rest = rest = _rest_region(P, Ts, covered, from_covered[si], Lf, eye_distance)
+        # The skin's pieces are the parts' where it is whole ones (no override split one): the same partition.
+        size = np.bincount(parts.pieces)
+        whole = (np.bincount(parts.pieces[si], minlength=len(size)) == size)[parts.pieces[si]].all()
+        self.rest = rest = _rest_region(P, Ts, covered, from_covered[si], Lf, eye_distance,
+                                        parts.pieces[si] if whole else None)
         depths = _depths(P, covered, Lf, eye_distance, parts.eyes)
         # The folds' relaxation's Laplacian (the head but a mouth bag) holds the skin's, where no triangle joins the
         # skin to another part (an override may): the same sums in the same order, built once.

@@ -111,7 +111,7 @@ def fit_sphere(P):
     return c, float(np.sqrt(max(sol[3] + c @ c, 0.0)))
 
 
-def classify_parts(Vf, T, Lf, hinge, overrides=None, welded=False) -> Parts:
+def classify_parts(Vf, T, Lf, hinge, overrides=None, welded=False, pieces=None) -> Parts:
     """Part kind of every vertex of a head mesh.
 
     Parameters
@@ -128,12 +128,14 @@ def classify_parts(Vf, T, Lf, hinge, overrides=None, welded=False) -> Parts:
         Kind → vertex indices, applied last (see :func:`apply_overrides`).
     welded : bool
         ``T``'s seam copies already joined (:func:`pdeface.mesh.seam_welds`, as the binding does): none welded again.
+    pieces : (n,) int array, optional
+        ``connected_components(len(Vf), T)`` where found already (the binding's, when it joined no seams).
     """
     from scipy.spatial import cKDTree
 
 
     n = len(Vf)
-    lab = connected_components(n, T)
+    lab = connected_components(n, T) if pieces is None else pieces
     s = eye_distance(Lf)
     kind = np.full(n, CODE["rest"], np.int8)
 
