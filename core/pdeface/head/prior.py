@@ -223,9 +223,11 @@ class HeadPrior:
         mix = csr_matrix((vals * weight[rows], (rows, cols)), shape=(len(idx), len(self.vertices)))[keep]
         # Mixed and scaled to the user's face once for all keys: a key is then one dense product.
         S = len(self.keys)
-        used = np.unique(mix.indices)
+        used = np.zeros(len(self.vertices), bool)  # np.unique's, without its sort
+        used[mix.indices] = True
+        used = np.flatnonzero(used)
         # (used, 3, S): gathered, not a cached per-vertex copy of every residual (40 MB held for good; issue #35)
-        residuals = np.moveaxis(self.residuals, 0, -1)[used]  # rows: see load_prior
+        residuals = np.moveaxis(self.residuals, 0, -1).take(used, axis=0)  # rows: see load_prior
         residuals *= ratio[:, None].astype(np.float32)  # in place: the gather is a copy (a 15 MB one less)
         residuals = _mixed(mix[:, used], residuals.reshape(len(used), 3 * S)).reshape(-1, S)
         return PriorOnHead(idx[keep], residuals, self.solver(), ratio)
