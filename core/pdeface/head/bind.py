@@ -53,7 +53,17 @@ import numpy as np
 from .. import landmark_scheme
 from ..errors import MeshError, PdeFaceError
 from ..facs import au_number, normalise_weights
-from ..geometry import ClosestPoint, any_corner, cross3, every_corner, row_norms, smoothstep, triangle_cross, unit_rows
+from ..geometry import (
+    ClosestPoint,
+    any_corner,
+    cross3,
+    every_corner,
+    in_box,
+    row_norms,
+    smoothstep,
+    triangle_cross,
+    unit_rows,
+)
 from ..landmark_scheme import (
     CHIN,
     EYE_INNER_LEFT,
@@ -170,9 +180,10 @@ class _Extension:
         from scipy.sparse.linalg import splu
 
         self.fixed, self.free = np.nonzero(fixed)[0], np.nonzero(~fixed)[0]
-        self.lu = splu(L[self.free][:, self.free].tocsc()) if len(self.free) else None
+        free_rows = L[self.free]
+        self.lu = splu(free_rows[:, self.free].tocsc()) if len(self.free) else None
         self.read = read[self.fixed].tocsr()  # grid → fixed values
-        self.load = (-(L[self.free][:, self.fixed] @ self.read)).tocsr()  # grid → the free rows' right-hand side
+        self.load = (-(free_rows[:, self.fixed] @ self.read)).tocsr()  # grid → the free rows' right-hand side
 
     def solve(self, G):
         """(fixed values, free values) for grid motions ``G`` (g, c)."""
@@ -210,9 +221,11 @@ def _read_pde(model, P, N, eye_distance, resolution, skin_strips=(), on_strip=No
     # point of a triangle lies that near a corner: skin farther is not covered; ICT's head: 6.5k queries, not 7k).
     edge = max(along_u[:, :-1].max(), diagonal.max())
     corner_reach = 2 / 3 * max(along_u.max(), along_v.max(), diagonal.max())
+    reach = COVER_IOD * eye_distance + min(edge, corner_reach * (1 + 1e-6))
     closest = ClosestPoint(X0, Tp, balanced=False)  # a grid: no point repeated
-    gap, nearest = closest.vtree.query(P, distance_upper_bound=COVER_IOD * eye_distance  # its grid's tree
-                                       + min(edge, corner_reach * (1 + 1e-6)))
+    gap, nearest = np.full(len(P), np.inf), np.zeros(len(P), np.int64)
+    boxed = np.flatnonzero(in_box(P, X0.min(axis=0) - reach, X0.max(axis=0) + reach))  # the rest: farther from it
+    gap[boxed], nearest[boxed] = closest.vtree.query(P[boxed], distance_upper_bound=reach)  # its grid's tree
     near = gap < np.inf
     dist, tri, bary = np.full(len(P), np.inf), np.zeros(len(P), np.int64), np.zeros((len(P), 3))
     if near.any():
