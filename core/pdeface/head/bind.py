@@ -315,7 +315,7 @@ def _prior_reach(Vf, from_covered, skin_rest, Lf, eye_distance, eyeballs=None):
     reach[_below_chin(Vf, Lf, eye_distance)] = 0.0
     for name, (centre, radius) in eyes_or_sockets(Lf, eye_distance, eyeballs).items():
         if name not in (eyeballs or {}):
-            reach[(from_covered > 0) & (np.linalg.norm(Vf - centre, axis=1) < radius + 0.1 * eye_distance)
+            reach[(from_covered > 0) & (row_norms(Vf - centre) < radius + 0.1 * eye_distance)
                   & (Vf[:, 2] < centre[2])] = 0.0
     return reach
 
@@ -330,7 +330,7 @@ def still_weight(X, P, Lf, eye_distance) -> np.ndarray:
     1.5 eye distances of the nose sideways (a body's arms and a hair card's tips left out).
     """
     nose, chin_y = Lf[NOSE_BOTTOM], Lf[CHIN, 1]
-    near_nose = np.linalg.norm(P - nose, axis=1) < 0.5 * eye_distance
+    near_nose = row_norms(P - nose) < 0.5 * eye_distance
     tip_z = P[near_nose, 2].max() if near_nose.any() else nose[2]
     head = (P[:, 1] > chin_y) & (np.abs(P[:, 0] - nose[0]) < 1.5 * eye_distance)
     depth = max(tip_z - P[head, 2].min() if head.any() else 0.0, MIN_HEAD_DEPTH_IOD * eye_distance)
@@ -418,7 +418,7 @@ def _depths(P, covered, Lf, eye_distance, eyes):
     depths |= (inside & (P[:, 2] < lips_z - UPPER_LINING_IOD * eye_distance)
                & (P[:, 1] > mouth_line(Lf) + UPPER_LINING_RISE_IOD * eye_distance))
     for centre, radius in eyes_or_sockets(Lf, eye_distance, eyes).values():
-        depths |= ~covered & (np.linalg.norm(P - centre, axis=1) < radius + 0.1 * eye_distance) & (P[:, 2] < centre[2])
+        depths |= ~covered & (row_norms(P - centre) < radius + 0.1 * eye_distance) & (P[:, 2] < centre[2])
     return depths
 
 
@@ -634,7 +634,7 @@ class HeadBinding:
         # A mouth bag: each vertex's share of the jaw's turn, the rest the upper lip's middle (its nearest skin).
         self.mouth = np.nonzero(parts.mask("mouth") & original)[0]
         self._mouth_lower = lower_share(Vf[self.mouth], Lf, eye_distance)[:, None, None]
-        self._upper_lip_vertex = si[np.argmin(np.linalg.norm(P - Lf[LIP_UPPER_INNER], axis=1))]
+        self._upper_lip_vertex = si[np.argmin(row_norms(P - Lf[LIP_UPPER_INNER]))]
 
         # Attached parts ride on their nearest skin vertex.
         self.follow = follow = np.nonzero(parts.mask("follow") & original)[0]
@@ -660,7 +660,7 @@ class HeadBinding:
         self.eyes = {}
         for name, (centre, radius) in parts.eyes.items():
             idx = np.nonzero(parts.mask(name) & original)[0]
-            rho = np.linalg.norm(P - centre, axis=1)
+            rho = row_norms(P - centre)
             guard = (rho >= radius) & (rho < radius + 0.15 * eye_distance) & (P[:, 2] > centre[2])
             self.eyes[name] = (centre, radius, idx, np.nonzero(guard)[0])
             self._folds.keep_outside(si[guard], centre, radius)

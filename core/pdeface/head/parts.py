@@ -37,6 +37,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import MeshError
+from ..geometry import row_norms
 from ..io.files import load_json
 from ..landmark_scheme import (
     CHIN,
@@ -168,7 +169,7 @@ def classify_parts(Vf, T, Lf, hinge, overrides=None, welded=False, pieces=None) 
                 continue
             P = Vf[m]
             c0, r = fit_sphere(P)
-            err = np.abs(np.linalg.norm(P - c0, axis=1) - r).mean() / r
+            err = np.abs(row_norms(P - c0) - r).mean() / r
             if err < 0.1 and (best is None or r > best[0]):  # the outermost sphere: sclera, not iris
                 best = (r, c0, r, c)
         if best is not None:
@@ -199,7 +200,7 @@ def classify_parts(Vf, T, Lf, hinge, overrides=None, welded=False, pieces=None) 
             continue
         # (a part whose centre is outside the sphere reaches outside it: its points need no look)
         eye = next((e for e, (c0, r) in eyes.items() if np.linalg.norm(ctr - c0) < (r + 0.03 * s) * (1 + 1e-9)
-                    and np.linalg.norm(Vf[m] - c0, axis=1).max() < r + 0.03 * s), None)
+                    and row_norms(Vf[m] - c0).max() < r + 0.03 * s), None)
         if eye:  # iris, cornea: inside the eyeball's sphere
             kind[m] = CODE[eye]
             continue
@@ -264,7 +265,7 @@ def eye_films(parts: Parts, Vf) -> np.ndarray:
     attached = attached[order]
     pieces, starts = np.unique(parts.pieces[attached], return_index=True)
     for centre, radius in parts.eyes.values():
-        reach = np.maximum.reduceat(np.linalg.norm(Vf[attached] - centre, axis=1), starts)
+        reach = np.maximum.reduceat(row_norms(Vf[attached] - centre), starts)
         films |= np.isin(parts.pieces, pieces[reach < FILM_RADII * radius])
     return films & parts.mask("follow")
 
