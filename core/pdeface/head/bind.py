@@ -435,19 +435,22 @@ def _seam_smoother(P, L, covered, rest, Lf, eye_distance):
     if not SEAM_STEPS or not lining.any():
         return None
     at_corner = np.zeros(len(P))
+    reach = np.zeros(len(P), bool)  # the lining within SEAM_IOD of a corner's skin lies this near its landmark
     for i, r in SEAM_CORNERS:
-        at_corner = np.maximum(at_corner, smoothstep(1 - row_norms(P - Lf[i]) / (r * eye_distance)))
+        apart = row_norms(P - Lf[i])
+        at_corner = np.maximum(at_corner, smoothstep(1 - apart / (r * eye_distance)))
+        reach |= apart < (r + SEAM_IOD) * eye_distance * (1 + 1e-9)
     near = np.zeros(len(P))  # read at the corners alone: elsewhere the weight is 0 whatever it is
     corner = np.flatnonzero(at_corner > 0)
-    if len(corner):
-        near[corner] = smoothstep(1 - cKDTree(P[lining]).query(P[corner], distance_upper_bound=SEAM_IOD * eye_distance)[0]
-                                  / (SEAM_IOD * eye_distance))  # inf (0) beyond the band
+    if len(corner) and (lining & reach).any():  # the distances to the lining near the corners: all within the band
+        near[corner] = smoothstep(1 - cKDTree(P[lining & reach]).query(
+            P[corner], distance_upper_bound=SEAM_IOD * eye_distance)[0] / (SEAM_IOD * eye_distance))  # inf (0) beyond
     weight = at_corner * near * ~rest
     band = np.nonzero(weight > 0)[0]
     if not len(band):
         return None
     W = (diags(L.diagonal()) - L).tocsr()  # the Laplacian's (clamped, positive) neighbour weights
-    S = (diags(1.0 / np.maximum(L.diagonal(), 1e-300)) @ W)[band].tocsr()
+    S = (diags(1.0 / np.maximum(L.diagonal(), 1e-300)[band]) @ W[band]).tocsr()  # the band's rows, as scipy makes them
     reads = np.union1d(band, S.indices)  # a few hundred rows of the skin's, not all of it for every key
     S = S[:, reads].tocsr()
     # The band's rows first: each step reads and writes them as one slice. The columns renamed in place, each row's
