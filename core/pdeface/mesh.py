@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .errors import MeshError
-from .geometry import degrees_from_cos, row_dots, triangle_cross, unit_rows
+from .geometry import cross3, degrees_from_cos, row_dots, row_norms, triangle_cross, unit_rows
 
 
 @dataclass
@@ -173,21 +173,49 @@ def cotan_laplacian(V: np.ndarray, T: np.ndarray):
     meshes keep it an M-matrix: harmonic functions then obey the maximum principle
     (an extension never overshoots its boundary values).
     """
-    from scipy.sparse import coo_matrix, diags
+    from scipy.sparse import coo_matrix
 
-    rows, cols, vals = [], [], []
-    for k in range(3):
-        i, j, o = T[:, k], T[:, (k + 1) % 3], T[:, (k + 2) % 3]
-        u, v = V[i] - V[o], V[j] - V[o]
-        cross = np.linalg.norm(np.cross(u, v), axis=1)
-        cot = (u * v).sum(1) / np.maximum(cross, 1e-12)
-        rows += [i, j]
-        cols += [j, i]
-        vals += [0.5 * cot, 0.5 * cot]
+    T = np.asarray(T)
+    corners = [V[T[:, k]] for k in range(3)]
+    vals = []
+    for k in range(3):  # the angle at corner k + 2 weighs edge (k, k + 1)
+        o = corners[(k + 2) % 3]
+        u, v = corners[k] - o, corners[(k + 1) % 3] - o
+        cot = row_dots(u, v)
+        cot /= np.maximum(row_norms(cross3(u, v)), 1e-12)
+        cot *= 0.5
+        vals += [cot, cot]
     n = len(V)
-    W = coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n, n)).tocsr()
-    W.data = np.clip(W.data, 1e-6, 1e3)
-    return (diags(np.asarray(W.sum(axis=1)).ravel()) - W).tocsr()
+    rows = np.concatenate([T[:, 0], T[:, 1], T[:, 1], T[:, 2], T[:, 2], T[:, 0]])
+    cols = np.concatenate([T[:, 1], T[:, 0], T[:, 2], T[:, 1], T[:, 0], T[:, 2]])
+    W = coo_matrix((np.concatenate(vals), (rows, cols)), shape=(n, n)).tocsr()
+    np.clip(W.data, 1e-6, 1e3, out=W.data)
+    return _minus_with_diagonal(W, np.asarray(W.sum(axis=1)).ravel())
+
+
+def _minus_with_diagonal(W, d):
+    """``diags(d) - W`` for a CSR ``W`` with sorted, distinct columns and no stored diagonal or zero: each row's
+    ``-W`` with ``d`` put in column order (a zero ``d`` left out), as scipy's subtraction writes it, in a fifth of the
+    time (issue #35)."""
+    from scipy.sparse import csr_matrix
+
+    n = W.shape[0]
+    counts = np.diff(W.indptr)
+    row = np.repeat(np.arange(n, dtype=W.indices.dtype), counts)
+    if (W.indices == row).any():  # a stored diagonal (a triangle with a repeated corner): scipy's own sum
+        from scipy.sparse import diags
+
+        return (diags(d) - W).tocsr()
+    has = d != 0
+    indptr = np.zeros(n + 1, W.indptr.dtype)
+    np.cumsum(counts + has, out=indptr[1:])
+    # each entry moves on by the diagonals put in the rows before it, and in its own row where it lies right of it
+    at = np.arange(W.nnz) + (np.cumsum(has) - has)[row] + (has[row] & (W.indices > row))
+    data, indices = np.empty(indptr[-1]), np.empty(indptr[-1], W.indices.dtype)
+    data[at], indices[at] = -W.data, W.indices
+    diagonal = indptr[:-1][has] + np.bincount(row[W.indices < row], minlength=n)[has]
+    data[diagonal], indices[diagonal] = d[has], np.flatnonzero(has)
+    return csr_matrix((data, indices, indptr), shape=W.shape)
 
 
 def border_vertices(n, T) -> np.ndarray:
@@ -206,7 +234,8 @@ def border_vertices(n, T) -> np.ndarray:
     return np.flatnonzero(border)
 
 
-def seam_welds(V: np.ndarray, T: np.ndarray, tol: float | None = None, min_piece: int | None = None) -> np.ndarray:
+def seam_welds(V: np.ndarray, T: np.ndarray, tol: float | None = None, min_piece: int | None = None,
+               pieces: np.ndarray | None = None) -> np.ndarray:
     """Representative of every vertex, joining copies split along open seams.
 
     Exporters split vertices where UVs or normals break (FBX, glTF, many PLYs): the
@@ -214,7 +243,7 @@ def seam_welds(V: np.ndarray, T: np.ndarray, tol: float | None = None, min_piece
     open border and coincide (within ``tol``, default 1e-6 of the mesh's size) are
     joined when both their pieces have at least ``min_piece`` vertices (default:
     1 % of the mesh, at least 50; so lash strips and eye helper meshes sewn along a
-    lid's edge stay pieces of their own).
+    lid's edge stay pieces of their own). ``pieces``: ``connected_components(len(V), T)`` where found already.
 
     Returns
     -------
@@ -240,7 +269,7 @@ def seam_welds(V: np.ndarray, T: np.ndarray, tol: float | None = None, min_piece
     i, j = border[pairs[:, 0]], border[pairs[:, 1]]
     if min_piece is None:
         min_piece = max(50, n // 100)
-    piece = connected_components(n, T)
+    piece = connected_components(n, T) if pieces is None else pieces
     size = np.bincount(piece)
     big = (size[piece[i]] >= min_piece) & (size[piece[j]] >= min_piece)
     i, j = i[big], j[big]

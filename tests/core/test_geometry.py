@@ -68,3 +68,37 @@ def test_row_dots_are_the_sums_numpy_makes():
     rng = np.random.default_rng(3)
     A, B = rng.normal(size=(1000, 3)), rng.normal(size=(1000, 3))
     assert np.array_equal(row_dots(A, B), (A * B).sum(1))
+
+
+def test_cotan_laplacian_is_scipys_diagonal_less_the_clamped_weights():
+    """The Laplacian built entry by entry (issue #35) holds scipy's ``diags(W.sum(1)) - W`` bit for bit: on a sheet,
+    with a vertex no triangle uses (its zero diagonal left out) and with triangles that repeat a corner (a stored
+    diagonal in W)."""
+    from pdeface.mesh import cotan_laplacian
+    from scipy.sparse import coo_matrix, diags
+
+    def reference(V, T):
+        rows, cols, vals = [], [], []
+        for k in range(3):
+            i, j, o = T[:, k], T[:, (k + 1) % 3], T[:, (k + 2) % 3]
+            u, v = V[i] - V[o], V[j] - V[o]
+            cot = (u * v).sum(1) / np.maximum(np.linalg.norm(np.cross(u, v), axis=1), 1e-12)
+            rows += [i, j]
+            cols += [j, i]
+            vals += [0.5 * cot, 0.5 * cot]
+        n = len(V)
+        W = coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n, n)).tocsr()
+        W.data = np.clip(W.data, 1e-6, 1e3)
+        return (diags(np.asarray(W.sum(axis=1)).ravel()) - W).tocsr()
+
+    V, T = _bumpy_grid()
+    repeated = T.copy()
+    repeated[:4, 2] = repeated[:4, 0]
+    for V_, T_ in ((V, T), (np.r_[V, [[9.0, 9.0, 9.0]]], T), (V, repeated)):
+        got, want = cotan_laplacian(V_, T_), reference(V_, T_)
+        assert got.shape == want.shape
+        for name in ("indptr", "indices", "data"):
+            assert getattr(got, name).dtype == getattr(want, name).dtype
+            assert np.array_equal(getattr(got, name), getattr(want, name))
+    L = cotan_laplacian(V, T)
+    assert np.allclose(L @ np.ones(len(V)), 0, atol=1e-12) and (L - L.T).count_nonzero() == 0

@@ -411,3 +411,31 @@ def test_a_head_split_along_seams_moves_in_one_piece(head, generic):
     got = split.descriptor_displacement(d)
     np.testing.assert_allclose(got[:len(V)], want, atol=1e-9)
     np.testing.assert_allclose(got[copies], want[on_seam], atol=1e-9)  # no crack along the seam
+
+
+def test_the_rest_region_is_the_skins_own_pieces_whole_or_split_by_an_override(head, generic):
+    """The rest region reads the parts' pieces where the skin is whole ones of them (issue #35: one connected
+    components search less) and the skin's own where an override cuts a piece: the same rest region as the skin's
+    own components give, both times."""
+    from pdeface.head.bind import REST_IOD, _rest_region
+    from pdeface.mesh import connected_components
+    from scipy.spatial import cKDTree
+
+    model, b = generic
+    mesh, T, _, _ = head
+    Vf = b.Vf
+    scalp = np.nonzero((Vf[:, 1] > b.face_landmarks[:, 1].max() + 0.3 * b.eye_distance)
+                       & (Vf[:, 1] < b.face_landmarks[:, 1].max() + 0.4 * b.eye_distance))[0]
+    cut = HeadBinding(model, mesh.vertices, T, overrides={"skull": scalp.tolist()})
+    for bound in (b, cut):
+        P = Vf[bound.skin]
+        local = np.full(len(Vf), -1)
+        local[bound.skin] = np.arange(len(bound.skin))
+        Ts = local[T[(local[T] >= 0).all(axis=1)]]
+        cover = REST_IOD * bound.eye_distance * (1 + 1e-9)
+        from_covered = cKDTree(P[bound.covered]).query(P, distance_upper_bound=cover)[0]
+        want = _rest_region(P, Ts, bound.covered, from_covered, bound.face_landmarks, bound.eye_distance)
+        np.testing.assert_array_equal(bound.rest, want)
+        own = len(np.unique(connected_components(len(P), Ts)))
+        by_parts = len(np.unique(bound.parts.pieces[bound.skin]))
+        assert (own > by_parts) == (bound is cut)  # the override cut the scalp's top off the face's piece

@@ -41,3 +41,30 @@ def test_skin_beyond_an_openings_rim_is_covered_the_same_under_rounding_noise():
         again, read_again = _read_pde(noisy, Vf, N, ed, RESOLUTION)
         assert (again == covered).all(), np.nonzero(again != covered)[0]
         assert abs(read_again - read).max() < 1e-6  # each covered vertex reads the same grid points
+
+
+def test_skin_the_read_skips_is_farther_than_the_cover():
+    """The read's exact query skips skin farther than the cover and 2/3 of the grid's longest edge from every grid
+    vertex (issue #35): a point of a triangle lies that near one of its corners, so none of it is within the cover;
+    on ICT's head it skips hundreds of vertices the edge bound before it queried."""
+    from pdeface.geometry import row_norms
+    from pdeface.head.bind import COVER_IOD
+
+    model = load_face("default")
+    mesh, _ = load_head()
+    Vf = model.frame.to_face(mesh.vertices)
+    ed = eye_distance(model_landmarks(model))
+    X0 = surface_grid(model, *RESOLUTION, break_slope=READ_BREAK_SLOPE, confine=False)
+    nu, nv, _ = X0.shape
+    Q = grid_faces(nu, nv)
+    Tp = np.concatenate([Q[:, [0, 1, 2]], Q[:, [0, 2, 3]]])
+    X = X0.reshape(-1, 3)
+    longest = max(row_norms(X[Tp[:, k]] - X[Tp[:, (k + 1) % 3]]).max() for k in range(3))
+    edge = row_norms(X[Tp[:, 0]] - X[Tp[:, 1]]).max()  # the bound before
+    closest = ClosestPoint(X, Tp)
+    dist = closest.query(Vf)[0]
+    gap = closest.vtree.query(Vf)[0]
+    skipped = gap >= COVER_IOD * ed + 2 / 3 * longest
+    assert (dist >= gap - 2 / 3 * longest - 1e-9).all()
+    assert (dist[skipped] >= COVER_IOD * ed).all()
+    assert (skipped & (gap < COVER_IOD * ed + edge)).sum() > 300

@@ -163,3 +163,27 @@ def test_prior_stays_off_rigid_parts_and_out_of_the_rest_region(head):
             return np.zeros((10, 37, 3))
 
     assert load_head_prior().on(OtherLayout(), b.Vf, b.parts.kind) is None
+
+
+def test_residuals_are_mixed_as_scipys_product_makes_them():
+    """The prior's residuals mixed onto a head row by row (every row as many terms: gathered rows, issue #35) or by
+    column blocks (rows of other lengths) hold scipy's float64 sums, in float32, bit for bit; each row's terms in
+    the matrix's order (here not sorted by column), with more rows than a block."""
+    from pdeface.head.prior import MIX_ROWS, _mixed
+    from scipy.sparse import csr_matrix
+
+    rng = np.random.default_rng(7)
+    q, m, c = MIX_ROWS + 37, 300, 50
+    residuals = (rng.integers(-3000, 3000, (m, c)) * np.float32(0.01)).astype(np.float32)
+    cols = np.stack([rng.choice(m, 4, replace=False) for _ in range(q)])
+    even = csr_matrix((rng.uniform(0.01, 1, 4 * q), cols.ravel(), np.arange(0, 4 * q + 1, 4)), shape=(q, m))
+    assert not even.has_sorted_indices
+    uneven = even.copy()
+    uneven.data[uneven.indptr[5] + 1] = 0  # explicit zeros kept, then a row of three
+    uneven = csr_matrix((np.delete(uneven.data, 2), np.delete(uneven.indices, 2),
+                         np.r_[0, uneven.indptr[1:] - 1]), shape=(q, m))
+    for mix in (even, uneven):
+        want = (mix @ residuals.astype(np.float64)).astype(np.float32)
+        got = _mixed(mix, residuals)
+        assert got.dtype == np.float32 and np.array_equal(got, want)
+    assert _mixed(even[:0], residuals).shape == (0, c)

@@ -53,7 +53,17 @@ import numpy as np
 from .. import landmark_scheme
 from ..errors import MeshError, PdeFaceError
 from ..facs import au_number, normalise_weights
-from ..geometry import ClosestPoint, cross3, row_norms, smoothstep, triangle_cross, unit_rows
+from ..geometry import (
+    ClosestPoint,
+    any_corner,
+    cross3,
+    every_corner,
+    in_box,
+    row_norms,
+    smoothstep,
+    triangle_cross,
+    unit_rows,
+)
 from ..landmark_scheme import (
     CHIN,
     EYE_INNER_LEFT,
@@ -81,7 +91,7 @@ from .folds import FoldRelax, Screen
 from .lids import LidClosure, eyes_closed_by, eyes_or_sockets
 from .mouth import has_mouth_inside, lower_share
 from .parts import TOUCH_IOD, classify_parts, eye_films, mouth_line, read_overrides
-from .prior import load_head_prior
+from .prior import CARRIED_KINDS, load_head_prior
 
 #: The PDE face as the binding reads it: between an opening's rims the runs carry their own motion into the
 #: strip (the break piece at their full slope), so skin hidden behind a lip or lid follows its rim, while the
@@ -170,9 +180,10 @@ class _Extension:
         from scipy.sparse.linalg import splu
 
         self.fixed, self.free = np.nonzero(fixed)[0], np.nonzero(~fixed)[0]
-        self.lu = splu(L[self.free][:, self.free].tocsc()) if len(self.free) else None
+        free_rows = L[self.free]
+        self.lu = splu(free_rows[:, self.free].tocsc()) if len(self.free) else None
         self.read = read[self.fixed].tocsr()  # grid → fixed values
-        self.load = (-(L[self.free][:, self.fixed] @ self.read)).tocsr()  # grid → the free rows' right-hand side
+        self.load = (-(free_rows[:, self.fixed] @ self.read)).tocsr()  # grid → the free rows' right-hand side
 
     def solve(self, G):
         """(fixed values, free values) for grid motions ``G`` (g, c)."""
@@ -199,13 +210,22 @@ def _read_pde(model, P, N, eye_distance, resolution, skin_strips=(), on_strip=No
     """
     X0 = surface_grid(model, *resolution, break_slope=READ_BREAK_SLOPE, confine=False)
     nu, nv, _ = X0.shape
+    # The grid's edges (Tp's): along u, along v, the quads' diagonals.
+    along_u, along_v, diagonal = (row_norms(X0[1:] - X0[:-1]), row_norms(X0[:, 1:] - X0[:, :-1]),
+                                  row_norms(X0[1:, 1:] - X0[:-1, :-1]))
     X0 = X0.reshape(-1, 3)
     Q = grid_faces(nu, nv)
     Tp = np.concatenate([Q[:, [0, 1, 2]], Q[:, [0, 2, 3]]])
-    # Only skin near the grid can be under it (the back of a head, a body: skip the exact query).
-    edge = np.linalg.norm(X0[Tp[:, 0]] - X0[Tp[:, 1]], axis=1).max()
+    # Only skin near the grid can be under it (the back of a head, a body: skip the exact query): within the cover
+    # and Tp's first edges (along u, diagonals) of a grid vertex, and within the cover and 2/3 of the longest edge (a
+    # point of a triangle lies that near a corner: skin farther is not covered; ICT's head: 6.5k queries, not 7k).
+    edge = max(along_u[:, :-1].max(), diagonal.max())
+    corner_reach = 2 / 3 * max(along_u.max(), along_v.max(), diagonal.max())
+    reach = COVER_IOD * eye_distance + min(edge, corner_reach * (1 + 1e-6))
     closest = ClosestPoint(X0, Tp, balanced=False)  # a grid: no point repeated
-    gap, nearest = closest.vtree.query(P, distance_upper_bound=COVER_IOD * eye_distance + edge)  # its grid's tree
+    gap, nearest = np.full(len(P), np.inf), np.zeros(len(P), np.int64)
+    boxed = np.flatnonzero(in_box(P, X0.min(axis=0) - reach, X0.max(axis=0) + reach))  # the rest: farther from it
+    gap[boxed], nearest[boxed] = closest.vtree.query(P[boxed], distance_upper_bound=reach)  # its grid's tree
     near = gap < np.inf
     dist, tri, bary = np.full(len(P), np.inf), np.zeros(len(P), np.int64), np.zeros((len(P), 3))
     if near.any():
@@ -259,19 +279,24 @@ def _lips_joined(P, Ts, Lf, eye_distance, skin_tree) -> tuple:
         return False, False
     a, b = skin_tree.query(ends)[1]
     apart = np.linalg.norm(P[a] - P[b])
-    i, j = Ts.ravel(), np.roll(Ts, -1, axis=1).ravel()
-    graph = coo_matrix((np.linalg.norm(P[i] - P[j], axis=1), (i, j)), shape=(len(P), len(P))).tocsr()
     reach = FUSED_PATH * apart + FUSED_IOD * eye_distance
+    # A way that short stays within its length of a: the edges inside that ball alone (the same answer; the whole
+    # skin's edges' lengths cost ICT's binding 6 ms).
+    ball = np.zeros(len(P), bool)
+    ball[skin_tree.query_ball_point(P[a], reach * (1 + 1e-9))] = True
+    i, j = Ts.ravel(), np.roll(Ts, -1, axis=1).ravel()
+    i, j = i[ball[i] & ball[j]], j[ball[i] & ball[j]]
+    graph = coo_matrix((row_norms(P[i] - P[j]), (i, j)), shape=(len(P), len(P))).tocsr()
     joined = a == b or bool(np.isfinite(dijkstra(graph, directed=False, indices=a, limit=reach)[b]))
     return joined, joined and apart < LIP_LINE_IOD * eye_distance  # touching lips (ICT's) are as near, not joined
 
 
-def _rest_region(P, Ts, covered, from_covered, Lf, eye_distance):
+def _rest_region(P, Ts, covered, from_covered, Lf, eye_distance, pieces=None):
     """Skin that never moves: far from the covered skin (``from_covered``: distances to it), well below the
-    chin, or in a piece it misses."""
+    chin, or in a piece it misses (``pieces``: each skin vertex's piece label, where known)."""
 
     far = from_covered > REST_IOD * eye_distance
-    lab = connected_components(len(P), Ts)
+    lab = connected_components(len(P), Ts) if pieces is None else pieces
     return ((far | _below_chin(P, Lf, eye_distance)) & ~covered) | ~np.isin(lab, np.unique(lab[covered]))
 
 
@@ -290,7 +315,7 @@ def _prior_reach(Vf, from_covered, skin_rest, Lf, eye_distance, eyeballs=None):
     reach[_below_chin(Vf, Lf, eye_distance)] = 0.0
     for name, (centre, radius) in eyes_or_sockets(Lf, eye_distance, eyeballs).items():
         if name not in (eyeballs or {}):
-            reach[(from_covered > 0) & (np.linalg.norm(Vf - centre, axis=1) < radius + 0.1 * eye_distance)
+            reach[(from_covered > 0) & (row_norms(Vf - centre) < radius + 0.1 * eye_distance)
                   & (Vf[:, 2] < centre[2])] = 0.0
     return reach
 
@@ -305,7 +330,7 @@ def still_weight(X, P, Lf, eye_distance) -> np.ndarray:
     1.5 eye distances of the nose sideways (a body's arms and a hair card's tips left out).
     """
     nose, chin_y = Lf[NOSE_BOTTOM], Lf[CHIN, 1]
-    near_nose = np.linalg.norm(P - nose, axis=1) < 0.5 * eye_distance
+    near_nose = row_norms(P - nose) < 0.5 * eye_distance
     tip_z = P[near_nose, 2].max() if near_nose.any() else nose[2]
     head = (P[:, 1] > chin_y) & (np.abs(P[:, 0] - nose[0]) < 1.5 * eye_distance)
     depth = max(tip_z - P[head, 2].min() if head.any() else 0.0, MIN_HEAD_DEPTH_IOD * eye_distance)
@@ -393,7 +418,7 @@ def _depths(P, covered, Lf, eye_distance, eyes):
     depths |= (inside & (P[:, 2] < lips_z - UPPER_LINING_IOD * eye_distance)
                & (P[:, 1] > mouth_line(Lf) + UPPER_LINING_RISE_IOD * eye_distance))
     for centre, radius in eyes_or_sockets(Lf, eye_distance, eyes).values():
-        depths |= ~covered & (np.linalg.norm(P - centre, axis=1) < radius + 0.1 * eye_distance) & (P[:, 2] < centre[2])
+        depths |= ~covered & (row_norms(P - centre) < radius + 0.1 * eye_distance) & (P[:, 2] < centre[2])
     return depths
 
 
@@ -410,16 +435,22 @@ def _seam_smoother(P, L, covered, rest, Lf, eye_distance):
     if not SEAM_STEPS or not lining.any():
         return None
     at_corner = np.zeros(len(P))
+    reach = np.zeros(len(P), bool)  # the lining within SEAM_IOD of a corner's skin lies this near its landmark
     for i, r in SEAM_CORNERS:
-        at_corner = np.maximum(at_corner, smoothstep(1 - np.linalg.norm(P - Lf[i], axis=1) / (r * eye_distance)))
-    near = smoothstep(1 - cKDTree(P[lining]).query(P, distance_upper_bound=SEAM_IOD * eye_distance)[0]
-                      / (SEAM_IOD * eye_distance))  # inf (0) beyond the band
+        apart = row_norms(P - Lf[i])
+        at_corner = np.maximum(at_corner, smoothstep(1 - apart / (r * eye_distance)))
+        reach |= apart < (r + SEAM_IOD) * eye_distance * (1 + 1e-9)
+    near = np.zeros(len(P))  # read at the corners alone: elsewhere the weight is 0 whatever it is
+    corner = np.flatnonzero(at_corner > 0)
+    if len(corner) and (lining & reach).any():  # the distances to the lining near the corners: all within the band
+        near[corner] = smoothstep(1 - cKDTree(P[lining & reach]).query(
+            P[corner], distance_upper_bound=SEAM_IOD * eye_distance)[0] / (SEAM_IOD * eye_distance))  # inf (0) beyond
     weight = at_corner * near * ~rest
     band = np.nonzero(weight > 0)[0]
     if not len(band):
         return None
     W = (diags(L.diagonal()) - L).tocsr()  # the Laplacian's (clamped, positive) neighbour weights
-    S = (diags(1.0 / np.maximum(L.diagonal(), 1e-300)) @ W)[band].tocsr()
+    S = (diags(1.0 / np.maximum(L.diagonal(), 1e-300)[band]) @ W[band]).tocsr()  # the band's rows, as scipy makes them
     reads = np.union1d(band, S.indices)  # a few hundred rows of the skin's, not all of it for every key
     S = S[:, reads].tocsr()
     # The band's rows first: each step reads and writes them as one slice. The columns renamed in place, each row's
@@ -465,11 +496,13 @@ class HeadBinding:
         if len(T) == 0 or T.min() < 0 or T.max() >= len(V):
             raise MeshError("head triangles are empty or index missing vertices")
         # Copies split along UV or normal seams: one vertex for the skin's topology; the copies ride on it.
-        rep = seam_welds(V, T)
+        pieces = connected_components(len(V), T)  # the welding's, and the parts' where it joins nothing
+        rep = seam_welds(V, T, pieces=pieces)
         seams = int((rep != np.arange(len(V))).sum())
         if seams:
             T = rep[T]
             T = T[(T[:, 0] != T[:, 1]) & (T[:, 1] != T[:, 2]) & (T[:, 2] != T[:, 0])]
+            pieces = None
         self.model, self.resolution = model, resolution
         self.frame = frame = model.frame
         self.V = V
@@ -484,7 +517,7 @@ class HeadBinding:
         self.face_landmarks = Lf
         self.eye_distance = eye_distance = landmark_scheme.eye_distance(Lf)
         self.hinge = jaw_hinge(Lf, eye_distance)
-        self.parts = parts = classify_parts(Vf, T, Lf, self.hinge, overrides, welded=True)
+        self.parts = parts = classify_parts(Vf, T, Lf, self.hinge, overrides, welded=True, pieces=pieces)
         # Seam copies take their vertex's kind and, in the end, its motion; nothing else counts them.
         self._copies = np.nonzero(rep != np.arange(len(V)))[0]
         self._copy_of = rep[self._copies]
@@ -503,7 +536,7 @@ class HeadBinding:
         _check_on_skin(Lf, skin_tree, eye_distance)
         local = np.full(len(V), -1)
         local[si] = np.arange(len(si))
-        Ts = local[T[skin[T].all(axis=1)]]
+        Ts = local[T[every_corner(skin, T)]]
         if len(Ts) == 0:
             raise MeshError("the skin has no triangles")
         self.skin_normals = vertex_normals(P, Ts)
@@ -525,14 +558,20 @@ class HeadBinding:
                                             mouth_strip if self.lips_one_line else (), _mouth_middle(P, Lf))
         self.covered = covered
         # every vertex's distance to the covered skin, as far as the rest region and the prior's fade read it (inf
-        # beyond). The covered skin is a sheet, most queries far from it: a tree without shrunk boxes answers
-        # 2× faster. The covered vertices themselves are at 0 (a sixth of ICT's head's queries).
-        from_covered = np.zeros(len(Vf))
-        uncovered = np.ones(len(Vf), bool)
-        uncovered[si[covered]] = False
-        from_covered[uncovered] = cKDTree(P[covered], balanced_tree=False, compact_nodes=False).query(
-            Vf[uncovered], distance_upper_bound=REST_IOD * eye_distance * (1 + 1e-9))[0]  # exact up to the edge
-        self.rest = rest = _rest_region(P, Ts, covered, from_covered[si], Lf, eye_distance)
+        # beyond, and on the parts the prior does not carry: their fade is never read; ICT's eyeballs, teeth and gums
+        # were half the queries). The covered skin is a sheet, most queries far from it: a tree without shrunk boxes
+        # answers 2× faster. The covered vertices themselves are at 0 (a sixth of ICT's head's queries).
+        from_covered = np.full(len(Vf), np.inf)
+        from_covered[si[covered]] = 0.0
+        measured = parts.mask(*CARRIED_KINDS)
+        measured[si[covered]] = False
+        from_covered[measured] = cKDTree(P[covered], balanced_tree=False, compact_nodes=False).query(
+            Vf[measured], distance_upper_bound=REST_IOD * eye_distance * (1 + 1e-9))[0]  # exact up to the edge
+        # The skin's pieces are the parts' where it is whole ones (no override split one): the same partition.
+        size = np.bincount(parts.pieces)
+        whole = (np.bincount(parts.pieces[si], minlength=len(size)) == size)[parts.pieces[si]].all()
+        self.rest = rest = _rest_region(P, Ts, covered, from_covered[si], Lf, eye_distance,
+                                        parts.pieces[si] if whole else None)
         depths = _depths(P, covered, Lf, eye_distance, parts.eyes)
         # The folds' relaxation's Laplacian (the head but a mouth bag) holds the skin's, where no triangle joins the
         # skin to another part (an override may): the same sums in the same order, built once.
@@ -540,10 +579,10 @@ class HeadBinding:
         # under the lids, they crumple in ICT's own scanned blink (AU45: 253 folded edges, three times the issue's
         # limit) and relaxing them took 0.2 s CPU of ICT's rig (issue #35); see docs/design/head.md.
         self.films = eye_films(parts, Vf)
-        relaxed_T = ~(parts.mask("mouth") | self.films)[T].all(axis=1)
+        relaxed_T = ~every_corner(parts.mask("mouth") | self.films, T)
         fold_T = T[relaxed_T]
         fold_L = cotan_laplacian(Vf, fold_T)
-        self._L = L = fold_L[si][:, si] if len(Ts) == skin[fold_T].any(axis=1).sum() else cotan_laplacian(P, Ts)
+        self._L = L = fold_L[si][:, si] if len(Ts) == any_corner(skin, fold_T).sum() else cotan_laplacian(P, Ts)
         cov = np.nonzero(covered)[0]  # the grid read at every skin vertex (rows of the covered ones)
         self._read_skin = csr_matrix((np.ones(len(cov)), (cov, np.arange(len(cov)))),
                                      shape=(len(P), len(cov))) @ self.read_grid
@@ -570,7 +609,7 @@ class HeadBinding:
         pinned[si[rest | (depths & (P[:, 1] > mouth_line(Lf)))]] = True
         near_skull = parts.mask("skull")  # the jaw turned whole, but near a split with the skull (ICT's gums)
         for _ in range(SPLIT_RINGS):
-            near_skull[T[near_skull[T].any(axis=1)]] = True
+            near_skull[T[any_corner(near_skull, T)]] = True
         pinned |= parts.mask("jaw") & ~near_skull
         # On lips joined in the mesh the inner lips' middles (their AU27 opening) and, on lips in one line, the upper
         # lip are kept in the jaw's keys alone: the other keys' relaxation moves them (stylised-nose-mouth's AU22 and
@@ -598,7 +637,7 @@ class HeadBinding:
         # A mouth bag: each vertex's share of the jaw's turn, the rest the upper lip's middle (its nearest skin).
         self.mouth = np.nonzero(parts.mask("mouth") & original)[0]
         self._mouth_lower = lower_share(Vf[self.mouth], Lf, eye_distance)[:, None, None]
-        self._upper_lip_vertex = si[np.argmin(np.linalg.norm(P - Lf[LIP_UPPER_INNER], axis=1))]
+        self._upper_lip_vertex = si[np.argmin(row_norms(P - Lf[LIP_UPPER_INNER]))]
 
         # Attached parts ride on their nearest skin vertex.
         self.follow = follow = np.nonzero(parts.mask("follow") & original)[0]
@@ -607,9 +646,9 @@ class HeadBinding:
             self.follow_offset = Vf[follow] - P[self.anchor]
             # The anchors' normals, read off the skin triangles around them alone (each key turns them).
             anchors, self._anchor_of = np.unique(self.anchor, return_inverse=True)
-            ring = Ts[np.isin(Ts, anchors).any(axis=1)]
             slot = np.full(len(si), -1)
             slot[anchors] = np.arange(len(anchors))
+            ring = Ts[any_corner(slot >= 0, Ts)]
             r, c = np.nonzero(slot[ring] >= 0)
             self._ring_vertices, ring_local = np.unique(si[ring], return_inverse=True)  # head indices
             self._ring = ring_local.reshape(ring.shape)
@@ -624,7 +663,7 @@ class HeadBinding:
         self.eyes = {}
         for name, (centre, radius) in parts.eyes.items():
             idx = np.nonzero(parts.mask(name) & original)[0]
-            rho = np.linalg.norm(P - centre, axis=1)
+            rho = row_norms(P - centre)
             guard = (rho >= radius) & (rho < radius + 0.15 * eye_distance) & (P[:, 2] > centre[2])
             self.eyes[name] = (centre, radius, idx, np.nonzero(guard)[0])
             self._folds.keep_outside(si[guard], centre, radius)

@@ -37,6 +37,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import MeshError
+from ..geometry import row_norms
 from ..io.files import load_json
 from ..landmark_scheme import (
     CHIN,
@@ -111,7 +112,7 @@ def fit_sphere(P):
     return c, float(np.sqrt(max(sol[3] + c @ c, 0.0)))
 
 
-def classify_parts(Vf, T, Lf, hinge, overrides=None, welded=False) -> Parts:
+def classify_parts(Vf, T, Lf, hinge, overrides=None, welded=False, pieces=None) -> Parts:
     """Part kind of every vertex of a head mesh.
 
     Parameters
@@ -128,29 +129,26 @@ def classify_parts(Vf, T, Lf, hinge, overrides=None, welded=False) -> Parts:
         Kind → vertex indices, applied last (see :func:`apply_overrides`).
     welded : bool
         ``T``'s seam copies already joined (:func:`pdeface.mesh.seam_welds`, as the binding does): none welded again.
+    pieces : (n,) int array, optional
+        ``connected_components(len(Vf), T)`` where found already (the binding's, when it joined no seams).
     """
     from scipy.spatial import cKDTree
 
 
     n = len(Vf)
-    lab = connected_components(n, T)
+    lab = connected_components(n, T) if pieces is None else pieces
     s = eye_distance(Lf)
     kind = np.full(n, CODE["rest"], np.int8)
 
     # under the landmarks it has (a model file keeps some)
     skin = skin_vertices(Vf, T, Lf[np.isfinite(Lf).all(axis=1)], pieces=lab if welded else None)
     kind[skin] = CODE["skin"]
-    skin_tree = cKDTree(Vf[skin], balanced_tree=False, compact_nodes=False)  # built 2x faster, the same distances
 
-    # Each other part's vertices (ascending) and its gap to the skin: one sort and one query for them all, as far as
-    # NEAR_IOD (inf beyond: only the gaps within it are read; the bound prunes the search of the far parts: teeth)
+    # Each other part's vertices (ascending): one sort for them all.
     rest = np.nonzero(~skin)[0]
     rest = rest[np.argsort(lab[rest], kind="stable")]
     others, starts = np.unique(lab[rest], return_index=True)
     members = dict(zip(others.tolist(), np.split(rest, starts[1:])))
-    gaps = np.minimum.reduceat(skin_tree.query(Vf[rest], distance_upper_bound=NEAR_IOD * s)[0], starts) \
-        if len(rest) else []
-    gap = dict(zip(others.tolist(), map(float, gaps)))
     # Each part's centre and box, once: the loops below read them (mean's own sums: reduceat's differ in rounding).
     centre, box_lo, box_hi = {c: Vf[m].mean(0) for c, m in members.items()}, {}, {}
     if len(rest):
@@ -171,7 +169,7 @@ def classify_parts(Vf, T, Lf, hinge, overrides=None, welded=False) -> Parts:
                 continue
             P = Vf[m]
             c0, r = fit_sphere(P)
-            err = np.abs(np.linalg.norm(P - c0, axis=1) - r).mean() / r
+            err = np.abs(row_norms(P - c0) - r).mean() / r
             if err < 0.1 and (best is None or r > best[0]):  # the outermost sphere: sclera, not iris
                 best = (r, c0, r, c)
         if best is not None:
@@ -183,6 +181,7 @@ def classify_parts(Vf, T, Lf, hinge, overrides=None, welded=False) -> Parts:
     lips_z = Lf[LIP_MIDDLES, 2].max()
     half_width = 0.75 * s
     zcut = hinge[2] + JAW_CUT_IOD * s
+    attached = []
     for c, m in members.items():
         if c in balls:
             continue
@@ -201,15 +200,22 @@ def classify_parts(Vf, T, Lf, hinge, overrides=None, welded=False) -> Parts:
             continue
         # (a part whose centre is outside the sphere reaches outside it: its points need no look)
         eye = next((e for e, (c0, r) in eyes.items() if np.linalg.norm(ctr - c0) < (r + 0.03 * s) * (1 + 1e-9)
-                    and np.linalg.norm(Vf[m] - c0, axis=1).max() < r + 0.03 * s), None)
+                    and row_norms(Vf[m] - c0).max() < r + 0.03 * s), None)
         if eye:  # iris, cornea: inside the eyeball's sphere
             kind[m] = CODE[eye]
             continue
-        if gap[c] < TOUCH_IOD * s:
-            kind[m] = CODE["follow"]
-            continue
-        if gap[c] < NEAR_IOD * s:
-            kind[m] = CODE["follow"]
+        attached.append(c)
+    # The parts left follow the skin where they touch it (lashes, lacrimal meshes) or lie near it (brows, hair
+    # cards): their gaps to the skin in one query, as far as NEAR_IOD (inf beyond: the bound prunes the search of the
+    # far parts; the eyeballs and the mouth's parts, ICT's 10k vertices, need none).
+    if attached:
+        skin_tree = cKDTree(Vf[skin], balanced_tree=False, compact_nodes=False)  # built 2x faster, the same distances
+        near = np.concatenate([members[c] for c in attached])
+        firsts = np.cumsum([0] + [len(members[c]) for c in attached[:-1]])
+        gaps = np.minimum.reduceat(skin_tree.query(Vf[near], distance_upper_bound=NEAR_IOD * s)[0], firsts)
+        for c, gap in zip(attached, gaps):
+            if gap < TOUCH_IOD * s or gap < NEAR_IOD * s:
+                kind[members[c]] = CODE["follow"]
     parts = Parts(kind, eyes, pieces=lab)
     if overrides:
         apply_overrides(parts, overrides)
@@ -259,7 +265,7 @@ def eye_films(parts: Parts, Vf) -> np.ndarray:
     attached = attached[order]
     pieces, starts = np.unique(parts.pieces[attached], return_index=True)
     for centre, radius in parts.eyes.values():
-        reach = np.maximum.reduceat(np.linalg.norm(Vf[attached] - centre, axis=1), starts)
+        reach = np.maximum.reduceat(row_norms(Vf[attached] - centre), starts)
         films |= np.isin(parts.pieces, pieces[reach < FILM_RADII * radius])
     return films & parts.mask("follow")
 
