@@ -3,8 +3,10 @@ leave the keys as they were (issue #35's speed-ups) checked on MakeHuman heads, 
 
 Usage: python -m scripts.devset.compare_keys DIR [NAME ...]
 
-Each character (default: three not tuned on: a head with eyeballs, a decimated one, a Blender-axes one in metres) is
-built, fitted with its true landmarks and the bundled descriptors retargeted to it; the fit is kept in DIR, so a second
+Each character (default: ICT-FaceKit's whole head, ``ict``, bound as ``bench_load`` binds it, and five not tuned on:
+a head with eyeballs, a decimated one with its lips joined, a voxel remesh with its lips in one row of vertices, a whole
+body, one with its teeth and eyes as objects of their own, a Blender-axes one in metres) is built, fitted with its true
+landmarks and the bundled descriptors retargeted to it; the fit is kept in DIR, so a second
 run binds the same model. Then every pose's key (the descriptors' and the presets' sums, as ``bench_keys_devset``) is
 bound (:class:`pdeface.head.bind.HeadBinding`) and written to ``DIR/NAME.npy`` where missing, else compared with it:
 the largest difference is printed, and the exit status is 1 where any key differs at all.
@@ -18,6 +20,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from pdeface.assets import load_head
 from pdeface.au.modelfile import load_face
 from pdeface.au.retarget import retarget
 from pdeface.head.bind import HeadBinding, descriptor_motion_args
@@ -26,7 +29,8 @@ from pdeface.surface.fit import fit_face
 
 from scripts.devset.characters import SPECS, build
 
-NAMES = ("caucasian-female-young-cm", "decimated-cm", "asian-male-young-blender-m")
+NAMES = ("ict", "caucasian-female-young-cm", "decimated-cm", "voxel-m", "body-A-cm", "parted-lips-teeth-separate-m",
+         "asian-male-young-blender-m")
 
 
 def fitted(name, folder):
@@ -34,9 +38,14 @@ def fitted(name, folder):
     path = folder / f"{name}.model.pkl"
     if path.exists():
         return pickle.loads(path.read_bytes())
-    ch = build(SPECS[name])
-    (V, T), L = ch.joined(), ch.landmarks
-    out = V, T, L, retarget(load_face("default"), fit_face(V, T, L)[0])
+    if name == "ict":
+        mesh, lm = load_head()
+        V, T = mesh.vertices, mesh.triangles()[0]
+        out = V, T, None, retarget(load_face("default"), fit_face(V, T, V[lm])[0])  # bound without its landmarks
+    else:
+        ch = build(SPECS[name])
+        (V, T), L = ch.joined(), ch.landmarks  # as the add-on joins a head's objects
+        out = V, T, L, retarget(load_face("default"), fit_face(V, T, L)[0])
     path.write_bytes(pickle.dumps(out))
     return out
 
@@ -57,7 +66,7 @@ def keys(V, T, L, model):
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("folder", type=Path, help="where the fits and keys are kept")
-    ap.add_argument("names", nargs="*", default=NAMES, help="characters of scripts.devset.characters.SPECS")
+    ap.add_argument("names", nargs="*", default=NAMES, help="ict, or characters of scripts.devset.characters.SPECS")
     args = ap.parse_args(argv)
     args.folder.mkdir(parents=True, exist_ok=True)
     same = True
