@@ -617,6 +617,28 @@ def test_jaw_angles_slid_along_the_contour_come_back_to_the_identitys_own(heads,
 
 
 @pytest.mark.parametrize("name", ["identity015", "identity019"])
+def test_chin_points_slid_down_the_chin_come_back_to_the_identitys_own(heads, name):
+    # The detector put MakeHuman's chins low, under the chin's front: the chin's points (7-9), slid 0.06 eye
+    # distances down on the skin, come back near the identity's own, the chin's point (8) as far behind the pogonion
+    # as ICT's, its sides carried by the points around them; left where they are, an identity's own stay.
+    from pdeface.landmarks.contour import CHIN, chin_on_profile, ict_chin_behind_pogonion
+
+    mesh, T, lm, shapes = heads
+    V = mesh.vertices + shapes[name]
+    L = V[lm]
+    rows = [7, CHIN, 9]
+    moved, _, eyes = _moved_on_skin(V, T, L, rows, 1, -0.06)
+    before = np.linalg.norm(moved - L, axis=1)[rows] / eyes
+    back = chin_on_profile(V, T, moved)
+    after = np.linalg.norm(back - L, axis=1)[rows] / eyes
+    assert before.min() > 0.03 and after.max() < 0.015, (before, after)
+    others = np.setdiff1d(np.arange(68), rows)
+    assert np.array_equal(back[others], moved[others])  # only the chin's points move
+    assert np.array_equal(chin_on_profile(V, T, L), L)
+    assert 0.08 < ict_chin_behind_pogonion() < 0.1
+
+
+@pytest.mark.parametrize("name", ["identity015", "identity019"])
 def test_inner_lip_corners_on_the_lips_front_go_back_into_the_lip_line(heads, name):
     # The map may put the inner lip corners on the lips' front, in front of the commissure (MakeHuman's
     # characters: 0.04-0.10 eye distances). Moved 0.06 eye distances forward onto the lips, they go back into

@@ -58,6 +58,7 @@ from ..landmark_scheme import eye_distance
 from ..mesh import connected_components
 from ..surface.frame import face_frame
 from .register import settle_on_skin
+from .render import View, back_project, column_depths
 
 #: The jaw points taken to the template's depth behind the eyes. The chin's (6-10) face the viewer, their ray hits
 #: them squarely; the angles (5, 11) keep the detector's depth (see the module's docstring).
@@ -248,4 +249,105 @@ def jaw_angles_from_neighbours(V, T, points, closest: ClosestPoint | None = None
                        / (ANGLE_DISAGREE[1] - ANGLE_DISAGREE[0]))
         if w > 0:
             out[j] = closest.query((out[j] + w * (placed - out[j]))[None])[3][0]
+    return out
+
+
+#: The chin's point (the menton, 8), the lower lip's bottom (57) above it, and the points its sides (7, 9) are
+#: carried by: the angles, the points beside the chin and the chin's own.
+CHIN, LOWER_LIP, AROUND_CHIN = 8, 57, (5, 6, 8, 10, 11)
+#: How far below the found chin point the profile is read (eye distances): the found ones lie up to 0.12 above or
+#: below the chin's, and 0.25 below a chin's front the straight-on profile is on the neck.
+BELOW_CHIN = 0.25
+#: A step down the profile farther back than this (eye distances) has left the chin for the neck behind it.
+NECK_STEP = 0.03
+#: Pixels across the straight-on view of the chin, and its half-width (eye distances).
+SIZE, HALF = 384, 0.6
+#: How far (eye distances) the found chin points and the placed ones may lie apart before the placed ones begin to
+#: count, and where they count alone (as the angles').
+CHIN_DISAGREE = (0.01, 0.02)
+
+
+def _chin_profile(V, T, points):
+    """The skin's straight-on profile down the chin's column of ``(V, T)``: ``(P, behind, eyes)``, the profile's
+    points (k, 3) from the pogonion down, how far each lies behind the pogonion (eye distances) and the eye
+    distance; None where the profile is not seen whole.
+
+    The pogonion is the profile's forward-most point below the fold under the lower lip (the deepest point of the
+    profile's upper half between the lower lip's bottom, 57, and the found chin point, 8)."""
+    out = np.asarray(points, np.float64)
+    f = face_frame(out)
+    eyes = eye_distance(out)
+    view = View.looking(f.rotation[2], f.rotation[1], out[[LOWER_LIP, CHIN]].mean(0), HALF * eyes, SIZE)
+    x, y, _ = view.project(out)
+    c = view.nearest_pixel(x[CHIN])
+    top = view.nearest_pixel(y[LOWER_LIP])
+    bottom = view.nearest_pixel(y[CHIN] + BELOW_CHIN * eyes / view.pixel)
+    if bottom - top < 6:
+        return None
+    raster, depth = column_depths(V, T, view, c, rows=(top, bottom))
+    d = depth[top:bottom + 1, c] / eyes
+    middle = view.nearest_pixel((y[LOWER_LIP] + y[CHIN]) / 2) - top
+    if not np.isfinite(d[:middle + 1]).all() or middle < 1:
+        return None
+    fold = int(np.argmin(d[:middle + 1]))
+    below = np.where(np.isfinite(d[fold:]), d[fold:], -np.inf)
+    pog = fold + int(np.argmax(below))
+    rows = np.arange(pog, len(d))
+    rows = rows[: np.argmax(~np.isfinite(d[rows])) or len(rows)]  # down to the profile's end, if it ends
+    P = back_project(V, T, raster, np.full(len(rows), float(c)), (top + rows).astype(np.float64), reach=1)[0]
+    return P, d[pog] - d[rows], eyes
+
+
+@lru_cache(maxsize=1)
+def ict_chin_behind_pogonion() -> float:
+    """How far ICT's generic head's chin point (8) lies behind its pogonion (eye distances, :func:`_chin_profile`:
+    0.089; its 20 identities' 0.072-0.101, median 0.087)."""
+    mesh, landmarks = load_head()
+    V, L = mesh.vertices, mesh.vertices[landmarks]
+    P, behind, eyes = _chin_profile(V, mesh.triangles()[0], L)
+    f = face_frame(L)
+    return float(behind[0] + (P[0] - L[CHIN]) @ f.rotation[2] / eyes)
+
+
+def chin_on_profile(V, T, points, closest: ClosestPoint | None = None) -> np.ndarray:
+    """``points (68, 3)`` with the chin's point (8) on the skin ``(V, T)``'s straight-on profile as far behind the
+    pogonion as ICT's (:func:`ict_chin_behind_pogonion`), and the chin's sides (7, 9) where ICT's, carried by the
+    points around them (:data:`AROUND_CHIN`), land, where those and the found ones disagree (:data:`CHIN_DISAGREE`,
+    faded; see the module's docstring).
+
+    Parameters
+    ----------
+    V, T : arrays
+        The mesh and the skin's triangles.
+    points : (68, 3) array
+        Landmarks on the skin, the mesh's space (the lower lip's bottom, the jaw's angles and the points beside the
+        chin are trusted).
+    closest : ClosestPoint, optional
+        On ``(V, T)``, when already built.
+    """
+    out = np.array(points, np.float64)
+    profile = _chin_profile(V, T, out)
+    if profile is None:
+        return out
+    P, behind, eyes = profile
+    want = ict_chin_behind_pogonion()
+    k = int(np.argmax(behind >= want))
+    if behind[k] < want or k == 0:
+        return out
+    closest = ClosestPoint(V, T) if closest is None else closest
+    if behind[k] - behind[k - 1] > NECK_STEP:  # the chin's silhouette passed: its last row
+        placed = P[k - 1]
+    else:
+        w = (want - behind[k - 1]) / (behind[k] - behind[k - 1])
+        placed = P[k - 1] + w * (P[k] - P[k - 1])
+
+    def fade(rows, placed):
+        w = smoothstep((np.linalg.norm(placed - out[rows], axis=1) / eyes - CHIN_DISAGREE[0])
+                       / (CHIN_DISAGREE[1] - CHIN_DISAGREE[0]))[:, None]
+        return np.where(w > 0, closest.query(out[rows] + w * (placed - out[rows]))[3], out[rows])
+
+    out[[CHIN]] = fade([CHIN], placed[None])
+    L = _ict_landmarks()
+    s, R, t = similarity(L[list(AROUND_CHIN)], out[list(AROUND_CHIN)])
+    out[[7, 9]] = fade([7, 9], closest.query(s * L[[7, 9]] @ R.T + t)[3])
     return out
