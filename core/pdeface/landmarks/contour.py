@@ -45,6 +45,15 @@ a similarity, carry its own angle there, taken to the nearest skin point, wherev
 more than ICT's heads make them (:data:`ANGLE_DISAGREE`, faded). Development set, angles against the skin points
 6.5/7.2 -> 3.9/3.9 % (with the skin points themselves as the six: 2.6); fewer points (4 and 6 alone) left the
 border's line unsaid and scored 9.3/8.4.
+
+The chin last (:func:`chin_on_profile`): the detector put MakeHuman's chin point (8) low, on the chin's underside
+(a median 0.04 eye distances below and 0.04 behind the registered skin point). Seen straight on, down the profile
+from the fold under the lower lip, the pogonion is the forward-most point, and ICT's chin point lies 0.089 eye
+distances behind it (its identities 0.072-0.101, MakeHuman's true ones 0.05-0.10, the found ones up to 0.23): 8 goes
+there, and the chin's sides (7, 9) where ICT's points around them (the angles, 6, 10 and the new 8) carry them.
+Development set: the chin's points against the skin points 4.6/5.4/4.5 -> 2.6/2.3/2.9 %, the jaw median against the
+vertices 6.2 -> 6.0 %. On their own slices 7 and 9 have no such mark (ICT's own lie 0.045-0.079 behind the
+slice's forward-most point).
 """
 from __future__ import annotations
 
@@ -238,18 +247,26 @@ def jaw_angles_from_neighbours(V, T, points, closest: ClosestPoint | None = None
         On ``(V, T)``, when already built.
     """
     out = np.array(points, np.float64)
-    L = _ict_landmarks()
     closest = ClosestPoint(V, T) if closest is None else closest
-    eyes = eye_distance(out)
     for j, around in ANGLES.items():
-        around = list(around)
-        s, R, t = similarity(L[around], out[around])
-        placed = closest.query((s * L[j] @ R.T + t)[None])[3][0]
-        w = smoothstep((np.linalg.norm(placed - out[j]) / eyes - ANGLE_DISAGREE[0])
-                       / (ANGLE_DISAGREE[1] - ANGLE_DISAGREE[0]))
-        if w > 0:
-            out[j] = closest.query((out[j] + w * (placed - out[j]))[None])[3][0]
+        out[[j]] = _towards(out, [j], _carried(out, [j], around, closest), ANGLE_DISAGREE, closest)
     return out
+
+
+def _carried(points, rows, around, closest: ClosestPoint) -> np.ndarray:
+    """Where ICT's generic head's landmarks ``rows`` land on the skin once its ``around`` are laid onto ``points``'
+    by a similarity."""
+    L = _ict_landmarks()
+    s, R, t = similarity(L[list(around)], points[list(around)])
+    return closest.query(s * L[list(rows)] @ R.T + t)[3]
+
+
+def _towards(points, rows, placed, disagree, closest: ClosestPoint) -> np.ndarray:
+    """``points[rows]`` moved to ``placed`` on the skin where the two lie more than ``disagree[1]`` eye distances
+    apart, part of the way from ``disagree[0]`` (faded), kept where nearer."""
+    gap = np.linalg.norm(placed - points[rows], axis=1) / eye_distance(points)
+    w = smoothstep((gap - disagree[0]) / (disagree[1] - disagree[0]))[:, None]
+    return np.where(w > 0, closest.query(points[rows] + w * (placed - points[rows]))[3], points[rows])
 
 
 #: The chin's point (the menton, 8), the lower lip's bottom (57) above it, and the points its sides (7, 9) are
@@ -265,6 +282,12 @@ SIZE, HALF = 384, 0.6
 #: How far (eye distances) the found chin points and the placed ones may lie apart before the placed ones begin to
 #: count, and where they count alone (as the angles').
 CHIN_DISAGREE = (0.01, 0.02)
+#: The points beside the chin (6, 10), each carried by the angle and the chin's points on its side where it lies
+#: farther from there than :data:`BESIDE_DISAGREE` (eye distances, faded): they face the viewer and are mostly found
+#: well (on ICT's 21 heads their own lie within 0.004 of where theirs carry them, MakeHuman's found ones a median
+#: 0.015, up to 0.047), but a detector's slip along the jawline leaves one 0.05 off and takes the chin's sides with it.
+BESIDE_CHIN = {6: (5, 7, 8), 10: (11, 9, 8)}
+BESIDE_DISAGREE = (0.03, 0.06)
 
 
 def _chin_profile(V, T, points):
@@ -329,7 +352,7 @@ def chin_on_profile(V, T, points, closest: ClosestPoint | None = None) -> np.nda
     profile = _chin_profile(V, T, out)
     if profile is None:
         return out
-    P, behind, eyes = profile
+    P, behind, _ = profile
     want = ict_chin_behind_pogonion()
     k = int(np.argmax(behind >= want))
     if behind[k] < want or k == 0:
@@ -340,14 +363,12 @@ def chin_on_profile(V, T, points, closest: ClosestPoint | None = None) -> np.nda
     else:
         w = (want - behind[k - 1]) / (behind[k] - behind[k - 1])
         placed = P[k - 1] + w * (P[k] - P[k - 1])
-
-    def fade(rows, placed):
-        w = smoothstep((np.linalg.norm(placed - out[rows], axis=1) / eyes - CHIN_DISAGREE[0])
-                       / (CHIN_DISAGREE[1] - CHIN_DISAGREE[0]))[:, None]
-        return np.where(w > 0, closest.query(out[rows] + w * (placed - out[rows]))[3], out[rows])
-
-    out[[CHIN]] = fade([CHIN], placed[None])
-    L = _ict_landmarks()
-    s, R, t = similarity(L[list(AROUND_CHIN)], out[list(AROUND_CHIN)])
-    out[[7, 9]] = fade([7, 9], closest.query(s * L[[7, 9]] @ R.T + t)[3])
+    out[[CHIN]] = _towards(out, [CHIN], placed[None], CHIN_DISAGREE, closest)
+    sides = [7, 9]
+    out[sides] = _towards(out, sides, _carried(out, sides, AROUND_CHIN, closest), CHIN_DISAGREE, closest)
+    beside = out[list(BESIDE_CHIN)]
+    for j, around in BESIDE_CHIN.items():
+        out[[j]] = _towards(out, [j], _carried(out, [j], around, closest), BESIDE_DISAGREE, closest)
+    if not np.array_equal(out[list(BESIDE_CHIN)], beside):  # the chin's sides again, by the points beside it moved
+        out[sides] = _towards(out, sides, _carried(out, sides, AROUND_CHIN, closest), CHIN_DISAGREE, closest)
     return out

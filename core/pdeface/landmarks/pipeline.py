@@ -18,7 +18,8 @@
 5. **Refine.** Groups the face mesh places by its learned faces, not by the
    surface, are taken to surface features: the upper jaw's depth, the lids' margin
    (:mod:`.eyes`), the brow ridge, the lip line's seam (:mod:`.mouth`), the
-   subnasale and the bridge's middle (:mod:`.nose`).
+   subnasale and the bridge's middle (:mod:`.nose`), the chin's point on its profile
+   (:mod:`.contour`).
 """
 from __future__ import annotations
 
