@@ -639,6 +639,29 @@ def test_chin_points_slid_down_the_chin_come_back_to_the_identitys_own(heads, na
 
 
 @pytest.mark.parametrize("name", ["identity015", "identity019"])
+def test_points_beside_the_chin_slipped_along_the_jawline_come_back(heads, name):
+    # A detector's slip along the jawline: the points beside the chin (6, 10) slid 0.08 eye distances toward the
+    # midline come back near the identity's own, where the angle and the chin's points on their side carry them;
+    # slid 0.02, within what MakeHuman's found ones show, they stay.
+    from pdeface.landmarks.contour import BESIDE_CHIN, chin_on_profile
+
+    mesh, T, lm, shapes = heads
+    V = mesh.vertices + shapes[name]
+    L = V[lm]
+    rows = list(BESIDE_CHIN)
+    for shift, back_home in ((0.08, True), (0.02, False)):
+        moved, f, eyes = _moved_on_skin(V, T, L, rows, 0, [shift, -shift])  # 6 on the right (x < 0), 10 on the left
+        assert (f.to_face(L[rows])[:, 0] * [1, -1] < 0).all()
+        before = np.linalg.norm(moved - L, axis=1)[rows] / eyes
+        back = chin_on_profile(V, T, moved)
+        after = np.linalg.norm(back - L, axis=1)[rows] / eyes
+        if back_home:
+            assert before.min() > 0.05 and after.max() < 0.015, (before, after)
+        else:
+            assert np.array_equal(back[rows], moved[rows]), (before, after)
+
+
+@pytest.mark.parametrize("name", ["identity015", "identity019"])
 def test_inner_lip_corners_on_the_lips_front_go_back_into_the_lip_line(heads, name):
     # The map may put the inner lip corners on the lips' front, in front of the commissure (MakeHuman's
     # characters: 0.04-0.10 eye distances). Moved 0.06 eye distances forward onto the lips, they go back into
