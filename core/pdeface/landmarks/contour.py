@@ -50,7 +50,9 @@ The chin last (:func:`chin_on_profile`): the detector put MakeHuman's chin point
 (a median 0.04 eye distances below and 0.04 behind the registered skin point). Seen straight on, down the profile
 from the fold under the lower lip, the pogonion is the forward-most point, and ICT's chin point lies 0.089 eye
 distances behind it (its identities 0.072-0.101, MakeHuman's true ones 0.05-0.10, the found ones up to 0.23): 8 goes
-there, and the chin's sides (7, 9) where ICT's points around them (the angles, 6, 10 and the new 8) carry them.
+there, and the chin's sides (7, 9) where ICT's points around them (the angles, 6, 10 and the new 8) carry them;
+the points beside the chin (6, 10) too, where a slip along the jawline left one far from where the angle and the
+chin's points on its side carry it (:data:`BESIDE_CHIN`).
 Development set: the chin's points against the skin points 4.6/5.4/4.5 -> 2.6/2.3/2.9 %, the jaw median against the
 vertices 6.2 -> 6.0 %. On their own slices 7 and 9 have no such mark (ICT's own lie 0.045-0.079 behind the
 slice's forward-most point).
@@ -336,7 +338,8 @@ def chin_on_profile(V, T, points, closest: ClosestPoint | None = None) -> np.nda
     """``points (68, 3)`` with the chin's point (8) on the skin ``(V, T)``'s straight-on profile as far behind the
     pogonion as ICT's (:func:`ict_chin_behind_pogonion`), and the chin's sides (7, 9) where ICT's, carried by the
     points around them (:data:`AROUND_CHIN`), land, where those and the found ones disagree (:data:`CHIN_DISAGREE`,
-    faded; see the module's docstring).
+    faded); the points beside the chin (:data:`BESIDE_CHIN`) likewise where they lie far off (:data:`BESIDE_DISAGREE`),
+    then 7 and 9 again (see the module's docstring).
 
     Parameters
     ----------
