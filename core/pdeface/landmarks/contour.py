@@ -266,9 +266,13 @@ def _carried(points, rows, around, closest: ClosestPoint) -> np.ndarray:
 def _towards(points, rows, placed, disagree, closest: ClosestPoint) -> np.ndarray:
     """``points[rows]`` moved to ``placed`` on the skin where the two lie more than ``disagree[1]`` eye distances
     apart, part of the way from ``disagree[0]`` (faded), kept where nearer."""
-    gap = np.linalg.norm(placed - points[rows], axis=1) / eye_distance(points)
+    out = np.array(points[rows], np.float64)
+    gap = np.linalg.norm(placed - out, axis=1) / eye_distance(points)
     w = smoothstep((gap - disagree[0]) / (disagree[1] - disagree[0]))[:, None]
-    return np.where(w > 0, closest.query(points[rows] + w * (placed - points[rows]))[3], points[rows])
+    moved = w[:, 0] > 0
+    if moved.any():
+        out[moved] = closest.query(out[moved] + w[moved] * (placed[moved] - out[moved]))[3]
+    return out
 
 
 #: The chin's point (the menton, 8), the lower lip's bottom (57) above it, and the points its sides (7, 9) are
