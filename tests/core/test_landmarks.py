@@ -621,7 +621,7 @@ def test_chin_points_slid_down_the_chin_come_back_to_the_identitys_own(heads, na
     # The detector put MakeHuman's chins low, under the chin's front: the chin's points (7-9), slid 0.06 eye
     # distances down on the skin, come back near the identity's own, the chin's point (8) as far behind the pogonion
     # as ICT's, its sides carried by the points around them; left where they are, an identity's own stay.
-    from pdeface.landmarks.contour import CHIN, chin_on_profile, ict_chin_behind_pogonion
+    from pdeface.landmarks.contour import CHIN, CHIN_BEHIND_POGONION, chin_on_profile, ict_chin_behind_pogonion
 
     mesh, T, lm, shapes = heads
     V = mesh.vertices + shapes[name]
@@ -635,7 +635,7 @@ def test_chin_points_slid_down_the_chin_come_back_to_the_identitys_own(heads, na
     others = np.setdiff1d(np.arange(68), rows)
     assert np.array_equal(back[others], moved[others])  # only the chin's points move
     assert np.array_equal(chin_on_profile(V, T, L), L)
-    assert 0.08 < ict_chin_behind_pogonion() < 0.1
+    assert ict_chin_behind_pogonion() == pytest.approx(CHIN_BEHIND_POGONION, abs=5e-5)  # the constant is ICT's
 
 
 @pytest.mark.parametrize("name", ["identity015", "identity019"])

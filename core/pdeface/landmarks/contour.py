@@ -327,10 +327,14 @@ def _chin_profile(V, T, points):
     return P, d[pog] - d[rows], eyes
 
 
-@lru_cache(maxsize=1)
+#: How far ICT's generic head's chin point (8) lies behind its pogonion (eye distances; :func:`ict_chin_behind_pogonion`
+#: measures it, a test holds the two together: measured in each process it cost the first head 0.05-0.15 s).
+CHIN_BEHIND_POGONION = 0.0886
+
+
 def ict_chin_behind_pogonion() -> float:
-    """How far ICT's generic head's chin point (8) lies behind its pogonion (eye distances, :func:`_chin_profile`:
-    0.089; its 20 identities' 0.072-0.101, median 0.087)."""
+    """How far ICT's generic head's chin point (8) lies behind its pogonion on its straight-on profile (eye
+    distances, :func:`_chin_profile`: 0.0886; its 20 identities' 0.072-0.101, median 0.087)."""
     mesh, landmarks = load_head()
     V, L = mesh.vertices, mesh.vertices[landmarks]
     P, behind, eyes = _chin_profile(V, mesh.triangles()[0], L)
@@ -340,7 +344,7 @@ def ict_chin_behind_pogonion() -> float:
 
 def chin_on_profile(V, T, points, closest: ClosestPoint | None = None) -> np.ndarray:
     """``points (68, 3)`` with the chin's point (8) on the skin ``(V, T)``'s straight-on profile as far behind the
-    pogonion as ICT's (:func:`ict_chin_behind_pogonion`), and the chin's sides (7, 9) where ICT's, carried by the
+    pogonion as ICT's (:data:`CHIN_BEHIND_POGONION`), and the chin's sides (7, 9) where ICT's, carried by the
     points around them (:data:`AROUND_CHIN`), land, where those and the found ones disagree (:data:`CHIN_DISAGREE`,
     faded); the points beside the chin (:data:`BESIDE_CHIN`) likewise where they lie far off (:data:`BESIDE_DISAGREE`),
     then 7 and 9 again (see the module's docstring).
@@ -360,7 +364,7 @@ def chin_on_profile(V, T, points, closest: ClosestPoint | None = None) -> np.nda
     if profile is None:
         return out
     P, behind, _ = profile
-    want = ict_chin_behind_pogonion()
+    want = CHIN_BEHIND_POGONION
     k = int(np.argmax(behind >= want))
     if behind[k] < want or k == 0:
         return out
