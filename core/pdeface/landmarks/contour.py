@@ -278,8 +278,8 @@ def _towards(points, rows, placed, disagree, closest: ClosestPoint) -> np.ndarra
 #: The chin's point (the menton, 8), the lower lip's bottom (57) above it, and the points its sides (7, 9) are
 #: carried by: the angles, the points beside the chin and the chin's own.
 CHIN, LOWER_LIP, AROUND_CHIN = 8, 57, (5, 6, 8, 10, 11)
-#: How far below the found chin point the profile is read (eye distances): the found ones lie up to 0.12 above or
-#: below the chin's, and 0.25 below a chin's front the straight-on profile is on the neck.
+#: How far below the found chin point the profile is read (eye distances): room for a chin point found high (the
+#: true ones lie 0.05-0.26 below the pogonion); below the chin's silhouette the profile is the neck's (:data:`NECK_STEP`).
 BELOW_CHIN = 0.25
 #: A step down the profile farther back than this (eye distances) has left the chin for the neck behind it.
 NECK_STEP = 0.03
@@ -365,7 +365,7 @@ def chin_on_profile(V, T, points, closest: ClosestPoint | None = None) -> np.nda
         return out
     P, behind, _ = profile
     want = CHIN_BEHIND_POGONION
-    k = int(np.argmax(behind >= want))
+    k = int(np.argmax(behind >= want))  # the first row down from the pogonion that far back
     if behind[k] < want or k == 0:
         return out
     closest = ClosestPoint(V, T) if closest is None else closest
