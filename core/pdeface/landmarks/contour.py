@@ -45,6 +45,17 @@ a similarity, carry its own angle there, taken to the nearest skin point, wherev
 more than ICT's heads make them (:data:`ANGLE_DISAGREE`, faded). Development set, angles against the skin points
 6.5/7.2 -> 3.9/3.9 % (with the skin points themselves as the six: 2.6); fewer points (4 and 6 alone) left the
 border's line unsaid and scored 9.3/8.4.
+
+The chin last (:func:`chin_on_profile`): the detector put MakeHuman's chin point (8) low, on the chin's underside
+(a median 0.04 eye distances below and 0.04 behind the registered skin point). Seen straight on, down the profile
+from the fold under the lower lip, the pogonion is the forward-most point, and ICT's chin point lies 0.089 eye
+distances behind it (its identities 0.072-0.101, MakeHuman's true ones 0.05-0.10, the found ones up to 0.23): 8 goes
+there, and the chin's sides (7, 9) where ICT's points around them (the angles, 6, 10 and the new 8) carry them;
+the points beside the chin (6, 10) too, where a slip along the jawline left one far from where the angle and the
+chin's points on its side carry it (:data:`BESIDE_CHIN`).
+Development set: the chin's points against the skin points 4.6/5.4/4.5 -> 2.6/2.3/2.9 %, the jaw median against the
+vertices 6.2 -> 6.0 %. On their own slices 7 and 9 have no such mark (ICT's own lie 0.045-0.079 behind the
+slice's forward-most point).
 """
 from __future__ import annotations
 
@@ -58,6 +69,7 @@ from ..landmark_scheme import eye_distance
 from ..mesh import connected_components
 from ..surface.frame import face_frame
 from .register import settle_on_skin
+from .render import View, back_project, column_depths
 
 #: The jaw points taken to the template's depth behind the eyes. The chin's (6-10) face the viewer, their ray hits
 #: them squarely; the angles (5, 11) keep the detector's depth (see the module's docstring).
@@ -237,15 +249,137 @@ def jaw_angles_from_neighbours(V, T, points, closest: ClosestPoint | None = None
         On ``(V, T)``, when already built.
     """
     out = np.array(points, np.float64)
-    L = _ict_landmarks()
     closest = ClosestPoint(V, T) if closest is None else closest
-    eyes = eye_distance(out)
     for j, around in ANGLES.items():
-        around = list(around)
-        s, R, t = similarity(L[around], out[around])
-        placed = closest.query((s * L[j] @ R.T + t)[None])[3][0]
-        w = smoothstep((np.linalg.norm(placed - out[j]) / eyes - ANGLE_DISAGREE[0])
-                       / (ANGLE_DISAGREE[1] - ANGLE_DISAGREE[0]))
-        if w > 0:
-            out[j] = closest.query((out[j] + w * (placed - out[j]))[None])[3][0]
+        out[[j]] = _towards(out, [j], _carried(out, [j], around, closest), ANGLE_DISAGREE, closest)
+    return out
+
+
+def _carried(points, rows, around, closest: ClosestPoint) -> np.ndarray:
+    """Where ICT's generic head's landmarks ``rows`` land on the skin once its ``around`` are laid onto ``points``'
+    by a similarity."""
+    L = _ict_landmarks()
+    s, R, t = similarity(L[list(around)], points[list(around)])
+    return closest.query(s * L[list(rows)] @ R.T + t)[3]
+
+
+def _towards(points, rows, placed, disagree, closest: ClosestPoint) -> np.ndarray:
+    """``points[rows]`` moved to ``placed`` on the skin where the two lie more than ``disagree[1]`` eye distances
+    apart, part of the way from ``disagree[0]`` (faded), kept where nearer."""
+    out = np.array(points[rows], np.float64)
+    gap = np.linalg.norm(placed - out, axis=1) / eye_distance(points)
+    w = smoothstep((gap - disagree[0]) / (disagree[1] - disagree[0]))[:, None]
+    moved = w[:, 0] > 0
+    if moved.any():
+        out[moved] = closest.query(out[moved] + w[moved] * (placed[moved] - out[moved]))[3]
+    return out
+
+
+#: The chin's point (the menton, 8), the lower lip's bottom (57) above it, and the points its sides (7, 9) are
+#: carried by: the angles, the points beside the chin and the chin's own.
+CHIN, LOWER_LIP, AROUND_CHIN = 8, 57, (5, 6, 8, 10, 11)
+#: How far below the found chin point the profile is read (eye distances): room for a chin point found high (the
+#: true ones lie 0.05-0.26 below the pogonion); below the chin's silhouette the profile is the neck's (:data:`NECK_STEP`).
+BELOW_CHIN = 0.25
+#: A step down the profile farther back than this (eye distances) has left the chin for the neck behind it.
+NECK_STEP = 0.03
+#: Pixels across the straight-on view of the chin, and its half-width (eye distances).
+SIZE, HALF = 384, 0.6
+#: How far (eye distances) the found chin points and the placed ones may lie apart before the placed ones begin to
+#: count, and where they count alone (as the angles').
+CHIN_DISAGREE = (0.01, 0.02)
+#: The points beside the chin (6, 10), each carried by the angle and the chin's points on its side where it lies
+#: farther from there than :data:`BESIDE_DISAGREE` (eye distances, faded): they face the viewer and are mostly found
+#: well (on ICT's 21 heads their own lie within 0.004 of where theirs carry them, MakeHuman's found ones a median
+#: 0.015, up to 0.047), but a detector's slip along the jawline leaves one 0.05 off and takes the chin's sides with it.
+BESIDE_CHIN = {6: (5, 7, 8), 10: (11, 9, 8)}
+BESIDE_DISAGREE = (0.03, 0.06)
+
+
+def _chin_profile(V, T, points):
+    """The skin's straight-on profile down the chin's column of ``(V, T)``: ``(P, behind, eyes)``, the profile's
+    points (k, 3) from the pogonion down, how far each lies behind the pogonion (eye distances) and the eye
+    distance; None where the profile is not seen whole.
+
+    The pogonion is the profile's forward-most point below the fold under the lower lip (the deepest point of the
+    profile's upper half between the lower lip's bottom, 57, and the found chin point, 8)."""
+    out = np.asarray(points, np.float64)
+    f = face_frame(out)
+    eyes = eye_distance(out)
+    view = View.looking(f.rotation[2], f.rotation[1], out[[LOWER_LIP, CHIN]].mean(0), HALF * eyes, SIZE)
+    x, y, _ = view.project(out)
+    c = view.nearest_pixel(x[CHIN])
+    top = view.nearest_pixel(y[LOWER_LIP])
+    bottom = view.nearest_pixel(y[CHIN] + BELOW_CHIN * eyes / view.pixel)
+    if bottom - top < 6:
+        return None
+    raster, depth = column_depths(V, T, view, c, rows=(top, bottom))
+    d = depth[top:bottom + 1, c] / eyes
+    middle = view.nearest_pixel((y[LOWER_LIP] + y[CHIN]) / 2) - top
+    if not np.isfinite(d[:middle + 1]).all() or middle < 1:
+        return None
+    fold = int(np.argmin(d[:middle + 1]))
+    below = np.where(np.isfinite(d[fold:]), d[fold:], -np.inf)
+    pog = fold + int(np.argmax(below))
+    rows = np.arange(pog, len(d))
+    rows = rows[: np.argmax(~np.isfinite(d[rows])) or len(rows)]  # down to the profile's end, if it ends
+    P = back_project(V, T, raster, np.full(len(rows), float(c)), (top + rows).astype(np.float64), reach=1)[0]
+    return P, d[pog] - d[rows], eyes
+
+
+#: How far ICT's generic head's chin point (8) lies behind its pogonion (eye distances; :func:`ict_chin_behind_pogonion`
+#: measures it, a test holds the two together: measured in each process it cost the first head 0.05-0.15 s).
+CHIN_BEHIND_POGONION = 0.0886
+
+
+def ict_chin_behind_pogonion() -> float:
+    """How far ICT's generic head's chin point (8) lies behind its pogonion on its straight-on profile (eye
+    distances, :func:`_chin_profile`: 0.0886; its 20 identities' 0.072-0.101, median 0.087)."""
+    mesh, landmarks = load_head()
+    V, L = mesh.vertices, mesh.vertices[landmarks]
+    P, behind, eyes = _chin_profile(V, mesh.triangles()[0], L)
+    f = face_frame(L)
+    return float(behind[0] + (P[0] - L[CHIN]) @ f.rotation[2] / eyes)
+
+
+def chin_on_profile(V, T, points, closest: ClosestPoint | None = None) -> np.ndarray:
+    """``points (68, 3)`` with the chin's point (8) on the skin ``(V, T)``'s straight-on profile as far behind the
+    pogonion as ICT's (:data:`CHIN_BEHIND_POGONION`), and the chin's sides (7, 9) where ICT's, carried by the
+    points around them (:data:`AROUND_CHIN`), land, where those and the found ones disagree (:data:`CHIN_DISAGREE`,
+    faded); the points beside the chin (:data:`BESIDE_CHIN`) likewise where they lie far off (:data:`BESIDE_DISAGREE`),
+    then 7 and 9 again (see the module's docstring).
+
+    Parameters
+    ----------
+    V, T : arrays
+        The mesh and the skin's triangles.
+    points : (68, 3) array
+        Landmarks on the skin, the mesh's space (the lower lip's bottom, the jaw's angles and the points beside the
+        chin are trusted).
+    closest : ClosestPoint, optional
+        On ``(V, T)``, when already built.
+    """
+    out = np.array(points, np.float64)
+    profile = _chin_profile(V, T, out)
+    if profile is None:
+        return out
+    P, behind, _ = profile
+    want = CHIN_BEHIND_POGONION
+    k = int(np.argmax(behind >= want))  # the first row down from the pogonion that far back
+    if behind[k] < want or k == 0:
+        return out
+    closest = ClosestPoint(V, T) if closest is None else closest
+    if behind[k] - behind[k - 1] > NECK_STEP:  # the chin's silhouette passed: its last row
+        placed = P[k - 1]
+    else:
+        w = (want - behind[k - 1]) / (behind[k] - behind[k - 1])
+        placed = P[k - 1] + w * (P[k] - P[k - 1])
+    out[[CHIN]] = _towards(out, [CHIN], placed[None], CHIN_DISAGREE, closest)
+    sides = [7, 9]
+    out[sides] = _towards(out, sides, _carried(out, sides, AROUND_CHIN, closest), CHIN_DISAGREE, closest)
+    beside = out[list(BESIDE_CHIN)]
+    for j, around in BESIDE_CHIN.items():
+        out[[j]] = _towards(out, [j], _carried(out, [j], around, closest), BESIDE_DISAGREE, closest)
+    if not np.array_equal(out[list(BESIDE_CHIN)], beside):  # the chin's sides again, by the points beside it moved
+        out[sides] = _towards(out, sides, _carried(out, sides, AROUND_CHIN, closest), CHIN_DISAGREE, closest)
     return out

@@ -18,7 +18,8 @@
 5. **Refine.** Groups the face mesh places by its learned faces, not by the
    surface, are taken to surface features: the upper jaw's depth, the lids' margin
    (:mod:`.eyes`), the brow ridge, the lip line's seam (:mod:`.mouth`), the
-   subnasale and the bridge's middle (:mod:`.nose`).
+   subnasale and the bridge's middle (:mod:`.nose`), the chin's point on its profile
+   (:mod:`.contour`).
 """
 from __future__ import annotations
 
@@ -35,7 +36,12 @@ from ..rigid import rotation_vector_matrix
 from ..surface.frame import UNITS_MM, estimate_unit
 from ..threads import bounded
 from .brows import brows_from_template, nasion_from_midline_strip
-from .contour import jaw_angles_from_neighbours, jaw_sides_from_template, upper_jaw_at_template_depth
+from .contour import (
+    chin_on_profile,
+    jaw_angles_from_neighbours,
+    jaw_sides_from_template,
+    upper_jaw_at_template_depth,
+)
 from .detector import Detector
 from .eyes import corners_on_skin_front, lids_on_margin, outer_corners_at_opening_end
 from .facemap import GROUPS, LandmarkMap, read_map, robust_similarity
@@ -418,6 +424,9 @@ def detect(V, T, unit=None, landmark_map: LandmarkMap | None = None, detector: D
         points = nose_bottom_at_subnasale(V, Ts, points, closest)
         # The bridge's middle points at ICT's shares of the nasion-to-tip chord, not nearer the nasion.
         points = bridge_at_ict_shares(V, Ts, points)
+        # The chin's point as far behind the pogonion as ICT's, not under the chin where the detector put it (last:
+        # the face frame the steps above take from all the points would move with it).
+        points = chin_on_profile(V, Ts, points, closest)
         indices = nearest_vertices(V, Ts, points)
         mm = UNITS_MM[unit] if unit else estimate_unit(points)[1]  # the fit's own estimate (one for both)
         spread = group_spread(m, Ps, mm)
