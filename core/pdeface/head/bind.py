@@ -48,6 +48,9 @@ one linear shape key per AU or expression, as on the PDE face.
 """
 from __future__ import annotations
 
+from copy import copy
+from functools import cached_property
+
 import numpy as np
 
 from .. import landmark_scheme
@@ -173,11 +176,38 @@ class _Extension:
         self.lu = splu(L[self.free][:, self.free].tocsc()) if len(self.free) else None
         self.read = read[self.fixed].tocsr()  # grid → fixed values
         self.load = (-(L[self.free][:, self.fixed] @ self.read)).tocsr()  # grid → the free rows' right-hand side
+        self._on_nodes = None
 
     def solve(self, G):
         """(fixed values, free values) for grid motions ``G`` (g, c)."""
         free = self.lu.solve(self.load @ G) if self.lu is not None else np.zeros((0, G.shape[1]))
         return self.read @ G, free
+
+    def on_nodes(self, slot):
+        """This extension reading the grid's motion at the nodes read alone (``slot``: each grid node's row among
+        them, :func:`_node_slots`); made once, the factorisation shared."""
+        if self._on_nodes is None:
+            self._on_nodes = copy(self)
+            self._on_nodes.read, self._on_nodes.load = _on_nodes(self.read, slot), _on_nodes(self.load, slot)
+        return self._on_nodes
+
+
+def _node_slots(read_grid):
+    """``(nodes, slot)``: the grid nodes ``read_grid`` reads (increasing) and each grid node's row among them (-1:
+    not read)."""
+    nodes = np.unique(read_grid.indices)
+    slot = np.full(read_grid.shape[1], -1, np.int64)
+    slot[nodes] = np.arange(len(nodes))
+    return nodes, slot
+
+
+def _on_nodes(read, slot):
+    """A sparse map from grid nodes read as one from the nodes read alone (``slot``: :func:`_node_slots`): its
+    entries as they were, in their order (the products sum the same terms in the same order)."""
+    from scipy.sparse import csr_matrix
+
+    read = read.tocsr()
+    return csr_matrix((read.data, slot[read.indices], read.indptr), shape=(read.shape[0], slot.max() + 1))
 
 
 def _check_on_skin(Lf, skin_tree, eye_distance):
@@ -685,6 +715,11 @@ class HeadBinding:
         """
         return self.face_motions([(delta_coefficients, delta_residual, jaw, gaze)], with_prior)[0]
 
+    @cached_property
+    def _read_nodes(self):
+        """:func:`_node_slots` of the covered skin's reads: the PDE grid's nodes every extension reads."""
+        return _node_slots(self.read_grid)
+
     @bounded
     def face_motions(self, motions, with_prior=True) -> np.ndarray:
         """:meth:`face_motion` of several ``(delta_coefficients, delta_residual, jaw, gaze)`` at once, (k, n, 3)
@@ -693,19 +728,21 @@ class HeadBinding:
         # The solve is linear: all motions side by side along the last axis, as ShapeBasis does.
         C = np.concatenate([np.asarray(c, np.float64) for c, _, _, _ in motions], axis=2)
         R = np.concatenate([np.asarray(r, np.float64) for _, r, _, _ in motions], axis=2)
+        # The grid at the nodes the skin reads alone (half ICT's face's grid), their rows in their order.
+        nodes, slot = self._read_nodes
         G = surface_grid(m, *self.resolution, coefficients=C, residual=R, break_slope=READ_BREAK_SLOPE,
-                         confine=False).reshape(-1, 3 * k)
+                         confine=False, nodes=nodes)
         jaws = np.array([bool(jaw) and self.chin is not None for _, _, jaw, _ in motions])
         out = np.zeros((len(self.V), k, 3))  # vertex-major: the parts below are row blocks
         flat = out.reshape(len(self.V), 3 * k)
         # Every key through the skin's extension, whole rows (a column gather and scatter of most keys cost more
         # than solving the few jaw keys twice); the jaw keys then again through the jaw's, every skin row.
-        ext = self._extension(jaws.all())
+        ext = self._extension(jaws.all()).on_nodes(slot)
         flat[self.skin[ext.fixed]], flat[self.skin[ext.free]] = ext.solve(G)
         members = np.nonzero(jaws)[0]
         if 0 < len(members) < k:
             cols = (3 * members[:, None] + np.arange(3)).ravel()
-            ext = self._extension(True)
+            ext = self._extension(True).on_nodes(slot)
             fixed, free = ext.solve(G.take(cols, axis=1))  # C-ordered (G[:, cols] is not: sparse @ copies it)
             entries = flat.reshape(-1)  # written at flat indices: 1.5-5x faster than numpy.ix_'s
             entries[(self.skin[ext.fixed][:, None] * flat.shape[1] + cols).ravel()] = fixed.ravel()
@@ -714,7 +751,7 @@ class HeadBinding:
             out[self.follow] = self._follow(out)
         jaw_keys = np.nonzero(jaws)[0] if len(self.jaw_parts) else ()
         if len(jaw_keys):  # the chin's PDE motion in every jaw key at once
-            chin = self.read_grid[np.nonzero(self.chin[self.covered])[0]]
+            chin = _on_nodes(self.read_grid[np.nonzero(self.chin[self.covered])[0]], slot)
             cols = (3 * jaw_keys[:, None] + np.arange(3)).ravel()
             d_chins = (chin @ G.take(cols, axis=1)).reshape(chin.shape[0], -1, 3)
         for j, i in enumerate(jaw_keys):
