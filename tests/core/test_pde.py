@@ -285,8 +285,8 @@ def test_surface_planes_are_the_straightforward_sums(rng, default_face):
 
 def test_surface_at_nodes_is_the_grid_there(rng, default_face):
     """SurfaceOperator.at_nodes (solve_surface's ``nodes``): a scattered subset of the grid's nodes, a grid row
-    with one node read, the first and last nodes, every node: the whole grid's values there (to rounding: the
-    products run in another shape), for a confined face and several surfaces at once; bad nodes refused."""
+    with one node read, the first and last nodes, every node: the whole grid's values there (to rounding: a node's
+    two sums are one), for a confined face and several surfaces at once; bad nodes refused."""
     from pdeface.surface import pde
     from pdeface.surface.grid import break_weights
 

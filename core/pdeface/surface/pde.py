@@ -431,30 +431,23 @@ class SurfaceOperator:
 
     def at_nodes(self, coefficients, residual, nodes) -> np.ndarray:
         """The surface at some grid nodes alone, (len(nodes), c): ``nodes`` are flat indices ``u * n_v + v`` of
-        the (n_u, n_v) grid, increasing. Each node's values are :meth:`apply`'s there, bit for bit (the same
-        products, row by row of the grid: the same sums in the same order), at the cost of the nodes read: a
-        head binding reads half its face's grid."""
+        the (n_u, n_v) grid, increasing. :meth:`apply`'s values there (to rounding: the two sums of a node are
+        one here) at the cost of the nodes read, one product per grid row: a head binding reads half its face's
+        grid."""
         nodes = np.asarray(nodes, dtype=np.int64)
         F, Ru = self._u_factors(coefficients, residual)
-        _, _, v_modes, v_remainder = self._plane_factors
         c, n_u, _ = F.shape
-        n_v = v_modes.shape[1]
+        n_v = self._node_factors.shape[0]
         if len(nodes) and (nodes[0] < 0 or nodes[-1] >= n_u * n_v or np.any(np.diff(nodes) <= 0)):
             raise LayoutError(f"grid nodes must be increasing flat indices below {n_u * n_v}")
         rows, cols = np.divmod(nodes, n_v)
-        # each node's v factors as a row (a gather of the columns read); a grid row with one node read takes two:
-        # numpy's product of a single row sums in another order (a matrix-vector kernel)
-        VR, VM = v_remainder.T[cols], v_modes.T[cols]
+        U = np.concatenate([Ru, F], axis=2)  # each plane's and row's u factors, as the v factors' columns
+        Vn = self._node_factors[cols]
         out = np.empty((len(nodes), c))
         starts = np.searchsorted(rows, np.arange(n_u + 1))
         for u in np.nonzero(np.diff(starts))[0]:
             s = slice(starts[u], starts[u + 1])
-            if s.stop - s.start > 1:
-                np.matmul(VR[s], Ru[:, u].T, out=out[s])
-                out[s] += VM[s] @ F[:, u].T
-            else:
-                two = np.r_[s.start, s.start]
-                out[s] = (VR[two] @ Ru[:, u].T + VM[two] @ F[:, u].T)[:1]
+            np.matmul(Vn[s], U[:, u].T, out=out[s])
         return out
 
     def _u_factors(self, coefficients, residual):
@@ -467,6 +460,12 @@ class SurfaceOperator:
         F = F.reshape(n1, c, n_u, b).transpose(1, 2, 0, 3).reshape(c, n_u, n1 * b)
         Ru = np.matmul(remainder_u, np.ascontiguousarray(np.transpose(residual, (2, 0, 1))))  # (c, n_u b, J)
         return F, Ru.reshape(c, n_u, b * J)
+
+    @cached_property
+    def _node_factors(self):
+        """:meth:`at_nodes`' v factors, (n_v, B J + (N+1) B): at each column, the remainder's and the modes'."""
+        _, _, v_modes, v_remainder = self._plane_factors
+        return np.ascontiguousarray(np.concatenate([v_remainder, v_modes]).T)
 
     @cached_property
     def _plane_factors(self):
