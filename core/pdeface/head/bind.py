@@ -172,6 +172,8 @@ class _Extension:
     """Harmonic extension over the skin of the PDE grid's motion: Dirichlet values read off the grid on the
     fixed vertices (covered skin; zero on the others), harmonic on the free ones (factorised once)."""
 
+    _on_nodes = None  # :meth:`on_nodes`' extension, made on first use
+
     def __init__(self, L, fixed, read):
         from scipy.sparse.linalg import splu
 
@@ -179,7 +181,6 @@ class _Extension:
         self.lu = splu(L[self.free][:, self.free].tocsc()) if len(self.free) else None
         self.read = read[self.fixed].tocsr()  # grid → fixed values
         self.load = (-(L[self.free][:, self.fixed] @ self.read)).tocsr()  # grid → the free rows' right-hand side
-        self._on_nodes = None
 
     def solve(self, G):
         """(fixed values, free values) for grid motions ``G`` (g, c)."""
