@@ -101,6 +101,33 @@ def test_keys_are_one_pose_each_and_linear_on_the_skin(generic):
     assert behind.max() <= 3 * STILL_MM  # mixed there, within the caps of the keys mixed (and of the pose)
 
 
+def test_keys_read_the_pde_grid_at_the_nodes_read_alone(generic):
+    """The keys evaluate the PDE grid at the nodes the covered skin reads (half ICT's face's grid): every read of
+    every extension lies among them, and the skin moves as it does when the whole grid is solved (to rounding)."""
+    from pdeface.head.bind import READ_BREAK_SLOPE, descriptor_motion_args
+    from pdeface.surface.grid import surface_grid
+
+    model, b = generic
+    nodes, slot = b._read_nodes
+    n_grid = b.read_grid.shape[1]
+    assert 0 < len(nodes) < 0.7 * n_grid and (slot[nodes] == np.arange(len(nodes))).all()
+    for ext in (b._extension(False), b._extension(True)):
+        assert np.isin(ext.read.indices, nodes).all() and np.isin(ext.load.indices, nodes).all()
+    by_key = {d.key: d for d in model.descriptors}
+    motions = [descriptor_motion_args(by_key[k])[:4] for k in ("12", "45L", "27")]
+    got = b.face_motions(motions, with_prior=False)
+    C, R = (np.concatenate([m[i] for m in motions], axis=2) for i in (0, 1))
+    G = surface_grid(model, *b.resolution, coefficients=C, residual=R, break_slope=READ_BREAK_SLOPE,
+                     confine=False).reshape(n_grid, -1)
+    for jaw, keys in ((False, [0, 1]), (True, [2])):
+        ext = b._extension(jaw)
+        fixed, free = ext.solve(G)
+        for i in keys:
+            for rows, want in ((ext.fixed, fixed), (ext.free, free)):
+                want = want[:, 3 * i:3 * i + 3]
+                np.testing.assert_allclose(got[i, b.skin[rows]], want, rtol=0, atol=1e-12 * np.abs(want).max())
+
+
 def test_rest_region_never_moves(head, generic):
     mesh, _, lm, _ = head
     _, b = generic

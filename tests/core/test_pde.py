@@ -281,3 +281,39 @@ def test_surface_planes_are_the_straightforward_sums(rng, default_face):
             assert planes.shape == (6,) + want.shape[:2]
             np.testing.assert_allclose(planes, np.moveaxis(want, 2, 0), atol=1e-9 * np.abs(want).max())
             np.testing.assert_array_equal(op.apply(C, R), np.moveaxis(planes, 0, 2))
+
+
+def test_surface_at_nodes_is_the_grid_there(rng, default_face):
+    """SurfaceOperator.at_nodes (solve_surface's ``nodes``): a scattered subset of the grid's nodes, a grid row
+    with one node read, the first and last nodes, every node: the whole grid's values there (to rounding: a node's
+    two sums are one), for a confined face and several surfaces at once; bad nodes refused."""
+    from pdeface.surface import pde
+    from pdeface.surface.grid import break_weights
+
+    m = default_face
+    K, J = len(m.knots), m.layout.n_points
+    rows, cols = tuple(rng.integers(1, 6, K - 1)), tuple(rng.integers(1, 6, J - 1))
+    C = rng.normal(size=m.coefficients.shape[:2] + (9,))
+    R = rng.normal(size=m.residual.shape[:2] + (9,))
+    key = tuple((int(b), tuple(w), tuple(s)) for b, w, s in break_weights(m, cols))
+    args = (tuple(m.knots), J, C.shape[1] - 1, float(m.a), float(m.remainder_w), rows, cols)
+    for op in (pde.surface_operator(*args, "smooth", (0, 0), m.layout.breaks()),
+               pde.confined_operator(*args, (0, 1), m.layout.breaks(), BREAK_SLOPE, key)):
+        grid = op.apply(C, R)
+        n_u, n_v = grid.shape[:2]
+        flat = grid.reshape(n_u * n_v, -1)
+        some = np.sort(rng.choice(n_u * n_v, n_u * n_v // 3, replace=False))
+        lone = 2 * n_v + 3  # row 2 read at this node alone
+        some = np.union1d(np.setdiff1d(some, np.arange(2 * n_v, 3 * n_v)), [0, lone, n_u * n_v - 1])
+        for nodes in (some, np.arange(n_u * n_v), np.array([lone])):
+            got = op.at_nodes(C, R, nodes)
+            assert got.shape == (len(nodes), 9)
+            np.testing.assert_allclose(got, flat[nodes], rtol=0, atol=1e-12 * np.abs(flat).max())
+        assert op.at_nodes(C, R, np.zeros(0, int)).shape == (0, 9)
+        for bad in ([3, 2], [-1, 4], [n_u * n_v]):
+            with pytest.raises(LayoutError, match="grid nodes"):
+                op.at_nodes(C, R, np.array(bad))
+    X = solve_surface(C[..., :3], R[..., :3], m.knots, m.a, m.remainder_w, rows, cols, breaks=m.layout.breaks(),
+                      nodes=some)
+    full = solve_surface(C[..., :3], R[..., :3], m.knots, m.a, m.remainder_w, rows, cols, breaks=m.layout.breaks())
+    np.testing.assert_allclose(X, full.reshape(-1, 3)[some], rtol=0, atol=1e-12 * np.abs(full).max())

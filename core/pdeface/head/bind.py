@@ -48,6 +48,9 @@ one linear shape key per AU or expression, as on the PDE face.
 """
 from __future__ import annotations
 
+from copy import copy
+from functools import cached_property
+
 import numpy as np
 
 from .. import landmark_scheme
@@ -157,9 +160,12 @@ STILL_MM = 0.4
 #: issue's limit 13), 8 and 6 after 150; for the jaw's keys more sweeps smooth parted lips shut (african-male-old's
 #: AU27 gap 0.37 -> 0.26 eye distances).
 STEPS_NOT_JAW = 150
-#: Vertices worked on at a time where every key's rows are read and written (the prior's residuals added, the keys'
-#: last step: the turn to user space): the block's rows stay in cache.
+#: Vertices worked on at a time where every key's rows are read and written (the keys' last step: the turn to user
+#: space; the back of the head kept still): the block's rows stay in cache.
 USER_BLOCK = 1024
+#: Columns of the harmonic extension's right-hand sides solved at a time: SuperLU's solve of ICT's 216 (72 keys) at
+#: once ran 1.1-1.4x slower (its work array out of cache), and their transposed scatter into the keys' rows 2x.
+SOLVE_COLUMNS = 72
 #: AUs that move the jaw, and the gaze AUs.
 JAW_AUS = frozenset({25, 26, 27, 29, 30})
 GAZE_AUS = frozenset({61, 62, 63, 64})
@@ -176,6 +182,8 @@ class _Extension:
     """Harmonic extension over the skin of the PDE grid's motion: Dirichlet values read off the grid on the
     fixed vertices (covered skin; zero on the others), harmonic on the free ones (factorised once)."""
 
+    _on_nodes = None  # :meth:`on_nodes`' extension, made on first use
+
     def __init__(self, L, fixed, read):
         from scipy.sparse.linalg import splu
 
@@ -189,6 +197,44 @@ class _Extension:
         """(fixed values, free values) for grid motions ``G`` (g, c)."""
         free = self.lu.solve(self.load @ G) if self.lu is not None else np.zeros((0, G.shape[1]))
         return self.read @ G, free
+
+    def write(self, G, out, rows):
+        """Write the extension of grid motions ``G`` (g, c) into ``out`` (n, c), at its rows ``rows[self.fixed]``
+        and ``rows[self.free]``: :meth:`solve`'s values, the free ones solved :data:`SOLVE_COLUMNS` columns at a
+        time and each block written while in cache."""
+        out[rows[self.fixed]] = self.read @ G
+        if self.lu is None:
+            return
+        rhs, free = self.load @ G, rows[self.free]
+        for start in range(0, G.shape[1], SOLVE_COLUMNS):
+            cols = slice(start, start + SOLVE_COLUMNS)
+            out[free, cols] = self.lu.solve(rhs[:, cols])
+
+    def on_nodes(self, slot):
+        """This extension reading the grid's motion at the nodes read alone (``slot``: each grid node's row among
+        them, :func:`_node_slots`); made once, the factorisation shared."""
+        if self._on_nodes is None:
+            self._on_nodes = copy(self)
+            self._on_nodes.read, self._on_nodes.load = _on_nodes(self.read, slot), _on_nodes(self.load, slot)
+        return self._on_nodes
+
+
+def _node_slots(read_grid):
+    """``(nodes, slot)``: the grid nodes ``read_grid`` reads (increasing) and each grid node's row among them (-1:
+    not read)."""
+    nodes = np.unique(read_grid.indices)
+    slot = np.full(read_grid.shape[1], -1, np.int64)
+    slot[nodes] = np.arange(len(nodes))
+    return nodes, slot
+
+
+def _on_nodes(read, slot):
+    """A sparse map from grid nodes read as one from the nodes read alone (``slot``: :func:`_node_slots`): its
+    entries as they were, in their order (the products sum the same terms in the same order)."""
+    from scipy.sparse import csr_matrix
+
+    read = read.tocsr()
+    return csr_matrix((read.data, slot[read.indices], read.indptr), shape=(read.shape[0], slot.max() + 1))
 
 
 def _check_on_skin(Lf, skin_tree, eye_distance):
@@ -724,6 +770,20 @@ class HeadBinding:
         """
         return self.face_motions([(delta_coefficients, delta_residual, jaw, gaze)], with_prior)[0]
 
+    @cached_property
+    def _read_nodes(self):
+        """:func:`_node_slots` of the covered skin's reads: the PDE grid's nodes every extension reads."""
+        return _node_slots(self.read_grid)
+
+    @cached_property
+    def _prior_runs(self) -> list:
+        """The head prior's vertices (distinct) as runs of consecutive ones, ``(first vertex, its place among them,
+        count)`` each: ICT's 14,457 in 90."""
+        rows = self.prior.vertices
+        cut = np.flatnonzero(np.diff(rows) != 1) + 1
+        first, end = np.r_[0, cut], np.r_[cut, len(rows)]
+        return [(int(rows[a]), int(a), int(b - a)) for a, b in zip(first, end)]
+
     @bounded
     def face_motions(self, motions, with_prior=True) -> np.ndarray:
         """:meth:`face_motion` of several ``(delta_coefficients, delta_residual, jaw, gaze)`` at once, (k, n, 3)
@@ -732,19 +792,21 @@ class HeadBinding:
         # The solve is linear: all motions side by side along the last axis, as ShapeBasis does.
         C = np.concatenate([np.asarray(c, np.float64) for c, _, _, _ in motions], axis=2)
         R = np.concatenate([np.asarray(r, np.float64) for _, r, _, _ in motions], axis=2)
+        # The grid at the nodes the skin reads alone (half ICT's face's grid), their rows in their order.
+        nodes, slot = self._read_nodes
         G = surface_grid(m, *self.resolution, coefficients=C, residual=R, break_slope=READ_BREAK_SLOPE,
-                         confine=False).reshape(-1, 3 * k)
+                         confine=False, nodes=nodes)
         jaws = np.array([bool(jaw) and self.chin is not None for _, _, jaw, _ in motions])
         out = np.zeros((len(self.V), k, 3))  # vertex-major: the parts below are row blocks
         flat = out.reshape(len(self.V), 3 * k)
         # Every key through the skin's extension, whole rows (a column gather and scatter of most keys cost more
         # than solving the few jaw keys twice); the jaw keys then again through the jaw's, every skin row.
-        ext = self._extension(jaws.all())
-        flat[self.skin[ext.fixed]], flat[self.skin[ext.free]] = ext.solve(G)
+        ext = self._extension(jaws.all()).on_nodes(slot)
+        ext.write(G, flat, self.skin)
         members = np.nonzero(jaws)[0]
         if 0 < len(members) < k:
             cols = (3 * members[:, None] + np.arange(3)).ravel()
-            ext = self._extension(True)
+            ext = self._extension(True).on_nodes(slot)
             fixed, free = ext.solve(G.take(cols, axis=1))  # C-ordered (G[:, cols] is not: sparse @ copies it)
             entries = flat.reshape(-1)  # written at flat indices: 1.5-5x faster than numpy.ix_'s
             entries[(self.skin[ext.fixed][:, None] * flat.shape[1] + cols).ravel()] = fixed.ravel()
@@ -753,7 +815,7 @@ class HeadBinding:
             out[self.follow] = self._follow(out)
         jaw_keys = np.nonzero(jaws)[0] if len(self.jaw_parts) else ()
         if len(jaw_keys):  # the chin's PDE motion in every jaw key at once
-            chin = self.read_grid[np.nonzero(self.chin[self.covered])[0]]
+            chin = _on_nodes(self.read_grid[np.nonzero(self.chin[self.covered])[0]], slot)
             cols = (3 * jaw_keys[:, None] + np.arange(3)).ravel()
             d_chins = (chin @ G.take(cols, axis=1)).reshape(chin.shape[0], -1, 3)
         for j, i in enumerate(jaw_keys):
@@ -766,9 +828,8 @@ class HeadBinding:
         if with_prior and self.prior is not None:
             # the curve points' motion of every key in one evaluation (a linear one: 72 calls cost ICT's rig 25 ms)
             prior = self.prior.many(np.moveaxis(m.curve_points(C, R).reshape(*R.shape[:2], k, 3), 2, 0))
-            for start in range(0, len(prior), USER_BLOCK):  # by blocks of vertices: no copy of every key's rows
-                rows = self.prior.vertices[start:start + USER_BLOCK]
-                out[rows] += prior[start:start + USER_BLOCK]
+            for row, at, count in self._prior_runs:  # added in place, no copy of every key's rows
+                out[row:row + count] += prior[at:at + count]
         return out.transpose(1, 0, 2)
 
     def displacement(self, delta_coefficients, delta_residual, jaw=False, gaze=None, lids=None) -> np.ndarray:
@@ -867,17 +928,20 @@ class HeadBinding:
         k = out.shape[1]
         ring = self._ring_vertices
         moved = triangle_cross(self.Vf[ring][:, None] + out[ring], self._ring)  # (ring triangles, k, 3)
-        n1 = unit_rows((self._ring_sum @ moved.reshape(len(moved), -1)).reshape(-1, k, 3))[self._anchor_of]
-        n0 = self.skin_normals[self.anchor][:, None]
+        n1 = unit_rows((self._ring_sum @ moved.reshape(len(moved), -1)).reshape(-1, k, 3))  # each anchor's
+        n0 = self.skin_normals[np.unique(self.anchor)][:, None]
+        # The turn of each anchor's normal (axis v, 1 + cos), then gathered for its attached vertices (ICT: 318
+        # anchors, 2,080 vertices). 1 + cos: the products summed in numpy.sum's order, without its slow reduction
+        # over an axis of 3.
         v = cross3(n0, n1)
-        # 1 + cos: the products summed in numpy.sum's order, without its slow reduction over an axis of 3
         c = n0[..., 0] * n1[..., 0] + n0[..., 1] * n1[..., 1]
         c += n0[..., 2] * n1[..., 2]
         c += 1
+        v, c = v[self._anchor_of], np.maximum(c, 1e-6)[self._anchor_of]
         o = self.follow_offset[:, None]
         vo = cross3(v, o)
         bend = cross3(v, vo)
-        bend /= np.maximum(c, 1e-6)[..., None]
+        bend /= c[..., None]
         turned = o + vo
         turned += bend
         turned += out[self.skin[self.anchor]]

@@ -50,18 +50,20 @@ def break_weights(model: FaceModel, sub_v) -> tuple:
 
 
 def surface_grid(model: FaceModel, sub_u=4, sub_v=4, assembly=None, coefficients=None, residual=None, deriv=(0, 0),
-                 break_slope=BREAK_SLOPE, confine=True, planes=False):
+                 break_slope=BREAK_SLOPE, confine=True, planes=False, nodes=None):
     """PDE surface (or a derivative) on the output grid, in the face frame (mm).
 
     ``confine``: each break only within its opening's span (:func:`break_weights`); the head binding
     reads the breaks across the whole width instead, so skin hidden behind a lip follows its rim.
     ``planes``: as (3, n_u, n_v) coordinate planes (:meth:`pdeface.surface.pde.SurfaceOperator.planes`).
+    ``nodes``: at those grid nodes alone (flat indices, increasing), (p, 3)
+    (:meth:`pdeface.surface.pde.SurfaceOperator.at_nodes`).
     """
     return solve_surface(model.coefficients if coefficients is None else coefficients,
                          model.residual if residual is None else residual,
                          model.knots, model.a, model.remainder_w, sub_u, sub_v,
                          assembly or model.assembly, deriv, model.layout.breaks(), break_slope,
-                         break_weights(model, sub_v) if confine else (), planes)
+                         break_weights(model, sub_v) if confine else (), planes, nodes)
 
 
 #: Descriptors solved together by :func:`key_grids`: all of a face's 72 at once held ~5 copies of their

@@ -422,15 +422,50 @@ class SurfaceOperator:
         coordinate of each surface: what a computation over the grid's rows and columns reads whole (no strided
         copy of an interleaved grid). The u factors are made per plane and row, so the v factors' products write
         the planes as they are."""
+        F, Ru = self._u_factors(coefficients, residual)
+        _, _, v_modes, v_remainder = self._plane_factors
+        c, n_u, _ = F.shape
+        X = Ru.reshape(c * n_u, -1) @ v_remainder
+        X += F.reshape(c * n_u, -1) @ v_modes
+        return X.reshape(c, n_u, -1)
+
+    def at_nodes(self, coefficients, residual, nodes) -> np.ndarray:
+        """The surface at some grid nodes alone, (len(nodes), c): ``nodes`` are flat indices ``u * n_v + v`` of
+        the (n_u, n_v) grid, increasing. :meth:`apply`'s values there (to rounding: the two sums of a node are
+        one here) at the cost of the nodes read, one product per grid row: a head binding reads half its face's
+        grid."""
+        nodes = np.asarray(nodes, dtype=np.int64)
+        F, Ru = self._u_factors(coefficients, residual)
+        c, n_u, _ = F.shape
+        n_v = self._node_factors.shape[0]
+        if len(nodes) and (nodes[0] < 0 or nodes[-1] >= n_u * n_v or np.any(np.diff(nodes) <= 0)):
+            raise LayoutError(f"grid nodes must be increasing flat indices below {n_u * n_v}")
+        rows, cols = np.divmod(nodes, n_v)
+        U = np.concatenate([Ru, F], axis=2)  # each plane's and row's u factors, as the v factors' columns
+        Vn = self._node_factors[cols]
+        out = np.empty((len(nodes), c))
+        starts = np.searchsorted(rows, np.arange(n_u + 1))
+        for u in np.nonzero(np.diff(starts))[0]:
+            s = slice(starts[u], starts[u + 1])
+            np.matmul(Vn[s], U[:, u].T, out=out[s])
+        return out
+
+    def _u_factors(self, coefficients, residual):
+        """The u factors of :meth:`planes` per plane and row: the modes' F (c, n_u, (N+1) B) and the remainder's
+        Ru (c, n_u, B J), their columns in the rows' order of the v factors."""
         K, J, c = residual.shape
-        modes_u, remainder_u, v_modes, v_remainder = self._plane_factors
+        modes_u, remainder_u, _, _ = self._plane_factors
         n1, _, n_u, b = modes_u.shape
         F = np.matmul(np.transpose(coefficients, (1, 2, 0)), modes_u.reshape(n1, K, n_u * b))  # (n1, c, n_u b)
-        F = F.reshape(n1, c, n_u, b).transpose(1, 2, 0, 3).reshape(c * n_u, n1 * b)
+        F = F.reshape(n1, c, n_u, b).transpose(1, 2, 0, 3).reshape(c, n_u, n1 * b)
         Ru = np.matmul(remainder_u, np.ascontiguousarray(np.transpose(residual, (2, 0, 1))))  # (c, n_u b, J)
-        X = Ru.reshape(c * n_u, b * J) @ v_remainder
-        X += F @ v_modes
-        return X.reshape(c, n_u, -1)
+        return F, Ru.reshape(c, n_u, b * J)
+
+    @cached_property
+    def _node_factors(self):
+        """:meth:`at_nodes`' v factors, (n_v, B J + (N+1) B): at each column, the remainder's and the modes'."""
+        _, _, v_modes, v_remainder = self._plane_factors
+        return np.ascontiguousarray(np.concatenate([v_remainder, v_modes]).T)
 
     @cached_property
     def _plane_factors(self):
@@ -491,7 +526,8 @@ def merged_operator(knots: tuple, n_points: int, n_modes: int, a: float, w: floa
 
 
 def solve_surface(coefficients, residual, knots, a=1.0, w=None, sub_u=4, sub_v=4,
-                  assembly="smooth", deriv=(0, 0), breaks=(), break_slope=BREAK_SLOPE, confine=(), planes=False):
+                  assembly="smooth", deriv=(0, 0), breaks=(), break_slope=BREAK_SLOPE, confine=(), planes=False,
+                  nodes=None):
     """Evaluate the PDE surface (or a derivative) on the output grid.
 
     Parameters
@@ -525,11 +561,15 @@ def solve_surface(coefficients, residual, knots, a=1.0, w=None, sub_u=4, sub_v=4
 
     planes : bool
         Return (3, n_u, n_v) coordinate planes (3m for m surfaces: :meth:`SurfaceOperator.planes`).
+    nodes : (p,) int array, optional
+        Flat grid indices ``u * n_v + v``, increasing: the surface there alone, (p, 3) ((p, 3m)), the values
+        of the whole grid's (:meth:`SurfaceOperator.at_nodes`).
 
     Returns
     -------
     (n_u, n_v, 3) array
-        The surface's grid; with ``planes``, (3, n_u, n_v) (3m, n_u, n_v) its coordinate planes instead.
+        The surface's grid; with ``planes``, (3, n_u, n_v) (3m, n_u, n_v) its coordinate planes instead; with
+        ``nodes``, (p, 3) ((p, 3m)) its nodes.
     """
     coefficients = np.asarray(coefficients, dtype=np.float64)
     residual = np.asarray(residual, dtype=np.float64)
@@ -548,6 +588,8 @@ def solve_surface(coefficients, residual, knots, a=1.0, w=None, sub_u=4, sub_v=4
     else:
         key = tuple((int(b), tuple(np.asarray(wt, float)), tuple(np.asarray(sl, float))) for b, wt, sl in confine)
         op = confined_operator(*args, tuple(deriv), br, float(break_slope), key)
+    if nodes is not None:
+        return op.at_nodes(coefficients, residual, nodes)
     return op.planes(coefficients, residual) if planes else op.apply(coefficients, residual)
 
 
