@@ -260,19 +260,27 @@ def straightforward_surface(op, coefficients, residual):
     return X
 
 
+def _random_surfaces(rng, m, n):
+    """``n`` random surfaces of face ``m``'s layout at random uneven steps: ``(C, R, rows, cols, args, key)``, the
+    operators' arguments (less assembly, derivative and breaks) and the confined operator's break key."""
+    from pdeface.surface.grid import break_weights
+
+    K, J = len(m.knots), m.layout.n_points
+    rows, cols = tuple(rng.integers(1, 6, K - 1)), tuple(rng.integers(1, 6, J - 1))
+    C = rng.normal(size=m.coefficients.shape[:2] + (n,))
+    R = rng.normal(size=m.residual.shape[:2] + (n,))
+    key = tuple((int(b), tuple(w), tuple(s)) for b, w, s in break_weights(m, cols))
+    args = (tuple(m.knots), J, C.shape[1] - 1, float(m.a), float(m.remainder_w), rows, cols)
+    return C, R, rows, cols, args, key
+
+
 def test_surface_planes_are_the_straightforward_sums(rng, default_face):
     """SurfaceOperator.planes (and apply, the same as a grid) are the sums written out, for a face with breaks
     confined to its openings and for several surfaces solved together, at uneven steps and for a v-derivative."""
     from pdeface.surface import pde
-    from pdeface.surface.grid import break_weights
 
     m = default_face
-    K, J = len(m.knots), m.layout.n_points
-    rows, cols = tuple(rng.integers(1, 6, K - 1)), tuple(rng.integers(1, 6, J - 1))
-    C = rng.normal(size=m.coefficients.shape[:2] + (6,))
-    R = rng.normal(size=m.residual.shape[:2] + (6,))
-    key = tuple((int(b), tuple(w), tuple(s)) for b, w, s in break_weights(m, cols))
-    args = (tuple(m.knots), J, C.shape[1] - 1, float(m.a), float(m.remainder_w), rows, cols)
+    C, R, rows, cols, args, key = _random_surfaces(rng, m, 6)
     for deriv in ((0, 0), (0, 1)):
         for op in (pde.surface_operator(*args, "smooth", deriv, m.layout.breaks()),
                    pde.confined_operator(*args, deriv, m.layout.breaks(), BREAK_SLOPE, key)):
@@ -288,15 +296,9 @@ def test_surface_at_nodes_is_the_grid_there(rng, default_face):
     with one node read, the first and last nodes, every node: the whole grid's values there (to rounding: a node's
     two sums are one), for a confined face and several surfaces at once; bad nodes refused."""
     from pdeface.surface import pde
-    from pdeface.surface.grid import break_weights
 
     m = default_face
-    K, J = len(m.knots), m.layout.n_points
-    rows, cols = tuple(rng.integers(1, 6, K - 1)), tuple(rng.integers(1, 6, J - 1))
-    C = rng.normal(size=m.coefficients.shape[:2] + (9,))
-    R = rng.normal(size=m.residual.shape[:2] + (9,))
-    key = tuple((int(b), tuple(w), tuple(s)) for b, w, s in break_weights(m, cols))
-    args = (tuple(m.knots), J, C.shape[1] - 1, float(m.a), float(m.remainder_w), rows, cols)
+    C, R, rows, cols, args, key = _random_surfaces(rng, m, 9)
     for op in (pde.surface_operator(*args, "smooth", (0, 0), m.layout.breaks()),
                pde.confined_operator(*args, (0, 1), m.layout.breaks(), BREAK_SLOPE, key)):
         grid = op.apply(C, R)
