@@ -202,13 +202,26 @@ class _Extension:
         """Write the extension of grid motions ``G`` (g, c) into ``out`` (n, c), at its rows ``rows[self.fixed]``
         and ``rows[self.free]``: :meth:`solve`'s values, the free ones solved :data:`SOLVE_COLUMNS` columns at a
         time and each block written while in cache."""
-        out[rows[self.fixed]] = self.read @ G
+        fixed = rows[self.fixed]
+        for start in range(0, len(fixed), USER_BLOCK):  # block by block: no fresh (fixed, c) array of every row
+            block = slice(start, start + USER_BLOCK)
+            out[fixed[block]] = self.read[block] @ G
         if self.lu is None:
             return
-        rhs, free = self.load @ G, rows[self.free]
+        # The right-hand sides are zero but on the few free rows next to a fixed one (ICT: 2,814 entries): those
+        # rows' products alone, put in one zeroed block reused for every SOLVE_COLUMNS columns.
+        loaded, free = self._loaded(), rows[self.free]
+        part = self.load[loaded] @ G
+        rhs = np.zeros((len(self.free), min(SOLVE_COLUMNS, G.shape[1])), order="F")
         for start in range(0, G.shape[1], SOLVE_COLUMNS):
             cols = slice(start, start + SOLVE_COLUMNS)
-            out[free, cols] = self.lu.solve(rhs[:, cols])
+            width = part[:, cols].shape[1]
+            rhs[loaded, :width] = part[:, cols]
+            out[free, cols] = self.lu.solve(rhs[:, :width])
+
+    def _loaded(self):
+        """The free rows whose right-hand side has entries (:attr:`load`'s non-empty rows)."""
+        return np.flatnonzero(np.diff(self.load.indptr))
 
     def on_nodes(self, slot):
         """This extension reading the grid's motion at the nodes read alone (``slot``: each grid node's row among
