@@ -166,6 +166,8 @@ USER_BLOCK = 1024
 #: Columns of the harmonic extension's right-hand sides solved at a time: SuperLU's solve of ICT's 216 (72 keys) at
 #: once ran 1.1-1.4x slower (its work array out of cache), and their transposed scatter into the keys' rows 2x.
 SOLVE_COLUMNS = 72
+#: Attached vertices turned at a time (:meth:`HeadBinding._follow`): the block's temporaries reused, not fresh pages.
+FOLLOW_BLOCK = 256
 #: AUs that move the jaw, and the gaze AUs.
 JAW_AUS = frozenset({25, 26, 27, 29, 30})
 GAZE_AUS = frozenset({61, 62, 63, 64})
@@ -825,7 +827,7 @@ class HeadBinding:
             entries[(self.skin[ext.fixed][:, None] * flat.shape[1] + cols).ravel()] = fixed.ravel()
             entries[(self.skin[ext.free][:, None] * flat.shape[1] + cols).ravel()] = free.ravel()
         if len(self.follow):
-            out[self.follow] = self._follow(out)
+            self._follow(out)
         jaw_keys = np.nonzero(jaws)[0] if len(self.jaw_parts) else ()
         if len(jaw_keys):  # the chin's PDE motion in every jaw key at once
             chin = _on_nodes(self.read_grid[np.nonzero(self.chin[self.covered])[0]], slot)
@@ -934,7 +936,7 @@ class HeadBinding:
     def _follow(self, out):
         """Attached vertices: their anchor's motion, their offset turned as the anchor's normal turns.
 
-        ``out`` (n, k, 3): k motions of the head, the skin's set → (attached, k, 3).
+        ``out`` (n, k, 3): k motions of the head, the skin's set; the attached vertices' rows written in place.
         """
 
         k = out.shape[1]
@@ -949,16 +951,20 @@ class HeadBinding:
         c = n0[..., 0] * n1[..., 0] + n0[..., 1] * n1[..., 1]
         c += n0[..., 2] * n1[..., 2]
         c += 1
-        v, c = v[self._anchor_of], np.maximum(c, 1e-6)[self._anchor_of]
-        o = self.follow_offset[:, None]
-        vo = cross3(v, o)
-        bend = cross3(v, vo)
-        bend /= c[..., None]
-        turned = o + vo
-        turned += bend
-        turned += out[self.skin[self.anchor]]
-        turned -= o
-        return turned
+        c = np.maximum(c, 1e-6)
+        # Written into ``out`` block by block of attached vertices: no fresh (attached, k, 3) arrays (ICT: 3.6 MB each).
+        for start in range(0, len(self.follow), FOLLOW_BLOCK):
+            block = slice(start, start + FOLLOW_BLOCK)
+            at = self._anchor_of[block]
+            vb, o = v[at], self.follow_offset[block, None]
+            vo = cross3(vb, o)
+            bend = cross3(vb, vo)
+            bend /= c[at][..., None]
+            turned = o + vo
+            turned += bend
+            turned += out[self.skin[self.anchor[block]]]
+            turned -= o
+            out[self.follow[block]] = turned
 
     # ---------------------------------------------------------------- keys and poses
 
