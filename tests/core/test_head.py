@@ -128,6 +128,27 @@ def test_keys_read_the_pde_grid_at_the_nodes_read_alone(generic):
                 np.testing.assert_allclose(got[i, b.skin[rows]], want, rtol=0, atol=1e-12 * np.abs(want).max())
 
 
+def test_the_extension_writes_its_solution_into_the_keys_rows(generic):
+    """:meth:`_Extension.write` (fixed rows block by block, right-hand sides from the loaded rows alone, SOLVE_COLUMNS
+    columns at a time, a last block narrower) writes exactly :meth:`_Extension.solve`'s values, and no other row."""
+    from pdeface.head.bind import SOLVE_COLUMNS
+
+    _, b = generic
+    nodes, slot = b._read_nodes
+    G = np.random.default_rng(5).normal(size=(len(nodes), SOLVE_COLUMNS + 30))
+    for jaw in (False, True):
+        ext = b._extension(jaw).on_nodes(slot)
+        assert 0 < len(ext._loaded()) < len(ext.free)
+        out = np.full((len(b.V), G.shape[1]), np.nan)
+        ext.write(G, out, b.skin)
+        blocks = [ext.solve(G[:, s:s + SOLVE_COLUMNS]) for s in range(0, G.shape[1], SOLVE_COLUMNS)]
+        for rows, want in ((ext.fixed, np.hstack([f for f, _ in blocks])), (ext.free, np.hstack([f for _, f in blocks]))):
+            assert np.array_equal(out[b.skin[rows]], want)
+        untouched = np.ones(len(b.V), bool)
+        untouched[b.skin] = False
+        assert np.isnan(out[untouched]).all() and not np.isnan(out[b.skin]).any()
+
+
 def test_rest_region_never_moves(head, generic):
     mesh, _, lm, _ = head
     _, b = generic
