@@ -115,6 +115,22 @@ def test_the_chunks_a_render_is_drawn_in_change_nothing(heads, monkeypatch):
         assert np.array_equal(getattr(chunked.fragments, name), getattr(whole.fragments, name))
 
 
+def test_a_fragments_weights_are_the_barycentric_formula_as_written(heads):
+    # rasterise computes the weights in place (#35): each fragment's must be (e0x dx + e0y dy) / d bit for bit, on
+    # triangles wound either way (d of both signs), and every fragment inside its triangle.
+    mesh, T, lm, _ = heads
+    view = View.looking([0.2, 0.1, 1], [0, 1, 0], mesh.vertices[lm].mean(0), 13.0, 160)
+    f = rasterise(mesh.vertices, T, view, keep_fragments=True).fragments
+    px, py, _ = view.project(mesh.vertices)
+    (ax, bx, cx), (ay, by, cy) = (px[T[f.tri, k]] for k in range(3)), (py[T[f.tri, k]] for k in range(3))
+    d = (by - cy) * (ax - cx) + (cx - bx) * (ay - cy)
+    dx, dy = f.pix % view.size - cx, f.pix // view.size - cy
+    assert (d > 0).any() and (d < 0).any()
+    assert np.array_equal(f.l0, ((by - cy) * dx + (cx - bx) * dy) / d)
+    assert np.array_equal(f.l1, ((cy - ay) * dx + (ax - cx) * dy) / d)
+    assert (f.l0 >= 0).all() and (f.l1 >= 0).all() and (1 - f.l0 - f.l1 >= 0).all()
+
+
 def test_a_rolled_or_flipped_raster_shades_to_the_rolled_or_flipped_image(heads):
     mesh, T, lm, _ = heads
     view = View.looking([0.2, 0.1, 1], [0, 1, 0], mesh.vertices[lm].mean(0), 13.0, 96)
