@@ -136,7 +136,7 @@ def read_map(path=None) -> LandmarkMap:
 
 def shipped_map() -> LandmarkMap:
     """The shipped map (:func:`read_map`), read again only when its file changed (a rebuilt map): ``detect`` takes
-    it for every mesh, and reading it took 10 ms of the 27k head's second (#35). Shared: not to be changed."""
+    it for every mesh (reading it: 1.5-2 ms CPU a time, #35). Shared: not to be changed."""
     try:
         stat = DEFAULT_MAP.stat()
     except OSError:
