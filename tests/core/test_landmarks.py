@@ -13,6 +13,7 @@ from pdeface.geometry import ClosestPoint, ray_triangle, similarity
 from pdeface.io.meshio import read_mesh, write_mesh
 from pdeface.landmarks import MissingDependencyError, available, detect
 from pdeface.landmarks import detector as detector_module
+from pdeface.landmarks import facemap as facemap_module
 from pdeface.landmarks import render as render_module
 from pdeface.landmarks.facemap import (
     DEFAULT_MAP,
@@ -21,6 +22,7 @@ from pdeface.landmarks.facemap import (
     parse_map,
     read_map,
     robust_similarity,
+    shipped_map,
 )
 from pdeface.landmarks.pipeline import OPENING_DEPTH_MM, group_spread, outer_pixels, snap, snapped
 from pdeface.landmarks.render import (
@@ -113,6 +115,22 @@ def test_the_chunks_a_render_is_drawn_in_change_nothing(heads, monkeypatch):
     assert np.array_equal(chunked.tri, whole.tri) and np.array_equal(chunked.bary, whole.bary)
     for name in ("pix", "z", "tri", "l0", "l1"):
         assert np.array_equal(getattr(chunked.fragments, name), getattr(whole.fragments, name))
+
+
+def test_a_fragments_weights_are_the_barycentric_formula_as_written(heads):
+    # rasterise computes the weights in place (#35): each fragment's must be (e0x dx + e0y dy) / d bit for bit, on
+    # triangles wound either way (d of both signs), and every fragment inside its triangle.
+    mesh, T, lm, _ = heads
+    view = View.looking([0.2, 0.1, 1], [0, 1, 0], mesh.vertices[lm].mean(0), 13.0, 160)
+    f = rasterise(mesh.vertices, T, view, keep_fragments=True).fragments
+    px, py, _ = view.project(mesh.vertices)
+    (ax, bx, cx), (ay, by, cy) = (px[T[f.tri, k]] for k in range(3)), (py[T[f.tri, k]] for k in range(3))
+    d = (by - cy) * (ax - cx) + (cx - bx) * (ay - cy)
+    dx, dy = f.pix % view.size - cx, f.pix // view.size - cy
+    assert (d > 0).any() and (d < 0).any()
+    assert np.array_equal(f.l0, ((by - cy) * dx + (cx - bx) * dy) / d)
+    assert np.array_equal(f.l1, ((cy - ay) * dx + (ax - cx) * dy) / d)
+    assert (f.l0 >= 0).all() and (f.l1 >= 0).all() and (1 - f.l0 - f.l1 >= 0).all()
 
 
 def test_a_rolled_or_flipped_raster_shades_to_the_rolled_or_flipped_image(heads):
@@ -324,6 +342,25 @@ def test_a_malformed_map_is_refused(change, message):
     change(data)
     with pytest.raises(LandmarkError, match=message):
         parse_map(data, "map.json")
+
+
+def test_the_shipped_map_is_read_once_and_again_when_its_file_changes(tmp_path, monkeypatch):
+    # detect takes the shipped map for every mesh (#35): read once, as read_map reads it, and re-read once rebuilt.
+    first = shipped_map()
+    assert shipped_map() is first
+    assert np.array_equal(first.template, read_map().template) and np.array_equal(first.weights, read_map().weights)
+    path = tmp_path / "landmark_map.json"
+    data = json.loads(DEFAULT_MAP.read_text())
+    path.write_text(json.dumps(data))
+    monkeypatch.setattr(facemap_module, "DEFAULT_MAP", path)
+    assert np.array_equal(shipped_map().template, first.template)
+    data["template"] = (np.array(data["template"]) * 2).tolist()
+    path.write_text(json.dumps(data))
+    os.utime(path, ns=(path.stat().st_atime_ns, path.stat().st_mtime_ns + 1_000_000))  # a coarse clock's rewrite
+    assert np.allclose(shipped_map().template, 2 * first.template)
+    monkeypatch.setattr(facemap_module, "DEFAULT_MAP", tmp_path / "gone.json")
+    with pytest.raises(LandmarkError, match="gone.json"):
+        shipped_map()
 
 
 def test_apply_leaves_out_points_that_missed_the_mesh():

@@ -205,5 +205,5 @@ class Detector:
             res = self._mesh.process(self._rgb(gray))
         if not res.multi_face_landmarks:
             return None
-        lm = res.multi_face_landmarks[0].landmark
-        return np.array([[lm[i].x * w - 0.5, lm[i].y * h - 0.5] for i in range(MESH_POINTS)])
+        lm = res.multi_face_landmarks[0].landmark[:MESH_POINTS]  # a list: each message read once, not indexed twice
+        return np.array([[p.x * w - 0.5, p.y * h - 0.5] for p in lm])

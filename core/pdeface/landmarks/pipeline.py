@@ -44,7 +44,7 @@ from .contour import (
 )
 from .detector import Detector
 from .eyes import corners_on_skin_front, lids_on_margin, outer_corners_at_opening_end
-from .facemap import GROUPS, LandmarkMap, read_map, robust_similarity
+from .facemap import GROUPS, LandmarkMap, robust_similarity, shipped_map
 from .mouth import (
     inner_lip_corners_at_seam_end,
     inner_lip_corners_inset,
@@ -360,7 +360,7 @@ def detect(V, T, unit=None, landmark_map: LandmarkMap | None = None, detector: D
         raise MeshError("vertices must be (n, 3) finite numbers")
     if T.ndim != 2 or T.shape[1] != 3 or len(T) == 0 or T.min() < 0 or T.max() >= len(V):
         raise MeshError("triangles must be (m, 3) vertex indices")
-    m = landmark_map or read_map()
+    m = landmark_map or shipped_map()
     own = detector is None
     detector = detector or Detector(verbose=verbose)
     try:

@@ -146,8 +146,8 @@ def rasterise(V, T, view: View, keep_fragments=False, near=None) -> Raster:
     n = view.size
     px, py, pz = view.project(V)
     # Corners a, b, c of each triangle; np.minimum of columns, as .min(1) over three is several times slower.
-    (ax, bx, cx), (ay, by, cy) = (px[T[:, k]] for k in range(3)), (py[T[:, k]] for k in range(3))
-    za, zb, zc = (pz[T[:, k]] for k in range(3))
+    corner = np.ascontiguousarray(T.T)  # each corner's column contiguous: takes along it run sooner
+    (ax, bx, cx), (ay, by, cy), (za, zb, zc) = ([p.take(k) for k in corner] for p in (px, py, pz))
     x0 = np.maximum(np.ceil(np.minimum(np.minimum(ax, bx), cx)), 0).astype(np.int32)
     y0 = np.maximum(np.ceil(np.minimum(np.minimum(ay, by), cy)), 0).astype(np.int32)
     x1 = np.minimum(np.floor(np.maximum(np.maximum(ax, bx), cx)), n - 1).astype(np.int32)
@@ -160,7 +160,9 @@ def rasterise(V, T, view: View, keep_fragments=False, near=None) -> Raster:
         area = np.zeros((n + 1, n + 1), np.int32)
         area[1:, 1:] = np.asarray(near, bool).cumsum(0, dtype=np.int32).cumsum(1, dtype=np.int32)
         xa, xb, ya, yb = (np.clip(e, 0, n) for e in (x0, x1 + 1, y0, y1 + 1))
-        drawn &= area[yb, xb] - area[ya, xb] - area[yb, xa] + area[ya, xa] > 0
+        ya, yb, flat = ya * (n + 1), yb * (n + 1), area.reshape(-1)  # flat indices: area[y, x] sooner
+        drawn &= flat.take(yb + xb) - flat.take(ya + xb) - flat.take(yb + xa) + flat.take(ya + xa) > 0
+    e0x, e0y, e1x, e1y = by - cy, cx - bx, cy - ay, ax - cx  # the edges, for the weights above
     ids = np.nonzero(drawn)[0]
     count = width[ids] * height[ids]
     ends = np.cumsum(count, dtype=np.int64)
@@ -178,11 +180,25 @@ def rasterise(V, T, view: View, keep_fragments=False, near=None) -> Raster:
         row_start = np.cumsum(row_w, dtype=np.int32) - row_w - np.repeat(x0[t], h)
         gx = np.arange(int(c.sum()), dtype=np.int32) - np.repeat(row_start, row_w)
         gy = np.repeat(row_y, row_w)
-        dx, dy = gx - np.repeat(cx[t], c), gy - np.repeat(cy[t], c)
-        dt = np.repeat(d[t], c)
-        l0 = (np.repeat((by - cy)[t], c) * dx + np.repeat((cx - bx)[t], c) * dy) / dt
-        l1 = (np.repeat((cy - ay)[t], c) * dx + np.repeat((ax - cx)[t], c) * dy) / dt
-        inside = np.nonzero((l0 >= 0) & (l1 >= 0) & (1 - l0 - l1 >= 0))[0]
+        # l0 = (e0x dx + e0y dy) / d as written in full, in place: the same values, fewer passes over memory.
+        dx, dy, dt = np.repeat(cx[t], c), np.repeat(cy[t], c), np.repeat(d[t], c)
+        np.subtract(gx, dx, out=dx)
+        np.subtract(gy, dy, out=dy)
+        l0, l1, term = np.repeat(e0x[t], c), np.repeat(e1x[t], c), np.repeat(e0y[t], c)
+        l0 *= dx
+        term *= dy
+        l0 += term
+        l0 /= dt
+        l1 *= dx
+        np.multiply(np.repeat(e1y[t], c), dy, out=term)
+        l1 += term
+        l1 /= dt
+        keep = l0 >= 0
+        keep &= l1 >= 0
+        np.subtract(1, l0, out=term)
+        term -= l1
+        keep &= term >= 0
+        inside = np.nonzero(keep)[0]
         tt = np.repeat(t, c)[inside]
         l0, l1 = l0[inside], l1[inside]
         z = l0 * za[tt] + l1 * zb[tt] + (1 - l0 - l1) * zc[tt]
