@@ -417,8 +417,8 @@ def test_jaw_point_errors_split_along_and_across_the_jawline(ict):
 
 
 @needs_makehuman
-@pytest.mark.parametrize("name", ["base-dm", "asian-female-old-in", "caucasian-male-old-dm-eyes", "stylised-nose-mouth-cm",
-                                  "body-A-cm"])
+@pytest.mark.parametrize("name", ["base-dm", "asian-female-old-in", "caucasian-male-old-dm-eyes",
+                                  "stylised-nose-mouth-cm", "body-A-cm"])
 def test_the_jaws_lower_sides_come_back_to_the_characters_own_depth(name, monkeypatch):
     # MakeHuman's jaws reach back farther or less far than ICT's: the lower sides (2-4, 12-14) of the registered
     # skin points, slid 0.15 eye distances forward or back on the skin, come back near their own depth from the
@@ -445,8 +445,8 @@ def test_the_jaws_lower_sides_come_back_to_the_characters_own_depth(name, monkey
 
 
 @needs_makehuman
-@pytest.mark.parametrize("name", ["base-dm", "asian-female-old-in", "caucasian-male-old-dm-eyes", "stylised-nose-mouth-cm",
-                                  "body-A-cm"])
+@pytest.mark.parametrize("name", ["base-dm", "asian-female-old-in", "caucasian-male-old-dm-eyes",
+                                  "stylised-nose-mouth-cm", "body-A-cm"])
 def test_the_jaws_sides_slid_along_the_contour_come_back_to_the_characters_own(name):
     # How high along the contour MakeHuman's jaw sides lie differs from character to character (the true jaw ends
     # from 0.1 below to 0.2 above the eye centres): the sides (0-4, 12-16) of the registered skin points, slid 0.15
@@ -477,17 +477,12 @@ def test_the_jaws_angles_slid_forward_along_the_contour_come_back_to_the_charact
     # The detector put MakeHuman's jaw angles a median 0.06 eye distances too far forward along the contour (up to
     # 0.22): the angles (5, 11) of the registered skin points, slid 0.15 eye distances forward on the skin, come back
     # near their own, placed by the points around them (ICT's proportions, on characters the map never saw).
-    from pdeface.geometry import ClosestPoint
     from pdeface.landmarks import contour
 
     ch = build(SPECS[name])
     V, T, L = ch.vertices, ch.triangles, ch.skin_landmarks
-    rows = list(contour.ANGLES)
-    f, eyes = face_frame(L), eye_distance(L)
-    F = f.to_face(L[rows])
-    F[:, 2] += 0.15 * eyes * f.scale
-    slid = L.copy()
-    slid[rows] = ClosestPoint(V, T).query(f.to_user(F))[3]
+    rows, eyes = list(contour.ANGLES), eye_distance(L)
+    slid = _moved_in_face_frame(V, T, L, rows, (0, 0, 0.15))
 
     def off(P):  # the angles' distance from their own (eye distances)
         return np.linalg.norm(P[rows] - L[rows], axis=1) / eyes
@@ -503,17 +498,12 @@ def test_the_chins_points_slid_down_come_back_to_the_characters_own(name):
     # low and 0.04 back): the chin's points (7-9) of the registered skin points, slid 0.1 eye distances down on the
     # skin, come back near their own, 8 on the profile as far behind the pogonion as ICT's (MakeHuman's own lie
     # 0.05-0.10 behind it, ICT's 0.089), 7 and 9 carried by the points around them.
-    from pdeface.geometry import ClosestPoint
     from pdeface.landmarks import contour
 
     ch = build(SPECS[name])
     V, T, L = ch.vertices, ch.triangles, ch.skin_landmarks
-    rows = [7, contour.CHIN, 9]
-    f, eyes = face_frame(L), eye_distance(L)
-    F = f.to_face(L[rows])
-    F[:, 1] -= 0.1 * eyes * f.scale
-    slid = L.copy()
-    slid[rows] = ClosestPoint(V, T).query(f.to_user(F))[3]
+    rows, eyes = [7, contour.CHIN, 9], eye_distance(L)
+    slid = _moved_in_face_frame(V, T, L, rows, (0, -0.1, 0))
 
     def off(P):  # the chin's points' distance from their own (eye distances)
         return np.linalg.norm(P[rows] - L[rows], axis=1) / eyes
@@ -688,10 +678,11 @@ def test_lower_inner_lip_points_on_the_slits_top_edge_go_down_under_the_slit():
 
 
 def test_true_lid_and_inner_lip_points_stay_on_ict_heads(ict):
-    # ICT's lid points lie on a thick margin's rounded edge, its eye corners on the skin's front, its inner lip points in front of a slit between the
-    # lips, its subnasale at the profile's deepest point under the nose, its bridge's middle at the generic head's
-    # shares of the nasion-to-tip chord, its lower lip's middle on the lip's edge: no step moves the true landmarks of a held-out identity (its skin alone,
-    # without eyeballs and lashes) by more than a pixel or two.
+    # ICT's lid points lie on a thick margin's rounded edge, its eye corners on the skin's front, its inner lip points
+    # in front of a slit between the lips, its subnasale at the profile's deepest point under the nose, its bridge's
+    # middle at the generic head's shares of the nasion-to-tip chord, its lower lip's middle on the lip's edge: no
+    # step moves the true landmarks of a held-out identity (its skin alone, without eyeballs and lashes) by more than
+    # a pixel or two.
     from pdeface.landmarks.eyes import corners_on_skin_front, lids_on_margin, outer_corners_at_opening_end
     from pdeface.landmarks.mouth import (
         inner_lip_corners_inset,
@@ -708,8 +699,9 @@ def test_true_lid_and_inner_lip_points_stay_on_ict_heads(ict):
     labels = connected_components(len(V), T)
     skin = T[np.isin(labels[T[:, 0]], labels[lm])]
     L = V[lm]
-    for step in (lids_on_margin, corners_on_skin_front, outer_corners_at_opening_end, inner_lips_in_seam, nose_bottom_at_subnasale, inner_lip_corners_inset,
-                 mouth_corners_at_seam_end, bridge_at_ict_shares, lower_lip_on_its_edge, lower_inner_lips_under_the_slit):
+    for step in (lids_on_margin, corners_on_skin_front, outer_corners_at_opening_end, inner_lips_in_seam,
+                 nose_bottom_at_subnasale, inner_lip_corners_inset, mouth_corners_at_seam_end, bridge_at_ict_shares,
+                 lower_lip_on_its_edge, lower_inner_lips_under_the_slit):
         moved = np.linalg.norm(step(V, skin, L) - L, axis=1) * 10  # mm
         assert moved.max() < 0.5, (step.__name__, moved.max())
 
