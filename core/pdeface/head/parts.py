@@ -214,7 +214,7 @@ def classify_parts(Vf, T, Lf, hinge, overrides=None, welded=False, pieces=None) 
         firsts = np.cumsum([0] + [len(members[c]) for c in attached[:-1]])
         gaps = np.minimum.reduceat(skin_tree.query(Vf[near], distance_upper_bound=NEAR_IOD * s)[0], firsts)
         for c, gap in zip(attached, gaps):
-            if gap < TOUCH_IOD * s or gap < NEAR_IOD * s:
+            if gap < NEAR_IOD * s:  # touching (within TOUCH_IOD) or near: both follow
                 kind[members[c]] = CODE["follow"]
     parts = Parts(kind, eyes, pieces=lab)
     if overrides:
