@@ -348,6 +348,8 @@ def test_the_shipped_map_is_read_once_and_again_when_its_file_changes(tmp_path, 
     # detect takes the shipped map for every mesh (#35): read once, as read_map reads it, and re-read once rebuilt.
     first = shipped_map()
     assert shipped_map() is first
+    with pytest.raises(ValueError):  # shared: read-only
+        first.template[0, 0] = 0.0
     assert np.array_equal(first.template, read_map().template) and np.array_equal(first.weights, read_map().weights)
     path = tmp_path / "landmark_map.json"
     data = json.loads(DEFAULT_MAP.read_text())

@@ -136,7 +136,7 @@ def read_map(path=None) -> LandmarkMap:
 
 def shipped_map() -> LandmarkMap:
     """The shipped map (:func:`read_map`), read again only when its file changed (a rebuilt map): ``detect`` takes
-    it for every mesh (reading it: 1.5-2 ms CPU a time, #35). Shared: not to be changed."""
+    it for every mesh (reading it: 1.5-2 ms CPU a time, #35). Shared by every caller: its arrays are read-only."""
     try:
         stat = DEFAULT_MAP.stat()
     except OSError:
@@ -146,7 +146,11 @@ def shipped_map() -> LandmarkMap:
 
 @lru_cache(maxsize=1)
 def _map_as_stored(path, mtime_ns, size) -> LandmarkMap:
-    return read_map(path)
+    m = read_map(path)
+    for a in (m.indices, m.weights, m.template, m.mirror):
+        if isinstance(a, np.ndarray):  # a change by one caller would reach every later one: refused instead
+            a.setflags(write=False)
+    return m
 
 
 def robust_similarity(A, B, keep=0.85, rounds=3):
