@@ -347,7 +347,9 @@ def test_a_character_is_annotated_on_its_own_shape_not_with_the_bases_vertices_c
     idx, corners, weights = annotate.annotate_shape(V, Vs, Ts, Ls, Tt[head[Tt].all(1)])
     assert (idx == annotated_indices(name)).all()  # the committed annotation is the registration's on its shape
     on_skin = np.einsum("ij,ijk->ik", weights, V[corners])
-    assert np.allclose(annotated_skin_points(V, name), on_skin, atol=1e-5 * eye_distance(on_skin))
+    # The registration's optimum moves by ~1e-4 eye distances between scipy releases (1.17 moved point 57 by
+    # that much): the committed points are the registration's to 1e-3, far below the 0.1 the carried ones are off.
+    assert np.allclose(annotated_skin_points(V, name), on_skin, rtol=0, atol=1e-3 * eye_distance(on_skin))
     ch = build(SPECS[name])
     assert np.allclose(ch.landmarks, V[idx] * 10)  # the character (decimetres to cm) carries them
     heads = [Vs[Ls]] + [(Vs + ict.shape(f"identity{i:03d}"))[Ls] for i in range(20)]
