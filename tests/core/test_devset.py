@@ -839,9 +839,11 @@ def test_a_mouth_corner_found_inside_the_seam_comes_out_to_where_the_seam_ends(n
 def test_lower_lip_sides_found_on_the_curve_under_the_lip_come_up_to_icts_drop(name):
     # The face mesh puts the lower lip's sides (55, 59) 0.02-0.03 eye distances too low, under the lip; moved down
     # there, they come back up their column to ICT's drop below the chord from the mouth corner to the lower lip's
-    # middle, near the registered points (whose drop lies within 0.01 of ICT's on these two), which stay.
+    # middle, near the registered points (whose drop lies within 0.01 of ICT's on these two), which stay. Sides
+    # moved up, or down further than SIDE_DROP_MAX (where the chord's end is what is off), stay too.
     from pdeface.landmarks.mouth import (
         LOWER_LIP_SIDES,
+        SIDE_DROP_MAX,
         SIDE_DROP_OFF,
         ict_lower_lip_drop,
         lower_lip_drops,
@@ -859,3 +861,8 @@ def test_lower_lip_sides_found_on_the_curve_under_the_lip_come_up_to_icts_drop(n
     assert np.allclose(lower_lip_drops(back), ict_lower_lip_drop(), atol=0.004)  # within a pixel or so of ICT's
     others = np.setdiff1d(np.arange(68), rows)
     assert np.array_equal(back[others], moved[others])  # only the sides move
+    for shift in (0.03, -(SIDE_DROP_MAX + 0.03)):
+        away = _moved_in_face_frame(ch.vertices, ch.triangles, L, rows, (0, shift, 0))
+        lower = lower_lip_drops(away) - ict_lower_lip_drop()
+        assert ((lower < -SIDE_DROP_OFF) | (lower > SIDE_DROP_MAX)).all(), (shift, lower)  # out of the band
+        assert np.array_equal(lower_lip_sides_at_ict_drop(ch.vertices, ch.triangles, away), away), shift

@@ -15,7 +15,8 @@ above: :func:`inner_lips_in_seam` (the inner lip line's middles and the mouth co
 lips), :func:`mouth_corners_at_seam_end` (the mouth corners where the seam ends) and
 :func:`inner_lip_corners_inset` (inner corners beside or lateral of the outer ones, 0.05 in from them) and
 :func:`lower_lip_on_its_edge` (the lower lip's middle points up onto its edge from the curve under it) and
-:func:`lower_inner_lips_under_the_slit` (the lower lip's inner points under the slit of parted lips).
+:func:`lower_inner_lips_under_the_slit` (the lower lip's inner points under the slit of parted lips), then
+:func:`lower_lip_sides_at_ict_drop` (the lower lip's sides up from under the lip to ICT's drop below the chord).
 :data:`REACH` and :data:`DEEPER` serve the first two as well.
 """
 from __future__ import annotations
@@ -422,16 +423,19 @@ def ict_lower_lip_drop() -> float:
 
 
 def lower_lip_sides_at_ict_drop(V, T, points) -> np.ndarray:
-    """``points (68, 3)`` with each lower lip side (:data:`LOWER_LIP_SIDES`) whose drop below the chord from its
-    mouth corner to the lower lip's middle (:func:`lower_lip_drops`) differs from ICT's (:func:`ict_lower_lip_drop`)
-    by more than :data:`SIDE_DROP_OFF`, moved up or down its column, seen straight on, to ICT's drop.
+    """``points (68, 3)`` with each lower lip side (:data:`LOWER_LIP_SIDES`) that lies lower than ICT's drop below
+    the chord from its mouth corner to the lower lip's middle (:func:`lower_lip_drops`, :func:`ict_lower_lip_drop`)
+    by more than :data:`SIDE_DROP_OFF` and at most :data:`SIDE_DROP_MAX`, moved up its column, seen straight on, to
+    ICT's drop.
 
     On ICT's 20 identities that drop is the same within 0.004 eye distances; the face mesh puts MakeHuman's lower
     lip sides on the curve under the lip, a median 0.026 eye distances lower than the true ones, where the lip's edge
     (the feature the middle points go to, :func:`lower_lip_on_its_edge`) fades out towards the corners. On the
-    development set 30 of 48 sides move; 55/59 against the registered skin points go from a median 4.0/4.0 to
-    3.7/3.6 % of the eye distance (better by more than 1 % on 12, worse on 3: parted lips, whose lower lip hangs
-    lower). A side stays where nothing is seen at its new place; on ICT's held-out heads none moves.
+    development set 55/59 against the registered skin points go from a median 4.0/4.0 to 3.7/3.4 % of the eye
+    distance (better by more than 1 % on 11 points, worse on none). A side higher than ICT's stays (MakeHuman's true
+    sides lie higher on average: moved down, every one came out worse), as does one lower by more than
+    :data:`SIDE_DROP_MAX` (the chord's end is off) or one with nothing seen at its new place; on ICT's held-out heads
+    none moves.
 
     Parameters
     ----------
@@ -442,13 +446,13 @@ def lower_lip_sides_at_ict_drop(V, T, points) -> np.ndarray:
     """
     out = np.array(points, np.float64)
     eyes, view = _mouth_view(out)
-    off = lower_lip_drops(out, view) - ict_lower_lip_drop()
-    moving = [j for j, o in zip(LOWER_LIP_SIDES, off) if SIDE_DROP_OFF < o <= SIDE_DROP_MAX]
+    lower = dict(zip(LOWER_LIP_SIDES, lower_lip_drops(out, view) - ict_lower_lip_drop()))
+    moving = [j for j, o in lower.items() if SIDE_DROP_OFF < o <= SIDE_DROP_MAX]
     if not moving:
         return out
     x, y, _ = view.project(out)
-    cols = np.array([x[j] for j in moving])
-    rows = np.array([y[j] - off[list(LOWER_LIP_SIDES).index(j)] * eyes / view.pixel for j in moving])
+    cols = x[moving]
+    rows = y[moving] - np.array([lower[j] for j in moving]) * eyes / view.pixel  # up: rows count down
     near = np.zeros((view.size, view.size), bool)  # drawn only about the new places, for back_project
     for c, r in zip(cols, rows):
         c, r = view.nearest_pixel(c), view.nearest_pixel(r)
