@@ -51,6 +51,7 @@ from .mouth import (
     inner_lips_in_seam,
     lower_inner_lips_under_the_slit,
     lower_lip_on_its_edge,
+    lower_lip_sides_at_ict_drop,
     mouth_corners_at_seam_end,
 )
 from .nose import bridge_at_ict_shares, nose_bottom_at_subnasale
@@ -420,6 +421,8 @@ def detect(V, T, unit=None, landmark_map: LandmarkMap | None = None, detector: D
         points = lower_lip_on_its_edge(V, Ts, points)
         # The lower lip's inner points under the slit of parted lips, not on its top edge with the upper lip's.
         points = lower_inner_lips_under_the_slit(V, Ts, points)
+        # The lower lip's sides as far below the chord from the mouth corner to its middle as ICT's, not under the lip.
+        points = lower_lip_sides_at_ict_drop(V, Ts, points)
         # The nose's bottom at the subnasale, the profile's deepest point under the nose.
         points = nose_bottom_at_subnasale(V, Ts, points, closest)
         # The bridge's middle points at ICT's shares of the nasion-to-tip chord, not nearer the nasion.
