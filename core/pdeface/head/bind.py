@@ -23,7 +23,8 @@ motion to all of the user's mesh, once per fit:
   new topology: the binding notes it; where they are one row of vertices, the skin under the PDE face's strip
   between the lips' rims reads the strip (it stretches from the upper rim's motion to the lower's) and the folds'
   relaxation keeps the upper lip, so AU27 moves the lower lip and stretches the skin joining them; elsewhere (a
-  decimation merged the rims at the middle) the jaw's keys hold each inner lip's uncovered rim with its own lip;
+  decimation merged the rims at the middle) the jaw's keys hold each inner lip's uncovered rim with its own lip
+  and their folds' relaxation keeps the lower lip (no beak);
 - **jaw AUs** (25, 26, 27, 29, 30) turn the jaw's parts (lower teeth, gums,
   tongue) about the hinge with the rotation recovered from the chin's own PDE
   motion (:mod:`pdeface.rigid`);
@@ -137,7 +138,8 @@ LIP_LINE_IOD = 0.03
 #: mouth behind them: the shortest way runs round a corner or through the mouth).
 FUSED_PATH = 3.0
 FUSED_IOD = 0.05
-#: On joined lips the skin under the strip between the rims within this share of the mouth's width reads it.
+#: On joined lips the skin under the strip between the rims within this share of the mouth's width reads it (lips in
+#: one line), or the jaw keys' fold relaxation keeps the lower lip there (rims a decimation merged).
 JOINED_WIDTH = 0.6
 #: On joined lips the folds' relaxation keeps the upper lip's skin this far (eye distances) above the mouth's middle.
 UPPER_LIP_IOD = 0.03
@@ -402,8 +404,9 @@ def still_weight(X, P, Lf, eye_distance) -> np.ndarray:
 
 
 def _mouth_middle(P, Lf):
-    """Skin within the middle of the mouth's width (JOINED_WIDTH of it): on joined lips it reads the stretching
-    strip between the rims (towards the corners it folded a decimated head's lips)."""
+    """Skin within the middle of the mouth's width (JOINED_WIDTH of it): on lips in one line it reads the stretching
+    strip between the rims (towards the corners it folded a decimated head's lips); on rims a decimation merged the
+    jaw keys' fold relaxation keeps the lower lip there (:func:`_lower_lip`)."""
     corners = Lf[MOUTH_CORNERS, 0]
     return np.abs(P[:, 0] - corners.mean()) < 0.5 * JOINED_WIDTH * np.ptp(corners)
 
@@ -452,6 +455,16 @@ def _merged_rims(P, covered, fixed, Lf, eye_distance, skin_tree):
     # The two rims share no vertex: each drops the other lip's landmark vertices, and their middles lie on opposite
     # sides of the mouth line.
     return np.concatenate(held), np.concatenate(anchors)
+
+
+def _lower_lip(P, covered, Lf):
+    """The lower lip's skin the PDE face covers (below the mouth line, above the lower lip's bottom, landmark 57)
+    within the middle of the mouth's width (:func:`_mouth_middle`): kept by the jaw keys' fold relaxation where a
+    decimation merged the lips' rims. Relaxed, it followed the rims held with the upper lip up: decimated-cm's AU27
+    opened a beak (its lower lip a third of the way to each corner sank 0.34 and 0.30 eye distances, its middle
+    0.48); kept, 0.53, 0.47 and 0.55, and 1 edge folded, not 5. Towards the corners it moves with the relaxation
+    (kept to the corners, decimated-cm's folded 3 edges there)."""
+    return covered & _mouth_middle(P, Lf) & (P[:, 1] <= mouth_line(Lf)) & (P[:, 1] > Lf[LIP_LOWER_BOTTOM, 1])
 
 
 def _upper_lip(P, Lf, eye_distance):
@@ -681,6 +694,8 @@ class HeadBinding:
             kept |= _inner_lip_middles(P, Lf, eye_distance)
         if self.lips_one_line:  # the skin joining the lips stretches; the upper lip keeps its (still) motion
             kept |= _upper_lip(P, Lf, eye_distance)
+        elif lips_joined:  # rims merged by a decimation: the lower lip keeps the jaw's motion
+            kept |= _lower_lip(P, covered, Lf)
         self._jaw_pins = si[kept & ~pinned[si]]
         pinned[self._jaw_pins] = True
         # (a mouth bag left out: pinned, and not counted in the head's share of folds: the head's keys as without it)
