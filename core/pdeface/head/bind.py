@@ -143,6 +143,11 @@ FUSED_IOD = 0.05
 JOINED_WIDTH = 0.6
 #: On joined lips the folds' relaxation keeps the upper lip's skin this far (eye distances) above the mouth's middle.
 UPPER_LIP_IOD = 0.03
+#: Where a decimation merged the lips' rims, a jaw key keeps the inner lips' middles and the lower lip in its folds'
+#: relaxation only where it parts the lips' outer middles (landmarks 51, 57) by this many eye distances (AU25 0.14-0.15
+#: on decimated heads, the sad preset 0.05-0.07; AU29 0.01, AU30 none): kept in AU29, they folded a decimated
+#: caucasian-female-young's lips 10 edges (the issue's limit 9; 2 relaxed with the rest), asian-female-young's 13 (1).
+PARTED_IOD = 0.03
 #: Every key's motion fades, from the first to the second share of the head's depth behind the nose tip (the
 #: issue's still back of the head starts at 0.6), and from the first to the second eye distance below the chin (a
 #: body's neck: the under-jaw the jaw keys move lies above it), to at most STILL_MM. A head depth is at least
@@ -698,6 +703,9 @@ class HeadBinding:
             kept |= _lower_lip(P, covered, Lf)
         self._jaw_pins = si[kept & ~pinned[si]]
         pinned[self._jaw_pins] = True
+        #: Rims a decimation merged: the lips' outer middles, whose parting says a jaw key keeps the pins.
+        self._lip_middles = si[skin_tree.query(Lf[LIP_MIDDLES[:2]])[1]] if lips_joined and not self.lips_one_line \
+            else None
         # (a mouth bag left out: pinned, and not counted in the head's share of folds: the head's keys as without it)
         whole = not np.isin(parts.pieces[T[~relaxed_T, 0]], parts.pieces[fold_T[:, 0]]).any()  # pieces left out whole
         self._folds = FoldRelax(Vf, fold_T, pinned, fold_L, parts.pieces if whole else None)
@@ -896,9 +904,13 @@ class HeadBinding:
         # The jaw's keys in RELAX_STEPS sweeps, the others in up to STEPS_NOT_JAW and free to move a joined upper lip
         # (one relaxation: one screen kept).
         steps = np.array([fold_relax.RELAX_STEPS if m[2] else STEPS_NOT_JAW for m in motions])
+        pins = np.array([bool(m[2]) for m in motions])
+        if self._lip_middles is not None:  # rims a decimation merged: pinned in the keys that part the lips alone
+            up, lo = self._lip_middles
+            pins &= out[up, :, 1] - out[lo, :, 1] > PARTED_IOD * self.eye_distance
         screen = Screen()
         self._folds.relax(out, steps=steps, screen=screen, unpinned=self._jaw_pins,
-                          unpinned_keys=[i for i, m in enumerate(motions) if not m[2]], look=fold_relax.SWEEPS_PER_LOOK)
+                          unpinned_keys=np.flatnonzero(~pins).tolist(), look=fold_relax.SWEEPS_PER_LOOK)
         screen.moved(*self._lids.apply(out, closing))
         pushed = self._keep_out_of_eyeballs(out, screen)
         # Relaxed again where the lids' closing or the eyeballs' surface folded them (a blink, a glance down), past
