@@ -23,7 +23,8 @@ motion to all of the user's mesh, once per fit:
   new topology: the binding notes it; where they are one row of vertices, the skin under the PDE face's strip
   between the lips' rims reads the strip (it stretches from the upper rim's motion to the lower's) and the folds'
   relaxation keeps the upper lip, so AU27 moves the lower lip and stretches the skin joining them; elsewhere (a
-  decimation merged the rims at the middle) the jaw's keys hold each inner lip's uncovered rim with its own lip;
+  decimation merged the rims at the middle) the jaw's keys hold each inner lip's uncovered rim with its own lip
+  and their folds' relaxation keeps the lower lip (no beak);
 - **jaw AUs** (25, 26, 27, 29, 30) turn the jaw's parts (lower teeth, gums,
   tongue) about the hinge with the rotation recovered from the chin's own PDE
   motion (:mod:`pdeface.rigid`);
@@ -137,10 +138,16 @@ LIP_LINE_IOD = 0.03
 #: mouth behind them: the shortest way runs round a corner or through the mouth).
 FUSED_PATH = 3.0
 FUSED_IOD = 0.05
-#: On joined lips the skin under the strip between the rims within this share of the mouth's width reads it.
+#: On joined lips the skin under the strip between the rims within this share of the mouth's width reads it (lips in
+#: one line), or the jaw keys' fold relaxation keeps the lower lip there (rims a decimation merged).
 JOINED_WIDTH = 0.6
 #: On joined lips the folds' relaxation keeps the upper lip's skin this far (eye distances) above the mouth's middle.
 UPPER_LIP_IOD = 0.03
+#: Where a decimation merged the lips' rims, a jaw key keeps the inner lips' middles and the lower lip in its folds'
+#: relaxation only where it parts the lips' outer middles (landmarks 51, 57) by this many eye distances (AU25 0.14-0.15
+#: on decimated heads, the sad preset 0.05-0.07; AU29 0.01, AU30 none): kept in AU29, they folded a decimated
+#: caucasian-female-young's lips 10 edges (the issue's limit 9; 2 relaxed with the rest), asian-female-young's 13 (1).
+PARTED_IOD = 0.03
 #: Every key's motion fades, from the first to the second share of the head's depth behind the nose tip (the
 #: issue's still back of the head starts at 0.6), and from the first to the second eye distance below the chin (a
 #: body's neck: the under-jaw the jaw keys move lies above it), to at most STILL_MM. A head depth is at least
@@ -402,8 +409,9 @@ def still_weight(X, P, Lf, eye_distance) -> np.ndarray:
 
 
 def _mouth_middle(P, Lf):
-    """Skin within the middle of the mouth's width (JOINED_WIDTH of it): on joined lips it reads the stretching
-    strip between the rims (towards the corners it folded a decimated head's lips)."""
+    """Skin within the middle of the mouth's width (JOINED_WIDTH of it): on lips in one line it reads the stretching
+    strip between the rims (towards the corners it folded a decimated head's lips); on rims a decimation merged the
+    jaw keys' fold relaxation keeps the lower lip there (:func:`_lower_lip`)."""
     corners = Lf[MOUTH_CORNERS, 0]
     return np.abs(P[:, 0] - corners.mean()) < 0.5 * JOINED_WIDTH * np.ptp(corners)
 
@@ -452,6 +460,16 @@ def _merged_rims(P, covered, fixed, Lf, eye_distance, skin_tree):
     # The two rims share no vertex: each drops the other lip's landmark vertices, and their middles lie on opposite
     # sides of the mouth line.
     return np.concatenate(held), np.concatenate(anchors)
+
+
+def _lower_lip(P, covered, Lf):
+    """The lower lip's skin the PDE face covers (below the mouth line, above the lower lip's bottom, landmark 57)
+    within the middle of the mouth's width (:func:`_mouth_middle`): kept by the jaw keys' fold relaxation where a
+    decimation merged the lips' rims. Relaxed, it followed the rims held with the upper lip up: decimated-cm's AU27
+    opened a beak (its lower lip a third of the way to each corner sank 0.34 and 0.30 eye distances, its middle
+    0.48); kept, 0.53, 0.47 and 0.55, and 1 edge folded, not 5. Towards the corners it moves with the relaxation
+    (kept to the corners, decimated-cm's folded 3 edges there)."""
+    return covered & _mouth_middle(P, Lf) & (P[:, 1] <= mouth_line(Lf)) & (P[:, 1] > Lf[LIP_LOWER_BOTTOM, 1])
 
 
 def _upper_lip(P, Lf, eye_distance):
@@ -681,8 +699,13 @@ class HeadBinding:
             kept |= _inner_lip_middles(P, Lf, eye_distance)
         if self.lips_one_line:  # the skin joining the lips stretches; the upper lip keeps its (still) motion
             kept |= _upper_lip(P, Lf, eye_distance)
+        elif lips_joined:  # rims merged by a decimation: the lower lip keeps the jaw's motion
+            kept |= _lower_lip(P, covered, Lf)
         self._jaw_pins = si[kept & ~pinned[si]]
         pinned[self._jaw_pins] = True
+        #: Rims a decimation merged: the lips' outer middles, whose parting says a jaw key keeps the pins.
+        self._lip_middles = si[skin_tree.query(Lf[LIP_MIDDLES[:2]])[1]] if lips_joined and not self.lips_one_line \
+            else None
         # (a mouth bag left out: pinned, and not counted in the head's share of folds: the head's keys as without it)
         whole = not np.isin(parts.pieces[T[~relaxed_T, 0]], parts.pieces[fold_T[:, 0]]).any()  # pieces left out whole
         self._folds = FoldRelax(Vf, fold_T, pinned, fold_L, parts.pieces if whole else None)
@@ -881,9 +904,13 @@ class HeadBinding:
         # The jaw's keys in RELAX_STEPS sweeps, the others in up to STEPS_NOT_JAW and free to move a joined upper lip
         # (one relaxation: one screen kept).
         steps = np.array([fold_relax.RELAX_STEPS if m[2] else STEPS_NOT_JAW for m in motions])
+        pins = np.array([bool(m[2]) for m in motions])
+        if self._lip_middles is not None:  # rims a decimation merged: pinned in the keys that part the lips alone
+            up, lo = self._lip_middles
+            pins &= out[up, :, 1] - out[lo, :, 1] > PARTED_IOD * self.eye_distance
         screen = Screen()
         self._folds.relax(out, steps=steps, screen=screen, unpinned=self._jaw_pins,
-                          unpinned_keys=[i for i, m in enumerate(motions) if not m[2]], look=fold_relax.SWEEPS_PER_LOOK)
+                          unpinned_keys=np.flatnonzero(~pins).tolist(), look=fold_relax.SWEEPS_PER_LOOK)
         screen.moved(*self._lids.apply(out, closing))
         pushed = self._keep_out_of_eyeballs(out, screen)
         # Relaxed again where the lids' closing or the eyeballs' surface folded them (a blink, a glance down), past
