@@ -302,7 +302,8 @@ def test_a_rig_job_rigs_each_head_and_records_a_broken_one(tmp_path):
 
 def test_pdeface_rig_writes_the_same_bytes_twice(tmp_path, capsys):
     """``pdeface rig``: every file, and the same bytes for the same inputs (the batch jobs' idempotence rests on
-    it); the keys are those ``pose --mesh`` gives."""
+    it), in the command's own process too (its heap kept and grown on a thread: pdeface.heap); the keys are those
+    ``pose --mesh`` gives."""
     from pdeface.au.modelfile import load_face
     from pdeface.cli import main
     from pdeface.head.bind import bind_file
@@ -316,7 +317,8 @@ def test_pdeface_rig_writes_the_same_bytes_twice(tmp_path, capsys):
     assert set(printed["cpu_timings"]) == set(printed["timings"]) and printed["cpu_timings"]["fit"] > 0
     report = json.loads((tmp_path / "a" / "report.json").read_text())
     assert report["cpu_timings"] == printed["cpu_timings"] and report["timings"] == printed["timings"]
-    assert main(["rig", str(mesh), "--landmarks", str(lm), "--no-presets", "-o", str(tmp_path / "b")]) == 0
+    code, _, err = _finish(_pdeface("rig", mesh, "--landmarks", lm, "--no-presets", "-o", tmp_path / "b"))
+    assert code == 0, err
     for name in ("landmarks.json", "face.npz", "rigged.npz", "keys.npz"):
         assert (tmp_path / "a" / name).read_bytes() == (tmp_path / "b" / name).read_bytes(), name
     keys = load_keys(tmp_path / "a" / "keys.npz")
