@@ -12,7 +12,7 @@ own script; the library's functions and the add-on do not (in Blender, which liv
 ``bench_newhead --heap-runs``). Free memory at the heap's top beyond ``trim_threshold`` goes back to the system; memory
 freed below a block still in use stays with the process until it ends (a command's process ends after one run).
 :func:`grow_heap` has the pages a command will fault given on a thread beside it (``pdeface rig``: the faults off
-its main thread, 0.15-0.3 s of its CPU). Elsewhere than glibc (macOS, Windows, musl) it changes nothing.
+its main thread, 0.1-0.2 s of its CPU). Elsewhere than glibc (macOS, Windows, musl) it changes nothing.
 """
 from __future__ import annotations
 
@@ -26,8 +26,9 @@ MMAP_THRESHOLDS = (64 << 20, 32 << 20)
 #: Free bytes kept at the heap's top before any is given back to the system (at 32 MiB the rig faulted 82k times, at
 #: 64 or 128 MiB 64k).
 TRIM_THRESHOLD = 64 << 20
-#: The blocks :func:`grow_heap` takes: under either mmap threshold, so from the heap.
-GROW_BLOCK = 32 << 20
+#: The blocks :func:`grow_heap` takes: under either mmap threshold (a block of 32 MiB and its header would be mapped
+#: apart where the threshold is 32 MiB), so from the heap.
+GROW_BLOCK = 16 << 20
 _M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3  # glibc's malloc.h
 
 _lock = threading.Lock()
@@ -50,7 +51,7 @@ def grow_heap(nbytes: int):
     """Have the kernel give the kept heap ``nbytes`` of memory now, on a thread of its own, for the arrays to come.
 
     A command's first arrays are fresh memory, each page a fault (see the module's notes): ICT's head's
-    ``pdeface rig`` took ~70k, 0.2-0.3 s of its main thread's CPU. Here blocks of :data:`GROW_BLOCK` are taken from
+    ``pdeface rig`` took ~70k on its main thread. Here blocks of :data:`GROW_BLOCK` are taken from
     the heap at once in the calling thread (its arena, the one the command's arrays come from) and one more above
     them, left untouched and never freed, so that the others do not end at the heap's top (which gives back all
     but ``TRIM_THRESHOLD`` of what is freed there). A daemon thread then writes each block, faulting its pages with

@@ -131,7 +131,8 @@ def test_stimulus_tasks_are_keyed_by_their_inputs_and_labelled(tmp_path):
     assert len(rows) == len(job.tasks)
     assert {"AU01_r", "AU02_r", "AU06_r", "AU12_r", "AU01_c", "AU12_c", "identity", "view", "intensity"} <= set(rows[0])
     one = next(r for r in rows if r["file"] == "default_AU01+02_E_left.png")
-    assert (one["AU01_r"], one["AU02_r"], one["AU12_r"], one["AU01_c"], one["AU12_c"]) == ("5.0", "5.0", "0.0", "1", "0")
+    assert (one["AU01_r"], one["AU02_r"], one["AU12_r"], one["AU01_c"], one["AU12_c"]) == \
+        ("5.0", "5.0", "0.0", "1", "0")
     assert next(r for r in rows if r["file"] == "default_AU12_w0.5_front.png")["AU12_r"] == "2.5"
     sampled = plan_job({**data, "sampler": {"count": 7, "seed": 3}}, tmp_path)
     again = plan_job({**data, "sampler": {"count": 7, "seed": 3}}, tmp_path)
@@ -157,7 +158,8 @@ def test_lights_are_crossed_with_views_keyed_labelled_and_seen(tmp_path):
     assert {r["light"] for r in csv.DictReader(labels_csv(plain, {t.key: {"status": "done"} for t in plain.tasks})
                                                 .splitlines())} == {"front"}
     face = load_identity("default", ("12",))
-    by_light = {t.label["light"]: render_identity(face, t.params["weights"], "front", 48, 1, 0.0, t.params.get("lights"))
+    by_light = {t.label["light"]: render_identity(face, t.params["weights"], "front", 48, 1, 0.0,
+                                                  t.params.get("lights"))
                 for t in lit.tasks if t.label["view"] == "front"}
     assert np.array_equal(by_light["front"], render_identity(face, {"12": 1.0}, "front", 48))
     grey = {name: img[..., 0].astype(float) for name, img in by_light.items()}

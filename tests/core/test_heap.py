@@ -36,10 +36,10 @@ def test_keep_heap_reuses_freed_arrays_pages():
 HELD_ARRAYS = """
 import resource, sys
 import numpy as np
-from pdeface.heap import GROW_BLOCK, grow_heap, keep_heap
+from pdeface.heap import grow_heap, keep_heap
 
 kept = keep_heap()
-thread = grow_heap(3 * GROW_BLOCK) if sys.argv[1] == "grown" else None
+thread = grow_heap(80 << 20) if sys.argv[1] == "grown" else None
 if thread is not None:
     thread.join()
 start = resource.getrusage(resource.RUSAGE_SELF).ru_minflt
