@@ -13,7 +13,7 @@ from .landmarks import accept_option
 #: The memory ``pdeface rig`` has the kernel give on a thread beside the chain's start (:func:`pdeface.heap.grow_heap`),
 #: with its landmarks found: the rig faults ~280 MB on ICT's 27k-vertex head, ~230 MB on an 8.7k one (the renders'
 #: ~100 MB of it), not all of it from the heap; more is memory held for nothing on a small head. Main thread's CPU
-#: 2.36 -> 2.15 s on ICT's head, 2.23 -> 2.11 s on the 8.7k one (medians of 8, interleaved, load 8-9).
+#: 2.48 -> 2.30 s on ICT's head, 2.17 -> 2.08 s on the 8.7k one (10 each, load 7: docs/design/rig.md).
 RIG_HEAP = 224 << 20
 #: ... and with its landmarks given (no renders): ICT's 1.68 -> 1.48 s.
 RIG_HEAP_GIVEN_LANDMARKS = 128 << 20
