@@ -11,7 +11,8 @@ It is process-wide and stays, so only a process's owner calls it: the ``pdeface`
 own script; the library's functions and the add-on do not (in Blender, which lives on, it made no clear difference:
 ``bench_newhead --heap-runs``). Free memory at the heap's top beyond ``trim_threshold`` goes back to the system; memory
 freed below a block still in use stays with the process until it ends (a command's process ends after one run).
-Elsewhere than glibc (macOS, Windows, musl) it changes nothing.
+:func:`grow_heap` has the pages a command will fault given on a thread beside it (``pdeface rig``: the faults off
+its main thread, 0.1-0.2 s of its CPU). Elsewhere than glibc (macOS, Windows, musl) it changes nothing.
 """
 from __future__ import annotations
 
@@ -25,6 +26,9 @@ MMAP_THRESHOLDS = (64 << 20, 32 << 20)
 #: Free bytes kept at the heap's top before any is given back to the system (at 32 MiB the rig faulted 82k times, at
 #: 64 or 128 MiB 64k).
 TRIM_THRESHOLD = 64 << 20
+#: The blocks :func:`grow_heap` takes: under either mmap threshold (a block of 32 MiB and its header would be mapped
+#: apart where the threshold is 32 MiB), so from the heap.
+GROW_BLOCK = 16 << 20
 _M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3  # glibc's malloc.h
 
 _lock = threading.Lock()
@@ -41,6 +45,45 @@ def _glibc():
     except (OSError, TypeError, AttributeError):  # Windows (no CDLL(None)), macOS
         return None
     return libc
+
+
+def grow_heap(nbytes: int):
+    """Have the kernel give the kept heap ``nbytes`` of memory now, on a thread of its own, for the arrays to come.
+
+    A command's first arrays are fresh memory, each page a fault (see the module's notes): ICT's head's
+    ``pdeface rig`` took ~70k on its main thread. Here blocks of :data:`GROW_BLOCK` are taken from
+    the heap at once in the calling thread (its arena, the one the command's arrays come from) and one more above
+    them, left untouched and never freed, so that the others do not end at the heap's top (which gives back all
+    but ``TRIM_THRESHOLD`` of what is freed there). A daemon thread then writes each block, faulting its pages with
+    the GIL released, and frees it: later arrays reuse those pages. Where a core is free the faults leave the
+    command's critical path; where none is they cost what the arrays' own faults would have, as long as ``nbytes``
+    is no more than the command would have faulted (more is memory the process holds for nothing).
+
+    Only after :func:`keep_heap` took (a process's owner decides its heap): otherwise nothing is done.
+
+    Returns
+    -------
+    threading.Thread or None
+        The thread writing the blocks (a daemon: a process may end before it has), or None where nothing was done.
+    """
+    if not (_kept and _kept[0]) or nbytes < GROW_BLOCK:
+        return None
+    libc = _glibc()
+    libc.malloc.restype, libc.malloc.argtypes = ctypes.c_void_p, [ctypes.c_size_t]
+    libc.free.restype, libc.free.argtypes = None, [ctypes.c_void_p]
+    libc.memset.restype, libc.memset.argtypes = ctypes.c_void_p, [ctypes.c_void_p, ctypes.c_int, ctypes.c_size_t]
+    blocks = [libc.malloc(GROW_BLOCK) for _ in range(nbytes // GROW_BLOCK)]
+    libc.malloc(GROW_BLOCK)  # the block above them, kept: freed, they are not the heap's top
+
+    def fault_in():
+        for block in blocks:
+            if block:  # NULL: none to be had; the arrays will ask the system themselves
+                libc.memset(block, 0, GROW_BLOCK)
+                libc.free(block)
+
+    thread = threading.Thread(target=fault_in, name="pdeface.heap.grow_heap", daemon=True)
+    thread.start()
+    return thread
 
 
 def keep_heap(trim_threshold: int = TRIM_THRESHOLD) -> bool:

@@ -131,7 +131,8 @@ def test_stimulus_tasks_are_keyed_by_their_inputs_and_labelled(tmp_path):
     assert len(rows) == len(job.tasks)
     assert {"AU01_r", "AU02_r", "AU06_r", "AU12_r", "AU01_c", "AU12_c", "identity", "view", "intensity"} <= set(rows[0])
     one = next(r for r in rows if r["file"] == "default_AU01+02_E_left.png")
-    assert (one["AU01_r"], one["AU02_r"], one["AU12_r"], one["AU01_c"], one["AU12_c"]) == ("5.0", "5.0", "0.0", "1", "0")
+    assert (one["AU01_r"], one["AU02_r"], one["AU12_r"], one["AU01_c"], one["AU12_c"]) == \
+        ("5.0", "5.0", "0.0", "1", "0")
     assert next(r for r in rows if r["file"] == "default_AU12_w0.5_front.png")["AU12_r"] == "2.5"
     sampled = plan_job({**data, "sampler": {"count": 7, "seed": 3}}, tmp_path)
     again = plan_job({**data, "sampler": {"count": 7, "seed": 3}}, tmp_path)
@@ -157,7 +158,8 @@ def test_lights_are_crossed_with_views_keyed_labelled_and_seen(tmp_path):
     assert {r["light"] for r in csv.DictReader(labels_csv(plain, {t.key: {"status": "done"} for t in plain.tasks})
                                                 .splitlines())} == {"front"}
     face = load_identity("default", ("12",))
-    by_light = {t.label["light"]: render_identity(face, t.params["weights"], "front", 48, 1, 0.0, t.params.get("lights"))
+    by_light = {t.label["light"]: render_identity(face, t.params["weights"], "front", 48, 1, 0.0,
+                                                  t.params.get("lights"))
                 for t in lit.tasks if t.label["view"] == "front"}
     assert np.array_equal(by_light["front"], render_identity(face, {"12": 1.0}, "front", 48))
     grey = {name: img[..., 0].astype(float) for name, img in by_light.items()}
@@ -302,7 +304,8 @@ def test_a_rig_job_rigs_each_head_and_records_a_broken_one(tmp_path):
 
 def test_pdeface_rig_writes_the_same_bytes_twice(tmp_path, capsys):
     """``pdeface rig``: every file, and the same bytes for the same inputs (the batch jobs' idempotence rests on
-    it); the keys are those ``pose --mesh`` gives."""
+    it), in the command's own process too (its heap kept and grown on a thread: pdeface.heap); the keys are those
+    ``pose --mesh`` gives."""
     from pdeface.au.modelfile import load_face
     from pdeface.cli import main
     from pdeface.head.bind import bind_file
@@ -316,7 +319,8 @@ def test_pdeface_rig_writes_the_same_bytes_twice(tmp_path, capsys):
     assert set(printed["cpu_timings"]) == set(printed["timings"]) and printed["cpu_timings"]["fit"] > 0
     report = json.loads((tmp_path / "a" / "report.json").read_text())
     assert report["cpu_timings"] == printed["cpu_timings"] and report["timings"] == printed["timings"]
-    assert main(["rig", str(mesh), "--landmarks", str(lm), "--no-presets", "-o", str(tmp_path / "b")]) == 0
+    code, _, err = _finish(_pdeface("rig", mesh, "--landmarks", lm, "--no-presets", "-o", tmp_path / "b"))
+    assert code == 0, err
     for name in ("landmarks.json", "face.npz", "rigged.npz", "keys.npz"):
         assert (tmp_path / "a" / name).read_bytes() == (tmp_path / "b" / name).read_bytes(), name
     keys = load_keys(tmp_path / "a" / "keys.npz")

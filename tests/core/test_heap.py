@@ -33,6 +33,48 @@ def test_keep_heap_reuses_freed_arrays_pages():
         assert glibc == "False" and abs(runs["kept"] - runs["default"]) < 0.25 * pages, runs
 
 
+HELD_ARRAYS = """
+import resource, sys
+import numpy as np
+from pdeface.heap import grow_heap, keep_heap
+
+kept = keep_heap()
+thread = grow_heap(80 << 20) if sys.argv[1] == "grown" else None
+if thread is not None:
+    thread.join()
+start = resource.getrusage(resource.RUSAGE_SELF).ru_minflt
+# 64 MiB at once, every page written: the heap must grow by that much (each array under 4 MiB, where numpy asks for
+# huge pages)
+held = [np.ones(1 << 18) for _ in range(32)]
+print(resource.getrusage(resource.RUSAGE_SELF).ru_minflt - start, kept, thread is not None)
+"""
+
+
+def test_grow_heap_gives_the_pages_before_the_arrays_ask():
+    """Arrays held together (the heap grows) fault a fraction of their pages after grow_heap wrote as many bytes on
+    its thread; without keep_heap (another C library) it does nothing (a fresh process each)."""
+    runs = {}
+    for mode in ("kept", "grown"):
+        out = subprocess.run([sys.executable, "-c", HELD_ARRAYS, mode], check=True, capture_output=True,
+                             text=True).stdout.split()
+        runs[mode], kept, grown = int(out[0]), out[1], out[2]
+    pages = 64 << 8  # 4 KiB pages of the arrays
+    if kept == "True":
+        assert grown == "True" and runs["kept"] > 0.8 * pages and runs["grown"] < 0.1 * pages, runs
+    else:
+        assert grown == "False", runs
+
+
+def test_grow_heap_does_nothing_unless_the_heap_is_kept(monkeypatch):
+    """Only a process that keeps its heap (keep_heap, glibc) grows it: elsewhere freed blocks would go back to the
+    system at once; and less than a block is not worth a thread."""
+    for kept in ([], [False]):
+        monkeypatch.setattr(heap, "_kept", kept)
+        assert heap.grow_heap(4 * heap.GROW_BLOCK) is None
+    monkeypatch.setattr(heap, "_kept", [True])
+    assert heap.grow_heap(heap.GROW_BLOCK - 1) is None
+
+
 class _FakeLibc:
     def __init__(self):
         self.calls = []

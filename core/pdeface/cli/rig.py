@@ -4,13 +4,25 @@ from __future__ import annotations
 import json
 
 from ..assets import DEFAULT
+from ..heap import grow_heap
 from ..io.files import check_output
 from ..rig import rig_head
 from .common import log, plain_scipy_docs, unit_option
 from .landmarks import accept_option
 
+#: The memory ``pdeface rig`` has the kernel give on a thread beside the chain's start (:func:`pdeface.heap.grow_heap`),
+#: with its landmarks found: the rig faults ~280 MB on ICT's 27k-vertex head, ~230 MB on an 8.7k one (the renders'
+#: ~100 MB of it), not all of it from the heap; more is memory held for nothing on a small head. Main thread's CPU
+#: 2.48 -> 2.30 s on ICT's head, 2.17 -> 2.08 s on the 8.7k one (10 each, load 7: docs/design/rig.md).
+RIG_HEAP = 224 << 20
+#: ... and with its landmarks given (no renders): ICT's 1.68 -> 1.48 s.
+RIG_HEAP_GIVEN_LANDMARKS = 128 << 20
+
 
 def cmd_rig(args):
+    # the pages of the chain's arrays faulted on another core while it starts (the command's process keeps its
+    # heap: cli.run; elsewhere nothing is done)
+    grow_heap(RIG_HEAP if args.landmarks is None else RIG_HEAP_GIVEN_LANDMARKS)
     for name in ("keys.npz", "face.npz", "rigged.npz", "landmarks.json", "report.json"):
         check_output(f"{args.output}/{name}", args.mesh, args.landmarks, args.parts)
     plain_scipy_docs()  # before the chain loads scipy's subpackages
