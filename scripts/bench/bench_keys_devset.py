@@ -43,7 +43,7 @@ from pdeface.surface.fit import fit_face
 
 from scripts.bench.benchlib import bench_parser, run_bench
 from scripts.devset.characters import SPECS, build
-from scripts.figures.render_keys_devset import HARDEST, MOUTH_BAG, SEEN
+from scripts.figures.render_keys_devset import RENDERED, SEEN
 
 TARGETS = {"lid_shrink": 0.80, "lr_diff": 0.25, "lip_gap_ed": 0.25, "upper_lip_rise_ed": 0.08,
            "corner_lift_ed": 0.04, "new_fold_share": 0.001, "new_fold_min": 2, "spill_mm": 0.5}
@@ -58,7 +58,7 @@ SPILL_BEHIND = 0.6
 #: Linked from the page: Workbench close-ups of the hardest heads and the mouth bag's (``python -m
 #: scripts.figures.render_keys_devset``), each with what it shows.
 SEE_ALSO = tuple((f"{name}: neutral, AU12, AU27, AU45 and happy, front and 3/4 (Workbench)",
-                  f"../images/keys_devset_{name}.png", SEEN[name]) for name in HARDEST + MOUTH_BAG)
+                  f"../images/keys_devset_{name}.png", SEEN[name]) for name in RENDERED)
 
 
 def eyes_of(L):

@@ -42,6 +42,11 @@ HARDEST = ("voxel-m", "body-A-cm", "eyes-teeth-separate-in", "stylised-parted-de
 CUT = "-cut-lips"
 #: Rendered beside them by default: the head with no mouth inside, and voxel-m with its lips cut, with mouth bags.
 MOUTH_BAG = (NO_MOUTH_INSIDE.name, "voxel-m" + CUT)
+#: Rendered beside them by default: lips a decimation merged at the middle (AU27 opened them as a beak before the
+#: jaw keys' relaxation kept the lower lip, branch keys-joined-lips).
+MERGED_LIPS = ("decimated-cm",)
+#: Every character rendered by default, in the page's order.
+RENDERED = HARDEST + MOUTH_BAG + MERGED_LIPS
 #: What the renders show, looked at (2026-11-26, branch keys-au45; the bench's page lists them). Rendered
 #: again after a change to the binding, these are to be looked at and written again.
 SEEN = {
@@ -69,6 +74,11 @@ SEEN = {
                      "bag: AU27 opens the mouth over the dark bag, no sheet (6 new folds, on the neck under the jaw); "
                      "happy parts the lips over it; the cut follows the voxel grid's edges, so the lip line is jagged "
                      "(a saw-tooth slit at rest); AU45 as on voxel-m (3); AU12 and happy no folds",
+    "decimated-cm": "decimated to ~3k vertices, the lips' rims merged at the middle (the short dark slits at rest are "
+                    "the decimation's): AU27 opens a rounded mouth, the lower lip down along its width (a pointed V, "
+                    "a beak, with 5 folds before branch keys-joined-lips), with grey slivers of the skin joining the "
+                    "lips inside the opening and 1 fold at a merged rim (Cut Lips Open removes both); AU45 closes "
+                    "the lids, 1 fold at an inner corner; AU12 and happy no folds",
 }
 KEYS = ("neutral", "AU12", "AU27", "AU45", "happy")
 #: The views: the camera turned this many degrees about the face's vertical axis (towards the subject's left).
@@ -224,11 +234,11 @@ def main(argv=None):
     ap.add_argument("-o", "--out", default=str(OUT), help="folder of the keys_devset_<name>.png files")
     ap.add_argument("--size", type=int, default=512, help="pixels per panel")
     ap.add_argument("--only", help=f"comma-separated character names (default: the five hardest and "
-                                   f"{', '.join(MOUTH_BAG)})")
+                                   f"{', '.join(MOUTH_BAG + MERGED_LIPS)})")
     ap.add_argument("--no-mouth-bag", action="store_true", help="no mouth bag on a head with no mouth inside")
     ap.add_argument("--keys", default=",".join(KEYS), help="comma-separated keys (default: %(default)s)")
     args = ap.parse_args(argv)
-    names = args.only.split(",") if args.only else HARDEST + MOUTH_BAG
+    names = args.only.split(",") if args.only else RENDERED
     with tempfile.TemporaryDirectory() as tmp:
         for name in names:
             img, folds = sheet(name, args.size, tmp, args.keys.split(","), not args.no_mouth_bag)
