@@ -309,6 +309,10 @@ def closest_point_on_triangles(P, A, B, C):
     return Q, w
 
 
+#: Points :meth:`ClosestPoint.query` works on at a time.
+QUERY_BLOCK = 1024
+
+
 class ClosestPoint:
     """Closest-point queries on a triangle mesh.
 
@@ -357,10 +361,25 @@ class ClosestPoint:
         point : (p, 3) float
         """
         P = np.asarray(P, dtype=np.float64)
+        if nearest is not None:
+            nearest = np.asarray(nearest, np.int64)
+        if len(P) <= QUERY_BLOCK:
+            return self._query_block(P, nearest)
+        # Block by block of points (each point's answer is its own): the candidates' temporaries stay in cache and
+        # in the heap, not fresh pages (ICT's binding's 6.5k points: 21 MB of them, 5.3k page faults)
+        out = np.empty(len(P)), np.empty(len(P), np.int64), np.empty((len(P), 3)), np.empty((len(P), 3))
+        for start in range(0, len(P), QUERY_BLOCK):
+            block = slice(start, start + QUERY_BLOCK)
+            for whole, part in zip(out, self._query_block(P[block], None if nearest is None else nearest[block])):
+                whole[block] = part
+        return out
+
+    def _query_block(self, P, nearest):
+        """:meth:`query` of the points ``P`` (float64), ``nearest`` an int64 array or None."""
         k = min(self.k, len(self.T))
         _, ct = self.tree.query(P, k=k)
         ct = ct.reshape(len(P), -1)
-        nv = self.vtree.query(P, k=1)[1] if nearest is None else np.asarray(nearest, np.int64)
+        nv = self.vtree.query(P, k=1)[1] if nearest is None else nearest
         # Triangles around the nearest vertex (a few, padded with the first centroid hit).
         deg = self._vstart[nv + 1] - self._vstart[nv]
         maxdeg = int(deg.max()) if len(deg) else 0
