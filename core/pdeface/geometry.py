@@ -45,6 +45,14 @@ def any_corner(mask: np.ndarray, T: np.ndarray) -> np.ndarray:
     return mask[T[:, 0]] | mask[T[:, 1]] | mask[T[:, 2]]
 
 
+def column_bounds(X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(X.min(axis=0), X.max(axis=0))`` of points ``X (n, d)``, column by column: the same numbers, 10-20x faster
+    (numpy reduces down the columns of a short-rowed array slowly: 0.8 ms each for a 27k-vertex head)."""
+    X = np.asarray(X)
+    return (np.array([X[:, k].min() for k in range(X.shape[1])], X.dtype),
+            np.array([X[:, k].max() for k in range(X.shape[1])], X.dtype))
+
+
 def in_box(P: np.ndarray, lo, hi) -> np.ndarray:
     """Whether each point of ``P (n, 3)`` lies in the box ``lo <= p <= hi`` (NaN in none), coordinate by
     coordinate: 5x faster than ``((P >= lo) & (P <= hi)).all(axis=1)``."""

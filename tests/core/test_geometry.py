@@ -121,3 +121,17 @@ def test_cotan_laplacian_is_scipys_diagonal_less_the_clamped_weights():
             assert np.array_equal(getattr(got, name), getattr(want, name))
     L = cotan_laplacian(V, T)
     assert np.allclose(L @ np.ones(len(V)), 0, atol=1e-12) and (L - L.T).count_nonzero() == 0
+
+
+def test_column_bounds_are_numpys_min_and_max_down_the_columns():
+    from pdeface.geometry import column_bounds
+
+    rng = np.random.default_rng(5)
+    X = rng.normal(size=(1000, 3))
+    X[7, 1] = np.nan  # a NaN: that column's bounds are NaN, as numpy's
+    X[[3, 9], 2] = -0.0, 0.0
+    for A in (X, X[::3], rng.integers(-5, 5, (50, 4)), X[:1]):
+        lo, hi = column_bounds(A)
+        for got, want in ((lo, A.min(axis=0)), (hi, A.max(axis=0))):
+            assert got.dtype == want.dtype and np.array_equal(got, want, equal_nan=True)
+            assert np.array_equal(np.signbit(got), np.signbit(want))
