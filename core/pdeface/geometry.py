@@ -53,6 +53,12 @@ def column_bounds(X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
             np.array([X[:, k].max() for k in range(X.shape[1])], X.dtype))
 
 
+def column_extent(X: np.ndarray) -> np.ndarray:
+    """``numpy.ptp(X, axis=0)``: each column's largest less its smallest (:func:`column_bounds`')."""
+    lo, hi = column_bounds(X)
+    return hi - lo
+
+
 def in_box(P: np.ndarray, lo, hi) -> np.ndarray:
     """Whether each point of ``P (n, 3)`` lies in the box ``lo <= p <= hi`` (NaN in none), coordinate by
     coordinate: 5x faster than ``((P >= lo) & (P <= hi)).all(axis=1)``."""

@@ -124,7 +124,7 @@ def test_cotan_laplacian_is_scipys_diagonal_less_the_clamped_weights():
 
 
 def test_column_bounds_are_numpys_min_and_max_down_the_columns():
-    from pdeface.geometry import column_bounds
+    from pdeface.geometry import column_bounds, column_extent
 
     rng = np.random.default_rng(5)
     X = rng.normal(size=(1000, 3))
@@ -135,3 +135,4 @@ def test_column_bounds_are_numpys_min_and_max_down_the_columns():
         for got, want in ((lo, A.min(axis=0)), (hi, A.max(axis=0))):
             assert got.dtype == want.dtype and np.array_equal(got, want, equal_nan=True)
             assert np.array_equal(np.signbit(got), np.signbit(want))
+        assert np.array_equal(column_extent(A), np.ptp(A, axis=0), equal_nan=True)

@@ -12,7 +12,7 @@ from ..errors import LandmarkError, LayoutError, MeshError
 from ..geometry import (
     ClosestPoint,
     any_corner,
-    column_bounds,
+    column_extent,
     every_corner,
     in_box,
     row_norms,
@@ -70,7 +70,7 @@ def skin_vertices(V: np.ndarray, T: np.ndarray, points: np.ndarray, pieces: np.n
     """
     search = UsedVertices(V, T) if search is None else search
     used, Vu = search.used, search.V  # the mesh's size from its triangles: a stray vertex far away must not set it
-    extent = np.subtract(*column_bounds(Vu)[::-1]) if len(used) else np.zeros(3)  # numpy.ptp's, 20x faster
+    extent = column_extent(Vu) if len(used) else np.zeros(3)
     lab = pieces
     if lab is None:
         rep = seam_welds(V, T, tol=1e-6 * float(np.linalg.norm(extent)))  # split along UV seams: still one piece
