@@ -45,6 +45,20 @@ def any_corner(mask: np.ndarray, T: np.ndarray) -> np.ndarray:
     return mask[T[:, 0]] | mask[T[:, 1]] | mask[T[:, 2]]
 
 
+def column_bounds(X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(X.min(axis=0), X.max(axis=0))`` of points ``X (n, d)``, column by column: the same numbers, 10-20x faster
+    (numpy reduces down the columns of a short-rowed array slowly: 0.8 ms each for a 27k-vertex head)."""
+    X = np.asarray(X)
+    return (np.array([X[:, k].min() for k in range(X.shape[1])], X.dtype),
+            np.array([X[:, k].max() for k in range(X.shape[1])], X.dtype))
+
+
+def column_extent(X: np.ndarray) -> np.ndarray:
+    """``numpy.ptp(X, axis=0)``: each column's largest less its smallest (:func:`column_bounds`')."""
+    lo, hi = column_bounds(X)
+    return hi - lo
+
+
 def in_box(P: np.ndarray, lo, hi) -> np.ndarray:
     """Whether each point of ``P (n, 3)`` lies in the box ``lo <= p <= hi`` (NaN in none), coordinate by
     coordinate: 5x faster than ``((P >= lo) & (P <= hi)).all(axis=1)``."""
@@ -309,6 +323,10 @@ def closest_point_on_triangles(P, A, B, C):
     return Q, w
 
 
+#: Points :meth:`ClosestPoint.query` works on at a time.
+QUERY_BLOCK = 1024
+
+
 class ClosestPoint:
     """Closest-point queries on a triangle mesh.
 
@@ -357,10 +375,25 @@ class ClosestPoint:
         point : (p, 3) float
         """
         P = np.asarray(P, dtype=np.float64)
+        if nearest is not None:
+            nearest = np.asarray(nearest, np.int64)
+        if len(P) <= QUERY_BLOCK:
+            return self._query_block(P, nearest)
+        # Block by block of points (each point's answer is its own): the candidates' temporaries stay in cache and
+        # in the heap, not fresh pages (ICT's binding's 6.5k points: 21 MB of them, 5.3k page faults)
+        out = np.empty(len(P)), np.empty(len(P), np.int64), np.empty((len(P), 3)), np.empty((len(P), 3))
+        for start in range(0, len(P), QUERY_BLOCK):
+            block = slice(start, start + QUERY_BLOCK)
+            for whole, part in zip(out, self._query_block(P[block], None if nearest is None else nearest[block])):
+                whole[block] = part
+        return out
+
+    def _query_block(self, P, nearest):
+        """:meth:`query` of the points ``P`` (float64), ``nearest`` an int64 array or None."""
         k = min(self.k, len(self.T))
         _, ct = self.tree.query(P, k=k)
         ct = ct.reshape(len(P), -1)
-        nv = self.vtree.query(P, k=1)[1] if nearest is None else np.asarray(nearest, np.int64)
+        nv = self.vtree.query(P, k=1)[1] if nearest is None else nearest
         # Triangles around the nearest vertex (a few, padded with the first centroid hit).
         deg = self._vstart[nv + 1] - self._vstart[nv]
         maxdeg = int(deg.max()) if len(deg) else 0

@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .errors import MeshError
-from .geometry import cross3, degrees_from_cos, row_dots, row_norms, triangle_cross, unit_rows
+from .geometry import column_extent, cross3, degrees_from_cos, row_dots, row_norms, triangle_cross, unit_rows
 
 
 @dataclass
@@ -262,7 +262,7 @@ def seam_welds(V: np.ndarray, T: np.ndarray, tol: float | None = None, min_piece
     if len(border) < 2:
         return rep
     if tol is None:
-        tol = 1e-6 * float(np.linalg.norm(np.ptp(V, axis=0)))
+        tol = 1e-6 * float(np.linalg.norm(column_extent(V)))
     pairs = cKDTree(V[border]).query_pairs(tol, output_type="ndarray")
     if len(pairs) == 0:
         return rep

@@ -50,16 +50,17 @@ CHAIN_MODULES = ("scipy.sparse", "scipy.sparse.csgraph", "scipy.sparse.linalg", 
 
 def warm_up(landmarks=True):
     """Load what the chain's first call would: :data:`CHAIN_MODULES`, MediaPipe's two models (with ``landmarks``;
-    skipped where it is not installed) and the bundled head prior the binding reads.
+    skipped where it is not installed) and the bundled head prior the binding reads, with its kernel-ridge solver
+    (the same for every head: 8-10 ms of the first binding's CPU).
 
-    Nothing is computed: a later chain runs as it would after a first one (about 0.7 s of CPU less on the first
-    head). The add-on calls it on a thread of its own after it is enabled; :func:`rig_head` calls it first, so
+    Nothing of a head is computed: a later chain runs as it would after a first one (about 0.7 s of CPU less on the
+    first head). The add-on calls it on a thread of its own after it is enabled; :func:`rig_head` calls it first, so
     that its steps' timings are each step's own work.
     """
     for name in CHAIN_MODULES:
         importlib.import_module(name)
     try:
-        load_head_prior()
+        load_head_prior().solver()
     except PdeFaceError:
         pass  # an install without it: the binding says so when it runs
     if landmarks:  # last: an optional extra that fails to load leaves the rest loaded

@@ -43,6 +43,25 @@ def test_closest_point_is_the_nearest_of_all_triangles_and_consistent():
         assert np.array_equal(got, want)
 
 
+def test_closest_points_block_by_block_are_each_points_own(monkeypatch):
+    """Points queried a block at a time (ClosestPoint.QUERY_BLOCK: its temporaries in cache, not fresh pages) get the
+    answers each gets alone, bit for bit: blocks of every size, one cut between a vertex's ring of many triangles
+    and one of few (the ring's width differs from block to block), with and without their nearest vertices."""
+    import pdeface.geometry as geometry
+
+    V, T = _bumpy_grid()
+    T = np.concatenate([T, np.stack([np.zeros(12, int), np.arange(1, 13), np.arange(2, 14)], 1)])  # a wide fan at 0
+    rng = np.random.default_rng(3)
+    P = np.concatenate([rng.uniform([0, 0, -0.2], [3, 4, 0.2], (200, 3)), V[:1] + 1e-3])
+    closest = ClosestPoint(V, T)
+    nearest = closest.vtree.query(P)[1]
+    alone = [np.concatenate(parts) for parts in zip(*(closest.query(P[i:i + 1]) for i in range(len(P))))]
+    for block in (1, 7, 64, len(P) - 1, len(P)):
+        monkeypatch.setattr(geometry, "QUERY_BLOCK", block)
+        for got in (closest.query(P), closest.query(P, nearest)):
+            assert all(a.dtype == b.dtype and np.array_equal(a, b) for a, b in zip(got, alone))
+
+
 def test_closest_point_on_a_mesh_with_fewer_triangles_than_candidates():
     V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0.5]], float)
     T = np.array([[0, 1, 2], [1, 3, 2]])
@@ -102,3 +121,18 @@ def test_cotan_laplacian_is_scipys_diagonal_less_the_clamped_weights():
             assert np.array_equal(getattr(got, name), getattr(want, name))
     L = cotan_laplacian(V, T)
     assert np.allclose(L @ np.ones(len(V)), 0, atol=1e-12) and (L - L.T).count_nonzero() == 0
+
+
+def test_column_bounds_are_numpys_min_and_max_down_the_columns():
+    from pdeface.geometry import column_bounds, column_extent
+
+    rng = np.random.default_rng(5)
+    X = rng.normal(size=(1000, 3))
+    X[7, 1] = np.nan  # a NaN: that column's bounds are NaN, as numpy's
+    X[[3, 9], 2] = -0.0, 0.0
+    for A in (X, X[::3], rng.integers(-5, 5, (50, 4)), X[:1]):
+        lo, hi = column_bounds(A)
+        for got, want in ((lo, A.min(axis=0)), (hi, A.max(axis=0))):
+            assert got.dtype == want.dtype and np.array_equal(got, want, equal_nan=True)
+            assert np.array_equal(np.signbit(got), np.signbit(want))
+        assert np.array_equal(column_extent(A), np.ptp(A, axis=0), equal_nan=True)

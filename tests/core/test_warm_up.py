@@ -20,9 +20,11 @@ def test_warm_up_loads_the_chains_libraries_and_the_prior_without_mediapipe_when
                  "warm_up(landmarks=False)\n"
                  "print(json.dumps({'before': before, 'after': [m for m in CHAIN_MODULES if m in sys.modules],\n"
                  "                  'all': list(CHAIN_MODULES), 'prior': load_head_prior.cache_info().currsize,\n"
+                 "                  'solver': '_solver' in vars(load_head_prior()),\n"
                  "                  'mediapipe': 'mediapipe' in sys.modules}))")
     assert out["before"] == [] and out["after"] == out["all"]
     assert out["prior"] == 1  # read once, kept for the binding
+    assert out["solver"]  # its kernel-ridge solver made once, kept for every binding
     assert not out["mediapipe"]  # landmarks given: MediaPipe is not loaded
 
 

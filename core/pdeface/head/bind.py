@@ -60,6 +60,7 @@ from ..facs import au_number, normalise_weights
 from ..geometry import (
     ClosestPoint,
     any_corner,
+    column_bounds,
     cross3,
     every_corner,
     in_box,
@@ -292,7 +293,8 @@ def _read_pde(model, P, N, eye_distance, resolution, skin_strips=(), on_strip=No
     reach = COVER_IOD * eye_distance + min(edge, corner_reach * (1 + 1e-6))
     closest = ClosestPoint(X0, Tp, balanced=False)  # a grid: no point repeated
     gap, nearest = np.full(len(P), np.inf), np.zeros(len(P), np.int64)
-    boxed = np.flatnonzero(in_box(P, X0.min(axis=0) - reach, X0.max(axis=0) + reach))  # the rest: farther from it
+    lo, hi = column_bounds(X0)
+    boxed = np.flatnonzero(in_box(P, lo - reach, hi + reach))  # the rest: farther from it
     gap[boxed], nearest[boxed] = closest.vtree.query(P[boxed], distance_upper_bound=reach)  # its grid's tree
     near = gap < np.inf
     dist, tri, bary = np.full(len(P), np.inf), np.zeros(len(P), np.int64), np.zeros((len(P), 3))

@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..facs import split_au_key
-from ..geometry import cross3, smoothstep, unit_rows
+from ..geometry import cross3, row_norms, smoothstep, unit_rows
 
 #: Upper and lower lid landmarks (iBUG-68, 0-based) per eye, each from one corner to the other.
 LIDS = {"R": ((36, 37, 38, 39), (36, 41, 40, 39)), "L": ((42, 43, 44, 45), (42, 47, 46, 45))}
@@ -62,10 +62,11 @@ class LidClosure:
         self.Vf = Vf
         self.eyes = []
         self.lower = []  # per eye: the lower lid's vertices and how each follows its margin
+        on_lid = np.nonzero(lid)[0]
+        lid_points = Vf[on_lid]  # gathered once for both eyes' middles (ICT: 17k rows; 8 gathers cost 3 ms)
         for side, (upper, lower) in LIDS.items():
             (mu, ml) = MIDDLES[side]
-            on_lid = np.nonzero(lid)[0]
-            at = [int(on_lid[np.argmin(np.linalg.norm(Vf[on_lid] - Lf[i], axis=1))]) for i in mu + ml]
+            at = [int(on_lid[np.argmin(row_norms(lid_points - Lf[i]))]) for i in mu + ml]
             xu, yu = Lf[list(upper), 0], Lf[list(upper), 1]
             xl, yl = Lf[list(lower), 0], Lf[list(lower), 1]
             ou, ol = np.argsort(xu), np.argsort(xl)

@@ -40,6 +40,7 @@ import numpy as np
 from ..assets import ICT_HEAD_PRIOR, asset_path, load_head
 from ..au.retarget import face_size
 from ..errors import ModelFormatError
+from ..geometry import column_bounds
 from ..io.files import load_npz
 from ..surface.layout import ANCHOR_NAMES
 from .parts import CODE
@@ -192,8 +193,11 @@ class HeadPrior:
         if reach is not None:
             candidate &= np.asarray(reach) > 0
         # Only vertices near the prior head (scaled to the user's face) can take anything.
-        lo, hi = self.vertices.min(0) * ratio - far, self.vertices.max(0) * ratio + far
-        candidate &= ((V > np.minimum(lo, hi)) & (V < np.maximum(lo, hi))).all(axis=1)
+        lo, hi = column_bounds(self.vertices)
+        lo, hi = lo * ratio - far, hi * ratio + far
+        lo, hi = np.minimum(lo, hi), np.maximum(lo, hi)
+        for k in range(3):  # axis by axis: a reduction over an axis of 3 is slow in numpy
+            candidate &= (V[:, k] > lo[k]) & (V[:, k] < hi[k])
         idx = np.nonzero(candidate)[0]
         W = V[idx] + warp(V[idx]) if len(idx) else np.zeros((0, 3))
         mouth = next((k for a, k in model.layout.opening_curves() if ANCHOR_NAMES[a] == "mouth_top"), None)

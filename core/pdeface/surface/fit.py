@@ -9,7 +9,16 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import LandmarkError, LayoutError, MeshError
-from ..geometry import ClosestPoint, any_corner, every_corner, in_box, row_norms, triangle_cross, unit_rows
+from ..geometry import (
+    ClosestPoint,
+    any_corner,
+    column_extent,
+    every_corner,
+    in_box,
+    row_norms,
+    triangle_cross,
+    unit_rows,
+)
 from ..mesh import Mesh, border_vertices, butterfly_step, connected_components, seam_welds
 from ..threads import bounded
 from .fourier import fit_fourier
@@ -61,7 +70,7 @@ def skin_vertices(V: np.ndarray, T: np.ndarray, points: np.ndarray, pieces: np.n
     """
     search = UsedVertices(V, T) if search is None else search
     used, Vu = search.used, search.V  # the mesh's size from its triangles: a stray vertex far away must not set it
-    extent = np.ptp(Vu, axis=0) if len(used) else np.zeros(3)
+    extent = column_extent(Vu) if len(used) else np.zeros(3)
     lab = pieces
     if lab is None:
         rep = seam_welds(V, T, tol=1e-6 * float(np.linalg.norm(extent)))  # split along UV seams: still one piece
