@@ -413,6 +413,46 @@ def test_a_turned_head_in_metres_is_found(heads):
 
 
 @needs_mediapipe
+def test_readings_asked_for_ahead_come_back_in_order_as_read_one_at_a_time(heads):
+    # The detector reads on a thread of its own while the caller goes on (#35): each future is that image's
+    # reading, whatever was asked for before it, and closing waits for the readings still queued.
+    mesh, T, lm, _ = heads
+    view = View.looking([0, 0, 1], [0, 1, 0], mesh.vertices[lm].mean(0), 13.0, 192)
+    img = shade(mesh.vertices, T, rasterise(mesh.vertices, T, view))
+    images = [img, np.fliplr(img), np.zeros_like(img), np.rot90(img, 2)]
+    with detector_module.Detector() as det:
+        one_at_a_time = [det.mesh_points(i) for i in images]
+        ahead = [det.mesh_points_later(i) for i in images]
+        last = det.mesh_points_later(img)
+    assert one_at_a_time[0] is not None and one_at_a_time[2] is None  # a face; a blank image has none
+    for was, reading in zip(one_at_a_time, ahead):
+        assert (was is None and reading.result() is None) or np.array_equal(was, reading.result())
+    assert last.done() and np.array_equal(last.result(), one_at_a_time[0])
+
+
+@needs_mediapipe
+def test_the_landmarks_are_the_same_read_beside_the_casting_or_in_turn(heads, monkeypatch):
+    # Casting one frontal reading while MediaPipe reads the next (#35) changes nothing: the same readings in the
+    # same order, bit for bit, as each read before going on.
+    mesh, T, _, shapes = heads
+    V = mesh.vertices + shapes["identity017"]
+    with detector_module.Detector() as det:
+        beside = detect(V, T, "cm", detector=det)
+
+        later = detector_module.Detector.mesh_points_later
+
+        def in_turn(self, gray):  # read before the caller goes on
+            reading = detector_module.Future()
+            reading.set_result(later(self, gray).result())
+            return reading
+
+        monkeypatch.setattr(detector_module.Detector, "mesh_points_later", in_turn)
+        turn = detect(V, T, "cm", detector=det)
+    assert np.array_equal(beside.view_points, turn.view_points, equal_nan=True)
+    assert np.array_equal(beside.points, turn.points) and beside.confidence == turn.confidence
+
+
+@needs_mediapipe
 def test_a_head_lying_face_up_in_mm_is_found(heads):
     # Pitched back 45° and more: the face is found from above (+y), upside down in that image.
     mesh, T, lm, shapes = heads
