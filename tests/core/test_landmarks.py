@@ -159,6 +159,33 @@ def test_a_render_near_some_pixels_is_the_whole_render_there(heads, rng):
     assert (part.tri[~near] >= 0).sum() < (whole.tri[~near] >= 0).sum() / 2  # far fewer triangles drawn
 
 
+@pytest.mark.parametrize("spots", ["few", "box", "none"])
+def test_a_render_near_some_pixels_draws_exactly_the_triangles_whose_boxes_meet_them(heads, rng, spots):
+    # rasterise first keeps the triangles with corners about near's bounding box (#35): the fragments must be those
+    # of the triangles whose pixel boxes meet one of near's pixels, found here box by box, numbered as in T.
+    mesh, T, lm, _ = heads
+    n = 160
+    view = View.looking([0.3, 0.1, 1], [0, 1, 0], mesh.vertices[lm].mean(0), 12.0, n)
+    near = np.zeros((n, n), bool)
+    if spots == "few":
+        near[rng.integers(40, 120, 6), rng.integers(40, 120, 6)] = True
+    elif spots == "box":
+        near = pixel_boxes(n, [(-4, 30, 150, 170)])  # over the image's edges
+    px, py, _ = view.project(mesh.vertices)
+    x0, x1 = np.ceil(px[T].min(1)).clip(0), np.floor(px[T].max(1)).clip(max=n - 1)
+    y0, y1 = np.ceil(py[T].min(1)).clip(0), np.floor(py[T].max(1)).clip(max=n - 1)
+    meets = np.array([near[int(b):int(e) + 1, int(a):int(c) + 1].any() if a <= c and b <= e else False
+                      for a, c, b, e in zip(x0, x1, y0, y1)])
+    part = rasterise(mesh.vertices, T, view, keep_fragments=True, near=near)
+    alone = rasterise(mesh.vertices, T[meets], view, keep_fragments=True)
+    numbered = np.append(np.flatnonzero(meets), -1)  # alone's triangles as numbered in T; its -1 stays -1
+    assert np.array_equal(part.fragments.tri, numbered[alone.fragments.tri])
+    for name in ("pix", "z", "l0", "l1"):
+        assert np.array_equal(getattr(part.fragments, name), getattr(alone.fragments, name))
+    assert np.array_equal(part.tri, numbered[alone.tri]) and np.array_equal(part.bary, alone.bary)
+    assert (len(part.fragments.z) > 0) == (spots != "none") and meets.sum() < len(T) / 4
+
+
 def test_columns_drawn_over_some_rows_are_the_whole_columns_there_and_beside(heads):
     # The refine steps read a few rows of a few columns and back_project looks a pixel to each side.
     mesh, T, lm, _ = heads

@@ -145,6 +145,10 @@ def rasterise(V, T, view: View, keep_fragments=False, near=None) -> Raster:
     V, T = np.asarray(V, np.float64), np.asarray(T, np.int64)
     n = view.size
     px, py, pz = view.project(V)
+    if near is not None:  # the triangles whose corners straddle near's bounding box, numbered in order
+        near = np.asarray(near, bool)
+        among = _straddling(px, py, T, near)
+        T = T.take(among, 0)
     # Corners a, b, c of each triangle; np.minimum of columns, as .min(1) over three is several times slower.
     corner = np.ascontiguousarray(T.T)  # each corner's column contiguous: takes along it run sooner
     (ax, bx, cx), (ay, by, cy), (za, zb, zc) = ([p.take(k) for k in corner] for p in (px, py, pz))
@@ -208,11 +212,28 @@ def rasterise(V, T, view: View, keep_fragments=False, near=None) -> Raster:
         fragments = _Fragments(*(np.concatenate(p) for p in zip(*pieces)))
     else:
         fragments = _Fragments(np.zeros(0, np.int32), np.zeros(0), np.zeros(0, np.int64), np.zeros(0), np.zeros(0))
+    if near is not None:
+        fragments.tri = among.take(fragments.tri)  # numbered as in the whole T
     f = fragments
     raster = _resolved(view, f.pix, f.z, f.tri, f.l0, f.l1)
     if keep_fragments:
         raster.fragments = fragments
     return raster
+
+
+def _straddling(px, py, T, near) -> np.ndarray:
+    """The triangles (ascending indices) that have corners on or past each side of the bounding box of the pixels
+    of ``near``: every triangle whose pixel box meets one of those pixels, and a few more (the rest are drawn or
+    not as before: :func:`rasterise`'s test is exact). Four flags a vertex, one per side; a corner's flags taken
+    and or-ed cost a fraction of the boxes of every triangle, for a look at a few spots."""
+    rows, cols = np.flatnonzero(near.any(1)), np.flatnonzero(near.any(0))
+    if not len(rows):
+        return np.zeros(0, np.int64)
+    # A box meets column c only if some corner lies at x >= c - 1 ... (ceil and floor round by under a pixel).
+    flags = ((px > cols[0] - 1).view(np.uint8) | (px < cols[-1] + 1).view(np.uint8) << 1
+             | (py > rows[0] - 1).view(np.uint8) << 2 | (py < rows[-1] + 1).view(np.uint8) << 3)
+    corner = np.ascontiguousarray(T.T)
+    return np.flatnonzero((flags.take(corner[0]) | flags.take(corner[1]) | flags.take(corner[2])) == 15)
 
 
 def _resolved(view: View, pix, z, tri, l0, l1) -> Raster:
