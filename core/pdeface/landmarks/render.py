@@ -140,7 +140,8 @@ def rasterise(V, T, view: View, keep_fragments=False, near=None) -> Raster:
     inside it are its fragments, and the nearest fragment wins each pixel (the first triangle on a tie).
     ``keep_fragments`` keeps them on the raster for :meth:`Raster.showing`. ``near`` (a bool image): only the
     triangles whose box meets one of its pixels are drawn, so those pixels are as in the whole render (the
-    others may lack triangles), for a look at a few points.
+    others may lack triangles), for a look at a few points; the triangles about its bounding box
+    (:func:`_straddling`) are the only ones whose boxes are worked out.
     """
     V, T = np.asarray(V, np.float64), np.asarray(T, np.int64)
     n = view.size
@@ -222,14 +223,14 @@ def rasterise(V, T, view: View, keep_fragments=False, near=None) -> Raster:
 
 
 def _straddling(px, py, T, near) -> np.ndarray:
-    """The triangles (ascending indices) that have corners on or past each side of the bounding box of the pixels
-    of ``near``: every triangle whose pixel box meets one of those pixels, and a few more (the rest are drawn or
-    not as before: :func:`rasterise`'s test is exact). Four flags a vertex, one per side; a corner's flags taken
-    and or-ed cost a fraction of the boxes of every triangle, for a look at a few spots."""
+    """The triangles (ascending indices) with a corner past each side of the bounding box of ``near``'s pixels,
+    widened by a pixel: among them every triangle whose pixel box meets one of those pixels (its box's last
+    column, the floor of its corners' largest x, is at least the box's first column c only if a corner's x is),
+    and a few more, which :func:`rasterise`'s own test then leaves out as before. Four flags a vertex, one per
+    side, or-ed over each triangle's corners: a fraction of the cost of every triangle's box, for a few spots."""
     rows, cols = np.flatnonzero(near.any(1)), np.flatnonzero(near.any(0))
     if not len(rows):
         return np.zeros(0, np.int64)
-    # A box meets column c only if some corner lies at x >= c - 1 ... (ceil and floor round by under a pixel).
     flags = ((px > cols[0] - 1).view(np.uint8) | (px < cols[-1] + 1).view(np.uint8) << 1
              | (py > rows[0] - 1).view(np.uint8) << 2 | (py < rows[-1] + 1).view(np.uint8) << 3)
     corner = np.ascontiguousarray(T.T)
