@@ -104,6 +104,17 @@ def test_a_subset_drawn_from_one_pass_is_that_subset_rendered(heads):
         alone.showing(np.ones(skin.sum(), bool))
 
 
+def test_any_subset_drawn_from_one_pass_is_that_subset_rendered(heads, rng):
+    # showing keeps the pixels the subset won in the whole render and resolves only the others again (#35): for
+    # subsets that win most pixels, few, none or all, the same pixels, triangles and weights as rendering them.
+    mesh, T, lm, _ = heads
+    view = View.looking([-0.3, 0.2, 1], [0, 1, 0], mesh.vertices[lm].mean(0), 14.0, 128)
+    once = rasterise(mesh.vertices, T, view, keep_fragments=True)
+    for only in (rng.random(len(T)) < 0.9, rng.random(len(T)) < 0.1, np.zeros(len(T), bool), np.ones(len(T), bool)):
+        drawn, alone = once.showing(only), rasterise(mesh.vertices, T[only], view)
+        assert np.array_equal(drawn.tri, alone.tri) and np.array_equal(drawn.bary, alone.bary)
+
+
 def test_the_chunks_a_render_is_drawn_in_change_nothing(heads, monkeypatch):
     # Candidates are evaluated a chunk at a time (for the cache): any chunk size gives the same fragments and raster.
     mesh, T, lm, _ = heads

@@ -110,16 +110,27 @@ class Raster:
     def showing(self, only) -> Raster:
         """The raster of the triangles ``T[only]`` alone (numbered as in ``T[only]``), from the kept fragments.
 
-        Equal to ``rasterise(V, T[only], view)``: the nearest of those triangles wins each pixel.
+        Equal to ``rasterise(V, T[only], view)``: the nearest of those triangles wins each pixel. A pixel one of
+        them won here keeps its fragment (the nearest of all, the first on a tie, is the nearest and first of any
+        subset holding it); only the pixels the others won are resolved again, from these triangles' fragments
+        there: a few thousand of a frontal render's 250k for the skin (a third of the time of resolving them all).
         """
         if self.fragments is None:
             raise ValueError("Raster.showing needs the fragments: rasterise(..., keep_fragments=True)")
         only = np.asarray(only, bool)
         f = self.fragments
-        keep = np.flatnonzero(only.take(f.tri))  # indices and take: the same values as masks, sooner
         number = np.cumsum(only) - 1
-        return _resolved(self.view, f.pix.take(keep), f.z.take(keep), number.take(f.tri.take(keep)), f.l0.take(keep),
-                         f.l1.take(keep))
+        won = self.tri.reshape(-1)
+        kept = only.take(won) & (won >= 0)
+        # indices and take: the same values as masks, sooner
+        redo = np.flatnonzero(only.take(f.tri) & ~kept.take(f.pix))
+        rest = _resolved(self.view, f.pix.take(redo), f.z.take(redo), number.take(f.tri.take(redo)),
+                         f.l0.take(redo), f.l1.take(redo))
+        np.copyto(rest.tri.reshape(-1), number.take(won), where=kept)
+        bary = self.bary.copy()  # whole: most pixels keep theirs (a masked copy of rows is several times slower)
+        others = np.flatnonzero(~kept & (won >= 0))
+        bary.reshape(-1, 3)[others] = rest.bary.reshape(-1, 3)[others]
+        return Raster(self.view, rest.tri, bary)
 
 
 @dataclass
