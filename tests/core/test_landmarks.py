@@ -104,6 +104,17 @@ def test_a_subset_drawn_from_one_pass_is_that_subset_rendered(heads):
         alone.showing(np.ones(skin.sum(), bool))
 
 
+def test_any_subset_drawn_from_one_pass_is_that_subset_rendered(heads, rng):
+    # showing keeps the pixels the subset won in the whole render and resolves only the others again (#35): for
+    # subsets that win most pixels, few, none or all, the same pixels, triangles and weights as rendering them.
+    mesh, T, lm, _ = heads
+    view = View.looking([-0.3, 0.2, 1], [0, 1, 0], mesh.vertices[lm].mean(0), 14.0, 128)
+    once = rasterise(mesh.vertices, T, view, keep_fragments=True)
+    for only in (rng.random(len(T)) < 0.9, rng.random(len(T)) < 0.1, np.zeros(len(T), bool), np.ones(len(T), bool)):
+        drawn, alone = once.showing(only), rasterise(mesh.vertices, T[only], view)
+        assert np.array_equal(drawn.tri, alone.tri) and np.array_equal(drawn.bary, alone.bary)
+
+
 def test_the_chunks_a_render_is_drawn_in_change_nothing(heads, monkeypatch):
     # Candidates are evaluated a chunk at a time (for the cache): any chunk size gives the same fragments and raster.
     mesh, T, lm, _ = heads
@@ -157,6 +168,33 @@ def test_a_render_near_some_pixels_is_the_whole_render_there(heads, rng):
     part = rasterise(mesh.vertices, T, view, near=near)
     assert np.array_equal(part.tri[near], whole.tri[near]) and np.array_equal(part.bary[near], whole.bary[near])
     assert (part.tri[~near] >= 0).sum() < (whole.tri[~near] >= 0).sum() / 2  # far fewer triangles drawn
+
+
+@pytest.mark.parametrize("spots", ["few", "box", "none"])
+def test_a_render_near_some_pixels_draws_exactly_the_triangles_whose_boxes_meet_them(heads, rng, spots):
+    # rasterise first keeps the triangles with corners about near's bounding box (#35): the fragments must be those
+    # of the triangles whose pixel boxes meet one of near's pixels, found here box by box, numbered as in T.
+    mesh, T, lm, _ = heads
+    n = 160
+    view = View.looking([0.3, 0.1, 1], [0, 1, 0], mesh.vertices[lm].mean(0), 12.0, n)
+    near = np.zeros((n, n), bool)
+    if spots == "few":
+        near[rng.integers(40, 120, 6), rng.integers(40, 120, 6)] = True
+    elif spots == "box":
+        near = pixel_boxes(n, [(-4, 30, 150, 170)])  # over the image's edges
+    px, py, _ = view.project(mesh.vertices)
+    x0, x1 = np.ceil(px[T].min(1)).clip(0), np.floor(px[T].max(1)).clip(max=n - 1)
+    y0, y1 = np.ceil(py[T].min(1)).clip(0), np.floor(py[T].max(1)).clip(max=n - 1)
+    meets = np.array([near[int(b):int(e) + 1, int(a):int(c) + 1].any() if a <= c and b <= e else False
+                      for a, c, b, e in zip(x0, x1, y0, y1)])
+    part = rasterise(mesh.vertices, T, view, keep_fragments=True, near=near)
+    alone = rasterise(mesh.vertices, T[meets], view, keep_fragments=True)
+    numbered = np.append(np.flatnonzero(meets), -1)  # alone's triangles as numbered in T; its -1 stays -1
+    assert np.array_equal(part.fragments.tri, numbered[alone.fragments.tri])
+    for name in ("pix", "z", "l0", "l1"):
+        assert np.array_equal(getattr(part.fragments, name), getattr(alone.fragments, name))
+    assert np.array_equal(part.tri, numbered[alone.tri]) and np.array_equal(part.bary, alone.bary)
+    assert (len(part.fragments.z) > 0) == (spots != "none") and meets.sum() < len(T) / 4
 
 
 def test_columns_drawn_over_some_rows_are_the_whole_columns_there_and_beside(heads):
@@ -410,6 +448,46 @@ def test_a_turned_head_in_metres_is_found(heads):
     assert np.median(err[17:]) < 2.0 and np.percentile(err[17:], 95) < 5.0 and np.median(err[:17]) < 6.0
     assert 900 < found.mm_per_unit < 1100 and set(found.confidence) == {"jaw", "brows", "nose", "eyes", "mouth"}
     assert np.linalg.norm(V[found.indices] - found.points, axis=1).max() * 1000 < 5  # nearest vertices
+
+
+@needs_mediapipe
+def test_readings_asked_for_ahead_come_back_in_order_as_read_one_at_a_time(heads):
+    # The detector reads on a thread of its own while the caller goes on (#35): each future is that image's
+    # reading, whatever was asked for before it, and closing waits for the readings still queued.
+    mesh, T, lm, _ = heads
+    view = View.looking([0, 0, 1], [0, 1, 0], mesh.vertices[lm].mean(0), 13.0, 192)
+    img = shade(mesh.vertices, T, rasterise(mesh.vertices, T, view))
+    images = [img, np.fliplr(img), np.zeros_like(img), np.rot90(img, 2)]
+    with detector_module.Detector() as det:
+        one_at_a_time = [det.mesh_points(i) for i in images]
+        ahead = [det.mesh_points_later(i) for i in images]
+        last = det.mesh_points_later(img)
+    assert one_at_a_time[0] is not None and one_at_a_time[2] is None  # a face; a blank image has none
+    for was, reading in zip(one_at_a_time, ahead):
+        assert (was is None and reading.result() is None) or np.array_equal(was, reading.result())
+    assert last.done() and np.array_equal(last.result(), one_at_a_time[0])
+
+
+@needs_mediapipe
+def test_the_landmarks_are_the_same_read_beside_the_casting_or_in_turn(heads, monkeypatch):
+    # Casting one frontal reading while MediaPipe reads the next (#35) changes nothing: the same readings in the
+    # same order, bit for bit, as each read before going on.
+    mesh, T, _, shapes = heads
+    V = mesh.vertices + shapes["identity017"]
+    with detector_module.Detector() as det:
+        beside = detect(V, T, "cm", detector=det)
+
+        later = detector_module.Detector.mesh_points_later
+
+        def in_turn(self, gray):  # read before the caller goes on
+            reading = detector_module.Future()
+            reading.set_result(later(self, gray).result())
+            return reading
+
+        monkeypatch.setattr(detector_module.Detector, "mesh_points_later", in_turn)
+        turn = detect(V, T, "cm", detector=det)
+    assert np.array_equal(beside.view_points, turn.view_points, equal_nan=True)
+    assert np.array_equal(beside.points, turn.points) and beside.confidence == turn.confidence
 
 
 @needs_mediapipe

@@ -10,6 +10,7 @@ import importlib.util
 import os
 import sys
 import threading
+from concurrent.futures import Future, ThreadPoolExecutor
 from contextlib import contextmanager
 from dataclasses import dataclass
 
@@ -148,6 +149,11 @@ def available() -> bool:
 class Detector:
     """The two MediaPipe models, loaded once; use as a context manager or call :meth:`close`.
 
+    Every image is read on one thread of the detector's own, in the order asked (the graphs read one image at a
+    time): :meth:`mesh_points_later` lets the caller go on (render the next view, cast the last reading's points)
+    while MediaPipe reads, which its graphs do without the GIL. MediaPipe's log lines are silenced there while it
+    reads (:func:`native_logs_silenced`), so the caller's own lines to fd 2 in that time are silenced too.
+
     Parameters
     ----------
     min_score : float
@@ -169,8 +175,10 @@ class Detector:
             blank = self._rgb(np.zeros((8, 8)))
             self._faces.process(blank)
             self._mesh.process(blank)
+        self._reader = ThreadPoolExecutor(1, thread_name_prefix="pdeface-mediapipe")
 
     def close(self):
+        self._reader.shutdown(wait=True)  # the readings asked for first
         with native_logs_silenced(self.verbose):
             self._faces.close()
             self._mesh.close()
@@ -188,6 +196,18 @@ class Detector:
 
     def faces(self, gray) -> list[Detection]:
         """Faces in a grey image, best first (any score; compare with ``min_score``)."""
+        return self._reader.submit(self._read_faces, gray).result()
+
+    def mesh_points(self, gray):
+        """The 468 face-mesh points of the face in a grey image as pixel (x, y), or None when none is found."""
+        return self.mesh_points_later(gray).result()
+
+    def mesh_points_later(self, gray) -> Future:
+        """:meth:`mesh_points` read on the detector's thread after the images asked for before: its future. The
+        image must not change until it is read."""
+        return self._reader.submit(self._read_mesh_points, gray)
+
+    def _read_faces(self, gray):
         h, w = gray.shape
         with native_logs_silenced(self.verbose):  # MediaPipe warns on some inputs too
             res = self._faces.process(self._rgb(gray))
@@ -198,8 +218,7 @@ class Detector:
                                                               (b.ymin + b.height) * h])))
         return sorted(out, key=lambda d: -d.score)
 
-    def mesh_points(self, gray):
-        """The 468 face-mesh points of the face in a grey image as pixel (x, y), or None when none is found."""
+    def _read_mesh_points(self, gray):
         h, w = gray.shape
         with native_logs_silenced(self.verbose):
             res = self._mesh.process(self._rgb(gray))

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import itertools
 import warnings
+from concurrent.futures import Future
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -247,10 +248,12 @@ def first_pass(V, T, detector: Detector, template, candidates, normals=None):
     for view, name, found in candidates[:MAX_CANDIDATES]:
         raster = rasterise(V, T, zoom(view, found.box))
         img = shade(V, T, raster, normals=normals)
-        for k in range(4):
-            P, _, _, _ = face_points(V, T, detector, raster.rolled(k), np.rot90(img, k))
-            if P is None:
+        readings = [detector.mesh_points_later(np.rot90(img, k)) for k in range(4)]  # each cast as the next is read
+        for k, reading in enumerate(readings):
+            px = reading.result()
+            if px is None:
                 continue
+            P, _, _ = back_project(V, T, raster.rolled(k), px[:, 0], px[:, 1])
             s, R, t, residual = robust_similarity(template, P)
             if best is None or residual < best[3]:
                 best = (name, found.score, (s, R, t), residual)
@@ -301,6 +304,21 @@ def frontal_readings(V, T, skin, detector: Detector, m: LandmarkMap, pose, first
     closest = ClosestPoint(V, Ts) if closest is None else closest
     reach = SKIN_REACH_MM * pose[0]
     Ps, direct = [], []
+
+    def cast(readings):
+        for reading, r, sr, mirrored in readings:
+            px = reading.result()
+            if px is None:
+                continue
+            P_any, _, _ = back_project(V, T, r, px[:, 0], px[:, 1])
+            P, hit = on_skin(V, Ts, sr, px, P_any, reach, closest)
+            if mirrored:
+                P, hit = P[m.mirror], hit[m.mirror]
+            Ps.append(P)
+            direct.append(hit)
+
+    # Each render's readings are cast after the next render is drawn: MediaPipe reads them meanwhile.
+    last = []
     for k, turn in enumerate(FRONTAL_TURNS):
         view = frontal(m.template, *pose, rotation_vector_matrix(np.radians(turn)))
         if k == 0 and first is not None:
@@ -309,20 +327,18 @@ def frontal_readings(V, T, skin, detector: Detector, m: LandmarkMap, pose, first
             raster, img, px = rasterise(V, T, view, keep_fragments=True), None, None
             skin_raster = raster.showing(skin)  # the skin alone, from the same pass
         img = shade(V, T, raster, normals=normals) if img is None else img
+        readings = []
         for mirrored in (False, True) if m.mirror is not None else (False,):
             r, sr = (raster.flipped(), skin_raster.flipped()) if mirrored else (raster, skin_raster)
             if px is None or mirrored:
-                px_ = detector.mesh_points(np.fliplr(img) if mirrored else img)
+                reading = detector.mesh_points_later(np.fliplr(img) if mirrored else img)
             else:
-                px_ = px
-            if px_ is None:
-                continue
-            P_any, _, _ = back_project(V, T, r, px_[:, 0], px_[:, 1])
-            P, hit = on_skin(V, Ts, sr, px_, P_any, reach, closest)
-            if mirrored:
-                P, hit = P[m.mirror], hit[m.mirror]
-            Ps.append(P)
-            direct.append(hit)
+                reading = Future()
+                reading.set_result(px)
+            readings.append((reading, r, sr, mirrored))
+        cast(last)
+        last = readings
+    cast(last)
     return np.stack(Ps), np.stack(direct)
 
 
