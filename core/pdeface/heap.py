@@ -12,16 +12,11 @@ own script; the library's functions and the add-on do not (in Blender, which liv
 ``bench_newhead --heap-runs``). Free memory at the heap's top beyond ``trim_threshold`` goes back to the system; memory
 freed below a block still in use stays with the process until it ends (a command's process ends after one run).
 Elsewhere than glibc (macOS, Windows, musl) it changes nothing.
-
-:func:`zeros` makes a big zeroed array that may be backed by huge pages, which ``numpy.zeros``' is not: for any
-caller, in any process.
 """
 from __future__ import annotations
 
 import ctypes
 import threading
-
-import numpy as np
 
 #: Blocks under this many bytes come from the heap (a 27k head's largest arrays are ~30 MB; at 64 MiB its rig faulted
 #: 66-71k times, at 32 MiB 90k); the second where glibc refuses the first (older glibc: at most HEAP_MAX_SIZE / 2,
@@ -62,17 +57,3 @@ def keep_heap(trim_threshold: int = TRIM_THRESHOLD) -> bool:
                 libc.mallopt(_M_TRIM_THRESHOLD, int(trim_threshold))
             _kept.append(kept)
     return _kept[0]
-
-
-def zeros(shape, dtype=np.float64) -> np.ndarray:
-    """A zeroed array (C order) that numpy allocates itself: ``numpy.empty`` and a fill, not ``numpy.zeros``.
-
-    numpy asks the kernel to back the blocks of 4 MiB or more it allocates with huge pages (``madvise``: transparent
-    huge pages in their ``madvise`` mode, this VM's and many distributions' default), but not the zeroed memory it
-    takes from ``calloc``: ICT's keys' 46 MB array (issue #35) faulted 11.3k 4 KiB pages made by ``numpy.zeros``,
-    about 540 this way (made and filled: 21 ms CPU -> 7 ms). Where no huge page is to be had, the fill costs one pass
-    over the array (the kernel zeroes fresh pages either way).
-    """
-    out = np.empty(shape, dtype)
-    out.fill(0)
-    return out

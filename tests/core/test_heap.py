@@ -1,8 +1,6 @@
 import subprocess
 import sys
-from pathlib import Path
 
-import numpy as np
 from pdeface import heap
 
 GROWING_ARRAYS = """
@@ -78,34 +76,3 @@ def test_keep_heap_sets_nothing_more_where_glibc_refuses_every_threshold(monkeyp
     monkeypatch.setattr(heap, "_glibc", lambda: fake)
     assert heap.keep_heap() is False
     assert fake.calls == [(-3, size) for size in heap.MMAP_THRESHOLDS]
-
-
-FRESH_ZEROS = """
-import resource, sys
-import numpy as np
-from pdeface.heap import zeros
-
-make = zeros if sys.argv[1] == "heap" else np.zeros
-start = resource.getrusage(resource.RUSAGE_SELF).ru_minflt
-a = make((26719, 72, 3))  # ICT's keys (46 MB)
-a[...] = 1.0  # every page written, as the keys are
-print(resource.getrusage(resource.RUSAGE_SELF).ru_minflt - start)
-"""
-
-
-def test_zeros_is_zeroed_and_c_ordered():
-    a = heap.zeros((5, 4, 3), np.float32)
-    assert a.shape == (5, 4, 3) and a.dtype == np.float32 and a.flags.c_contiguous and a.flags.writeable
-    assert not a.any()
-
-
-def test_zeros_faults_fewer_pages_than_numpy_zeros_where_huge_pages_are_asked_for():
-    """numpy asks for huge pages for what it allocates, not for numpy.zeros' calloc: where transparent huge pages are
-    given on request (``madvise``), heap.zeros' big array faults a fraction of numpy.zeros' pages; elsewhere no more
-    (a fresh process each)."""
-    faults = {mode: int(subprocess.run([sys.executable, "-c", FRESH_ZEROS, mode], check=True, capture_output=True,
-                                       text=True).stdout.split()[0]) for mode in ("numpy", "heap")}
-    assert faults["heap"] <= faults["numpy"] + 64, faults
-    thp = Path("/sys/kernel/mm/transparent_hugepage/enabled")
-    if thp.exists() and "[madvise]" in thp.read_text():
-        assert faults["heap"] < 0.25 * faults["numpy"], faults

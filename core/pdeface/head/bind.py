@@ -67,7 +67,6 @@ from ..geometry import (
     triangle_cross,
     unit_rows,
 )
-from ..heap import zeros
 from ..landmark_scheme import (
     CHIN,
     EYE_INNER_LEFT,
@@ -813,7 +812,7 @@ class HeadBinding:
         G = surface_grid(m, *self.resolution, coefficients=C, residual=R, break_slope=READ_BREAK_SLOPE,
                          confine=False, nodes=nodes)
         jaws = np.array([bool(jaw) and self.chin is not None for _, _, jaw, _ in motions])
-        out = zeros((len(self.V), k, 3))  # vertex-major: the parts below are row blocks (zeros: huge pages)
+        out = np.zeros((len(self.V), k, 3))  # vertex-major: the parts below are row blocks
         flat = out.reshape(len(self.V), 3 * k)
         # Every key through the skin's extension, whole rows (a column gather and scatter of most keys cost more
         # than solving the few jaw keys twice); the jaw keys then again through the jaw's, every skin row.
