@@ -51,7 +51,7 @@ def grow_heap(nbytes: int):
     """Have the kernel give the kept heap ``nbytes`` of memory now, on a thread of its own, for the arrays to come.
 
     A command's first arrays are fresh memory, each page a fault (see the module's notes): ICT's head's
-    ``pdeface rig`` took ~70k on its main thread. Here blocks of :data:`GROW_BLOCK` are taken from
+    ``pdeface rig`` took ~70k on its main thread (docs/design/rig.md). Here blocks of :data:`GROW_BLOCK` are taken from
     the heap at once in the calling thread (its arena, the one the command's arrays come from) and one more above
     them, left untouched and never freed, so that the others do not end at the heap's top (which gives back all
     but ``TRIM_THRESHOLD`` of what is freed there). A daemon thread then writes each block, faulting its pages with

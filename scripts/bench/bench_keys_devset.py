@@ -55,7 +55,7 @@ OUTER_LIPS = (51, 57)
 QUICK = ("AU12", "AU27", "AU45", "happy")
 #: The back of the head starts this many head depths behind the nose tip (the issue's spill rule).
 SPILL_BEHIND = 0.6
-#: Linked from the page: Workbench close-ups of the hardest heads and the mouth bag's (``python -m
+#: Linked from the page: Workbench close-ups of the hardest heads, the mouth bag's and the merged lips' (``python -m
 #: scripts.figures.render_keys_devset``), each with what it shows.
 SEE_ALSO = tuple((f"{name}: neutral, AU12, AU27, AU45 and happy, front and 3/4 (Workbench)",
                   f"../images/keys_devset_{name}.png", SEEN[name]) for name in RENDERED)

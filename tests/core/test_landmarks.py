@@ -451,7 +451,7 @@ def test_a_turned_head_in_metres_is_found(heads):
 
 
 @needs_mediapipe
-def test_readings_asked_for_ahead_come_back_in_order_as_read_one_at_a_time(heads):
+def test_readings_asked_for_ahead_are_each_images_own_as_read_one_at_a_time(heads):
     # The detector reads on a thread of its own while the caller goes on (#35): each future is that image's
     # reading, whatever was asked for before it, and closing waits for the readings still queued.
     mesh, T, lm, _ = heads
@@ -837,3 +837,62 @@ def test_the_nasion_comes_from_the_midline_strip_laid_onto_the_skin(heads, name)
         others = np.setdiff1d(np.arange(68), [27])
         assert np.array_equal(back[others], moved[others])  # only the nasion moves
     assert np.array_equal(nasion_from_midline_strip(V, T, L), L)
+
+
+def test_native_logs_silenced_on_two_threads_at_once_come_back_when_both_leave(capfd):
+    # The detector reads on its own thread while the caller may silence fd 2 too (#35): blocks that overlap on two
+    # threads, entered A-B and left A-B, leave fd 2 silenced until the last one leaves, then give it back.
+    import threading
+
+    a_in, b_in, a_out = threading.Event(), threading.Event(), threading.Event()
+
+    def reader():
+        with detector_module.native_logs_silenced():
+            b_in.set()
+            a_out.wait(10)
+            os.write(2, b"B, A gone\n")
+
+    with detector_module.native_logs_silenced():
+        a_in.set()
+        thread = threading.Thread(target=reader)
+        thread.start()
+        b_in.wait(10)
+    os.write(2, b"silenced still\n")  # B is inside: lost, as MediaPipe's lines are
+    a_out.set()
+    thread.join(10)
+    os.write(2, b"after both\n")
+    assert capfd.readouterr().err == "after both\n"
+
+
+@needs_mediapipe
+def test_a_reading_that_fails_raises_from_its_future_and_the_others_still_come(heads, monkeypatch):
+    # An error inside MediaPipe's reading reaches whoever asks for that image's result; the readings after it are
+    # read, and closing after an error drops what is still queued instead of waiting for it.
+    mesh, T, lm, _ = heads
+    view = View.looking([0, 0, 1], [0, 1, 0], mesh.vertices[lm].mean(0), 13.0, 192)
+    img = shade(mesh.vertices, T, rasterise(mesh.vertices, T, view))
+    with detector_module.Detector() as det:
+        read = det._read_mesh_points
+        monkeypatch.setattr(det, "_read_mesh_points", lambda g: 1 / 0 if g is img else read(g))
+        failing, after = det.mesh_points_later(img), det.mesh_points_later(np.fliplr(img))
+        with pytest.raises(ZeroDivisionError):
+            failing.result()
+        assert after.result() is not None
+    with pytest.raises(RuntimeError), detector_module.Detector() as det:
+        queued = [det.mesh_points_later(img) for _ in range(6)]
+        raise RuntimeError("the caller failed")
+    assert all(f.done() for f in queued) and any(f.cancelled() for f in queued[1:])
+
+
+def test_the_generic_heads_geometry_is_read_once_for_every_landmark_step_and_read_only():
+    # Six landmark steps take statistics from ICT's generic head (#35: each read its file, ~8 ms a time): one read,
+    # shared, so none may change it for the others.
+    from pdeface.assets import generic_head_geometry, load_head
+
+    V, T, landmarks = generic_head_geometry()
+    assert generic_head_geometry()[0] is V
+    mesh, own = load_head()
+    assert np.array_equal(V, mesh.vertices) and np.array_equal(T, mesh.triangles()[0]) and np.array_equal(landmarks, own)
+    for a in (V, T, landmarks):
+        with pytest.raises(ValueError):
+            a[0] = 0

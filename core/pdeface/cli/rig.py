@@ -11,20 +11,19 @@ from .common import log, plain_scipy_docs, unit_option
 from .landmarks import accept_option
 
 #: The memory ``pdeface rig`` has the kernel give on a thread beside the chain's start (:func:`pdeface.heap.grow_heap`),
-#: with its landmarks found: the rig faults ~280 MB on ICT's 27k-vertex head, ~230 MB on an 8.7k one (the renders'
-#: ~100 MB of it), not all of it from the heap; more is memory held for nothing on a small head. Main thread's CPU
-#: 2.48 -> 2.30 s on ICT's head, 2.17 -> 2.08 s on the 8.7k one (10 each, load 7: docs/design/rig.md).
+#: with its landmarks found (the renders take ~100 MB of it): no more than the rig faults on ICT's 27k-vertex head,
+#: more being memory held for nothing on a small head (sizes tried and what it gains: docs/design/rig.md).
 RIG_HEAP = 224 << 20
-#: ... and with its landmarks given (no renders): ICT's 1.68 -> 1.48 s.
+#: ... and with its landmarks given (no renders).
 RIG_HEAP_GIVEN_LANDMARKS = 128 << 20
 
 
 def cmd_rig(args):
+    for name in ("keys.npz", "face.npz", "rigged.npz", "landmarks.json", "report.json"):
+        check_output(f"{args.output}/{name}", args.mesh, args.landmarks, args.parts)
     # the pages of the chain's arrays faulted on another core while it starts (the command's process keeps its
     # heap: cli.run; elsewhere nothing is done)
     grow_heap(RIG_HEAP if args.landmarks is None else RIG_HEAP_GIVEN_LANDMARKS)
-    for name in ("keys.npz", "face.npz", "rigged.npz", "landmarks.json", "report.json"):
-        check_output(f"{args.output}/{name}", args.mesh, args.landmarks, args.parts)
     plain_scipy_docs()  # before the chain loads scipy's subpackages
     report = rig_head(args.mesh, args.output, landmarks=args.landmarks, unit=args.unit, parts=args.parts,
                       descriptors=args.descriptors, presets=not args.no_presets, blend=args.blend,

@@ -24,7 +24,7 @@ motion to all of the user's mesh, once per fit:
   between the lips' rims reads the strip (it stretches from the upper rim's motion to the lower's) and the folds'
   relaxation keeps the upper lip, so AU27 moves the lower lip and stretches the skin joining them; elsewhere (a
   decimation merged the rims at the middle) the jaw's keys hold each inner lip's uncovered rim with its own lip
-  and their folds' relaxation keeps the lower lip (no beak);
+  and, in the jaw keys that part the lips (``PARTED_IOD``), their folds' relaxation keeps the lower lip (no beak);
 - **jaw AUs** (25, 26, 27, 29, 30) turn the jaw's parts (lower teeth, gums,
   tongue) about the hinge with the rotation recovered from the chin's own PDE
   motion (:mod:`pdeface.rigid`);
@@ -80,6 +80,7 @@ from ..landmark_scheme import (
     LIP_LOWER_INNER,
     LIP_MIDDLES,
     LIP_UPPER_INNER,
+    LIP_UPPER_TOP,
     MOUTH_CORNERS,
     NOSE_BOTTOM,
 )
@@ -140,7 +141,8 @@ LIP_LINE_IOD = 0.03
 FUSED_PATH = 3.0
 FUSED_IOD = 0.05
 #: On joined lips the skin under the strip between the rims within this share of the mouth's width reads it (lips in
-#: one line), or the jaw keys' fold relaxation keeps the lower lip there (rims a decimation merged).
+#: one line), or the fold relaxation of the jaw keys that part the lips keeps the lower lip there (rims a decimation
+#: merged; PARTED_IOD).
 JOINED_WIDTH = 0.6
 #: On joined lips the folds' relaxation keeps the upper lip's skin this far (eye distances) above the mouth's middle.
 UPPER_LIP_IOD = 0.03
@@ -148,6 +150,9 @@ UPPER_LIP_IOD = 0.03
 #: relaxation only where it parts the lips' outer middles (landmarks 51, 57) by this many eye distances (AU25 0.14-0.15
 #: on decimated heads, the sad preset 0.05-0.07; AU29 0.01, AU30 none): kept in AU29, they folded a decimated
 #: caucasian-female-young's lips 10 edges (the issue's limit 9; 2 relaxed with the rest), asian-female-young's 13 (1).
+#: Keys are made at full weight; a pose solved at its own weights (``pose_motion_args``) is tested the same way, so on
+#: such a head a jaw pose whose weight takes its parting across this changes its relaxation there (a step in a
+#: sweep of weights: shape keys mixed in Blender are linear and do not see it).
 PARTED_IOD = 0.03
 #: Every key's motion fades, from the first to the second share of the head's depth behind the nose tip (the
 #: issue's still back of the head starts at 0.6), and from the first to the second eye distance below the chin (a
@@ -413,7 +418,7 @@ def still_weight(X, P, Lf, eye_distance) -> np.ndarray:
 def _mouth_middle(P, Lf):
     """Skin within the middle of the mouth's width (JOINED_WIDTH of it): on lips in one line it reads the stretching
     strip between the rims (towards the corners it folded a decimated head's lips); on rims a decimation merged the
-    jaw keys' fold relaxation keeps the lower lip there (:func:`_lower_lip`)."""
+    fold relaxation of the jaw keys that part the lips keeps the lower lip there (:func:`_lower_lip`, ``PARTED_IOD``)."""
     corners = Lf[MOUTH_CORNERS, 0]
     return np.abs(P[:, 0] - corners.mean()) < 0.5 * JOINED_WIDTH * np.ptp(corners)
 
@@ -466,8 +471,8 @@ def _merged_rims(P, covered, fixed, Lf, eye_distance, skin_tree):
 
 def _lower_lip(P, covered, Lf):
     """The lower lip's skin the PDE face covers (below the mouth line, above the lower lip's bottom, landmark 57)
-    within the middle of the mouth's width (:func:`_mouth_middle`): kept by the jaw keys' fold relaxation where a
-    decimation merged the lips' rims. Relaxed, it followed the rims held with the upper lip up: decimated-cm's AU27
+    within the middle of the mouth's width (:func:`_mouth_middle`): kept by the fold relaxation of the jaw keys that
+    part the lips (``PARTED_IOD``) where a decimation merged the lips' rims. Relaxed, it followed the rims held with the upper lip up: decimated-cm's AU27
     opened a beak (its lower lip a third of the way to each corner sank 0.34 and 0.30 eye distances, its middle
     0.48); kept, 0.53, 0.47 and 0.55, and 1 edge folded, not 5. Towards the corners it moves with the relaxation
     (kept to the corners, decimated-cm's folded 3 edges there)."""
@@ -706,8 +711,9 @@ class HeadBinding:
         self._jaw_pins = si[kept & ~pinned[si]]
         pinned[self._jaw_pins] = True
         #: Rims a decimation merged: the lips' outer middles, whose parting says a jaw key keeps the pins.
-        self._lip_middles = si[skin_tree.query(Lf[LIP_MIDDLES[:2]])[1]] if lips_joined and not self.lips_one_line \
-            else None
+        self._lip_middles = None
+        if lips_joined and not self.lips_one_line:
+            self._lip_middles = si[skin_tree.query(Lf[[LIP_UPPER_TOP, LIP_LOWER_BOTTOM]])[1]]
         # (a mouth bag left out: pinned, and not counted in the head's share of folds: the head's keys as without it)
         whole = not np.isin(parts.pieces[T[~relaxed_T, 0]], parts.pieces[fold_T[:, 0]]).any()  # pieces left out whole
         self._folds = FoldRelax(Vf, fold_T, pinned, fold_L, parts.pieces if whole else None)

@@ -25,7 +25,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from ..assets import load_head
+from ..assets import generic_head_geometry
 from ..geometry import ClosestPoint, similarity
 from ..landmark_scheme import NOSE_BRIDGE_TOP, eye_distance
 from ..mesh import connected_components
@@ -60,8 +60,7 @@ def _ict_skin_region(band=BAND, half_width=HALF_WIDTH) -> tuple[np.ndarray, np.n
     """ICT's generic head: the skin vertices (not the eyeballs, lashes or sockets behind, separate parts) from
     ``band`` (heights above the eye centres) and ``half_width`` to each side, in front of :data:`DEPTH` behind the
     eye centres (eye distances; at most :data:`MAX_POINTS`), and its 68 landmarks."""
-    mesh, landmarks = load_head()
-    V, T = mesh.vertices, mesh.triangles()[0]
+    V, T, landmarks = generic_head_geometry()
     L = V[landmarks]
     f = face_frame(L)
     F = f.to_face(V) / (eye_distance(L) * f.scale)

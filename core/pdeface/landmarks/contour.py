@@ -63,7 +63,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from ..assets import load_head
+from ..assets import generic_head_geometry
 from ..geometry import ClosestPoint, ray_triangle, similarity, smoothstep
 from ..landmark_scheme import eye_distance
 from ..mesh import connected_components
@@ -95,8 +95,8 @@ def template_depths(template68) -> np.ndarray:
 
 @lru_cache(maxsize=1)
 def _ict_landmarks() -> np.ndarray:
-    mesh, landmarks = load_head()
-    return mesh.vertices[landmarks]
+    V, _, landmarks = generic_head_geometry()
+    return V[landmarks]
 
 
 def upper_jaw_at_template_depth(V, T, points, template68=None) -> np.ndarray:
@@ -180,8 +180,7 @@ def _ict_sides() -> tuple[tuple[np.ndarray, np.ndarray], np.ndarray]:
     """ICT's generic head: its two sides of the face (the skin's vertices, :data:`SIDE`, :data:`BAND`,
     :data:`DEPTH`; not the eyeballs, lashes or mouth's inside, separate parts), in :data:`SIDES`' order, and its 68
     landmarks."""
-    mesh, landmarks = load_head()
-    V, T = mesh.vertices, mesh.triangles()[0]
+    V, T, landmarks = generic_head_geometry()
     L = V[landmarks]
     f = face_frame(L)
     F = (f.to_face(V) - f.to_face(L[36:48]).mean(0)) / (eye_distance(L) * f.scale)
@@ -335,9 +334,9 @@ CHIN_BEHIND_POGONION = 0.0886
 def ict_chin_behind_pogonion() -> float:
     """How far ICT's generic head's chin point (8) lies behind its pogonion on its straight-on profile (eye
     distances, :func:`_chin_profile`: 0.0886; its 20 identities' 0.072-0.101, median 0.087)."""
-    mesh, landmarks = load_head()
-    V, L = mesh.vertices, mesh.vertices[landmarks]
-    P, behind, eyes = _chin_profile(V, mesh.triangles()[0], L)
+    V, T, landmarks = generic_head_geometry()
+    L = V[landmarks]
+    P, behind, eyes = _chin_profile(V, T, L)
     f = face_frame(L)
     return float(behind[0] + (P[0] - L[CHIN]) @ f.rotation[2] / eyes)
 

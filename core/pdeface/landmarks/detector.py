@@ -44,6 +44,13 @@ class Detection:
     box: np.ndarray
 
 
+#: fd 2's silencing is shared by the threads inside :func:`native_logs_silenced` at once: the first to enter turns
+#: it to the null device, the last to leave turns it back (two readers' saves and restores would otherwise
+#: interleave and leave it silenced for good).
+_silence_lock = threading.Lock()
+_silence = {"depth": 0, "saved": None, "null": None}
+
+
 @contextmanager
 def native_logs_silenced(show=False):
     """Send file descriptor 2 to the null device for the block, unless ``show`` (``--verbose``).
@@ -51,33 +58,52 @@ def native_logs_silenced(show=False):
     MediaPipe's C++ side (TensorFlow Lite, absl/glog) writes its log lines (``INFO: Created TensorFlow Lite
     XNNPACK delegate``, ``W0000 ... inference_feedback_manager.cc``) straight to fd 2, past ``sys.stderr``,
     some of them from its own threads while a graph starts: only the descriptor itself silences them. It is
-    restored on leaving, errors included.
+    restored on leaving, errors included, by the last thread inside (blocks on several threads overlap). While it
+    is silenced, other threads' lines to fd 2 are lost too (the detector reads beside the renders: keep the
+    renders' side quiet, or pass ``show``).
     """
-    if show:
+    if show or not _silence_on():
         yield
         return
     try:
-        sys.stderr.flush()  # Python's pending lines go out before the descriptor turns
-    except (AttributeError, OSError, ValueError):
-        pass
-    try:
-        saved = os.dup(2)
-    except OSError:  # no descriptor 2 (a windowed process): nothing to silence
-        yield
-        return
-    try:
-        null = os.open(os.devnull, os.O_WRONLY)
-    except OSError:
-        os.close(saved)
-        yield
-        return
-    try:
-        os.dup2(null, 2)
         yield
     finally:
-        os.dup2(saved, 2)
-        os.close(saved)
-        os.close(null)
+        _silence_off()
+
+
+def _silence_on() -> bool:
+    """Enter the shared silencing (:func:`native_logs_silenced`); False where fd 2 cannot be turned (no fd 2)."""
+    with _silence_lock:
+        if _silence["depth"] == 0:
+            try:
+                sys.stderr.flush()  # Python's pending lines go out before the descriptor turns
+            except (AttributeError, OSError, ValueError):
+                pass
+            try:
+                saved = os.dup(2)
+            except OSError:  # no descriptor 2 (a windowed process): nothing to silence
+                return False
+            try:
+                null = os.open(os.devnull, os.O_WRONLY)
+            except OSError:
+                os.close(saved)
+                return False
+            os.dup2(null, 2)
+            _silence.update(saved=saved, null=null)
+        _silence["depth"] += 1
+        return True
+
+
+def _silence_off():
+    """Leave the shared silencing; the last thread out turns fd 2 back."""
+    with _silence_lock:
+        _silence["depth"] -= 1
+        if _silence["depth"] == 0:
+            saved, null = _silence["saved"], _silence["null"]
+            os.dup2(saved, 2)
+            os.close(saved)
+            os.close(null)
+            _silence.update(saved=None, null=None)
 
 
 #: The packages whose ``__init__`` imports far more than the two models: ``mediapipe`` (every solution, the tasks
@@ -177,8 +203,9 @@ class Detector:
             self._mesh.process(blank)
         self._reader = ThreadPoolExecutor(1, thread_name_prefix="pdeface-mediapipe")
 
-    def close(self):
-        self._reader.shutdown(wait=True)  # the readings asked for first
+    def close(self, drop_queued=False):
+        """Wait for the readings asked for (``drop_queued``: only the one under way), then close the graphs."""
+        self._reader.shutdown(wait=True, cancel_futures=drop_queued)
         with native_logs_silenced(self.verbose):
             self._faces.close()
             self._mesh.close()
@@ -186,8 +213,8 @@ class Detector:
     def __enter__(self):
         return self
 
-    def __exit__(self, *exc):
-        self.close()
+    def __exit__(self, kind, error, trace):
+        self.close(drop_queued=kind is not None)  # an error, Ctrl-C: no reading left to wait for
 
     @staticmethod
     def _rgb(gray):

@@ -25,9 +25,9 @@ from functools import lru_cache
 
 import numpy as np
 
-from ..assets import load_head
+from ..assets import generic_head_geometry
 from ..geometry import ClosestPoint
-from ..landmark_scheme import eye_distance
+from ..landmark_scheme import LIP_LOWER_BOTTOM, MOUTH_CORNER_LEFT, MOUTH_CORNER_RIGHT, eye_distance
 from ..surface.frame import face_frame
 from .render import View, back_project, column_depths, depth_map, rasterise
 
@@ -388,10 +388,11 @@ def lower_inner_lips_under_the_slit(V, T, points) -> np.ndarray:
     return out
 
 
-#: The lower lip's sides, each with the mouth corner its chord starts at; the chord ends at the lower lip's middle.
-LOWER_LIP_SIDES = {55: 54, 59: 48}
-LOWER_LIP_MIDDLE = 57
-#: How far (eye distances) a lower lip side's drop below its chord may differ from ICT's and stay: ICT's 20
+#: The lower lip's sides, each with the mouth corner its chord starts at; the chord ends at the lower lip's middle
+#: (``LIP_LOWER_BOTTOM``).
+LOWER_LIP_SIDES = {55: MOUTH_CORNER_LEFT, 59: MOUTH_CORNER_RIGHT}
+#: How much lower (eye distances) than ICT's drop below its chord a lower lip side may lie and stay (one higher stays
+#: by any amount: MakeHuman's true sides lie higher on average): ICT's 20
 #: identities' true sides lie within 0.004 of the generic head's drop (0.039-0.047), the found ones on its 6 held-out
 #: heads within 0.0033; MakeHuman's true ones at 0.011-0.063 (mean 0.036), the found ones a median 0.026 lower.
 SIDE_DROP_OFF = 0.01
@@ -408,8 +409,8 @@ def lower_lip_drops(points, view: View | None = None) -> np.ndarray:
     x, y, _ = view.project(points)
     drops = []
     for j, corner in LOWER_LIP_SIDES.items():
-        share = (x[j] - x[corner]) / (x[LOWER_LIP_MIDDLE] - x[corner])
-        chord = y[corner] + share * (y[LOWER_LIP_MIDDLE] - y[corner])
+        share = (x[j] - x[corner]) / (x[LIP_LOWER_BOTTOM] - x[corner])
+        chord = y[corner] + share * (y[LIP_LOWER_BOTTOM] - y[corner])
         drops.append((y[j] - chord) * view.pixel / eyes)  # rows count down
     return np.array(drops)
 
@@ -418,8 +419,8 @@ def lower_lip_drops(points, view: View | None = None) -> np.ndarray:
 def ict_lower_lip_drop() -> float:
     """How far (eye distances) the lower lip's sides lie below the chord from the mouth corner to the lower lip's
     middle on ICT's generic head (:func:`lower_lip_drops`, both sides' mean: 0.043)."""
-    mesh, landmarks = load_head()
-    return float(lower_lip_drops(mesh.vertices[landmarks]).mean())
+    V, _, landmarks = generic_head_geometry()
+    return float(lower_lip_drops(V[landmarks]).mean())
 
 
 def lower_lip_sides_at_ict_drop(V, T, points) -> np.ndarray:

@@ -458,8 +458,8 @@ def detect(V, T, unit=None, landmark_map: LandmarkMap | None = None, detector: D
         return FoundLandmarks(points, indices, confidence, spread, score, name, residual, float(mm), skin=skin,
                               mesh_points=P2, view_points=Ps, images=images)
     finally:
-        if own:
-            detector.close()
+        if own:  # every reading asked for is used on the way here; after an error none is waited for
+            detector.close(drop_queued=True)
 
 
 def find_on_mesh(mesh, unit=None, keep_images=False, verbose=False) -> FoundLandmarks:
