@@ -59,7 +59,8 @@ def grow_heap(nbytes: int):
     command's critical path; where none is they cost what the arrays' own faults would have, as long as ``nbytes``
     is no more than the command would have faulted (more is memory the process holds for nothing).
 
-    Only after :func:`keep_heap` took (a process's owner decides its heap): otherwise nothing is done.
+    Only after :func:`keep_heap` took (a process's owner decides its heap): otherwise nothing is done. Once per
+    process: each call leaves its block above the others taken for good (memory held until the process ends).
 
     Returns
     -------
