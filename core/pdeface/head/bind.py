@@ -342,10 +342,16 @@ def _read_pde(model, P, N, eye_distance, resolution, skin_strips=(), on_strip=No
 
 
 def _lips_joined(P, Ts, Lf, eye_distance, skin_tree) -> tuple:
-    """``(joined, one_line)``: whether skin joins the inner lips' middles (landmarks 62 and 66) by a way about as
-    short as the gap between them (no opening between the lips: a voxel remesh, a decimated mouth), and whether
-    they are one row of vertices there (nearest the same vertex, or within LIP_LINE_IOD: a voxel remesh's);
-    ``skin_tree``: a ``cKDTree`` of the skin ``P``."""
+    """``(joined, one_line)``: whether skin joins the inner lips' middles (landmarks 62 and 66), with no opening
+    between the lips (a voxel remesh, a decimated mouth, a clustered one), and whether they are one row of vertices
+    there (nearest the same vertex, or within LIP_LINE_IOD: a voxel remesh's); ``skin_tree``: a ``cKDTree`` of the
+    skin ``P``.
+
+    Joined: by a way about as short as the gap between them (FUSED_PATH, FUSED_IOD), or by any way across the
+    middle of the mouth's width (:func:`_mouth_middle`) no deeper than FUSED_IOD behind them (lips joined beside
+    their middles: ICT's head clustered on a 0.42 cm grid joins them 0.07 eye distances aside, a way of 0.16 eye
+    distances, FUSED_PATH's 0.12; touching lips with a mouth behind them part across the middle, and the way
+    through the mouth runs deeper). Lips in one line are joined by the short way alone (the one row's)."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import dijkstra
 
@@ -355,15 +361,24 @@ def _lips_joined(P, Ts, Lf, eye_distance, skin_tree) -> tuple:
     a, b = skin_tree.query(ends)[1]
     apart = np.linalg.norm(P[a] - P[b])
     reach = FUSED_PATH * apart + FUSED_IOD * eye_distance
+    i, j = Ts.ravel(), np.roll(Ts, -1, axis=1).ravel()
+
+    def way(keep, limit=np.inf):
+        """Whether a way over the skin ``keep`` (an (n,) bool array) joins a and b, no longer than ``limit``."""
+        i_, j_ = i[keep[i] & keep[j]], j[keep[i] & keep[j]]
+        graph = coo_matrix((row_norms(P[i_] - P[j_]), (i_, j_)), shape=(len(P), len(P))).tocsr()
+        return bool(np.isfinite(dijkstra(graph, directed=False, indices=a, limit=limit)[b]))
+
     # A way that short stays within its length of a: the edges inside that ball alone (the same answer; the whole
     # skin's edges' lengths cost ICT's binding 6 ms).
     ball = np.zeros(len(P), bool)
     ball[skin_tree.query_ball_point(P[a], reach * (1 + 1e-9))] = True
-    i, j = Ts.ravel(), np.roll(Ts, -1, axis=1).ravel()
-    i, j = i[ball[i] & ball[j]], j[ball[i] & ball[j]]
-    graph = coo_matrix((row_norms(P[i] - P[j]), (i, j)), shape=(len(P), len(P))).tocsr()
-    joined = a == b or bool(np.isfinite(dijkstra(graph, directed=False, indices=a, limit=reach)[b]))
-    return joined, joined and apart < LIP_LINE_IOD * eye_distance  # touching lips (ICT's) are as near, not joined
+    if a == b or way(ball, reach):
+        return True, bool(apart < LIP_LINE_IOD * eye_distance)  # touching lips (ICT's) are as near, not joined
+    if not np.isfinite(Lf[MOUTH_CORNERS]).all():
+        return False, False
+    front = _mouth_middle(P, Lf) & (P[:, 2] > min(P[a, 2], P[b, 2]) - FUSED_IOD * eye_distance)
+    return front[a] and front[b] and way(front), False
 
 
 def _rest_region(P, Ts, covered, from_covered, Lf, eye_distance, pieces=None):
@@ -453,7 +468,7 @@ def _merged_rims(P, covered, fixed, Lf, eye_distance, skin_tree):
 
     at = skin_tree.query(Lf[list(INNER_LIPS)])[1]  # 60-67: the corners 60 and 64 are both lips'
     free = ~covered & ~fixed
-    side = P[:, 1] > mouth_line(Lf)
+    side = P[:, 1] > _inner_lips_between(P, Lf)
     held, anchors = [empty], [empty]
     for own, other, lines, upper in ((at[1:4], at[5:8], ((61, 62), (62, 63)), True),
                                      (at[5:8], at[1:4], ((65, 66), (66, 67)), False)):
@@ -467,6 +482,16 @@ def _merged_rims(P, covered, fixed, Lf, eye_distance, skin_tree):
     # The two rims share no vertex: each drops the other lip's landmark vertices, and their middles lie on opposite
     # sides of the mouth line.
     return np.concatenate(held), np.concatenate(anchors)
+
+
+def _inner_lips_between(P, Lf):
+    """The height (face frame) half-way between the inner lips under each point ``P``: the middles of their facing
+    landmarks (61-67, 62-66, 63-65), linearly across the middle third, level beyond it. The mouth line (its corners
+    too) lay 0.005 eye distances below the lower inner lip's middle on ICT's head clustered on a 0.42 cm grid (its
+    corners turn down): the lower lip's rim, above it, was held with the upper lip."""
+    facing = Lf[[61, 62, 63]] + Lf[[67, 66, 65]]
+    order = np.argsort(facing[:, 0])
+    return np.interp(P[:, 0], facing[order, 0] / 2, facing[order, 1] / 2)
 
 
 def _lower_lip(P, covered, Lf):
