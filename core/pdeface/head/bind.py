@@ -361,23 +361,33 @@ def _lips_joined(P, Ts, Lf, eye_distance, skin_tree) -> tuple:
     a, b = skin_tree.query(ends)[1]
     apart = np.linalg.norm(P[a] - P[b])
     reach = FUSED_PATH * apart + FUSED_IOD * eye_distance
+    corners = Lf[MOUTH_CORNERS, 0]
+    half_middle = 0.5 * JOINED_WIDTH * np.ptp(corners) if np.isfinite(corners).all() else 0.0
+    # Either way stays within its reach of a: the short one within its length, the one across the middle within
+    # the middle's half-width (a way round the corners leaves the middle). The edges inside that ball alone (the
+    # same answer; the whole skin's edges' lengths cost ICT's binding 6 ms).
+    near = np.asarray(skin_tree.query_ball_point(P[a], max(reach, half_middle) * (1 + 1e-9)), np.int64)
+    ball = np.zeros(len(P), bool)
+    ball[near] = True
     i, j = Ts.ravel(), np.roll(Ts, -1, axis=1).ravel()
+    i, j = i[ball[i] & ball[j]], j[ball[i] & ball[j]]
+    length = row_norms(P[i] - P[j])
 
     def way(keep, limit=np.inf):
         """Whether a way over the skin ``keep`` (an (n,) bool array) joins a and b, no longer than ``limit``."""
-        i_, j_ = i[keep[i] & keep[j]], j[keep[i] & keep[j]]
-        graph = coo_matrix((row_norms(P[i_] - P[j_]), (i_, j_)), shape=(len(P), len(P))).tocsr()
+        e = keep[i] & keep[j]
+        graph = coo_matrix((length[e], (i[e], j[e])), shape=(len(P), len(P))).tocsr()
         return bool(np.isfinite(dijkstra(graph, directed=False, indices=a, limit=limit)[b]))
 
-    # A way that short stays within its length of a: the edges inside that ball alone (the same answer; the whole
-    # skin's edges' lengths cost ICT's binding 6 ms).
-    ball = np.zeros(len(P), bool)
-    ball[skin_tree.query_ball_point(P[a], reach * (1 + 1e-9))] = True
-    if a == b or way(ball, reach):
+    short = np.zeros(len(P), bool)
+    short[near[row_norms(P[near] - P[a]) <= reach * (1 + 1e-9)]] = True
+    if a == b or way(short, reach):
         return True, bool(apart < LIP_LINE_IOD * eye_distance), False  # touching lips (ICT's) are as near, not joined
-    if not np.isfinite(Lf[MOUTH_CORNERS]).all():
+    if not half_middle:
         return False, False, False
-    front = _mouth_middle(P, Lf) & (P[:, 2] > min(P[a, 2], P[b, 2]) - FUSED_IOD * eye_distance)
+    front = np.zeros(len(P), bool)
+    front[near] = ((row_norms(P[near] - P[a]) <= half_middle * (1 + 1e-9)) & _mouth_middle(P[near], Lf)
+                   & (P[near, 2] > min(P[a, 2], P[b, 2]) - FUSED_IOD * eye_distance))
     beside = bool(front[a] and front[b] and way(front))
     return beside, False, beside
 
