@@ -232,6 +232,40 @@ def test_lip_rims_a_decimation_merged_follow_their_own_lips(monkeypatch):
     assert opened(HeadBinding(model, V, T, landmarks=L))[1] < gap - 0.1
 
 
+@pytest.mark.parametrize("identity", [None, "identity008"])
+def test_lips_a_clustering_joined_beside_their_middles_open_in_a_jaw_drop(identity):
+    """ICT's head clustered on a 0.42 cm grid (bench_rig's 8.7k head; identity008 clustered the same way, not tuned
+    on) joins the lips 0.07 eye distances beside their middles, a way longer than the short one: taken for lips
+    apart, the upper lip sank with the jaw and AU27 opened a slot (gap 0.09 and 0.06 eye distances). Joined, the
+    binding says so, each rim follows its own lip, and AU27 opens as a jaw drop without folding past the issue's
+    limit."""
+    from pdeface.assets import load_head, load_head_shapes
+    from scipy.spatial import cKDTree
+
+    from scripts.bench.benchlib import clustered
+
+    mesh, lm = load_head()
+    V, T = mesh.vertices, mesh.triangles()[0]
+    if identity:
+        V = V + load_head_shapes()[identity]
+    V, T, L = *clustered(V, T, 0.42), V[lm]
+    L = V[cKDTree(V).query(L)[1]]
+    model = retarget(load_face("default"), fit_face(V, T, L)[0])
+    binding = HeadBinding(model, V, T, landmarks=L)
+    assert any("lips are joined" in n for n in binding.notes) and not binding.lips_one_line
+    f = model.frame
+    Vf, Lf = f.to_face(V), f.to_face(L)
+    posed = f.to_face(V + binding.displacement(*descriptor_motion_args({x.key: x for x in model.descriptors}["27"])))
+    up, lo = (np.argmin(np.linalg.norm(Vf - Lf[i], axis=1)) for i in (LIP_UPPER_INNER, LIP_LOWER_INNER))
+    assert up != lo
+    ed = binding.eye_distance
+    assert abs(posed[up, 1] - Vf[up, 1]) <= 0.08 * ed
+    assert (posed[up, 1] - posed[lo, 1]) - (Vf[up, 1] - Vf[lo, 1]) >= 0.25 * ed
+    pairs = edge_face_pairs(T)
+    new_folds = (turn_degrees(Vf, T, pairs) < 20) & (turn_degrees(posed, T, pairs) > 40)
+    assert new_folds.sum() <= 0.001 * len(pairs)
+
+
 def _along(points, share):
     """The point ``share`` of the way along the polyline ``points`` (by length)."""
     at = np.r_[0, np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))]

@@ -342,28 +342,54 @@ def _read_pde(model, P, N, eye_distance, resolution, skin_strips=(), on_strip=No
 
 
 def _lips_joined(P, Ts, Lf, eye_distance, skin_tree) -> tuple:
-    """``(joined, one_line)``: whether skin joins the inner lips' middles (landmarks 62 and 66) by a way about as
-    short as the gap between them (no opening between the lips: a voxel remesh, a decimated mouth), and whether
-    they are one row of vertices there (nearest the same vertex, or within LIP_LINE_IOD: a voxel remesh's);
-    ``skin_tree``: a ``cKDTree`` of the skin ``P``."""
+    """``(joined, one_line, beside)``: whether skin joins the inner lips' middles (landmarks 62 and 66), with no
+    opening between the lips (a voxel remesh, a decimated mouth, a clustered one); whether they are one row of
+    vertices there (nearest the same vertex, or within LIP_LINE_IOD: a voxel remesh's); and whether they are joined
+    beside their middles alone; ``skin_tree``: a ``cKDTree`` of the skin ``P``.
+
+    Joined: by a way about as short as the gap between them (FUSED_PATH, FUSED_IOD), or else, beside them, by any
+    way across the middle of the mouth's width (:func:`_mouth_middle`) no deeper than FUSED_IOD behind them (ICT's
+    generic head and its identity008 clustered on a 0.42 cm grid join them 0.07 eye distances aside, ways of 0.16
+    and 0.13 eye distances, FUSED_PATH's 0.12 and 0.10; touching lips with a mouth behind them part across the
+    middle, and the way through the mouth runs deeper). Lips joined beside their middles are never one line."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import dijkstra
 
     ends = Lf[[LIP_UPPER_INNER, LIP_LOWER_INNER]]
     if not np.isfinite(ends).all():
-        return False, False
+        return False, False, False
     a, b = skin_tree.query(ends)[1]
     apart = np.linalg.norm(P[a] - P[b])
     reach = FUSED_PATH * apart + FUSED_IOD * eye_distance
-    # A way that short stays within its length of a: the edges inside that ball alone (the same answer; the whole
-    # skin's edges' lengths cost ICT's binding 6 ms).
+    corners = Lf[MOUTH_CORNERS, 0]
+    half_middle = 0.5 * JOINED_WIDTH * np.ptp(corners) if np.isfinite(corners).all() else 0.0
+    # Either way stays within its reach of a: the short one within its length, the one across the middle within
+    # the middle's half-width (a way round the corners leaves the middle). The edges inside that ball alone (the
+    # same answer; the whole skin's edges' lengths cost ICT's binding 6 ms).
+    near = np.asarray(skin_tree.query_ball_point(P[a], max(reach, half_middle) * (1 + 1e-9)), np.int64)
     ball = np.zeros(len(P), bool)
-    ball[skin_tree.query_ball_point(P[a], reach * (1 + 1e-9))] = True
+    ball[near] = True
     i, j = Ts.ravel(), np.roll(Ts, -1, axis=1).ravel()
     i, j = i[ball[i] & ball[j]], j[ball[i] & ball[j]]
-    graph = coo_matrix((row_norms(P[i] - P[j]), (i, j)), shape=(len(P), len(P))).tocsr()
-    joined = a == b or bool(np.isfinite(dijkstra(graph, directed=False, indices=a, limit=reach)[b]))
-    return joined, joined and apart < LIP_LINE_IOD * eye_distance  # touching lips (ICT's) are as near, not joined
+    length = row_norms(P[i] - P[j])
+
+    def way(keep, limit=np.inf):
+        """Whether a way over the skin ``keep`` (an (n,) bool array) joins a and b, no longer than ``limit``."""
+        e = keep[i] & keep[j]
+        graph = coo_matrix((length[e], (i[e], j[e])), shape=(len(P), len(P))).tocsr()
+        return bool(np.isfinite(dijkstra(graph, directed=False, indices=a, limit=limit)[b]))
+
+    short = np.zeros(len(P), bool)
+    short[near[row_norms(P[near] - P[a]) <= reach * (1 + 1e-9)]] = True
+    if a == b or way(short, reach):
+        return True, bool(apart < LIP_LINE_IOD * eye_distance), False  # touching lips (ICT's) are as near, not joined
+    if not half_middle:
+        return False, False, False
+    front = np.zeros(len(P), bool)
+    front[near] = ((row_norms(P[near] - P[a]) <= half_middle * (1 + 1e-9)) & _mouth_middle(P[near], Lf)
+                   & (P[near, 2] > min(P[a, 2], P[b, 2]) - FUSED_IOD * eye_distance))
+    beside = bool(front[a] and front[b] and way(front))
+    return beside, False, beside
 
 
 def _rest_region(P, Ts, covered, from_covered, Lf, eye_distance, pieces=None):
@@ -440,12 +466,14 @@ def _inner_lip_middles(P, Lf, eye_distance, lines=((61, 62), (62, 63), (65, 66),
     return np.isfinite(near)
 
 
-def _merged_rims(P, covered, fixed, Lf, eye_distance, skin_tree):
+def _merged_rims(P, covered, fixed, Lf, eye_distance, skin_tree, beside=False):
     """``(held, anchors)`` on lips joined in the mesh: the skin the PDE face does not cover (nor ``fixed``: rest,
     depths) on each inner lip's middle third (at its landmarks, 61-63 or 65-67, or on their line on its side of the
     mouth line), not at the other lip's landmarks, and each one's nearest covered skin on the same side. A decimation
     merges the lips' rims there: free, such a vertex took both lips' motion (decimated-cm's upper lip sank 0.24 eye
-    distances in AU27, following the jaw); held, each rim follows its lip and the skin joining them stretches."""
+    distances in AU27, following the jaw); held, each rim follows its lip and the skin joining them stretches.
+    ``beside``: lips joined beside their middles alone (:func:`_lips_joined`): each middle its own lip's, the sides
+    split half-way between the inner lips (:func:`_inner_lips_between`), not at the mouth line."""
     empty = np.zeros(0, np.int64)
     if not np.isfinite(Lf[list(INNER_LIPS)]).all():
         return empty, empty
@@ -453,7 +481,7 @@ def _merged_rims(P, covered, fixed, Lf, eye_distance, skin_tree):
 
     at = skin_tree.query(Lf[list(INNER_LIPS)])[1]  # 60-67: the corners 60 and 64 are both lips'
     free = ~covered & ~fixed
-    side = P[:, 1] > mouth_line(Lf)
+    side = P[:, 1] > (_inner_lips_between(P, Lf) if beside else mouth_line(Lf))
     held, anchors = [empty], [empty]
     for own, other, lines, upper in ((at[1:4], at[5:8], ((61, 62), (62, 63)), True),
                                      (at[5:8], at[1:4], ((65, 66), (66, 67)), False)):
@@ -467,6 +495,18 @@ def _merged_rims(P, covered, fixed, Lf, eye_distance, skin_tree):
     # The two rims share no vertex: each drops the other lip's landmark vertices, and their middles lie on opposite
     # sides of the mouth line.
     return np.concatenate(held), np.concatenate(anchors)
+
+
+def _inner_lips_between(P, Lf):
+    """The height (face frame) half-way between the inner lips under each point ``P``: the middles of their facing
+    landmarks (61-67, 62-66, 63-65), linearly across the middle third, level beyond it. The mouth line (the corners'
+    too) lay 0.005 eye distances below the lower inner lip's middle on ICT's head clustered on a 0.42 cm grid (its
+    corners turn down): the lower lip's rim, above it, was held with the upper lip (AU27 folded 25 edges, 19 split
+    here). Where the rims merged at the middle the mouth line still splits them (split here, decimated-cm's AU27
+    folded 9 edges, not 1)."""
+    facing = Lf[[61, 62, 63]] + Lf[[67, 66, 65]]
+    order = np.argsort(facing[:, 0])
+    return np.interp(P[:, 0], facing[order, 0] / 2, facing[order, 1] / 2)
 
 
 def _lower_lip(P, covered, Lf):
@@ -627,8 +667,8 @@ class HeadBinding:
             raise MeshError("the skin has no triangles")
         self.skin_normals = vertex_normals(P, Ts)
         mouth_strip = [k for a, k in model.layout.opening_curves() if ANCHOR_NAMES[a] == "mouth_top"]
-        lips_joined, self.lips_one_line = (_lips_joined(P, Ts, Lf, eye_distance, skin_tree) if mouth_strip
-                                           else (False, False))
+        lips_joined, self.lips_one_line, joined_beside = (_lips_joined(P, Ts, Lf, eye_distance, skin_tree)
+                                                          if mouth_strip else (False, False, False))
         if lips_joined:
             self.notes.append("the lips are joined in the mesh (no opening between them): keys that open the mouth "
                               "move the lower lip and stretch the skin joining it to the upper one; cut the mouth "
@@ -676,7 +716,7 @@ class HeadBinding:
         self._jaw_fixed = covered | rest | (depths & (P[:, 1] > mouth_line(Lf)))  # the jaw moves the lower depths
         self._read_jaw = self._read_skin
         if lips_joined and not self.lips_one_line:  # rims merged by a decimation held with their lips
-            held, anchor = _merged_rims(P, covered, rest | depths, Lf, eye_distance, skin_tree)
+            held, anchor = _merged_rims(P, covered, rest | depths, Lf, eye_distance, skin_tree, joined_beside)
             self._jaw_fixed[held] = True
             pick = np.arange(len(P))
             pick[held] = anchor
