@@ -33,6 +33,7 @@ _M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3  # glibc's malloc.h
 
 _lock = threading.Lock()
 _kept = []  # [whether the thresholds were set], once per process
+_grown = []  # [the grow_heap thread]: it grows the heap once per process
 
 
 def _glibc():
@@ -60,7 +61,7 @@ def grow_heap(nbytes: int):
     is no more than the command would have faulted (more is memory the process holds for nothing).
 
     Only after :func:`keep_heap` took (a process's owner decides its heap): otherwise nothing is done. Once per
-    process: each call leaves its block above the others taken for good (memory held until the process ends).
+    process (it leaves its block above the others taken for good): a later call does nothing and returns None.
 
     Returns
     -------
@@ -69,6 +70,10 @@ def grow_heap(nbytes: int):
     """
     if not (_kept and _kept[0]) or nbytes < GROW_BLOCK:
         return None
+    with _lock:
+        if _grown:  # once per process: each call keeps a block for good
+            return None
+        _grown.append(None)
     libc = _glibc()
     libc.malloc.restype, libc.malloc.argtypes = ctypes.c_void_p, [ctypes.c_size_t]
     libc.free.restype, libc.free.argtypes = None, [ctypes.c_void_p]
@@ -84,6 +89,7 @@ def grow_heap(nbytes: int):
 
     thread = threading.Thread(target=fault_in, name="pdeface.heap.grow_heap", daemon=True)
     thread.start()
+    _grown[0] = thread
     return thread
 
 

@@ -127,7 +127,8 @@ def against_baseline(before, files, repeat, ref):
     """Read each file with ``before``'s read_obj and this checkout's in turn; print their CPU seconds."""
     print(f"\nagainst {ref}'s read_obj, CPU seconds of {repeat} reads each, interleaved "
           f"(load: {', '.join(f'{x:.2f}' for x in os.getloadavg())}):")
-    print(f"{'file':40s} {'now med':>8s} {'before':>8s} {'ratio':>6s} {'now min':>8s} {'before':>8s} {'ratio':>6s}  same")
+    print(f"{'file':40s} {'now med':>8s} {'before':>8s} {'ratio':>6s} "
+          f"{'now min':>8s} {'before':>8s} {'ratio':>6s}  same")
     for name, path in files.items():
         now, old = [], []
         for _ in range(repeat):

@@ -247,8 +247,8 @@ def steps_check(path, repeat):
     T, _ = head.triangles()
     shapes = load_head_shapes()
     faces = {"bundled": source}
-    for name, V in (("ICT generic", head.vertices), *((f"ICT identity{i:03d}", head.vertices + shapes[f"identity{i:03d}"])
-                                                        for i in (0, 7, 13))):
+    identities = ((f"ICT identity{i:03d}", head.vertices + shapes[f"identity{i:03d}"]) for i in (0, 7, 13))
+    for name, V in (("ICT generic", head.vertices), *identities):
         faces[name] = retarget(source, fit_face(V, T, V[idx])[0])
     for name in STEPS_CHARACTERS:
         ch = build(SPECS[name])

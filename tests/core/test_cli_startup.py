@@ -2,6 +2,8 @@
 import subprocess
 import sys
 
+import pytest
+
 NOTE = "Array API Standard Support"
 BATCH = 'The documentation is written assuming array arguments are of specified\n"core" shapes.'
 CHECK = f"""
@@ -27,14 +29,13 @@ def test_a_command_leaves_scipys_docstrings_as_written_and_scipy_works_alike():
     """``plain_scipy_docs`` (``pdeface rig`` calls it first): scipy's functions compute as ever and keep their
     own docstrings, without the notes scipy rewrites 300 of them with at import (0.15 s of CPU): on the
     Array API backends (``xp_capabilities``) and on batches (``_apply_over_batch``)."""
+    if "True" not in run("")[:2]:
+        pytest.skip("this scipy writes no notes into its docstrings")
     assert run("from pdeface.cli.common import plain_scipy_docs; plain_scipy_docs()") == ["False", "False", "True"]
 
 
 def test_the_library_alone_leaves_scipy_as_it_is():
     """Importing pdeface's chain (as a script or Blender does) changes nothing of scipy's."""
-    import scipy
-
     out = run("import pdeface.rig; pdeface.rig.warm_up(landmarks=False)")
     assert out[2] == "True"
-    if tuple(int(p) for p in scipy.__version__.split(".")[:2]) >= (1, 15):  # the notes scipy 1.15 began writing
-        assert out[:2] == ["True", "True"]
+    assert out[:2] == run("")[:2]  # the notes as scipy alone writes them (none before 1.15-1.16)

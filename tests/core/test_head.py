@@ -142,7 +142,8 @@ def test_the_extension_writes_its_solution_into_the_keys_rows(generic):
         out = np.full((len(b.V), G.shape[1]), np.nan)
         ext.write(G, out, b.skin)
         blocks = [ext.solve(G[:, s:s + SOLVE_COLUMNS]) for s in range(0, G.shape[1], SOLVE_COLUMNS)]
-        for rows, want in ((ext.fixed, np.hstack([f for f, _ in blocks])), (ext.free, np.hstack([f for _, f in blocks]))):
+        fixed, free = (np.hstack([block[i] for block in blocks]) for i in (0, 1))
+        for rows, want in ((ext.fixed, fixed), (ext.free, free)):
             assert np.array_equal(out[b.skin[rows]], want)
         untouched = np.ones(len(b.V), bool)
         untouched[b.skin] = False

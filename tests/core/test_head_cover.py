@@ -68,3 +68,35 @@ def test_skin_the_read_skips_is_farther_than_the_cover():
     assert (dist >= gap - 2 / 3 * longest - 1e-9).all()
     assert (dist[skipped] >= COVER_IOD * ed).all()
     assert (skipped & (gap < COVER_IOD * ed + edge)).sum() > 300
+
+
+def test_the_reads_box_and_reach_skip_only_skin_the_cover_leaves(monkeypatch):
+    """_read_pde queries only the skin within reach of the grid's box, each no farther than the reach (issue #35):
+    with every point queried without bound, the cover and the read are the same."""
+    import pdeface.head.bind as bind
+
+    model = load_face("default")
+    mesh, _ = load_head()
+    Vf = model.frame.to_face(mesh.vertices)
+    N = vertex_normals(Vf, mesh.triangles()[0])
+    ed = eye_distance(model_landmarks(model))
+    covered, read = _read_pde(model, Vf, N, ed, RESOLUTION)
+
+    class Unbounded(ClosestPoint):  # its tree answers every point, whatever bound is asked
+        def __init__(self, *args, **kwargs):
+            super().__init__(*args, **kwargs)
+            tree = self.vtree
+
+            class Tree:
+                def __getattr__(self, name):
+                    return getattr(tree, name)
+
+                def query(self, P, distance_upper_bound=np.inf, **kw):
+                    return tree.query(P, **kw)
+            self.vtree = Tree()
+
+    monkeypatch.setattr(bind, "in_box", lambda P, lo, hi: np.ones(len(P), bool))
+    monkeypatch.setattr(bind, "ClosestPoint", Unbounded)
+    every_covered, every_read = _read_pde(model, Vf, N, ed, RESOLUTION)
+    assert covered.sum() > 1000 and (every_covered == covered).all()
+    assert abs(every_read - read).max() < 1e-12

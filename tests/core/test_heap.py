@@ -86,6 +86,18 @@ def test_grow_heap_does_nothing_unless_the_heap_is_kept(monkeypatch):
     assert heap.grow_heap(heap.GROW_BLOCK - 1) is None
 
 
+def test_grow_heap_grows_the_heap_once_per_process():
+    """A second call does nothing (each call keeps a block for good): a script calling it per head holds no more."""
+    code = ("from pdeface.heap import grow_heap, keep_heap\n"
+            "kept = keep_heap()\n"
+            "first = grow_heap(2 << 24)\n"
+            "first is None or first.join()\n"
+            "print(kept, first is not None, grow_heap(2 << 24) is None)\n")
+    kept, grew, second_none = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True,
+                                             text=True).stdout.split()
+    assert second_none == "True" and grew == kept  # grown where the heap is kept (glibc), never twice
+
+
 class _FakeLibc:
     def __init__(self):
         self.calls = []

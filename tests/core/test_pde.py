@@ -312,7 +312,7 @@ def test_surface_at_nodes_is_the_grid_there(rng, default_face):
             assert got.shape == (len(nodes), 9)
             np.testing.assert_allclose(got, flat[nodes], rtol=0, atol=1e-12 * np.abs(flat).max())
         assert op.at_nodes(C, R, np.zeros(0, int)).shape == (0, 9)
-        for bad in ([3, 2], [-1, 4], [n_u * n_v]):
+        for bad in ([3, 2], [2, 2], [-1, 4], [n_u * n_v]):
             with pytest.raises(LayoutError, match="grid nodes"):
                 op.at_nodes(C, R, np.array(bad))
     X = solve_surface(C[..., :3], R[..., :3], m.knots, m.a, m.remainder_w, rows, cols, breaks=m.layout.breaks(),

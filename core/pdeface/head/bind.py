@@ -444,7 +444,8 @@ def still_weight(X, P, Lf, eye_distance) -> np.ndarray:
 def _mouth_middle(P, Lf):
     """Skin within the middle of the mouth's width (JOINED_WIDTH of it): on lips in one line it reads the stretching
     strip between the rims (towards the corners it folded a decimated head's lips); on rims a decimation merged the
-    fold relaxation of the jaw keys that part the lips keeps the lower lip there (:func:`_lower_lip`, ``PARTED_IOD``)."""
+    fold relaxation of the jaw keys that part the lips keeps the lower lip there (:func:`_lower_lip`,
+    ``PARTED_IOD``)."""
     corners = Lf[MOUTH_CORNERS, 0]
     return np.abs(P[:, 0] - corners.mean()) < 0.5 * JOINED_WIDTH * np.ptp(corners)
 
@@ -510,12 +511,12 @@ def _inner_lips_between(P, Lf):
 
 
 def _lower_lip(P, covered, Lf):
-    """The lower lip's skin the PDE face covers (below the mouth line, above the lower lip's bottom, landmark 57)
-    within the middle of the mouth's width (:func:`_mouth_middle`): kept by the fold relaxation of the jaw keys that
-    part the lips (``PARTED_IOD``) where a decimation merged the lips' rims. Relaxed, it followed the rims held with the upper lip up: decimated-cm's AU27
-    opened a beak (its lower lip a third of the way to each corner sank 0.34 and 0.30 eye distances, its middle
-    0.48); kept, 0.53, 0.47 and 0.55, and 1 edge folded, not 5. Towards the corners it moves with the relaxation
-    (kept to the corners, decimated-cm's folded 3 edges there)."""
+    """The lower lip's skin the PDE face covers (below the mouth line, above the lower lip's bottom, landmark 57) within
+    the middle of the mouth's width (:func:`_mouth_middle`): kept by the fold relaxation of the jaw keys that part
+    the lips (``PARTED_IOD``) where a decimation merged the lips' rims. Relaxed, it followed the rims held with the
+    upper lip up: decimated-cm's AU27 opened a beak (its lower lip a third of the way to each corner sank 0.34 and
+    0.30 eye distances, its middle 0.48); kept, 0.53, 0.47 and 0.55, and 1 edge folded, not 5. Towards the corners
+    it moves with the relaxation (kept to the corners, decimated-cm's folded 3 edges there)."""
     return covered & _mouth_middle(P, Lf) & (P[:, 1] <= mouth_line(Lf)) & (P[:, 1] > Lf[LIP_LOWER_BOTTOM, 1])
 
 

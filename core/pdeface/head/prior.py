@@ -244,7 +244,8 @@ def _mixed(mix, residuals):
     residuals read from integers never are).
 
     Rows of as many terms each (every head vertex takes its NEAREST): MIX_ROWS rows at a time, each term a gathered
-    row of residuals (numpy.take: 1.3x faster than scipy's product); others by blocks of MIX_COLUMNS columns of scipy's."""
+    row of residuals (numpy.take: 1.3x faster than scipy's product); others by blocks of MIX_COLUMNS columns of
+    scipy's."""
     q, c = mix.shape[0], residuals.shape[1]
     out = np.empty((q, c), np.float32)
     counts = np.diff(mix.indptr)

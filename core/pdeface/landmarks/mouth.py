@@ -29,7 +29,7 @@ from ..assets import generic_head_geometry
 from ..geometry import ClosestPoint
 from ..landmark_scheme import LIP_LOWER_BOTTOM, MOUTH_CORNER_LEFT, MOUTH_CORNER_RIGHT, eye_distance
 from ..surface.frame import face_frame
-from .render import View, back_project, column_depths, depth_map, rasterise
+from .render import View, back_project, column_depths, depth_map, pixel_boxes, rasterise
 
 #: Each inner corner and its outer corner.
 CORNERS = ((60, 48), (64, 54))
@@ -261,10 +261,8 @@ def mouth_corners_at_seam_end(V, T, points) -> np.ndarray:
     x, y, _ = view.project(out)
     px = view.pixel
     reach, wide = round(CORNER_REACH * eyes / px), max(1, round(GROOVE_WIDE * eyes / px))
-    near = np.zeros((SIZE, SIZE), bool)
-    for j in OUTER_CORNERS:
-        c, r = int(np.round(x[j])), int(np.round(y[j]))
-        near[max(r - 2 * reach - wide, 0): r + 2 * reach + wide + 1, max(c - reach - 1, 0): c + reach + 2] = True
+    near = pixel_boxes(SIZE, [(c - reach - 1, c + reach + 1, r - 2 * reach - wide, r + 2 * reach + wide)
+                              for c, r in (map(int, np.round((x[j], y[j]))) for j in OUTER_CORNERS)])
     raster = rasterise(V, T, view, near=near)
     depth = depth_map(V, T, raster)
     for j, side in zip(OUTER_CORNERS, (-1, 1)):  # 48 towards smaller columns (the view's x is the face's)
@@ -454,10 +452,8 @@ def lower_lip_sides_at_ict_drop(V, T, points) -> np.ndarray:
     x, y, _ = view.project(out)
     cols = x[moving]
     rows = y[moving] - np.array([lower[j] for j in moving]) * eyes / view.pixel  # up: rows count down
-    near = np.zeros((view.size, view.size), bool)  # drawn only about the new places, for back_project
-    for c, r in zip(cols, rows):
-        c, r = view.nearest_pixel(c), view.nearest_pixel(r)
-        near[max(r - 2, 0):r + 3, max(c - 2, 0):c + 3] = True
+    at = [(view.nearest_pixel(c), view.nearest_pixel(r)) for c, r in zip(cols, rows)]
+    near = pixel_boxes(view.size, [(c - 2, c + 2, r - 2, r + 2) for c, r in at])  # about the new places alone
     P = back_project(V, T, rasterise(V, T, view, near=near), cols, rows, reach=1)[0]
     for j, p in zip(moving, P):
         if np.isfinite(p).all():
