@@ -108,10 +108,10 @@ def _shares(layout, displacement, rests):
         yield obj, rest + _in_object_space(displacement[s:s + n], back)
 
 
-def _split(layout, displacement, rests=None):
+def _split(layout, displacement):
     """:func:`_shares` as float32, as Blender keeps them (a whole head's 82 keys are held until written: half the
     memory)."""
-    rests = rests or [rest_coords(obj) for obj, *_ in layout]
+    rests = [rest_coords(obj) for obj, *_ in layout]
     return [(obj, coords.astype(np.float32)) for obj, coords in _shares(layout, displacement, rests)]
 
 

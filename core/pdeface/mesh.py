@@ -173,7 +173,7 @@ def cotan_laplacian(V: np.ndarray, T: np.ndarray):
     meshes keep it an M-matrix: harmonic functions then obey the maximum principle
     (an extension never overshoots its boundary values).
     """
-    from scipy.sparse import coo_matrix
+    from scipy.sparse import coo_matrix, diags
 
     T = np.asarray(T)
     corners = [V[T[:, k]] for k in range(3)]
@@ -190,32 +190,7 @@ def cotan_laplacian(V: np.ndarray, T: np.ndarray):
     cols = np.concatenate([T[:, 1], T[:, 0], T[:, 2], T[:, 1], T[:, 0], T[:, 2]])
     W = coo_matrix((np.concatenate(vals), (rows, cols)), shape=(n, n)).tocsr()
     np.clip(W.data, 1e-6, 1e3, out=W.data)
-    return _minus_with_diagonal(W, np.asarray(W.sum(axis=1)).ravel())
-
-
-def _minus_with_diagonal(W, d):
-    """``diags(d) - W`` for a CSR ``W`` with sorted, distinct columns and no stored diagonal or zero: each row's
-    ``-W`` with ``d`` put in column order (a zero ``d`` left out), as scipy's subtraction writes it, in a fifth of the
-    time (issue #35)."""
-    from scipy.sparse import csr_matrix
-
-    n = W.shape[0]
-    counts = np.diff(W.indptr)
-    row = np.repeat(np.arange(n, dtype=W.indices.dtype), counts)
-    if (W.indices == row).any():  # a stored diagonal (a triangle with a repeated corner): scipy's own sum
-        from scipy.sparse import diags
-
-        return (diags(d) - W).tocsr()
-    has = d != 0
-    indptr = np.zeros(n + 1, W.indptr.dtype)
-    np.cumsum(counts + has, out=indptr[1:])
-    # each entry moves on by the diagonals put in the rows before it, and in its own row where it lies right of it
-    at = np.arange(W.nnz) + (np.cumsum(has) - has)[row] + (has[row] & (W.indices > row))
-    data, indices = np.empty(indptr[-1]), np.empty(indptr[-1], W.indices.dtype)
-    data[at], indices[at] = -W.data, W.indices
-    diagonal = indptr[:-1][has] + np.bincount(row[W.indices < row], minlength=n)[has]
-    data[diagonal], indices[diagonal] = d[has], np.flatnonzero(has)
-    return csr_matrix((data, indices, indptr), shape=W.shape)
+    return (diags(np.asarray(W.sum(axis=1)).ravel()) - W).tocsr()
 
 
 def border_vertices(n, T) -> np.ndarray:

@@ -163,22 +163,28 @@ def fit_times(repeat):
 CHARACTERS = ("african-male-old-m", "base-dm")
 
 
+def chosen_afresh(m):
+    """The resolution choice of face model ``m`` made again: its cache and the operators' cleared."""
+    from pdeface.surface import pde, sampling
+
+    sampling._CHOSEN.clear()
+    for cache in (pde.surface_operator, pde.confined_operator, pde.merged_operator, pde.mode_operator,
+                  pde._smooth_coefficients):
+        cache.cache_clear()
+    return sampling.adaptive_resolution(m)
+
+
 def resolution_times(heads, L, fit_cpu, repeat):
     from pdeface.au.modelfile import load_face
     from pdeface.au.retarget import retarget
-    from pdeface.surface import grid, pde, sampling
+    from pdeface.surface import grid, sampling
     from pdeface.surface.fit import fit_face
 
     from scripts.devset.characters import SPECS, build
 
     model = retarget(load_face("default"), fit_face(*heads["27k"], L, unit="cm")[0])
 
-    def choose(m):
-        sampling._CHOSEN.clear()
-        for cache in (pde.surface_operator, pde.confined_operator, pde.merged_operator, pde.mode_operator,
-                      pde._smooth_coefficients):
-            cache.cache_clear()
-        return sampling.adaptive_resolution(m)
+    choose = chosen_afresh
 
     def choose_counting(m):
         """``choose(m)``, and how many meshes it measured (the probe, then each check)."""
@@ -237,7 +243,6 @@ def steps_check(path, repeat):
     from pdeface.assets import load_head, load_head_shapes
     from pdeface.au.modelfile import load_face
     from pdeface.au.retarget import retarget
-    from pdeface.surface import pde, sampling
     from pdeface.surface.fit import fit_face
 
     from scripts.devset.characters import SPECS, build
@@ -254,17 +259,10 @@ def steps_check(path, repeat):
         ch = build(SPECS[name])
         faces[name] = retarget(source, fit_face(*ch.joined(), ch.landmarks)[0])
 
-    def choose(m):
-        sampling._CHOSEN.clear()
-        for cache in (pde.surface_operator, pde.confined_operator, pde.merged_operator, pde.mode_operator,
-                      pde._smooth_coefficients):
-            cache.cache_clear()
-        return [list(s) for s in sampling.adaptive_resolution(m)]
-
     before = json.loads(Path(path).read_text()) if Path(path).exists() else None
     chosen, total, changed = {}, 0.0, []
     for name, m in faces.items():
-        cpu, wall, chosen[name] = timed(lambda m=m: choose(m), repeat)
+        cpu, wall, chosen[name] = timed(lambda m=m: [list(s) for s in chosen_afresh(m)], repeat)
         total += cpu
         n = (sum(chosen[name][0]) + 1) * (sum(chosen[name][1]) + 1)
         same = "" if before is None else ("the same steps" if before.get(name) == chosen[name] else "OTHER STEPS")

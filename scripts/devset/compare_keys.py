@@ -3,7 +3,7 @@ leave the keys as they were (issue #35's speed-ups) checked on MakeHuman heads, 
 
 Usage: python -m scripts.devset.compare_keys DIR [NAME ...]
 
-Each character (default: ICT-FaceKit's whole head, ``ict``, bound as ``bench_load`` binds it, and five not tuned on:
+Each character (default: ICT-FaceKit's whole head, ``ict``, bound as ``bench_load`` binds it, and six not tuned on:
 a head with eyeballs, a decimated one with its lips joined, a voxel remesh with its lips in one row of vertices, a whole
 body, one with its teeth and eyes as objects of their own, a Blender-axes one in metres) is built, fitted with its true
 landmarks and the bundled descriptors retargeted to it; the fit is kept in DIR, so a second

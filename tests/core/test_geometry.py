@@ -90,9 +90,9 @@ def test_row_dots_are_the_sums_numpy_makes():
 
 
 def test_cotan_laplacian_is_scipys_diagonal_less_the_clamped_weights():
-    """The Laplacian built entry by entry (issue #35) holds scipy's ``diags(W.sum(1)) - W`` bit for bit: on a sheet,
-    with a vertex no triangle uses (its zero diagonal left out) and with triangles that repeat a corner (a stored
-    diagonal in W)."""
+    """The Laplacian with its cotangents from row_dots, row_norms and cross3 (issue #35) is the reference's bit for
+    bit: on a sheet, with a vertex no triangle uses (its zero diagonal left out) and with triangles that repeat a
+    corner (a stored diagonal in W)."""
     from pdeface.mesh import cotan_laplacian
     from scipy.sparse import coo_matrix, diags
 

@@ -238,8 +238,8 @@ def _decimals(text: bytes, b, at, end):
     """The numbers at ``b[at:end]`` (``b``: ``text``'s bytes, padded), exactly as ``float()`` parses them;
     None if one is not a number.
 
-    ``-?digits[.digits]`` of at most 15 digits, nearly all of them, are read as integers (several
-    times faster than floats): the integer and fraction digits, then ``mantissa / 10**k``, both exact,
+    ``-?digits[.digits]`` of at most 15 bytes (sign and dot included), nearly all of them, are read as integers
+    (several times faster than floats): the integer and fraction digits, then ``mantissa / 10**k``, both exact,
     one correctly rounded division, as float() rounds. The few others (exponents, a sign +, many
     digits) are read by float() itself.
     """
@@ -254,24 +254,23 @@ def _decimals(text: bytes, b, at, end):
     other = np.union1d(np.searchsorted(at, other, side="right") - 1, np.flatnonzero(long))
     if len(other) > 1000:
         return None
-    if len(other):  # blanked for the integer reading, read one by one
-        spans = list(zip(at[other].tolist(), end[other].tolist()))
-        try:
-            exotic = [float(text[i:j]) for i, j in spans]
-        except ValueError:
-            return None
-        blanked = bytearray(text)
-        for i, j in spans:
-            blanked[i:j] = b" " * (j - i)
-        text = bytes(blanked)
-        b = np.frombuffer(text + b"\0" * 18, np.uint8)
-        plain = np.ones(len(at), bool)
-        plain[other] = False
-        values = np.empty(len(at))
-        values[other] = exotic
-        values[plain] = _plain_decimals(text, b, at[plain], end[plain])
-        return None if np.isnan(values[plain]).any() else values
-    return _plain_decimals(text, b, at, end)
+    # some are other (a letter in a number, or a long one): blanked for the integer reading, read one by one
+    spans = list(zip(at[other].tolist(), end[other].tolist()))
+    try:
+        exotic = [float(text[i:j]) for i, j in spans]
+    except ValueError:
+        return None
+    blanked = bytearray(text)
+    for i, j in spans:
+        blanked[i:j] = b" " * (j - i)
+    text = bytes(blanked)
+    b = np.frombuffer(text + b"\0" * 18, np.uint8)
+    plain = np.ones(len(at), bool)
+    plain[other] = False
+    values = np.empty(len(at))
+    values[other] = exotic
+    values[plain] = _plain_decimals(text, b, at[plain], end[plain])
+    return None if np.isnan(values[plain]).any() else values
 
 
 def _plain_decimals(text: bytes, b, at, end):
