@@ -34,6 +34,7 @@ from pdeface.surface.fit import fit_face
 from pdeface.threads import THREADS, bounded_threads
 
 from scripts.bench.benchlib import bench_parser, run_bench
+from scripts.devset.compare_keys import compared
 
 TARGET_S, TARGET_RUNS = 1.0, 9
 
@@ -71,21 +72,6 @@ def times(work, threads, runs):
             wall.append(time.perf_counter() - t)
             cpu.append(time.process_time() - c)
     return np.array(wall), np.array(cpu), said
-
-
-def compare_keys(keys, path):
-    """Write ``keys`` (k, n, 3) to ``path`` where it does not exist, else print their largest difference from it."""
-    if not os.path.exists(path):
-        np.save(path, keys)
-        print(f"keys ({keys.shape[0]} keys, {keys.shape[1]} vertices) written to {path}")
-        return
-    was = np.load(path)
-    if was.shape != keys.shape:
-        print(f"keys: {path} holds {was.shape}, this run {keys.shape}: not comparable")
-        return
-    diff = np.abs(keys - was).max(axis=(1, 2))
-    print(f"keys against {path}: largest difference {diff.max():.3g} (the head's unit; largest key motion "
-          f"{np.abs(was).max():.3g}); {int((diff > 0).sum())} of {len(diff)} keys differ at all")
 
 
 def profile(work, top):
@@ -128,7 +114,7 @@ def main(argv=None):
     rig()  # warm: imports, the bundled prior read once
     keys = rig.keys
     if args.keys:
-        compare_keys(keys, args.keys)
+        compared(keys, args.keys)
     if args.profile:
         profile(rig, args.profile)
     print(f"{cores} cores; load average at the start: {load_text()}")

@@ -73,21 +73,27 @@ def main(argv=None):
     for name in args.names:
         D, bind_s, keys_s = keys(*fitted(name, args.folder))
         path = args.folder / f"{name}.npy"
-        said = f"{name}: {D.shape[1]} vertices, {len(D)} keys; CPU binding {bind_s:.2f} s, keys {keys_s:.2f} s; "
-        if not path.exists():
-            np.save(path, D)
-            print(said + f"written to {path}")
-            continue
-        was = np.load(path)
-        if was.shape != D.shape:
-            print(said + f"{path} holds {was.shape}: not comparable")
-            same = False
-            continue
-        diff = np.abs(D - was).max(axis=(1, 2))
-        same &= not diff.any()
-        print(said + f"largest difference {diff.max():.3g} (largest key motion {np.abs(was).max():.3g}); "
-              f"{int((diff > 0).sum())} of {len(diff)} keys differ")
+        said = f"{name}: CPU binding {bind_s:.2f} s, keys {keys_s:.2f} s; "
+        same &= compared(D, path, said)
     return 0 if same else 1
+
+
+def compared(keys, path, said="keys") -> bool:
+    """Write ``keys`` (k, n, 3) to ``path`` where it does not exist, else print their largest difference from it
+    (after ``said``); whether they are the same (True where written)."""
+    path = Path(path)
+    if not path.exists():
+        np.save(path, keys)
+        print(f"{said} ({keys.shape[0]} keys, {keys.shape[1]} vertices) written to {path}")
+        return True
+    was = np.load(path)
+    if was.shape != keys.shape:
+        print(f"{said}: {path} holds {was.shape}, this run {keys.shape}: not comparable")
+        return False
+    diff = np.abs(keys - was).max(axis=(1, 2))
+    print(f"{said} against {path}: largest difference {diff.max():.3g} (the head's unit; largest key motion "
+          f"{np.abs(was).max():.3g}); {int((diff > 0).sum())} of {len(diff)} keys differ at all")
+    return not diff.any()
 
 
 if __name__ == "__main__":
