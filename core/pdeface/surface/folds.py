@@ -80,8 +80,11 @@ def opening_mask(points_face, landmarks_face, grow=GROW, which=None) -> np.ndarr
     landmarks are those known in every set).
     """
     mask = np.zeros(len(points_face), bool)
-    sets = np.asarray(landmarks_face)[None] if which is None else np.asarray(landmarks_face)
-    which = np.zeros(len(points_face), np.int64) if which is None else np.asarray(which)
+    one = which is None
+    sets = np.asarray(landmarks_face)[None] if one else np.asarray(landmarks_face)
+    which = None if one else np.asarray(which)
+    xy = points_face[:, :2]
+    x, y = xy[:, 0], xy[:, 1]
     for idx in OPENINGS.values():
         poly = sets[:, idx, :2]
         poly = poly[:, np.isfinite(poly).all(axis=(0, 2))]
@@ -89,9 +92,14 @@ def opening_mask(points_face, landmarks_face, grow=GROW, which=None) -> np.ndarr
             continue
         centre = poly.mean(axis=1, keepdims=True)
         grown = centre + (1 + grow) * (poly - centre)  # (sets, m, 2)
-        lo, hi = grown.min(axis=1)[which], grown.max(axis=1)[which]
-        xy = points_face[:, :2]
-        near = np.nonzero(((xy >= lo) & (xy <= hi)).all(axis=1))[0]  # only points in its bounding box can be inside
+        # only points in its bounding box can be inside: one box, compared column by column (many points: the
+        # resolution choice's grids), or each point's own set's
+        if one:
+            (x0, y0), (x1, y1) = grown[0].min(axis=0), grown[0].max(axis=0)
+            near = np.flatnonzero((x >= x0) & (x <= x1) & (y >= y0) & (y <= y1))
+        else:
+            lo, hi = grown.min(axis=1)[which], grown.max(axis=1)[which]
+            near = np.flatnonzero(((xy >= lo) & (xy <= hi)).all(axis=1))
         mask[near] |= _inside(xy[near], grown[0] if len(grown) == 1 else grown[which[near]])
     return mask
 

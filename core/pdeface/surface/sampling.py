@@ -24,7 +24,7 @@ from ..errors import MeshError
 from ..geometry import degrees_from_cos
 from ..presets import every_pose
 from ..threads import bounded
-from .folds import GROW, OPENINGS, carried, nearest_vertices, opening_mask
+from .folds import carried, nearest_vertices, opening_mask
 from .grid import key_grids, surface_grid
 from .model import model_landmarks
 
@@ -276,25 +276,6 @@ def _edge_cosines(vertex, axis):
     return sum(x * y for x, y in zip(before, after))
 
 
-def _opened_at_rest(points, L):
-    """:func:`~pdeface.surface.folds.opening_mask` of many points (n, 3): tested only where an opening's grown
-    polygon can reach (a millimetre beyond its box), the rest outside (one pass over them, not one per opening)."""
-    boxes = []
-    for idx in OPENINGS.values():
-        poly = L[idx, :2][np.isfinite(L[idx, :2]).all(axis=1)]
-        if len(poly) >= 3:
-            centre = poly.mean(axis=0)
-            boxes.append((centre + (1 + GROW) * (poly.min(axis=0) - centre) - 1.0,
-                          centre + (1 + GROW) * (poly.max(axis=0) - centre) + 1.0))
-    mask = np.zeros(len(points), bool)
-    if boxes:
-        lo, hi = np.min([b[0] for b in boxes], axis=0), np.max([b[1] for b in boxes], axis=0)
-        x, y = points[:, 0], points[:, 1]
-        near = np.nonzero((x >= lo[0]) & (x <= hi[0]) & (y >= lo[1]) & (y <= hi[1]))[0]
-        mask[near] = opening_mask(points[near], L)
-    return mask
-
-
 def interval_turns(model, rows, cols, W, floor=0.0):
     """Largest turn (degrees) of the edges in each curve interval and each point interval, outside the
     openings, over the poses ``W`` (:func:`pose_weights`), on the mesh of ``rows``, ``cols`` steps.
@@ -317,7 +298,7 @@ def interval_turns(model, rows, cols, W, floor=0.0):
     nearest = nearest_vertices(X0.reshape(-1, 3), L)
     # each inner edge's midpoint at rest: across rows (on row r + 1), across columns (on column c + 1)
     mids = (0.5 * (X0[1:-1, :-1] + X0[1:-1, 1:]), 0.5 * (X0[:-1, 1:-1] + X0[1:, 1:-1]))
-    shut_at_rest = [~_opened_at_rest(m.reshape(-1, 3), L).reshape(m.shape[:2]) for m in mids]
+    shut_at_rest = [~opening_mask(m.reshape(-1, 3), L).reshape(m.shape[:2]) for m in mids]
     flat0 = X0.reshape(-1, 3)
     need = [np.zeros(K - 1), np.zeros(J - 1)]
     known = nearest >= 0
