@@ -36,7 +36,7 @@ from ..mesh import connected_components, vertex_normals
 from ..rigid import rotation_vector_matrix
 from ..surface.frame import UNITS_MM, estimate_unit
 from ..threads import bounded
-from .brows import brows_from_template, nasion_from_midline_strip
+from .brows import brows_from_template, inner_brows_over_nasion, nasion_from_midline_strip
 from .contour import (
     chin_on_profile,
     jaw_angles_from_neighbours,
@@ -420,6 +420,8 @@ def detect(V, T, unit=None, landmark_map: LandmarkMap | None = None, detector: D
         points = brows_from_template(V, Ts, points, closest)
         # The nasion where ICT's midline between the eyes, laid onto the skin, puts it, not at the eye centres' height.
         points = nasion_from_midline_strip(V, Ts, points, closest)
+        # The inner brows at ICT's height above that nasion where the brow region left them far from it.
+        points = inner_brows_over_nasion(V, Ts, points, closest)
         # The eye corners out of the crease's back onto the skin in front (after the brows: their registration
         # holds the region by the eyes as found; with the corners moved first their p95 grows 0.6 %).
         points = corners_on_skin_front(V, Ts, points)
