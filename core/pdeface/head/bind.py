@@ -55,6 +55,7 @@ from functools import cached_property
 import numpy as np
 
 from .. import landmark_scheme
+from ..au.descriptor import Descriptor
 from ..errors import MeshError, PdeFaceError
 from ..facs import au_number, normalise_weights
 from ..geometry import (
@@ -86,6 +87,7 @@ from ..landmark_scheme import (
 )
 from ..mesh import connected_components, cotan_laplacian, seam_welds, vertex_normals
 from ..posing import pose_curves
+from ..presets import every_pose
 from ..rigid import JAW_BONE_GAIN, gaze_matrix, jaw_hinge, jaw_motion, rigid_displacement, rotation_vector_matrix
 from ..surface.grid import grid_faces, surface_grid
 from ..surface.layout import ANCHOR_NAMES
@@ -1066,6 +1068,46 @@ class HeadBinding:
     def pose_displacements(self, poses) -> np.ndarray:
         """:meth:`pose_displacement` of several ``(weights, mixer)`` at once, (k, n, 3)."""
         return self.displacements([self.pose_motion_args(w, m) for w, m in poses])
+
+    def motion_args(self, keys) -> list:
+        """Each key's motion, as :meth:`displacements` takes it: the one rule of how a key moves.
+
+        Parameters
+        ----------
+        keys : iterable of Descriptor or (dict, str)
+            A :class:`~pdeface.au.descriptor.Descriptor` moves as its own change at weight 1
+            (:func:`descriptor_motion_args`: not its weight-1 mix, which rounds differently); an
+            ``(AU weights, mixer)`` pair as those weights mixed (:meth:`pose_motion_args`).
+
+        Returns
+        -------
+        list of tuple
+            ``(delta_coefficients, delta_residual, jaw, gaze, lids)`` per key, in the order of ``keys``.
+        """
+        return [descriptor_motion_args(k) if isinstance(k, Descriptor) else self.pose_motion_args(*k) for k in keys]
+
+    def every_pose_motion_args(self, names) -> list:
+        """:meth:`motion_args` of the poses :func:`pdeface.presets.every_pose` names (the poses folds are measured
+        in): ``AU<key>`` the model's descriptor, a preset its AU weights summed.
+
+        Parameters
+        ----------
+        names : iterable of str
+            Names of ``every_pose(self.model)``, ``neutral`` left out (it does not move).
+
+        Returns
+        -------
+        list of tuple
+            One motion per name, in the order of ``names``.
+
+        Raises
+        ------
+        KeyError
+            A name that is not one of the model's poses.
+        """
+        poses = every_pose(self.model)
+        descriptors = {f"AU{d.key}": d for d in self.model.descriptors}
+        return self.motion_args(descriptors[n] if n in descriptors else (poses[n], "sum") for n in names)
 
     def pose_motion_args(self, weights, mixer) -> tuple:
         """``(delta_coefficients, delta_residual, jaw, gaze, lids)`` of AU ``weights`` mixed by ``mixer``."""
