@@ -472,11 +472,18 @@ def _inner_lip_middles(P, Lf, eye_distance, lines=((61, 62), (62, 63), (65, 66),
 def _merged_rims(P, covered, fixed, Lf, eye_distance, skin_tree, beside=False):
     """``(held, anchors)`` on lips joined in the mesh: the skin the PDE face does not cover (nor ``fixed``: rest,
     depths) on each inner lip's middle third (at its landmarks, 61-63 or 65-67, or on their line on its side of the
-    mouth line), not at the other lip's landmarks, and each one's nearest covered skin on the same side. A decimation
+    mouth line), not at the other lip's landmarks, and each one's nearest covered skin of its own lip. A decimation
     merges the lips' rims there: free, such a vertex took both lips' motion (decimated-cm's upper lip sank 0.24 eye
     distances in AU27, following the jaw); held, each rim follows its lip and the skin joining them stretches.
     ``beside``: lips joined beside their middles alone (:func:`_lips_joined`): each middle its own lip's, the sides
-    split half-way between the inner lips (:func:`_inner_lips_between`), not at the mouth line."""
+    split half-way between the inner lips (:func:`_inner_lips_between`), not at the mouth line.
+
+    The anchors, the PDE face's lips, are told apart half-way between the inner lips whatever splits the rims: where
+    the corners turn down the mouth line passes under the lower lip's rim, and the upper rim anchored on the lower
+    lip sank with the jaw (ICT's head clustered on a 0.5 cm grid: AU27's upper lip -0.60 eye distances, gap -0.04;
+    anchored on its own lip -0.08 and 0.48; caucasian-female-old decimated to 4,000 vertices -0.56 and 0.00, -0.04 and
+    0.52). The rims themselves stay split at the mouth line where they merged at the middle (split half-way,
+    decimated-cm's AU27 folded 9 edges, not 1)."""
     empty = np.zeros(0, np.int64)
     if not np.isfinite(Lf[list(INNER_LIPS)]).all():
         return empty, empty
@@ -484,14 +491,15 @@ def _merged_rims(P, covered, fixed, Lf, eye_distance, skin_tree, beside=False):
 
     at = skin_tree.query(Lf[list(INNER_LIPS)])[1]  # 60-67: the corners 60 and 64 are both lips'
     free = ~covered & ~fixed
-    side = P[:, 1] > (_inner_lips_between(P, Lf) if beside else mouth_line(Lf))
+    above_half_way = P[:, 1] > _inner_lips_between(P, Lf)
+    side = above_half_way if beside else P[:, 1] > mouth_line(Lf)
     held, anchors = [empty], [empty]
     for own, other, lines, upper in ((at[1:4], at[5:8], ((61, 62), (62, 63)), True),
                                      (at[5:8], at[1:4], ((65, 66), (66, 67)), False)):
         on_side = side if upper else ~side
         rim = np.union1d(own, np.nonzero(_inner_lip_middles(P, Lf, eye_distance, lines) & on_side)[0])
         rim = np.setdiff1d(rim[free[rim]], other)
-        lip = np.nonzero(covered & on_side)[0]
+        lip = np.nonzero(covered & (above_half_way if upper else ~above_half_way))[0]
         if len(rim) and len(lip):
             held.append(rim)
             anchors.append(lip[cKDTree(P[lip]).query(P[rim])[1]])
@@ -506,7 +514,7 @@ def _inner_lips_between(P, Lf):
     too) lay 0.005 eye distances below the lower inner lip's middle on ICT's head clustered on a 0.42 cm grid (its
     corners turn down): the lower lip's rim, above it, was held with the upper lip (AU27 folded 25 edges, 19 split
     here). Where the rims merged at the middle the mouth line still splits them (split here, decimated-cm's AU27
-    folded 9 edges, not 1)."""
+    folded 9 edges, not 1), but not their anchors (:func:`_merged_rims`)."""
     facing = Lf[[61, 62, 63]] + Lf[[67, 66, 65]]
     order = np.argsort(facing[:, 0])
     return np.interp(P[:, 0], facing[order, 0] / 2, facing[order, 1] / 2)
