@@ -14,7 +14,7 @@ user's basis, other keys, drivers, modifiers, UVs and materials are never
 touched.
 """
 import numpy as np
-from pdeface.head.bind import HeadBinding, descriptor_motion_args
+from pdeface.head.bind import HeadBinding
 from pdeface.head.mouth import head_mouth_bag
 from pdeface.head.parts import KINDS
 
@@ -141,8 +141,7 @@ def head_keys(face, model, poses, users, au_name, expression_name):
     keyed = b.bindable(model.descriptors)  # no gaze keys on a head without eyeballs (its notes say so)
     keys = [(au_name(d), "AU", d.key, d.label) for d in keyed]
     keys += [(expression_name(name), "EXPRESSION", "", label) for name, label, _, _ in poses]
-    motions = ([descriptor_motion_args(d) for d in keyed]
-               + [b.pose_motion_args(weights, mixer) for _, _, weights, mixer in poses])
+    motions = b.motion_args([*keyed, *((weights, mixer) for _, _, weights, mixer in poses)])
     # Each object's keys in one block (82 keys of a 27k-vertex head: 26 MB): one allocation the system takes back
     # whole once written, before Blender evaluates its own copy of them (scattered key by key, they stayed resident in
     # the heap half of the time: the rig's peak 458 or 488 MB; issue #35)

@@ -35,7 +35,7 @@ from pdeface.assets import load_head
 from pdeface.au.modelfile import load_face
 from pdeface.au.retarget import retarget
 from pdeface.errors import PdeFaceError
-from pdeface.head.bind import HeadBinding, descriptor_motion_args
+from pdeface.head.bind import HeadBinding
 from pdeface.landmark_scheme import CHIN
 from pdeface.mesh import edge_face_pairs, turn_degrees
 from pdeface.presets import every_pose
@@ -78,11 +78,8 @@ def measure(V, T, L, body, source, quick):
     model, _ = fit_face(V, T, L)
     model = retarget(source, model)
     b = HeadBinding(model, V, T, landmarks=L)
-    poses = every_pose(model)
-    names = [n for n in poses if n != "neutral" and (not quick or n in QUICK)]
-    descr = {f"AU{d.key}": d for d in model.descriptors}
-    motions = [descriptor_motion_args(descr[n]) if n in descr else b.pose_motion_args(poses[n], "sum") for n in names]
-    D = b.displacements(motions)
+    names = [n for n in every_pose(model) if n != "neutral" and (not quick or n in QUICK)]
+    D = b.displacements(b.every_pose_motion_args(names))
     seconds = time.perf_counter() - t
     f = model.frame
     Vf = f.to_face(V)
@@ -193,7 +190,8 @@ def row(name, r):
     gap, up = r["lip_gap_ed"], r["upper_lip_rise_ed"]
     gap, up = ("   n/m", "   n/m") if gap is None else (f"{gap:6.2f}", f"{up:+6.2f}")
     return (f"  {name:30s} {s['R']:6.2f} {s['L']:6.2f} {gap} {up} {r['outer_lip_gap_ed']:6.2f} "
-            f"{c['R']:6.3f} {c['L']:6.3f} {nf['worst']:5d} {nf['worst_key']:>7s} {r['spill']['max_mm']:6.2f} {r['spill']['worst_key']:>7s} "
+            f"{c['R']:6.3f} {c['L']:6.3f} {nf['worst']:5d} {nf['worst_key']:>7s} "
+            f"{r['spill']['max_mm']:6.2f} {r['spill']['worst_key']:>7s} "
             f"{''.join('LR'[i] for i, e in enumerate(('eye_L', 'eye_R')) if e in r['eyeballs']) or '-':>4s} "
             f"{r['seconds']:5.0f}  skin folds {r['new_folds_skin']['worst']} in {r['new_folds_skin']['worst_key']} "
             f"({r['new_folds_skin']['keys_over']} keys over); {', '.join(r['fails']) or 'ok'}"
@@ -214,7 +212,8 @@ def main(argv=None):
     print(f"  targets: lid shrink >= {TARGETS['lid_shrink']:.0%}, L/R <= {TARGETS['lr_diff']:.0%}; AU27 gap >= "
           f"{TARGETS['lip_gap_ed']} ED, upper lip <= {TARGETS['upper_lip_rise_ed']} ED; AU12 >= "
           f"{TARGETS['corner_lift_ed']} ED; new folds <= 0.1 % or 2; spill <= {TARGETS['spill_mm']} mm")
-    print(f"  {'character':30s} {'45 R':>6s} {'45 L':>6s} {'27gap':>6s} {'27up':>6s} {'27out':>6s} {'12 R':>6s} {'12 L':>6s} "
+    print(f"  {'character':30s} {'45 R':>6s} {'45 L':>6s} {'27gap':>6s} {'27up':>6s} {'27out':>6s} "
+          f"{'12 R':>6s} {'12 L':>6s} "
           f"{'folds':>5s} {'in':>7s} {'spill':>6s} {'in':>7s} {'eyes':>4s} {'s':>5s}  skin only; fails")
     rows = {}
     cases = [] if args.no_ict else [("ICT head (reference)", None)]

@@ -23,7 +23,7 @@ import numpy as np
 from pdeface.assets import load_head
 from pdeface.au.modelfile import load_face
 from pdeface.au.retarget import retarget
-from pdeface.head.bind import HeadBinding, descriptor_motion_args
+from pdeface.head.bind import HeadBinding
 from pdeface.presets import every_pose
 from pdeface.surface.fit import fit_face
 
@@ -55,11 +55,7 @@ def keys(V, T, L, model):
     c = time.process_time()
     b = HeadBinding(model, V, T, landmarks=L)
     bound = time.process_time()
-    poses = every_pose(model)
-    descr = {f"AU{d.key}": d for d in model.descriptors}
-    motions = [descriptor_motion_args(descr[n]) if n in descr else b.pose_motion_args(poses[n], "sum")
-               for n in poses if n != "neutral"]
-    D = b.displacements(motions)
+    D = b.displacements(b.every_pose_motion_args(n for n in every_pose(model) if n != "neutral"))
     return D, bound - c, time.process_time() - bound
 
 

@@ -8,9 +8,10 @@ the add-on's joined objects, :class:`pdeface.head.bind.HeadBinding`) and rendere
 (studio light, smooth shading) in a front and a three-quarter view, one ``keys_devset_<name>.png`` per character:
 a row per view, a column per key. Vertices of a new fold (an edge under 20° at rest and over 40° in the key) are
 red, and each panel's title counts those edges. The mouth's lining (skin behind the inner lips) is dark and the
-teeth ivory and the tongue red, as a texture would have them; a head with no mouth inside gets the mouth bag the add-on adds (:mod:`pdeface.head.mouth`),
-dark too (``--no-mouth-bag``: not), as ``no-mouth-inside-cm`` (``scripts.devset.characters.NO_MOUTH_INSIDE``) and
-``voxel-m-cut-lips`` (voxel-m's fused lips cut open, fitted again) show.
+teeth ivory and the tongue red, as a texture would have them; a head with no mouth inside gets the mouth bag the
+add-on adds (:mod:`pdeface.head.mouth`), dark too (``--no-mouth-bag``: not), as ``no-mouth-inside-cm``
+(``scripts.devset.characters.NO_MOUTH_INSIDE``) and ``voxel-m-cut-lips`` (voxel-m's fused lips cut open, fitted
+again) show.
 """
 from __future__ import annotations
 
@@ -22,13 +23,12 @@ from pathlib import Path
 import numpy as np
 from pdeface.au.modelfile import load_face
 from pdeface.au.retarget import retarget
-from pdeface.head.bind import HeadBinding, descriptor_motion_args
+from pdeface.head.bind import HeadBinding
 from pdeface.head.mouth import cut_lips, mouth_bag
 from pdeface.head.parts import mouth_line
 from pdeface.io.png import draw_text, write_png
 from pdeface.landmark_scheme import INNER_LIPS, MOUTH_CORNERS
 from pdeface.mesh import connected_components, edge_face_pairs, turn_degrees
-from pdeface.presets import every_pose
 from pdeface.surface.fit import fit_face
 
 from scripts.devset.characters import NO_MOUTH_INSIDE, SPECS, build
@@ -52,9 +52,9 @@ RENDERED = HARDEST + MOUTH_BAG + MERGED_LIPS
 SEEN = {
     "voxel-m": "fused lips (one surface, no opening): AU27 drops the chin and lower lip and stretches the skin joining "
                "the lips into a sheet with a crease down its middle (8 new folds): no opening without cutting the "
-               "mesh, so the binding warns (lips joined: cut the mouth open); AU12 a fold on one cheek (1); AU45 closes the "
-               "jagged voxel lids part way, a fold on the right upper lid (3, as before the lower lids were held); "
-               "happy a fold at one corner (1)",
+               "mesh, so the binding warns (lips joined: cut the mouth open); AU12 a fold on one cheek (1); AU45 "
+               "closes the jagged voxel lids part way, a fold on the right upper lid (3, as before the lower lids "
+               "were held); happy a fold at one corner (1)",
     "body-A-cm": "AU27 opens a round mouth over the dark lining, folds at both lip corners (16); happy parts the lips "
                  "over the lining (11); AU45 closes the lids to a thin line, the lower lids at their rest height, "
                  "folds at an outer lid corner (14); AU12 folds at the corners (4); no beak",
@@ -67,9 +67,9 @@ SEEN = {
     "stylised-chin-cheek-in": "AU27 opens the mouth over the dark lining (2); AU45 closes the lids to a thin line (4); "
                               "AU12 and happy read as smiles, a fold at the upper lip's middle (4, 4); the dark "
                               "shading on the cheeks is the style's cheek bones, at rest too",
-    NO_MOUTH_INSIDE.name: "lips that open onto the inside of the head, with the add-on's mouth bag: AU27 and happy show "
-                          "the dark bag between the lips, no hole; folds at the lip corners (5 in AU27, 2 in happy); "
-                          "AU12 (4) and AU45 (3, the lids closed to a thin line) as on the others",
+    NO_MOUTH_INSIDE.name: "lips that open onto the inside of the head, with the add-on's mouth bag: AU27 and happy "
+                          "show the dark bag between the lips, no hole; folds at the lip corners (5 in AU27, 2 in "
+                          "happy); AU12 (4) and AU45 (3, the lids closed to a thin line) as on the others",
     "voxel-m" + CUT: "voxel-m's fused lips cut open along the line between them (cut_lips), fitted again, with a mouth "
                      "bag: AU27 opens the mouth over the dark bag, no sheet (6 new folds, on the neck under the jaw); "
                      "happy parts the lips over it; the cut follows the voxel grid's edges, so the lip line is jagged "
@@ -94,8 +94,8 @@ LEVEL_STEP = 8
 
 def rigged(name, keys=KEYS, bag=True):
     """(face-frame vertices / eye distance, triangles, face-frame landmarks / eye distance, {key: moved vertices},
-    dark vertices: the mouth's lining and bag, the teeth and tongue, the tongue). ``bag``: a head with no mouth inside gets the
-    add-on's mouth bag."""
+    dark vertices: the mouth's lining and bag, the teeth and tongue, the tongue). ``bag``: a head with no mouth inside
+    gets the add-on's mouth bag."""
     ch = build(SPECS.get(name.removesuffix(CUT), NO_MOUTH_INSIDE))
     (V, T), L = ch.joined(), ch.landmarks
     model = retarget(load_face("default"), fit_face(V, T, L)[0])
@@ -118,12 +118,9 @@ def rigged(name, keys=KEYS, bag=True):
         V, T = np.r_[V, f.to_user(Vb)], np.r_[T, Tb + len(V)]
         b = HeadBinding(model, V, T, landmarks=L, overrides={"mouth": bag_idx.tolist()})
         dark = np.r_[dark, np.ones(len(Vb), bool)]
-    descr = {f"AU{d.key}": d for d in model.descriptors}
-    poses = every_pose(model)
     names = [k for k in keys if k != "neutral"]
-    motions = [descriptor_motion_args(descr[n]) if n in descr else b.pose_motion_args(poses[n], "sum") for n in names]
     ed = b.eye_distance
-    posed = {n: f.to_face(V + d) / ed for n, d in zip(names, b.displacements(motions))}
+    posed = {n: f.to_face(V + d) / ed for n, d in zip(names, b.displacements(b.every_pose_motion_args(names)))}
     # The teeth and tongue: the jaw's and skull's pieces, the largest of three or more the tongue (MakeHuman's).
     inner = np.where(b.parts.mask("jaw", "skull"), connected_components(len(V), T), -1)
     pieces, sizes = np.unique(inner[inner >= 0], return_counts=True)

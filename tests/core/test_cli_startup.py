@@ -1,4 +1,5 @@
-"""What a command's process does before its work: scipy's docstrings left as written (issue #35)."""
+"""What a command's process does before its work: scipy's docstrings left as written (issue #35), and left to scipy
+where its internals differ."""
 import subprocess
 import sys
 
@@ -39,3 +40,47 @@ def test_the_library_alone_leaves_scipy_as_it_is():
     out = run("import pdeface.rig; pdeface.rig.warm_up(landmarks=False)")
     assert out[2] == "True"
     assert out[:2] == run("")[:2]  # the notes as scipy alone writes them (none before 1.15-1.16)
+
+
+def _scipy_doc_users(monkeypatch):
+    """scipy's modules whose ``FunctionDoc`` ``plain_scipy_docs`` hands over, each put back after the test."""
+    _lib = pytest.importorskip("scipy._lib")
+    from scipy._lib import _array_api, _util
+
+    users = [m for m in (_array_api, _util) if isinstance(getattr(m, "FunctionDoc", None), type)]
+    if not users:
+        pytest.skip("this scipy has no FunctionDoc to hand over")
+    for m in users:
+        monkeypatch.setattr(m, "FunctionDoc", m.FunctionDoc)  # undone at the end, whatever the call left
+    return _lib, _array_api, {m: m.FunctionDoc for m in users}
+
+
+def test_where_scipys_decorator_fails_its_docstring_rewriting_is_put_back(monkeypatch):
+    """The fallback: scipy's decorator breaking on the stand-in (its internals changed) leaves every
+    ``FunctionDoc`` as scipy had it."""
+    from pdeface.cli.common import plain_scipy_docs
+
+    _, _array_api, before = _scipy_doc_users(monkeypatch)
+    seen = []
+
+    def broken(*args, **kwargs):
+        seen.append({m: m.FunctionDoc for m in before})  # the stand-in was in place when it broke
+        raise TypeError("a decorator that takes other arguments")
+
+    monkeypatch.setattr(_array_api, "xp_capabilities", broken)
+    plain_scipy_docs()
+    assert seen and all(cls is not before[m] for m, cls in seen[0].items())
+    assert {m: m.FunctionDoc for m in before} == before
+
+
+def test_without_scipys_internals_nothing_is_handed_over(monkeypatch):
+    """The other fallback: a scipy without ``scipy._lib._array_api`` (another layout) is left as it is."""
+    import sys
+
+    from pdeface.cli.common import plain_scipy_docs
+
+    _lib, _array_api, before = _scipy_doc_users(monkeypatch)
+    monkeypatch.delattr(_lib, "_array_api")
+    monkeypatch.setitem(sys.modules, "scipy._lib._array_api", None)  # its import fails
+    plain_scipy_docs()
+    assert {m: m.FunctionDoc for m in before} == before

@@ -347,9 +347,15 @@ def test_a_character_is_annotated_on_its_own_shape_not_with_the_bases_vertices_c
     idx, corners, weights = annotate.annotate_shape(V, Vs, Ts, Ls, Tt[head[Tt].all(1)])
     assert (idx == annotated_indices(name)).all()  # the committed annotation is the registration's on its shape
     on_skin = np.einsum("ij,ijk->ik", weights, V[corners])
-    # The registration's optimum moves by ~1e-4 eye distances between scipy releases (1.17 moved point 57 by
-    # that much): the committed points are the registration's to 1e-3, far below the 0.1 the carried ones are off.
-    assert np.allclose(annotated_skin_points(V, name), on_skin, rtol=0, atol=1e-3 * eye_distance(on_skin))
+    # The committed points are the registration's to its rounding, which grows where the skin barely holds a point:
+    # scipy 1.17 moved point 57 (the lower lip's middle) 1e-4 eye distances from the release that made the
+    # annotation, and one BLAS thread instead of two moves 30 and 29 (the nose's tip and the bridge above it) 7e-4
+    # and 5e-4; every other point moves 1.2e-5 at most, either way. Each is held to about ten times its own, far
+    # below the 0.1 the carried ones are off.
+    tolerance = np.full(68, 1e-4)
+    tolerance[[29, 30, 57]] = 1e-3
+    off = np.abs(annotated_skin_points(V, name) - on_skin).max(axis=1) / eye_distance(on_skin)
+    assert (off <= tolerance).all(), {i: off[i] for i in np.flatnonzero(off > tolerance)}
     ch = build(SPECS[name])
     assert np.allclose(ch.landmarks, V[idx] * 10)  # the character (decimetres to cm) carries them
     heads = [Vs[Ls]] + [(Vs + ict.shape(f"identity{i:03d}"))[Ls] for i in range(20)]

@@ -101,6 +101,34 @@ def test_keys_are_one_pose_each_and_linear_on_the_skin(generic):
     assert behind.max() <= 3 * STILL_MM  # mixed there, within the caps of the keys mixed (and of the pose)
 
 
+def _same_motions(got, want):
+    """Whether two lists of ``(delta_coefficients, delta_residual, jaw, gaze, lids)`` hold the same numbers."""
+    return len(got) == len(want) and all(
+        len(g) == len(w) and all(np.array_equal(a, b) if isinstance(a, np.ndarray) else a == b for a, b in zip(g, w))
+        for g, w in zip(got, want))
+
+
+def test_a_descriptor_moves_as_itself_and_a_pose_as_its_mix(generic):
+    # The one rule the add-on's keys, the development set's benches and renders follow (motion_args).
+    from pdeface.head.bind import descriptor_motion_args
+    from pdeface.presets import every_pose
+
+    model, b = generic
+    by_key = {d.key: d for d in model.descriptors}
+    poses = every_pose(model)
+    preset = next(n for n in poses if n != "neutral" and not n.startswith("AU"))
+    got = b.motion_args([(poses[preset], "max"), by_key["27"], by_key["45L"], ({"12": 0.5, "61": 1.0}, "sum")])
+    want = [b.pose_motion_args(poses[preset], "max"), descriptor_motion_args(by_key["27"]),
+            descriptor_motion_args(by_key["45L"]), b.pose_motion_args({"12": 0.5, "61": 1.0}, "sum")]
+    assert _same_motions(got, want)
+    assert got[1][2] and got[3][3] == {61: 1.0}  # the jaw and the gaze came with them
+    # every_pose's names: AU<key> the descriptor itself (not its weight-1 mix), a preset summed; in the names' order
+    named = b.every_pose_motion_args([preset, "AU27", "AU45L"])
+    assert _same_motions(named, [b.pose_motion_args(poses[preset], "sum"), *want[1:3]])
+    with pytest.raises(KeyError):
+        b.every_pose_motion_args(["AU27", "no such pose"])
+
+
 def test_keys_read_the_pde_grid_at_the_nodes_read_alone(generic):
     """The keys evaluate the PDE grid at the nodes the covered skin reads (half ICT's face's grid): every read of
     every extension lies among them, and the skin moves as it does when the whole grid is solved (to rounding)."""

@@ -8,7 +8,6 @@ from pdeface.head.bind import HeadBinding, descriptor_motion_args
 from pdeface.head.folds import FoldRelax
 from pdeface.head.lids import eyes_closed_by
 from pdeface.mesh import edge_face_pairs, turn_degrees
-from pdeface.presets import every_pose
 from pdeface.surface.fit import fit_face
 
 from scripts.bench.bench_keys_devset import LIDS, LIP_LOWER_INNER, LIP_UPPER_INNER, eyes_of
@@ -359,10 +358,8 @@ def test_keys_on_heads_not_tuned_on_fold_no_edge_and_close_the_eyes(name, monkey
     f = model.frame
     Vf, Lf = f.to_face(V), f.to_face(L)
     near = np.array([np.argmin(np.linalg.norm(Vf - p, axis=1)) for p in Lf])
-    descr = {f"AU{d.key}": d for d in model.descriptors}
     names = ("AU12", "AU27", "AU45", "happy")
-    poses = every_pose(model)
-    motions = [descriptor_motion_args(descr[n]) if n in descr else b.pose_motion_args(poses[n], "sum") for n in names]
+    motions = b.every_pose_motion_args(names)
     posed = dict(zip(names, f.to_face(V + b.displacements(motions))))
     monkeypatch.setattr(folds, "RELAX_STEPS", 0)
     monkeypatch.setattr(bind, "STEPS_NOT_JAW", 0)

@@ -917,6 +917,69 @@ def test_a_reading_that_fails_raises_from_its_future_and_the_others_still_come(h
     assert all(f.cancelled() for f in queued)
 
 
+def _stub_mediapipe(fail_at, gate):
+    """Stand-ins for MediaPipe's two graphs (``detector._mediapipe``): the detector finds one sure face in every
+    image; the face mesh's reading number ``fail_at`` (0: the detector's warm-up on a blank image) raises, the next
+    waits for ``gate`` (the readings after it stay queued), any later one finds no face. Returns the modules and
+    the face mesh's readings so far."""
+    from types import SimpleNamespace
+
+    box = SimpleNamespace(xmin=0.3, ymin=0.3, width=0.4, height=0.4)
+    face = SimpleNamespace(score=[0.99], location_data=SimpleNamespace(relative_bounding_box=box))
+    read = []
+
+    class Graph:
+        def __init__(self, **options):
+            pass
+
+        def close(self):
+            pass
+
+    class FaceDetection(Graph):
+        def process(self, rgb):
+            return SimpleNamespace(detections=[face])
+
+    class FaceMesh(Graph):
+        def process(self, rgb):
+            read.append(len(read))
+            if read[-1] == fail_at:
+                raise RuntimeError("the face mesh failed")
+            if read[-1] == fail_at + 1:
+                gate.wait(10)
+            return SimpleNamespace(multi_face_landmarks=None)
+
+    return (SimpleNamespace(FaceDetection=FaceDetection), SimpleNamespace(FaceMesh=FaceMesh)), read
+
+
+def test_detect_failing_mid_way_leaves_no_reader_fd2_as_it_was_and_the_silencing_closed(heads, monkeypatch):
+    # A reading that raises while the views after it are queued (the first pass asks for four rolls at once): the
+    # error reaches the caller, the detector detect() made is closed with its reader thread, fd 2 is the file it
+    # was before (not the null device the readings silence it with) and no thread is left inside the silencing.
+    # MediaPipe's graphs are stubbed: the failure path is the detector's and detect()'s, not MediaPipe's.
+    import threading
+
+    mesh, T, _, _ = heads
+    gate = threading.Event()
+    graphs, read = _stub_mediapipe(fail_at=1, gate=gate)
+    monkeypatch.setattr(detector_module, "_mediapipe", lambda: graphs)
+    readers = lambda: [t for t in threading.enumerate() if t.name.startswith("pdeface-mediapipe") and t.is_alive()]
+    assert not readers() and detector_module._silence["depth"] == 0
+    fd2 = os.fstat(2)
+    releases = threading.Timer(0.5, gate.set)  # the waiting reading goes on once the caller has failed
+    releases.start()
+    try:
+        with pytest.raises(RuntimeError, match="the face mesh failed"):
+            detect(mesh.vertices, T, "cm")
+    finally:
+        gate.set()
+        releases.cancel()
+    assert len(read) >= 3  # the warm-up, the failed reading and the one behind it, while the others were queued
+    assert not readers()
+    after = os.fstat(2)
+    assert (after.st_dev, after.st_ino) == (fd2.st_dev, fd2.st_ino)
+    assert detector_module._silence == {"depth": 0, "saved": None, "null": None}
+
+
 def test_the_generic_heads_geometry_is_read_once_for_every_landmark_step_and_read_only():
     # Six landmark steps take statistics from ICT's generic head (#35: each read its file, ~8 ms a time): one read,
     # shared, so none may change it for the others.

@@ -55,6 +55,7 @@ from functools import cached_property
 import numpy as np
 
 from .. import landmark_scheme
+from ..au.descriptor import Descriptor
 from ..errors import MeshError, PdeFaceError
 from ..facs import au_number, normalise_weights
 from ..geometry import (
@@ -86,6 +87,7 @@ from ..landmark_scheme import (
 )
 from ..mesh import connected_components, cotan_laplacian, seam_welds, vertex_normals
 from ..posing import pose_curves
+from ..presets import every_pose
 from ..rigid import JAW_BONE_GAIN, gaze_matrix, jaw_hinge, jaw_motion, rigid_displacement, rotation_vector_matrix
 from ..surface.grid import grid_faces, surface_grid
 from ..surface.layout import ANCHOR_NAMES
@@ -470,11 +472,18 @@ def _inner_lip_middles(P, Lf, eye_distance, lines=((61, 62), (62, 63), (65, 66),
 def _merged_rims(P, covered, fixed, Lf, eye_distance, skin_tree, beside=False):
     """``(held, anchors)`` on lips joined in the mesh: the skin the PDE face does not cover (nor ``fixed``: rest,
     depths) on each inner lip's middle third (at its landmarks, 61-63 or 65-67, or on their line on its side of the
-    mouth line), not at the other lip's landmarks, and each one's nearest covered skin on the same side. A decimation
+    mouth line), not at the other lip's landmarks, and each one's nearest covered skin of its own lip. A decimation
     merges the lips' rims there: free, such a vertex took both lips' motion (decimated-cm's upper lip sank 0.24 eye
     distances in AU27, following the jaw); held, each rim follows its lip and the skin joining them stretches.
     ``beside``: lips joined beside their middles alone (:func:`_lips_joined`): each middle its own lip's, the sides
-    split half-way between the inner lips (:func:`_inner_lips_between`), not at the mouth line."""
+    split half-way between the inner lips (:func:`_inner_lips_between`), not at the mouth line.
+
+    The anchors, the PDE face's lips, are told apart half-way between the inner lips whatever splits the rims: where
+    the corners turn down the mouth line passes under the lower lip's rim, and the upper rim anchored on the lower
+    lip sank with the jaw (ICT's head clustered on a 0.5 cm grid: AU27's upper lip -0.60 eye distances, gap -0.04;
+    anchored on its own lip -0.08 and 0.48; caucasian-female-old decimated to 4,000 vertices -0.56 and 0.00, -0.04 and
+    0.52). The rims themselves stay split at the mouth line where they merged at the middle (split half-way,
+    decimated-cm's AU27 folded 9 edges, not 1)."""
     empty = np.zeros(0, np.int64)
     if not np.isfinite(Lf[list(INNER_LIPS)]).all():
         return empty, empty
@@ -482,14 +491,15 @@ def _merged_rims(P, covered, fixed, Lf, eye_distance, skin_tree, beside=False):
 
     at = skin_tree.query(Lf[list(INNER_LIPS)])[1]  # 60-67: the corners 60 and 64 are both lips'
     free = ~covered & ~fixed
-    side = P[:, 1] > (_inner_lips_between(P, Lf) if beside else mouth_line(Lf))
+    above_half_way = P[:, 1] > _inner_lips_between(P, Lf)
+    side = above_half_way if beside else P[:, 1] > mouth_line(Lf)
     held, anchors = [empty], [empty]
     for own, other, lines, upper in ((at[1:4], at[5:8], ((61, 62), (62, 63)), True),
                                      (at[5:8], at[1:4], ((65, 66), (66, 67)), False)):
         on_side = side if upper else ~side
         rim = np.union1d(own, np.nonzero(_inner_lip_middles(P, Lf, eye_distance, lines) & on_side)[0])
         rim = np.setdiff1d(rim[free[rim]], other)
-        lip = np.nonzero(covered & on_side)[0]
+        lip = np.nonzero(covered & (above_half_way if upper else ~above_half_way))[0]
         if len(rim) and len(lip):
             held.append(rim)
             anchors.append(lip[cKDTree(P[lip]).query(P[rim])[1]])
@@ -504,7 +514,7 @@ def _inner_lips_between(P, Lf):
     too) lay 0.005 eye distances below the lower inner lip's middle on ICT's head clustered on a 0.42 cm grid (its
     corners turn down): the lower lip's rim, above it, was held with the upper lip (AU27 folded 25 edges, 19 split
     here). Where the rims merged at the middle the mouth line still splits them (split here, decimated-cm's AU27
-    folded 9 edges, not 1)."""
+    folded 9 edges, not 1), but not their anchors (:func:`_merged_rims`)."""
     facing = Lf[[61, 62, 63]] + Lf[[67, 66, 65]]
     order = np.argsort(facing[:, 0])
     return np.interp(P[:, 0], facing[order, 0] / 2, facing[order, 1] / 2)
@@ -1066,6 +1076,46 @@ class HeadBinding:
     def pose_displacements(self, poses) -> np.ndarray:
         """:meth:`pose_displacement` of several ``(weights, mixer)`` at once, (k, n, 3)."""
         return self.displacements([self.pose_motion_args(w, m) for w, m in poses])
+
+    def motion_args(self, keys) -> list:
+        """Each key's motion, as :meth:`displacements` takes it: the one rule of how a key moves.
+
+        Parameters
+        ----------
+        keys : iterable of Descriptor or (dict, str)
+            A :class:`~pdeface.au.descriptor.Descriptor` moves as its own change at weight 1
+            (:func:`descriptor_motion_args`: not its weight-1 mix, which rounds differently); an
+            ``(AU weights, mixer)`` pair as those weights mixed (:meth:`pose_motion_args`).
+
+        Returns
+        -------
+        list of tuple
+            ``(delta_coefficients, delta_residual, jaw, gaze, lids)`` per key, in the order of ``keys``.
+        """
+        return [descriptor_motion_args(k) if isinstance(k, Descriptor) else self.pose_motion_args(*k) for k in keys]
+
+    def every_pose_motion_args(self, names) -> list:
+        """:meth:`motion_args` of the poses :func:`pdeface.presets.every_pose` names (the poses folds are measured
+        in): ``AU<key>`` the model's descriptor, a preset its AU weights summed.
+
+        Parameters
+        ----------
+        names : iterable of str
+            Names of ``every_pose(self.model)``, ``neutral`` left out (it does not move).
+
+        Returns
+        -------
+        list of tuple
+            One motion per name, in the order of ``names``.
+
+        Raises
+        ------
+        KeyError
+            A name that is not one of the model's poses.
+        """
+        poses = every_pose(self.model)
+        descriptors = {f"AU{d.key}": d for d in self.model.descriptors}
+        return self.motion_args(descriptors[n] if n in descriptors else (poses[n], "sum") for n in names)
 
     def pose_motion_args(self, weights, mixer) -> tuple:
         """``(delta_coefficients, delta_residual, jaw, gaze, lids)`` of AU ``weights`` mixed by ``mixer``."""
