@@ -54,6 +54,7 @@ from .mouth import (
     lower_lip_on_its_edge,
     lower_lip_sides_at_ict_drop,
     mouth_corners_at_seam_end,
+    upper_lip_on_its_edge,
 )
 from .nose import bridge_at_ict_shares, nose_bottom_at_subnasale
 from .render import Raster, View, back_project, closed_depth, depth_map, marked, rasterise, shade
@@ -435,6 +436,8 @@ def detect(V, T, unit=None, landmark_map: LandmarkMap | None = None, detector: D
         points = inner_lip_corners_inset(V, Ts, points, closest)
         # The lower lip's middle points on its edge, not on the curve under it.
         points = lower_lip_on_its_edge(V, Ts, points)
+        # The upper lip's outer points on its edge (the vermilion border), not on the curve above it.
+        points = upper_lip_on_its_edge(V, Ts, points)
         # The lower lip's inner points under the slit of parted lips, not on its top edge with the upper lip's.
         points = lower_inner_lips_under_the_slit(V, Ts, points)
         # The lower lip's sides as far below the chord from the mouth corner to its middle as ICT's, not under the lip.
