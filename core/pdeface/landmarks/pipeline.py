@@ -436,12 +436,13 @@ def detect(V, T, unit=None, landmark_map: LandmarkMap | None = None, detector: D
         points = inner_lip_corners_inset(V, Ts, points, closest)
         # The lower lip's middle points on its edge, not on the curve under it.
         points = lower_lip_on_its_edge(V, Ts, points)
-        # The upper lip's outer points on its edge (the vermilion border), not on the curve above it.
-        points = upper_lip_on_its_edge(V, Ts, points)
         # The lower lip's inner points under the slit of parted lips, not on its top edge with the upper lip's.
         points = lower_inner_lips_under_the_slit(V, Ts, points)
         # The lower lip's sides as far below the chord from the mouth corner to its middle as ICT's, not under the lip.
         points = lower_lip_sides_at_ict_drop(V, Ts, points)
+        # The upper lip's outer points on its edge (the vermilion border), not on the curve above it (after the lower
+        # lip's steps: moved before them, it turns the face frame they read the mouth in, and a one-pixel slit shows).
+        points = upper_lip_on_its_edge(V, Ts, points)
         # The nose's bottom at the subnasale, the profile's deepest point under the nose.
         points = nose_bottom_at_subnasale(V, Ts, points, closest)
         # The bridge's middle points at ICT's shares of the nasion-to-tip chord, not nearer the nasion.
