@@ -688,7 +688,7 @@ def test_lower_inner_lip_points_on_the_slits_top_edge_go_down_under_the_slit():
 def test_true_lid_and_inner_lip_points_stay_on_ict_heads(ict):
     # ICT's lid points lie on a thick margin's rounded edge, its eye corners on the skin's front, its inner lip points
     # in front of a slit between the lips, its subnasale at the profile's deepest point under the nose, its bridge's
-    # middle at the generic head's shares of the nasion-to-tip chord, its lower lip's middle on the lip's edge, its
+    # middle at the generic head's shares of the nasion-to-tip chord, its lips' middles on their edges, its
     # lower lip's sides at the generic head's drop below the chord from the mouth corner to the lip's middle: no
     # step moves the true landmarks of a held-out identity (its skin alone, without eyeballs and lashes) by more than
     # a pixel or two.
@@ -700,6 +700,7 @@ def test_true_lid_and_inner_lip_points_stay_on_ict_heads(ict):
         lower_lip_on_its_edge,
         lower_lip_sides_at_ict_drop,
         mouth_corners_at_seam_end,
+        upper_lip_on_its_edge,
     )
     from pdeface.landmarks.nose import bridge_at_ict_shares, nose_bottom_at_subnasale
     from pdeface.mesh import connected_components
@@ -711,7 +712,8 @@ def test_true_lid_and_inner_lip_points_stay_on_ict_heads(ict):
     L = V[lm]
     for step in (lids_on_margin, corners_on_skin_front, outer_corners_at_opening_end, inner_lips_in_seam,
                  nose_bottom_at_subnasale, inner_lip_corners_inset, mouth_corners_at_seam_end, bridge_at_ict_shares,
-                 lower_lip_on_its_edge, lower_inner_lips_under_the_slit, lower_lip_sides_at_ict_drop):
+                 lower_lip_on_its_edge, upper_lip_on_its_edge, lower_inner_lips_under_the_slit,
+                 lower_lip_sides_at_ict_drop):
         moved = np.linalg.norm(step(V, skin, L) - L, axis=1) * 10  # mm
         assert moved.max() < 0.5, (step.__name__, moved.max())
 
@@ -770,6 +772,25 @@ def test_lower_lip_points_found_on_the_curve_under_the_lip_come_up_to_its_edge(n
     back = lower_lip_on_its_edge(ch.vertices, ch.triangles, moved)
     before, after = (np.linalg.norm(P[rows] - L[rows], axis=1) / eyes for P in (moved, back))
     assert before.min() > 0.035 and (after < 0.5 * before).all() and after.max() < 0.03, (before, after)
+    others = np.setdiff1d(np.arange(68), rows)
+    assert np.array_equal(back[others], moved[others])
+
+
+@needs_makehuman
+@pytest.mark.parametrize("name", ["base-dm", "caucasian-male-old-dm-eyes"])
+def test_upper_lip_points_found_on_the_curve_above_the_lip_come_down_to_its_edge(name):
+    # The face mesh puts the upper lip's outer points (49-53) of some characters up to 0.05 eye distances too high,
+    # 0.008-0.03 behind the lip's front on the curve above it towards the nose; moved there, they come back down
+    # their column to the lip's edge, near the registered points; the registered points stay; nothing else moves.
+    from pdeface.landmarks.mouth import UPPER_LIP, upper_lip_on_its_edge
+
+    ch = build(SPECS[name])
+    L, eyes, rows = ch.skin_landmarks, ch.eye_distance, list(UPPER_LIP)
+    assert np.array_equal(upper_lip_on_its_edge(ch.vertices, ch.triangles, L), L)
+    moved = _moved_in_face_frame(ch.vertices, ch.triangles, L, rows, (0, 0.04, -0.01))
+    back = upper_lip_on_its_edge(ch.vertices, ch.triangles, moved)
+    before, after = (np.linalg.norm(P[rows] - L[rows], axis=1) / eyes for P in (moved, back))
+    assert before.min() > 0.03 and (after < 0.5 * before).all() and after.max() < 0.015, (before, after)
     others = np.setdiff1d(np.arange(68), rows)
     assert np.array_equal(back[others], moved[others])
 

@@ -54,6 +54,7 @@ from .mouth import (
     lower_lip_on_its_edge,
     lower_lip_sides_at_ict_drop,
     mouth_corners_at_seam_end,
+    upper_lip_on_its_edge,
 )
 from .nose import bridge_at_ict_shares, nose_bottom_at_subnasale
 from .render import Raster, View, back_project, closed_depth, depth_map, marked, rasterise, shade
@@ -441,6 +442,9 @@ def detect(V, T, unit=None, landmark_map: LandmarkMap | None = None, detector: D
         points = lower_inner_lips_under_the_slit(V, Ts, points)
         # The lower lip's sides as far below the chord from the mouth corner to its middle as ICT's, not under the lip.
         points = lower_lip_sides_at_ict_drop(V, Ts, points)
+        # The upper lip's outer points on its edge (the vermilion border), not on the curve above it (after the lower
+        # lip's steps: moved before them, it turns the face frame they read the mouth in, and a one-pixel slit shows).
+        points = upper_lip_on_its_edge(V, Ts, points)
         # The nose's bottom at the subnasale, the profile's deepest point under the nose.
         points = nose_bottom_at_subnasale(V, Ts, points, closest)
         # The bridge's middle points at ICT's shares of the nasion-to-tip chord, not nearer the nasion.
