@@ -84,7 +84,7 @@ from ..landmark_scheme import (
     MOUTH_CORNERS,
     NOSE_BOTTOM,
 )
-from ..mesh import connected_components, cotan_laplacian, seam_welds, vertex_normals
+from ..mesh import connected_components, cotan_laplacian, facing, seam_welds, vertex_normals
 from ..posing import pose_curves
 from ..rigid import JAW_BONE_GAIN, gaze_matrix, jaw_hinge, jaw_motion, rigid_displacement, rotation_vector_matrix
 from ..surface.grid import grid_faces, surface_grid
@@ -265,10 +265,18 @@ def _on_nodes(read, slot):
     return csr_matrix((read.data, slot[read.indices], read.indptr), shape=(read.shape[0], slot.max() + 1))
 
 
-def _check_on_skin(Lf, skin_tree, eye_distance):
-    """Refuse landmarks off the skin (a model fitted on another mesh, landmarks inside the head); ``skin_tree``: a
-    ``cKDTree`` of the skin."""
-    off = skin_tree.query(Lf[np.isfinite(Lf).all(axis=1)])[0]
+def _check_on_skin(Lf, P, Ts, skin_tree, eye_distance):
+    """Refuse landmarks off the skin ``(P, Ts)`` (a model fitted on another mesh, landmarks inside the head);
+    ``skin_tree``: a ``cKDTree`` of ``P``.
+
+    Measured to the nearest vertex, and where that is beyond the limit to the surface: on a coarse head (a game
+    head's 1.5k vertices, its vertices 0.1 eye distances apart) landmarks between vertices lie farther than the
+    limit from every one (a decimated MakeHuman head's found landmarks: a median 0.066 eye distances)."""
+    L = Lf[np.isfinite(Lf).all(axis=1)]
+    off = skin_tree.query(L)[0]
+    far = off > 0.05 * eye_distance
+    if far.any():  # the points under the limit lie no farther from the surface: the verdict is the surface's
+        off[far] = ClosestPoint(P, Ts).query(L[far])[0]
     if np.median(off) > 0.05 * eye_distance or off.max() > 0.3 * eye_distance:
         raise MeshError(f"the landmarks do not lie on skin (median {np.median(off):.3g} mm off it, the worst "
                         f"{off.max():.3g} mm): was the face fitted on this head, in this unit, with landmarks "
@@ -642,6 +650,8 @@ class HeadBinding:
             raise MeshError("this face model carries no landmarks (made by pdeface 0.1): give the head's landmarks "
                             "or refit the face")
         self.face_landmarks = Lf
+        # Normals all pointing inwards (a mirrored export), turned outwards: the skin's normals read the PDE face.
+        T = facing(Vf, T, (0.0, 0.0, 1.0), float(Lf[[5, 11], 2].mean()))
         self.eye_distance = eye_distance = landmark_scheme.eye_distance(Lf)
         self.hinge = jaw_hinge(Lf, eye_distance)
         self.parts = parts = classify_parts(Vf, T, Lf, self.hinge, overrides, welded=True, pieces=pieces)
@@ -660,12 +670,12 @@ class HeadBinding:
             raise MeshError("no skin: the landmarks lie on no part of this mesh")
         P = Vf[si]
         skin_tree = cKDTree(P)  # the landmarks' check, the lips' ends, the attached parts' anchors
-        _check_on_skin(Lf, skin_tree, eye_distance)
         local = np.full(len(V), -1)
         local[si] = np.arange(len(si))
         Ts = local[T[every_corner(skin, T)]]
         if len(Ts) == 0:
             raise MeshError("the skin has no triangles")
+        _check_on_skin(Lf, P, Ts, skin_tree, eye_distance)
         self.skin_normals = vertex_normals(P, Ts)
         mouth_strip = [k for a, k in model.layout.opening_curves() if ANCHOR_NAMES[a] == "mouth_top"]
         lips_joined, self.lips_one_line, joined_beside = (_lips_joined(P, Ts, Lf, eye_distance, skin_tree)
