@@ -3,13 +3,15 @@ mesh (the audit of characters nobody tuned on, ``docs/measurements/audit_unseen.
 
 Usage: python -m scripts.figures.render_audit_unseen RIG_FOLDER [RIG_FOLDER ...] [-o OUT.png] [--size 256]
        [--keys AU27,AU45,AU12] [--title TEXT] [--across 3.2]
+       python -m scripts.figures.render_audit_unseen --tile PICTURE.png [PICTURE.png ...] -o OUT.png
        (with the bpy module; Blender's Workbench renders headless)
 
 Each folder is one ``pdeface rig -o`` output: its ``keys.npz`` (the rest mesh, its landmarks and every key's deltas,
 :func:`pdeface.rig.load_keys`) is rendered as ``render_keys_devset`` renders the development set (Workbench, studio
 light, orthographic, framed on the face from its landmarks): a row per folder and view (front, three-quarter), a
 column for the rest (landmarks as red spots) and each key (vertices of a new fold red, the title counting the fold
-edges). Several folders stack their rows in one picture.
+edges). Several folders stack their rows in one picture. With ``--tile``, the arguments are instead pictures
+(``pdeface landmarks --image``), tiled four to a row, each titled with its folder's name.
 """
 from __future__ import annotations
 
@@ -85,6 +87,26 @@ def rows(folder, size, tmp, keys=KEYS, title="", across=3.2):
     return [np.concatenate(r, axis=1) for r in out.values()]
 
 
+def tiled(paths, size=288, columns=4):
+    """The pictures ``paths`` (PNG, square) shrunk to ``size`` pixels and tiled ``columns`` to a row, each titled with
+    its folder's name."""
+    import bpy
+
+    tiles = []
+    for path in paths:
+        img = bpy.data.images.load(str(Path(path).resolve()))
+        w, h = img.size
+        px = np.empty(w * h * 4, np.float32)
+        img.pixels.foreach_get(px)
+        rgb = (np.clip(px.reshape(h, w, 4)[::-1, :, :3], 0, 1) * 255).astype(np.uint8)
+        pick = (np.arange(size) * h / size).astype(int)
+        tile = rgb[pick][:, pick].copy()
+        draw_text(tile, 4, 4, Path(path).parent.name, (255, 255, 0), 1)
+        tiles.append(tile)
+    tiles += [np.zeros_like(tiles[0])] * (-len(tiles) % columns)
+    return np.concatenate([np.concatenate(tiles[i:i + columns], axis=1) for i in range(0, len(tiles), columns)])
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("folders", nargs="+", help="pdeface rig output folders")
@@ -93,7 +115,12 @@ def main(argv=None):
     ap.add_argument("--keys", default=",".join(KEYS))
     ap.add_argument("--across", type=float, default=3.2, help="eye distances across a panel")
     ap.add_argument("--title", help="comma-separated titles, one per folder (default: the folders' names)")
+    ap.add_argument("--tile", action="store_true", help="tile the pictures given instead (pdeface landmarks --image)")
     args = ap.parse_args(argv)
+    if args.tile:
+        write_png(args.out, (tiled(args.folders) // LEVEL_STEP) * LEVEL_STEP + LEVEL_STEP // 2)
+        print(f"wrote {args.out} ({Path(args.out).stat().st_size / 1e3:.0f} kB)")
+        return
     titles = args.title.split(",") if args.title else [Path(f).parent.name for f in args.folders]
     with tempfile.TemporaryDirectory() as tmp:
         img = np.concatenate([r for f, t in zip(args.folders, titles)
