@@ -304,9 +304,14 @@ def facing(V: np.ndarray, T: np.ndarray, forward, front: float) -> np.ndarray:
     away from ``forward`` on balance (their normals, weighted by area): a mesh whose normals all point inwards, as
     a mirrored (left-handed) export leaves them. ``T`` itself where they face forward."""
     T = np.asarray(T, np.int64)
-    forward = np.asarray(forward, np.float64)
-    ahead = V[T].mean(axis=1) @ forward > front
-    return T[:, ::-1] if float((triangle_cross(V, T[ahead]) @ forward).sum()) < 0 else T
+    f = np.asarray(forward, np.float64) / np.linalg.norm(forward)
+    u = np.cross(f, [1.0, 0.0, 0.0] if abs(f[0]) < 0.9 else [0.0, 1.0, 0.0])
+    u /= np.linalg.norm(u)
+    x, y, depth = V @ u, V @ np.cross(f, u), V @ f  # (u, f × u, f) turn as (x, y, z) do
+    a, b, c = T[depth[T].sum(axis=1) > 3 * front].T  # centroids in front
+    # each triangle's normal (its corners' cross product) along f: twice its area seen from f's side, signed
+    seen = (x[b] - x[a]) * (y[c] - y[a]) - (y[b] - y[a]) * (x[c] - x[a])
+    return T[:, ::-1] if float(seen.sum()) < 0 else T
 
 
 def butterfly_step(n_vertices: int, T: np.ndarray):
