@@ -59,14 +59,14 @@ def test_a_mirrored_head_with_its_normals_inwards_is_fitted_as_the_same_head_wou
 def test_landmarks_on_a_coarse_heads_surface_between_its_vertices_lie_on_its_skin():
     V, T, L, _ = BUILDERS["lowpoly-flat"]()
     ed = eye_distance(L)
-    # each landmark at the middle of its triangle: on the surface, far from every vertex of a 1.5k head
+    # each landmark at the middle of its triangle: on the surface, far from every vertex of a 1.4k head
     tri = ClosestPoint(V, T).query(L)[1]
     P = V[T[tri]].mean(axis=1)
     tree = cKDTree(V)
-    assert np.median(tree.query(P)[0]) > 0.05 * ed  # refused before: measured to the nearest vertex
+    assert np.median(tree.query(P)[0]) > 0.05 * ed  # refused before: 0.05 eye distances from a vertex at most
     _check_on_skin(P, V, T, tree, ed)
     n = np.cross(V[T[tri, 1]] - V[T[tri, 0]], V[T[tri, 2]] - V[T[tri, 0]])
-    off = P + 0.1 * ed * n / np.linalg.norm(n, axis=1, keepdims=True)
+    off = P + 0.15 * ed * n / np.linalg.norm(n, axis=1, keepdims=True)
     with pytest.raises(MeshError, match="do not lie on skin"):
         _check_on_skin(off, V, T, tree, ed)
 
