@@ -29,11 +29,12 @@ import json
 from pathlib import Path
 
 import numpy as np
+from pdeface.geometry import ClosestPoint
 from pdeface.landmark_scheme import MIRROR, eye_centres, eye_distance
 from pdeface.mesh import Mesh
 from pdeface.rigid import rotation_vector_matrix
 
-from .characters import SPECS, Spec, _annotation, build, shape
+from .characters import SPECS, Spec, _annotation, build, decimate, shape
 
 #: The identity of the characters built on the development set's ``LIKE``: its own annotation is their truth.
 LIKE = "caucasian-female-young-cm"
@@ -42,7 +43,7 @@ YOUNG = SPECS[LIKE].identity
 
 def _own(spec):
     """The true landmarks of ``spec``'s shape: the development set's annotation of :data:`LIKE`'s where the shape is
-    its, else ICT's face registered onto the shape (``scripts/devset/annotate.py``, about a minute)."""
+    its, else ICT's face registered onto the shape (``scripts/devset/annotate.py``, a few seconds)."""
     if spec.identity == YOUNG and not spec.style:
         a = _annotation()
         return a["characters"][LIKE], a["skin_points"][LIKE]["corners"], a["skin_points"][LIKE]["weights"]
@@ -66,7 +67,7 @@ def _around(V, L, R):
 
 
 def _cylinder(centre, radius, y0, y1, n=32):
-    """A closed cylinder along y (its caps fans about a centre vertex), outward-facing."""
+    """A closed cylinder along y (its caps fans about a centre vertex), facing outwards."""
     a = np.linspace(0, 2 * np.pi, n, endpoint=False)
     ring = np.stack([np.cos(a) * radius, np.zeros(n), np.sin(a) * radius], 1) + [centre[0], 0, centre[2]]
     lo, hi = ring + [0, y0, 0], ring + [0, y1, 0]
@@ -96,17 +97,14 @@ def expression_at_rest():
 def rolled_pitched():
     V, T, L, mm = _head(Spec("rolled-pitched", YOUNG))
     R = rotation_vector_matrix([np.radians(25), 0, 0]) @ rotation_vector_matrix([0, 0, np.radians(30)])
-    return (*_around(V, L, R)[:1], T, _around(V, L, R)[1], mm)
+    V, L = _around(V, L, R)
+    return V, T, L, mm
 
 
 def lowpoly_flat():
-    from .characters import decimate
-
     V, T, L, mm = _head(Spec("lowpoly-flat", YOUNG))
     W, F = decimate(V, T, 1500)
-    from pdeface.geometry import ClosestPoint
-
-    return W, F, ClosestPoint(W, F).query(L)[3], mm
+    return W, F, ClosestPoint(W, F).query(L)[3], mm  # the truth on the new surface, as the development set's
 
 
 def hat():
