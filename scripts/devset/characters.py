@@ -84,6 +84,7 @@ class Spec:
     identity: dict = field(default_factory=lambda: {"caucasian-female-young": 0.5, "caucasian-male-young": 0.5})
     style: dict = field(default_factory=dict)  # local targets (path under targets/) → weight
     mouth_open: float = 0.0
+    expression: dict = field(default_factory=dict)  # expression unit (under expression/units/<race>/) → weight
     body: bool = False  # the whole body, else the head cut at the neck
     pose: str = "A"  # "A" (the base's own) or "T"
     head_turn: float = 0.0  # degrees about the neck's vertical axis
@@ -142,8 +143,10 @@ def shape(spec: Spec) -> np.ndarray:
 
 def _identity(spec: Spec) -> np.ndarray:
     V = shape(spec)
-    if spec.mouth_open:
-        V = apply_targets(V, {f"expression/units/{race_of(spec)}/mouth-open": spec.mouth_open})
+    units = {"mouth-open": spec.mouth_open} if spec.mouth_open else {}
+    units.update(spec.expression)
+    if units:
+        V = apply_targets(V, {f"expression/units/{race_of(spec)}/{k}": w for k, w in units.items()})
     return V
 
 

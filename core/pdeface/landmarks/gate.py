@@ -20,7 +20,11 @@ from the face), against the eye distance, so they hold at any scale, orientation
   neighbours (a jaw point sunk or lifted along the contour, where a frontal detector cannot see depth);
 - **depth**: the jaw angles behind the mouth corners (:data:`JAW_ANGLES_BACK`): a jaw slid forward along its
   contour, level with the mouth, is no face's; the lids not far behind their eye's corners (:data:`LIDS_BEHIND`):
-  in a head without eyeballs, a lid fallen into the socket is seen through the eye's opening, nothing in front.
+  in a head without eyeballs, a lid fallen into the socket is seen through the eye's opening, nothing in front;
+- **closed**: each eye open, as a head at rest has it (:data:`EYE_OPENING`): seen straight on between its corners,
+  somewhere the skin lies deep behind them (the eye's opening onto the eyeball or the socket). A head modelled with
+  its eyes closed (or in any expression) is no rest: its keys would close closed eyes, and the detector finds open
+  lids on it all the same.
 
 A group failing any check is named with the check; ``pdeface landmarks`` and ``pdeface fit`` then stop
 (exit 2) unless told ``--accept``.
@@ -92,6 +96,17 @@ JAW_ANGLES_BACK = 0.27
 #: characters 0.015-0.065; found ones down to 0.03 behind. The lower lids pushed 0.2 into an empty socket lie 0.15
 #: and more behind, where the surface check sees nothing in front of them (the socket seen through the opening).
 LIDS_BEHIND = 0.10
+#: How deep (eye distances) behind its corners an eye's skin must lie somewhere between them, seen straight on, for
+#: the eye to be open (:func:`eye_openings`: rays on a grid over the middle of the eye, onto the face's own part).
+#: Open eyes: ICT's 21 heads 0.36-0.39 (its eyeballs are parts of their own: the socket behind them), ICT's generic
+#: head at 0.7 of its blink and squinting 0.38; MakeHuman's 24 characters, true and found landmarks, 0.38-0.58 (voxel
+#: and decimated heads among them), 14 others nobody tuned on (docs/measurements/audit_unseen.md) 0.43-0.75. Closed:
+#: ICT's blink -0.08, its identity004 blinking (true / found landmarks) -0.09 / -0.04, MakeHuman's eye closure -0.06 /
+#: -0.03 (the closed lids' skin in front of the corners).
+EYE_OPENING = 0.15
+#: The grid of rays over each eye: shares of the way from its inner to its outer corner, and heights about the line
+#: between them (eye distances).
+EYE_RAYS = ((0.3, 0.5, 0.7), (-0.1, -0.05, 0.0, 0.05, 0.1))
 #: Pixels of the visibility renders.
 SIZE = 256
 
@@ -174,6 +189,32 @@ def buried(V, T, points, frame, eyes) -> np.ndarray:
     return best
 
 
+def eye_openings(V, T, points, frame, eyes) -> np.ndarray:
+    """How deep (the mesh's unit) the surface ``(V, T)`` lies behind each eye's corners at most, seen straight on
+    over the middle of the eye (:data:`EYE_RAYS`); inf where a ray meets nothing (the eye's opening onto nothing
+    behind it). Right eye, then left."""
+    R = frame.rotation
+    grid = []
+    for a, b in ((36, 39), (42, 45)):
+        for share in EYE_RAYS[0]:
+            on_line = points[a] + share * (points[b] - points[a])
+            grid += [on_line + dy * eyes * R[1] for dy in EYE_RAYS[1]]
+    grid = np.array(grid)
+    side = np.cross(R[1], R[2])
+    view = View.looking(R[2], np.cross(R[2], side), points.mean(0), 1.6 * eyes, SIZE)
+    x, y, z = view.project(grid)
+    xi, yi = np.clip(np.round(x).astype(int), 0, SIZE - 1), np.clip(np.round(y).astype(int), 0, SIZE - 1)
+    near = np.zeros((SIZE, SIZE), bool)  # only the triangles over the rays are drawn
+    near[yi, xi] = True
+    r = rasterise(V, T, view, near=near)
+    tri, bary = r.tri[yi, xi], r.bary[yi, xi]
+    hit = tri >= 0
+    behind = np.full(len(grid), np.inf)
+    Q = np.einsum("ij,ijk->ik", bary[hit], V[T[tri[hit]]])
+    behind[hit] = z[hit] - (Q - view.centre) @ view.rotation[2]
+    return behind.reshape(2, -1).max(axis=1)
+
+
 def jaw_pair_offsets(F) -> np.ndarray:
     """How far each right jaw point lies from its left partner's mirror image, the jaw's own midline fitted out.
 
@@ -194,14 +235,17 @@ def jaw_pair_offsets(F) -> np.ndarray:
     return np.linalg.norm(d - A @ np.linalg.lstsq(A, d, rcond=None)[0], axis=1)
 
 
-def landmark_parts(V, T, points) -> np.ndarray:
-    """The triangles of the connected parts of ``(V, T)`` that hold a landmark's nearest vertex."""
+def landmark_parts(V, T, points) -> tuple[np.ndarray, np.ndarray]:
+    """The triangles of the connected parts of ``(V, T)`` that hold a landmark's nearest vertex, and those of the
+    one part that holds the most (the face's skin: not an eyeball a lid's point lies nearest to)."""
     from scipy.spatial import cKDTree
 
     used = np.unique(T)
     labels = connected_components(len(V), T)
-    own = np.unique(labels[used[cKDTree(V[used]).query(points)[1]]])
-    return T[np.isin(labels[T[:, 0]], own)]
+    own = labels[used[cKDTree(V[used]).query(points)[1]]]
+    values, counts = np.unique(own, return_counts=True)
+    of = labels[T[:, 0]]
+    return T[np.isin(of, values)], T[of == values[np.argmax(counts)]]
 
 
 def check(points, V=None, T=None, unit=None) -> Verdict:
@@ -280,7 +324,15 @@ def check(points, V=None, T=None, unit=None) -> Verdict:
                                           f"behind its eye's corners (lids: at most {LIDS_BEHIND}; inside the socket?)")
     if V is not None:
         V, T = np.asarray(V, np.float64), np.asarray(T, np.int64)
-        depth = buried(V, landmark_parts(V, T, P), P, frame, eyes) / eyes
+        parts, skin = landmark_parts(V, T, P)
+        opening = eye_openings(V, skin, P, frame, eyes) / eyes
+        closed = [side for side, depth in zip(("right", "left"), opening) if depth < EYE_OPENING]
+        if closed:
+            which = "both eyes'" if len(closed) == 2 else f"the {closed[0]} eye's"
+            verdict.fail("eyes", "closed", f"{which} lids meet (the skin between the corners at most "
+                                           f"{opening.min():.2f} eye distances behind them; open eyes: over "
+                                           f"{EYE_OPENING}): a head at rest has its eyes open")
+        depth = buried(V, parts, P, frame, eyes) / eyes
         tolerance = np.full(68, BURIED)
         tolerance[list(INNER_LIPS)], tolerance[CREASES] = BURIED_INNER_LIPS, BURIED_CREASES
         for g, rows in GROUPS.items():

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import LandmarkError
+from ..mesh import require_usable_triangles, seam_welds
 from ..rigid import rotation_vector_matrix
 from .pipeline import FoundLandmarks, detect
 from .render import View
@@ -142,8 +143,14 @@ def detect_anywhere(V, T, unit=None, **kwargs) -> FoundLandmarks:
     LandmarkError
         No face anywhere tried (the message says what was tried), or the error of the whole mesh's search
         when it was not "no face found".
+    MeshError
+        A triangle soup or mixed normals (:func:`~pdeface.mesh.require_usable_triangles`).
     """
     V, T = np.asarray(V, np.float64), np.asarray(T, np.int64)
+    require_usable_triangles(T)
+    # Copies an exporter split along UV seams joined (a seam down the face's midline left the midline's points a
+    # crack to fall through, and the steps that walk the skin a border there); none on ICT's or MakeHuman's heads.
+    T = seam_welds(V, T)[T]
     cands = head_candidates(V, T)
     order = [cands[0], None, *cands[1:]] if cands else [None]
     tried, whole = [], None

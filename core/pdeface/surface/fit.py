@@ -19,7 +19,15 @@ from ..geometry import (
     triangle_cross,
     unit_rows,
 )
-from ..mesh import Mesh, border_vertices, butterfly_step, connected_components, seam_welds
+from ..mesh import (
+    Mesh,
+    border_vertices,
+    butterfly_step,
+    connected_components,
+    facing,
+    require_usable_triangles,
+    seam_welds,
+)
 from ..threads import bounded
 from .fourier import fit_fourier
 from .frame import FACE_REACH_MM, face_frame, feature_points
@@ -276,6 +284,7 @@ def fit_face(vertices, triangles, landmarks, unit=None, n_curves=DEFAULT_CURVES,
         raise MeshError("vertices must be a finite (n, 3) array")
     if len(T) == 0:
         raise MeshError("mesh has no faces")
+    require_usable_triangles(T)
     frame = face_frame(landmarks, unit)
     Vf = frame.to_face(V)
     Lf = frame.to_face(landmarks)
@@ -294,6 +303,8 @@ def fit_face(vertices, triangles, landmarks, unit=None, n_curves=DEFAULT_CURVES,
         skin = T[every_corner(skin, T)]
         if len(skin) == 0:
             raise MeshError("the skin given has no triangles")
+    # Normals all pointing inwards (a mirrored export): every ray would meet a triangle's back.
+    skin = facing(Vf, skin, (0.0, 0.0, 1.0), float(Lf[[5, 11], 2].mean()))
     from .curves import (  # scipy: loaded only when a face is fitted
         CurveSampler,
         cavity_depths,
