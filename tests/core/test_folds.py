@@ -73,8 +73,9 @@ def test_the_bundled_face_is_measured(fitted):
 
 def test_the_rims_beyond_the_corners_fold_less(fitted):
     """The break piece keeps the runs' tangents at BREAK_SLOPE, and the eyes' rims beyond their corners sit
-    OPENING_GAPS["lid_top"] (0.6 mm) apart. With the break piece at the runs' full slope and 0.1 mm: 92 folds along the eyes' line at
-    rest, 79 along the mouth's in AU27 and 12 in AU12; with the break slope alone 35, 0 and 0; with the gap 8, 0, 0;
+    OPENING_GAPS["lid_top"] (0.6 mm) apart. With the break piece at the runs' full slope and 0.1 mm: 92 folds along
+    the eyes' line at rest, 79 along the mouth's in AU27 and 12 in AU12; with the break slope alone 35, 0 and 0; with
+    the gap 8, 0, 0;
     with each break confined to its opening's span (pdeface.surface.grid.break_weights) 0, 0, 0."""
     from pdeface.au.modelfile import load_face
     from pdeface.au.retarget import retarget
@@ -371,3 +372,28 @@ def test_relaxation_gathers_are_numpys_indexing():
     assert np.array_equal(coordinates_first, normals.T) and not coordinates_first[:, 0].any()
     first, second = rng.integers(0, 40, 30), rng.integers(0, 40, 30)
     assert np.array_equal(_cosines(coordinates_first, first, second), (normals[first] * normals[second]).sum(1))
+
+
+def test_a_grids_nearest_vertices_are_the_brute_forces(default_face):
+    """nearest_vertices searched tile by tile on a grid gives the brute force's indices: on a face's uneven mesh,
+    for its landmarks, for points past the grid's edge tiles (a ragged last tile), and where two vertices lie as
+    near (a tie: searched whole, as before)."""
+    from pdeface.surface.folds import TILE, _nearest_on_grid, nearest_vertices
+    from pdeface.surface.grid import surface_grid
+    from pdeface.surface.model import model_landmarks
+
+    K, J = len(default_face.knots), default_face.layout.n_points
+    rows, cols = np.where(np.arange(K - 1) % 3 == 0, 5, 3), np.where(np.arange(J - 1) % 2 == 0, 6, 2)
+    X = surface_grid(default_face, rows, cols)
+    assert X.shape[0] % TILE and X.shape[1] % TILE  # ragged tiles at both edges
+    rng = np.random.default_rng(3)
+    L = model_landmarks(default_face)
+    points = np.concatenate([L, X[-1, -1] + rng.normal(size=(20, 3)), X[rng.integers(0, X.shape[0], 30),
+                                                                           rng.integers(0, X.shape[1], 30)]
+                             + 0.3 * rng.normal(size=(30, 3))])
+    V = X.reshape(-1, 3)
+    brute, tiled = nearest_vertices(V, points), nearest_vertices(V, points, grid=X.shape[:2])
+    assert (brute >= 0).sum() > 60 and np.array_equal(brute, tiled)  # a model file keeps some landmarks
+    tie = 0.5 * (X[10, 10] + X[10, 11])  # half-way between two vertices
+    assert _nearest_on_grid(X, tie[None])[0] == -1
+    assert nearest_vertices(V, tie[None], grid=X.shape[:2])[0] == nearest_vertices(V, tie[None])[0]

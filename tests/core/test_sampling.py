@@ -258,3 +258,34 @@ def test_the_float32_screen_passes_every_edge_past_its_floor(model, floor):
                     assert mask[past].all()
                     over, passed = over + past.sum(), passed + mask.sum()
         assert over > 0 and passed < 1.5 * over  # measured 1.02-1.18x
+
+
+def test_a_screen_of_the_blocks_part_is_the_whole_grids_there(model):
+    """interval_turns screens a run of poses over the grid's part their blocks cover (_screen_groups): element by
+    element the numbers of the whole grid's screen, so the same edges pass there; every pose is in one run, in
+    order, and a run's part is no larger than the poses' blocks screened apart ask for."""
+    from pdeface.surface.grid import key_grids
+
+    K, J = len(model.knots), model.layout.n_points
+    steps = ((sampling.PROBE,) * (K - 1), (sampling.PROBE,) * (J - 1))
+    rest = surface_grid(model, *steps, planes=True)
+    rest_diagonals = [[p.astype(np.float32) for p in d] for d in sampling._diagonals(rest)]
+    _, grids = next(key_grids(model, *steps, planes=True))
+    G = grids[:8].astype(np.float32)
+    w = np.linspace(0.5, 1.0, len(G))
+    rng = np.random.default_rng(5)
+    looked = [np.float32(np.cos(np.radians(rng.uniform(0, 30, size=s)))) for s in
+              ((G.shape[2] - 2, G.shape[3] - 1), (G.shape[2] - 1, G.shape[3] - 2))]
+    whole = sampling._screened(rest_diagonals, G, w, looked)
+    assert all(m.any() for m in whole)
+    r0, r1, c0, c1 = 7, 60, 11, 90
+    part = sampling._screened([[p[r0:r1 - 1, c0:c1 - 1] for p in d] for d in rest_diagonals], G[:, :, r0:r1, c0:c1],
+                              w, [looked[0][r0:r1 - 2, c0:c1 - 1], looked[1][r0:r1 - 1, c0:c1 - 2]])
+    assert np.array_equal(part[0], whole[0][:, r0:r1 - 2, c0:c1 - 1])
+    assert np.array_equal(part[1], whole[1][:, r0:r1 - 1, c0:c1 - 2])
+    # blocks: two alike, one far off, two alike again
+    R0, R1 = np.array([0, 2, 60, 61, 0]), np.array([40, 42, 100, 100, 40])
+    C0, C1 = np.array([0, 0, 100, 100, 5]), np.array([50, 50, 140, 140, 45])
+    runs = sampling._screen_groups(R0, R1, C0, C1)
+    assert [(g.start, g.stop) for g in runs] == [(0, 2), (2, 4), (4, 5)]
+    assert sampling._screen_groups(R0[:1], R1[:1], C0[:1], C1[:1]) == [slice(0, 1)]

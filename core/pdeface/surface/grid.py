@@ -50,20 +50,22 @@ def break_weights(model: FaceModel, sub_v) -> tuple:
 
 
 def surface_grid(model: FaceModel, sub_u=4, sub_v=4, assembly=None, coefficients=None, residual=None, deriv=(0, 0),
-                 break_slope=BREAK_SLOPE, confine=True, planes=False, nodes=None):
+                 break_slope=BREAK_SLOPE, confine=True, planes=False, nodes=None, weights=None):
     """PDE surface (or a derivative) on the output grid, in the face frame (mm).
 
     ``confine``: each break only within its opening's span (:func:`break_weights`); the head binding
     reads the breaks across the whole width instead, so skin hidden behind a lip follows its rim.
     ``planes``: as (3, n_u, n_v) coordinate planes (:meth:`pdeface.surface.pde.SurfaceOperator.planes`).
     ``nodes``: at those grid nodes alone (flat indices, increasing), (p, 3)
-    (:meth:`pdeface.surface.pde.SurfaceOperator.at_nodes`).
+    (:meth:`pdeface.surface.pde.SurfaceOperator.at_nodes`). ``weights``: :func:`break_weights` of ``sub_v``, when
+    known (many solves on one grid).
     """
     return solve_surface(model.coefficients if coefficients is None else coefficients,
                          model.residual if residual is None else residual,
                          model.knots, model.a, model.remainder_w, sub_u, sub_v,
                          assembly or model.assembly, deriv, model.layout.breaks(), break_slope,
-                         break_weights(model, sub_v) if confine else (), planes, nodes)
+                         (break_weights(model, sub_v) if weights is None else weights) if confine else (), planes,
+                         nodes)
 
 
 #: Descriptors solved together by :func:`key_grids`: all of a face's 72 at once held ~5 copies of their
@@ -75,10 +77,11 @@ def key_grids(model: FaceModel, sub_u, sub_v, assembly=None, batch=KEY_BATCH, pl
     """Each descriptor's change of the surface (face frame, mm) on the output grid, a few solves at a time:
     yields ``(first, grids)``, ``grids`` (n_u, n_v, m, 3) for descriptors ``first .. first + m - 1``
     (``planes``: (m, 3, n_u, n_v))."""
+    weights = break_weights(model, sub_v)
     for first in range(0, len(model.descriptors), batch):
         dense = [d.dense() for d in model.descriptors[first:first + batch]]
         C, R = (np.concatenate(parts, axis=2) for parts in zip(*dense))  # stacked: the solve is linear
-        X = surface_grid(model, sub_u, sub_v, assembly, coefficients=C, residual=R, planes=planes)
+        X = surface_grid(model, sub_u, sub_v, assembly, coefficients=C, residual=R, planes=planes, weights=weights)
         yield first, (X.reshape((len(dense), 3) + X.shape[1:]) if planes else X.reshape(X.shape[:2] + (len(dense), 3)))
 
 

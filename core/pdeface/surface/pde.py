@@ -252,8 +252,10 @@ def _smooth_coefficients(knots: tuple, k: float, breaks: tuple = (), break_slope
     i, d = np.array(joins, dtype=np.int64).reshape(-1, 2).T
     # Into and out of a break piece the u-slope shrinks to break_slope of the run's: the same tangent
     # direction (so no crease), but the piece no longer overshoots where its rims nearly meet.
-    above = np.where(np.isin(i, breaks) & (d < 3), break_slope, 1.0)[:, None]
-    below = np.where(np.isin(i - 1, breaks) & (d < 3), break_slope, 1.0)[:, None]
+    at_break = np.zeros(K + 1, bool)  # by curve: np.isin costs more than the whole test
+    at_break[list(breaks)] = True
+    above = np.where(at_break[i] & (d < 3), break_slope, 1.0)[:, None]
+    below = np.where(at_break[i - 1] & (d < 3), break_slope, 1.0)[:, None]
     rows = 2 * (K - 1) + np.arange(len(i))[:, None]
     A[rows, 4 * i[:, None] - 4 + np.arange(4)] = phi[i - 1, d, 1] * above
     A[rows, 4 * i[:, None] + np.arange(4)] = -phi[i, d, 0] * below

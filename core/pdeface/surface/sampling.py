@@ -63,6 +63,8 @@ SCREEN_POSES = 8
 #: diagonals (the rest's and the key's apart), so its turns are within thousandths of a degree on quads larger than
 #: :data:`SCREEN_TINY_MM2`; it passes 1.02-1.2x the edges float64 puts past a floor (tests/core/test_sampling.py).
 SCREEN_MARGIN_DEG = 0.5
+#: What one screen costs beyond its quads, as quads screened (its array operations' own time; measured on the probe).
+SCREEN_CALL_QUADS = 4000
 #: A quad whose normal (the cross product of its diagonals, mm²) is shorter than this, its float32 turns
 #: unreliable: the screen passes its edges.
 SCREEN_TINY_MM2 = 1e-3
@@ -246,18 +248,50 @@ def _screened(rest_diagonals, G, w, looked_cos):
     coordinates'. A quad under :data:`SCREEN_TINY_MM2` counts as turning by 90°.
     """
     scale = None if (w == 1).all() else w.astype(np.float32)[:, None, None]
-    d1, d2 = ([r + (k if scale is None else scale * k) for r, k in zip(rest, key)]
-              for rest, key in zip(rest_diagonals, _diagonals(list(np.moveaxis(G, 1, 0)))))
-    N = [d2[1] * d1[2] - d2[2] * d1[1], d2[2] * d1[0] - d2[0] * d1[2], d2[0] * d1[1] - d2[1] * d1[0]]
-    square = N[0] * N[0] + N[1] * N[1] + N[2] * N[2]
+    d1, d2 = ([k if scale is None else np.multiply(k, scale, out=k) for k in key]
+              for key in _diagonals(list(np.moveaxis(G, 1, 0))))
+    for rest, key in zip(rest_diagonals, (d1, d2)):
+        for r, k in zip(rest, key):
+            k += r  # rest + w k, in place: the same sums, fewer fresh arrays (page faults)
+    N, product = [], np.empty_like(d1[0])
+    for a, b in ((1, 2), (2, 0), (0, 1)):  # the cross product d2 × d1, a component at a time
+        n = np.multiply(d2[a], d1[b])
+        n -= np.multiply(d2[b], d1[a], out=product)
+        N.append(n)
+    square = np.multiply(N[0], N[0])
+    square += np.multiply(N[1], N[1], out=product)
+    square += np.multiply(N[2], N[2], out=product)
     tiny = square < np.float32(SCREEN_TINY_MM2 ** 2)
     square[tiny] = 1.0
-    inverse = 1.0 / np.sqrt(square)
+    inverse = np.divide(1.0, np.sqrt(square, out=square), out=square)
     inverse[tiny] = 0.0  # its normal 0: a cosine of 0 with either neighbour
-    N = [c * inverse for c in N]
-    return ((N[0][:, :-1] * N[0][:, 1:] + N[1][:, :-1] * N[1][:, 1:] + N[2][:, :-1] * N[2][:, 1:]) < looked_cos[0],
-            (N[0][:, :, :-1] * N[0][:, :, 1:] + N[1][:, :, :-1] * N[1][:, :, 1:] + N[2][:, :, :-1] * N[2][:, :, 1:])
-            < looked_cos[1])
+    for c in N:
+        c *= inverse
+    masks = []
+    for axis in (0, 1):
+        ahead, behind = (np.s_[:, :-1], np.s_[:, 1:]) if axis == 0 else (np.s_[:, :, :-1], np.s_[:, :, 1:])
+        cos = np.multiply(N[0][ahead], N[0][behind])
+        step = np.empty_like(cos)
+        cos += np.multiply(N[1][ahead], N[1][behind], out=step)
+        cos += np.multiply(N[2][ahead], N[2][behind], out=step)
+        masks.append(cos < looked_cos[axis])
+    return tuple(masks)
+
+
+def _screen_groups(R0, R1, C0, C1):
+    """Consecutive runs (slices) of poses whose blocks (rows ``R0[p]`` .. ``R1[p]``, columns ``C0[p]`` .. ``C1[p]``) are
+    screened over one part of the grid, the smallest holding them all: a pose joins the run before it while the run's
+    part costs no more screened quads (and :data:`SCREEN_CALL_QUADS` a screen) than screening the two apart."""
+    runs, start = [], 0
+    for p in range(1, len(R0) + 1):
+        if p < len(R0):
+            joined = (R1[start:p + 1].max() - R0[start:p + 1].min()) * (C1[start:p + 1].max() - C0[start:p + 1].min())
+            alone = (R1[start:p].max() - R0[start:p].min()) * (C1[start:p].max() - C0[start:p].min())
+            if joined * (p + 1 - start) <= alone * (p - start) + (R1[p] - R0[p]) * (C1[p] - C0[p]) + SCREEN_CALL_QUADS:
+                continue
+        runs.append(slice(start, p))
+        start = p
+    return runs
 
 
 def _edge_cosines(vertex, axis):
@@ -295,7 +329,7 @@ def interval_turns(model, rows, cols, W, floor=0.0):
     K, J = len(model.knots), model.layout.n_points
     interval = [np.repeat(np.arange(K - 1), rows), np.repeat(np.arange(J - 1), cols)]  # of each quad row, column
     L = model_landmarks(model)
-    nearest = nearest_vertices(X0.reshape(-1, 3), L)
+    nearest = nearest_vertices(X0.reshape(-1, 3), L, grid=(n_u, n_v))
     # each inner edge's midpoint at rest: across rows (on row r + 1), across columns (on column c + 1)
     mids = (0.5 * (X0[1:-1, :-1] + X0[1:-1, 1:]), 0.5 * (X0[:-1, 1:-1] + X0[1:, 1:-1]))
     shut_at_rest = [~opening_mask(m.reshape(-1, 3), L).reshape(m.shape[:2]) for m in mids]
@@ -342,24 +376,42 @@ def interval_turns(model, rows, cols, W, floor=0.0):
     rows_moved, cols_moved = np.zeros((n, n_u), bool), np.zeros((n, n_v), bool)
     rest_diagonals = [[p.astype(np.float32) for p in d] for d in _diagonals(planes0)]
     floor_cos = np.cos(np.radians(floor)) + 1e-9
+    looked_at = {}  # the cosines each edge must fall under to be looked at, for the needs found so far
 
-    def measure_screened(G, w, blocks, vertex, moved_landmarks):
-        """Poses ``rest + w[p] G[p]`` (``G`` float32 (poses, 3, n_u, n_v)), each on its block: screened together,
-        their candidates measured as :func:`_edges_over` measures a block, from ``vertex(pose, rows, cols)``: the
-        posed grid's three coordinates in float64, as its block is posed (the same numbers)."""
+    def measure_screened(G, w, blocks, vertex, moved_landmarks, origin=(0, 0)):
+        """Poses ``rest + w[p] G[p]`` (``G`` float32 (poses, 3, n_u, n_v), or the grid's part from row and column
+        ``origin`` on), each on its block: screened together, their candidates measured as :func:`_edges_over`
+        measures a block, from ``vertex(pose, rows, cols)``: the posed grid's three coordinates in float64, as its
+        block is posed (the same numbers). Runs of poses with like blocks are screened over the part of the grid
+        their blocks cover (:func:`_screen_groups`; element by element, the whole grid's numbers there)."""
         R0, R1, C0, C1 = (np.array(a) for a in zip(*[(b[0].start, min(b[0].stop, n_u), b[1].start, min(b[1].stop, n_v))
                                                     for b in blocks]))
         edges = [[] for _ in blocks]
         # an edge is looked at past the floor and past the need of one of its intervals (the others cannot raise
         # one), shut at rest; the screen passes those a margin under that
-        looked_cos = []
+        needs = need[0].tobytes() + need[1].tobytes()
+        if needs not in looked_at:  # the needs changed (a settle raised one)
+            looked_at.clear()
+            looked_at[needs] = []
+            for axis in (0, 1):
+                lower = np.maximum(floor, np.minimum(need[axis][interval[axis][:-1]], need[axis][interval[axis][1:]]))
+                cos = np.cos(np.radians(np.maximum(lower - SCREEN_MARGIN_DEG, 0.0))).astype(np.float32)
+                looked_at[needs].append(np.where(shut_at_rest[axis], cos[:, None] if axis == 0 else cos[None, :],
+                                              np.float32(-2.0)))
+        looked_cos = looked_at[needs]
+        passed = ([], [])  # per axis: (pose, row, column) of the edges the screen passes
+        for g in _screen_groups(R0, R1, C0, C1):
+            r0, r1, c0, c1 = R0[g].min(), R1[g].max(), C0[g].min(), C1[g].max()  # the grid's part they cover
+            # the edges with both quads in the part: across rows r0 .. r1 - 3, across columns c0 .. c1 - 3
+            masks = _screened([[p[r0:r1 - 1, c0:c1 - 1] for p in d] for d in rest_diagonals],
+                              G[g, :, r0 - origin[0]:r1 - origin[0], c0 - origin[1]:c1 - origin[1]],
+                              w[g], [cos[r0:r1 - 2 + axis, c0:c1 - 1 - axis] for axis, cos in enumerate(looked_cos)])
+            for axis, mask in enumerate(masks):
+                if mask.any():  # most screens of a finer mesh pass none (and nonzero reads slower)
+                    q, r, c = np.nonzero(mask)
+                    passed[axis].append((q + g.start, r + r0, c + c0))
         for axis in (0, 1):
-            lower = np.maximum(floor, np.minimum(need[axis][interval[axis][:-1]], need[axis][interval[axis][1:]]))
-            cos = np.cos(np.radians(np.maximum(lower - SCREEN_MARGIN_DEG, 0.0))).astype(np.float32)
-            looked_cos.append(np.where(shut_at_rest[axis], cos[:, None] if axis == 0 else cos[None, :],
-                                       np.float32(-2.0)))
-        for axis, mask in enumerate(_screened(rest_diagonals, G, w, looked_cos)):
-            q, r, c = np.nonzero(mask)
+            q, r, c = (np.concatenate(a) for a in zip(*passed[axis])) if passed[axis] else np.zeros((3, 0), int)
             # the edge and both its quads in the pose's block (as _edges_over's block slices give them)
             inside = (r >= R0[q]) & (r <= R1[q] - 3 + axis) & (c >= C0[q]) & (c <= C1[q] - 2 - axis)
             q, r, c = q[inside], r[inside], c[inside]
@@ -367,7 +419,7 @@ def interval_turns(model, rows, cols, W, floor=0.0):
             corners = [(dr, dc) for dr in range(3 - axis) for dc in range(2 + axis)]
             posed = vertex(np.tile(q, len(corners)), np.concatenate([r + dr for dr, _ in corners]),
                            np.concatenate([c + dc for _, dc in corners]))
-            corner = dict(zip(corners, zip(*(np.split(p, len(corners)) for p in posed))))
+            corner = dict(zip(corners, zip(*(p.reshape(len(corners), -1) for p in posed))))
             cos = _edge_cosines(lambda dr, dc, corner=corner: corner[dr, dc], axis)
             looked = cos < floor_cos
             t = degrees_from_cos(cos[looked])
@@ -381,9 +433,9 @@ def interval_turns(model, rows, cols, W, floor=0.0):
             # the edge's ends: across rows (r + 1, c) and (r + 1, c + 1), across columns (r, c + 1) and (r + 1, c + 1)
             a, b = (corner[e] for e in (((1, 0), (1, 1)) if axis == 0 else ((0, 1), (1, 1))))
             mid = np.stack([0.5 * (x[chosen] + y[chosen]) for x, y in zip(a, b)], axis=1)
-            for i in range(len(blocks)):
-                at = q == i
-                edges[i].append((before[at], after[at], t[at], mid[at]))
+            bounds = np.searchsorted(q, np.arange(len(blocks) + 1))  # q increases: each pose's run
+            for i, (s, e) in enumerate(zip(bounds[:-1], bounds[1:])):
+                edges[i].append((before[s:e], after[s:e], t[s:e], mid[s:e]))
         for moved, e in zip(moved_landmarks, edges):
             if sum(len(x[2]) for x in e):
                 found.append((moved, e))
@@ -396,9 +448,9 @@ def interval_turns(model, rows, cols, W, floor=0.0):
         screen = grids.astype(np.float32)
         # the largest per row and per column from float32 (half the bytes to read), again in float64 where its
         # rounding could put it on either side of MOVED_MM
-        size = np.abs(screen)
+        size = np.abs(screen).max(axis=1)  # (m, n_u, n_v): the largest of the three planes
         for axis, moved_lines in ((0, rows_moved), (1, cols_moved)):
-            largest = size.max(axis=3 - axis).max(axis=1)
+            largest = size.max(axis=2 - axis)
             unsure = np.abs(largest - np.float32(MOVED_MM)) <= SCREEN_SLACK * MOVED_MM
             moved_lines[first:first + m] = largest > MOVED_MM
             for j, i in zip(*np.nonzero(unsure)):
@@ -425,12 +477,12 @@ def interval_turns(model, rows, cols, W, floor=0.0):
         block = _moved_block(rows_moved[keys].any(axis=0), cols_moved[keys].any(axis=0))
         if block is None:
             continue
-        G = sum(np.float32(W[p, k]) * kept32[k] for k in keys)[None]
+        G = sum(np.float32(W[p, k]) * kept32[k][:, block[0], block[1]] for k in keys)[None]  # its block alone
 
         def vertex(q, r, c, keys=keys, p=p):
             return list(planes0[:, r, c] + np.tensordot(W[p, keys], np.stack([kept[k][:, r, c] for k in keys]), axes=1))
         moved = np.tensordot(W[p, keys], np.stack([kept[k].reshape(3, -1)[:, at_landmarks].T for k in keys]), axes=1)
-        measure_screened(G, np.ones(1), [block], vertex, [moved])
+        measure_screened(G, np.ones(1), [block], vertex, [moved], origin=(block[0].start, block[1].start))
     settle()
     return need
 
