@@ -35,9 +35,10 @@ ADAPTIVE = "default"
 #: Largest turn (degrees) the adaptive resolution aims for at an edge outside the openings, in each pose.
 #: A third under the 30° at which a render shows a fold: the probe's estimate is not exact.
 MAX_TURN_DEG = 20.0
-#: Steps per interval of the probe mesh the turns are measured on: 3, a 10,900-vertex mesh (4, the old uniform
-#: default, 19,285, cost as much as the check after it, and chose no better; issue #35).
-PROBE = 3
+#: Steps per interval of the probe mesh the turns are measured on (the old uniform default). A 3-step probe (10,900
+#: vertices against 19,285) chose worse: its choice left bends that the one check saw, and raised, blind to what
+#: the raise did to the intervals crossing them (the low-poly face's c11 turned 33° after r8 went 4 → 6 steps).
+PROBE = 4
 #: Fewest and most steps the adaptive resolution gives an interval.
 STEPS_RANGE = (2, 16)
 #: The probe's choice is measured once (the check): an interval whose edges turn by more than this many times the aim
