@@ -43,15 +43,16 @@ PROBE = 4
 STEPS_RANGE = (2, 16)
 #: The probe's choice is measured once (the check): an interval whose edges turn by more than this many times the aim
 #: on it gets more steps, aiming for :data:`RAISED_AIM` times the aim, in proportion to that turn. The raised mesh is
-#: not measured again: raising an interval can make the edges of the intervals crossing it turn more (their quads
-#: grow narrower across them), so the bar and the aim are under the aim's 1.25 and 1 a second check allowed.
+#: not measured again, and raising an interval can make the edges of the intervals crossing it turn more (their
+#: quads grow narrower across them): hence 23° and 19°, not the 25° and 20° of the rule that checked twice (with one
+#: check, those left the low-poly face at 35.1°; issue #35).
 VERIFY_FACTOR = 1.15
 RAISED_AIM = 0.95
 #: An interval whose edges turn on the checked mesh by more than this many times the probe's turn scaled to its
 #: steps (``PROBE * t / steps``) holds a bend narrower than the probe's step, which more steps shrink by less than
 #: in proportion (a bend narrower than any step keeps its turn): it gets the most steps.
 NARROW = 1.5
-#: Most vertices the adaptive mesh may have (the bundled face's has 17,802, the low-poly face's 25,281, a
+#: Most vertices the adaptive mesh may have (the bundled face's has 17,802, the low-poly face's 28,545, a
 #: MakeHuman head's 45,373): a descriptor that turns edges everywhere (a broken file, a huge residual) gets
 #: its steps capped to fit, not the most steps everywhere (a 230,800-vertex mesh, its choice 6.3 s of CPU;
 #: issue #35).
