@@ -1,11 +1,13 @@
 """Fit and resolution-choice time across mesh sizes, and peak memory (issue #35 targets).
 
 Usage: python -m scripts.bench.bench_scale [--repeat 3] [--no-rig] [--demo-render]
-       python -m scripts.bench.bench_scale --steps STEPS.json --no-page
+       python -m scripts.bench.bench_scale --steps STEPS.json --no-page [--baseline REF]
 
 ``--steps``: only the resolution choice's steps on 11 faces (the bundled face, faces fitted on ICT's generic head
 and identities 000, 007 and 013, and on six MakeHuman characters), with its CPU seconds: written to the file, or,
-where it exists, compared with it (run it on main first: a faster choice must choose the same steps).
+where it exists, compared with it (run it on main first: a faster choice must choose the same steps). With
+``--baseline REF`` (a git revision), each face's choice is also made by REF's ``sampling`` module (the rest of
+the core this checkout's), the two in turn ``--repeat`` times: CPU medians side by side, and each one's vertices.
 
 Prints, measured in this run (CPU seconds of this process, the figure a busy machine does not
 distort, and wall seconds beside them):
@@ -163,10 +165,13 @@ def fit_times(repeat):
 CHARACTERS = ("african-male-old-m", "base-dm")
 
 
-def chosen_afresh(m):
-    """The resolution choice of face model ``m`` made again: its cache and the operators' cleared."""
-    from pdeface.surface import pde, sampling
+def chosen_afresh(m, sampling=None):
+    """The resolution choice of face model ``m`` made again: its cache and the operators' cleared. ``sampling``:
+    the module choosing (this checkout's, or :func:`baseline_sampling`'s)."""
+    from pdeface.surface import pde
 
+    if sampling is None:
+        from pdeface.surface import sampling
     sampling._CHOSEN.clear()
     for cache in (pde.surface_operator, pde.confined_operator, pde.merged_operator, pde.mode_operator,
                   pde._smooth_coefficients):
@@ -237,9 +242,23 @@ STEPS_CHARACTERS = CHARACTERS + ("caucasian-female-young-cm", "asian-male-young-
                                  "decimated-cm")
 
 
-def steps_check(path, repeat):
+def baseline_sampling(ref):
+    """Git revision ``ref``'s ``pdeface.surface.sampling``, loaded beside this checkout's (its relative imports this
+    checkout's modules)."""
+    import importlib.util
+
+    source = subprocess.run(["git", "show", f"{ref}:core/pdeface/surface/sampling.py"], capture_output=True,
+                            text=True, check=True, cwd=ROOT).stdout
+    spec = importlib.util.spec_from_loader("pdeface.surface._baseline_sampling", loader=None)
+    module = importlib.util.module_from_spec(spec)
+    module.__package__ = "pdeface.surface"
+    exec(compile(source, f"{ref}:sampling.py", "exec"), module.__dict__)
+    return module
+
+
+def steps_check(path, repeat, baseline=None):
     """The resolution choice's steps on 11 faces, and its CPU seconds on each: written to ``path``, or compared
-    with the steps there."""
+    with the steps there; with ``baseline`` (a git revision), against its choice too, timed in turn."""
     from pdeface.assets import load_head, load_head_shapes
     from pdeface.au.modelfile import load_face
     from pdeface.au.retarget import retarget
@@ -260,14 +279,32 @@ def steps_check(path, repeat):
         faces[name] = retarget(source, fit_face(*ch.joined(), ch.landmarks)[0])
 
     before = json.loads(Path(path).read_text()) if Path(path).exists() else None
-    chosen, total, changed = {}, 0.0, []
+    old = baseline_sampling(baseline) if baseline else None
+    chosen, total, changed, rows = {}, 0.0, [], []
     for name, m in faces.items():
-        cpu, wall, chosen[name] = timed(lambda m=m: [list(s) for s in chosen_afresh(m)], repeat)
+        if old is None:
+            cpu, wall, chosen[name] = timed(lambda m=m: [list(s) for s in chosen_afresh(m)], repeat)
+        else:
+            now, then = [], []
+            for _ in range(repeat):  # in turn, so that a change of load weighs on both
+                now.append(timed(lambda m=m: [list(s) for s in chosen_afresh(m)], 1))
+                then.append(timed(lambda m=m: [list(s) for s in chosen_afresh(m, old)], 1))
+            cpu, wall = (float(np.median([r[i] for r in now])) for i in (0, 1))
+            chosen[name], old_steps = now[-1][2], then[-1][2]
+            old_cpu = float(np.median([r[0] for r in then]))
+            rows.append((cpu, old_cpu))
         total += cpu
         n = (sum(chosen[name][0]) + 1) * (sum(chosen[name][1]) + 1)
         same = "" if before is None else ("the same steps" if before.get(name) == chosen[name] else "OTHER STEPS")
         changed += [name] if same == "OTHER STEPS" else []
-        print(f"  {name:28s} {n:6d} vertices chosen: {cpu:.2f} s CPU ({wall:.2f} wall) {same}")
+        versus = "" if old is None else (f" against {old_cpu:.2f} s ({baseline}'s rule, "
+                                         f"{(sum(old_steps[0]) + 1) * (sum(old_steps[1]) + 1)} vertices)")
+        print(f"  {name:28s} {n:6d} vertices chosen: {cpu:.2f} s CPU ({wall:.2f} wall){versus} {same}")
+    if rows:
+        print(f"  medians of {repeat} each, in turn: {sum(r[0] for r in rows):.2f} s CPU for the {len(rows)} faces "
+              f"against {sum(r[1] for r in rows):.2f} s; at most {max(r[0] for r in rows):.2f} s against "
+              f"{max(r[1] for r in rows):.2f} s; faces at or under 0.2 s: {sum(r[0] <= 0.2 for r in rows)} against "
+              f"{sum(r[1] <= 0.2 for r in rows)}")
     if before is None:
         Path(path).write_text(json.dumps(chosen))
         print(f"resolution choice on {len(faces)} faces: {total:.2f} s CPU; steps written to {path}")
@@ -384,6 +421,7 @@ def main(argv=None):
     ap.add_argument("--demo-render", action="store_true", help="measure the whole demo, render included (minutes)")
     ap.add_argument("--steps", metavar="JSON", help="only the resolution choice's steps on 11 faces: written to "
                     "JSON, or compared with it where it exists")
+    ap.add_argument("--baseline", metavar="REF", help="with --steps: REF's resolution choice too, timed in turn")
     ap.add_argument("--rig-child", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.rig_child:
@@ -391,7 +429,7 @@ def main(argv=None):
     print(f"threads: OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS', 'unset')}; "
           f"load average at the start {os.getloadavg()[0]:.2f}")
     if args.steps:
-        steps_check(args.steps, args.repeat)
+        steps_check(args.steps, args.repeat, args.baseline)
         print(f"load average at the end {os.getloadavg()[0]:.2f}")
         return
     heads, L, fit_cpu = fit_times(args.repeat)

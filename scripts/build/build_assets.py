@@ -35,15 +35,17 @@ from pdeface.au.modelfile import load_model, model_nbytes, save_model
 from pdeface.facs import key_side
 from pdeface.mesh import Mesh
 from pdeface.surface.fit import fit_face
-from pdeface.surface.sampling import adaptive_resolution
+from pdeface.surface.sampling import adaptive_resolution, forget_resolution
 
 OFFSET_STEP = 2e-4  # cm per int16 step of stored offsets (2 µm; range ±6.5 cm)
 
 
 def keep_mesh_steps(path):
     """Choose the default resolution of the model file at ``path`` as it reads back (its curves in the file's
-    steps, its kept landmarks) and write it into the file, so meshing it does not choose again; the size."""
+    steps, its kept landmarks) and write it into the file, so meshing it does not choose again; the size. Steps
+    the file carries already are chosen again."""
     model = load_model(path)
+    forget_resolution(model)
     rows, cols = adaptive_resolution(model)
     print(f"  mesh steps: {sum(rows) + 1} rows × {sum(cols) + 1} columns")
     return save_model(path, model)
@@ -62,8 +64,8 @@ def write_default_face(V32, T, landmarks, shapes, out):
         if key in APPROXIMATIONS:
             d.extra["approximation"] = APPROXIMATIONS[key]
         model.descriptors.append(d)
-        print(f"  AU{key:4s} curves {d.curves.min() if len(d.curves) else '-'}-{d.curves.max() if len(d.curves) else '-'}"
-              f" ({len(d.curves)}), {len(descriptor_to_bytes(d))} bytes")
+        span = f"{d.curves.min()}-{d.curves.max()}" if len(d.curves) else "---"
+        print(f"  AU{key:4s} curves {span} ({len(d.curves)}), {len(descriptor_to_bytes(d))} bytes")
     save_model(out / "default_face.npz", model)
     size = keep_mesh_steps(out / "default_face.npz")
     print(f"default_face.npz: {size} bytes ({model_nbytes(model)} face model + {len(model.descriptors)} descriptors); "

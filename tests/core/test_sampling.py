@@ -153,6 +153,63 @@ def test_a_descriptor_turning_edges_everywhere_is_capped(model):
     assert lowered and np.prod([s.sum() + 1 for s in many]) <= sampling.MAX_VERTICES and min(map(min, many)) >= 2
 
 
+def test_one_check_raises_a_wide_bend_in_proportion_and_a_narrow_one_to_the_most(model, monkeypatch):
+    """The choice measures two meshes, the probe and its choice. On the check, an interval over the bar whose turn
+    shrank with its steps (a bend wider than the probe's step) gets steps in proportion to its turn; one whose turn
+    did not (narrower) gets the most; the rest keep the probe's choice. Measured turns stood in here."""
+    K, J = len(model.knots), model.layout.n_points
+    lo, hi = sampling.STEPS_RANGE
+    aim, probe = sampling.MAX_TURN_DEG, sampling.PROBE
+    probed = [np.full(K - 1, 2.0 * aim), np.zeros(J - 1)]  # every curve interval 2x the aim on the probe
+    wanted = int(np.ceil(probe * 2.0))
+    shrunk = aim * 1.2  # past the bar (1.15x the aim), yet shrunk with the steps
+    checked = [np.full(K - 1, aim * 0.9), np.zeros(J - 1)]
+    checked[0][[3, 4]] = shrunk  # a wide bend, near the bar
+    checked[0][7] = 2.0 * aim  # as on the probe at more steps: narrow
+    calls = []
+
+    def measured(m, rows, cols, W, floor=0.0):
+        calls.append((tuple(rows), tuple(cols), floor))
+        return [t.copy() for t in (probed if len(calls) == 1 else checked)]
+    monkeypatch.setattr(sampling, "interval_turns", measured)
+    monkeypatch.setattr(sampling, "_CHOSEN", {})
+    rows, cols = sampling.adaptive_resolution(model)
+    assert len(calls) == 2 and calls[0][0] == (probe,) * (K - 1)
+    assert calls[1][:2] == ((wanted,) * (K - 1), (lo,) * (J - 1))
+    assert calls[1][2] == pytest.approx(sampling.VERIFY_FACTOR * aim)
+    raised = int(np.ceil(wanted * shrunk / (sampling.RAISED_AIM * aim)))
+    assert wanted < raised < hi and rows[3] == rows[4] == raised and rows[7] == hi
+    assert [r for i, r in enumerate(rows) if i not in (3, 4, 7)] == [wanted] * (K - 4) and cols == (lo,) * (J - 1)
+
+
+def test_a_narrow_bend_gets_the_most_steps_in_one_check():
+    """On the face fitted on MakeHuman's african-male-old (a bend narrower than the probe's step in curve intervals 8
+    and 9: 7 steps turned it by 35.5°, 4 by 33.4°), the choice measures two meshes and gives that bend the most
+    steps; on the mesh chosen no interval under the most steps turns an edge by more than 25° in any pose (measured
+    22.7°; with the second check before, 24.0°), and the mesh is at most 15 % larger than that rule's."""
+    from pdeface.au.modelfile import load_face
+    from pdeface.au.retarget import retarget
+    from pdeface.surface.fit import fit_face
+
+    from scripts.devset.characters import SPECS, build
+
+    ch = build(SPECS["african-male-old-m"])
+    face = retarget(load_face("default"), fit_face(*ch.joined(), ch.landmarks)[0])
+    measure, calls = sampling.interval_turns, []
+
+    def counted(*args, **kw):
+        calls.append(args[1:3])
+        return measure(*args, **kw)
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(sampling, "interval_turns", counted)
+        rows, cols = sampling.adaptive_resolution(face)
+    assert len(calls) == 2
+    assert rows[8] == rows[9] == sampling.STEPS_RANGE[1]
+    turns = sampling.interval_turns(face, rows, cols, sampling.pose_weights(face), 25.0)
+    assert all(t[np.array(s) < sampling.STEPS_RANGE[1]].max() <= 25.0 for s, t in zip((rows, cols), turns))
+    assert (sum(rows) + 1) * (sum(cols) + 1) <= 1.15 * 46_530  # main's rule (three meshes): 46,530 vertices
+
+
 def test_descriptors_solved_in_batches_are_those_solved_at_once(model):
     """key_grids (a few descriptors per solve, to bound memory) gives each descriptor's grid as one stacked solve
     of them all does, in order."""

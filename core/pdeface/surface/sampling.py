@@ -35,15 +35,24 @@ ADAPTIVE = "default"
 #: Largest turn (degrees) the adaptive resolution aims for at an edge outside the openings, in each pose.
 #: A third under the 30° at which a render shows a fold: the probe's estimate is not exact.
 MAX_TURN_DEG = 20.0
-#: Steps per interval of the probe mesh the turns are measured on (the old uniform default).
+#: Steps per interval of the probe mesh the turns are measured on (the old uniform default). A 3-step probe (10,900
+#: vertices against 19,285) chose worse: its choice left bends that the one check saw, and raised, blind to what
+#: the raise did to the intervals crossing them (the low-poly face's c11 turned 33° after r8 went 4 → 6 steps).
 PROBE = 4
 #: Fewest and most steps the adaptive resolution gives an interval.
 STEPS_RANGE = (2, 16)
-#: After the probe's choice, an interval whose edges still turn by more than this many times the aim gets
-#: more steps, measured on the chosen mesh, at most this many rounds.
-VERIFY_FACTOR = 1.25
-VERIFY_ROUNDS = 2
-#: Most vertices the adaptive mesh may have (the bundled face's has 17,802, the low-poly face's 25,281, a
+#: The probe's choice is measured once (the check): an interval whose edges turn by more than this many times the aim
+#: on it gets more steps, aiming for :data:`RAISED_AIM` times the aim, in proportion to that turn. The raised mesh is
+#: not measured again, and raising an interval can make the edges of the intervals crossing it turn more (their
+#: quads grow narrower across them): hence 23° and 19°, not the 25° and 20° of the rule that checked twice (with one
+#: check, those left the low-poly face at 35.1°; issue #35).
+VERIFY_FACTOR = 1.15
+RAISED_AIM = 0.95
+#: An interval whose edges turn on the checked mesh by more than this many times the probe's turn scaled to its
+#: steps (``PROBE * t / steps``) holds a bend narrower than the probe's step, which more steps shrink by less than
+#: in proportion (a bend narrower than any step keeps its turn): it gets the most steps.
+NARROW = 1.5
+#: Most vertices the adaptive mesh may have (the bundled face's has 17,802, the low-poly face's 28,545, a
 #: MakeHuman head's 45,373): a descriptor that turns edges everywhere (a broken file, a huge residual) gets
 #: its steps capped to fit, not the most steps everywhere (a 230,800-vertex mesh, its choice 6.3 s of CPU;
 #: issue #35).
@@ -182,6 +191,11 @@ def remember_resolution(model, rows, cols, max_turn=MAX_TURN_DEG, fingerprint=No
     steps = (tuple(int(s) for s in rows), tuple(int(s) for s in cols))
     _CHOSEN[fingerprint or model_fingerprint(model), max_turn] = steps
     return steps
+
+
+def forget_resolution(model, max_turn=MAX_TURN_DEG):
+    """Drop ``model``'s remembered adaptive steps (those its file carried), so they are chosen again."""
+    _CHOSEN.pop((model_fingerprint(model), max_turn), None)
 
 
 def known_resolution(model, max_turn=MAX_TURN_DEG, fingerprint=None):
@@ -504,10 +518,11 @@ def adaptive_resolution(model, max_turn=MAX_TURN_DEG):
 
     Each interval's largest turn ``t`` on the probe mesh (:data:`PROBE` steps; :func:`interval_turns`)
     gives it ``ceil(PROBE * t / max_turn)`` steps within :data:`STEPS_RANGE`. Then the mesh so chosen is
-    measured the same way: where a bend is narrower than the probe's steps its turn does not shrink in
-    proportion, and an interval still over :data:`VERIFY_FACTOR` × ``max_turn`` gets steps in proportion
-    to its measured turn (up to :data:`VERIFY_ROUNDS` times). The mesh is kept under :data:`MAX_VERTICES`
-    (:func:`capped_steps`); a capped choice is not verified again (more steps are what it would ask for).
+    measured the same way, once: an interval still over :data:`VERIFY_FACTOR` × ``max_turn`` gets steps in
+    proportion to its measured turn, aiming for :data:`RAISED_AIM` × ``max_turn``, or the most steps where its
+    turn shrank much less than its steps grew (:data:`NARROW`: a bend narrower than the probe's step). The mesh
+    is kept under :data:`MAX_VERTICES` (:func:`capped_steps`); a capped choice is not checked (more steps are
+    what it would ask for).
     """
     fingerprint = model_fingerprint(model)  # a digest of the descriptors: taken once
     known = known_resolution(model, max_turn, fingerprint)
@@ -517,16 +532,14 @@ def adaptive_resolution(model, max_turn=MAX_TURN_DEG):
     W = pose_weights(model)
     lo, hi = STEPS_RANGE
     floor = max_turn * lo / PROBE  # turns below this leave an interval at the fewest steps
-    steps = [np.clip(np.ceil(PROBE * t / max_turn), lo, hi).astype(int)
-             for t in interval_turns(model, (PROBE,) * (K - 1), (PROBE,) * (J - 1), W, floor)]
-    steps, capped = capped_steps(steps)
-    for _ in range(0 if capped else VERIFY_ROUNDS):
-        turns = interval_turns(model, *steps, W, VERIFY_FACTOR * max_turn)
-        over = [(t > VERIFY_FACTOR * max_turn) & (s < hi) for s, t in zip(steps, turns)]
-        if not any(o.any() for o in over):
-            break
-        steps, capped = capped_steps([np.where(o, np.minimum(np.ceil(s * t / max_turn), hi), s).astype(int)
-                                      for s, t, o in zip(steps, turns, over)])
-        if capped:
-            break
+    probed = interval_turns(model, (PROBE,) * (K - 1), (PROBE,) * (J - 1), W, floor)
+    steps, capped = capped_steps([np.clip(np.ceil(PROBE * t / max_turn), lo, hi).astype(int) for t in probed])
+    if not capped:
+        bar = VERIFY_FACTOR * max_turn
+        raised = []
+        for s, t, p in zip(steps, interval_turns(model, *steps, W, bar), probed):
+            expected = PROBE * np.maximum(p, floor) / s  # its turn if it shrank in proportion to the steps
+            wanted = np.where(t > NARROW * expected, hi, np.ceil(s * t / (RAISED_AIM * max_turn)))
+            raised.append(np.where((t > bar) & (s < hi), np.clip(wanted, s, hi), s).astype(int))
+        steps, _ = capped_steps(raised)
     return remember_resolution(model, *steps, max_turn=max_turn, fingerprint=fingerprint)
