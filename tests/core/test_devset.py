@@ -620,6 +620,31 @@ def test_outer_eye_corners_on_the_upper_lid_go_to_the_end_of_the_eyes_opening(na
 
 
 @needs_makehuman
+@pytest.mark.parametrize("name", ["base-dm", "parted-lips-cm"])
+def test_the_brow_region_is_posed_by_the_outer_eye_corners_at_the_openings_end(name):
+    # The brow region's registration is posed and held by the found eyes: outer corners left up and forward on the
+    # upper lid (as the face mesh puts them) tilt it, so the pipeline takes them to the opening's end first. Raised
+    # 0.08 and put 0.03 forward, they move the brows registered from them over 0.003 eye distances from those the
+    # true corners give; taken to the opening's end first, a third of that at most.
+    import inspect
+
+    from pdeface.landmarks import pipeline
+    from pdeface.landmarks.brows import BROWS, brows_from_template
+    from pdeface.landmarks.eyes import outer_corners_at_opening_end
+
+    source = inspect.getsource(pipeline.detect)
+    assert source.index("outer_corners_at_opening_end(") < source.index("brows_from_template(")
+    ch = build(SPECS[name])
+    V, T, L, eyes, rows = ch.vertices, ch.triangles, ch.skin_landmarks, ch.eye_distance, list(BROWS)
+    own = brows_from_template(V, T, L)
+    raised = _moved_in_face_frame(V, T, L, [36, 45], (0, 0.08, 0.03))
+    tilted = brows_from_template(V, T, raised)
+    posed = brows_from_template(V, T, outer_corners_at_opening_end(V, T, raised))
+    off_tilted, off_posed = (np.linalg.norm(P[rows] - own[rows], axis=1).max() / eyes for P in (tilted, posed))
+    assert off_tilted > 0.003 and off_posed < off_tilted / 3, (off_tilted, off_posed)
+
+
+@needs_makehuman
 def test_an_outer_eye_corner_far_from_the_openings_end_stays():
     # Farther than OPENING_END_REACH from the opening's end the opening is not this corner's (a crease or a groove
     # joined to the slit): a corner put 0.2 eye distances up on the lid's skin stays where it is, the other goes.
