@@ -14,6 +14,8 @@ from pdeface.surface.sampling import (
     resolution_text,
 )
 
+from scripts.devset import makehuman
+
 
 @pytest.fixture(scope="module")
 def model(default_face):
@@ -182,6 +184,7 @@ def test_one_check_raises_a_wide_bend_in_proportion_and_a_narrow_one_to_the_most
     assert [r for i, r in enumerate(rows) if i not in (3, 4, 7)] == [wanted] * (K - 4) and cols == (lo,) * (J - 1)
 
 
+@pytest.mark.skipif(not makehuman.available(), reason="needs ../shared/data/makehuman")
 def test_a_narrow_bend_gets_the_most_steps_in_one_check():
     """On the face fitted on MakeHuman's african-male-old (a bend narrower than the probe's step in curve intervals 8
     and 9: 7 steps turned it by 35.5°, 4 by 33.4°), the choice measures two meshes and gives that bend the most

@@ -12,9 +12,10 @@ closed eye), or where the climb from it onto the lid meets a step (lashes fused 
 On the development set the eyes' median error against the registered skin points falls from 3.3 to 2.4 % of the
 eye distance (upper lids 37/44 from 5.5/4.3 to 1.8/1.6); on ICT's held-out heads no point moves.
 
-The eye corners (:func:`corners_on_skin_front`) come forward onto the skin seen straight on where the snap left them
-deep in the crease behind it, and the outer ones then go to the lateral end of the eye's opening where one shows
-(:func:`outer_corners_at_opening_end`; see each).
+The outer eye corners go to the lateral end of the eye's opening where one shows
+(:func:`outer_corners_at_opening_end`, before the brows, whose region the eye corners pose), and later all four come
+forward onto the skin seen straight on where the snap left them deep in the crease behind it
+(:func:`corners_on_skin_front`, after the brows; see each, and the order in :mod:`.pipeline`).
 """
 from __future__ import annotations
 

@@ -36,6 +36,8 @@ def _inside(points, polygon) -> np.ndarray:
     return (crosses & (x < xc)).sum(axis=1) % 2 == 1
 
 
+#: At most this many points (landmarks) are searched for by brute force (and on a grid, by its tiles); more, by a tree.
+FEW_POINTS = 100
 #: Rows and columns of a grid's tiles in :func:`nearest_vertices`' search of a grid.
 TILE = 8
 #: Squared distances (mm²) nearer than this to the nearest one are searched for as before (over every vertex): a
@@ -56,14 +58,14 @@ def nearest_vertices(rest_vertices, points, grid=None) -> np.ndarray:
     nearest = np.full(len(P), -1)
     if not known.any():
         return nearest
-    if grid is not None and known.sum() <= 100:
+    if grid is not None and known.sum() <= FEW_POINTS:
         found = _nearest_on_grid(V.reshape(*grid, 3), P[known])
         unsure = found < 0
         nearest[np.nonzero(known)[0][~unsure]] = found[~unsure]
         known &= nearest < 0
         if not known.any():
             return nearest
-    if known.sum() <= 100:  # landmarks: a brute-force search (|v|² - 2 v·p per pair) is cheaper than a tree
+    if known.sum() <= FEW_POINTS:  # landmarks: a brute-force search (|v|² - 2 v·p per pair) is cheaper than a tree
         # (a sum over the axis of 3 is slow in numpy; the same additions in the same order)
         square = V[:, 0] ** 2 + V[:, 1] ** 2 + V[:, 2] ** 2
         nearest[known] = np.argmin(square - 2 * P[known] @ V.T, axis=1)

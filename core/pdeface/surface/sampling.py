@@ -48,9 +48,10 @@ STEPS_RANGE = (2, 16)
 #: check, those left the low-poly face at 35.1°; issue #35).
 VERIFY_FACTOR = 1.15
 RAISED_AIM = 0.95
-#: An interval whose edges turn on the checked mesh by more than this many times the probe's turn scaled to its
-#: steps (``PROBE * t / steps``) holds a bend narrower than the probe's step, which more steps shrink by less than
-#: in proportion (a bend narrower than any step keeps its turn): it gets the most steps.
+#: An interval whose edges turn on the checked mesh by more than this many times the probe's turn scaled to its steps
+#: (``PROBE * max(t, floor) / steps``, the probe's floor for a turn it did not look at) holds a bend narrower than the
+#: probe's step, which more steps shrink by less than in proportion (a bend narrower than any step keeps its turn): it
+#: gets the most steps.
 NARROW = 1.5
 #: Most vertices the adaptive mesh may have (the bundled face's has 17,802, the low-poly face's 28,545, a
 #: MakeHuman head's 45,373): a descriptor that turns edges everywhere (a broken file, a huge residual) gets
@@ -64,8 +65,8 @@ MOVED_MM = 0.005
 SETTLE_POSES = 16
 #: Largest explicit steps per interval.
 MAX_STEPS = 64
-#: Poses of one key whose turns are screened in one array operation (over the whole grid, in float32): the
-#: screen's arrays hold this many grids.
+#: Poses of one key whose turns are screened in one array operation (in float32, over the part of the grid their
+#: moved blocks cover): the screen's arrays hold this many grids.
 SCREEN_POSES = 8
 #: The float32 screen passes every edge within this many degrees of the turn it must pass; each it passes is
 #: measured again in float64, as :func:`quad_turn_cosines` measures it. Float32 keeps 7 digits of the quads'
@@ -328,14 +329,14 @@ def interval_turns(model, rows, cols, W, floor=0.0):
     """Largest turn (degrees) of the edges in each curve interval and each point interval, outside the
     openings, over the poses ``W`` (:func:`pose_weights`), on the mesh of ``rows``, ``cols`` steps.
 
-    An edge across rows belongs to the curve intervals of the quads on both its sides, one across columns
-    to their point intervals. Turns under ``floor`` are not looked at. The openings are those
-    :func:`pdeface.surface.folds.fold_edges` allows: the landmark polygons at rest, where the pose carries
-    them, and the edges that lie in them at rest. A pose turns edges as the rest does where it does not move
-    the skin: only its moved block is measured. A pose of one key is measured as its key's batch is solved;
-    only the keys of poses of several are kept. The poses' edges are screened in float32, a few poses in one array
-    operation over the whole grid, for those that could raise a need (:data:`SCREEN_MARGIN_DEG`); only those are
-    measured in float64, with :func:`quad_turn_cosines`' products: the same turns as measuring each block.
+    An edge across rows belongs to the curve intervals of the quads on both its sides, one across columns to their point
+    intervals. Turns under ``floor`` are not looked at. The openings are those :func:`pdeface.surface.folds.fold_edges`
+    allows: the landmark polygons at rest, where the pose carries them, and the edges that lie in them at rest. A pose
+    turns edges as the rest does where it does not move the skin: only its moved block is measured. A pose of one key is
+    measured as its key's batch is solved; only the keys of poses of several are kept. The poses' edges are screened in
+    float32, a few poses in one array operation over the part of the grid their moved blocks cover, for those that could
+    raise a need (:data:`SCREEN_MARGIN_DEG`); only those are measured in float64, with :func:`quad_turn_cosines`'
+    products: the same turns as measuring each block.
     """
     planes0 = surface_grid(model, rows, cols, planes=True)
     X0 = np.ascontiguousarray(np.moveaxis(planes0, 0, 2))
