@@ -264,6 +264,17 @@ SOUP_SHARE = 0.5
 MIXED_WINDING_SHARE = 0.05
 
 
+def triangle_arrays(V, T) -> tuple[np.ndarray, np.ndarray]:
+    """``(V, T)`` as float64 (n, 3) finite vertices and int64 (m, 3) triangles indexing them, or a
+    :class:`~pdeface.errors.MeshError` naming which is not."""
+    V, T = np.asarray(V, np.float64), np.asarray(T, np.int64)
+    if V.ndim != 2 or V.shape[1] != 3 or len(V) < 3 or not np.isfinite(V).all():
+        raise MeshError("vertices must be (n, 3) finite numbers")
+    if T.ndim != 2 or T.shape[1] != 3 or len(T) == 0 or T.min() < 0 or T.max() >= len(V):
+        raise MeshError("triangles must be (m, 3) vertex indices")
+    return V, T
+
+
 def require_usable_triangles(T: np.ndarray, what="the mesh"):
     """Refuse triangles ``T`` that make no surface to find landmarks on, fit or bind: a triangle soup (each corner a
     copy of its neighbours', as a flat-shaded export with split edges writes them: each triangle a piece of its own)

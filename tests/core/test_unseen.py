@@ -31,6 +31,15 @@ def test_a_triangle_soup_is_refused_by_name_not_with_a_traceback():
             run()
 
 
+def test_triangles_that_are_no_mesh_are_refused_before_the_search():
+    """Empty triangles, a negative or too large index, or a non-finite vertex: a MeshError from the whole-body search
+    before any check of the surface (not numpy's ValueError from counting the vertices' uses)."""
+    V = np.eye(3) + 1.0
+    for bad_V, bad_T in ((V, np.zeros((0, 3), int)), (V, [[0, 1, -1]]), (V, [[0, 1, 3]]), (V * np.nan, [[0, 1, 2]])):
+        with pytest.raises(MeshError, match="must be"):
+            detect_anywhere(bad_V, bad_T)
+
+
 @needs_makehuman
 def test_mixed_normals_are_refused_by_name_doubled_faces_and_fins_are_not():
     V, T, L, _ = BUILDERS["flipped-normals"]()

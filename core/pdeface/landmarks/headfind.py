@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import LandmarkError
-from ..mesh import require_usable_triangles, seam_welds
+from ..mesh import require_usable_triangles, seam_welds, triangle_arrays
 from ..rigid import rotation_vector_matrix
 from .pipeline import FoundLandmarks, detect
 from .render import View
@@ -146,7 +146,7 @@ def detect_anywhere(V, T, unit=None, **kwargs) -> FoundLandmarks:
     MeshError
         A triangle soup or mixed normals (:func:`~pdeface.mesh.require_usable_triangles`).
     """
-    V, T = np.asarray(V, np.float64), np.asarray(T, np.int64)
+    V, T = triangle_arrays(V, T)
     require_usable_triangles(T)
     # Copies an exporter split along UV seams joined (a seam down the face's midline left the midline's points a
     # crack to fall through, and the steps that walk the skin a border there); none on ICT's or MakeHuman's heads.

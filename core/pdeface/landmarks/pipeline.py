@@ -30,9 +30,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import LandmarkError, MeshError
+from ..errors import LandmarkError
 from ..geometry import ClosestPoint
-from ..mesh import connected_components, vertex_normals
+from ..mesh import connected_components, triangle_arrays, vertex_normals
 from ..rigid import rotation_vector_matrix
 from ..surface.frame import UNITS_MM, estimate_unit
 from ..threads import bounded
@@ -373,11 +373,7 @@ def detect(V, T, unit=None, landmark_map: LandmarkMap | None = None, detector: D
     LandmarkError
         No face, two faces, or points that are not a face.
     """
-    V, T = np.asarray(V, np.float64), np.asarray(T, np.int64)
-    if V.ndim != 2 or V.shape[1] != 3 or len(V) < 3 or not np.isfinite(V).all():
-        raise MeshError("vertices must be (n, 3) finite numbers")
-    if T.ndim != 2 or T.shape[1] != 3 or len(T) == 0 or T.min() < 0 or T.max() >= len(V):
-        raise MeshError("triangles must be (m, 3) vertex indices")
+    V, T = triangle_arrays(V, T)
     m = landmark_map or shipped_map()
     own = detector is None
     detector = detector or Detector(verbose=verbose)
