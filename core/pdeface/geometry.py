@@ -93,6 +93,12 @@ def row_norms(X: np.ndarray) -> np.ndarray:
     return np.sqrt(s)
 
 
+def median_edge(P: np.ndarray, T: np.ndarray) -> float:
+    """The median length of the triangles ``T``' edges (each edge once per triangle it bounds)."""
+    a, b = P[T.ravel()], P[np.roll(T, -1, axis=1).ravel()]
+    return float(np.median(row_norms(b - a)))
+
+
 def row_dots(A: np.ndarray, B: np.ndarray) -> np.ndarray:
     """Dot products of the rows of ``A`` and ``B`` (n, 3): ``(A * B).sum(1)``'s numbers (the same sums in the same
     order) without numpy's slow reduction over an axis of 3."""

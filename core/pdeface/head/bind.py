@@ -65,6 +65,7 @@ from ..geometry import (
     cross3,
     every_corner,
     in_box,
+    median_edge,
     row_norms,
     smoothstep,
     triangle_cross,
@@ -277,17 +278,11 @@ def _check_on_skin(Lf, P, Ts, skin_tree, eye_distance):
     the worst within 0.3. Not to the surface: ICT's landmarks pushed 3 cm into its head lie a median 0.038 eye
     distances from the mouth's and the eyes' sockets, 0.054 from their nearest vertex."""
     off = skin_tree.query(Lf[np.isfinite(Lf).all(axis=1)])[0]
-    limit = max(0.05 * eye_distance, 0.5 * _median_edge(P, Ts))
+    limit = max(0.05 * eye_distance, 0.5 * median_edge(P, Ts))
     if np.median(off) > limit or off.max() > 0.3 * eye_distance:
         raise MeshError(f"the landmarks do not lie on skin (median {np.median(off):.3g} mm off it, the worst "
                         f"{off.max():.3g} mm): was the face fitted on this head, in this unit, with landmarks "
                         "on its face (not inside it)?")
-
-
-def _median_edge(P, Ts) -> float:
-    """The median length of the triangles ``Ts``' edges (each edge once per triangle it bounds)."""
-    a, b = P[Ts.ravel()], P[np.roll(Ts, -1, axis=1).ravel()]
-    return float(np.median(row_norms(b - a)))
 
 
 def _read_pde(model, P, N, eye_distance, resolution, skin_strips=(), on_strip=None):
@@ -815,7 +810,7 @@ class HeadBinding:
         # Keys that close the eyes close them (the lashes along).
         moving = parts.mask("follow") & original
         moving[si[~(rest | depths)]] = True
-        self._lids = LidClosure(Vf, Lf, moving, eye_distance, parts.eyes)
+        self._lids = LidClosure(Vf, Lf, moving, eye_distance, parts.eyes, T, parts.mask("skin"))
 
         # Lids stay outside the eyeballs.
         self.eyes = {}
@@ -991,7 +986,7 @@ class HeadBinding:
         # the issue's limit alone (each sweep opens a closed lid a little), the lids kept out of the eyeballs; only
         # what moved since the first relaxation's screen is screened again.
         self._folds.relax(out, keys=[i for i, c in enumerate(closing) if c or pushed[i]], budget=self._folds.limit,
-                          screen=screen)
+                          screen=screen, held=self._lids.held)
         if len(self.mouth):  # the bag: the jaw's turn below the mouth line, the upper lip's motion above it
             lip = out[self._upper_lip_vertex][None]
             out[self.mouth] = self._mouth_lower * out[self.mouth] + (1 - self._mouth_lower) * lip

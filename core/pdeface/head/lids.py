@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..facs import split_au_key
-from ..geometry import cross3, row_norms, smoothstep, unit_rows
+from ..geometry import cross3, median_edge, row_norms, smoothstep, unit_rows
 
 #: Upper and lower lid landmarks (iBUG-68, 0-based) per eye, each from one corner to the other.
 LIDS = {"R": ((36, 37, 38, 39), (36, 41, 40, 39)), "L": ((42, 43, 44, 45), (42, 47, 46, 45))}
@@ -39,6 +39,21 @@ DEPTH_IOD = 0.25
 #: radius (an adult's eyeball, 12 mm).
 EYE_DEPTH_IOD = 0.19
 EYE_RADIUS_IOD = 0.19
+#: A coarse eye: its opening at the middle under this many of its edges tall (1.4k-2k-vertex MakeHuman heads: 0.6-0.9;
+#: the development set's heads 1.2-2.3, its decimated ones 1.2-1.6; at 2 the closure from the mesh's own margins left
+#: african-male-old's 1.8 open 0.41). Its lid middles are read off the mesh's opening, not at the vertices nearest the
+#: landmarks: there the nearest vertex to a lid middle may be a corner's or the cheek's.
+COARSE_EDGES = 1.1
+#: How far behind the lids' landmarks (eye distances) a vertex lies in the eye's socket, not on its margin.
+RIM_DEPTH_IOD = 0.1
+#: A coarse eye's upper margin vertices held after the closing: those that follow its middle this much or more.
+HELD_SHARE = 0.9
+#: How far in height (edges) a coarse eye's middle vertices lie from the one nearest the opening, at most.
+ROW_EDGES = 0.25
+#: On a coarse eye, the share of the middle's opening height from which a place between the corners closes all the
+#: way (the corners' vertices are the opening's ends; the rest, one or two vertices tall, its middle): 1 left 0.20
+#: of the 1.4k-vertex head's right eye open (its visible opening, true landmarks), 0.5 0.12.
+COARSE_ALONG = 0.5
 
 
 class LidClosure:
@@ -56,19 +71,28 @@ class LidClosure:
     eyeballs : dict, optional
         ``"eye_R"``/``"eye_L"`` → (centre, radius) of the eyeballs found; an eye without one turns its lid
         about a centre ``EYE_DEPTH_IOD`` behind its landmarks.
+    triangles : (m, 3) int array, optional
+        The head's triangles, and ``skin`` (n,) bool, its skin: on a coarse eye (:data:`COARSE_EDGES`) the lid
+        middles and lines are its own margins' (:func:`coarse_margins`).
     """
 
-    def __init__(self, Vf, Lf, lid, eye_distance, eyeballs=None):
+    def __init__(self, Vf, Lf, lid, eye_distance, eyeballs=None, triangles=None, skin=None):
         self.Vf = Vf
         self.eyes = []
         self.lower = []  # per eye: the lower lid's vertices and how each follows its margin
+        held = []  # coarse eyes' margins, kept where the closing takes them (see :attr:`held`)
         on_lid = np.nonzero(lid)[0]
         lid_points = Vf[on_lid]  # gathered once for both eyes' middles (ICT: 17k rows; 8 gathers cost 3 ms)
         for side, (upper, lower) in LIDS.items():
             (mu, ml) = MIDDLES[side]
-            at = [int(on_lid[np.argmin(row_norms(lid_points - Lf[i]))]) for i in mu + ml]
-            xu, yu = Lf[list(upper), 0], Lf[list(upper), 1]
-            xl, yl = Lf[list(lower), 0], Lf[list(lower), 1]
+            margins = None if triangles is None else coarse_margins(Vf, triangles, Lf, skin, side, eye_distance)
+            if margins is None:
+                at = [int(on_lid[np.argmin(row_norms(lid_points - Lf[i]))]) for i in mu + ml]
+                up_mid, low_mid, Ll = np.array(at[:2]), np.array(at[2:]), Lf
+            else:
+                up_mid, low_mid, Ll = margins
+            xu, yu = Ll[list(upper), 0], Ll[list(upper), 1]
+            xl, yl = Ll[list(lower), 0], Ll[list(lower), 1]
             ou, ol = np.argsort(xu), np.argsort(xl)
             x = Vf[:, 0]
             inside = (x > xu.min()) & (x < xu.max())
@@ -76,7 +100,9 @@ class LidClosure:
             height = np.maximum(y_up - np.interp(x, xl[ol], yl[ol]), 0)
             mid_x = Lf[list(mu), 0].mean()
             h_mid = max(float(np.interp(mid_x, xu[ou], yu[ou]) - np.interp(mid_x, xl[ol], yl[ol])), 1e-9)
-            along = np.clip(height / h_mid, 0, 1)  # how much of the middle's closing this place needs
+            # how much of the middle's closing this place needs (a coarse eye's margins: the corners' vertices are
+            # the opening's ends, the rest its middle's)
+            along = np.clip(height / (h_mid if margins is None else COARSE_ALONG * h_mid), 0, 1)
             dy = Vf[:, 1] - y_up
             # Above the margin the lid moves with it, fading out; in the opening (a lid's lining, an occlusion
             # mesh across it) the closing is shared out from the upper margin (all) to the lower one (none).
@@ -91,8 +117,14 @@ class LidClosure:
             w, w_low = near * share, near * low_share
             idx, low = np.nonzero(w > 0)[0], np.nonzero(w_low > 0)[0]
             centre = eyes_or_sockets(Lf, eye_distance, eyeballs)[f"eye_{side}"][0]
-            self.eyes.append((np.array(at[:2]), np.array(at[2:]), idx, w[idx], np.asarray(centre, np.float64)))
+            self.eyes.append((up_mid, low_mid, idx, w[idx], np.asarray(centre, np.float64)))
             self.lower.append((low, w_low[low]))
+            if margins is not None:  # the upper margin (moved all the way) and the lower middle it closes onto
+                held += [idx[w[idx] >= HELD_SHARE], low_mid]
+        #: Vertices the folds' relaxation after the closing leaves where it took them: on a coarse eye one row of
+        #: triangles spans the opening and a blink creases it past the folds' limit (10 edges against 4 on a
+        #: 1.4k-vertex head), and the sweeps opened the lids again (0.05 of the rest gap to 0.23-0.32).
+        self.held = np.unique(np.concatenate(held)).astype(np.int64) if held else np.zeros(0, np.int64)
 
     def apply(self, out, closing):
         """Close the eyes in the keys that close them, in place.
@@ -151,6 +183,57 @@ class LidClosure:
             sub[local(idx)] += turned - v
         out[rows[:, None], keys] = sub
         return moved
+
+
+def coarse_margins(Vf, T, Lf, skin, side, eye_distance):
+    """On a coarse eye (its opening under :data:`COARSE_EDGES` of its edges tall at the middle), the lid middles
+    as the mesh has them and the landmarks' lid lines moved onto them; None on a finer eye, or where the mesh shows
+    no opening at the middle.
+
+    ``skin``: (n,) bool, the vertices that may be a margin (not an eyeball's). Returns ``(upper, lower, Ll)``: the
+    upper and lower middles' vertices, and the landmarks with the middle ones moved up or down by as much as their
+    lid's line misses those vertices (the corners kept). The middles: the skin's vertices in front of the socket
+    (under :data:`RIM_DEPTH_IOD` behind the lids' landmarks) between the middle landmarks (across), split at the
+    widest gap in height across the landmarks' opening (not the cheek's or the brow's rows); each side's row
+    nearest the gap (within :data:`ROW_EDGES` of an edge), so that the two lie about one above the other.
+    """
+    upper, lower = LIDS[side]
+    mu, ml = MIDDLES[side]
+    lids = list(upper) + list(lower)
+    centre = Lf[lids].mean(0)
+    x0, x1 = np.sort(Lf[[upper[0], upper[-1]], 0])
+    box = (Vf[:, 0] > x0) & (Vf[:, 0] < x1) & (np.abs(Vf[:, 1] - centre[1]) < 0.3 * eye_distance)
+    near = T[box[T].any(1)]
+    if not len(near):
+        return None
+    edge = median_edge(Vf, near)
+    mid_x = Lf[list(mu), 0].mean()
+
+    def line(which, x):
+        P = Lf[list(which)][np.argsort(Lf[list(which), 0])]
+        return np.interp(x, P[:, 0], P[:, 1])
+
+    if line(upper, mid_x) - line(lower, mid_x) >= COARSE_EDGES * edge:
+        return None
+    front = box & skin & (Vf[:, 2] > Lf[lids, 2].mean() - RIM_DEPTH_IOD * eye_distance)
+    xs = Lf[list(mu) + list(ml), 0]
+    x = Vf[:, 0]
+    column = np.nonzero(front & (x >= xs.min()) & (x <= xs.max()))[0]
+    if len(column) < 2:
+        return None
+    column = column[np.argsort(Vf[column, 1])]
+    y = Vf[column, 1]
+    gaps = np.diff(y)
+    gaps[(y[:-1] >= line(upper, mid_x)) | (y[1:] <= line(lower, mid_x))] = -1  # not across the landmarks' opening
+    k = int(np.argmax(gaps))
+    if gaps[k] < 0:
+        return None
+    up = column[k + 1:][y[k + 1:] <= y[k + 1] + ROW_EDGES * edge]
+    low = column[:k + 1][y[:k + 1] >= y[k] - ROW_EDGES * edge]
+    Ll = Lf.copy()
+    Ll[list(mu), 1] += np.mean(Vf[up, 1] - line(upper, Vf[up, 0]))
+    Ll[list(ml), 1] += np.mean(Vf[low, 1] - line(lower, Vf[low, 0]))
+    return up, low, Ll
 
 
 def eyes_or_sockets(Lf, eye_distance, eyeballs=None) -> dict:
