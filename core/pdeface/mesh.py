@@ -12,6 +12,7 @@ import numpy as np
 
 from .errors import MeshError
 from .geometry import column_extent, cross3, degrees_from_cos, row_dots, row_norms, triangle_cross, unit_rows
+from .landmark_scheme import JAW_LEFT_ANGLE, JAW_RIGHT_ANGLE
 
 
 @dataclass
@@ -323,6 +324,13 @@ def facing(V: np.ndarray, T: np.ndarray, forward, front: float) -> np.ndarray:
     # each triangle's normal (its corners' cross product) along f: twice its area seen from f's side, signed
     seen = (x[b] - x[a]) * (y[c] - y[a]) - (y[b] - y[a]) * (x[c] - x[a])
     return T[:, ::-1] if float(seen.sum()) < 0 else T
+
+
+def facing_forward(Vf: np.ndarray, T: np.ndarray, Lf: np.ndarray) -> np.ndarray:
+    """:func:`facing` of a mesh in the face frame (``Vf``, +z forward) by its triangles in front of the jaw angles
+    (landmarks ``Lf`` (68, 3) in the same frame): ``T`` turned outwards where a mirrored export left every normal
+    pointing into the head. The fit and the head binding read the face's normals alike."""
+    return facing(Vf, T, (0.0, 0.0, 1.0), float(Lf[[JAW_RIGHT_ANGLE, JAW_LEFT_ANGLE], 2].mean()))
 
 
 def butterfly_step(n_vertices: int, T: np.ndarray):

@@ -13,7 +13,7 @@ from pdeface.landmark_scheme import eye_distance
 from pdeface.landmarks import available as mediapipe_available
 from pdeface.landmarks.gate import check
 from pdeface.landmarks.headfind import detect_anywhere
-from pdeface.mesh import facing, require_usable_triangles
+from pdeface.mesh import facing_forward, require_usable_triangles
 from pdeface.surface.fit import fit_face
 from pdeface.surface.frame import face_frame
 from scipy.spatial import cKDTree
@@ -60,8 +60,8 @@ def test_a_mirrored_head_with_its_normals_inwards_is_fitted_as_the_same_head_wou
     V, T, L, _ = BUILDERS["mirrored"]()
     Lf = face_frame(L).to_face(L)
     outward = T[:, ::-1]
-    assert facing(face_frame(L).to_face(V), T, (0, 0, 1), Lf[[5, 11], 2].mean()) is not T  # turned
-    assert facing(face_frame(L).to_face(V), outward, (0, 0, 1), Lf[[5, 11], 2].mean()) is outward  # left as it was
+    assert facing_forward(face_frame(L).to_face(V), T, Lf) is not T  # turned
+    assert facing_forward(face_frame(L).to_face(V), outward, Lf) is outward  # left as it was
     inwards, _ = fit_face(V, T, L)  # was: "only 0% of the curve points landed on the face"
     outwards, _ = fit_face(V, outward, L)
     assert np.array_equal(inwards.coefficients, outwards.coefficients)

@@ -86,7 +86,7 @@ from ..landmark_scheme import (
     MOUTH_CORNERS,
     NOSE_BOTTOM,
 )
-from ..mesh import connected_components, cotan_laplacian, facing, seam_welds, vertex_normals
+from ..mesh import connected_components, cotan_laplacian, facing_forward, seam_welds, vertex_normals
 from ..posing import pose_curves
 from ..presets import every_pose
 from ..rigid import JAW_BONE_GAIN, gaze_matrix, jaw_hinge, jaw_motion, rigid_displacement, rotation_vector_matrix
@@ -661,7 +661,7 @@ class HeadBinding:
                             "or refit the face")
         self.face_landmarks = Lf
         # Normals all pointing inwards (a mirrored export), turned outwards: the skin's normals read the PDE face.
-        T = facing(Vf, T, (0.0, 0.0, 1.0), float(Lf[[5, 11], 2].mean()))
+        T = facing_forward(Vf, T, Lf)
         self.eye_distance = eye_distance = landmark_scheme.eye_distance(Lf)
         self.hinge = jaw_hinge(Lf, eye_distance)
         self.parts = parts = classify_parts(Vf, T, Lf, self.hinge, overrides, welded=True, pieces=pieces)

@@ -24,7 +24,7 @@ from ..mesh import (
     border_vertices,
     butterfly_step,
     connected_components,
-    facing,
+    facing_forward,
     require_usable_triangles,
     seam_welds,
 )
@@ -304,7 +304,7 @@ def fit_face(vertices, triangles, landmarks, unit=None, n_curves=DEFAULT_CURVES,
         if len(skin) == 0:
             raise MeshError("the skin given has no triangles")
     # Normals all pointing inwards (a mirrored export): every ray would meet a triangle's back.
-    skin = facing(Vf, skin, (0.0, 0.0, 1.0), float(Lf[[5, 11], 2].mean()))
+    skin = facing_forward(Vf, skin, Lf)
     from .curves import (  # scipy: loaded only when a face is fitted
         CurveSampler,
         cavity_depths,
@@ -317,7 +317,8 @@ def fit_face(vertices, triangles, landmarks, unit=None, n_curves=DEFAULT_CURVES,
     sampler = place_samples(Vs, band_triangles(Vs, skin, heights.min(), heights.max()), layout,
                             cavity_depths(layout, Lf), groove_depth=groove_depths(layout, Lf))
     if refine is not None:
-        sampler = CurveSampler(sp.csr_matrix(sampler.matrix @ refine), sampler.status, sampler.shape, sampler.groove_mix)
+        sampler = CurveSampler(sp.csr_matrix(sampler.matrix @ refine), sampler.status, sampler.shape,
+                               sampler.groove_mix)
     points = sampler.sample(Vf)
     coef, res = fit_fourier(points, n_modes)
     model = FaceModel(layout, chord_knots(points), coef, res, frame, feature_points(Lf), a=a,
