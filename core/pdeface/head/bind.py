@@ -144,7 +144,7 @@ FUSED_PATH = 3.0
 FUSED_IOD = 0.05
 #: Where both inner lips' middles fall on one vertex, the skin within this many eye distances of it shows whether
 #: the mesh parts the lips there (:func:`_rims_near`).
-RIMS_IOD = 0.1
+RIMS_IOD = 0.15
 #: On joined lips the skin under the strip between the rims within this share of the mouth's width reads it (lips in
 #: one line), or the fold relaxation of the jaw keys that part the lips keeps the lower lip there (rims a decimation
 #: merged; PARTED_IOD).
