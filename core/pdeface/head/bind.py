@@ -423,19 +423,21 @@ def _rims_near(P, Ts, ends, a, b, eye_distance, skin_tree) -> tuple:
     landmarks, 6 now)."""
     middle = (P[a] + P[b]) / 2
     near = np.asarray(skin_tree.query_ball_point(middle, RIMS_IOD * eye_distance), np.int64)
-    inside = np.zeros(len(P), bool)
-    inside[near] = True
-    if not (inside[a] and inside[b]):
+    local = np.full(len(P), -1)  # each skin vertex's place in near (-1: outside the ball)
+    local[near] = np.arange(len(near))
+    if local[a] < 0 or local[b] < 0:
         return a, b
-    i, j = Ts.ravel(), np.roll(Ts, -1, axis=1).ravel()
-    kept = inside[i] & inside[j]  # the edges within the ball (a triangle half in it still joins its corners in it)
-    pieces = connected_components(len(P), np.column_stack([i[kept], j[kept], j[kept]]))
-    own, sizes = pieces[a], np.bincount(pieces[near])
-    other = near[(pieces[near] != own) & (sizes[pieces[near]] > 2)
-                 & (row_norms(P[near] - middle) < 0.5 * RIMS_IOD * eye_distance)]
-    if pieces[b] != own or not len(other):
+    inside = local >= 0
+    around = Ts[inside[Ts[:, 0]] | inside[Ts[:, 1]] | inside[Ts[:, 2]]]  # touching the ball (by column: ICT 0.2 ms)
+    i, j = local[around.ravel()], local[np.roll(around, -1, axis=1).ravel()]
+    kept = (i >= 0) & (j >= 0)  # the edges within the ball (a triangle half in it still joins its corners in it)
+    pieces = connected_components(len(near), np.column_stack([i[kept], j[kept], j[kept]]))
+    own, sizes = pieces[local[a]], np.bincount(pieces)
+    other = (pieces != own) & (sizes[pieces] > 2) & (row_norms(P[near] - middle) < 0.5 * RIMS_IOD * eye_distance)
+    if pieces[local[b]] != own or not other.any():
         return a, b
-    lips = [near[pieces[near] == own], near[pieces[near] == pieces[other[np.argmin(row_norms(P[other] - middle))]]]]
+    nearest = np.flatnonzero(other)[np.argmin(row_norms(P[near[other]] - middle))]
+    lips = [near[pieces == own], near[pieces == pieces[nearest]]]
     if P[lips[0], 1].mean() < P[lips[1], 1].mean():
         lips.reverse()
     return tuple(int(lip[np.argmin(row_norms(P[lip] - end))]) for lip, end in zip(lips, ends))
