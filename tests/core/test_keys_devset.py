@@ -597,3 +597,37 @@ def test_the_blink_does_not_hang_on_rounding_in_the_face():
                         + 1e-9 * np.abs(model.residual).max() * rng.standard_normal(model.residual.shape))
         moved = lid_closure(V, L, noisy, HeadBinding(noisy, V, T, landmarks=L))
         assert max(abs(moved[s] - closure[s]) for s in closure) < 0.01, (moved, closure)
+
+
+@needs_makehuman
+@pytest.mark.parametrize("offset", [-0.04, 0.04])
+def test_touching_lips_given_one_point_for_both_inner_middles_open_round(offset):
+    """An identity the fix was not tuned on, its lips apart in the mesh but touching, with both inner lips' middles
+    (62, 66) on one point as a detector puts them, 0.04 eye distances above or below their midpoint: the lips are not
+    taken for joined, and AU27 opens the mouth as with the true landmarks (the upper lip stays, the lower lip's
+    middle drops at least as far as its sides: no beak; new folds about as few), not a scalloped beak."""
+    ch = build(Spec("asian-male-young-cm", {"asian-male-young": 1.0}, unit="cm"))
+    V, T, L = ch.vertices, ch.triangles, ch.landmarks
+    _, ed = eyes_of(L)
+    up = (L[27] - L[8]) / np.linalg.norm(L[27] - L[8])
+    found = L.copy()
+    found[[LIP_UPPER_INNER, LIP_LOWER_INNER]] = L[[LIP_UPPER_INNER, LIP_LOWER_INNER]].mean(0) + offset * ed * up
+    pairs = edge_face_pairs(T)
+
+    def opened(landmarks):
+        model = retarget(load_face("default"), fit_face(V, T, landmarks)[0])
+        b = HeadBinding(model, V, T, landmarks=landmarks)
+        f = model.frame
+        Vf, Lf = f.to_face(V), f.to_face(L)  # measured at the true landmarks
+        posed = f.to_face(V + b.displacement(*descriptor_motion_args({x.key: x for x in model.descriptors}["27"])))
+        near = np.array([np.argmin(np.linalg.norm(Vf - p, axis=1)) for p in Lf])
+        drop = (posed[near, 1] - Vf[near, 1]) / b.eye_distance
+        folds = int(((turn_degrees(Vf, T, pairs) < 20) & (turn_degrees(posed, T, pairs) > 40)).sum())
+        return b, drop, folds
+
+    truth, drop_true, folds_true = opened(L)
+    b, drop, folds = opened(found)
+    assert not any("lips are joined" in n for n in truth.notes + b.notes)
+    assert abs(drop[LIP_UPPER_INNER]) <= 0.08
+    assert -drop[LIP_LOWER_INNER] >= max(-drop[65], -drop[67]) and -drop[LIP_LOWER_INNER] >= 0.25
+    assert folds <= max(2 * folds_true, folds_true + 4), (folds, folds_true)
