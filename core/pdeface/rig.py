@@ -103,8 +103,9 @@ def rig_head(mesh_arg, out, landmarks=None, unit=None, parts=None, descriptors=D
         The folder to write (made if missing; the files of :data:`OUTPUTS` in it are replaced).
     landmarks : str, optional
         The mesh's landmarks JSON; found on the mesh (MediaPipe) when None and the mesh is a file.
-    unit : str, optional
-        The mesh's unit (estimated from the face's size when None: any scale).
+    unit : str or float, optional
+        The mesh's unit, a name or millimetres per unit (:func:`~pdeface.units.parse_unit`; estimated from the
+        face's size when None: any scale).
     parts : str, optional
         JSON of part overrides (as ``pdeface parts`` writes): its skin is fitted, its parts bound.
     descriptors : str
@@ -212,6 +213,6 @@ def rig_blend(mesh_arg, landmarks, path, unit=None):
     """``path``: the head rigged by the add-on (its Fit), saved as a ``.blend`` by the headless renderer."""
     argv = ["--mesh", mesh_arg, "--landmarks", landmarks, "--no-frames", "--quiet", "--save-blend",
             os.fspath(Path(path).resolve())]
-    code, _ = run_headless(argv + (["--unit", unit] if unit else []), capture=True, prog="pdeface rig")
+    code, _ = run_headless(argv + (["--unit", str(unit)] if unit else []), capture=True, prog="pdeface rig")
     if code:
         raise PdeFaceError(f"{path}: Blender could not rig the head (the headless renderer exited with {code})")

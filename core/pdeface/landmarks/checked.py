@@ -20,8 +20,8 @@ def find_checked(mesh, unit=None, keep_images=False, verbose=False, accept=False
     ----------
     mesh : Mesh
         The head or body (:class:`~pdeface.mesh.Mesh`).
-    unit : str, optional
-        The mesh unit; estimated from the face's size when None.
+    unit : str or float, optional
+        The mesh unit (a name or millimetres per unit); estimated from the face's size when None.
     keep_images, verbose : bool
         Passed to the detector (the renders kept for a picture; its own progress lines).
     accept : bool

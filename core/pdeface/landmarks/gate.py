@@ -257,7 +257,7 @@ def check(points, V=None, T=None, unit=None) -> Verdict:
         The landmarks, in the mesh's space.
     V, T : arrays, optional
         The mesh the landmarks lie on; without it the surface check is skipped.
-    unit : str, optional
+    unit : str or float, optional
         The mesh unit (only the frame needs it; the checks are relative to the eye distance).
     """
     verdict = Verdict()
