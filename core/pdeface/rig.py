@@ -32,7 +32,7 @@ from .head.parts import read_overrides, skin_mask
 from .head.prior import load_head_prior
 from .headless import run_headless
 from .io.files import load_npz, parse_json, write_bytes, write_npz
-from .landmarks.checked import find_checked
+from .landmarks.checked import check_given, find_checked
 from .landmarks.detector import available
 from .presets import key_poses, merged_presets
 from .surface.fit import fit_face
@@ -115,7 +115,8 @@ def rig_head(mesh_arg, out, landmarks=None, unit=None, parts=None, descriptors=D
     blend : bool
         Also ``head.blend``, rigged by the add-on (needs Blender's bpy module).
     accept : bool
-        Go on with found landmarks that fail the landmark gate (the report records the verdict).
+        Go on with found landmarks that fail the landmark gate, or with given ones on a mesh whose eyes are closed
+        (the report records the verdict).
     log : callable, optional
         Called with each progress line.
 
@@ -154,6 +155,8 @@ def rig_head(mesh_arg, out, landmarks=None, unit=None, parts=None, descriptors=D
     else:
         lm_json = {"points": np.round(lm, 6).tolist()}
         report["landmarks"] = {"source": "given" if landmarks else "bundled"}
+        if landmarks:  # the user's points, but the mesh may still be no rest: its eyes closed
+            report["landmarks"]["gate"] = check_given(mesh, lm, unit, accept=accept, log=say).to_json()
     write_bytes(out / "landmarks.json", json.dumps(lm_json, allow_nan=False).encode())
     lap("landmarks")
 

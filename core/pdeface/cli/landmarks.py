@@ -44,7 +44,8 @@ def accept_option(p):
     """``--accept``: go on with landmarks that fail the gate."""
     p.add_argument("--accept", action="store_true",
                    help="go on with found landmarks that fail the landmark gate (a group off the surface, "
-                        "not mirrored, out of order or out of proportion)")
+                        "not mirrored, out of order or out of proportion), or with given ones (--landmarks) on a "
+                        "mesh whose eyes are closed")
 
 
 def register(sub):
