@@ -30,16 +30,17 @@ from ..units import ESTIMATED, UNITS_MM, parse_unit
 BLENDER_FROM_ICT = np.array([[1.0, 0, 0], [0, 0, -1], [0, 1, 0]])
 
 #: The face's sizes the unit is estimated from (:func:`estimate_mm_per_unit`): the landmark groups whose means are
-#: measured apart, and the size (mm) of a face of the middle size. Of 16 sizes (eye centres, eye corners, eye and
-#: mouth and nose widths, nose length, the jaw's ends and angles, eyes, brows, nasion and nose to chin), alone and
-#: in pairs and threes, these two vary least in millimetres over ICT-FaceKit's 21 heads and MakeHuman's 32
-#: characters (the development set's 24 and bench_gate's 8), true and found landmarks: the sizes are set so the
-#: estimate lies at most 9.0 % off on any of them (ICT's are 7.5 % smaller in mm, MakeHuman's up to 9 % larger:
-#: MakeHuman's faces are 9 % smaller than ICT's for the same eye distance). Before, the median over eye centres,
-#: eyes to mouth, nose length, mouth width and outer eye corners, at ICT's sizes scaled to 63 mm between the eyes:
-#: 17 % off on MakeHuman's small faces (asian-female-old). See docs/measurements/units.md.
-FACE_SIZES_MM = {"eyes to mouth": ([*EYE_RIGHT, *EYE_LEFT], [48, 51, 54, 57], 69.6),
-                 "jaw width": ([JAW_RIGHT_END], [JAW_LEFT_END], 132.6)}
+#: measured apart, and the size (mm) of a face of the middle size. Of 16 sizes (eye centres, eye corners, eye, mouth
+#: and nose widths, nose length, the jaw's ends and angles, eyes, brows, nasion and nose to chin), alone and in pairs
+#: and threes, these two vary least in millimetres over ICT-FaceKit's 21 heads and MakeHuman's 32 characters (the
+#: development set's 24 and bench_gate's 8), true and found landmarks (MakeHuman's faces are about 9 % smaller than
+#: ICT's at the same eye distance, and vary more). The sizes sit between the two: the estimate lies under ICT's true
+#: millimetres per unit by 6.8 % (median; at most 8.0 %: larger faces), over MakeHuman's by 1.4-1.9 % (at most 8.8 %,
+#: a held-out round face; the game unit's 2.0 %, as before). Before, the median over eye centres, eyes to mouth, nose
+#: length, mouth width and outer eye corners at ICT's sizes scaled to 63 mm between the eyes lay 17 % over
+#: MakeHuman's small faces (asian-female-old). See docs/measurements/units.md.
+FACE_SIZES_MM = {"eyes to mouth": ([*EYE_RIGHT, *EYE_LEFT], [48, 51, 54, 57], 69.2),
+                 "jaw width": ([JAW_RIGHT_END], [JAW_LEFT_END], 131.8)}
 #: An estimate this close (ratio) to a named unit is that unit: units are at least 2.5 times apart.
 UNIT_SNAP = 1.3
 #: Eye-centre distances a face may have (a small child's to a giant caricature's), in mm.
