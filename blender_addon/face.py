@@ -136,10 +136,16 @@ def read_landmarks(settings, obj):
             return points, f"landmarks from the empties of {obj.name}"
         group = obj.vertex_groups.get(settings.landmark_group)
         if group is None:
-            unit = None if settings.unit == "AUTO" else settings.unit
-            points, found, seconds = landmarks.find(bpy.context, obj, unit)
+            points, found, seconds = landmarks.find(bpy.context, obj, chosen_unit(settings))
             return points, landmarks.summary(obj, found, seconds)
     return _listed_landmarks(settings, obj), None
+
+
+def chosen_unit(settings):
+    """The unit the settings name: None (estimated from the face's size), a unit's name, or millimetres per unit."""
+    if settings.unit == "AUTO":
+        return None
+    return settings.unit_mm if settings.unit == "CUSTOM" else settings.unit
 
 
 def _listed_landmarks(settings, obj):

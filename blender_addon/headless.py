@@ -97,7 +97,8 @@ def build_parser(prog="render_sequence.py"):
 
 def add_mesh_options(ap):
     """``--mesh``: a head of the user's own, found, fitted and rigged here, and what that takes."""
-    from pdeface.surface.frame import UNITS_MM
+    from pdeface.io.arguments import mesh_unit
+    from pdeface.units import UNIT_FORMS
 
     g = ap.add_argument_group("a head of your own (instead of --face, --head or --blend)")
     g.add_argument("--mesh", help="head mesh (.obj, .ply, .glb or .gltf): its landmarks found (or --landmarks), "
@@ -105,7 +106,8 @@ def add_mesh_options(ap):
                                   "the whole mesh, then rendered")
     g.add_argument("--landmarks", help="the mesh's 68 landmarks (JSON with 'indices' or 'points', as "
                                        "'pdeface landmarks' writes); default: found (needs pdeface[landmarks])")
-    g.add_argument("--unit", choices=list(UNITS_MM), help="the mesh's unit (default: guessed from the eyes)")
+    g.add_argument("--unit", type=mesh_unit, metavar="UNIT",
+                   help=f"the mesh's unit: {UNIT_FORMS} (default: estimated from the face's size)")
 
 
 def rig_mesh_file(context, addon, path, landmarks=None, unit=None):

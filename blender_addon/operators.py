@@ -150,7 +150,7 @@ class PDEFACE_OT_fit_to_selected(_UserMeshOperator, Operator):
             if note:
                 self.report({"INFO"}, note)
             src = context.active_object
-            unit = None if s.unit == "AUTO" else s.unit
+            unit = face.chosen_unit(s)
             if s.landmark_source == "AUTO" and landmarks.empties(src) is not None:  # found or edited: gate first
                 note = landmarks.gated(src, points, unit, self.accept)
                 if note:
@@ -192,7 +192,7 @@ Fit then uses them"""
         s = context.scene.pdeface
         obj = context.active_object
         compat.set_status(context, "PDE Face: finding landmarks")
-        unit = None if s.unit == "AUTO" else s.unit
+        unit = face.chosen_unit(s)
         arrays = landmarks.mesh_arrays(obj)  # read once for the find and its gate
         try:
             _, found, seconds = landmarks.find(context, obj, unit, arrays)

@@ -58,6 +58,8 @@ class PDEFACE_PT_face(_Panel, bpy.types.Panel):
         elif s.landmark_source == "FILE":
             box.prop(s, "landmark_file")
         box.prop(s, "unit")
+        if s.unit == "CUSTOM":
+            box.prop(s, "unit_mm")
         box.operator("pdeface.fit_to_selected", icon="MOD_MESHDEFORM")
         mesh = landmarks.mesh_of(context.active_object)
         if s.landmark_source == "AUTO" and landmarks.failing_groups(mesh):

@@ -15,7 +15,7 @@ from pdeface.errors import PdeFaceError
 from pdeface.muscles.placement import MUSCLE_NAMES
 from pdeface.presets import MIXERS
 from pdeface.stream.player import MODES as PLAYBACK_MODES
-from pdeface.surface.frame import UNITS_MM
+from pdeface.units import UNITS_MM
 
 from .face import active_face
 from .keys import PRESET_MIXER
@@ -111,7 +111,11 @@ class PDEFACE_PG_settings(bpy.types.PropertyGroup):
     landmark_group: StringProperty(name="Group", default="landmarks")
     landmark_file: StringProperty(name="File", subtype="FILE_PATH")
     unit: EnumProperty(name="Unit", default="AUTO",
-                       items=[("AUTO", "Guess", "From the eye distance")] + [(u, u, "") for u in UNITS_MM])
+                       items=[("AUTO", "Estimate", "From the face's size (any scale)")] + [(u, u, "") for u in UNITS_MM]
+                       + [("CUSTOM", "mm per unit", "A number of millimetres per unit (a head modelled 100 times its "
+                                                    "size: 0.01)")])
+    unit_mm: FloatProperty(name="mm per unit", default=1.0, min=1e-9, soft_min=1e-4, soft_max=1e4, precision=4,
+                           description="Millimetres per unit of the mesh (Unit: mm per unit)")
     presets_file: StringProperty(name="User presets", subtype="FILE_PATH",
                                  description="JSON file of user presets (pdeface.preset / pdeface.presets)")
     sequence: StringProperty(name="Sequence", default=",".join(METHOD_SEQUENCE))

@@ -4,8 +4,8 @@ The core is numpy/scipy only and never imports bpy. Its rooms, each using only t
 before it (``tests/core/test_rooms.py`` holds the order):
 
 - ground: :mod:`~pdeface.errors`, :mod:`~pdeface.geometry`, :mod:`~pdeface.landmark_scheme` (the 68
-  landmarks' names), :mod:`~pdeface.facs` (AU keys, weights, intensity letters), :mod:`~pdeface.rigid`
-  (jaw hinge, gaze), :mod:`~pdeface.mesh`, :mod:`~pdeface.assets` (the bundled data's paths and meshes)
+  landmarks' names), :mod:`~pdeface.units` (mesh units, by name or number), :mod:`~pdeface.facs` (AU keys,
+  weights, intensity letters), :mod:`~pdeface.rigid` (jaw hinge, gaze), :mod:`~pdeface.mesh`, :mod:`~pdeface.assets` (the bundled data's paths and meshes)
 - :mod:`pdeface.io` — plain files: atomic writes, meshes (OBJ/PLY), PNG, numeric codecs
 - :mod:`pdeface.presets` — named AU weight sets, the mixers' names, preset files
 - :mod:`pdeface.surface` — a neutral face as PDE boundary curves: frame, layout, rims, curves,

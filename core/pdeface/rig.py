@@ -32,7 +32,7 @@ from .head.parts import read_overrides, skin_mask
 from .head.prior import load_head_prior
 from .headless import run_headless
 from .io.files import load_npz, parse_json, write_bytes, write_npz
-from .landmarks.checked import find_checked
+from .landmarks.checked import check_given, find_checked
 from .landmarks.detector import available
 from .presets import key_poses, merged_presets
 from .surface.fit import fit_face
@@ -103,8 +103,9 @@ def rig_head(mesh_arg, out, landmarks=None, unit=None, parts=None, descriptors=D
         The folder to write (made if missing; the files of :data:`OUTPUTS` in it are replaced).
     landmarks : str, optional
         The mesh's landmarks JSON; found on the mesh (MediaPipe) when None and the mesh is a file.
-    unit : str, optional
-        The mesh's unit (estimated from the face's size when None: any scale).
+    unit : str or float, optional
+        The mesh's unit, a name or millimetres per unit (:func:`~pdeface.units.parse_unit`; estimated from the
+        face's size when None: any scale).
     parts : str, optional
         JSON of part overrides (as ``pdeface parts`` writes): its skin is fitted, its parts bound.
     descriptors : str
@@ -114,7 +115,8 @@ def rig_head(mesh_arg, out, landmarks=None, unit=None, parts=None, descriptors=D
     blend : bool
         Also ``head.blend``, rigged by the add-on (needs Blender's bpy module).
     accept : bool
-        Go on with found landmarks that fail the landmark gate (the report records the verdict).
+        Go on with found landmarks that fail the landmark gate, or with given ones on a mesh whose eyes are closed
+        (the report records the verdict).
     log : callable, optional
         Called with each progress line.
 
@@ -153,6 +155,8 @@ def rig_head(mesh_arg, out, landmarks=None, unit=None, parts=None, descriptors=D
     else:
         lm_json = {"points": np.round(lm, 6).tolist()}
         report["landmarks"] = {"source": "given" if landmarks else "bundled"}
+        if landmarks:  # the user's points, but the mesh may still be no rest: its eyes closed
+            report["landmarks"]["gate"] = check_given(mesh, lm, unit, accept=accept, log=say).to_json()
     write_bytes(out / "landmarks.json", json.dumps(lm_json, allow_nan=False).encode())
     lap("landmarks")
 
@@ -212,6 +216,6 @@ def rig_blend(mesh_arg, landmarks, path, unit=None):
     """``path``: the head rigged by the add-on (its Fit), saved as a ``.blend`` by the headless renderer."""
     argv = ["--mesh", mesh_arg, "--landmarks", landmarks, "--no-frames", "--quiet", "--save-blend",
             os.fspath(Path(path).resolve())]
-    code, _ = run_headless(argv + (["--unit", unit] if unit else []), capture=True, prog="pdeface rig")
+    code, _ = run_headless(argv + (["--unit", str(unit)] if unit else []), capture=True, prog="pdeface rig")
     if code:
         raise PdeFaceError(f"{path}: Blender could not rig the head (the headless renderer exited with {code})")

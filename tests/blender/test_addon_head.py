@@ -247,3 +247,17 @@ def test_fdt_key_on_the_users_head(bpy, ict_head):
     assert moved.max() > 2  # cm: the chin drops
     assert bpy.ops.pdeface.apply_preset(preset="happy", mode="KEY") == {"FINISHED"}
     assert key_blocks(head)[name].value == 0.0  # an expression key: another expression's pose sets it to 0
+
+
+def test_the_unit_is_estimated_named_or_millimetres_per_unit(bpy, ict_head):
+    s, face = bpy.context.scene.pdeface, addon("face")
+    assert s.unit == "AUTO" and face.chosen_unit(s) is None
+    s.unit = "cm"
+    assert face.chosen_unit(s) == "cm"
+    s.unit, s.unit_mm = "CUSTOM", 10.0
+    assert face.chosen_unit(s) == pytest.approx(10.0)
+    assert bpy.ops.pdeface.fit_to_selected(keys_on_mesh=False) == {"FINISHED"}  # ICT's head is in cm: 10 mm per unit
+    s.unit_mm = 1.0  # said to be in millimetres: its eyes 6.5 mm apart, refused naming the unit
+    bpy.context.view_layer.objects.active = ict_head[0]
+    with pytest.raises(RuntimeError, match="eyes are .* mm apart in unit 'mm'"):
+        bpy.ops.pdeface.fit_to_selected(keys_on_mesh=False)

@@ -174,7 +174,7 @@ def test_every_package_is_in_the_distribution():
 #: below its own. The package docstring (``pdeface/__init__.py``) describes the same order.
 FLOORS = [
     ["errors"],
-    ["geometry", "landmark_scheme", "facs", "threads", "heap"],
+    ["geometry", "landmark_scheme", "units", "facs", "threads", "heap"],
     ["mesh", "rigid"],
     ["assets", "io", "headless"],
     ["presets"],

@@ -146,6 +146,36 @@ def test_a_head_with_its_eyes_closed_is_refused_by_the_gate_its_open_and_half_cl
         assert ("closed" in [c for c, _ in v.failures.get("eyes", [])]) == closed, (blink, v.message())
 
 
+def test_closed_eyes_are_refused_with_landmarks_given_by_hand_too(tmp_path, capsys):
+    """The gate's look at the mesh runs when the landmarks are given (``--landmarks``): ``fit`` and ``rig`` refuse
+    a head with its eyes closed by the same message, ``--accept`` goes on; the open eyes pass."""
+    import json
+
+    from pdeface.cli import main
+    from pdeface.io.meshio import write_obj
+    from pdeface.landmarks.gate import LandmarkGateError, check_mesh_at_rest
+    from pdeface.mesh import Mesh
+    from pdeface.rig import rig_head
+
+    mesh, lm = load_head()
+    S, T = load_head_shapes(), mesh.triangles()[0]
+    identity = mesh.vertices + S["identity004"]
+    assert check_mesh_at_rest(identity[lm], identity, T).passed
+    V = identity + S["eyeBlink_L"] + S["eyeBlink_R"]
+    assert check_mesh_at_rest(V[lm] * 100, V * 100, T, 0.1).message() == check(V[lm], V, T).message()  # any scale
+    write_obj(tmp_path / "blink.obj", Mesh(V, mesh.face_counts, mesh.face_indices))
+    (tmp_path / "lm.json").write_text(json.dumps({"indices": lm.tolist()}))
+    fit = ["fit", str(tmp_path / "blink.obj"), "--landmarks", str(tmp_path / "lm.json"), "--curves", "12",
+           "--points", "17", "-o", str(tmp_path / "f.npz")]
+    assert main(fit) == 2
+    err = capsys.readouterr().err
+    assert "eyes: closed (both eyes' lids meet" in err and "--accept" in err and not (tmp_path / "f.npz").exists()
+    assert main(fit + ["--accept"]) == 0
+    assert "note: the mesh fails the gate (eyes: closed" in capsys.readouterr().err
+    with pytest.raises(LandmarkGateError, match="eyes: closed"):
+        rig_head(tmp_path / "blink.obj", tmp_path / "rig", landmarks=tmp_path / "lm.json")
+
+
 @needs_makehuman
 def test_makehumans_eye_closure_at_rest_is_refused_its_open_eyes_pass():
     V, T, L, _ = BUILDERS["expression-at-rest"]()

@@ -73,10 +73,11 @@ from ..io.codec import (
 )
 from ..io.files import check_archive, npz_bytes, parse_json, read_bytes, write_bytes
 from ..landmark_scheme import FEATURE_NAMES
-from ..surface.frame import ESTIMATED, UNITS_MM, FaceFrame
+from ..surface.frame import FaceFrame
 from ..surface.layout import CurveLayout, check_sizes
 from ..surface.model import KEPT_LANDMARKS, FaceModel
 from ..surface.sampling import known_resolution, remember_resolution
+from ..units import ESTIMATED, UNIT_FORMS, parse_unit
 from .descriptorfile import check_reach, pack_descriptors, unpack_descriptors
 
 FORMAT = "pdeface.face"
@@ -193,8 +194,11 @@ def _read_model(fileobj, path) -> FaceModel:
             raise ModelFormatError(f"{path}: not a pdeface face model (format {meta.get('format') if isinstance(meta, dict) else None!r})")
         if not isinstance(meta.get("version"), int) or meta["version"] > VERSION:
             raise ModelFormatError(f"{path}: model version {meta.get('version')!r} is newer than this pdeface reads ({VERSION})")
-        if meta.get("unit") not in (*UNITS_MM, ESTIMATED):
-            raise ModelFormatError(f"{path}: field 'unit' must be one of {', '.join(UNITS_MM)}, {ESTIMATED}")
+        if meta.get("unit") != ESTIMATED:
+            try:
+                parse_unit(meta.get("unit") if isinstance(meta.get("unit"), str) else None)
+            except PdeFaceError:
+                raise ModelFormatError(f"{path}: field 'unit' must be {UNIT_FORMS}, or {ESTIMATED}") from None
         layout_arr = _member(z, "layout", path).astype(np.float64)
         knots = _member(z, "knots", path).astype(np.float64)
         coef = _member(z, "coefficients", path)

@@ -20,6 +20,7 @@ from ..assets import DEFAULT, HEAD
 from ..errors import PdeFaceError
 from ..facs import au_number, letter_to_weight, parse_au_key, weight_to_letter
 from ..presets import merged_presets, normalise_weights
+from ..units import parse_unit
 from .stimuli import light_spec, view_yaw
 
 KINDS = ("rig", "stimuli", "render")
@@ -192,7 +193,13 @@ def _plan_rig(data, base, where):
             lm = lm if os.path.exists(lm) else None
         elif lm:
             lm = str(base / lm)
-        params = {**options, "mesh": entry["mesh"], "landmarks": lm, "unit": entry.get("unit", options["unit"]),
+        unit = entry.get("unit", options["unit"])
+        if unit is not None:
+            try:
+                parse_unit(unit)
+            except PdeFaceError as exc:
+                raise JobError(f"{where}: {entry['mesh']}: {exc}") from None
+        params = {**options, "mesh": entry["mesh"], "landmarks": lm, "unit": unit,
                   "parts": str(base / entry["parts"]) if entry.get("parts") else None, "folder": name}
         outputs = [f"{name}/{f}" for f in ("landmarks.json", "face.npz", "rigged.npz", "keys.npz", "report.json")]
         outputs += [f"{name}/head.blend"] if options["blend"] else []

@@ -9,13 +9,13 @@ from __future__ import annotations
 import argparse
 import sys
 
-from ..io.arguments import number_in, unit_float
+from ..io.arguments import mesh_unit, number_in, unit_float
 from ..surface.folds import fold_edges
-from ..surface.frame import UNITS_MM
 from ..surface.model import model_landmarks
 from ..surface.pde import ASSEMBLIES
+from ..units import UNIT_FORMS
 
-UNIT_HELP = "mesh unit (default: estimated from the face's size, any scale)"
+UNIT_HELP = f"mesh unit: {UNIT_FORMS} (default: estimated from the face's size, any scale)"
 
 
 
@@ -88,7 +88,7 @@ def meshing_options(p):
 
 
 def unit_option(p, help=UNIT_HELP):
-    p.add_argument("--unit", choices=list(UNITS_MM), help=help)
+    p.add_argument("--unit", type=mesh_unit, metavar="UNIT", help=help)
 
 
 def verbose_option(p):

@@ -12,6 +12,7 @@ from ..head.parts import classify_mesh, overrides_of, read_overrides, skin_mask
 from ..io.arguments import number_in, positive_float
 from ..io.files import check_output, write_bytes
 from ..io.meshio import write_mesh
+from ..landmarks.checked import check_given
 from ..surface.fit import face_mesh, fit_face
 from ..surface.layout import DEFAULT_CURVES, MAX_CURVES, MAX_MODES, MAX_POINTS
 from ..surface.pde import ASSEMBLIES
@@ -37,6 +38,8 @@ def cmd_fit(args):
     if lm is None:
         log(f"{args.mesh}: no --landmarks given: finding them (pdeface landmarks)")
         lm = find_landmarks(mesh, args.unit, verbose=args.verbose, accept=args.accept)[0].points
+    elif args.landmarks:  # the user's points; the mesh may still be no rest (its eyes closed)
+        check_given(mesh, lm, args.unit, accept=args.accept, log=log)
     T, _ = mesh.triangles()
     skin = skin_mask(read_overrides(args.parts), len(mesh.vertices)) if args.parts else None
     t0 = time.perf_counter()

@@ -8,6 +8,7 @@ from ..io.png import write_png
 from ..landmarks.checked import find_checked
 from ..landmarks.gate import LandmarkGateError
 from ..surface.scan import load_scan
+from ..units import UNIT_FORMS
 from .common import log, output_option, unit_option, verbose_option
 
 
@@ -43,7 +44,8 @@ def accept_option(p):
     """``--accept``: go on with landmarks that fail the gate."""
     p.add_argument("--accept", action="store_true",
                    help="go on with found landmarks that fail the landmark gate (a group off the surface, "
-                        "not mirrored, out of order or out of proportion)")
+                        "not mirrored, out of order or out of proportion), or with given ones (--landmarks) on a "
+                        "mesh whose eyes are closed")
 
 
 def register(sub):
@@ -51,7 +53,7 @@ def register(sub):
     p = sub.add_parser("landmarks", help="find the 68 Multi-PIE landmarks on a head or body mesh "
                                          "(needs pdeface[landmarks])")
     p.add_argument("mesh", help="head or body mesh (.obj/.ply/.glb/.gltf), any orientation and unit, or 'head'")
-    unit_option(p, "mesh unit, for the mm figures (default: from the face)")
+    unit_option(p, f"mesh unit, for the mm figures: {UNIT_FORMS} (default: from the face)")
     p.add_argument("--image", help="also write the frontal render with the landmarks marked (.png); written also "
                                    "when the gate stops")
     accept_option(p)

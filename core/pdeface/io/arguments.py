@@ -10,6 +10,8 @@ from __future__ import annotations
 import argparse
 import math
 
+from ..errors import PdeFaceError
+from ..units import parse_unit
 from .files import MAX_DIGITS, whole_digits
 
 
@@ -58,6 +60,16 @@ positive_int = number_in(1, kind=int, what="a whole number >= 1")
 non_negative_int = number_in(0, kind=int, what="a whole number >= 0")
 #: [0, 1]: weights, confidences.
 unit_float = number_in(0.0, 1.0)
+
+
+def mesh_unit(text):
+    """An argparse type: a mesh unit (:func:`pdeface.units.parse_unit`: a name, or millimetres per unit such as
+    ``0.01`` or ``0.01mm``); returns the text as given, stripped, for the commands to pass on."""
+    try:
+        parse_unit(text)
+    except PdeFaceError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return str(text).strip()
 
 
 #: A TCP port.

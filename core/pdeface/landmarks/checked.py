@@ -1,13 +1,14 @@
 """The landmarks as every command takes them: found anywhere on the mesh (the head first on a body), then gated.
 
 One home for the chain ``pdeface landmarks``, ``fit``, ``rig`` and batch rig jobs share: the detector's word is
-not enough, so the points go through :mod:`~pdeface.landmarks.gate` before anything is fitted to them.
+not enough, so the points go through :mod:`~pdeface.landmarks.gate` before anything is fitted to them. Landmarks
+given by hand are taken at their word, but the mesh they come with is still looked at (:func:`check_given`).
 """
 from __future__ import annotations
 
 import time
 
-from .gate import LandmarkGateError, Verdict, check, require
+from .gate import FIX_MESH, LandmarkGateError, Verdict, check, check_mesh_at_rest, require
 from .headfind import detect_anywhere
 from .pipeline import FoundLandmarks
 
@@ -20,8 +21,8 @@ def find_checked(mesh, unit=None, keep_images=False, verbose=False, accept=False
     ----------
     mesh : Mesh
         The head or body (:class:`~pdeface.mesh.Mesh`).
-    unit : str, optional
-        The mesh unit; estimated from the face's size when None.
+    unit : str or float, optional
+        The mesh unit (a name or millimetres per unit); estimated from the face's size when None.
     keep_images, verbose : bool
         Passed to the detector (the renders kept for a picture; its own progress lines).
     accept : bool
@@ -60,3 +61,20 @@ def find_checked(mesh, unit=None, keep_images=False, verbose=False, accept=False
                 raise
         say(f"note: the landmarks fail the gate ({verdict.message()}); going on (--accept)")
     return found, verdict
+
+
+def check_given(mesh, points, unit=None, accept=False, log=None) -> Verdict:
+    """The gate's look at a mesh whose landmarks were given by hand (``--landmarks``): its eyes open, as a head at
+    rest has them (:func:`~pdeface.landmarks.gate.check_mesh_at_rest`: one render of the eyes' middles).
+
+    Raises
+    ------
+    LandmarkGateError
+        An eye is closed and ``accept`` is False (with ``accept``, the verdict is returned and ``log`` told).
+    """
+    verdict = check_mesh_at_rest(points, mesh.vertices, mesh.triangles()[0], unit)
+    if not verdict.passed:
+        if not accept:
+            require(verdict, "the mesh and its given landmarks", FIX_MESH)
+        (log or (lambda msg: None))(f"note: the mesh fails the gate ({verdict.message()}); going on (--accept)")
+    return verdict

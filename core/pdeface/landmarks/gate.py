@@ -257,7 +257,7 @@ def check(points, V=None, T=None, unit=None) -> Verdict:
         The landmarks, in the mesh's space.
     V, T : arrays, optional
         The mesh the landmarks lie on; without it the surface check is skipped.
-    unit : str, optional
+    unit : str or float, optional
         The mesh unit (only the frame needs it; the checks are relative to the eye distance).
     """
     verdict = Verdict()
@@ -325,13 +325,7 @@ def check(points, V=None, T=None, unit=None) -> Verdict:
     if V is not None:
         V, T = np.asarray(V, np.float64), np.asarray(T, np.int64)
         parts, skin = landmark_parts(V, T, P)
-        opening = eye_openings(V, skin, P, frame, eyes) / eyes
-        closed = [side for side, depth in zip(("right", "left"), opening) if depth < EYE_OPENING]
-        if closed:
-            which = "both eyes'" if len(closed) == 2 else f"the {closed[0]} eye's"
-            verdict.fail("eyes", "closed", f"{which} lids meet (the skin between the corners at most "
-                                           f"{opening.min():.2f} eye distances behind them; open eyes: over "
-                                           f"{EYE_OPENING}): a head at rest has its eyes open")
+        check_eyes_open(verdict, V, skin, P, frame, eyes)
         depth = buried(V, parts, P, frame, eyes) / eyes
         tolerance = np.full(68, BURIED)
         tolerance[list(INNER_LIPS)], tolerance[CREASES] = BURIED_INNER_LIPS, BURIED_CREASES
@@ -344,8 +338,40 @@ def check(points, V=None, T=None, unit=None) -> Verdict:
     return verdict
 
 
-def require(verdict: Verdict, what="landmarks"):
+def check_eyes_open(verdict: Verdict, V, skin, points, frame, eyes):
+    """The **closed** check: fail ``verdict``'s eyes where an eye's lids meet (:data:`EYE_OPENING`) on the face's
+    own part ``skin`` (triangles of ``V``)."""
+    opening = eye_openings(V, skin, points, frame, eyes) / eyes
+    closed = [side for side, depth in zip(("right", "left"), opening) if depth < EYE_OPENING]
+    if closed:
+        which = "both eyes'" if len(closed) == 2 else f"the {closed[0]} eye's"
+        verdict.fail("eyes", "closed", f"{which} lids meet (the skin between the corners at most "
+                                       f"{opening.min():.2f} eye distances behind them; open eyes: over "
+                                       f"{EYE_OPENING}): a head at rest has its eyes open")
+
+
+def check_mesh_at_rest(points, V, T, unit=None) -> Verdict:
+    """The gate's look at the mesh alone, for landmarks given by hand (the user's word on where they lie): each eye
+    open, as a head at rest has it (:func:`check_eyes_open`, on the part holding most landmarks). Landmarks the
+    frame refuses pass here: the fit names what is wrong with them."""
+    verdict = Verdict()
+    P = np.asarray(points, np.float64)
+    try:
+        frame = face_frame(P, unit)
+    except PdeFaceError:
+        return verdict
+    V, T = np.asarray(V, np.float64), np.asarray(T, np.int64)
+    check_eyes_open(verdict, V, landmark_parts(V, T, P)[1], P, frame, eye_distance(P))
+    return verdict
+
+
+#: What a refusal of found landmarks tells the user to do.
+FIX_FOUND = "check them (--image), give them by hand (--landmarks), or --accept to go on anyway"
+#: What a refusal of a mesh (with landmarks given by hand) tells the user to do.
+FIX_MESH = "give the head at rest (its eyes open), or --accept to go on anyway"
+
+
+def require(verdict: Verdict, what="landmarks", fix=FIX_FOUND):
     """Raise :class:`LandmarkGateError` naming the failing groups and checks, when any failed."""
     if not verdict.passed:
-        raise LandmarkGateError(f"{what} fail the landmark gate: {verdict.message()}; check them (--image), give "
-                                "them by hand (--landmarks), or --accept to go on anyway", verdict)
+        raise LandmarkGateError(f"{what} fail the landmark gate: {verdict.message()}; {fix}", verdict)

@@ -34,8 +34,9 @@ from ..errors import LandmarkError
 from ..geometry import ClosestPoint
 from ..mesh import connected_components, triangle_arrays, vertex_normals
 from ..rigid import rotation_vector_matrix
-from ..surface.frame import UNITS_MM, estimate_unit
+from ..surface.frame import estimate_unit
 from ..threads import bounded
+from ..units import parse_unit
 from .brows import brows_from_template, inner_brows_over_nasion, nasion_from_midline_strip
 from .contour import (
     chin_on_profile,
@@ -354,8 +355,8 @@ def detect(V, T, unit=None, landmark_map: LandmarkMap | None = None, detector: D
         Vertices, any unit, any orientation; a whole body is fine.
     T : (m, 3) int array
         Triangles.
-    unit : {'mm', 'cm', 'm', 'in'} or None
-        The mesh unit, for the mm figures; estimated from the face's size when None.
+    unit : str or float, optional
+        The mesh unit (a name or millimetres per unit), for the mm figures; estimated from the face's size when None.
     landmark_map : LandmarkMap, optional
         The shipped map by default.
     detector : Detector, optional
@@ -450,7 +451,7 @@ def detect(V, T, unit=None, landmark_map: LandmarkMap | None = None, detector: D
         # the face frame the steps above take from all the points would move with it).
         points = chin_on_profile(V, Ts, points, closest)
         indices = nearest_vertices(V, Ts, points)
-        mm = UNITS_MM[unit] if unit else estimate_unit(points)[1]  # the fit's own estimate (one for both)
+        mm = parse_unit(unit)[1] if unit else estimate_unit(points)[1]  # the fit's own estimate (one for both)
         spread = group_spread(m, Ps, mm)
         direct = direct.mean(0)
         # A group as steady as on the training heads scores 1/√2 of its rays' skin hits; twice as unsteady, 1/2.
@@ -472,8 +473,8 @@ def find_on_mesh(mesh, unit=None, keep_images=False, verbose=False) -> FoundLand
     ----------
     mesh : Mesh
         Any head or body mesh, any unit and orientation.
-    unit : {'mm', 'cm', 'm', 'in'} or None
-        The mesh unit, for the mm figures; estimated from the face's size when None.
+    unit : str or float, optional
+        The mesh unit (a name or millimetres per unit), for the mm figures; estimated from the face's size when None.
     keep_images : bool
         Keep the frontal render and its view (for :meth:`FoundLandmarks.marked_image`).
     verbose : bool

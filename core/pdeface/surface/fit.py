@@ -248,8 +248,9 @@ def fit_face(vertices, triangles, landmarks, unit=None, n_curves=DEFAULT_CURVES,
         Mesh triangles (see :meth:`pdeface.mesh.Mesh.triangles`).
     landmarks : (68, 3) array
         Multi-PIE landmark positions in the same space.
-    unit : str, optional
-        Mesh unit (mm, cm, m, in); guessed from the eye distance when None.
+    unit : str or float, optional
+        Mesh unit: a name or millimetres per unit (:func:`~pdeface.units.parse_unit`); estimated from the face's
+        size when None (:func:`~pdeface.surface.frame.estimate_unit`).
     n_curves, n_points, n_modes : int
         Curves, points per curve, Fourier modes.
     a : float

@@ -17,29 +17,30 @@ from ..landmark_scheme import (
     EYE_LEFT,
     EYE_RIGHT,
     FEATURE_POINTS,
+    JAW_LEFT_END,
+    JAW_RIGHT_END,
     NOSE_BRIDGE_TOP,
     NOSE_TIP,
     eye_centres,
     eye_distance,
 )
-
-#: Millimetres per mesh unit (decimetres: MakeHuman's base mesh).
-UNITS_MM = {"mm": 1.0, "cm": 10.0, "dm": 100.0, "m": 1000.0, "in": 25.4}
-#: The unit of a mesh whose scale is none of :data:`UNITS_MM`: its millimetres per unit are the face's own estimate.
-ESTIMATED = "estimated"
+from ..units import ESTIMATED, UNITS_MM, parse_unit
 
 #: Rotation taking ICT-FaceKit's axes (+z front, +y up) to Blender's (-y front, +z up): ``V @ BLENDER_FROM_ICT.T``.
 BLENDER_FROM_ICT = np.array([[1.0, 0, 0], [0, 0, -1], [0, 1, 0]])
 
-#: Typical adult distance between the eye centres (mm), used to estimate the unit.
-EYE_DISTANCE_MM = 63.0
-#: An adult face's inner sizes (mm), each the median over ICT-FaceKit's 20 identities scaled to
-#: :data:`EYE_DISTANCE_MM` (they vary 1.2-1.5 % between them): the landmark pairs (each side's mean) measured.
-FACE_SIZES_MM = {"eye centres": (list(EYE_RIGHT), list(EYE_LEFT), 63.0),
-                 "eyes to mouth": ([*EYE_RIGHT, *EYE_LEFT], [48, 51, 54, 57], 68.9),
-                 "nose length": ([NOSE_BRIDGE_TOP], [33], 48.4),
-                 "mouth width": ([48], [54], 48.9),
-                 "outer eye corners": ([36], [45], 86.3)}
+#: The face's sizes the unit is estimated from (:func:`estimate_mm_per_unit`): the landmark groups whose means are
+#: measured apart, and the size (mm) of a face of the middle size. Of 16 sizes (eye centres, eye corners, eye, mouth
+#: and nose widths, nose length, the jaw's ends and angles, eyes, brows, nasion and nose to chin), alone and in pairs
+#: and threes, these two vary least in millimetres over ICT-FaceKit's 21 heads and MakeHuman's 32 characters (the
+#: development set's 24 and bench_gate's 8), true and found landmarks (MakeHuman's faces are about 9 % smaller than
+#: ICT's at the same eye distance, and vary more). The sizes sit between the two: the estimate lies under ICT's true
+#: millimetres per unit by 6.8 % (median; at most 8.0 %: larger faces), over MakeHuman's by 1.4-1.9 % (at most 8.8 %,
+#: a held-out round face; the game unit's 2.0 %, as before). Before, the median over eye centres, eyes to mouth, nose
+#: length, mouth width and outer eye corners at ICT's sizes scaled to 63 mm between the eyes lay 17 % over
+#: MakeHuman's small faces (asian-female-old). See docs/measurements/units.md.
+FACE_SIZES_MM = {"eyes to mouth": ([*EYE_RIGHT, *EYE_LEFT], [48, 51, 54, 57], 69.2),
+                 "jaw width": ([JAW_RIGHT_END], [JAW_LEFT_END], 131.8)}
 #: An estimate this close (ratio) to a named unit is that unit: units are at least 2.5 times apart.
 UNIT_SNAP = 1.3
 #: Eye-centre distances a face may have (a small child's to a giant caricature's), in mm.
@@ -119,17 +120,13 @@ def feature_points(landmarks68: np.ndarray) -> np.ndarray:
 
 
 def estimate_mm_per_unit(landmarks68: np.ndarray) -> float:
-    """Millimetres per mesh unit from the face's size: the median over :data:`FACE_SIZES_MM` of each adult size
-    over the same size measured on the landmarks (a face 10 % smaller than the norm reads 10 % off)."""
+    """Millimetres per mesh unit from the face's size: the geometric mean over :data:`FACE_SIZES_MM` of each size
+    over the same size measured on the landmarks (a face 10 % smaller than the middle one reads 10 % off)."""
     L = np.asarray(landmarks68, dtype=np.float64)
-    ratios = []
-    for a, b, mm in FACE_SIZES_MM.values():
-        d = np.linalg.norm(L[a].mean(0) - L[b].mean(0))
-        if d > 0:
-            ratios.append(mm / d)
-    if not ratios or not eye_distance(L) > 0:
-        raise LandmarkError("eye landmarks coincide: cannot estimate the unit")
-    return float(np.median(ratios))
+    sizes = np.array([np.linalg.norm(L[a].mean(0) - L[b].mean(0)) for a, b, _ in FACE_SIZES_MM.values()])
+    if not (sizes > 0).all() or not eye_distance(L) > 0:
+        raise LandmarkError("the eyes, mouth or jaw ends coincide: cannot estimate the unit")
+    return float(np.exp(np.mean(np.log([mm for _, _, mm in FACE_SIZES_MM.values()] / sizes))))
 
 
 def estimate_unit(landmarks68: np.ndarray) -> tuple[str, float]:
@@ -187,23 +184,19 @@ def face_frame(landmarks68: np.ndarray, unit: str | None = None) -> FaceFrame:
     ----------
     landmarks68 : (68, 3) array
         Landmark positions in the mesh's own space.
-    unit : {'mm', 'cm', 'dm', 'm', 'in'} or None
-        Mesh unit; estimated from the face's size when None (:func:`estimate_unit`: any scale).
+    unit : str or float, optional
+        Mesh unit, a name or millimetres per unit (:func:`~pdeface.units.parse_unit`); estimated from the face's
+        size when None (:func:`estimate_unit`: any scale).
 
     Raises
     ------
     LandmarkError
-        For an unknown unit or degenerate landmarks.
+        For a unit that is none, or degenerate landmarks.
     """
     L = np.asarray(landmarks68, dtype=np.float64)
     if L.shape != (68, 3) or not np.isfinite(L).all():
         raise LandmarkError(f"need 68 finite landmarks, got shape {L.shape}")
-    if unit is None:
-        unit, scale = estimate_unit(L)
-    elif unit in UNITS_MM:
-        scale = UNITS_MM[unit]
-    else:
-        raise LandmarkError(f"unknown unit {unit!r}; use one of {', '.join(UNITS_MM)}")
+    unit, scale = estimate_unit(L) if unit is None else parse_unit(unit)
     eyes_mm = eye_distance(L) * scale
     if not EYE_DISTANCE_RANGE_MM[0] <= eyes_mm <= EYE_DISTANCE_RANGE_MM[1]:
         raise LandmarkError(f"the eyes are {eyes_mm:.3g} mm apart in unit {unit!r}; a face's are "
