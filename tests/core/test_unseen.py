@@ -13,7 +13,7 @@ from pdeface.landmark_scheme import eye_distance
 from pdeface.landmarks import available as mediapipe_available
 from pdeface.landmarks.gate import check
 from pdeface.landmarks.headfind import detect_anywhere
-from pdeface.mesh import facing_forward, require_usable_triangles
+from pdeface.mesh import connected_components, facing_forward, require_usable_triangles
 from pdeface.surface.fit import fit_face
 from pdeface.surface.frame import face_frame
 from scipy.spatial import cKDTree
@@ -144,6 +144,35 @@ def test_a_head_with_its_eyes_closed_is_refused_by_the_gate_its_open_and_half_cl
         V = identity + blink * (S["eyeBlink_L"] + S["eyeBlink_R"])
         v = check(V[lm], V, T, "cm")
         assert ("closed" in [c for c, _ in v.failures.get("eyes", [])]) == closed, (blink, v.message())
+
+
+def test_closed_eyes_are_found_on_a_head_split_down_the_midline_and_a_scans_case_is_named():
+    """A head an exporter split along a UV seam down the midline: its skin is one part for the look at both eyes
+    (split, the rays over one eye met nothing and read it open). Open eyes whose eyeballs are one surface with the
+    lids read as closed: the refusal names that case and the way on."""
+    V, T, L, _ = BUILDERS["ict-expression"]()
+    mid = np.mean(L[[36, 39, 42, 45], 0])
+    on_mid = np.abs(V[:, 0] - mid) < 0.02 * eye_distance(L)
+    copy = np.full(len(V), -1)
+    copy[on_mid] = len(V) + np.arange(on_mid.sum())
+    right = V[T].mean(1)[:, 0] < mid
+    split = T.copy()
+    split[right] = np.where(on_mid[T[right]], copy[T[right]], T[right])
+    v = check(L, np.concatenate([V, V[on_mid]]), split, "cm")
+    assert "both eyes' lids meet" in v.message() and "--accept" in v.message()
+    mesh, lm = load_head()
+    V = mesh.vertices + load_head_shapes()["identity004"]
+    assert check(V[lm], V, mesh.triangles()[0], "cm").passed  # eyes open, eyeballs parts of their own
+    T, L = mesh.triangles()[0], V[lm]
+    labels = connected_components(len(V), T)
+    skin = labels[lm[36]]
+    joined = T.copy()
+    for lid, eye in ((37, slice(36, 42)), (43, slice(42, 48))):  # each eyeball joined to its upper lid's vertex
+        other = np.nonzero(labels != skin)[0]
+        cornea = other[np.argmin(np.linalg.norm(V[other] - L[eye].mean(0), axis=1))]  # the part nearest the eye
+        joined[joined == cornea] = lm[lid]
+    v = check(V[lm], V, joined, "cm")
+    assert not v.passed and "one surface with the lids (a scan): then --accept" in v.message()
 
 
 def test_closed_eyes_are_refused_with_landmarks_given_by_hand_too(tmp_path, capsys):

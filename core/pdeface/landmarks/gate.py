@@ -38,7 +38,7 @@ import numpy as np
 
 from ..errors import LandmarkError, PdeFaceError
 from ..landmark_scheme import CHIN, INNER_LIPS, JAW, LOWER_LIDS, MIRROR, NOSE_BOTTOM, UPPER_LIDS, eye_distance
-from ..mesh import connected_components
+from ..mesh import connected_components, seam_welds
 from ..surface.frame import face_frame
 from .facemap import GROUPS
 from .render import View, rasterise
@@ -102,7 +102,9 @@ LIDS_BEHIND = 0.10
 #: head at 0.7 of its blink and squinting 0.38; MakeHuman's 24 characters, true and found landmarks, 0.38-0.58 (voxel
 #: and decimated heads among them), 14 others nobody tuned on (docs/measurements/audit_unseen.md) 0.43-0.75. Closed:
 #: ICT's blink -0.08, its identity004 blinking (true / found landmarks) -0.09 / -0.04, MakeHuman's eye closure -0.06 /
-#: -0.03 (the closed lids' skin in front of the corners).
+#: -0.03 (the closed lids' skin in front of the corners). Not told apart: open eyes whose eyeballs are one surface with
+#: the lids (a scan; ICT's head with its eyeballs joined to the skin: -0.06 / -0.05): the message names that case
+#: and --accept.
 EYE_OPENING = 0.15
 #: The grid of rays over each eye: shares of the way from its inner to its outer corner, and heights about the line
 #: between them (eye distances).
@@ -237,11 +239,14 @@ def jaw_pair_offsets(F) -> np.ndarray:
 
 def landmark_parts(V, T, points) -> tuple[np.ndarray, np.ndarray]:
     """The triangles of the connected parts of ``(V, T)`` that hold a landmark's nearest vertex, and those of the
-    one part that holds the most (the face's skin: not an eyeball a lid's point lies nearest to)."""
+    one part that holds the most (the face's skin: not an eyeball a lid's point lies nearest to). Parts an exporter
+    split along UV seams count as one (:func:`~pdeface.mesh.seam_welds`): split down the midline, one eye's skin would
+    be another part, and the look at its opening would meet nothing there."""
     from scipy.spatial import cKDTree
 
     used = np.unique(T)
-    labels = connected_components(len(V), T)
+    welds = seam_welds(V, T)
+    labels = connected_components(len(V), welds[T])[welds]
     own = labels[used[cKDTree(V[used]).query(points)[1]]]
     values, counts = np.unique(own, return_counts=True)
     of = labels[T[:, 0]]
@@ -347,7 +352,8 @@ def check_eyes_open(verdict: Verdict, V, skin, points, frame, eyes):
         which = "both eyes'" if len(closed) == 2 else f"the {closed[0]} eye's"
         verdict.fail("eyes", "closed", f"{which} lids meet (the skin between the corners at most "
                                        f"{opening.min():.2f} eye distances behind them; open eyes: over "
-                                       f"{EYE_OPENING}): a head at rest has its eyes open")
+                                       f"{EYE_OPENING}): a head at rest has its eyes open; open eyes read so too "
+                                       "where the eyeballs are one surface with the lids (a scan): then --accept")
 
 
 def check_mesh_at_rest(points, V, T, unit=None) -> Verdict:
