@@ -37,6 +37,7 @@ from .landmarks.detector import available
 from .presets import key_poses, merged_presets
 from .surface.fit import fit_face
 from .surface.scan import load_scan
+from .units import parse_unit
 
 KEYS_FORMAT = "pdeface.keys"
 KEYS_VERSION = 1
@@ -177,7 +178,8 @@ def rig_head(mesh_arg, out, landmarks=None, unit=None, parts=None, descriptors=D
     poses = key_poses(rigged, merged_presets([]) if presets else {}, descriptors=keyed)
     deltas = binding.pose_displacements(list(poses.values()))
     lap("bind")
-    save_keys(out / "keys.npz", V, T, lm, list(poses), deltas, model.frame.unit, str(mesh_arg))
+    # the unit as its millimetres where the fit estimated it: a keys file names a unit its readers' frame takes
+    save_keys(out / "keys.npz", V, T, lm, list(poses), deltas, parse_unit(model.frame.scale)[0], str(mesh_arg))
     report["keys"] = {"count": len(poses), "aus": sum(n.startswith("AU") for n in poses),
                       "left_out": sorted({f"AU{d.key}" for d in rigged.descriptors} - set(poses)),
                       "largest_mm": round(_largest_move(deltas) * model.frame.scale, 2)}
@@ -216,6 +218,6 @@ def rig_blend(mesh_arg, landmarks, path, unit=None):
     """``path``: the head rigged by the add-on (its Fit), saved as a ``.blend`` by the headless renderer."""
     argv = ["--mesh", mesh_arg, "--landmarks", landmarks, "--no-frames", "--quiet", "--save-blend",
             os.fspath(Path(path).resolve())]
-    code, _ = run_headless(argv + (["--unit", str(unit)] if unit else []), capture=True, prog="pdeface rig")
+    code, _ = run_headless(argv + (["--unit", str(unit)] if unit is not None else []), capture=True, prog="pdeface rig")
     if code:
         raise PdeFaceError(f"{path}: Blender could not rig the head (the headless renderer exited with {code})")

@@ -7,6 +7,7 @@ batch job, the add-on, a model file's ``unit``).
 from __future__ import annotations
 
 import math
+import numbers
 
 from .errors import LandmarkError
 
@@ -52,7 +53,7 @@ def parse_unit(unit) -> tuple[str, float]:
             mm = None
         if mm is None:
             raise LandmarkError(f"unknown unit {unit[:MAX_TEXT]!r}: use {UNIT_FORMS}")
-    elif isinstance(unit, (int, float)) and not isinstance(unit, bool):
+    elif isinstance(unit, numbers.Real) and not isinstance(unit, bool):
         mm = float(unit)
     else:
         raise LandmarkError(f"unknown unit {str(unit)[:MAX_TEXT]!r}: use {UNIT_FORMS}")

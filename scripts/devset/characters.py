@@ -29,12 +29,13 @@ from pdeface.geometry import ClosestPoint, smoothstep
 from pdeface.mesh import connected_components
 from pdeface.rigid import rotation_vector_matrix
 from pdeface.surface.frame import BLENDER_FROM_ICT
+from pdeface.units import UNITS_MM
 
 from .makehuman import BASE_MM, apply_targets, read_base, triangles
 
 ANNOTATION = Path(__file__).with_name("makehuman_landmarks.json")
-#: Millimetres per unit of each unit a character may be given in.
-UNIT_MM = {"mm": 1.0, "cm": 10.0, "dm": 100.0, "m": 1000.0, "in": 25.4, "game168mm": 168.0}
+#: Millimetres per unit of each unit a character may be given in: pdeface's named ones and a game's 168 mm.
+UNIT_MM = {**UNITS_MM, "game168mm": 168.0}
 #: Where a head is cut from the body (base-mesh decimetres below the neck joint).
 HEAD_CUT = 0.35
 #: Separate-object groups of the base mesh.

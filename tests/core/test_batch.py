@@ -333,6 +333,25 @@ def test_pdeface_rig_writes_the_same_bytes_twice(tmp_path, capsys, monkeypatch):
     np.testing.assert_allclose(keys["deltas"][smile], binding.pose_displacement({"12": 1.0}), atol=1e-5)
 
 
+def test_a_keys_file_of_an_estimated_unit_is_posed(tmp_path):
+    """A head at no named scale: ``pdeface rig`` writes its unit as millimetres per unit (``0.1mm``), which the
+    stimuli read; a keys file an older rig wrote with the unit ``estimated`` is read with the unit estimated again."""
+    from pdeface.batch.stimuli import load_identity
+    from pdeface.rig import save_keys
+
+    mesh, idx = load_neutral_scan()
+    V = mesh.vertices * 100.0  # cm → tenths of a millimetre
+    smile = 100.0 * (load_ict_shapes()["mouthSmile_L"] + load_ict_shapes()["mouthSmile_R"])
+    poses = []
+    for unit in ("0.1mm", "estimated"):
+        save_keys(tmp_path / f"{unit}.npz", V, mesh.triangles()[0], V[idx], ["AU12"], smile[None], unit)
+        identity = load_identity(str(tmp_path / f"{unit}.npz"), ("12",))
+        poses.append(identity.posed({"12": 1.0}))
+    # the face frame's millimetres: the smile moves the mouth's corners by centimetres, whichever unit was written
+    assert all(np.abs(p - identity.vertices).max() > 5.0 for p in poses)
+    np.testing.assert_allclose(poses[0], poses[1], rtol=0.15)
+
+
 def test_stimuli_of_a_rigged_head_and_a_broken_face(tmp_path):
     """A head's keys file (as ``pdeface rig`` writes it) is posed by its keys; a broken face fails its images
     alone, each with its one-line error in the manifest, and the labels list the images made."""

@@ -30,6 +30,7 @@ from ..rig import load_keys
 from ..surface.fit import face_mesh
 from ..surface.frame import face_frame
 from ..surface.model import model_landmarks
+from ..units import ESTIMATED
 
 #: Named views: the yaw (degrees) of the camera about the face's vertical, positive towards the subject's left.
 VIEWS = {"front": 0.0, "left": 30.0, "right": -30.0}
@@ -141,7 +142,7 @@ def load_identity(face: str, aus: tuple = ()) -> Identity:
     path = Path(face)
     keys_file = path / "keys.npz" if path.is_dir() else path
     data = load_keys(keys_file)
-    frame = face_frame(data["landmarks"], data["unit"])
+    frame = face_frame(data["landmarks"], None if data["unit"] == ESTIMATED else data["unit"])  # older rigs wrote it
     rest = frame.to_face(data["vertices"])
     keys = {}
     for name, d in zip(data["names"], data["deltas"]):

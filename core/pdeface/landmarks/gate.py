@@ -37,8 +37,21 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import LandmarkError, PdeFaceError
-from ..landmark_scheme import CHIN, INNER_LIPS, JAW, LOWER_LIDS, MIRROR, NOSE_BOTTOM, UPPER_LIDS, eye_distance
-from ..mesh import connected_components, seam_welds
+from ..landmark_scheme import (
+    CHIN,
+    INNER_LIPS,
+    JAW,
+    JAW_LEFT_ANGLE,
+    JAW_RIGHT_ANGLE,
+    LOWER_LIDS,
+    MIRROR,
+    MOUTH_CORNER_LEFT,
+    MOUTH_CORNER_RIGHT,
+    NOSE_BOTTOM,
+    UPPER_LIDS,
+    eye_distance,
+)
+from ..mesh import connected_components, seam_welds, triangle_arrays
 from ..surface.frame import face_frame
 from .facemap import GROUPS
 from .render import View, rasterise
@@ -103,8 +116,7 @@ LIDS_BEHIND = 0.10
 #: and decimated heads among them), 14 others nobody tuned on (docs/measurements/audit_unseen.md) 0.43-0.75. Closed:
 #: ICT's blink -0.08, its identity004 blinking (true / found landmarks) -0.09 / -0.04, MakeHuman's eye closure -0.06 /
 #: -0.03 (the closed lids' skin in front of the corners). Not told apart: open eyes whose eyeballs are one surface with
-#: the lids (a scan; ICT's head with its eyeballs joined to the skin: -0.06 / -0.05): the message names that case
-#: and --accept.
+#: the lids (a scan; ICT's head with its eyeballs joined to the skin: -0.06 / -0.05): the message names that case.
 EYE_OPENING = 0.15
 #: The grid of rays over each eye: shares of the way from its inner to its outer corner, and heights about the line
 #: between them (eye distances).
@@ -318,7 +330,7 @@ def check(points, V=None, T=None, unit=None) -> Verdict:
     if bend.max() > JAW_BEND:
         verdict.fail("jaw", "smooth", f"landmark {int(np.argmax(bend)) + 1} {bend.max():.2f} eye distances off the "
                                       f"middle of its neighbours (jawlines: {JAW_BEND})")
-    back = float(F[[48, 54], 2].mean() - F[[5, 11], 2].mean())
+    back = float(F[[MOUTH_CORNER_RIGHT, MOUTH_CORNER_LEFT], 2].mean() - F[[JAW_RIGHT_ANGLE, JAW_LEFT_ANGLE], 2].mean())
     if back < JAW_ANGLES_BACK:
         verdict.fail("jaw", "depth", f"jaw angles {back:.2f} eye distances behind the mouth corners (faces: at "
                                      f"least {JAW_ANGLES_BACK})")
@@ -353,7 +365,7 @@ def check_eyes_open(verdict: Verdict, V, skin, points, frame, eyes):
         verdict.fail("eyes", "closed", f"{which} lids meet (the skin between the corners at most "
                                        f"{opening.min():.2f} eye distances behind them; open eyes: over "
                                        f"{EYE_OPENING}): a head at rest has its eyes open; open eyes read so too "
-                                       "where the eyeballs are one surface with the lids (a scan): then --accept")
+                                       "where the eyeballs are one surface with the lids (a scan)")
 
 
 def check_mesh_at_rest(points, V, T, unit=None) -> Verdict:
@@ -366,7 +378,7 @@ def check_mesh_at_rest(points, V, T, unit=None) -> Verdict:
         frame = face_frame(P, unit)
     except PdeFaceError:
         return verdict
-    V, T = np.asarray(V, np.float64), np.asarray(T, np.int64)
+    V, T = triangle_arrays(V, T)
     check_eyes_open(verdict, V, landmark_parts(V, T, P)[1], P, frame, eye_distance(P))
     return verdict
 

@@ -451,7 +451,8 @@ def detect(V, T, unit=None, landmark_map: LandmarkMap | None = None, detector: D
         # the face frame the steps above take from all the points would move with it).
         points = chin_on_profile(V, Ts, points, closest)
         indices = nearest_vertices(V, Ts, points)
-        mm = parse_unit(unit)[1] if unit else estimate_unit(points)[1]  # the fit's own estimate (one for both)
+        # the fit's own estimate (one for both)
+        mm = parse_unit(unit)[1] if unit is not None else estimate_unit(points)[1]
         spread = group_spread(m, Ps, mm)
         direct = direct.mean(0)
         # A group as steady as on the training heads scores 1/√2 of its rays' skin hits; twice as unsteady, 1/2.
