@@ -142,10 +142,11 @@ def read_landmarks(settings, obj):
 
 
 def chosen_unit(settings):
-    """The unit the settings name: None (estimated from the face's size), a unit's name, or millimetres per unit."""
+    """The unit the settings name: None (estimated from the face's size), a unit's name, or millimetres per unit
+    (Blender keeps the number in float32: 0.01 typed is 0.009999999776; its 7 digits are what was typed)."""
     if settings.unit == "AUTO":
         return None
-    return settings.unit_mm if settings.unit == "CUSTOM" else settings.unit
+    return float(f"{settings.unit_mm:.7g}") if settings.unit == "CUSTOM" else settings.unit
 
 
 def _listed_landmarks(settings, obj):

@@ -254,8 +254,10 @@ def test_the_unit_is_estimated_named_or_millimetres_per_unit(bpy, ict_head):
     assert s.unit == "AUTO" and face.chosen_unit(s) is None
     s.unit = "cm"
     assert face.chosen_unit(s) == "cm"
-    s.unit, s.unit_mm = "CUSTOM", 10.0
-    assert face.chosen_unit(s) == pytest.approx(10.0)
+    s.unit, s.unit_mm = "CUSTOM", 0.01  # float32 in Blender: the digits typed, not 0.009999999776
+    assert face.chosen_unit(s) == 0.01
+    s.unit_mm = 10.0
+    assert face.chosen_unit(s) == 10.0
     assert bpy.ops.pdeface.fit_to_selected(keys_on_mesh=False) == {"FINISHED"}  # ICT's head is in cm: 10 mm per unit
     s.unit_mm = 1.0  # said to be in millimetres: its eyes 6.5 mm apart, refused naming the unit
     bpy.context.view_layer.objects.active = ict_head[0]

@@ -96,6 +96,8 @@ def test_cut_lips_open_parts_fused_lips_and_keeps_the_users_keys(bpy):
     assert any(w.startswith("the lips are joined") for w in addon("face").binding_warnings(face))
     mine = head.shape_key_add(name="My smirk", from_mix=False)  # the user's own key
     n, name = len(head.data.vertices), face.name
+    s = bpy.context.scene.pdeface
+    s.unit, s.unit_mm = "CUSTOM", 10.0  # the refit takes the unit as the fit does: cm as millimetres per unit
     assert bpy.ops.pdeface.cut_lips_open() == {"FINISHED"}
     new = head.pdeface.rig_face
     assert new.name == name and new.pdeface.is_face
