@@ -81,4 +81,6 @@ def test_a_batch_job_names_a_bad_unit(tmp_path):
         plan_job({**job, "unit": "furlong"}, tmp_path)
     with pytest.raises(JobError, match="unit '0'"):
         plan_job({**job, "meshes": [{"mesh": "a.obj", "unit": 0}]}, tmp_path)
+    with pytest.raises(JobError, match="unit: unknown unit 'furlong'"):  # the job's own, though each mesh sets one
+        plan_job({**job, "unit": "furlong", "meshes": [{"mesh": "a.obj", "unit": "cm"}]}, tmp_path)
     assert plan_job({**job, "unit": 0.01}, tmp_path).tasks[0].params["unit"] == 0.01

@@ -1,9 +1,9 @@
 """A batch job file (TOML) and the tasks it makes, each keyed by the hash of its inputs and options.
 
-The contract (issue #37): ``kind`` (``rig`` | ``stimuli`` | ``render``) and ``out`` (a folder); ``rig``:
-``meshes`` (paths or globs); ``stimuli``: ``faces``, ``aus`` and/or ``presets``, ``intensities`` (FACS letters
-A-E, or weights), ``size``, ``samples`` (and ``views``, ``lights``); ``render``: ``timeline``, ``face``/``head``/``blend``, ``chunk``.
-The other keys are listed in ``docs/user/batch.md``. Paths are relative to the job file's folder.
+The contract (issue #37): ``kind`` (``rig`` | ``stimuli`` | ``render``) and ``out`` (a folder); ``rig``: ``meshes``
+(paths or globs); ``stimuli``: ``faces``, ``aus`` and/or ``presets``, ``intensities`` (FACS letters A-E, or weights),
+``size``, ``samples`` (and ``views``, ``lights``); ``render``: ``timeline``, ``face``/``head``/``blend``, ``chunk``. The
+other keys are listed in ``docs/user/batch.md``. Paths are relative to the job file's folder.
 """
 from __future__ import annotations
 
@@ -181,6 +181,11 @@ def _plan_rig(data, base, where):
         if not found:
             raise JobError(f"{where}: {spec!r} matches no file")
         entries += [{**entry, "mesh": f} for f in found]
+    if data.get("unit") is not None:  # the job's own, checked whether or not an entry sets its own
+        try:
+            parse_unit(data["unit"])
+        except PdeFaceError as exc:
+            raise JobError(f"{where}: unit: {exc}") from None
     options = {"unit": data.get("unit"), "descriptors": _path(base, data.get("descriptors", DEFAULT)),
                "presets": bool(data.get("presets", True)), "blend": bool(data.get("blend", False)),
                "accept": bool(data.get("accept", False))}  # found landmarks that fail the gate: go on anyway

@@ -30,14 +30,14 @@ from ..units import ESTIMATED, UNITS_MM, parse_unit
 BLENDER_FROM_ICT = np.array([[1.0, 0, 0], [0, 0, -1], [0, 1, 0]])
 
 #: The face's sizes the unit is estimated from (:func:`estimate_mm_per_unit`): the landmark groups whose means are
-#: measured apart, and the size (mm) of a face of the middle size. Of 16 sizes (eye centres, eye corners, eye, mouth
-#: and nose widths, nose length, the jaw's ends and angles, eyes, brows, nasion and nose to chin), alone and in pairs
-#: and threes, these two vary least in millimetres over ICT-FaceKit's 21 heads and MakeHuman's 32 characters (the
+#: measured apart, and the size (mm) of a face of the middle size. Of 16 sizes (eye centres, eye corners, eye, mouth and
+#: nose widths, nose length, the jaw's ends and angles, eyes, brows, nasion and nose to chin), alone and in pairs and
+#: threes, these two vary least in millimetres over ICT-FaceKit's 21 heads and MakeHuman's 32 characters (the
 #: development set's 24 and bench_gate's 8), true and found landmarks (MakeHuman's faces are about 9 % smaller than
 #: ICT's at the same eye distance, and vary more). The sizes sit between the two: the estimate lies under ICT's true
-#: millimetres per unit by 6.8 % (median; at most 8.0 %: larger faces), over MakeHuman's by 1.4-1.9 % (at most 8.8 %,
-#: a held-out round face; the game unit's 2.0 %, as before). Before, the median over eye centres, eyes to mouth, nose
-#: length, mouth width and outer eye corners at ICT's sizes scaled to 63 mm between the eyes lay 17 % over
+#: millimetres per unit by 6.8 % (median; at most 8.0 %: larger faces), over MakeHuman's by 1.4-1.9 % (median; the worst
+#: a held-out round face, 8.8 % under; the game unit's 2.0 %, as before). Before, the median over eye centres, eyes to
+#: mouth, nose length, mouth width and outer eye corners at ICT's sizes scaled to 63 mm between the eyes lay 17 % over
 #: MakeHuman's small faces (asian-female-old). See docs/measurements/units.md.
 FACE_SIZES_MM = {"eyes to mouth": ([*EYE_RIGHT, *EYE_LEFT], [48, 51, 54, 57], 69.2),
                  "jaw width": ([JAW_RIGHT_END], [JAW_LEFT_END], 131.8)}
@@ -139,11 +139,6 @@ def estimate_unit(landmarks68: np.ndarray) -> tuple[str, float]:
     return ESTIMATED, mm
 
 
-def guess_unit(landmarks68: np.ndarray) -> str:
-    """The mesh unit's name from the face's size (:func:`estimate_unit`)."""
-    return estimate_unit(landmarks68)[0]
-
-
 @dataclass
 class FaceFrame:
     """Rigid frame plus scale from the user's mesh space to the face frame.
@@ -200,7 +195,8 @@ def face_frame(landmarks68: np.ndarray, unit: str | None = None) -> FaceFrame:
     eyes_mm = eye_distance(L) * scale
     if not EYE_DISTANCE_RANGE_MM[0] <= eyes_mm <= EYE_DISTANCE_RANGE_MM[1]:
         raise LandmarkError(f"the eyes are {eyes_mm:.3g} mm apart in unit {unit!r}; a face's are "
-                            f"{EYE_DISTANCE_RANGE_MM[0]}-{EYE_DISTANCE_RANGE_MM[1]} mm: check the unit and the landmarks")
+                            f"{EYE_DISTANCE_RANGE_MM[0]}-{EYE_DISTANCE_RANGE_MM[1]} mm: check the unit and the "
+                            "landmarks")
     right, left = eye_centres(L)
     x = left - right  # right eye → left eye
     up = L[NOSE_BRIDGE_TOP] - L[CHIN]  # chin → nose bridge
