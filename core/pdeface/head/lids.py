@@ -7,7 +7,8 @@ keys' AUs do: AU43 (eyes closed), AU45 (blink) and AU46 (wink) at weight w close
 for AU43/45 without one, the one the motion closes more for a wink without one) to ``1 - w (1 - LEFT_OPEN)``
 of the rest gap between the upper and lower lid middles (the vertices at the landmarks).
 :class:`LidClosure` turns the upper lid the rest of the way about the eye's centre (over the eyeball, which
-it never enters) onto the lower lid's keyed middle: the margin fully, fading out above it over ``LID_IOD`` eye distances, along the margin as the opening's height does,
+it never enters) onto the lower lid's keyed middle: the margin fully, fading out above it over ``LID_IOD`` eye
+distances, along the margin as the opening's height does,
 and what lies in the opening (a lid's lining, an occlusion mesh) shared out between the two margins. In a blink
 (AU43, AU45; not a wink, whose cheek raises it) the lower lid first keeps its rest height, the same way down
 from its margin: where the keyed motion raised it, the upper lid stopped that much short of its travel.
@@ -187,8 +188,9 @@ class LidClosure:
 
 def coarse_margins(Vf, T, Lf, skin, side, eye_distance):
     """On a coarse eye (its opening under :data:`COARSE_EDGES` of its edges tall at the middle), the lid middles
-    as the mesh has them and the landmarks' lid lines moved onto them; None on a finer eye, or where the mesh shows
-    no opening at the middle.
+    as the mesh has them and the landmarks' lid lines moved onto them; None on a finer eye, or where no gap in height
+    between the skin's rows there crosses the landmarks' opening. (A closed coarse eye, one surface, still has such
+    a gap between two rows of its lid: the gate refuses a head modelled with its eyes closed.)
 
     ``skin``: (n,) bool, the vertices that may be a margin (not an eyeball's). Returns ``(upper, lower, Ll)``: the
     upper and lower middles' vertices, and the landmarks with the middle ones moved up or down by as much as their
