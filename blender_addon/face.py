@@ -141,6 +141,15 @@ def read_landmarks(settings, obj):
     return _listed_landmarks(settings, obj), None
 
 
+def check_landmarks(settings, obj, points, unit=None, accept=False):
+    """The gate's word on the landmarks :func:`read_landmarks` gave, before the fit, as the CLI's: the whole gate on
+    the mesh's empties (found or edited), its look at the mesh alone (eyes open) on landmarks the user listed.
+    Returns a note on a failure ``accept`` lets by; raises :class:`~pdeface.landmarks.gate.LandmarkGateError`."""
+    if settings.landmark_source == "AUTO" and landmarks.empties(obj) is not None:
+        return landmarks.gated(obj, points, unit, accept)
+    return landmarks.at_rest(obj, points, unit, accept)
+
+
 def chosen_unit(settings):
     """The unit the settings name: None (estimated from the face's size), a unit's name, or millimetres per unit
     (Blender keeps the number in float32: 0.01 typed is 0.009999999776; its 7 digits are what was typed)."""

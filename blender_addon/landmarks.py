@@ -5,7 +5,8 @@ Found (or imported) landmarks become 68 empties parented to the mesh, one collec
 being objects they are saved with the ``.blend``. The guided editor beside them: the scheme's picture
 (:data:`SCHEME`, in the panel and as an image empty beside the head), :func:`snap` onto the surface,
 :func:`gate` (the landmark gate of :mod:`pdeface.landmarks.gate`: its failing groups highlighted and kept on
-the mesh for the panel), and the landmarks JSON out and in (:func:`export`, :func:`import_file`).
+the mesh for the panel), and the landmarks JSON out and in (:func:`export`, :func:`import_file`). Landmarks the user
+gives (a file, a vertex group, selected vertices) skip the gate, but not its look at the mesh (:func:`at_rest`).
 
 The face-landmark model (``mediapipe``) is optional: when it is missing, :func:`install` puts it in the
 extension's own user folder on request.
@@ -28,7 +29,7 @@ from pdeface.landmark_scheme import eye_distance
 from pdeface.landmarks import MissingDependencyError, available
 from pdeface.landmarks.detector import RUNTIME_PACKAGES
 from pdeface.landmarks.facemap import GROUPS
-from pdeface.landmarks.gate import LandmarkGateError, Verdict, check
+from pdeface.landmarks.gate import LandmarkGateError, Verdict, check, check_mesh_at_rest, require
 from pdeface.landmarks.headfind import detect_anywhere
 from pdeface.landmarks.pipeline import onto_outer_surface, skin_triangles
 from pdeface.landmarks.render import View, rasterise
@@ -46,6 +47,8 @@ GATE_PROP, GATE_GROUPS_PROP = "pdeface_gate", "pdeface_gate_groups"
 #: Custom properties on the mesh: the gate's last verdict (JSON) and a digest of what it judged (the points, the
 #: unit, the mesh's vertices and faces): Fit reuses the verdict of Find Landmarks when nothing of it changed.
 GATE_VERDICT_PROP, GATE_OF_PROP = "pdeface_gate_verdict", "pdeface_gate_of"
+#: What a refusal of the mesh (its landmarks given) tells the user to do: the CLI's ``FIX_MESH``, in the panel's words.
+FIX_MESH = "give the head at rest (its eyes open), or Accept anyway"
 #: Custom property on each landmark empty: its display size when its group passes (a failing one's is twice).
 SIZE_PROP = "pdeface_size"
 #: The picture of the 68-point scheme (drawn by scripts/figures/render_landmark_scheme.py).
@@ -213,12 +216,17 @@ def gate(obj, points, unit=None, skin=None, arrays=None):
     if skin is None:
         skin = skin_triangles(V, T, ClosestPoint(V, T).query(points)[1], share=SKIN_SHARE)
     verdict = check(points, V, T[skin], unit)
-    obj[GATE_PROP] = verdict.message()
-    obj[GATE_GROUPS_PROP] = ",".join(verdict.failures)
     obj[GATE_VERDICT_PROP] = json.dumps(verdict.to_json())
     obj[GATE_OF_PROP] = gate_digest(obj, points, unit)
-    highlight(obj, list(verdict.failures))
+    _show(obj, verdict)
     return verdict
+
+
+def _show(obj, verdict):
+    """Keep ``verdict``'s one line and failing groups on the mesh for the panel, and highlight them."""
+    obj[GATE_PROP] = verdict.message()
+    obj[GATE_GROUPS_PROP] = ",".join(verdict.failures)
+    highlight(obj, list(verdict.failures))
 
 
 def gate_digest(obj, points, unit=None):
@@ -274,6 +282,8 @@ def gated(obj, points, unit=None, accept=False):
     verdict = last_verdict(obj, points, unit)
     if verdict is None:
         verdict = gate(obj, points, unit)
+    else:
+        _show(obj, verdict)  # the panel's line may be another check's since (:func:`at_rest`)
     if verdict.passed:
         return None
     if not accept:
@@ -282,6 +292,22 @@ def gated(obj, points, unit=None, accept=False):
             f"empties ({', '.join(verdict.failures)}), Snap Landmarks to Surface and Fit again, or Accept anyway",
             verdict)
     return f"going on with landmarks that fail the gate (accepted): {verdict.message()}"
+
+
+def at_rest(obj, points, unit=None, accept=False):
+    """The gate's look at mesh ``obj`` alone, for landmarks the user gave (``points``, object space, taken at
+    their word as the CLI takes ``--landmarks``): its eyes open, as a head at rest has them
+    (:func:`~pdeface.landmarks.gate.check_mesh_at_rest`). The verdict is kept and shown as :func:`gate`'s is;
+    raise :class:`LandmarkGateError` with the CLI's message when an eye is closed, unless ``accept``. Returns a
+    note on an accepted failure."""
+    V, T = mesh_arrays(obj)
+    verdict = check_mesh_at_rest(points, V, T, unit)
+    _show(obj, verdict)
+    if verdict.passed:
+        return None
+    if not accept:
+        require(verdict, f"{obj.name} and its given landmarks", FIX_MESH)
+    return f"going on with a mesh that fails the gate (accepted): {verdict.message()}"
 
 
 def export(obj, path, overwrite=False, indices=False):

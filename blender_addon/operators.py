@@ -126,7 +126,9 @@ class PDEFACE_OT_fit_to_selected(_UserMeshOperator, Operator):
     resolution: StringProperty(name="Resolution", default="default")
     retarget: BoolProperty(name="Retarget AU descriptors", default=True)
     accept: BoolProperty(name="Accept anyway", default=False,
-                         description="Fit with landmarks that fail the landmark gate (as the CLI's --accept)")
+                         description="Fit with landmarks that fail the landmark gate, or with given ones (a file, a "
+                                     "vertex group, selected vertices) on a mesh whose eyes are closed (as the "
+                                     "CLI's --accept)")
     keys_on_mesh: BoolProperty(name="Keys on my mesh", default=True,
                                description="Put the AU and expression keys on the selected mesh(es) themselves: "
                                            "the active one's skin and the other selected objects of the head "
@@ -151,10 +153,9 @@ class PDEFACE_OT_fit_to_selected(_UserMeshOperator, Operator):
                 self.report({"INFO"}, note)
             src = context.active_object
             unit = face.chosen_unit(s)
-            if s.landmark_source == "AUTO" and landmarks.empties(src) is not None:  # found or edited: gate first
-                note = landmarks.gated(src, points, unit, self.accept)
-                if note:
-                    self.report({"WARNING"}, note)
+            note = face.check_landmarks(s, src, points, unit, self.accept)
+            if note:
+                self.report({"WARNING"}, note)
             r = None
             if self.keys_on_mesh:
                 parts = rigging.head_parts(context, src)

@@ -62,7 +62,7 @@ class PDEFACE_PT_face(_Panel, bpy.types.Panel):
             box.prop(s, "unit_mm")
         box.operator("pdeface.fit_to_selected", icon="MOD_MESHDEFORM")
         mesh = landmarks.mesh_of(context.active_object)
-        if s.landmark_source == "AUTO" and landmarks.failing_groups(mesh):
+        if landmarks.failing_groups(mesh):  # the gate's, or its look at the mesh (landmarks given)
             _gate_failure(box, mesh)
         if obj is not None:
             layout.label(text=f"Face: {obj.name}", icon="OBJECT_DATA")

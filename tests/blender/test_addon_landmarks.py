@@ -1,4 +1,5 @@
 """Landmarks without clicks in Blender: Find Landmarks, empties to nudge, Fit on its own, and the model's install."""
+import json
 import sys
 
 import numpy as np
@@ -88,3 +89,87 @@ def test_install_goes_to_the_extension_folder_without_touching_blenders_numpy(bp
     assert "pdeface_test" in target and target.startswith(bpy.utils.resource_path("USER"))
     addon.landmarks.add_site()
     assert sys.path.index(target) > sys.path.index(next(p for p in sys.path if p.endswith("site-packages")))
+
+
+def given_head(bpy, source, tmp_path, head="ict-expression"):
+    """A head of ``scripts/devset/unseen.py`` as a user's mesh (Blender's axes, metres): ``ict-expression`` (ICT's
+    identity 004, its eyes closed), ``expression-at-rest`` (a MakeHuman character, its eyes closed), or ``open``
+    (ICT's identity 004 at rest); its 68 landmarks given through ``source`` (the nearest vertices where the source
+    lists vertices)."""
+    import bmesh
+    from pdeface.mesh import Mesh
+    from pdeface.surface.frame import BLENDER_FROM_ICT
+
+    from scripts.devset import makehuman
+    from scripts.devset.unseen import BUILDERS
+
+    addon = __import__(MODULE, fromlist=["bridge"])
+    if head == "open":
+        from pdeface.assets import load_head, load_head_shapes
+
+        mesh, lm = load_head()
+        V, T = mesh.vertices + load_head_shapes()["identity004"], mesh.triangles()[0]
+        L = V[lm]
+    else:
+        if head == "expression-at-rest" and not makehuman.available():
+            pytest.skip("needs ../shared/data/makehuman")
+        V, T, L, _ = BUILDERS[head]()
+    V, L = (X @ BLENDER_FROM_ICT.T * 0.01 for X in (V, L))  # both builders' heads are in centimetres
+    obj = bpy.data.objects.new("Blink", addon.bridge.new_mesh("Blink", Mesh(V, np.full(len(T), 3), T.ravel())))
+    bpy.context.collection.objects.link(obj)
+    bpy.context.view_layer.objects.active = obj
+    obj.select_set(True)
+    settings = bpy.context.scene.pdeface
+    settings.landmark_source = source
+    lm = [int(np.argmin(np.linalg.norm(V - p, axis=1))) for p in L]
+    if source == "FILE":
+        path = tmp_path / "lm.json"
+        path.write_text(json.dumps({"points": L.tolist()}))
+        settings.landmark_file = str(path)
+    elif source == "SELECTED":  # picked one by one in Edit Mode: the selection history
+        bm = bmesh.new()
+        bm.from_mesh(obj.data)
+        bm.verts.ensure_lookup_table()
+        for i in lm:
+            bm.verts[i].select = True
+            bm.select_history.add(bm.verts[i])
+        bm.to_mesh(obj.data)
+        bm.free()
+    else:  # a vertex group ordered by weight; AUTO reads it too when the mesh has no landmark empties
+        group = obj.vertex_groups.new(name=settings.landmark_group)
+        for k, i in enumerate(lm):
+            group.add([i], (k + 1) / 68, "REPLACE")
+    return obj
+
+
+@pytest.mark.parametrize("source, head", [("FILE", "ict-expression"), ("GROUP", "ict-expression"),
+                                          ("SELECTED", "ict-expression"), ("AUTO", "ict-expression"),
+                                          ("FILE", "expression-at-rest")])
+def test_a_head_with_its_eyes_closed_is_refused_whichever_source_gives_its_landmarks(bpy, source, head, tmp_path):
+    """As the CLI with --landmarks: the gate's look at the mesh runs before the fit, an ERROR naming the check
+    stops it with nothing made, the panel offers Accept anyway and Fit. On ICT's head and a MakeHuman one."""
+    from tests.blender.test_addon_landmark_editor import draw_panel
+
+    addon = __import__(MODULE, fromlist=["landmarks"])
+    obj = given_head(bpy, source, tmp_path, head)
+    with pytest.raises(RuntimeError, match=r"Blink and its given landmarks fail the landmark gate: eyes: closed "
+                                           r"\(both eyes' lids meet .*; give the head at rest .*Accept anyway"):
+        bpy.ops.pdeface.fit_to_selected()
+    assert obj.pdeface.rig_face is None and len(bpy.data.objects) == 1  # nothing made, no empties
+    assert addon.landmarks.failing_groups(obj) == ["eyes"] and "closed" in obj[addon.landmarks.GATE_PROP]
+    layout = draw_panel(bpy, bpy.types.PDEFACE_PT_face)
+    assert "Landmark gate: eyes failed" in layout.texts("label")
+    assert "Accept anyway and Fit" in layout.texts("operator")
+
+
+def test_accept_fits_a_head_with_its_eyes_closed_and_open_eyes_pass(bpy, tmp_path):
+    addon = __import__(MODULE, fromlist=["landmarks"])
+    obj = given_head(bpy, "FILE", tmp_path)
+    assert bpy.ops.pdeface.fit_to_selected(accept=True, keys_on_mesh=False) == {"FINISHED"}
+    assert bpy.context.active_object.pdeface.is_face and bpy.context.active_object.pdeface.source == obj
+    # The same head with its eyes open: the look at the mesh passes, and the panel's line goes.
+    bpy.ops.wm.read_homefile(use_empty=True)
+    obj = given_head(bpy, "FILE", tmp_path, "open")
+    points, _ = addon.face.read_landmarks(bpy.context.scene.pdeface, obj)
+    obj[addon.landmarks.GATE_GROUPS_PROP] = "eyes"  # a failure from before the eyes were opened
+    assert addon.landmarks.at_rest(obj, points) is None and addon.landmarks.failing_groups(obj) == []

@@ -188,3 +188,18 @@ def test_the_command_ends_with_everything_written(tmp_path):
         assert marker.read_text() == "ran"
         assert res.stdout == (whole if code == 0 else "")
         assert code == 0 or "missing.npz: cannot open" in res.stderr
+
+
+def test_accept_help_names_given_landmarks_only_where_the_command_takes_them():
+    """``--accept`` is shared: its help speaks of given landmarks (--landmarks) only on commands that take them."""
+    from pdeface.cli import build_parser, subcommands
+
+    accepting = {}
+    for name, parser in subcommands(build_parser()).items():
+        options = {o: a for a in parser._actions for o in a.option_strings}
+        if "--accept" in options:
+            accepting[name] = ("--landmarks" in options, options["--accept"].help)
+    assert {"landmarks", "fit", "rig"} <= set(accepting)
+    for name, (takes_given, text) in accepting.items():
+        assert ("--landmarks" in text) == takes_given, name
+        assert "eyes closed" in text, name  # found landmarks on a head with its eyes closed fail the gate too

@@ -40,12 +40,13 @@ def cmd_landmarks(args):
                       "mm_per_unit": round(found.mm_per_unit, 6), "gate": verdict.passed}))
 
 
-def accept_option(p):
-    """``--accept``: go on with landmarks that fail the gate."""
+def accept_option(p, given=True):
+    """``--accept``: go on with found landmarks that fail the gate and, where the command takes ``--landmarks``
+    (``given``), with given ones on a mesh the gate's look at it refuses (its eyes closed)."""
+    found = ("go on with found landmarks that fail the landmark gate (a group off the surface, not mirrored, out of "
+             "order or out of proportion, or the eyes closed)")
     p.add_argument("--accept", action="store_true",
-                   help="go on with found landmarks that fail the landmark gate (a group off the surface, "
-                        "not mirrored, out of order or out of proportion), or with given ones (--landmarks) on a "
-                        "mesh whose eyes are closed")
+                   help=found + (", or with given ones (--landmarks) on a mesh whose eyes are closed" if given else ""))
 
 
 def register(sub):
@@ -56,7 +57,7 @@ def register(sub):
     unit_option(p, f"mesh unit, for the mm figures: {UNIT_FORMS} (default: from the face)")
     p.add_argument("--image", help="also write the frontal render with the landmarks marked (.png); written also "
                                    "when the gate stops")
-    accept_option(p)
+    accept_option(p, given=False)
     output_option(p, help="landmarks JSON to write ('indices' and 'points', with confidence per group)")
     verbose_option(p)
     p.set_defaults(func=cmd_landmarks)
