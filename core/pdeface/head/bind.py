@@ -354,11 +354,13 @@ def _read_pde(model, P, N, eye_distance, resolution, skin_strips=(), on_strip=No
     return covered, _barycentric_matrix(Tp[tri[covered]], bary[covered], len(X0))
 
 
-def _lips_joined(P, Ts, Lf, eye_distance, skin_tree) -> tuple:
-    """``(joined, one_line, beside)``: whether skin joins the inner lips' middles (landmarks 62 and 66), with no
-    opening between the lips (a voxel remesh, a decimated mouth, a clustered one); whether they are one row of
+def _lips_joined(P, Ts, Lf, eye_distance, skin_tree, normals) -> tuple:
+    """``(joined, one_line, beside, middles)``: whether skin joins the inner lips' middles (landmarks 62 and 66), with
+    no opening between the lips (a voxel remesh, a decimated mouth, a clustered one); whether they are one row of
     vertices there (nearest the same vertex, or within LIP_LINE_IOD: a voxel remesh's); and whether they are joined
-    beside their middles alone; ``skin_tree``: a ``cKDTree`` of the skin ``P``.
+    beside their middles alone; and the inner lips' middles it read (landmarks 62 and 66: given, or one given point
+    split onto rims a decimation merged, :func:`_rims_merged_at`); ``skin_tree``: a ``cKDTree`` of the skin ``P``,
+    ``normals`` its vertex normals.
 
     Joined: by a way about as short as the gap between them (FUSED_PATH, FUSED_IOD), or else, beside them, by any
     way across the middle of the mouth's width (:func:`_mouth_middle`) no deeper than FUSED_IOD behind them (ICT's
@@ -370,10 +372,15 @@ def _lips_joined(P, Ts, Lf, eye_distance, skin_tree) -> tuple:
 
     ends = Lf[[LIP_UPPER_INNER, LIP_LOWER_INNER]]
     if not np.isfinite(ends).all():
-        return False, False, False
+        return False, False, False, ends
     a, b = skin_tree.query(ends)[1]
     a, b = _rims_near(P, Ts, ends, a, b, eye_distance, skin_tree)  # on one lip (a detector's on closed lips)
     apart = np.linalg.norm(P[a] - P[b])
+    if apart < LIP_LINE_IOD * eye_distance and np.linalg.norm(ends[0] - ends[1]) < LIP_LINE_IOD * eye_distance:
+        a, b = _rims_merged_at(P, Ts, normals, a, b, ends.mean(0), eye_distance)  # one point on merged rims
+        if a != b:
+            ends = P[[a, b]]
+            apart = np.linalg.norm(P[a] - P[b])
     reach = FUSED_PATH * apart + FUSED_IOD * eye_distance
     corners = Lf[MOUTH_CORNERS, 0]
     half_middle = 0.5 * JOINED_WIDTH * np.ptp(corners) if np.isfinite(corners).all() else 0.0
@@ -396,14 +403,36 @@ def _lips_joined(P, Ts, Lf, eye_distance, skin_tree) -> tuple:
     short = np.zeros(len(P), bool)
     short[near[row_norms(P[near] - P[a]) <= reach * (1 + 1e-9)]] = True
     if a == b or way(short, reach):
-        return True, bool(apart < LIP_LINE_IOD * eye_distance), False  # touching lips (ICT's) are as near, not joined
+        return True, bool(apart < LIP_LINE_IOD * eye_distance), False, ends  # touching lips (ICT's): near, not joined
     if not half_middle:
-        return False, False, False
+        return False, False, False, ends
     front = np.zeros(len(P), bool)
     front[near] = ((row_norms(P[near] - P[a]) <= half_middle * (1 + 1e-9)) & _mouth_middle(P[near], Lf)
                    & (P[near, 2] > min(P[a, 2], P[b, 2]) - FUSED_IOD * eye_distance))
     beside = bool(front[a] and front[b] and way(front))
-    return beside, False, beside
+    return beside, False, beside, ends
+
+
+def _rims_merged_at(P, Ts, normals, a, b, point, eye_distance) -> tuple:
+    """``(upper, lower)``: where one point stands for both inner lips' middles (a detector's, where the lips touch)
+    on the skin vertex ``a`` within LIP_LINE_IOD of it, and a mouth's lining (skin facing into the head: ``normals``'
+    depth below 0) is joined to ``a`` by an edge, the rims a decimation merged there: ``a`` the upper lip's (the
+    vertex the true landmark reads) and, of its neighbours facing forward more below it than aside, the one nearest
+    ``point`` the lower lip's. Otherwise ``(a, b)`` as they are: lips one row of vertices (a voxel remesh's) have no
+    lining behind them, and a mesh coarser than the lips (no vertex near the point) cannot tell its rims.
+
+    Read as one row, a decimated head's AU27 pulled the lips into a beak (decimated-cm with found landmarks: the lower
+    lip's middle dropped 0.14 eye distances, a third of the way to each corner 0.09 and 0.06; true landmarks 0.55,
+    0.07 and 0.12); the merged rims' holding (:func:`_merged_rims`) needs each lip's own middle. Taken by the
+    neighbours' facing (down: the upper lip's, up: the lower's), decimated-cm's upper rim vertex, facing up into the
+    mouth, read as the lower lip's and its upper lip sank 0.54 eye distances."""
+    if np.linalg.norm(P[a] - point) > LIP_LINE_IOD * eye_distance:
+        return a, b
+    ring = np.unique(Ts[(Ts == a).any(axis=1)])
+    lower = ring[(normals[ring, 2] > 0) & (P[a, 1] - P[ring, 1] > np.abs(P[ring, 0] - P[a, 0]))]
+    if not (normals[ring, 2] < 0).any() or not len(lower):
+        return a, b
+    return a, int(lower[np.argmin(row_norms(P[lower] - point))])
 
 
 def _rims_near(P, Ts, ends, a, b, eye_distance, skin_tree) -> tuple:
@@ -724,8 +753,12 @@ class HeadBinding:
         _check_on_skin(Lf, P, Ts, skin_tree, eye_distance)
         self.skin_normals = vertex_normals(P, Ts)
         mouth_strip = [k for a, k in model.layout.opening_curves() if ANCHOR_NAMES[a] == "mouth_top"]
-        lips_joined, self.lips_one_line, joined_beside = (_lips_joined(P, Ts, Lf, eye_distance, skin_tree)
-                                                          if mouth_strip else (False, False, False))
+        lips_joined, self.lips_one_line, joined_beside, middles = (
+            _lips_joined(P, Ts, Lf, eye_distance, skin_tree, self.skin_normals) if mouth_strip
+            else (False, False, False, Lf[[LIP_UPPER_INNER, LIP_LOWER_INNER]]))
+        if not np.array_equal(middles, Lf[[LIP_UPPER_INNER, LIP_LOWER_INNER]], equal_nan=True):
+            Lf = Lf.copy()  # one found point split onto merged rims: the binding reads the lips' own middles
+            Lf[[LIP_UPPER_INNER, LIP_LOWER_INNER]] = middles
         if lips_joined:
             self.notes.append("the lips are joined in the mesh (no opening between them): keys that open the mouth "
                               "move the lower lip and stretch the skin joining it to the upper one; cut the mouth "
