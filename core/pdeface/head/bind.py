@@ -146,6 +146,10 @@ FUSED_IOD = 0.05
 #: Where both inner lips' middles fall on one vertex, the skin within this many eye distances of it shows whether
 #: the mesh parts the lips there (:func:`_rims_near`).
 RIMS_IOD = 0.15
+#: One point for both inner lips' middles is split onto rims a decimation merged only on a vertex this near it (eye
+#: distances): the found points lay 0.01-0.04 from one on the decimated heads, 0.08 on the 1.5k-vertex head, whose
+#: vertex there is a lip's side, not its rim (:func:`_rims_merged_at`).
+RIMS_NEAR_IOD = 0.06
 #: On joined lips the skin under the strip between the rims within this share of the mouth's width reads it (lips in
 #: one line), or the fold relaxation of the jaw keys that part the lips keeps the lower lip there (rims a decimation
 #: merged; PARTED_IOD).
@@ -415,24 +419,31 @@ def _lips_joined(P, Ts, Lf, eye_distance, skin_tree, normals) -> tuple:
 
 def _rims_merged_at(P, Ts, normals, a, b, point, eye_distance) -> tuple:
     """``(upper, lower)``: where one point stands for both inner lips' middles (a detector's, where the lips touch)
-    on the skin vertex ``a`` within LIP_LINE_IOD of it, and a mouth's lining (skin facing into the head: ``normals``'
-    depth below 0) is joined to ``a`` by an edge, the rims a decimation merged there: ``a`` the upper lip's (the
-    vertex the true landmark reads) and, of its neighbours facing forward more below it than aside, the one nearest
-    ``point`` the lower lip's. Otherwise ``(a, b)`` as they are: lips one row of vertices (a voxel remesh's) have no
-    lining behind them, and a mesh coarser than the lips (no vertex near the point) cannot tell its rims.
+    on the skin vertex ``a`` within RIMS_NEAR_IOD of it, and a mouth's lining (skin facing into the head:
+    ``normals``' depth below 0) is joined to ``a`` by an edge, the rims a decimation merged there: ``a`` one lip's
+    (the lower's where it faces up more than forward or back, else the upper's) and, of its neighbours more above it
+    (below it) than aside, the one nearest ``point`` the other's. Otherwise ``(a, b)`` as they are: lips one row of
+    vertices (a voxel remesh's) have no lining behind them, and a mesh coarser than the lips (no vertex near the
+    point) cannot tell its rims.
 
     Read as one row, a decimated head's AU27 pulled the lips into a beak (decimated-cm with found landmarks: the lower
     lip's middle dropped 0.14 eye distances, a third of the way to each corner 0.09 and 0.06; true landmarks 0.55,
-    0.07 and 0.12); the merged rims' holding (:func:`_merged_rims`) needs each lip's own middle. Taken by the
-    neighbours' facing (down: the upper lip's, up: the lower's), decimated-cm's upper rim vertex, facing up into the
-    mouth, read as the lower lip's and its upper lip sank 0.54 eye distances."""
-    if np.linalg.norm(P[a] - point) > LIP_LINE_IOD * eye_distance:
+    0.07 and 0.12); the merged rims' holding (:func:`_merged_rims`) needs each lip's own middle. Split by the
+    vertices' facing alone (down: the upper lip's, up: the lower's), decimated-cm's upper rim vertex, facing up into
+    the mouth, read as the lower lip's and its upper lip sank 0.54 eye distances; ``a`` always the upper lip's, a
+    point 0.01 eye distances lower fell on the lower rim and opened a beak on a decimated asian-female-young."""
+    if np.linalg.norm(P[a] - point) > RIMS_NEAR_IOD * eye_distance:
         return a, b
     ring = np.unique(Ts[(Ts == a).any(axis=1)])
-    lower = ring[(normals[ring, 2] > 0) & (P[a, 1] - P[ring, 1] > np.abs(P[ring, 0] - P[a, 0]))]
-    if not (normals[ring, 2] < 0).any() or not len(lower):
+    if not (normals[ring, 2] < 0).any():
         return a, b
-    return a, int(lower[np.argmin(row_norms(P[lower] - point))])
+    on_lower = normals[a, 1] > abs(normals[a, 2])  # a faces the upper lip: the lower lip's rim
+    rise = (P[ring, 1] - P[a, 1]) * (1 if on_lower else -1)
+    other = ring[rise > np.abs(P[ring, 0] - P[a, 0])]  # across the mouth line, not along it
+    if not len(other):
+        return a, b
+    other = int(other[np.argmin(row_norms(P[other] - point))])
+    return (other, a) if on_lower else (a, other)
 
 
 def _rims_near(P, Ts, ends, a, b, eye_distance, skin_tree) -> tuple:
