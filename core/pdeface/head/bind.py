@@ -380,9 +380,9 @@ def _lips_joined(P, Ts, Lf, eye_distance, skin_tree, normals) -> tuple:
     a, b = skin_tree.query(ends)[1]
     a, b = _rims_near(P, Ts, ends, a, b, eye_distance, skin_tree)  # on one lip (a detector's on closed lips)
     apart = np.linalg.norm(P[a] - P[b])
-    if apart < LIP_LINE_IOD * eye_distance and np.linalg.norm(ends[0] - ends[1]) < LIP_LINE_IOD * eye_distance:
-        a, b = _rims_merged_at(P, Ts, normals, a, b, ends.mean(0), eye_distance)  # one point on merged rims
-        if a != b:
+    if a == b and np.linalg.norm(ends[0] - ends[1]) < LIP_LINE_IOD * eye_distance:  # one point for both
+        a, b = _rims_merged_at(P, Ts, normals, a, b, ends.mean(0), eye_distance)
+        if a != b:  # on rims a decimation merged: each lip's own
             ends = P[[a, b]]
             apart = np.linalg.norm(P[a] - P[b])
     reach = FUSED_PATH * apart + FUSED_IOD * eye_distance
@@ -419,7 +419,7 @@ def _lips_joined(P, Ts, Lf, eye_distance, skin_tree, normals) -> tuple:
 
 def _rims_merged_at(P, Ts, normals, a, b, point, eye_distance) -> tuple:
     """``(upper, lower)``: where one point stands for both inner lips' middles (a detector's, where the lips touch)
-    on the skin vertex ``a`` within RIMS_NEAR_IOD of it, and a mouth's lining (skin facing into the head:
+    and ``a`` is their vertex (``b`` too), within RIMS_NEAR_IOD of it, and a mouth's lining (skin facing into the head:
     ``normals``' depth below 0) is joined to ``a`` by an edge, the rims a decimation merged there: ``a`` one lip's
     (the lower's where it faces up more than forward or back, else the upper's) and, of its neighbours more above it
     (below it) than aside, the one nearest ``point`` the other's. Otherwise ``(a, b)`` as they are: lips one row of
