@@ -146,6 +146,10 @@ FUSED_IOD = 0.05
 #: Where both inner lips' middles fall on one vertex, the skin within this many eye distances of it shows whether
 #: the mesh parts the lips there (:func:`_rims_near`).
 RIMS_IOD = 0.15
+#: One point for both inner lips' middles is split onto rims a decimation merged only on a vertex this near it (eye
+#: distances): the found points lay 0.01-0.04 from one on the decimated heads, 0.08 on the 1.5k-vertex head, whose
+#: vertex there is a lip's side, not its rim (:func:`_rims_merged_at`).
+RIMS_NEAR_IOD = 0.06
 #: On joined lips the skin under the strip between the rims within this share of the mouth's width reads it (lips in
 #: one line), or the fold relaxation of the jaw keys that part the lips keeps the lower lip there (rims a decimation
 #: merged; PARTED_IOD).
@@ -354,11 +358,13 @@ def _read_pde(model, P, N, eye_distance, resolution, skin_strips=(), on_strip=No
     return covered, _barycentric_matrix(Tp[tri[covered]], bary[covered], len(X0))
 
 
-def _lips_joined(P, Ts, Lf, eye_distance, skin_tree) -> tuple:
-    """``(joined, one_line, beside)``: whether skin joins the inner lips' middles (landmarks 62 and 66), with no
-    opening between the lips (a voxel remesh, a decimated mouth, a clustered one); whether they are one row of
+def _lips_joined(P, Ts, Lf, eye_distance, skin_tree, normals) -> tuple:
+    """``(joined, one_line, beside, middles)``: whether skin joins the inner lips' middles (landmarks 62 and 66), with
+    no opening between the lips (a voxel remesh, a decimated mouth, a clustered one); whether they are one row of
     vertices there (nearest the same vertex, or within LIP_LINE_IOD: a voxel remesh's); and whether they are joined
-    beside their middles alone; ``skin_tree``: a ``cKDTree`` of the skin ``P``.
+    beside their middles alone; and the inner lips' middles it read (landmarks 62 and 66: given, or one given point
+    split onto rims a decimation merged, :func:`_rims_merged_at`); ``skin_tree``: a ``cKDTree`` of the skin ``P``,
+    ``normals`` its vertex normals.
 
     Joined: by a way about as short as the gap between them (FUSED_PATH, FUSED_IOD), or else, beside them, by any
     way across the middle of the mouth's width (:func:`_mouth_middle`) no deeper than FUSED_IOD behind them (ICT's
@@ -370,10 +376,15 @@ def _lips_joined(P, Ts, Lf, eye_distance, skin_tree) -> tuple:
 
     ends = Lf[[LIP_UPPER_INNER, LIP_LOWER_INNER]]
     if not np.isfinite(ends).all():
-        return False, False, False
+        return False, False, False, ends
     a, b = skin_tree.query(ends)[1]
     a, b = _rims_near(P, Ts, ends, a, b, eye_distance, skin_tree)  # on one lip (a detector's on closed lips)
     apart = np.linalg.norm(P[a] - P[b])
+    if a == b and np.linalg.norm(ends[0] - ends[1]) < LIP_LINE_IOD * eye_distance:  # one point for both
+        a, b = _rims_merged_at(P, Ts, normals, a, b, ends.mean(0), eye_distance)
+        if a != b:  # on rims a decimation merged: each lip's own
+            ends = P[[a, b]]
+            apart = np.linalg.norm(P[a] - P[b])
     reach = FUSED_PATH * apart + FUSED_IOD * eye_distance
     corners = Lf[MOUTH_CORNERS, 0]
     half_middle = 0.5 * JOINED_WIDTH * np.ptp(corners) if np.isfinite(corners).all() else 0.0
@@ -396,14 +407,43 @@ def _lips_joined(P, Ts, Lf, eye_distance, skin_tree) -> tuple:
     short = np.zeros(len(P), bool)
     short[near[row_norms(P[near] - P[a]) <= reach * (1 + 1e-9)]] = True
     if a == b or way(short, reach):
-        return True, bool(apart < LIP_LINE_IOD * eye_distance), False  # touching lips (ICT's) are as near, not joined
+        return True, bool(apart < LIP_LINE_IOD * eye_distance), False, ends  # touching lips (ICT's): near, not joined
     if not half_middle:
-        return False, False, False
+        return False, False, False, ends
     front = np.zeros(len(P), bool)
     front[near] = ((row_norms(P[near] - P[a]) <= half_middle * (1 + 1e-9)) & _mouth_middle(P[near], Lf)
                    & (P[near, 2] > min(P[a, 2], P[b, 2]) - FUSED_IOD * eye_distance))
     beside = bool(front[a] and front[b] and way(front))
-    return beside, False, beside
+    return beside, False, beside, ends
+
+
+def _rims_merged_at(P, Ts, normals, a, b, point, eye_distance) -> tuple:
+    """``(upper, lower)``: where one point stands for both inner lips' middles (a detector's, where the lips touch)
+    and ``a`` is their vertex (``b`` too), within RIMS_NEAR_IOD of it, and a mouth's lining (skin facing into the head:
+    ``normals``' depth below 0) is joined to ``a`` by an edge, the rims a decimation merged there: ``a`` one lip's
+    (the lower's where it faces up more than forward or back, else the upper's) and, of its neighbours more above it
+    (below it) than aside, the one nearest ``point`` the other's. Otherwise ``(a, b)`` as they are: lips one row of
+    vertices (a voxel remesh's) have no lining behind them, and a mesh coarser than the lips (no vertex near the
+    point) cannot tell its rims.
+
+    Read as one row, a decimated head's AU27 pulled the lips into a beak (decimated-cm with found landmarks: the lower
+    lip's middle dropped 0.14 eye distances, a third of the way to each corner 0.09 and 0.06; true landmarks 0.55,
+    0.07 and 0.12); the merged rims' holding (:func:`_merged_rims`) needs each lip's own middle. Split by the
+    vertices' facing alone (down: the upper lip's, up: the lower's), decimated-cm's upper rim vertex, facing up into
+    the mouth, read as the lower lip's and its upper lip sank 0.54 eye distances; ``a`` always the upper lip's, a
+    point 0.01 eye distances lower fell on the lower rim and opened a beak on a decimated asian-female-young."""
+    if np.linalg.norm(P[a] - point) > RIMS_NEAR_IOD * eye_distance:
+        return a, b
+    ring = np.unique(Ts[(Ts == a).any(axis=1)])
+    if not (normals[ring, 2] < 0).any():
+        return a, b
+    on_lower = normals[a, 1] > abs(normals[a, 2])  # a faces the upper lip: the lower lip's rim
+    rise = (P[ring, 1] - P[a, 1]) * (1 if on_lower else -1)
+    other = ring[rise > np.abs(P[ring, 0] - P[a, 0])]  # across the mouth line, not along it
+    if not len(other):
+        return a, b
+    other = int(other[np.argmin(row_norms(P[other] - point))])
+    return (other, a) if on_lower else (a, other)
 
 
 def _rims_near(P, Ts, ends, a, b, eye_distance, skin_tree) -> tuple:
@@ -724,8 +764,12 @@ class HeadBinding:
         _check_on_skin(Lf, P, Ts, skin_tree, eye_distance)
         self.skin_normals = vertex_normals(P, Ts)
         mouth_strip = [k for a, k in model.layout.opening_curves() if ANCHOR_NAMES[a] == "mouth_top"]
-        lips_joined, self.lips_one_line, joined_beside = (_lips_joined(P, Ts, Lf, eye_distance, skin_tree)
-                                                          if mouth_strip else (False, False, False))
+        lips_joined, self.lips_one_line, joined_beside, middles = (
+            _lips_joined(P, Ts, Lf, eye_distance, skin_tree, self.skin_normals) if mouth_strip
+            else (False, False, False, Lf[[LIP_UPPER_INNER, LIP_LOWER_INNER]]))
+        if not np.array_equal(middles, Lf[[LIP_UPPER_INNER, LIP_LOWER_INNER]], equal_nan=True):
+            Lf = Lf.copy()  # one found point split onto merged rims: the binding reads the lips' own middles
+            Lf[[LIP_UPPER_INNER, LIP_LOWER_INNER]] = middles
         if lips_joined:
             self.notes.append("the lips are joined in the mesh (no opening between them): keys that open the mouth "
                               "move the lower lip and stretch the skin joining it to the upper one; cut the mouth "
