@@ -91,7 +91,9 @@ def rig_once(path, out, core=None):
         env |= {"PYTHONPATH": os.pathsep.join(p for p in (str(core), env.get("PYTHONPATH")) if p)}
         env.setdefault("PDEFACE_ASSETS", str(ROOT / "assets"))
     t, c, f = time.perf_counter(), child_cpu(), child_faults()
-    done = subprocess.run([sys.executable, "-m", "pdeface.cli", "rig", str(path), "-o", str(out)],
+    # --accept: the clustered head's 4.2 mm cells fuse its lids with its eyeballs, and the gate cannot tell such eyes
+    # from closed ones (it refuses them naming that case); the rig's time is measured, the gate's look included
+    done = subprocess.run([sys.executable, "-m", "pdeface.cli", "rig", str(path), "-o", str(out), "--accept"],
                           capture_output=True, text=True, check=False, env=env)
     wall, cpu, faults = time.perf_counter() - t, child_cpu() - c, child_faults() - f
     if done.returncode:
