@@ -152,7 +152,8 @@ def check_landmarks(settings, obj, points, unit=None, accept=False):
 
 def chosen_unit(settings):
     """The unit the settings name: None (estimated from the face's size), a unit's name, or millimetres per unit
-    (Blender keeps the number in float32: 0.01 typed is 0.009999999776; its 7 digits are what was typed)."""
+    (Blender keeps the number in float32: 0.01 typed is 0.009999999776; read to 7 significant digits, as typed but
+    for the last digit of a few 7-digit numbers)."""
     if settings.unit == "AUTO":
         return None
     return float(f"{settings.unit_mm:.7g}") if settings.unit == "CUSTOM" else settings.unit

@@ -14,7 +14,7 @@ from pdeface.errors import PdeFaceError
 from pdeface.head.mouth import above_line, lip_cut
 
 from . import bridge, compat, head
-from .face import chosen_unit, fit_face_object, read_landmarks, show_user_objects, user_objects
+from .face import fit_face_object, read_landmarks, show_user_objects, user_objects
 from .keys import all_presets, build_keys, mark_ours, ours
 
 #: Colours of the demo head's parts (ICT-FaceKit part name prefix → material name, RGBA).
@@ -218,7 +218,7 @@ def cut_lips_open(context, face):
     me.update()
     mark_ours(src, kept)
     added = len(me.vertices) - len(V)
-    unit = chosen_unit(context.scene.pdeface)
+    unit = model.frame.scale  # the unit the face was fitted in (its millimetres per unit), whatever the scene says now
     name = face.name
     new, _, _, _ = fit_and_rig(context, src, points, unit=unit, parts=users[1:])
     old_mesh = face.data

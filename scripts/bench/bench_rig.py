@@ -82,7 +82,7 @@ def baseline_core(ref, folder):
     return Path(folder) / "core"
 
 
-def rig_once(path, out, core=None):
+def rig_once(path, out, core=None, accept=False):
     """(process wall seconds, its CPU seconds, each step's (wall, CPU) seconds from the report, its page faults)
     of ``pdeface rig path -o out`` in a fresh process; ``core``: another core folder first on the path (the
     baseline's), reading this checkout's assets. A step the rig does not time counts 0."""
@@ -91,9 +91,10 @@ def rig_once(path, out, core=None):
         env |= {"PYTHONPATH": os.pathsep.join(p for p in (str(core), env.get("PYTHONPATH")) if p)}
         env.setdefault("PDEFACE_ASSETS", str(ROOT / "assets"))
     t, c, f = time.perf_counter(), child_cpu(), child_faults()
-    # --accept: the clustered head's 4.2 mm cells fuse its lids with its eyeballs, and the gate cannot tell such eyes
+    # accept (the clustered head): its 4.2 mm cells fuse its lids with its eyeballs, and the gate cannot tell such eyes
     # from closed ones (it refuses them naming that case); the rig's time is measured, the gate's look included
-    done = subprocess.run([sys.executable, "-m", "pdeface.cli", "rig", str(path), "-o", str(out), "--accept"],
+    done = subprocess.run([sys.executable, "-m", "pdeface.cli", "rig", str(path), "-o", str(out)]
+                          + (["--accept"] if accept else []),
                           capture_output=True, text=True, check=False, env=env)
     wall, cpu, faults = time.perf_counter() - t, child_cpu() - c, child_faults() - f
     if done.returncode:
@@ -102,12 +103,12 @@ def rig_once(path, out, core=None):
     return wall, cpu, {k: (printed["timings"].get(k, 0.0), printed["cpu_timings"].get(k, 0.0)) for k in STEPS}, faults
 
 
-def against_baseline(path, tmp, runs, core):
+def against_baseline(path, tmp, runs, core, accept=False):
     """Rig ``path`` with this checkout's core and the baseline's, in turn; print the CPU medians side by side."""
     now, before = [], []
     for _ in range(runs):
-        now.append(rig_once(path, Path(tmp) / "now"))
-        before.append(rig_once(path, Path(tmp) / "before", core))
+        now.append(rig_once(path, Path(tmp) / "now", accept=accept))
+        before.append(rig_once(path, Path(tmp) / "before", core, accept))
     same = [n for n in SAME_FILES if (Path(tmp) / "now" / n).read_bytes() == (Path(tmp) / "before" / n).read_bytes()]
     rows = [("process", [r[1] for r in now], [r[1] for r in before])]
     rows += [(k, [r[2][k][1] for r in now], [r[2][k][1] for r in before]) for k in STEPS]
@@ -149,10 +150,11 @@ def main(argv=None):
     print(f"{os.cpu_count()} cores; load average at the start: {load_text()}")
     with tempfile.TemporaryDirectory() as tmp:
         core = baseline_core(args.baseline, Path(tmp) / "baseline") if args.baseline else None
-        for name, mesh in (("ICT head", head), ("clustered head", Mesh.from_faces(Vc, Tc))) if args.runs else ():
+        heads = (("ICT head", head, False), ("clustered head", Mesh.from_faces(Vc, Tc), True)) if args.runs else ()
+        for name, mesh, accept in heads:
             path = Path(tmp) / f"{len(mesh.vertices)}.obj"
             write_obj(path, mesh)
-            runs = [rig_once(path, Path(tmp) / "out") for _ in range(args.runs)]
+            runs = [rig_once(path, Path(tmp) / "out", accept=accept) for _ in range(args.runs)]
             wall = statistics.median(r[0] for r in runs)
             cpu = statistics.median(r[1] for r in runs)
             steps = {k: statistics.median(r[2][k][0] for r in runs) for k in STEPS}
@@ -170,7 +172,7 @@ def main(argv=None):
             print(f"  {'the rest':10s} {rest:6.2f} {100 * rest / wall:4.0f}%  "
                   f"{rest_cpu:6.2f} {100 * rest_cpu / cpu:4.0f}%  (Python's start, imports, writing)")
             if core is not None:
-                against_baseline(path, tmp, args.runs, core)
+                against_baseline(path, tmp, args.runs, core, accept)
     own, every, compiled = [], [], []
     with tempfile.TemporaryDirectory() as source_only:
         shutil.copytree(Path(pdeface.__file__).parent, Path(source_only) / "pdeface",

@@ -188,7 +188,7 @@ def _plan_rig(data, base, where):
             raise JobError(f"{where}: unit: {exc}") from None
     options = {"unit": data.get("unit"), "descriptors": _path(base, data.get("descriptors", DEFAULT)),
                "presets": bool(data.get("presets", True)), "blend": bool(data.get("blend", False)),
-               "accept": bool(data.get("accept", False))}  # found landmarks that fail the gate: go on anyway
+               "accept": bool(data.get("accept", False))}  # landmarks or a mesh that fail the gate: go on anyway
     tasks = []
     names = _unique_names(Path(e["mesh"]).stem for e in entries)
     for entry, name in zip(entries, names):

@@ -147,8 +147,8 @@ FUSED_IOD = 0.05
 #: the mesh parts the lips there (:func:`_rims_near`).
 RIMS_IOD = 0.15
 #: One point for both inner lips' middles is split onto rims a decimation merged only on a vertex this near it (eye
-#: distances): the found points lay 0.01-0.04 from one on the decimated heads, 0.08 on the 1.5k-vertex head, whose
-#: vertex there is a lip's side, not its rim (:func:`_rims_merged_at`).
+#: distances): the found points lay 0.01-0.04 from one on the decimated heads, 0.08 on the 1.4k-vertex game head
+#: (lowpoly-flat), whose vertex there is a lip's side, not its rim (:func:`_rims_merged_at`).
 RIMS_NEAR_IOD = 0.06
 #: On joined lips the skin under the strip between the rims within this share of the mouth's width reads it (lips in
 #: one line), or the fold relaxation of the jaw keys that part the lips keeps the lower lip there (rims a decimation

@@ -205,7 +205,7 @@ def coarse_margins(Vf, T, Lf, skin, side, eye_distance):
     centre = Lf[lids].mean(0)
     x0, x1 = np.sort(Lf[[upper[0], upper[-1]], 0])
     box = (Vf[:, 0] > x0) & (Vf[:, 0] < x1) & (np.abs(Vf[:, 1] - centre[1]) < 0.3 * eye_distance)
-    near = T[(box & skin)[T].all(1)]  # the skin's own edges: an eyeball's finer mesh is no lid's
+    near = T[box[T].any(1) & skin[T].all(1)]  # the skin's own edges: an eyeball's finer mesh is no lid's
     if not len(near):
         return None
     edge = median_edge(Vf, near)
