@@ -108,24 +108,31 @@ def add_mesh_options(ap):
                                        "'pdeface landmarks' writes); default: found (needs pdeface[landmarks])")
     g.add_argument("--unit", type=mesh_unit, metavar="UNIT",
                    help=f"the mesh's unit: {UNIT_FORMS} (default: estimated from the face's size)")
+    g.add_argument("--accept", action="store_true",
+                   help="go on where the landmark gate refuses: found landmarks that fail it, or a mesh whose eyes "
+                        "are closed (as pdeface rig --accept)")
 
 
-def rig_mesh_file(context, addon, path, landmarks=None, unit=None):
+def rig_mesh_file(context, addon, path, landmarks=None, unit=None, accept=False):
     """The user's head file as a Blender object with every AU and expression key (``--mesh``); returns it.
 
-    Read, landmarked and fitted as ``pdeface landmarks``, ``fit`` and ``retarget``
-    do, rigged as the add-on's Fit does (:func:`rigging.add_head_mesh`).
+    Read, landmarked, gated and fitted as ``pdeface rig`` does (the landmark gate on found landmarks, the look at
+    the mesh's eyes with given ones; ``accept`` goes on past them), rigged as the add-on's Fit does
+    (:func:`rigging.add_head_mesh`).
     """
+    from pdeface.landmarks.checked import check_given, find_checked
     from pdeface.surface.scan import load_scan
+
+    def say(line):
+        sys.stderr.write(f"{path}: {line}\n")
 
     mesh, lm = load_scan(path, landmarks)
     if lm is None:
-        from pdeface.landmarks.pipeline import find_on_mesh
-
-        found = find_on_mesh(mesh, unit)
-        sys.stderr.write(f"{path}: found the 68 landmarks (detector score {found.score:.2f}, "
-                         f"{found.residual_mm:.1f} mm from the template)\n")
+        found, _ = find_checked(mesh, unit, accept=accept, log=say)
+        say(f"found the 68 landmarks (detector score {found.score:.2f}, {found.residual_mm:.1f} mm from the template)")
         lm = found.points
+    else:
+        check_given(mesh, lm, unit, accept=accept, log=say)
     # Blender's importers turn OBJ's and glTF's +Y up to +Z; a PLY keeps its axes.
     y_up = Path(path).suffix.lower() != ".ply"
     return addon.rigging.add_head_mesh(context, Path(path).stem, mesh, lm, unit=unit, y_up=y_up)
@@ -323,7 +330,7 @@ def render_job(args, prog, stdout):
             shown = next(iter(addon.face.user_objects(face)), face)
         elif args.mesh:
             bpy.ops.wm.read_homefile(use_empty=True)
-            shown = rig_mesh_file(bpy.context, addon, args.mesh, args.landmarks, args.unit)
+            shown = rig_mesh_file(bpy.context, addon, args.mesh, args.landmarks, args.unit, args.accept)
             face = shown.pdeface.rig_face
         elif args.head:
             bpy.ops.wm.read_homefile(use_empty=True)

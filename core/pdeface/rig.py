@@ -188,7 +188,7 @@ def rig_head(mesh_arg, out, landmarks=None, unit=None, parts=None, descriptors=D
 
     outputs = list(OUTPUTS)
     if blend:
-        rig_blend(mesh_arg, out / "landmarks.json", out / "head.blend", unit)
+        rig_blend(mesh_arg, out / "landmarks.json", out / "head.blend", unit, accept)
         outputs.append("head.blend")
         lap("blend")
     report["outputs"] = outputs
@@ -214,10 +214,11 @@ def _saved(path, model):
     return model_from_bytes(data, str(path))
 
 
-def rig_blend(mesh_arg, landmarks, path, unit=None):
-    """``path``: the head rigged by the add-on (its Fit), saved as a ``.blend`` by the headless renderer."""
+def rig_blend(mesh_arg, landmarks, path, unit=None, accept=False):
+    """``path``: the head rigged by the add-on (its Fit), saved as a ``.blend`` by the headless renderer; ``accept``:
+    past the look at the mesh's eyes, as the rig went on."""
     argv = ["--mesh", mesh_arg, "--landmarks", landmarks, "--no-frames", "--quiet", "--save-blend",
-            os.fspath(Path(path).resolve())]
+            os.fspath(Path(path).resolve())] + (["--accept"] if accept else [])
     code, _ = run_headless(argv + (["--unit", str(unit)] if unit is not None else []), capture=True, prog="pdeface rig")
     if code:
         raise PdeFaceError(f"{path}: Blender could not rig the head (the headless renderer exited with {code})")

@@ -61,5 +61,15 @@ def test_render_mesh_errors(head_files, tmp_path):
         return res.stderr
 
     assert "drop --face, --head and --blend" in fails("--mesh", head_files / "head.obj", "--head")
+    # a head modelled with its eyes closed, its landmarks given: refused as pdeface rig refuses it, naming the check
+    from pdeface.mesh import Mesh
+
+    from scripts.devset.unseen import ict_expression
+
+    V, T, L, _ = ict_expression()
+    write_obj(tmp_path / "blink.obj", Mesh.from_faces(V, T))
+    (tmp_path / "blink.json").write_text(json.dumps({"points": L.tolist()}))
+    err = fails("--mesh", tmp_path / "blink.obj", "--landmarks", tmp_path / "blink.json")
+    assert "eyes: closed" in err and "--accept" in err
     err = fails("--mesh", tmp_path / "missing.glb", "--landmarks", head_files / "landmarks.json")
     assert "pdeface render: error:" in err and "missing.glb: cannot open" in err
