@@ -26,7 +26,7 @@ from pdeface.mesh import edge_face_pairs
 from pdeface.rig import load_keys
 from pdeface.surface.frame import face_frame
 
-from .render_keys_devset import FOLD, LEVEL_STEP, SKIN, VIEWS, _one_winding, _panel, _scene, new_fold_vertices
+from .render_keys_devset import FOLD, LEVEL_STEP, SKIN, VIEWS, _coloured_mesh, _panel, _scene, new_fold_vertices
 
 KEYS = ("AU27", "AU45", "AU12")
 LANDMARK = (0.85, 0.05, 0.05, 1.0)
@@ -46,21 +46,13 @@ def face_view(folder):
 def rows(folder, size, tmp, keys=KEYS, title="", across=3.2):
     """One folder's rows (front, three-quarter) of panels: rest with its landmarks, then each key; ``across``: eye
     distances across a panel."""
-    import bpy
     from scipy.spatial import cKDTree
 
     V0, T, Lf, moved = face_view(folder)
     pairs = edge_face_pairs(T)
     scene, cam = _scene(size)
     cam.data.ortho_scale = across
-    me = bpy.data.meshes.new("head")
-    me.from_pydata(V0.tolist(), [], T.tolist())
-    _one_winding(me)
-    me.shade_smooth() if hasattr(me, "shade_smooth") else None
-    colours = me.color_attributes.new("marks", "FLOAT_COLOR", "POINT")
-    me.color_attributes.active_color = colours
-    me.color_attributes.default_color_name = colours.name
-    scene.collection.objects.link(bpy.data.objects.new("head", me))
+    me, colours = _coloured_mesh(scene, "head", V0, T, "marks")
     centre = (Lf[17:68, 0].mean(), Lf[17:68, 1].mean() - 0.35, Lf[17:68, 2].mean())
     spots = np.unique(np.concatenate(cKDTree(V0).query_ball_point(Lf, 0.03)).astype(int))
     out = {v: [] for v in VIEWS}

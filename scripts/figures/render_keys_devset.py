@@ -189,21 +189,28 @@ def _one_winding(me):
     bm.free()
 
 
-def sheet(name, size, tmp, keys=KEYS, bag=True):
-    """One character's (views × keys) panels as one image, and its new folds per key."""
+def _coloured_mesh(scene, name, V, T, attribute):
+    """A smooth-shaded mesh ``name`` of ``(V, T)``, one winding, linked into ``scene``, with a per-vertex colour
+    ``attribute`` (the one shown); returns ``(mesh, colours)``."""
     import bpy
 
-    V0, T, Lf, posed, dark, teeth, tongue = rigged(name, keys, bag)
-    pairs = edge_face_pairs(T)
-    scene, cam = _scene(size)
     me = bpy.data.meshes.new(name)
-    me.from_pydata(V0.tolist(), [], T.tolist())
+    me.from_pydata(V.tolist(), [], T.tolist())
     _one_winding(me)
     me.shade_smooth() if hasattr(me, "shade_smooth") else None
-    colours = me.color_attributes.new("folds", "FLOAT_COLOR", "POINT")
+    colours = me.color_attributes.new(attribute, "FLOAT_COLOR", "POINT")
     me.color_attributes.active_color = colours
     me.color_attributes.default_color_name = colours.name
     scene.collection.objects.link(bpy.data.objects.new(name, me))
+    return me, colours
+
+
+def sheet(name, size, tmp, keys=KEYS, bag=True):
+    """One character's (views × keys) panels as one image, and its new folds per key."""
+    V0, T, Lf, posed, dark, teeth, tongue = rigged(name, keys, bag)
+    pairs = edge_face_pairs(T)
+    scene, cam = _scene(size)
+    me, colours = _coloured_mesh(scene, name, V0, T, "folds")
     centre = (Lf[17:68, 0].mean(), Lf[17:68, 1].mean() - 0.35, Lf[17:68, 2].mean())
     rows, folds = {v: [] for v in VIEWS}, {}
     for key in keys:
