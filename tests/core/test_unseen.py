@@ -234,6 +234,11 @@ def test_open_eyes_fused_with_their_lids_pass_with_given_landmarks_closed_ones_d
         assert _closed(check_mesh_at_rest(L, Vc, Tc, "cm")) != opened, blink
         gaps = lid_gaps(L, face_frame(L, "cm"), eye_distance(L))
         assert (gaps > LIDS_APART).all() == opened, gaps
+    V = mesh.vertices + S["identity004"] + S["eyeBlink_L"]  # one eye blinking: that one alone is named
+    Vc, Tc, L = _fused_eyes(V, T, V[lm], 0.42)
+    assert "both eyes' lids meet" in check(L, Vc, Tc, "cm").message()
+    given = check_mesh_at_rest(L, Vc, Tc, "cm").message()
+    assert "eye's lids meet" in given and "both" not in given, given
 
 
 @needs_makehuman

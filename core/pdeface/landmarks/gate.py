@@ -381,11 +381,11 @@ def check_eyes_open(verdict: Verdict, V, skin, points, frame, eyes, given=False)
     apart (:data:`LIDS_APART`) is open whatever the mesh shows (its eyeball one surface with the lids)."""
     opening = eye_openings(V, skin, points, frame, eyes) / eyes
     apart = lid_gaps(points, frame, eyes) >= LIDS_APART if given else np.zeros(2, bool)
-    closed = [side for side, depth, lids in zip(("right", "left"), opening, apart) if depth < EYE_OPENING and not lids]
-    if closed:
-        which = "both eyes'" if len(closed) == 2 else f"the {closed[0]} eye's"
+    closed = (opening < EYE_OPENING) & ~apart
+    if closed.any():
+        which = "both eyes'" if closed.all() else f"the {'right' if closed[0] else 'left'} eye's"
         verdict.fail("eyes", "closed", f"{which} lids meet (the skin between the corners at most "
-                                       f"{opening.min():.2f} eye distances behind them; open eyes: over "
+                                       f"{opening[closed].min():.2f} eye distances behind them; open eyes: over "
                                        f"{EYE_OPENING}): a head at rest has its eyes open; open eyes read so too "
                                        "where the eyeballs are one surface with the lids (a scan); landmarks given "
                                        "by hand with the lids apart tell them open")
