@@ -69,7 +69,8 @@ def profiled(fn):
 def chain(bpy, path, measure, accept=False):
     """Import the OBJ ``path`` into an empty scene, Find Landmarks on it, Fit to Selected: ``{step: measure(step)}``.
     ``accept``: Fit goes on past the landmark gate (the clustered head: its cells fuse its lids with its eyeballs,
-    which the gate cannot tell from closed eyes and refuses naming that case); the time is the same work."""
+    which the gate on found landmarks cannot tell from closed eyes and refuses naming that case); the time is the
+    same work."""
     bpy.ops.wm.read_homefile(use_empty=True)
     bpy.context.scene.pdeface.unit = "AUTO"
     out = {"import (Blender's OBJ importer)": measure(lambda: bpy.ops.wm.obj_import(filepath=str(path)))}

@@ -91,8 +91,9 @@ def rig_once(path, out, core=None, accept=False):
         env |= {"PYTHONPATH": os.pathsep.join(p for p in (str(core), env.get("PYTHONPATH")) if p)}
         env.setdefault("PDEFACE_ASSETS", str(ROOT / "assets"))
     t, c, f = time.perf_counter(), child_cpu(), child_faults()
-    # accept (the clustered head): its 4.2 mm cells fuse its lids with its eyeballs, and the gate cannot tell such eyes
-    # from closed ones (it refuses them naming that case); the rig's time is measured, the gate's look included
+    # accept (the clustered head): its 4.2 mm cells fuse its lids with its eyeballs, and the gate on found landmarks
+    # cannot tell such eyes from closed ones (it refuses them naming that case; given landmarks with the lids apart
+    # would pass, but the rig finds them here); the rig's time is measured, the gate's look included
     done = subprocess.run([sys.executable, "-m", "pdeface.cli", "rig", str(path), "-o", str(out)]
                           + (["--accept"] if accept else []),
                           capture_output=True, text=True, check=False, env=env)

@@ -205,6 +205,56 @@ def test_closed_eyes_are_refused_with_landmarks_given_by_hand_too(tmp_path, caps
         rig_head(tmp_path / "blink.obj", tmp_path / "rig", landmarks=tmp_path / "lm.json")
 
 
+def _fused_eyes(V, T, L, cell):
+    """``(V, T)`` clustered on a grid of ``cell`` (the mesh's unit; the benchmarks' head: 4.2 mm), which fuses the
+    eyeballs with the lids as a scan has them, and the landmarks on the new surface."""
+    from scripts.bench.benchlib import clustered
+
+    Vc, Tc = clustered(V, T, cell)
+    return Vc, Tc, ClosestPoint(Vc, Tc).query(L)[3]
+
+
+def _closed(verdict):
+    return "closed" in [c for c, _ in verdict.failures.get("eyes", [])]
+
+
+def test_open_eyes_fused_with_their_lids_pass_with_given_landmarks_closed_ones_do_not():
+    """Eyeballs one surface with the lids leave no opening to see into: the found landmarks' gate still refuses them
+    (the detector puts closed lids as far apart as open ones) and says how on; landmarks given by hand with the lids
+    apart pass, given on closed lids (ICT's blink, fused alike) are refused."""
+    from pdeface.landmarks.gate import LIDS_APART, check_mesh_at_rest, lid_gaps
+
+    mesh, lm = load_head()
+    S, T = load_head_shapes(), mesh.triangles()[0]
+    for blink, opened in ((0.0, True), (1.0, False)):
+        V = mesh.vertices + S["identity004"] + blink * (S["eyeBlink_L"] + S["eyeBlink_R"])
+        Vc, Tc, L = _fused_eyes(V, T, V[lm], 0.42)
+        found_gate = check(L, Vc, Tc, "cm")
+        assert _closed(found_gate) and "given by hand with the lids apart" in found_gate.message()
+        assert _closed(check_mesh_at_rest(L, Vc, Tc, "cm")) != opened, blink
+        gaps = lid_gaps(L, face_frame(L, "cm"), eye_distance(L))
+        assert (gaps > LIDS_APART).all() == opened, gaps
+    V = mesh.vertices + S["identity004"] + S["eyeBlink_L"]  # one eye blinking: that one alone is named
+    Vc, Tc, L = _fused_eyes(V, T, V[lm], 0.42)
+    assert "both eyes' lids meet" in check(L, Vc, Tc, "cm").message()
+    given = check_mesh_at_rest(L, Vc, Tc, "cm").message()
+    assert "eye's lids meet" in given and "both" not in given, given
+
+
+@needs_makehuman
+def test_makehumans_open_eyes_fused_with_their_lids_pass_with_given_landmarks_closed_ones_do_not():
+    from dataclasses import replace
+
+    from pdeface.landmarks.gate import check_mesh_at_rest
+
+    spec = SPECS["caucasian-female-young-cm"]  # its eyeballs in the mesh: clustered, one surface with the lids
+    for closure, opened in ((0.0, True), (1.0, False)):
+        ch = build(replace(spec, expression={"eye-left-closure": closure, "eye-right-closure": closure}))
+        V, T, L = _fused_eyes(ch.vertices, ch.triangles, ch.landmarks, 4.2 / ch.mm_per_unit)
+        assert _closed(check(L, V, T))
+        assert _closed(check_mesh_at_rest(L, V, T)) != opened, closure
+
+
 @needs_makehuman
 def test_makehumans_eye_closure_at_rest_is_refused_its_open_eyes_pass():
     V, T, L, _ = BUILDERS["expression-at-rest"]()

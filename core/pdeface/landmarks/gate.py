@@ -24,7 +24,8 @@ from the face), against the eye distance, so they hold at any scale, orientation
 - **closed**: each eye open, as a head at rest has it (:data:`EYE_OPENING`): seen straight on between its corners,
   somewhere the skin lies deep behind them (the eye's opening onto the eyeball or the socket). A head modelled with
   its eyes closed (or in any expression) is no rest: its keys would close closed eyes, and the detector finds open
-  lids on it all the same.
+  lids on it all the same. With landmarks given by hand (:func:`check_mesh_at_rest`) an eye whose given lids lie
+  apart (:data:`LIDS_APART`) is open all the same: its eyeball is one surface with the lids (a scan).
 
 A group failing any check is named with the check; ``pdeface landmarks`` and ``pdeface fit`` then stop
 (exit 2) unless told ``--accept``.
@@ -116,8 +117,18 @@ LIDS_BEHIND = 0.10
 #: and decimated heads among them), 14 others nobody tuned on (docs/measurements/audit_unseen.md) 0.43-0.75. Closed:
 #: ICT's blink -0.08, its identity004 blinking (true / found landmarks) -0.09 / -0.04, MakeHuman's eye closure -0.06 /
 #: -0.03 (the closed lids' skin in front of the corners). Not told apart: open eyes whose eyeballs are one surface with
-#: the lids (a scan; ICT's head with its eyeballs joined to the skin: -0.06 / -0.05): the message names that case.
+#: the lids (a scan; ICT's head with its eyeballs joined to the skin: -0.06 / -0.05): the message names that case, and
+#: with landmarks given by hand their lids tell (:data:`LIDS_APART`).
 EYE_OPENING = 0.15
+#: How far apart landmarks given by hand put an eye's lids for an eye :data:`EYE_OPENING` reads closed to count as open
+#: (:func:`lid_gaps`: the upper lid points' mean height above the lower ones' in the face frame, over the eye's width):
+#: open eyes whose eyeballs are one surface with the lids leave nothing to see into, but the user put the lids apart.
+#: Open eyes: ICT's 21 heads 0.30-0.33, MakeHuman's 24 characters 0.22-0.37; fused with their lids (ICT's and
+#: MakeHuman's heads clustered on 4.2 mm cells, seen as a scan sees them, ICT's eyeballs joined to the lids) 0.24-0.33.
+#: Closed (the landmark vertices carried by ICT's blink, MakeHuman's eye closure; the same fused): ICT 0.00-0.03,
+#: MakeHuman -0.14-0.05. Half closed: ICT's blink at 0.5 0.16, at 0.7 0.10. Found landmarks are no word on it (the
+#: detector puts closed lids 0.18-0.27 apart, fused open ones 0.22-0.40): the gate on them keeps to the depth.
+LIDS_APART = 0.12
 #: The grid of rays over each eye: shares of the way from its inner to its outer corner, and heights about the line
 #: between them (eye distances).
 EYE_RAYS = ((0.3, 0.5, 0.7), (-0.1, -0.05, 0.0, 0.05, 0.1))
@@ -355,23 +366,36 @@ def check(points, V=None, T=None, unit=None) -> Verdict:
     return verdict
 
 
-def check_eyes_open(verdict: Verdict, V, skin, points, frame, eyes):
+def lid_gaps(points, frame, eyes) -> np.ndarray:
+    """How far apart the landmarks put each eye's lids: the upper lid points' (37, 38; 43, 44) mean height above
+    the lower ones' (41, 40; 47, 46) in the face frame, over the distance between the eye's corners. Right eye, then
+    left."""
+    F = frame.to_face(np.asarray(points, np.float64)) / (eyes * frame.scale)
+    return np.array([(F[upper, 1].mean() - F[lower, 1].mean()) / np.linalg.norm(F[b] - F[a])
+                     for (a, b), upper, lower in (((36, 39), [37, 38], [41, 40]), ((42, 45), [43, 44], [47, 46]))])
+
+
+def check_eyes_open(verdict: Verdict, V, skin, points, frame, eyes, given=False):
     """The **closed** check: fail ``verdict``'s eyes where an eye's lids meet (:data:`EYE_OPENING`) on the face's
-    own part ``skin`` (triangles of ``V``)."""
+    own part ``skin`` (triangles of ``V``). ``given``: the landmarks are the user's, and an eye whose given lids lie
+    apart (:data:`LIDS_APART`) is open whatever the mesh shows (its eyeball one surface with the lids)."""
     opening = eye_openings(V, skin, points, frame, eyes) / eyes
-    closed = [side for side, depth in zip(("right", "left"), opening) if depth < EYE_OPENING]
-    if closed:
-        which = "both eyes'" if len(closed) == 2 else f"the {closed[0]} eye's"
+    apart = lid_gaps(points, frame, eyes) >= LIDS_APART if given else np.zeros(2, bool)
+    closed = (opening < EYE_OPENING) & ~apart
+    if closed.any():
+        which = "both eyes'" if closed.all() else f"the {'right' if closed[0] else 'left'} eye's"
         verdict.fail("eyes", "closed", f"{which} lids meet (the skin between the corners at most "
-                                       f"{opening.min():.2f} eye distances behind them; open eyes: over "
+                                       f"{opening[closed].min():.2f} eye distances behind them; open eyes: over "
                                        f"{EYE_OPENING}): a head at rest has its eyes open; open eyes read so too "
-                                       "where the eyeballs are one surface with the lids (a scan)")
+                                       "where the eyeballs are one surface with the lids (a scan); landmarks given "
+                                       "by hand with the lids apart tell them open")
 
 
 def check_mesh_at_rest(points, V, T, unit=None) -> Verdict:
     """The gate's look at the mesh alone, for landmarks given by hand (the user's word on where they lie): each eye
-    open, as a head at rest has it (:func:`check_eyes_open`, on the part holding most landmarks). Landmarks the
-    frame refuses pass here: the fit names what is wrong with them."""
+    open, as a head at rest has it (:func:`check_eyes_open`, on the part holding most landmarks), or its given lids
+    apart (:data:`LIDS_APART`: an eyeball one surface with the lids shows no opening). Landmarks the frame refuses
+    pass here: the fit names what is wrong with them."""
     verdict = Verdict()
     P = np.asarray(points, np.float64)
     try:
@@ -379,7 +403,7 @@ def check_mesh_at_rest(points, V, T, unit=None) -> Verdict:
     except PdeFaceError:
         return verdict
     V, T = triangle_arrays(V, T)
-    check_eyes_open(verdict, V, landmark_parts(V, T, P)[1], P, frame, eye_distance(P))
+    check_eyes_open(verdict, V, landmark_parts(V, T, P)[1], P, frame, eye_distance(P), given=True)
     return verdict
 
 
