@@ -37,9 +37,10 @@ EYE_LEFT = range(42, 48)
 EYE_OUTER_RIGHT, EYE_INNER_RIGHT, EYE_INNER_LEFT, EYE_OUTER_LEFT = 36, 39, 42, 45
 #: The right eye's lower-lid points (inner, outer); the left's mirror them (:data:`MIRROR`).
 LID_LOWER_INNER_RIGHT, LID_LOWER_OUTER_RIGHT = 40, 41
-#: The upper- and lower-lid points of both eyes.
+#: The upper- and lower-lid points of both eyes, the right eye's first; each lower point lies under the upper point at
+#: the same place in the list (37 over 41, 38 over 40, 43 over 47, 44 over 46).
 UPPER_LIDS = [37, 38, 43, 44]
-LOWER_LIDS = [40, 41, 46, 47]
+LOWER_LIDS = [41, 40, 47, 46]
 
 #: Mouth: outer lip line (48–59) and inner lip line (60–67).
 OUTER_LIPS = range(48, 60)

@@ -39,6 +39,7 @@ from pdeface.au.modelfile import load_face
 from pdeface.au.retarget import retarget
 from pdeface.errors import PdeFaceError
 from pdeface.head.bind import HeadBinding
+from pdeface.landmark_scheme import LOWER_LIDS, UPPER_LIDS
 from pdeface.surface.fit import fit_face
 
 from scripts.bench.benchlib import bench_parser, run_bench
@@ -54,9 +55,6 @@ PAIRS = {
     "AU1": ({"1": 1.0}, ("eyebrows-left-inner-up", "eyebrows-right-inner-up")),
     "AU4": ({"4": 1.0}, ("eyebrows-left-down", "eyebrows-right-down")),
 }
-#: Upper-lid middles (iBUG-68, 0-based), and the lower ones below them.
-UPPER_LIDS = (37, 38, 43, 44)
-LOWER_LIDS = (41, 40, 47, 46)
 LID_TRAVEL_TARGET = 0.80
 
 

@@ -102,3 +102,13 @@ def test_found_landmarks_are_refused_when_a_group_is_off_and_pass_when_none_is(n
     worst = max(np.median(e[list(rows)]) for rows in GROUPS.values())
     v = check(found.points, ch.vertices, ch.triangles[found.skin])
     assert v.passed == (worst <= 0.10), (worst, v.message())
+
+
+def test_one_eyes_lids_turned_over_are_refused_by_their_order(ict):
+    # Each lower lid point is compared with the upper one over it in the same eye: compared across the eyes (as the
+    # gate once did), one eye's lids swapped lie level with the other eye's and passed.
+    V, T, L = ict
+    assert "order" not in checks(check(L), "eyes")
+    swapped = L.copy()
+    swapped[[37, 38, 41, 40]] = L[[41, 40, 37, 38]]
+    assert "order" in checks(check(swapped), "eyes"), check(swapped).message()

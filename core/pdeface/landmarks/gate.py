@@ -40,6 +40,10 @@ import numpy as np
 from ..errors import LandmarkError, PdeFaceError
 from ..landmark_scheme import (
     CHIN,
+    EYE_INNER_LEFT,
+    EYE_INNER_RIGHT,
+    EYE_OUTER_LEFT,
+    EYE_OUTER_RIGHT,
     INNER_LIPS,
     JAW,
     JAW_LEFT_ANGLE,
@@ -323,7 +327,7 @@ def check(points, V=None, T=None, unit=None) -> Verdict:
         if not y[upper] > y[lower]:
             g = lower if lower != "eyes" else upper
             verdict.fail(g, "order", f"{upper} not above {lower}")
-    lids = F[UPPER_LIDS, 1] - F[LOWER_LIDS[::-1], 1]  # 37-41, 38-40, 43-47, 44-46
+    lids = F[UPPER_LIDS, 1] - F[LOWER_LIDS, 1]  # each upper lid point over the lower one under it, in its own eye
     if (lids < -0.03).any():
         verdict.fail("eyes", "order", "a lower lid above its upper lid")
     for g, pairs in SPACING.items():
@@ -367,12 +371,12 @@ def check(points, V=None, T=None, unit=None) -> Verdict:
 
 
 def lid_gaps(points, frame, eyes) -> np.ndarray:
-    """How far apart the landmarks put each eye's lids: the upper lid points' (37, 38; 43, 44) mean height above
-    the lower ones' (41, 40; 47, 46) in the face frame, over the distance between the eye's corners. Right eye, then
-    left."""
+    """How far apart the landmarks put each eye's lids: the upper lid points' (:data:`UPPER_LIDS`) mean height above
+    the lower ones' in the face frame, over the distance between the eye's corners. Right eye, then left."""
     F = frame.to_face(np.asarray(points, np.float64)) / (eyes * frame.scale)
-    return np.array([(F[upper, 1].mean() - F[lower, 1].mean()) / np.linalg.norm(F[b] - F[a])
-                     for (a, b), upper, lower in (((36, 39), [37, 38], [41, 40]), ((42, 45), [43, 44], [47, 46]))])
+    corners = ((EYE_INNER_RIGHT, EYE_OUTER_RIGHT), (EYE_INNER_LEFT, EYE_OUTER_LEFT))
+    return np.array([(F[UPPER_LIDS[e:e + 2], 1].mean() - F[LOWER_LIDS[e:e + 2], 1].mean()) / np.linalg.norm(F[a] - F[b])
+                     for e, (a, b) in zip((0, 2), corners)])
 
 
 def check_eyes_open(verdict: Verdict, V, skin, points, frame, eyes, given=False):
