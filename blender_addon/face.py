@@ -147,7 +147,23 @@ def check_landmarks(settings, obj, points, unit=None, accept=False):
     Returns a note on a failure ``accept`` lets by; raises :class:`~pdeface.landmarks.gate.LandmarkGateError`."""
     if settings.landmark_source == "AUTO" and landmarks.empties(obj) is not None:
         return landmarks.gated(obj, points, unit, accept)
-    return landmarks.at_rest(obj, points, unit, accept)
+    return landmarks.at_rest(obj, points, landmark_origin(settings, obj), unit, accept)
+
+
+def landmark_origin(settings, obj):
+    """Where the next Fit on ``obj`` reads its landmarks from, in words (as :func:`read_landmarks` chooses, after a
+    find): :data:`.landmarks.EMPTIES`, the vertex group, the JSON file or the selected vertices. A gate verdict
+    keeps it, and the panel shows the verdict only while it is the same."""
+    source = settings.landmark_source
+    if source == "AUTO":
+        if landmarks.empties(obj) is not None or obj.vertex_groups.get(settings.landmark_group) is None:
+            return landmarks.EMPTIES
+        source = "GROUP"
+    if source == "GROUP":
+        return f"vertex group {settings.landmark_group!r}"
+    if source == "FILE":
+        return f"file {settings.landmark_file!r}"
+    return "the selected vertices"
 
 
 def chosen_unit(settings):

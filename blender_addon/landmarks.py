@@ -41,9 +41,12 @@ from . import bridge
 #: Custom property on each landmark empty: its Multi-PIE index (0-67).
 INDEX_PROP = "pdeface_landmark"
 COLLECTION = "PDE Landmarks"
-#: Custom properties on the mesh (saved with the .blend): the gate's last one-line failure ("" when it passed)
-#: and its failing groups, comma-separated, for the panel.
-GATE_PROP, GATE_GROUPS_PROP = "pdeface_gate", "pdeface_gate_groups"
+#: Custom properties on the mesh (saved with the .blend): the gate's last one-line failure ("" when it passed), its
+#: failing groups, comma-separated, and the landmarks it judged (:data:`EMPTIES` or the given source, in words), for
+#: the panel: a verdict shows only under the source it was made on.
+GATE_PROP, GATE_GROUPS_PROP, GATE_SOURCE_PROP = "pdeface_gate", "pdeface_gate_groups", "pdeface_gate_source"
+#: The source the whole gate judges: the mesh's landmark empties (found, imported or edited).
+EMPTIES = "the landmark empties"
 #: Custom properties on the mesh: the gate's last verdict (JSON) and a digest of what it judged (the points, the
 #: unit, the mesh's vertices and faces): Fit reuses the verdict of Find Landmarks when nothing of it changed.
 GATE_VERDICT_PROP, GATE_OF_PROP = "pdeface_gate_verdict", "pdeface_gate_of"
@@ -218,15 +221,17 @@ def gate(obj, points, unit=None, skin=None, arrays=None):
     verdict = check(points, V, T[skin], unit)
     obj[GATE_VERDICT_PROP] = json.dumps(verdict.to_json())
     obj[GATE_OF_PROP] = gate_digest(obj, points, unit)
-    _show(obj, verdict)
+    _show(obj, verdict, EMPTIES)
     return verdict
 
 
-def _show(obj, verdict):
-    """Keep ``verdict``'s one line and failing groups on the mesh for the panel, and highlight them."""
+def _show(obj, verdict, source):
+    """Keep ``verdict``'s one line, failing groups and ``source`` (the landmarks judged) on the mesh for the panel,
+    and highlight the failing groups' empties when it judged them (else none: the verdict is not theirs)."""
     obj[GATE_PROP] = verdict.message()
     obj[GATE_GROUPS_PROP] = ",".join(verdict.failures)
-    highlight(obj, list(verdict.failures))
+    obj[GATE_SOURCE_PROP] = source
+    highlight(obj, list(verdict.failures) if source == EMPTIES else [])
 
 
 def gate_digest(obj, points, unit=None):
@@ -251,10 +256,18 @@ def last_verdict(obj, points, unit=None):
     return Verdict.from_json(json.loads(obj[GATE_VERDICT_PROP]))
 
 
-def failing_groups(obj):
-    """The groups that failed the gate when last checked (from the .blend), or []."""
-    groups = obj.get(GATE_GROUPS_PROP, "") if obj is not None else ""
-    return [g for g in groups.split(",") if g]
+def failing_groups(obj, source=None):
+    """The groups that failed the gate when last checked (from the .blend), or []; with ``source``, only when that
+    check judged the landmarks of ``source`` (:data:`EMPTIES` or a given source, as :func:`at_rest` was told)."""
+    if obj is None or (source is not None and verdict_source(obj) != source):
+        return []
+    return [g for g in obj.get(GATE_GROUPS_PROP, "").split(",") if g]
+
+
+def verdict_source(obj):
+    """The landmarks the gate's last verdict on ``obj`` judged (:data:`GATE_SOURCE_PROP`), or None (none kept, or
+    kept before verdicts named their source)."""
+    return obj.get(GATE_SOURCE_PROP)
 
 
 def highlight(obj, groups):
@@ -283,7 +296,7 @@ def gated(obj, points, unit=None, accept=False):
     if verdict is None:
         verdict = gate(obj, points, unit)
     else:
-        _show(obj, verdict)  # the panel's line may be another check's since (:func:`at_rest`)
+        _show(obj, verdict, EMPTIES)  # the panel's line may be another check's since (:func:`at_rest`)
     if verdict.passed:
         return None
     if not accept:
@@ -294,15 +307,15 @@ def gated(obj, points, unit=None, accept=False):
     return f"going on with landmarks that fail the gate (accepted): {verdict.message()}"
 
 
-def at_rest(obj, points, unit=None, accept=False):
+def at_rest(obj, points, source, unit=None, accept=False):
     """The gate's look at mesh ``obj`` alone, for landmarks the user gave (``points``, object space, taken at
-    their word as the CLI takes ``--landmarks``): its eyes open, as a head at rest has them
-    (:func:`~pdeface.landmarks.gate.check_mesh_at_rest`). The verdict is kept and shown as :func:`gate`'s is;
-    raise :class:`LandmarkGateError` with the CLI's message when an eye is closed, unless ``accept``. Returns a
-    note on an accepted failure."""
+    their word as the CLI takes ``--landmarks``; ``source``: where from, in words): its eyes open, as a head at rest
+    has them (:func:`~pdeface.landmarks.gate.check_mesh_at_rest`). The verdict is kept as :func:`gate`'s is, under
+    ``source``; raise :class:`LandmarkGateError` with the CLI's message when an eye is closed, unless ``accept``.
+    Returns a note on an accepted failure."""
     V, T = mesh_arrays(obj)
     verdict = check_mesh_at_rest(points, V, T, unit)
-    _show(obj, verdict)
+    _show(obj, verdict, source)
     if verdict.passed:
         return None
     if not accept:

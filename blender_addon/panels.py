@@ -4,7 +4,7 @@ from pdeface.facs import REGIONS
 from pdeface.muscles.placement import MUSCLE_NAMES
 
 from . import landmarks, live
-from .face import active_face, key_owner
+from .face import active_face, key_owner, landmark_origin
 from .keys import managed, preset_items
 
 
@@ -62,8 +62,8 @@ class PDEFACE_PT_face(_Panel, bpy.types.Panel):
             box.prop(s, "unit_mm")
         box.operator("pdeface.fit_to_selected", icon="MOD_MESHDEFORM")
         mesh = landmarks.mesh_of(context.active_object)
-        if landmarks.failing_groups(mesh):  # the gate's, or its look at the mesh (landmarks given)
-            _gate_failure(box, mesh)
+        if mesh is not None:  # the gate's, or its look at the mesh (landmarks given)
+            _gate_verdict(box, s, mesh)
         if obj is not None:
             layout.label(text=f"Face: {obj.name}", icon="OBJECT_DATA")
             layout.operator("pdeface.build_shape_keys", icon="SHAPEKEY_DATA")
@@ -73,11 +73,25 @@ class PDEFACE_PT_face(_Panel, bpy.types.Panel):
                 row.operator("pdeface.cut_lips_open", icon="SCULPTMODE_HLT")
 
 
-def _gate_failure(layout, mesh):
-    """The gate's failing groups, its one line, and Fit with them anyway (as the CLI's --accept)."""
+def _gate_verdict(layout, settings, mesh):
+    """The gate's last failure on ``mesh`` where it judged the landmarks the next Fit reads (:func:`_gate_failure`);
+    one on other landmarks (the source switched since) only said to be stale. Returns the failing groups shown."""
+    source = landmark_origin(settings, mesh)
+    failing = landmarks.failing_groups(mesh, source)
+    if failing:
+        _gate_failure(layout, mesh, failing)
+    elif landmarks.failing_groups(mesh):
+        col = layout.column(align=True)
+        col.label(text="The landmark gate's last failure is stale", icon="INFO")
+        col.label(text=f"it judged {landmarks.verdict_source(mesh) or 'other landmarks'}; Fit checks {source}")
+    return failing
+
+
+def _gate_failure(layout, mesh, failing):
+    """The gate's ``failing`` groups, its one line, and Fit with them anyway (as the CLI's --accept)."""
     col = layout.column()
     col.alert = True
-    col.label(text=f"Landmark gate: {', '.join(landmarks.failing_groups(mesh))} failed", icon="ERROR")
+    col.label(text=f"Landmark gate: {', '.join(failing)} failed", icon="ERROR")
     for part in mesh.get(landmarks.GATE_PROP, "").split("; "):
         col.label(text=part)
     layout.operator("pdeface.fit_to_selected", text="Accept anyway and Fit", icon="CHECKMARK").accept = True
@@ -96,9 +110,7 @@ class PDEFACE_PT_landmarks(_Panel, bpy.types.Panel):
     def draw(self, context):
         layout = self.layout
         mesh = landmarks.mesh_of(context.active_object)
-        failing = landmarks.failing_groups(mesh)
-        if failing:
-            _gate_failure(layout, mesh)
+        failing = _gate_verdict(layout, context.scene.pdeface, mesh)
         layout.template_icon(icon_value=landmarks.scheme_icon(), scale=9.0)
         col = layout.column(align=True)
         for group, rows in landmarks.GROUPS.items():
@@ -229,8 +241,8 @@ class PDEFACE_PT_texture(_FacePanel, bpy.types.Panel):
         layout.operator("pdeface.transfer_texture", icon="TEXTURE")
 
 
-_classes = (PDEFACE_PT_face, PDEFACE_PT_landmarks, PDEFACE_PT_action_units, PDEFACE_PT_expressions, PDEFACE_PT_animation,
-            PDEFACE_PT_muscles, PDEFACE_PT_live, PDEFACE_PT_texture)
+_classes = (PDEFACE_PT_face, PDEFACE_PT_landmarks, PDEFACE_PT_action_units, PDEFACE_PT_expressions,
+            PDEFACE_PT_animation, PDEFACE_PT_muscles, PDEFACE_PT_live, PDEFACE_PT_texture)
 
 
 def register():

@@ -200,6 +200,36 @@ def test_a_gate_failure_leaves_the_scene_editable_with_the_failing_group(bpy, he
     assert lms[50].empty_display_type == "SPHERE" and lms[50].empty_display_size == lms[36].empty_display_size
 
 
+def test_the_empties_verdict_shows_only_while_the_fit_reads_them(bpy, head, tmp_path):
+    """The gate fails the edited empties; switched to a JSON file, the panels call that verdict stale (no failing
+    group, no Accept anyway) and name both sources; switched back, it shows. The file's landmarks fitted, its verdict
+    replaces the empties' and their highlight goes (it is not theirs)."""
+    lms_mod, settings = addon().landmarks, bpy.context.scene.pdeface
+    obj, _ = head
+    lms = lms_mod.empties(obj)
+    for i in (50, 51, 52):  # three upper-lip points pushed 1 cm into the mouth
+        lms[i].location.y += 0.01
+    with pytest.raises(RuntimeError, match="mouth: surface"):
+        bpy.ops.pdeface.fit_to_selected()
+    assert lms_mod.verdict_source(obj) == lms_mod.EMPTIES
+    panels = (bpy.types.PDEFACE_PT_face, bpy.types.PDEFACE_PT_landmarks)
+    assert all("Landmark gate: mouth failed" in draw_panel(bpy, p).texts("label") for p in panels)
+    settings.landmark_source, settings.landmark_file = "FILE", str(tmp_path / "truth.json")  # the fixture's file
+    given = f"file {settings.landmark_file!r}"
+    for panel in panels:
+        layout = draw_panel(bpy, panel)
+        labels = layout.texts("label")
+        assert not any(t.startswith("Landmark gate:") for t in labels)
+        assert "Accept anyway and Fit" not in layout.texts("operator")
+        assert f"it judged {lms_mod.EMPTIES}; Fit checks {given}" in labels
+    settings.landmark_source = "AUTO"
+    assert all("Landmark gate: mouth failed" in draw_panel(bpy, p).texts("label") for p in panels)
+    settings.landmark_source = "FILE"
+    assert bpy.ops.pdeface.fit_to_selected(keys_on_mesh=False) == {"FINISHED"}
+    assert lms_mod.verdict_source(obj) == given and lms_mod.failing_groups(obj) == []
+    assert lms[50].empty_display_type == "SPHERE" and not lms[50].select_get()
+
+
 def test_the_empties_are_saved_with_the_blend_and_the_scheme_shows_beside_the_head(bpy, head, tmp_path):
     lms_mod = addon().landmarks
     obj, _ = head

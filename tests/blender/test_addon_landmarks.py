@@ -172,4 +172,37 @@ def test_accept_fits_a_head_with_its_eyes_closed_and_open_eyes_pass(bpy, tmp_pat
     obj = given_head(bpy, "FILE", tmp_path, "open")
     points, _ = addon.face.read_landmarks(bpy.context.scene.pdeface, obj)
     obj[addon.landmarks.GATE_GROUPS_PROP] = "eyes"  # a failure from before the eyes were opened
-    assert addon.landmarks.at_rest(obj, points) is None and addon.landmarks.failing_groups(obj) == []
+    source = addon.face.landmark_origin(bpy.context.scene.pdeface, obj)
+    assert addon.landmarks.at_rest(obj, points, source) is None and addon.landmarks.failing_groups(obj) == []
+
+
+def test_a_given_sources_verdict_is_not_shown_as_the_empties_after_a_switch(bpy, tmp_path):
+    """The look at the mesh fails a file's landmarks (eyes closed); the same points imported as empties and the
+    source switched to Automatic, the panels call that verdict stale (the whole gate has not judged the empties),
+    with no failing group and no Accept anyway, and the empties are not highlighted; switched back, it shows."""
+    from tests.blender.test_addon_landmark_editor import draw_panel
+
+    addon = __import__(MODULE, fromlist=["landmarks"])
+    lms_mod, settings = addon.landmarks, bpy.context.scene.pdeface
+    obj = given_head(bpy, "FILE", tmp_path)
+    with pytest.raises(RuntimeError, match="eyes: closed"):
+        bpy.ops.pdeface.fit_to_selected()
+    given = f"file {settings.landmark_file!r}"
+    assert lms_mod.verdict_source(obj) == given and lms_mod.failing_groups(obj, given) == ["eyes"]
+    assert bpy.ops.pdeface.import_landmarks(filepath=settings.landmark_file) == {"FINISHED"}
+    settings.landmark_source = "AUTO"
+    assert addon.face.landmark_origin(settings, obj) == lms_mod.EMPTIES
+    assert lms_mod.failing_groups(obj, lms_mod.EMPTIES) == []
+    for panel in (bpy.types.PDEFACE_PT_face, bpy.types.PDEFACE_PT_landmarks):
+        layout = draw_panel(bpy, panel)
+        labels = layout.texts("label")
+        assert not any(t.startswith("Landmark gate:") for t in labels)
+        assert "Accept anyway and Fit" not in layout.texts("operator")
+        assert "The landmark gate's last failure is stale" in labels
+        assert f"it judged {given}; Fit checks {lms_mod.EMPTIES}" in labels
+    groups = [kw.get("icon") for name, args, kw in draw_panel(bpy, bpy.types.PDEFACE_PT_landmarks).drawn
+              if name == "label" and args == () and kw.get("text", "").startswith("eyes ")]
+    assert groups == ["DOT"]
+    assert all(e.empty_display_type == "SPHERE" for e in lms_mod.empties(obj))
+    settings.landmark_source = "FILE"
+    assert "Landmark gate: eyes failed" in draw_panel(bpy, bpy.types.PDEFACE_PT_face).texts("label")

@@ -257,6 +257,27 @@ def test_keys_relaxed_side_by_side_are_each_key_relaxed_alone():
     np.testing.assert_array_equal(together[:, 2], D[:, 2])
 
 
+def test_held_vertices_stay_in_the_keys_that_hold_them_alone():
+    """A coarse eye's margins are held in the keys that close it, not in the others the second relaxation works on
+    (a gaze key the eyeball guard pushed): the same cliff twice, its foot held in the first key only, stays there as
+    bound; the second key is relaxed as if nothing were held, and so is a key no vertex is held in at all."""
+    V, T = sheet(41)
+    cliff = cliff_keys(V, (3.0,))
+    D = np.concatenate([cliff, cliff], axis=1)
+    pinned = V[:, 0] == 0
+    foot = np.flatnonzero((np.abs(V[:, 0] - 20) < 0.5) & (V[:, 1] < 28))
+    free = cliff.copy()
+    FoldRelax(V, T, pinned).relax(free)
+    held = D.copy()
+    FoldRelax(V, T, pinned).relax(held, held=foot, held_keys=[0])
+    np.testing.assert_array_equal(held[foot, 0], D[foot, 0])
+    np.testing.assert_allclose(held[:, 1], free[:, 0], atol=1e-12)
+    assert not np.allclose(held[foot, 1], D[foot, 1])  # relaxed there: the hold was not the second key's
+    everywhere = D.copy()
+    FoldRelax(V, T, pinned).relax(everywhere, held=foot)  # every key holds them by default
+    np.testing.assert_array_equal(everywhere[foot], D[foot])
+
+
 def test_a_relaxation_of_a_view_writes_into_it():
     """Keys laid key-major and handed over as an (n, k, 3) view (the binding's layout before its last step) are
     relaxed in place as a contiguous copy of them is."""

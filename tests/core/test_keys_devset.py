@@ -11,6 +11,7 @@ from pdeface.facs import au_number
 from pdeface.head import bind
 from pdeface.head import folds as fold_relax
 from pdeface.head.bind import GAZE_AUS, HeadBinding, descriptor_motion_args
+from pdeface.head.mouth import head_mouth_bag, mouth_bag
 from pdeface.head.parts import CODE, EYEBALL_IOD
 from pdeface.io.meshio import write_mesh
 from pdeface.mesh import Mesh, connected_components
@@ -653,10 +654,36 @@ def test_one_point_on_lips_a_decimation_merged_opens_as_merged_rims(offset):
     truth, drop_true, folds_true = au27_opened(V, T, L, L)
     b, drop, folds = au27_opened(V, T, L, one_point_for_both_middles(L, offset))
     assert not truth.lips_one_line and not b.lips_one_line
+    assert np.array_equal(truth.face_landmarks, truth.frame.to_face(L))  # given apart: kept as given
     lips = [LIP_UPPER_INNER, LIP_LOWER_INNER]
     assert np.all(np.abs(drop[lips] - drop_true[lips]) <= 0.05), (drop[lips], drop_true[lips])
     assert -drop[LIP_LOWER_INNER] >= max(-drop[65], -drop[67])
     assert folds <= max(2 * folds_true, folds_true + 4), (folds, folds_true)
+
+
+@needs_makehuman
+def test_the_mouth_bag_reads_the_rims_one_found_point_was_split_onto():
+    """decimated-cm given one point for both inner lips' middles: the binding's landmarks carry the two rims it split
+    the point onto (two skin vertices, the upper one higher; every other landmark as given), and the mouth bag is made
+    from them, not from the point (the bag centred on the mouth line the binding shares the jaw's turn about), spanning
+    both rims."""
+    ch = build(SPECS["decimated-cm"])
+    V, T, L = ch.vertices, np.asarray(ch.triangles), ch.landmarks
+    given = one_point_for_both_middles(L, 0.0)
+    model = retarget(load_face("default"), fit_face(V, T, given)[0])
+    b = HeadBinding(model, V, T, landmarks=given)
+    f, Lf, lips = model.frame, b.face_landmarks, [LIP_UPPER_INNER, LIP_LOWER_INNER]
+    others = np.setdiff1d(np.arange(len(Lf)), lips)
+    assert np.array_equal(Lf[others], f.to_face(given)[others])
+    skin = b.Vf[b.skin]
+    upper, lower = (np.flatnonzero((skin == p).all(axis=1)) for p in Lf[lips])
+    assert len(upper) == len(lower) == 1 and upper != lower and Lf[LIP_UPPER_INNER, 1] > Lf[LIP_LOWER_INNER, 1]
+    bag = f.to_face(head_mouth_bag(b, T)[0])
+    skin_mask = b.parts.mask("skin")
+    assert np.allclose(bag, mouth_bag(b.Vf, T, skin_mask, Lf, b.eye_distance)[0], atol=1e-6 * b.eye_distance)
+    assert not np.allclose(bag, mouth_bag(b.Vf, T, skin_mask, f.to_face(given), b.eye_distance)[0],
+                           atol=1e-6 * b.eye_distance)
+    assert bag[:, 1].max() > Lf[LIP_UPPER_INNER, 1] and bag[:, 1].min() < Lf[LIP_LOWER_INNER, 1]
 
 
 def test_one_point_is_split_only_where_a_lining_lies_behind_it():

@@ -61,6 +61,34 @@ def test_fit_takes_millimetres_per_unit_and_saves_them(tmp_path, capsys, scan):
     assert e.value.code == 2 and "argument --unit: unknown unit '0.0x'" in capsys.readouterr().err
 
 
+def test_pdeface_rig_names_a_head_at_no_named_scale_by_its_millimetres_per_unit(tmp_path, capsys, scan):
+    """The command's rig on the neutral scan scaled by 0.0137 (no unit named, none fits: about 730 mm per unit,
+    estimated): keys.npz names the unit as the fit's millimetres per unit, which reads back as that number, and the
+    stimuli read the head in the fit's millimetres (its frame, a smile's motion)."""
+    from pdeface.batch.stimuli import load_identity
+    from pdeface.rig import load_keys
+
+    mesh, _, idx = scan
+    write_obj(tmp_path / "small.obj", Mesh(mesh.vertices * 0.0137, mesh.face_counts, mesh.face_indices))
+    (tmp_path / "lm.json").write_text(json.dumps({"indices": idx.tolist()}))
+    assert main(["rig", str(tmp_path / "small.obj"), "--landmarks", str(tmp_path / "lm.json"), "--no-presets",
+                 "-o", str(tmp_path / "rig")]) == 0
+    capsys.readouterr()
+    assert json.loads((tmp_path / "rig" / "report.json").read_text())["fit"]["unit"] == "estimated"
+    scale = load_model(tmp_path / "rig" / "face.npz").frame.scale
+    keys = load_keys(tmp_path / "rig" / "keys.npz")
+    name, mm = parse_unit(keys["unit"])
+    assert name == keys["unit"] and name.endswith("mm") and name not in UNITS_MM
+    assert mm == scale and mm == pytest.approx(10 / 0.0137, rel=0.15)  # the estimate, near the truth
+    identity = load_identity(str(tmp_path / "rig"), ("12",))
+    frame = face_frame(keys["landmarks"], mm)
+    np.testing.assert_allclose(identity.landmarks, frame.to_face(keys["landmarks"]), atol=1e-9)
+    smile = keys["deltas"][keys["names"].index("AU12")]
+    assert np.linalg.norm(identity.keys["12"], axis=1).max() == pytest.approx(
+        np.linalg.norm(smile, axis=1).max() * mm, rel=1e-3)
+    assert 3.0 < np.linalg.norm(identity.keys["12"], axis=1).max() < 30.0  # millimetres: a smile's corners
+
+
 def test_a_model_file_with_a_unit_that_is_none_is_refused(tmp_path, scan):
     from pdeface.errors import ModelFormatError
 

@@ -735,7 +735,6 @@ class HeadBinding:
         else:
             raise MeshError("this face model carries no landmarks (made by pdeface 0.1): give the head's landmarks "
                             "or refit the face")
-        self.face_landmarks = Lf
         # Normals all pointing inwards (a mirrored export), turned outwards: the skin's normals read the PDE face.
         T = facing_forward(Vf, T, Lf)
         self.eye_distance = eye_distance = landmark_scheme.eye_distance(Lf)
@@ -770,6 +769,9 @@ class HeadBinding:
         if not np.array_equal(middles, Lf[[LIP_UPPER_INNER, LIP_LOWER_INNER]], equal_nan=True):
             Lf = Lf.copy()  # one found point split onto merged rims: the binding reads the lips' own middles
             Lf[[LIP_UPPER_INNER, LIP_LOWER_INNER]] = middles
+        #: The landmarks (face frame) the binding read: the given ones, but for one found point for both inner lips'
+        #: middles split onto rims a decimation merged (the mouth bag reads the same lips as the keys).
+        self.face_landmarks = Lf
         if lips_joined:
             self.notes.append("the lips are joined in the mesh (no opening between them): keys that open the mouth "
                               "move the lower lip and stretch the skin joining it to the upper one; cut the mouth "
@@ -1065,8 +1067,9 @@ class HeadBinding:
         # Relaxed again where the lids' closing or the eyeballs' surface folded them (a blink, a glance down), past
         # the issue's limit alone (each sweep opens a closed lid a little), the lids kept out of the eyeballs; only
         # what moved since the first relaxation's screen is screened again.
+        closes = [i for i, c in enumerate(closing) if c]
         self._folds.relax(out, keys=[i for i, c in enumerate(closing) if c or pushed[i]], budget=self._folds.limit,
-                          screen=screen, held=self._lids.held)
+                          screen=screen, held=self._lids.held, held_keys=closes)
         if len(self.mouth):  # the bag: the jaw's turn below the mouth line, the upper lip's motion above it
             lip = out[self._upper_lip_vertex][None]
             out[self.mouth] = self._mouth_lower * out[self.mouth] + (1 - self._mouth_lower) * lip

@@ -267,14 +267,15 @@ class FoldRelax:
         return screen.bent
 
     def relax(self, D, keys=None, budget=None, steps=None, screen=None, unpinned=None, unpinned_keys=None, look=1,
-              held=None):
+              held=None, held_keys=None):
         """Relax displacements ``D`` (n, k, 3) in place where they fold more than ``budget`` edges (default:
         :attr:`budget`), only ``keys`` (indices) if given, in at most ``steps`` sweeps (default: RELAX_STEPS; or
         (k,) ints, each key's, multiples of ``look``); whether any key was changed. ``unpinned`` (indices or a mask):
         pinned vertices that ``unpinned_keys`` (indices; default every key) may move (a pin some keys need, others
         not). The folds are measured (and each key's region grown, its best kept, its end decided) every ``look``
-        sweeps (the measure costs more than a sweep; see SWEEPS_PER_LOOK). ``held``: vertices (indices) that no key
-        relaxed here moves (a coarse eye's closed lid margins: the sweeps would open it again).
+        sweeps (the measure costs more than a sweep; see SWEEPS_PER_LOOK). ``held``: vertices (indices) that the keys
+        ``held_keys`` (indices; default every key) relaxed here do not move (a coarse eye's closed lid margins in the
+        keys that close it: the sweeps would open it again).
 
         Each key is relaxed piece by piece of the mesh, each piece to its share of ``budget`` (by its flat edges):
         a lash strip folding does not smooth the lid under it. Every (key, piece) is worked on at once.
@@ -311,14 +312,21 @@ class FoldRelax:
             if unpinned_keys is not None:
                 extra_keys[:] = False
                 extra_keys[unpinned_keys] = True
-            self._relax_jobs(D, jobs, steps, screen, (extra, extra_keys), look, held)
+            hold = None
+            if held is not None and len(held):
+                holding = np.ones(D.shape[1], bool)
+                if held_keys is not None:
+                    holding[:] = False
+                    holding[held_keys] = True
+                hold = (held, holding)
+            self._relax_jobs(D, jobs, steps, screen, (extra, extra_keys), look, hold)
         return changed
 
     def _relax_jobs(self, D, jobs, steps, screen=None, unpinned=None, look=1, held=None):
         """Relax ``jobs`` ``(key, folded edges of one piece, budget)`` of ``D`` (n, k, 3) in place, each in at most
         ``steps`` (k,) of its key's sweeps, looking at its folds every ``look`` sweeps; per job the folds left (never
         more than as bound). ``unpinned``: ``(vertices (n,) bool, keys (k,) bool)``, pinned vertices those keys may
-        move; ``held``: vertices (indices) no job moves.
+        move; ``held``: ``(vertices (indices), keys (k,) bool)``, vertices no job of those keys moves.
 
         Each job works on the vertices within ZONE_RINGS of its folded edges alone (and two rings around them, read
         only), sweep after sweep until it folds at most its budget. The jobs' vertices are laid side by side as
@@ -351,8 +359,8 @@ class FoldRelax:
         free = self.free[vertex]
         if unpinned is not None:
             free |= unpinned[0][vertex] & unpinned[1][key_of[job]]
-        if held is not None and len(held):
-            free &= ~np.isin(vertex, held)
+        if held is not None:
+            free &= ~(np.isin(vertex, held[0]) & held[1][key_of[job]])
         movable = free & in_zone[cols]
         # The flat edges with a corner in a zone, their triangles (each once) in local indices.
         pair, row = _rows_gather(self.vertex_pairs, zone % n)
