@@ -37,7 +37,7 @@ from ..rigid import rotation_vector_matrix
 from ..surface.frame import estimate_unit
 from ..threads import bounded
 from ..units import parse_unit
-from .brows import brows_from_template, inner_brows_over_nasion, nasion_from_midline_strip
+from .brows import brows_from_upper_face, nasion_from_midline_strip
 from .contour import (
     chin_on_profile,
     jaw_angles_from_neighbours,
@@ -415,16 +415,14 @@ def detect(V, T, unit=None, landmark_map: LandmarkMap | None = None, detector: D
         # The lid points on the margin's front edge, not on its curl into the socket.
         points = lids_on_margin(V, Ts, points)
         # The outer eye corners at the lateral end of the eye's opening, not on the upper lid or behind the corner
-        # (before the brows: the corners hold the brow region's pose; brows better on 15 characters, worse on 5).
+        # (before the brows: the eyes pose them).
         points = outer_corners_at_opening_end(V, Ts, points)
-        # The brows with the brow ridge (ICT's brow region laid onto the skin), not at ICT's height above the eyes.
-        points = brows_from_template(V, Ts, points, closest)
+        # The brows where ICT's head laid onto the found eyes and nose has them, not at ICT's height above the eyes.
+        points = brows_from_upper_face(V, Ts, points, closest)
         # The nasion where ICT's midline between the eyes, laid onto the skin, puts it, not at the eye centres' height.
         points = nasion_from_midline_strip(V, Ts, points, closest)
-        # The inner brows at ICT's height above that nasion where the brow region left them far from it.
-        points = inner_brows_over_nasion(V, Ts, points, closest)
-        # The eye corners out of the crease's back onto the skin in front (after the brows: with the corners moved
-        # out of the crease first the brows' p95 grew 0.6 %).
+        # The eye corners out of the crease's back onto the skin in front (after the brows: moved first, the brows'
+        # p95 grew 0.6 % with the brow region; with the upper face, no clear gain either way).
         points = corners_on_skin_front(V, Ts, points)
         # The inner lip corners back in the commissure, not on the lips' front.
         points = inner_lip_corners_at_seam_end(V, Ts, points)
