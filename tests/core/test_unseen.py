@@ -21,6 +21,7 @@ from scipy.spatial import cKDTree
 from scripts.devset import makehuman
 from scripts.devset.characters import SPECS, build
 from scripts.devset.unseen import BUILDERS
+from tests.core.test_keys_devset import au27_opened
 
 needs_makehuman = pytest.mark.skipif(not makehuman.available(), reason="needs ../shared/data/makehuman")
 needs_mediapipe = pytest.mark.skipif(not mediapipe_available(), reason='needs pip install "pdeface[landmarks]"')
@@ -118,6 +119,28 @@ def test_a_blink_closes_a_coarse_heads_eyes_where_its_mesh_has_them(monkeypatch)
     # As it was (the middles at the vertices nearest the landmarks): one eye stays open.
     monkeypatch.setattr(lids, "COARSE_EDGES", 0.0)
     assert max(blink()[2].values()) > 0.3
+
+
+@needs_makehuman
+@needs_mediapipe
+def test_a_jaw_drop_opens_a_coarse_heads_mouth_with_its_found_landmarks():
+    """The 1.4k-vertex head's found inner lips' middles are one point on the triangles joining its upper lip's front
+    to its lower's (its merged rims lie in a groove behind them), 0.08 eye distances from every vertex: read as lips
+    in one line, AU27 dropped the lower lip's middle 0.23 eye distances, the true landmarks 0.52. The point is now
+    split onto the ends of the edge across the mouth line nearest it (``bind._rims_across``): the lower lip drops as
+    with the true landmarks, the upper lip stays, no more folds."""
+    V, T, L, _ = BUILDERS["lowpoly-flat"]()
+    found = detect_anywhere(V, T).points
+    # The lips' own middles, half-way from the inner lips' middles to the outer ones (the vertex nearest landmark 66
+    # is the upper lip's front on this head), appended to the points measured.
+    middles = np.concatenate([L, (L[[66, 62]] + L[[57, 51]]) / 2])
+    truth, drop_true, folds_true = au27_opened(V, T, middles, L)
+    b, drop, folds = au27_opened(V, T, middles, found)
+    assert not b.lips_one_line
+    lower, upper = -drop[68], drop[69]
+    assert lower >= 0.5 * -drop_true[68] and lower >= 0.3, (lower, drop_true[68])
+    assert upper >= min(drop_true[69], -0.08), (upper, drop_true[69])
+    assert folds <= max(2 * folds_true, folds_true + 4), (folds, folds_true)
 
 
 @needs_makehuman
