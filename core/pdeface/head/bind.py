@@ -148,9 +148,10 @@ FUSED_IOD = 0.05
 #: Where both inner lips' middles fall on one vertex, the skin within this many eye distances of it shows whether
 #: the mesh parts the lips there (:func:`_rims_near`).
 RIMS_IOD = 0.15
-#: One point for both inner lips' middles is split onto rims a decimation merged only on a vertex this near it (eye
-#: distances): the found points lay 0.01-0.04 from one on the decimated heads, 0.08 on the 1.4k-vertex game head
-#: (lowpoly-flat), whose vertex there is a lip's side, not its rim (:func:`_rims_merged_at`).
+#: One point for both inner lips' middles is split onto rims a decimation merged at a vertex this near it (eye
+#: distances): the found points lay 0.01-0.04 from one on the decimated heads; 0.08 on the 1.4k-vertex game head
+#: (lowpoly-flat), whose vertex there is a lip's side, not its rim: a point farther from every vertex is split onto
+#: the edge across the mouth line nearest it (:func:`_rims_merged_at`, :func:`_rims_across`).
 RIMS_NEAR_IOD = 0.06
 #: On joined lips the skin under the strip between the rims within this share of the mouth's width reads it (lips in
 #: one line), or the fold relaxation of the jaw keys that part the lips keeps the lower lip there (rims a decimation
