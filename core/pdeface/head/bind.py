@@ -382,6 +382,12 @@ def _lips_joined(P, Ts, Lf, eye_distance, skin_tree, normals) -> tuple:
         return False, False, False, ends
     a, b = skin_tree.query(ends)[1]
     a, b = _rims_near(P, Ts, ends, a, b, eye_distance, skin_tree)  # on one lip (a detector's on closed lips)
+    d = np.abs(P[a] - P[b])
+    if d[0] > d[1] and np.linalg.norm(ends[0] - ends[1]) < LIP_LINE_IOD * eye_distance:
+        # One point for both on two vertices side by side (more aside than one above the other): one row of a mouth
+        # coarser than the lips, not each lip's rim. Read as the two lips' rims, caucasian-female-young decimated to
+        # 1,815 vertices took its upper lip with the jaw in AU27 (its middle -0.55 eye distances; true landmarks -0.04).
+        a = b = int(skin_tree.query(ends.mean(0))[1])
     apart = np.linalg.norm(P[a] - P[b])
     if a == b:  # one vertex for both: one found point, or two closer than the mesh's vertices
         a, b = _rims_merged_at(P, Ts, normals, a, b, ends.mean(0), eye_distance)
