@@ -8,6 +8,7 @@ from pdeface.au.modelfile import load_face
 from pdeface.au.retarget import curve_map, retarget
 from pdeface.cli import main
 from pdeface.facs import au_number
+from pdeface.geometry import ClosestPoint
 from pdeface.head import bind
 from pdeface.head import folds as fold_relax
 from pdeface.head.bind import GAZE_AUS, HeadBinding, descriptor_motion_args
@@ -27,7 +28,7 @@ from scripts.bench.bench_keys_devset import (
     turn_degrees,
 )
 from scripts.devset import makehuman
-from scripts.devset.characters import SPECS, Spec, build
+from scripts.devset.characters import SPECS, Spec, build, decimate
 
 needs_makehuman = pytest.mark.skipif(not makehuman.available(), reason="needs ../shared/data/makehuman")
 
@@ -702,5 +703,37 @@ def test_one_point_is_split_only_where_a_lining_lies_behind_it():
     assert bind._rims_merged_at(P, Ts, lining, 4, 4, point, 10.0) == (4, 7)
     lining[4], lining[3] = [0.0, 0.8, 0.6], [0.0, -0.5, -0.8]  # faces the upper lip: the lower lip's rim
     assert bind._rims_merged_at(P, Ts, lining, 4, 4, point, 10.0) == (1, 4)
-    far = P[4] + [0.0, 0.0, 1.0]  # no vertex near the point (a mesh coarser than the lips)
+    far = P[4] + [0.0, 0.0, 1.0]  # no vertex near the point, nor the skin (off it)
     assert bind._rims_merged_at(P, Ts, lining, 4, 4, far, 10.0) == (4, 4)
+
+
+def test_a_point_between_a_coarse_mouths_vertices_is_split_onto_the_edge_across_the_mouth_line():
+    """A mouth coarser than its lips (no vertex within RIMS_NEAR_IOD of the one point for both inner lips' middles):
+    the point's triangle's edge across the mouth line nearest it gives the two rims, the upper one higher, where a
+    lining is joined to them; a point off the skin, or no lining, keeps the point's vertex."""
+    x = np.array([-1.0, 0.0, 1.0])
+    P = np.array([[xi, y, 0.0] for y in (1.0, 0.0, -1.0) for xi in x])
+    Ts = np.array([[0, 3, 1], [1, 3, 4], [1, 4, 2], [2, 4, 5], [3, 6, 4], [4, 6, 7], [4, 7, 5], [5, 7, 8]])
+    normals = np.tile([0.0, 0.0, 1.0], (len(P), 1))
+    lining = normals.copy()
+    lining[3] = [0.0, 0.0, -1.0]  # faces into the head, joined to 4
+    point = np.array([0.3, -0.5, 0.0])  # on triangle (4, 7, 5), 0.58 from 4 and 7: over RIMS_NEAR_IOD of 5
+    ed = 0.5 / bind.RIMS_NEAR_IOD
+    assert bind._rims_merged_at(P, Ts, lining, 4, 4, point, ed) == (4, 7)  # the edge 4-7, not 7-5 (as aside)
+    assert bind._rims_merged_at(P, Ts, normals, 4, 4, point, ed) == (4, 4)  # no lining: one row
+    assert bind._rims_merged_at(P, Ts, lining, 4, 4, point + [0.0, 0.0, 1.0], ed) == (4, 4)  # off the skin
+
+
+@needs_makehuman
+def test_inner_lips_nearest_one_vertex_of_a_decimated_mouth_are_read_as_its_merged_rims():
+    """A character decimated to 1,800 vertices has its true inner lips' middles (0.032 eye distances apart, over
+    LIP_LINE_IOD) nearest one vertex, its merged rims' with a lining behind it: once read as lips in one line, AU27
+    dropped the lower lip's middle 0.31 eye distances, its outer edge (landmark 57) 0.45; read as merged rims, the
+    lower lip drops as one."""
+    ch = build(SPECS["african-asian-female-young-mm"])
+    V, T = decimate(*ch.joined(), 1800)
+    L = ClosestPoint(V, T).query(ch.landmarks)[3]
+    middles = np.concatenate([L, (L[[LIP_LOWER_INNER]] + L[[57]]) / 2])  # the lower lip's middle appended
+    b, drop, _ = au27_opened(V, T, middles, L)
+    assert not b.lips_one_line
+    assert -drop[68] >= 0.8 * -drop[57], (drop[68], drop[57])

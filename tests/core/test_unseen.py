@@ -19,8 +19,9 @@ from pdeface.surface.frame import face_frame
 from scipy.spatial import cKDTree
 
 from scripts.devset import makehuman
-from scripts.devset.characters import SPECS, build
+from scripts.devset.characters import SPECS, build, decimate
 from scripts.devset.unseen import BUILDERS
+from tests.core.test_keys_devset import au27_opened
 
 needs_makehuman = pytest.mark.skipif(not makehuman.available(), reason="needs ../shared/data/makehuman")
 needs_mediapipe = pytest.mark.skipif(not mediapipe_available(), reason='needs pip install "pdeface[landmarks]"')
@@ -118,6 +119,46 @@ def test_a_blink_closes_a_coarse_heads_eyes_where_its_mesh_has_them(monkeypatch)
     # As it was (the middles at the vertices nearest the landmarks): one eye stays open.
     monkeypatch.setattr(lids, "COARSE_EDGES", 0.0)
     assert max(blink()[2].values()) > 0.3
+
+
+@needs_makehuman
+@needs_mediapipe
+def test_a_jaw_drop_opens_a_coarse_heads_mouth_with_its_found_landmarks():
+    """The 1.4k-vertex head's found inner lips' middles are one point on the triangles joining its upper lip's front
+    to its lower's (its merged rims lie in a groove behind them), 0.08 eye distances from every vertex: read as lips
+    in one line, AU27 dropped the lower lip's middle 0.23 eye distances, the true landmarks 0.52. The point is now
+    split onto the ends of the edge across the mouth line nearest it (``bind._rims_across``): the lower lip drops as
+    with the true landmarks, the upper lip stays, no more folds."""
+    V, T, L, _ = BUILDERS["lowpoly-flat"]()
+    found = detect_anywhere(V, T).points
+    # The lips' own middles, half-way from the inner lips' middles to the outer ones (the vertex nearest landmark 66
+    # is the upper lip's front on this head), appended to the points measured.
+    middles = np.concatenate([L, (L[[66, 62]] + L[[57, 51]]) / 2])
+    truth, drop_true, folds_true = au27_opened(V, T, middles, L)
+    b, drop, folds = au27_opened(V, T, middles, found)
+    assert not b.lips_one_line
+    lower, upper = -drop[68], drop[69]
+    assert lower >= 0.5 * -drop_true[68] and lower >= 0.3, (lower, drop_true[68])
+    assert upper >= min(drop_true[69], -0.08), (upper, drop_true[69])
+    assert folds <= max(2 * folds_true, folds_true + 4), (folds, folds_true)
+
+
+@needs_makehuman
+@needs_mediapipe
+def test_one_found_point_on_two_vertices_of_one_row_keeps_a_coarse_heads_upper_lip():
+    """A development-set character decimated to 1,815 vertices (not tuned on): the found inner lips' middles, one
+    point, are nearest two vertices side by side in one row of its mouth, once read as the two lips' rims: AU27 took
+    the upper lip's middle down with the jaw (-0.55 eye distances; true landmarks -0.04). Now read as that row's one
+    vertex (the merged rims' split): the upper lip stays, the lower lip drops as with the true landmarks."""
+    ch = build(SPECS["caucasian-female-young-cm"])
+    V, T = decimate(*ch.joined(), 2000)
+    L = ClosestPoint(V, T).query(ch.landmarks)[3]
+    found = detect_anywhere(V, T).points
+    middles = np.concatenate([L, (L[[66, 62]] + L[[57, 51]]) / 2])  # the lips' own middles appended
+    _, drop_true, _ = au27_opened(V, T, middles, L)
+    b, drop, _ = au27_opened(V, T, middles, found)
+    assert abs(drop[69]) <= 0.08, drop[69]
+    assert -drop[68] >= 0.8 * -drop_true[68], (drop[68], drop_true[68])
 
 
 @needs_makehuman

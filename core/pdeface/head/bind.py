@@ -61,11 +61,13 @@ from ..facs import au_number, normalise_weights
 from ..geometry import (
     ClosestPoint,
     any_corner,
+    closest_point_on_triangles,
     column_bounds,
     cross3,
     every_corner,
     in_box,
     median_edge,
+    row_dots,
     row_norms,
     smoothstep,
     triangle_cross,
@@ -146,9 +148,10 @@ FUSED_IOD = 0.05
 #: Where both inner lips' middles fall on one vertex, the skin within this many eye distances of it shows whether
 #: the mesh parts the lips there (:func:`_rims_near`).
 RIMS_IOD = 0.15
-#: One point for both inner lips' middles is split onto rims a decimation merged only on a vertex this near it (eye
-#: distances): the found points lay 0.01-0.04 from one on the decimated heads, 0.08 on the 1.4k-vertex game head
-#: (lowpoly-flat), whose vertex there is a lip's side, not its rim (:func:`_rims_merged_at`).
+#: One point for both inner lips' middles is split onto rims a decimation merged at a vertex this near it (eye
+#: distances): the found points lay 0.01-0.04 from one on the decimated heads; 0.08 on the 1.4k-vertex game head
+#: (lowpoly-flat), whose vertex there is a lip's side, not its rim: a point farther from every vertex is split onto
+#: the edge across the mouth line nearest it (:func:`_rims_merged_at`, :func:`_rims_across`).
 RIMS_NEAR_IOD = 0.06
 #: On joined lips the skin under the strip between the rims within this share of the mouth's width reads it (lips in
 #: one line), or the fold relaxation of the jaw keys that part the lips keeps the lower lip there (rims a decimation
@@ -362,9 +365,9 @@ def _lips_joined(P, Ts, Lf, eye_distance, skin_tree, normals) -> tuple:
     """``(joined, one_line, beside, middles)``: whether skin joins the inner lips' middles (landmarks 62 and 66), with
     no opening between the lips (a voxel remesh, a decimated mouth, a clustered one); whether they are one row of
     vertices there (nearest the same vertex, or within LIP_LINE_IOD: a voxel remesh's); and whether they are joined
-    beside their middles alone; and the inner lips' middles it read (landmarks 62 and 66: given, or one given point
-    split onto rims a decimation merged, :func:`_rims_merged_at`); ``skin_tree``: a ``cKDTree`` of the skin ``P``,
-    ``normals`` its vertex normals.
+    beside their middles alone; and the inner lips' middles it read (landmarks 62 and 66: given, or, nearest one
+    vertex, split onto rims a decimation merged, :func:`_rims_merged_at`); ``skin_tree``: a ``cKDTree`` of the skin
+    ``P``, ``normals`` its vertex normals.
 
     Joined: by a way about as short as the gap between them (FUSED_PATH, FUSED_IOD), or else, beside them, by any
     way across the middle of the mouth's width (:func:`_mouth_middle`) no deeper than FUSED_IOD behind them (ICT's
@@ -379,8 +382,14 @@ def _lips_joined(P, Ts, Lf, eye_distance, skin_tree, normals) -> tuple:
         return False, False, False, ends
     a, b = skin_tree.query(ends)[1]
     a, b = _rims_near(P, Ts, ends, a, b, eye_distance, skin_tree)  # on one lip (a detector's on closed lips)
+    d = np.abs(P[a] - P[b])
+    if d[0] > d[1] and np.linalg.norm(ends[0] - ends[1]) < LIP_LINE_IOD * eye_distance:
+        # One point for both on two vertices side by side (more aside than one above the other): one row of a mouth
+        # coarser than the lips, not each lip's rim. Read as the two lips' rims, caucasian-female-young decimated to
+        # 1,815 vertices took its upper lip with the jaw in AU27 (its middle -0.55 eye distances; true landmarks -0.04).
+        a = b = int(skin_tree.query(ends.mean(0))[1])
     apart = np.linalg.norm(P[a] - P[b])
-    if a == b and np.linalg.norm(ends[0] - ends[1]) < LIP_LINE_IOD * eye_distance:  # one point for both
+    if a == b:  # one vertex for both: one found point, or two closer than the mesh's vertices
         a, b = _rims_merged_at(P, Ts, normals, a, b, ends.mean(0), eye_distance)
         if a != b:  # on rims a decimation merged: each lip's own
             ends = P[[a, b]]
@@ -422,9 +431,9 @@ def _rims_merged_at(P, Ts, normals, a, b, point, eye_distance) -> tuple:
     and ``a`` is their vertex (``b`` too), within RIMS_NEAR_IOD of it, and a mouth's lining (skin facing into the head:
     ``normals``' depth below 0) is joined to ``a`` by an edge, the rims a decimation merged there: ``a`` one lip's
     (the lower's where it faces up more than forward or back, else the upper's) and, of its neighbours more above it
-    (below it) than aside, the one nearest ``point`` the other's. Otherwise ``(a, b)`` as they are: lips one row of
-    vertices (a voxel remesh's) have no lining behind them, and a mesh coarser than the lips (no vertex near the
-    point) cannot tell its rims.
+    (below it) than aside, the one nearest ``point`` the other's. On a mouth coarser than that (no vertex near the
+    point) the edge across the mouth line nearest it (:func:`_rims_across`). Otherwise ``(a, b)`` as they are: lips
+    one row of vertices (a voxel remesh's) have no lining behind them.
 
     Read as one row, a decimated head's AU27 pulled the lips into a beak (decimated-cm with found landmarks: the lower
     lip's middle dropped 0.14 eye distances, a third of the way to each corner 0.09 and 0.06; true landmarks 0.55,
@@ -433,7 +442,7 @@ def _rims_merged_at(P, Ts, normals, a, b, point, eye_distance) -> tuple:
     the mouth, read as the lower lip's and its upper lip sank 0.54 eye distances; ``a`` always the upper lip's, a
     point 0.01 eye distances lower fell on the lower rim and opened a beak on a decimated asian-female-young."""
     if np.linalg.norm(P[a] - point) > RIMS_NEAR_IOD * eye_distance:
-        return a, b
+        return _rims_across(P, Ts, normals, point, eye_distance) or (a, b)
     ring = np.unique(Ts[(Ts == a).any(axis=1)])
     if not (normals[ring, 2] < 0).any():
         return a, b
@@ -444,6 +453,40 @@ def _rims_merged_at(P, Ts, normals, a, b, point, eye_distance) -> tuple:
         return a, b
     other = int(other[np.argmin(row_norms(P[other] - point))])
     return (other, a) if on_lower else (a, other)
+
+
+def _rims_across(P, Ts, normals, point, eye_distance):
+    """``(upper, lower)`` on a mouth coarser than its lips (no vertex within RIMS_NEAR_IOD of ``point``, one point for
+    both inner lips' middles): the ends of the edge across the mouth line (one end more above the other than aside)
+    nearest the point, of the skin triangle the point lies on (within RIMS_NEAR_IOD of it), where a mouth's lining
+    (skin facing into the head) is joined to either end by an edge; None otherwise (a point off the skin, lips one
+    row of vertices with no lining behind them).
+
+    A 1.4k-vertex game head (lowpoly-flat, edges 0.2 eye distances) has its lips' merged rims in a groove facing into
+    the head and, in front of it, triangles joining the upper lip's front to the lower's, where the detector's point
+    lies, its nearest vertex 0.08 eye distances aside on the upper lip: read as lips in one line, AU27 dropped the
+    lower lip's middle 0.23 eye distances (true landmarks 0.52)."""
+    reach = RIMS_NEAR_IOD * eye_distance + 2 * median_edge(P, Ts)  # the triangles that may lie that near
+    near = row_norms(P - point) < reach
+    tris = Ts[near[Ts].any(axis=1)]
+    if not len(tris):
+        return None
+    q, _ = closest_point_on_triangles(np.broadcast_to(point, (len(tris), 3)), *(P[tris[:, k]] for k in range(3)))
+    k = int(np.argmin(row_norms(q - point)))
+    if np.linalg.norm(q[k] - point) > RIMS_NEAR_IOD * eye_distance:
+        return None
+    ends = np.stack([tris[k], np.roll(tris[k], -1)], 1)  # the triangle's three edges
+    d = P[ends[:, 0]] - P[ends[:, 1]]
+    ends = ends[np.abs(d[:, 1]) > np.abs(d[:, 0])]  # across the mouth line, not along it
+    if not len(ends):
+        return None
+    A, B = P[ends[:, 0]], P[ends[:, 1]]
+    t = np.clip(row_dots(q[k] - A, B - A) / np.maximum(row_dots(B - A, B - A), 1e-300), 0, 1)
+    i, j = (int(e) for e in ends[np.argmin(row_norms(A + t[:, None] * (B - A) - q[k]))])
+    joined = np.unique(Ts[(Ts == i).any(axis=1) | (Ts == j).any(axis=1)])
+    if not (normals[joined, 2] < 0).any():
+        return None
+    return (i, j) if P[i, 1] > P[j, 1] else (j, i)
 
 
 def _rims_near(P, Ts, ends, a, b, eye_distance, skin_tree) -> tuple:
