@@ -291,6 +291,42 @@ def test_surface_planes_are_the_straightforward_sums(rng, default_face):
             np.testing.assert_array_equal(op.apply(C, R), np.moveaxis(planes, 0, 2))
 
 
+
+def test_planes_into_kept_buffers_are_the_planes(rng, default_face):
+    """planes(..., reuse): the same numbers as fresh planes, written over the last call's buffers (a smaller solve
+    after a larger one uses their first rows; a larger one makes new ones)."""
+    from pdeface.surface import pde
+
+    m = default_face
+    C, R, rows, cols, args, key = _random_surfaces(rng, m, 6)
+    op = pde.confined_operator(*args, (0, 0), m.layout.breaks(), BREAK_SLOPE, key)
+    reuse = []
+    first = op.planes(C, R, reuse)
+    np.testing.assert_array_equal(first, op.planes(C, R))
+    fewer = op.planes(C[..., :3], R[..., :3], reuse)
+    np.testing.assert_array_equal(fewer, op.planes(C[..., :3], R[..., :3]))
+    assert np.shares_memory(first, fewer)  # written over the first
+    C2, R2 = np.concatenate([C, C], axis=2), np.concatenate([R, R], axis=2)
+    more = op.planes(C2, R2, reuse)
+    np.testing.assert_array_equal(more, op.planes(C2, R2))
+    assert not np.shares_memory(more, first)
+
+
+def test_subdivide_is_each_interval_cut_alone(rng):
+    """subdivide (all intervals at once) gives each interval's start + length * j / steps, the same numbers as
+    cutting the intervals one at a time, with one count or one per interval."""
+    for _ in range(50):
+        params = np.unique(rng.random(rng.integers(2, 30)) * rng.choice([1.0, np.pi, 80.0]))
+        if len(params) < 2:
+            continue
+        steps = rng.integers(1, 17, len(params) - 1)
+        for sub in (steps, int(steps[0])):
+            each = np.broadcast_to(sub, len(params) - 1)
+            alone = [params[i] + (params[i + 1] - params[i]) * np.arange(s) / s for i, s in enumerate(each)]
+            np.testing.assert_array_equal(subdivide(params, sub), np.append(np.concatenate(alone), params[-1]))
+    with pytest.raises(LayoutError):
+        subdivide([0.0, 0.5, 1.0], (2, 0))
+
 def test_surface_at_nodes_is_the_grid_there(rng, default_face):
     """SurfaceOperator.at_nodes (solve_surface's ``nodes``): a scattered subset of the grid's nodes, a grid row
     with one node read, the first and last nodes, every node: the whole grid's values there (to rounding: a node's

@@ -156,9 +156,11 @@ def sampling_key(sub):
 def subdivide(params, sub) -> np.ndarray:
     """``params`` (increasing) with interval i cut into ``sub[i]`` equal steps (``sub`` an int: each the same)."""
     params = np.asarray(params, dtype=np.float64)
-    steps = interval_steps(sub, len(params) - 1)
-    inner = [params[i] + (params[i + 1] - params[i]) * np.arange(s) / s for i, s in enumerate(steps)]
-    return np.append(np.concatenate(inner), params[-1])
+    steps = np.array(interval_steps(sub, len(params) - 1))
+    # each interval's start plus its length times j / s, j = 0 .. s - 1: a mesh's operators ask for this often
+    interval = np.repeat(np.arange(len(steps)), steps)
+    j = np.arange(len(interval)) - np.repeat(np.cumsum(steps) - steps, steps)
+    return np.append(params[interval] + np.diff(params)[interval] * j / steps[interval], params[-1])
 
 
 def sample_v(n_points: int, sub_v) -> np.ndarray:
@@ -419,16 +421,28 @@ class SurfaceOperator:
         """
         return np.ascontiguousarray(self.planes(coefficients, residual).transpose(1, 2, 0))
 
-    def planes(self, coefficients: np.ndarray, residual: np.ndarray) -> np.ndarray:
+    def planes(self, coefficients: np.ndarray, residual: np.ndarray, reuse=None) -> np.ndarray:
         """(K, N+1, c) coefficients and (K, J, c) residual → the surface as (c, n_u, n_v) planes, one per
         coordinate of each surface: what a computation over the grid's rows and columns reads whole (no strided
         copy of an interleaved grid). The u factors are made per plane and row, so the v factors' products write
-        the planes as they are."""
+        the planes as they are.
+
+        ``reuse``: a list that keeps the products' two buffers between calls (empty at first): the planes returned
+        are then written over the last call's. Many solves on one grid (a face's keys, a batch at a time) fault in
+        fresh pages for each otherwise (issue #35); the same products, so the same numbers.
+        """
         F, Ru = self._u_factors(coefficients, residual)
         _, _, v_modes, v_remainder = self._plane_factors
         c, n_u, _ = F.shape
-        X = Ru.reshape(c * n_u, -1) @ v_remainder
-        X += F.reshape(c * n_u, -1) @ v_modes
+        rows = c * n_u
+        if reuse is None:
+            X = Ru.reshape(rows, -1) @ v_remainder
+            X += F.reshape(rows, -1) @ v_modes
+            return X.reshape(c, n_u, -1)
+        if not reuse or len(reuse[0]) < rows:
+            reuse[:] = [np.empty((rows, v_modes.shape[1])) for _ in range(2)]
+        X = np.matmul(Ru.reshape(rows, -1), v_remainder, out=reuse[0][:rows])
+        X += np.matmul(F.reshape(rows, -1), v_modes, out=reuse[1][:rows])
         return X.reshape(c, n_u, -1)
 
     def at_nodes(self, coefficients, residual, nodes) -> np.ndarray:
@@ -529,7 +543,7 @@ def merged_operator(knots: tuple, n_points: int, n_modes: int, a: float, w: floa
 
 def solve_surface(coefficients, residual, knots, a=1.0, w=None, sub_u=4, sub_v=4,
                   assembly="smooth", deriv=(0, 0), breaks=(), break_slope=BREAK_SLOPE, confine=(), planes=False,
-                  nodes=None):
+                  nodes=None, reuse=None):
     """Evaluate the PDE surface (or a derivative) on the output grid.
 
     Parameters
@@ -563,6 +577,9 @@ def solve_surface(coefficients, residual, knots, a=1.0, w=None, sub_u=4, sub_v=4
 
     planes : bool
         Return (3, n_u, n_v) coordinate planes (3m for m surfaces: :meth:`SurfaceOperator.planes`).
+    reuse : list, optional
+        With ``planes``: :meth:`SurfaceOperator.planes`' buffers, kept between calls (the planes returned are
+        written over the last call's).
     nodes : (p,) int array, optional
         Flat grid indices ``u * n_v + v``, increasing: the surface there alone, (p, 3) ((p, 3m)), the values
         of the whole grid's (:meth:`SurfaceOperator.at_nodes`).
@@ -592,7 +609,7 @@ def solve_surface(coefficients, residual, knots, a=1.0, w=None, sub_u=4, sub_v=4
         op = confined_operator(*args, tuple(deriv), br, float(break_slope), key)
     if nodes is not None:
         return op.at_nodes(coefficients, residual, nodes)
-    return op.planes(coefficients, residual) if planes else op.apply(coefficients, residual)
+    return op.planes(coefficients, residual, reuse) if planes else op.apply(coefficients, residual)
 
 
 @lru_cache(maxsize=16)
