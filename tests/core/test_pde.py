@@ -312,6 +312,31 @@ def test_planes_into_kept_buffers_are_the_planes(rng, default_face):
     assert not np.shares_memory(more, first)
 
 
+
+def test_wavenumbers_together_are_each_alone(default_face):
+    """A surface's modes and remainder evaluated together (one batch of bases, one stacked solve) are, to the bit,
+    each wavenumber's alone: the coefficients, the output rows at even and uneven steps (a step count of a single
+    interval among them) and the merged surface's values anywhere, on one interval too."""
+    from pdeface.surface import pde
+
+    m = default_face
+    knots, breaks = tuple(float(x) for x in m.knots), tuple(m.layout.breaks())
+    ks = tuple(m.a * n for n in range(m.coefficients.shape[1])) + (m.remainder_w,)
+    K = len(knots)
+    uneven = tuple(int(s) for s in np.resize([2, 3, 4, 4, 7, 16], K - 1))  # 7 and 16: one interval each
+    stack = pde._smooth_coefficient_stack(knots, ks, breaks, BREAK_SLOPE)
+    for j, k in enumerate(ks):
+        np.testing.assert_array_equal(stack[j], pde._smooth_coefficients(knots, k, breaks, BREAK_SLOPE))
+    for sub in (4, uneven):
+        for deriv in (0, 1):
+            rows = pde.mode_operators(knots, ks, sub, "smooth", deriv, breaks, BREAK_SLOPE)
+            for j, k in enumerate(ks):
+                np.testing.assert_array_equal(rows[j], mode_operator(knots, k, sub, "smooth", deriv, breaks))
+    for u in (np.linspace(0.0, 1.0, 57), np.array([0.37])):
+        values = pde.mode_value_stack(knots, ks, u, 1, breaks)
+        for j, k in enumerate(ks):
+            np.testing.assert_array_equal(values[j], mode_values(knots, k, u, 1, breaks))
+
 def test_subdivide_is_each_interval_cut_alone(rng):
     """subdivide (all intervals at once) gives each interval's start + length * j / steps, the same numbers as
     cutting the intervals one at a time, with one count or one per interval."""

@@ -168,9 +168,12 @@ def model_fingerprint(model) -> bytes:
               model.landmarks if model.landmarks is not None else np.zeros(0), [model.a, model.remainder_w]):
         h.update(np.ascontiguousarray(a, np.float64).tobytes())
     h.update(model.assembly.encode())
-    for d in model.descriptors:
+    for d in model.descriptors:  # what its dense changes are made of (hashing those read 5x the bytes)
         h.update(d.key.encode())
-        for a in d.dense():
+        h.update(np.array(d.layout, np.int64).tobytes())
+        h.update(np.ascontiguousarray(d.curves, np.int64).tobytes())
+        for a in (d.coefficients, np.zeros(0) if d.residual is None else d.residual):
+            h.update(np.array(a.shape, np.int64).tobytes())
             h.update(np.ascontiguousarray(a, np.float64).tobytes())
     return h.digest()
 
