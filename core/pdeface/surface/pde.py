@@ -94,7 +94,6 @@ def ode_bases(kappas, t, deriv: int = 0) -> np.ndarray:
     return out
 
 
-
 def _bases_of(ks, h, t, deriv: int = 0) -> np.ndarray:
     """:func:`ode_bases` of ``k * h`` for each wavenumber ``k`` of ``ks``: (len(ks), len(h), p, 4), ``t`` (p,) or one
     row per interval (len(h), p). One batch for all of them; one per wavenumber where ``h`` is a single interval
@@ -105,6 +104,7 @@ def _bases_of(ks, h, t, deriv: int = 0) -> np.ndarray:
     t = np.asarray(t, dtype=np.float64)
     out = ode_bases((k[:, None] * h).ravel(), t if t.ndim == 1 else np.tile(t, (len(k), 1)), deriv)
     return out.reshape((len(k), len(h)) + out.shape[1:])
+
 
 def _powers(x, n: int) -> np.ndarray:
     """``x ** 0 .. x ** n`` along a new last axis."""
@@ -348,7 +348,7 @@ def mode_operator(knots: tuple, k: float, sub_u, assembly: str = "smooth", deriv
     return np.vstack(rows)
 
 
-@lru_cache(maxsize=512)
+@lru_cache(maxsize=64)  # as many as surface_operator keeps: 7 wavenumbers' rows each
 def mode_operators(knots: tuple, ks: tuple, sub_u, assembly: str = "smooth", deriv: int = 0, breaks: tuple = (),
                    break_slope: float = BREAK_SLOPE) -> np.ndarray:
     """:func:`mode_operator` of each wavenumber of ``ks``, (len(ks), n_u, K): a surface's modes and remainder
