@@ -174,7 +174,7 @@ def chosen_afresh(m, sampling=None):
         from pdeface.surface import sampling
     sampling._CHOSEN.clear()
     for cache in (pde.surface_operator, pde.confined_operator, pde.merged_operator, pde.mode_operator,
-                  pde._smooth_coefficients):
+                  pde.mode_operators, pde._smooth_coefficients, pde._smooth_coefficient_stack):
         cache.cache_clear()
     return sampling.adaptive_resolution(m)
 

@@ -291,6 +291,67 @@ def test_surface_planes_are_the_straightforward_sums(rng, default_face):
             np.testing.assert_array_equal(op.apply(C, R), np.moveaxis(planes, 0, 2))
 
 
+
+def test_planes_into_kept_buffers_are_the_planes(rng, default_face):
+    """planes(..., reuse): the same numbers as fresh planes, written over the last call's buffers (a smaller solve
+    after a larger one uses their first rows; a larger one makes new ones)."""
+    from pdeface.surface import pde
+
+    m = default_face
+    C, R, rows, cols, args, key = _random_surfaces(rng, m, 6)
+    op = pde.confined_operator(*args, (0, 0), m.layout.breaks(), BREAK_SLOPE, key)
+    reuse = []
+    first = op.planes(C, R, reuse)
+    np.testing.assert_array_equal(first, op.planes(C, R))
+    fewer = op.planes(C[..., :3], R[..., :3], reuse)
+    np.testing.assert_array_equal(fewer, op.planes(C[..., :3], R[..., :3]))
+    assert np.shares_memory(first, fewer)  # written over the first
+    C2, R2 = np.concatenate([C, C], axis=2), np.concatenate([R, R], axis=2)
+    more = op.planes(C2, R2, reuse)
+    np.testing.assert_array_equal(more, op.planes(C2, R2))
+    assert not np.shares_memory(more, first)
+
+
+
+def test_wavenumbers_together_are_each_alone(default_face):
+    """A surface's modes and remainder evaluated together (one batch of bases, one stacked solve) are, to the bit,
+    each wavenumber's alone: the coefficients, the output rows at even and uneven steps (a step count of a single
+    interval among them) and the merged surface's values anywhere, on one interval too."""
+    from pdeface.surface import pde
+
+    m = default_face
+    knots, breaks = tuple(float(x) for x in m.knots), tuple(m.layout.breaks())
+    ks = tuple(m.a * n for n in range(m.coefficients.shape[1])) + (m.remainder_w,)
+    K = len(knots)
+    uneven = tuple(int(s) for s in np.resize([2, 3, 4, 4, 7, 16], K - 1))  # 7 and 16: one interval each
+    stack = pde._smooth_coefficient_stack(knots, ks, breaks, BREAK_SLOPE)
+    for j, k in enumerate(ks):
+        np.testing.assert_array_equal(stack[j], pde._smooth_coefficients(knots, k, breaks, BREAK_SLOPE))
+    for sub in (4, uneven):
+        for deriv in (0, 1):
+            rows = pde.mode_operators(knots, ks, sub, "smooth", deriv, breaks, BREAK_SLOPE)
+            for j, k in enumerate(ks):
+                np.testing.assert_array_equal(rows[j], mode_operator(knots, k, sub, "smooth", deriv, breaks))
+    for u in (np.linspace(0.0, 1.0, 57), np.array([0.37])):
+        values = pde.mode_value_stack(knots, ks, u, 1, breaks)
+        for j, k in enumerate(ks):
+            np.testing.assert_array_equal(values[j], mode_values(knots, k, u, 1, breaks))
+
+def test_subdivide_is_each_interval_cut_alone(rng):
+    """subdivide (all intervals at once) gives each interval's start + length * j / steps, the same numbers as
+    cutting the intervals one at a time, with one count or one per interval."""
+    for _ in range(50):
+        params = np.unique(rng.random(rng.integers(2, 30)) * rng.choice([1.0, np.pi, 80.0]))
+        if len(params) < 2:
+            continue
+        steps = rng.integers(1, 17, len(params) - 1)
+        for sub in (steps, int(steps[0])):
+            each = np.broadcast_to(sub, len(params) - 1)
+            alone = [params[i] + (params[i + 1] - params[i]) * np.arange(s) / s for i, s in enumerate(each)]
+            np.testing.assert_array_equal(subdivide(params, sub), np.append(np.concatenate(alone), params[-1]))
+    with pytest.raises(LayoutError):
+        subdivide([0.0, 0.5, 1.0], (2, 0))
+
 def test_surface_at_nodes_is_the_grid_there(rng, default_face):
     """SurfaceOperator.at_nodes (solve_surface's ``nodes``): a scattered subset of the grid's nodes, a grid row
     with one node read, the first and last nodes, every node: the whole grid's values there (to rounding: a node's

@@ -170,7 +170,7 @@ def test_one_check_raises_a_wide_bend_in_proportion_and_a_narrow_one_to_the_most
     checked[0][7] = 2.0 * aim  # as on the probe at more steps: narrow
     calls = []
 
-    def measured(m, rows, cols, W, floor=0.0):
+    def measured(m, rows, cols, W, floor=0.0, stacks=None):
         calls.append((tuple(rows), tuple(cols), floor))
         return [t.copy() for t in (probed if len(calls) == 1 else checked)]
     monkeypatch.setattr(sampling, "interval_turns", measured)
@@ -231,9 +231,33 @@ def test_descriptors_solved_in_batches_are_those_solved_at_once(model):
     assert seen == len(model.descriptors)
 
 
-def reference_interval_turns(model, rows, cols, W, floor=0.0):
+
+def test_key_batches_kept_and_written_over_are_the_fresh_ones(model):
+    """key_stacks are the descriptors' dense changes side by side, and key_grids solving from them, each batch
+    written over the last one's (reuse), yields each batch's grids to the bit as fresh solves do."""
+    from pdeface.surface.grid import key_grids, key_stacks
+
+    rows, cols = mesh_resolution(model)
+    stacks = key_stacks(model, batch=7)
+    for first, C, R in stacks:
+        dense = [d.dense() for d in model.descriptors[first:first + 7]]
+        want_C, want_R = (np.concatenate(parts, axis=2) for parts in zip(*dense))
+        np.testing.assert_array_equal(C, want_C)
+        np.testing.assert_array_equal(R, want_R)
+    fresh = [g.copy() for _, g in key_grids(model, rows, cols, batch=7, planes=True)]
+    kept, last = [], None
+    for (first, grids), want in zip(key_grids(model, rows, cols, batch=7, planes=True, reuse=True, stacks=stacks),
+                                    fresh, strict=True):
+        np.testing.assert_array_equal(grids, want)
+        assert last is None or np.shares_memory(grids, last)
+        kept.append(first)
+        last = grids
+    assert kept == [first for first, _, _ in stacks]
+
+def reference_interval_turns(model, rows, cols, W, floor=0.0, stacks=None):
     """interval_turns written straightforwardly: every key's grid kept, each pose posed on the whole grid and
-    its turns and openings measured alone; an edge counts where both its quads lie in the pose's moved block."""
+    its turns and openings measured alone; an edge counts where both its quads lie in the pose's moved block
+    (``stacks``, the descriptors as the choice stacks them for both meshes, unread)."""
     from pdeface.geometry import degrees_from_cos
     from pdeface.surface.folds import carried, opening_mask
     from pdeface.surface.grid import key_grids

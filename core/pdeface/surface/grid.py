@@ -50,7 +50,7 @@ def break_weights(model: FaceModel, sub_v) -> tuple:
 
 
 def surface_grid(model: FaceModel, sub_u=4, sub_v=4, assembly=None, coefficients=None, residual=None, deriv=(0, 0),
-                 break_slope=BREAK_SLOPE, confine=True, planes=False, nodes=None, weights=None):
+                 break_slope=BREAK_SLOPE, confine=True, planes=False, nodes=None, weights=None, reuse=None):
     """PDE surface (or a derivative) on the output grid, in the face frame (mm).
 
     ``confine``: each break only within its opening's span (:func:`break_weights`); the head binding
@@ -58,14 +58,15 @@ def surface_grid(model: FaceModel, sub_u=4, sub_v=4, assembly=None, coefficients
     ``planes``: as (3, n_u, n_v) coordinate planes (:meth:`pdeface.surface.pde.SurfaceOperator.planes`).
     ``nodes``: at those grid nodes alone (flat indices, increasing), (p, 3)
     (:meth:`pdeface.surface.pde.SurfaceOperator.at_nodes`). ``weights``: :func:`break_weights` of ``sub_v``, when
-    known (many solves on one grid).
+    known (many solves on one grid). ``reuse``: with ``planes``, buffers kept between solves on one grid
+    (:meth:`pdeface.surface.pde.SurfaceOperator.planes`).
     """
     return solve_surface(model.coefficients if coefficients is None else coefficients,
                          model.residual if residual is None else residual,
                          model.knots, model.a, model.remainder_w, sub_u, sub_v,
                          assembly or model.assembly, deriv, model.layout.breaks(), break_slope,
                          (break_weights(model, sub_v) if weights is None else weights) if confine else (), planes,
-                         nodes)
+                         nodes, reuse)
 
 
 #: Descriptors solved together by :func:`key_grids`: all of a face's 72 at once held ~5 copies of their
@@ -73,16 +74,37 @@ def surface_grid(model: FaceModel, sub_u=4, sub_v=4, assembly=None, coefficients
 KEY_BATCH = 16
 
 
-def key_grids(model: FaceModel, sub_u, sub_v, assembly=None, batch=KEY_BATCH, planes=False):
+def key_stacks(model: FaceModel, batch=KEY_BATCH) -> list:
+    """The descriptors a few at a time, as :func:`key_grids` solves them: ``(first, C, R)``, their dense coefficient
+    (K, N+1, 3m) and residual (K, J, 3m) changes side by side (the solve is linear), descriptor ``first + i`` in
+    columns ``3i .. 3i + 2`` (:meth:`pdeface.au.descriptor.Descriptor.dense`'s values). The same for every grid: a
+    caller solving on several makes them once."""
+    stacks = []
+    for first in range(0, len(model.descriptors), batch):
+        part = model.descriptors[first:first + batch]
+        K, J, N = part[0].layout
+        C, R = np.zeros((K, N + 1, 3 * len(part))), np.zeros((K, J, 3 * len(part)))
+        for i, d in enumerate(part):
+            C[d.curves, :, 3 * i:3 * i + 3] = d.coefficients
+            if d.residual is not None:
+                R[d.curves, :, 3 * i:3 * i + 3] = d.residual
+        stacks.append((first, C, R))
+    return stacks
+
+
+def key_grids(model: FaceModel, sub_u, sub_v, assembly=None, batch=KEY_BATCH, planes=False, reuse=False, stacks=None):
     """Each descriptor's change of the surface (face frame, mm) on the output grid, a few solves at a time:
     yields ``(first, grids)``, ``grids`` (n_u, n_v, m, 3) for descriptors ``first .. first + m - 1``
-    (``planes``: (m, 3, n_u, n_v))."""
+    (``planes``: (m, 3, n_u, n_v)). ``reuse`` (with ``planes``): each batch's grids are written over the last
+    one's, for a caller done with a batch before it asks for the next (the same numbers, no fresh pages).
+    ``stacks``: :func:`key_stacks` of ``batch``, when made already."""
     weights = break_weights(model, sub_v)
-    for first in range(0, len(model.descriptors), batch):
-        dense = [d.dense() for d in model.descriptors[first:first + batch]]
-        C, R = (np.concatenate(parts, axis=2) for parts in zip(*dense))  # stacked: the solve is linear
-        X = surface_grid(model, sub_u, sub_v, assembly, coefficients=C, residual=R, planes=planes, weights=weights)
-        yield first, (X.reshape((len(dense), 3) + X.shape[1:]) if planes else X.reshape(X.shape[:2] + (len(dense), 3)))
+    buffers = [] if reuse and planes else None
+    for first, C, R in key_stacks(model, batch) if stacks is None else stacks:
+        m = C.shape[2] // 3
+        X = surface_grid(model, sub_u, sub_v, assembly, coefficients=C, residual=R, planes=planes, weights=weights,
+                         reuse=buffers)
+        yield first, (X.reshape((m, 3) + X.shape[1:]) if planes else X.reshape(X.shape[:2] + (m, 3)))
 
 
 def grid_faces(n_u: int, n_v: int) -> np.ndarray:

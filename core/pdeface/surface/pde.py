@@ -94,6 +94,18 @@ def ode_bases(kappas, t, deriv: int = 0) -> np.ndarray:
     return out
 
 
+def _bases_of(ks, h, t, deriv: int = 0) -> np.ndarray:
+    """:func:`ode_bases` of ``k * h`` for each wavenumber ``k`` of ``ks``: (len(ks), len(h), p, 4), ``t`` (p,) or one
+    row per interval (len(h), p). One batch for all of them; one per wavenumber where ``h`` is a single interval
+    (numpy's stacked product of one matrix rounds otherwise than of several: the numbers of one at a time)."""
+    k = np.asarray(ks, dtype=np.float64)
+    if len(h) == 1:
+        return np.stack([ode_bases(kj * h, t, deriv) for kj in k])
+    t = np.asarray(t, dtype=np.float64)
+    out = ode_bases((k[:, None] * h).ravel(), t if t.ndim == 1 else np.tile(t, (len(k), 1)), deriv)
+    return out.reshape((len(k), len(h)) + out.shape[1:])
+
+
 def _powers(x, n: int) -> np.ndarray:
     """``x ** 0 .. x ** n`` along a new last axis."""
     out = np.empty(np.shape(x) + (n + 1,))
@@ -156,9 +168,11 @@ def sampling_key(sub):
 def subdivide(params, sub) -> np.ndarray:
     """``params`` (increasing) with interval i cut into ``sub[i]`` equal steps (``sub`` an int: each the same)."""
     params = np.asarray(params, dtype=np.float64)
-    steps = interval_steps(sub, len(params) - 1)
-    inner = [params[i] + (params[i + 1] - params[i]) * np.arange(s) / s for i, s in enumerate(steps)]
-    return np.append(np.concatenate(inner), params[-1])
+    steps = np.array(interval_steps(sub, len(params) - 1))
+    # each interval's start plus its length times j / s, j = 0 .. s - 1: a mesh's operators ask for this often
+    interval = np.repeat(np.arange(len(steps)), steps)
+    j = np.arange(len(interval)) - np.repeat(np.cumsum(steps) - steps, steps)
+    return np.append(params[interval] + np.diff(params)[interval] * j / steps[interval], params[-1])
 
 
 def sample_v(n_points: int, sub_v) -> np.ndarray:
@@ -229,20 +243,30 @@ def _smooth_coefficients(knots: tuple, k: float, breaks: tuple = (), break_slope
     at both curves, and the runs of intervals on either side get not-a-knot
     ends instead: C1 everywhere, C2 within each run.
     """
+    return _smooth_coefficient_stack(knots, (k,), breaks, break_slope)[0]
+
+
+@lru_cache(maxsize=64)
+def _smooth_coefficient_stack(knots: tuple, ks: tuple, breaks: tuple = (),
+                              break_slope: float = BREAK_SLOPE) -> np.ndarray:
+    """:func:`_smooth_coefficients` of each wavenumber of ``ks``, (len(ks), 4(K-1), K): a surface's modes and
+    remainder ask for them together, so their bases are one batch and their systems one stacked solve (the same
+    numbers as one at a time)."""
     u = np.array(knots)
     K = len(u)
     _check_breaks(K, breaks)
     ends = {c for b in breaks for c in (b, b + 1)}
     h = np.diff(u)
     n = 4 * (K - 1)
-    A = np.zeros((n, n))
+    k = np.array(ks, dtype=np.float64)
+    A = np.zeros((len(k), n, n))
     B = np.zeros((n, K))
-    # (K-1, 4, 2, 4): each interval's basis, its derivatives 0-3, at its two ends
-    phi = np.stack([ode_bases(k * h, (0.0, 1.0), d) / (h ** d)[:, None, None] for d in range(4)], axis=1)
+    # (len(ks), K-1, 4, 2, 4): each interval's basis, its derivatives 0-3, at its two ends
+    phi = np.stack([_bases_of(k, h, (0.0, 1.0), d) / (h ** d)[:, None, None] for d in range(4)], axis=2)
     I = np.arange(K - 1)
     corners = 4 * I[:, None] + np.arange(4)
-    A[2 * I[:, None], corners], B[2 * I, I] = phi[:, 0, 0], 1  # each interval through its two curves
-    A[2 * I[:, None] + 1, corners], B[2 * I + 1, I + 1] = phi[:, 0, 1], 1
+    A[:, 2 * I[:, None], corners], B[2 * I, I] = phi[:, :, 0, 0], 1  # each interval through its two curves
+    A[:, 2 * I[:, None] + 1, corners], B[2 * I + 1, I + 1] = phi[:, :, 0, 1], 1
     # the joins at inner curves: (curve, derivative) C1 at a break's rims, C2 elsewhere; then not-a-knot: third
     # derivative continuous at the second and last-but-one curves of each run
     joins = [(i, d) for i in range(1, K - 1) for d in ((1,) if i in ends else (1, 2))]
@@ -257,13 +281,13 @@ def _smooth_coefficients(knots: tuple, k: float, breaks: tuple = (), break_slope
     above = np.where(at_break[i] & (d < 3), break_slope, 1.0)[:, None]
     below = np.where(at_break[i - 1] & (d < 3), break_slope, 1.0)[:, None]
     rows = 2 * (K - 1) + np.arange(len(i))[:, None]
-    A[rows, 4 * i[:, None] - 4 + np.arange(4)] = phi[i - 1, d, 1] * above
-    A[rows, 4 * i[:, None] + np.arange(4)] = -phi[i, d, 0] * below
+    A[:, rows, 4 * i[:, None] - 4 + np.arange(4)] = phi[:, i - 1, d, 1] * above
+    A[:, rows, 4 * i[:, None] + np.arange(4)] = -phi[:, i, d, 0] * below
     if K < 4:  # natural ends
         r = 2 * (K - 1) + len(i)
-        A[r, 0:4] = phi[0][2][0]
-        A[r + 1, n - 4:n] = phi[-1][2][1]
-    return np.linalg.solve(A, B)
+        A[:, r, 0:4] = phi[:, 0, 2, 0]
+        A[:, r + 1, n - 4:n] = phi[:, -1, 2, 1]
+    return np.linalg.solve(A, np.broadcast_to(B, (len(k), n, K)))
 
 
 @lru_cache(maxsize=512)
@@ -312,7 +336,7 @@ def mode_operator(knots: tuple, k: float, sub_u, assembly: str = "smooth", deriv
     K = len(knots)
     steps = interval_steps(sub_u, K - 1)
     if assembly == "smooth":
-        return _smooth_rows(knots, k, steps, deriv, breaks, break_slope)
+        return _smooth_rows(knots, (k,), steps, deriv, breaks, break_slope)[0]
     rows = []
     for a, H, tk, C, cols in _pieces(knots, k, assembly, breaks, break_slope):
         t = subdivide(tk, steps[a:a + len(tk) - 1])[:-1]
@@ -324,19 +348,35 @@ def mode_operator(knots: tuple, k: float, sub_u, assembly: str = "smooth", deriv
     return np.vstack(rows)
 
 
-def _smooth_rows(knots: tuple, k: float, steps: tuple, deriv: int, breaks: tuple, break_slope: float) -> np.ndarray:
-    """:func:`mode_operator` of the smooth assembly: the intervals of each step count evaluated together."""
+@lru_cache(maxsize=64)  # as many as surface_operator keeps: 7 wavenumbers' rows each
+def mode_operators(knots: tuple, ks: tuple, sub_u, assembly: str = "smooth", deriv: int = 0, breaks: tuple = (),
+                   break_slope: float = BREAK_SLOPE) -> np.ndarray:
+    """:func:`mode_operator` of each wavenumber of ``ks``, (len(ks), n_u, K): a surface's modes and remainder
+    evaluated together (the smooth assembly's bases one batch per step count; the same numbers)."""
+    if assembly != "smooth":
+        return np.stack([mode_operator(knots, k, sub_u, assembly, deriv, breaks, break_slope) for k in ks])
+    _check(np.array(knots), assembly)
+    return _smooth_rows(knots, ks, interval_steps(sub_u, len(knots) - 1), deriv, breaks, break_slope)
+
+
+def _smooth_rows(knots: tuple, ks: tuple, steps: tuple, deriv: int, breaks: tuple, break_slope: float) -> np.ndarray:
+    """:func:`mode_operators` of the smooth assembly: the intervals of each step count evaluated together, for
+    every wavenumber."""
     K = len(knots)
     h = np.diff(np.array(knots))
-    C = _smooth_coefficients(knots, k, breaks, break_slope).reshape(K - 1, 4, K)
+    k = np.array(ks, dtype=np.float64)
+    C = _smooth_coefficient_stack(knots, tuple(ks), breaks, break_slope).reshape(len(k), K - 1, 4, K)
     steps = np.array(steps)
     start = np.concatenate([[0], np.cumsum(steps)])
-    M = np.empty((start[-1] + 1, K))
+    M = np.empty((len(k), start[-1] + 1, K))
+    # the products a wavenumber at a time, as for one (numpy's small stacked products round otherwise)
     for s in np.unique(steps):
         i = np.nonzero(steps == s)[0]
-        B = ode_bases(k * h[i], np.arange(s) / s, deriv) / (h[i] ** deriv)[:, None, None]
-        M[(start[i][:, None] + np.arange(s)).ravel()] = np.matmul(B, C[i]).reshape(-1, K)
-    M[-1] = ode_bases(k * h[-1:], (1.0,), deriv)[0] / h[-1] ** deriv @ C[-1]  # the last curve, from the piece above
+        B = _bases_of(k, h[i], np.arange(s) / s, deriv) / (h[i] ** deriv)[:, None, None]
+        for j in range(len(k)):
+            M[j, (start[i][:, None] + np.arange(s)).ravel()] = np.matmul(B[j], C[j, i]).reshape(-1, K)
+    for j, kj in enumerate(k):  # the last curve, from the piece above
+        M[j, -1] = ode_bases(kj * h[-1:], (1.0,), deriv)[0] / h[-1] ** deriv @ C[j, -1]
     return M
 
 
@@ -419,16 +459,28 @@ class SurfaceOperator:
         """
         return np.ascontiguousarray(self.planes(coefficients, residual).transpose(1, 2, 0))
 
-    def planes(self, coefficients: np.ndarray, residual: np.ndarray) -> np.ndarray:
+    def planes(self, coefficients: np.ndarray, residual: np.ndarray, reuse=None) -> np.ndarray:
         """(K, N+1, c) coefficients and (K, J, c) residual → the surface as (c, n_u, n_v) planes, one per
         coordinate of each surface: what a computation over the grid's rows and columns reads whole (no strided
         copy of an interleaved grid). The u factors are made per plane and row, so the v factors' products write
-        the planes as they are."""
+        the planes as they are.
+
+        ``reuse``: a list that keeps the products' two buffers between calls (empty at first): the planes returned
+        are then written over the last call's. Many solves on one grid (a face's keys, a batch at a time) fault in
+        fresh pages for each otherwise (issue #35); the same products, so the same numbers.
+        """
         F, Ru = self._u_factors(coefficients, residual)
         _, _, v_modes, v_remainder = self._plane_factors
         c, n_u, _ = F.shape
-        X = Ru.reshape(c * n_u, -1) @ v_remainder
-        X += F.reshape(c * n_u, -1) @ v_modes
+        rows = c * n_u
+        if reuse is None:
+            X = Ru.reshape(rows, -1) @ v_remainder
+            X += F.reshape(rows, -1) @ v_modes
+            return X.reshape(c, n_u, -1)
+        if not reuse or len(reuse[0]) < rows:
+            reuse[:] = [np.empty((rows, v_modes.shape[1])) for _ in range(2)]
+        X = np.matmul(Ru.reshape(rows, -1), v_remainder, out=reuse[0][:rows])
+        X += np.matmul(F.reshape(rows, -1), v_modes, out=reuse[1][:rows])
         return X.reshape(c, n_u, -1)
 
     def at_nodes(self, coefficients, residual, nodes) -> np.ndarray:
@@ -492,21 +544,27 @@ def surface_operator(knots: tuple, n_points: int, n_modes: int, a: float, w: flo
     n = np.arange(n_modes + 1)
     # d^dv/dv^dv of cos(n v): cos for dv = 0, -n sin for dv = 1.
     cos_nv = np.cos(np.outer(v, n)) if dv == 0 else -np.sin(np.outer(v, n)) * n
-    modes = np.stack([mode_operator(knots, a * m, sub_u, assembly, du, breaks, break_slope) for m in n])
-    return SurfaceOperator(modes, cos_nv, mode_operator(knots, w, sub_u, assembly, du, breaks, break_slope),
-                           residual_v_operator(n_points, sub_v, dv))
+    rows = mode_operators(knots, (*(a * m for m in n), w), sub_u, assembly, du, breaks, break_slope)
+    return SurfaceOperator(rows[:-1], cos_nv, rows[-1], residual_v_operator(n_points, sub_v, dv))
 
 
 def mode_values(knots: tuple, k: float, u: np.ndarray, deriv: int = 0, breaks: tuple = (),
                 break_slope: float = BREAK_SLOPE) -> np.ndarray:
     """Matrix (len(u), K): one mode of the smooth assembly on the curves ``knots``, at any parameters ``u``."""
+    return mode_value_stack(knots, (k,), u, deriv, breaks, break_slope)[0]
+
+
+def mode_value_stack(knots: tuple, ks: tuple, u: np.ndarray, deriv: int = 0, breaks: tuple = (),
+                     break_slope: float = BREAK_SLOPE) -> np.ndarray:
+    """:func:`mode_values` of each wavenumber of ``ks``, (len(ks), len(u), K): their bases one batch."""
     kn = np.array(knots)
     h = np.diff(kn)
-    C = _smooth_coefficients(tuple(knots), k, tuple(breaks), break_slope)
+    k = np.array(ks, dtype=np.float64)
+    C = _smooth_coefficient_stack(tuple(knots), tuple(ks), tuple(breaks), break_slope).reshape(len(k), -1, 4, len(kn))
     i = np.clip(np.searchsorted(kn, u, side="right") - 1, 0, len(kn) - 2)
     t = (u - kn[i]) / h[i]
-    B = ode_bases(k * h[i], t[:, None], deriv)[:, 0] / (h[i] ** deriv)[:, None]  # (len(u), 4): each its interval's
-    return np.matmul(B[:, None], C.reshape(-1, 4, len(kn))[i])[:, 0]
+    B = _bases_of(k, h[i], t[:, None], deriv)[:, :, 0] / (h[i] ** deriv)[:, None]  # (len(ks), len(u), 4)
+    return np.stack([np.matmul(B[j][:, None], C[j][i])[:, 0] for j in range(len(k))])  # as one at a time
 
 
 @lru_cache(maxsize=64)
@@ -522,14 +580,14 @@ def merged_operator(knots: tuple, n_points: int, n_modes: int, a: float, w: floa
     P[b, b] = P[b, b + 1] = 0.5
     u = output_grid(np.array(knots), n_points, sub_u, sub_v).u
     base = surface_operator(knots, n_points, n_modes, a, w, sub_u, sub_v, "smooth", deriv, breaks, break_slope)
-    modes = np.stack([mode_values(km, a * m, u, deriv[0], bm, break_slope) @ P for m in range(n_modes + 1)])
-    return SurfaceOperator(modes, base.cos_nv, mode_values(km, w, u, deriv[0], bm, break_slope) @ P,
-                           base.remainder_v)
+    values = mode_value_stack(km, (*(a * m for m in range(n_modes + 1)), w), u, deriv[0], bm, break_slope)
+    rows = [v @ P for v in values]
+    return SurfaceOperator(np.stack(rows[:-1]), base.cos_nv, rows[-1], base.remainder_v)
 
 
 def solve_surface(coefficients, residual, knots, a=1.0, w=None, sub_u=4, sub_v=4,
                   assembly="smooth", deriv=(0, 0), breaks=(), break_slope=BREAK_SLOPE, confine=(), planes=False,
-                  nodes=None):
+                  nodes=None, reuse=None):
     """Evaluate the PDE surface (or a derivative) on the output grid.
 
     Parameters
@@ -563,6 +621,9 @@ def solve_surface(coefficients, residual, knots, a=1.0, w=None, sub_u=4, sub_v=4
 
     planes : bool
         Return (3, n_u, n_v) coordinate planes (3m for m surfaces: :meth:`SurfaceOperator.planes`).
+    reuse : list, optional
+        With ``planes``: :meth:`SurfaceOperator.planes`' buffers, kept between calls (the planes returned are
+        written over the last call's).
     nodes : (p,) int array, optional
         Flat grid indices ``u * n_v + v``, increasing: the surface there alone, (p, 3) ((p, 3m)), the values
         of the whole grid's (:meth:`SurfaceOperator.at_nodes`).
@@ -592,7 +653,7 @@ def solve_surface(coefficients, residual, knots, a=1.0, w=None, sub_u=4, sub_v=4
         op = confined_operator(*args, tuple(deriv), br, float(break_slope), key)
     if nodes is not None:
         return op.at_nodes(coefficients, residual, nodes)
-    return op.planes(coefficients, residual) if planes else op.apply(coefficients, residual)
+    return op.planes(coefficients, residual, reuse) if planes else op.apply(coefficients, residual)
 
 
 @lru_cache(maxsize=16)

@@ -25,7 +25,7 @@ from ..geometry import degrees_from_cos
 from ..presets import every_pose
 from ..threads import bounded
 from .folds import carried, nearest_vertices, opening_mask
-from .grid import key_grids, surface_grid
+from .grid import key_grids, key_stacks, surface_grid
 from .model import model_landmarks
 
 #: Named uniform resolutions: (rows per curve interval, columns per point interval). ``default`` is adaptive.
@@ -168,9 +168,12 @@ def model_fingerprint(model) -> bytes:
               model.landmarks if model.landmarks is not None else np.zeros(0), [model.a, model.remainder_w]):
         h.update(np.ascontiguousarray(a, np.float64).tobytes())
     h.update(model.assembly.encode())
-    for d in model.descriptors:
+    for d in model.descriptors:  # what its dense changes are made of (hashing those read 5x the bytes)
         h.update(d.key.encode())
-        for a in d.dense():
+        h.update(np.array(d.layout, np.int64).tobytes())
+        h.update(np.ascontiguousarray(d.curves, np.int64).tobytes())
+        for a in (d.coefficients, np.zeros(0) if d.residual is None else d.residual):
+            h.update(np.array(a.shape, np.int64).tobytes())
             h.update(np.ascontiguousarray(a, np.float64).tobytes())
     return h.digest()
 
@@ -325,7 +328,7 @@ def _edge_cosines(vertex, axis):
     return sum(x * y for x, y in zip(before, after))
 
 
-def interval_turns(model, rows, cols, W, floor=0.0):
+def interval_turns(model, rows, cols, W, floor=0.0, stacks=None):
     """Largest turn (degrees) of the edges in each curve interval and each point interval, outside the
     openings, over the poses ``W`` (:func:`pose_weights`), on the mesh of ``rows``, ``cols`` steps.
 
@@ -336,7 +339,8 @@ def interval_turns(model, rows, cols, W, floor=0.0):
     measured as its key's batch is solved; only the keys of poses of several are kept. The poses' edges are screened in
     float32, a few poses in one array operation over the part of the grid their moved blocks cover, for those that could
     raise a need (:data:`SCREEN_MARGIN_DEG`); only those are measured in float64, with :func:`quad_turn_cosines`'
-    products: the same turns as measuring each block.
+    products: the same turns as measuring each block. ``stacks``: :func:`pdeface.surface.grid.key_stacks`, when made
+    already (they do not depend on the steps).
     """
     planes0 = surface_grid(model, rows, cols, planes=True)
     X0 = np.ascontiguousarray(np.moveaxis(planes0, 0, 2))
@@ -364,7 +368,10 @@ def interval_turns(model, rows, cols, W, floor=0.0):
         parts = [e for _, edges in found for e in edges]
         mid = np.concatenate([e[3] for e in parts])
         which = np.repeat(np.arange(len(found)), [sum(len(e[2]) for e in edges) for _, edges in found])
-        shut = ~(opening_mask(mid, L) | opening_mask(mid, posed_L, which=which))
+        # in the openings at rest or where the pose carries them: one test, the rest's landmarks a set of their own
+        inside = opening_mask(np.concatenate([mid, mid]), np.concatenate([posed_L, L[None]]),
+                              which=np.concatenate([which, np.full(len(mid), len(found))]))
+        shut = ~(inside[:len(mid)] | inside[len(mid):])
         for axis, (before, after, t, _) in zip([0, 1] * len(found), parts):
             s, shut = shut[:len(t)], shut[len(t):]
             np.maximum.at(need[axis], before[s], t[s])
@@ -457,13 +464,18 @@ def interval_turns(model, rows, cols, W, floor=0.0):
             if len(found) == SETTLE_POSES:
                 settle()
 
-    kept32 = {}
-    for first, grids in key_grids(model, rows, cols, planes=True):  # (m, 3, n_u, n_v): each key's planes
+    kept32, batch32 = {}, None
+    # (m, 3, n_u, n_v): each key's planes, each batch written over the last one's (fresh pages cost; issue #35),
+    # as is its float32 copy
+    for first, grids in key_grids(model, rows, cols, planes=True, reuse=True, stacks=stacks):
         m = len(grids)
-        screen = grids.astype(np.float32)
+        if batch32 is None:
+            batch32 = np.empty((2,) + grids.shape, np.float32)
+        screen = batch32[0, :m]
+        screen[...] = grids
         # the largest per row and per column from float32 (half the bytes to read), again in float64 where its
         # rounding could put it on either side of MOVED_MM
-        size = np.abs(screen).max(axis=1)  # (m, n_u, n_v): the largest of the three planes
+        size = np.abs(screen, out=batch32[1, :m]).max(axis=1)  # (m, n_u, n_v): the largest of the three planes
         for axis, moved_lines in ((0, rows_moved), (1, cols_moved)):
             largest = size.max(axis=2 - axis)
             unsure = np.abs(largest - np.float32(MOVED_MM)) <= SCREEN_SLACK * MOVED_MM
@@ -533,12 +545,13 @@ def adaptive_resolution(model, max_turn=MAX_TURN_DEG):
     W = pose_weights(model)
     lo, hi = STEPS_RANGE
     floor = max_turn * lo / PROBE  # turns below this leave an interval at the fewest steps
-    probed = interval_turns(model, (PROBE,) * (K - 1), (PROBE,) * (J - 1), W, floor)
+    stacks = key_stacks(model)  # the keys' coefficients, for both meshes
+    probed = interval_turns(model, (PROBE,) * (K - 1), (PROBE,) * (J - 1), W, floor, stacks=stacks)
     steps, capped = capped_steps([np.clip(np.ceil(PROBE * t / max_turn), lo, hi).astype(int) for t in probed])
     if not capped:
         bar = VERIFY_FACTOR * max_turn
         raised = []
-        for s, t, p in zip(steps, interval_turns(model, *steps, W, bar), probed):
+        for s, t, p in zip(steps, interval_turns(model, *steps, W, bar, stacks=stacks), probed):
             expected = PROBE * np.maximum(p, floor) / s  # its turn if it shrank in proportion to the steps
             wanted = np.where(t > NARROW * expected, hi, np.ceil(s * t / (RAISED_AIM * max_turn)))
             raised.append(np.where((t > bar) & (s < hi), np.clip(wanted, s, hi), s).astype(int))
