@@ -133,16 +133,19 @@ EYE_OPENING = 0.15
 LIDS_APART = 0.12
 #: How tall (eye distances) an eye's opening (its skin deeper than :data:`EYE_OPENING`) must be in at least
 #: :data:`EYE_SLIT_COLUMNS` of its columns for the eye to be open: a slit between closed lids is as deep as an open
-#: eye, but short (issue #39: the found landmarks' rays went through it). The third tallest column (a tear in the
-#: mesh, ICT's eyeball joined to a lid, opens one column; a voxel remesh fuses the inner third of the lids with the
-#: eyeball, leaving 4-6 columns open): open eyes, ICT's 21 heads 0.144-0.159, MakeHuman's 24 characters 0.093-0.162,
-#: 8 held-out 0.108-0.138, the unseen heads 0.093-0.162 (lowpoly-flat's found right eye the least), narrowed by
-#: MakeHuman's eye height targets (asian-female-old's three at 1: 0.042), squinting 0.078-0.120, looking down 0.072;
-#: slits, ICT's blink (generic head, identity002, 004, 011, 015; true and found landmarks) 0.009-0.018, MakeHuman's
-#: eye closure at 0.7 0.000-0.006 (eyes-teeth-separate, asian-male-young; the others fully closed, 0). Half closed
-#: passes: ICT's blink at 0.85 0.030-0.036, at 0.7 0.051-0.060, MakeHuman's closure at 0.5 0.015-0.060 (at 0.7 on
-#: caucasian-female-young and base-dm 0.024-0.036): the limit keeps the narrowest open eye 1.4 times over it.
+#: eye, but short (issue #39: a found landmark's ray went through it). The third tallest column, as a tear in the
+#: mesh opens one column (ICT's eyeball joined to a lid), a voxel remesh fuses the inner third of the lids with the
+#: eyeball (voxel-m: 4-6 columns open). Open eyes, true and found landmarks: ICT's 21 heads 0.144-0.159, MakeHuman's
+#: 24 characters 0.093-0.162, bench_gate's 8 held out 0.108-0.138, the unseen heads 0.093-0.162 (lowpoly-flat's found
+#: right eye the least), ICT squinting or looking down 0.069-0.120, narrowed by MakeHuman's eye height targets
+#: (asian-female-old, all three at 1: 0.039; epicanthus in and eyefold down 0.060-0.102). Slits: ICT's blink at 1
+#: (generic head, identity002, 004, 011, 015) 0.009-0.018, MakeHuman's eye closure at 0.7 0.000-0.006
+#: (eyes-teeth-separate, asian-male-young; others shut, 0). The limit lies 1.3 times under the narrowest open eye,
+#: 1.7 times over the tallest slit. Half closed eyes fall either side: ICT's blink at 0.85 0.030-0.036 and 0.7
+#: 0.051-0.060 pass; MakeHuman's closure at 0.5 0.018-0.069 (african-male-old's refused, asian-male-young's on the
+#: limit), at 0.7 0.000-0.036 (caucasian-female-young's passes, base-dm's on the limit).
 EYE_SLIT = 0.03
+#: In how many of an eye's columns its opening must be :data:`EYE_SLIT` tall.
 EYE_SLIT_COLUMNS = 3
 #: The columns of rays over each eye: shares of the way from its inner to its outer corner; how far above and below
 #: the line between the corners each reaches, and its rays' spacing (eye distances).
