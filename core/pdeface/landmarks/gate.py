@@ -420,10 +420,11 @@ def check_eyes_open(verdict: Verdict, V, skin, points, frame, eyes, given=False)
     closed = (height < EYE_SLIT) & ~apart  # no skin deeper than EYE_OPENING: no height either
     if closed.any():
         which = "both eyes'" if closed.all() else f"the {'right' if closed[0] else 'left'} eye's"
-        verdict.fail("eyes", "closed", f"{which} lids meet (the skin more than {EYE_OPENING} eye distances behind "
-                                       f"the corners at most {height[closed].max():.3f} tall, at most "
-                                       f"{depth[closed].min():.2f} behind; open eyes: over {EYE_SLIT} tall): a head "
-                                       "at rest has its eyes open; open eyes read so too "
+        verdict.fail("eyes", "closed", f"{which} lids meet (the opening between the corners, the skin more than "
+                                       f"{EYE_OPENING} eye distances behind them, at most {height[closed].max():.3f} "
+                                       f"tall, the deepest {depth[closed].min():.2f}; open eyes: {EYE_SLIT} tall in "
+                                       f"{EYE_SLIT_COLUMNS} of {heights.shape[1]} columns): a head at rest has its "
+                                       "eyes open; open eyes read so too "
                                        "where the eyeballs are one surface with the lids (a scan); landmarks given "
                                        "by hand with the lids apart tell them open")
 
