@@ -260,8 +260,8 @@ def eye_openings(V, T, points, frame, eyes) -> tuple[np.ndarray, np.ndarray]:
         size = 2 * round(reach / step) + 3
         view = View.looking(R[2], R[1], on_line.mean(0), size * step * eyes / 2, size)
         x, y, z = view.project(on_line)
-        xi = np.clip(np.round(x).astype(int), 0, size - 1)[:, None] + 0 * rows
-        yi = np.clip(np.round(y).astype(int)[:, None] + rows, 0, size - 1)
+        yi = np.clip(np.round(y).astype(int)[:, None] + rows, 0, size - 1)  # (columns, rays) pixels
+        xi = np.broadcast_to(np.clip(np.round(x).astype(int), 0, size - 1)[:, None], yi.shape)
         near = np.zeros((size, size), bool)  # only the triangles over the columns are drawn
         near[yi, xi] = True
         r = rasterise(V, T, view, near=near)
