@@ -65,7 +65,7 @@ def find_checked(mesh, unit=None, keep_images=False, verbose=False, accept=False
 
 def check_given(mesh, points, unit=None, accept=False, log=None) -> Verdict:
     """The gate's look at a mesh whose landmarks were given by hand (``--landmarks``): its eyes open, as a head at
-    rest has them (:func:`~pdeface.landmarks.gate.check_mesh_at_rest`: one render of the eyes' middles).
+    rest has them (:func:`~pdeface.landmarks.gate.check_mesh_at_rest`: a small render of each eye's middle).
 
     Raises
     ------
