@@ -92,11 +92,11 @@ FACE_LENGTHS = {"eyes to mouth": (*FACE_SIZES_MM["eyes to mouth"][:2], 1.094),
 #: Each group's size over the face's size (:func:`face_size`, eye distances on a face of ICT's proportions): (landmark
 #: a, landmark b, least, most); wide enough for stylised characters (MakeHuman's local targets at weight 2, ICT's
 #: identities lie well inside). The brows' span (17-26) least: true brows span 1.77-1.82 on ICT's 21 heads, 1.61-1.83
-#: on MakeHuman's 32 characters (the development set's 24, bench_gate's 8: MakeHuman's faces are shorter than ICT's
-#: at the same eye distance); 1.59 lies 10 % under ICT's least and under every MakeHuman one. Found brows of every
-#: character with each group within 10 % span 1.64-1.87 (the narrow-eyed ones 1.64-1.65, 1.55-1.62 over the eye
-#: distance alone, where the floor was 1.70); stylised-chin-cheek's, its eyes 11 % off, 1.56. Brows squeezed in from
-#: their ends by a fifth (ICT's, 1.43), 10 % off, fall under it.
+#: on MakeHuman's 32 characters (the development set's 24, bench_gate's 8: MakeHuman's faces are longer than ICT's
+#: for their eyes); 1.59 lies 10 % under ICT's least and under every MakeHuman one. Found brows of every character
+#: with each group within 10 % span 1.64-1.87 (the narrow-eyed ones 1.64-1.72; over the eye distance alone, where the
+#: floor was 1.70, 1.65-1.70); stylised-chin-cheek's, its eyes 11 % off, 1.56. Brows squeezed in from their ends by a
+#: fifth (ICT's, their median point 12 % off) span 1.43 and fall under it; by a tenth (6 % off) 1.61.
 SPACING = {"jaw": [(0, 16, 1.3, 3.2)], "brows": [(17, 26, 1.59, 2.6)],
            "nose": [(27, 33, 0.45, 1.4), (31, 35, 0.25, 0.9)],
            "eyes": [(36, 39, 0.25, 0.75), (42, 45, 0.25, 0.75)], "mouth": [(48, 54, 0.45, 1.5)]}
