@@ -32,7 +32,7 @@ import time
 
 import numpy as np
 from pdeface.assets import load_head
-from pdeface.au.modelfile import load_face
+from pdeface.au.modelfile import load_face, model_from_bytes, model_to_bytes
 from pdeface.au.retarget import retarget
 from pdeface.errors import PdeFaceError
 from pdeface.head.bind import HeadBinding
@@ -77,7 +77,10 @@ def measure(V, T, L, body, source, quick):
     t = time.perf_counter()
     model, _ = fit_face(V, T, L)
     model = retarget(source, model)
-    b = HeadBinding(model, V, T, landmarks=L)
+    # Bound as the product binds (pdeface rig, the add-on, pose --mesh): the model as its file holds it, and the
+    # landmarks it carries, not given again.
+    model = model_from_bytes(model_to_bytes(model))
+    b = HeadBinding(model, V, T)
     names = [n for n in every_pose(model) if n != "neutral" and (not quick or n in QUICK)]
     D = b.displacements(b.every_pose_motion_args(names))
     seconds = time.perf_counter() - t
