@@ -5,7 +5,8 @@ Usage: python -m scripts.bench.bench_keys_devset [--only NAME,...] [--quick] [--
 Each character of ``scripts.devset.characters.SPECS`` (its separate objects joined after it, as the add-on
 joins a head's objects) is fitted with its **true** landmarks (``fit_face``, unit estimated as ``pdeface
 fit`` does), the bundled descriptors are retargeted to it and every key is bound onto the whole mesh
-(:class:`pdeface.head.bind.HeadBinding`, what ``pose --mesh`` and the add-on's keys use). Per head, in
+(:class:`pdeface.head.bind.HeadBinding`, what ``pose --mesh`` and the add-on's keys use), the model read back from
+its file's bytes and bound with the landmarks it carries, as ``pdeface rig`` and the add-on bind. Per head, in
 eye distances (ED: between the two eyes' lid-middle midpoints, each the midpoint of the upper and lower
 lid's middle landmarks), each landmark followed by its nearest vertex:
 

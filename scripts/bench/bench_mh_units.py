@@ -6,7 +6,8 @@ MakeHuman's expression units (``targets/expression/units/<race>/``) were made by
 mesh as every development character: an independent reference for what a movement looks like on this
 topology (not FACS-coded, not scans). For each character of ``scripts.devset.characters.SPECS`` that keeps
 the base's topology (not remeshed), the character is rigged as ``bench_keys_devset`` does (true landmarks,
-``fit_face``, the bundled descriptors retargeted, :class:`pdeface.head.bind.HeadBinding`), and each pair
+``fit_face``, the bundled descriptors retargeted, the model read back from its file's bytes,
+:class:`pdeface.head.bind.HeadBinding`), and each pair
 below is compared over **every vertex of the character** (face, head and, on bodies, the body):
 
 =================  ==================================================
