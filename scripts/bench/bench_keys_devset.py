@@ -5,7 +5,8 @@ Usage: python -m scripts.bench.bench_keys_devset [--only NAME,...] [--quick] [--
 Each character of ``scripts.devset.characters.SPECS`` (its separate objects joined after it, as the add-on
 joins a head's objects) is fitted with its **true** landmarks (``fit_face``, unit estimated as ``pdeface
 fit`` does), the bundled descriptors are retargeted to it and every key is bound onto the whole mesh
-(:class:`pdeface.head.bind.HeadBinding`, what ``pose --mesh`` and the add-on's keys use). Per head, in
+(:class:`pdeface.head.bind.HeadBinding`, what ``pose --mesh`` and the add-on's keys use), the model read back from
+its file's bytes and bound with the landmarks it carries, as ``pdeface rig`` and the add-on bind. Per head, in
 eye distances (ED: between the two eyes' lid-middle midpoints, each the midpoint of the upper and lower
 lid's middle landmarks), each landmark followed by its nearest vertex:
 
@@ -32,7 +33,7 @@ import time
 
 import numpy as np
 from pdeface.assets import load_head
-from pdeface.au.modelfile import load_face
+from pdeface.au.modelfile import load_face, model_from_bytes, model_to_bytes
 from pdeface.au.retarget import retarget
 from pdeface.errors import PdeFaceError
 from pdeface.head.bind import HeadBinding
@@ -77,7 +78,10 @@ def measure(V, T, L, body, source, quick):
     t = time.perf_counter()
     model, _ = fit_face(V, T, L)
     model = retarget(source, model)
-    b = HeadBinding(model, V, T, landmarks=L)
+    # Bound as the product binds (pdeface rig, the add-on, pose --mesh): the model as its file holds it, and the
+    # landmarks it carries, not given again.
+    model = model_from_bytes(model_to_bytes(model))
+    b = HeadBinding(model, V, T)
     names = [n for n in every_pose(model) if n != "neutral" and (not quick or n in QUICK)]
     D = b.displacements(b.every_pose_motion_args(names))
     seconds = time.perf_counter() - t

@@ -6,7 +6,8 @@ MakeHuman's expression units (``targets/expression/units/<race>/``) were made by
 mesh as every development character: an independent reference for what a movement looks like on this
 topology (not FACS-coded, not scans). For each character of ``scripts.devset.characters.SPECS`` that keeps
 the base's topology (not remeshed), the character is rigged as ``bench_keys_devset`` does (true landmarks,
-``fit_face``, the bundled descriptors retargeted, :class:`pdeface.head.bind.HeadBinding`), and each pair
+``fit_face``, the bundled descriptors retargeted, the model read back from its file's bytes,
+:class:`pdeface.head.bind.HeadBinding`), and each pair
 below is compared over **every vertex of the character** (face, head and, on bodies, the body):
 
 =================  ==================================================
@@ -35,7 +36,7 @@ import json
 
 import numpy as np
 from pdeface.au.aureport import captured
-from pdeface.au.modelfile import load_face
+from pdeface.au.modelfile import load_face, model_from_bytes, model_to_bytes
 from pdeface.au.retarget import retarget
 from pdeface.errors import PdeFaceError
 from pdeface.head.bind import HeadBinding
@@ -93,7 +94,10 @@ def measure(spec, source) -> dict:
     V, T, L = ch.vertices, ch.triangles, ch.landmarks
     model, _ = fit_face(V, T, L)
     model = retarget(source, model)
-    b = HeadBinding(model, V, T, landmarks=L)
+    # Bound as the product binds (pdeface rig, the add-on, pose --mesh): the model as its file holds it, and the
+    # landmarks it carries, not given again.
+    model = model_from_bytes(model_to_bytes(model))
+    b = HeadBinding(model, V, T)
     keys = {d.key for d in model.descriptors}
     names = [n for n, (w, _) in PAIRS.items() if set(w) <= keys]
     D = b.pose_displacements([(PAIRS[n][0], "sum") for n in names])

@@ -40,7 +40,7 @@ def test_fit_mesh_report(tmp_path, capsys, scan_files):
     assert code == 0
     for key in ("mean_mm", "p95_mm", "max_mm", "normal_p95_deg", "seam_max_deg", "model_bytes"):
         assert isinstance(r[key], (int, float))
-    assert r["mean_mm"] < 0.15 and r["model_bytes"] <= 8192
+    assert r["mean_mm"] < 0.15 and r["model_bytes"] <= 10240  # 8 KB of curves, 2 KB of landmarks (test_model)
 
 
 def test_points_landmarks_and_unit_guess(tmp_path, capsys, scan_files):

@@ -4,7 +4,7 @@ from functools import lru_cache
 
 import numpy as np
 import pytest
-from pdeface.au.modelfile import load_face
+from pdeface.au.modelfile import load_face, load_model
 from pdeface.au.retarget import curve_map, retarget
 from pdeface.cli import main
 from pdeface.facs import au_number
@@ -16,6 +16,7 @@ from pdeface.head.mouth import head_mouth_bag, mouth_bag
 from pdeface.head.parts import CODE, EYEBALL_IOD
 from pdeface.io.meshio import write_mesh
 from pdeface.mesh import Mesh, connected_components
+from pdeface.presets import key_poses
 from pdeface.rig import load_keys
 from pdeface.surface.fit import fit_face
 
@@ -122,6 +123,31 @@ def test_rig_and_all_keys_leave_out_gaze_keys_on_a_head_without_eyeballs(tmp_pat
     written = json.loads(out)
     assert written["aus"] == [n for n in names if n.startswith("AU")] and "no gaze keys" in err
     assert not any((tmp_path / "keys" / f"{g}.obj").exists() for g in gaze)
+
+
+@needs_makehuman
+def test_pdeface_rig_binds_with_the_landmarks_the_benchmarks_bind_with(tmp_path, capsys):
+    """``pdeface rig`` binds its rigged model as read back from its file, with the landmarks the file carries: all 68
+    it was fitted with, unrounded, so its keys are those of ``HeadBinding(model, V, T, landmarks=L)``, as the
+    benchmarks bind (to the frame's rounding in its file, ~1e-15 mm, and the keys file's float32). decimated-cm's rims
+    merged at the middle need the inner lips' sides (61, 63, 65, 67): a file that kept 24 landmarks, to 0.1 mm, left
+    them out and its AU27 took the upper lip down with the jaw (-0.25 eye distances; -0.03 given the 68)."""
+    ch = build(SPECS["decimated-cm"])
+    write_mesh(tmp_path / "head.obj", Mesh.from_faces(ch.vertices, ch.triangles))
+    (tmp_path / "head.json").write_text(json.dumps({"points": ch.landmarks.tolist()}))
+    assert main(["rig", str(tmp_path / "head.obj"), "--landmarks", str(tmp_path / "head.json"), "--no-presets",
+                 "-o", str(tmp_path / "rig")]) == 0
+    capsys.readouterr()
+    keys = load_keys(tmp_path / "rig/keys.npz")
+    rigged = load_model(tmp_path / "rig/rigged.npz")
+    V, T, L = keys["vertices"], keys["triangles"], keys["landmarks"]
+    assert np.isfinite(rigged.landmarks).all() and np.allclose(rigged.landmarks, rigged.frame.to_face(L), atol=1e-9)
+    given = HeadBinding(rigged, V, T, landmarks=L)
+    poses = key_poses(rigged, {}, descriptors=given.bindable(rigged.descriptors))
+    assert list(poses) == keys["names"]
+    deltas = np.asarray(given.pose_displacements(list(poses.values())), np.float32)
+    largest = np.abs(deltas).max()
+    assert np.abs(deltas - keys["deltas"]).max() <= 1e-6 * largest, np.abs(deltas - keys["deltas"]).max() / largest
 
 
 @needs_makehuman

@@ -8,9 +8,12 @@ with ``allow_pickle=False``. Members:
     ``n_modes``, ``a``, ``w``, ``assembly``, ``residual_step``,
     ``coefficient_step``, ``feature_names``, ``source``, ``notice``; since
     pdeface 0.2, optionally ``landmarks``: ``{"indices": [...], "step_mm":
-    0.1, "codes": [[x, y, z], ...]}``, the landmarks binding a whole head
-    reads (:data:`pdeface.surface.model.KEPT_LANDMARKS`), face frame, in
-    integer steps; optionally ``mesh_steps``: ``[[rows per curve
+    s, "codes": [[x, y, z], ...]}``, the landmarks it was fitted with, face
+    frame, ``codes × s`` mm: all 68, ``s`` = 1 and the codes the millimetres
+    themselves (JSON's shortest float text reads back to the bit), so a head
+    binds with what it was fitted with; files written before kept only
+    :data:`pdeface.surface.model.KEPT_LANDMARKS`, in integer steps of 0.1 mm
+    (both read alike); optionally ``mesh_steps``: ``[[rows per curve
     interval...], [columns per point interval...]]``, the default resolution
     chosen for this model and its descriptors
     (:func:`pdeface.surface.sampling.adaptive_resolution`), so it is not chosen
@@ -75,13 +78,12 @@ from ..io.files import check_archive, npz_bytes, parse_json, read_bytes, write_b
 from ..landmark_scheme import FEATURE_NAMES
 from ..surface.frame import FaceFrame
 from ..surface.layout import CurveLayout, check_sizes
-from ..surface.model import KEPT_LANDMARKS, FaceModel
+from ..surface.model import FaceModel
 from ..surface.sampling import known_resolution, remember_resolution
 from ..units import ESTIMATED, UNIT_FORMS, parse_unit
 from .descriptorfile import check_reach, pack_descriptors, unpack_descriptors
 
 FORMAT = "pdeface.face"
-LANDMARK_STEP_MM = 0.1
 VERSION = 3
 
 
@@ -111,9 +113,11 @@ def model_to_bytes(model: FaceModel, descriptors: bool = True, fast: bool = Fals
         if steps is not None:
             meta["mesh_steps"] = [list(steps[0]), list(steps[1])]
     if model.landmarks is not None:
-        kept = list(KEPT_LANDMARKS)
-        meta["landmarks"] = {"indices": kept, "step_mm": LANDMARK_STEP_MM,
-                             "codes": np.round(model.landmarks[kept] / LANDMARK_STEP_MM).astype(int).tolist()}
+        # Every landmark, unrounded: kept to 0.1 mm and 24 of them, a rig's binding lost the inner lips' sides and
+        # let a decimated head's upper lip sink with the jaw in AU27 (decimated-cm -0.25 eye distances; all 68 -0.03).
+        L = np.asarray(model.landmarks, np.float64)
+        kept = np.nonzero(np.isfinite(L).all(axis=1))[0]
+        meta["landmarks"] = {"indices": kept.tolist(), "step_mm": 1.0, "codes": L[kept].tolist()}
     arrays = {
         "meta": np.frombuffer(json.dumps(meta, separators=(",", ":")).encode(), dtype=np.uint8),
         "layout": model.layout.as_array().astype(np.float32),

@@ -14,8 +14,9 @@ from .fourier import evaluate_fourier
 from .frame import FaceFrame
 from .layout import CurveLayout
 
-#: The landmarks a model file keeps (to 0.1 mm): jawline 0, 5, 8, 11, 16, nose bottom 33, the eyes
-#: 36-47 and the lips 48, 51, 54, 57, 62, 66: what binding a whole head reads (:mod:`pdeface.head`).
+#: The landmarks binding a whole head needs at least (:mod:`pdeface.head`): jawline 0, 5, 8, 11, 16, nose bottom
+#: 33, the eyes 36-47 and the lips 48, 51, 54, 57, 62, 66; older model files kept these alone, to
+#: 0.1 mm (a model file now keeps all 68 it was fitted with, unrounded: :mod:`pdeface.au.modelfile`).
 KEPT_LANDMARKS = (0, 5, 8, 11, 16, 33, *range(36, 48), 48, 51, 54, 57, 62, 66)
 
 
@@ -51,8 +52,8 @@ class FaceModel:
         AU descriptors carried with the model (see :mod:`pdeface.au.descriptor`).
     landmarks : (68, 3) array or None
         The 68 landmarks it was fitted with, face frame (binding a whole head needs
-        them). A model read from a file has the :data:`KEPT_LANDMARKS` and NaN rows
-        for the others.
+        them). A model read from an older file has only the
+        :data:`KEPT_LANDMARKS` (to 0.1 mm) and NaN rows for the others.
     """
 
     layout: CurveLayout
