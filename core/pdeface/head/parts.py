@@ -63,8 +63,9 @@ CODE = {k: i for i, k in enumerate(KINDS)}
 TOUCH_IOD = 0.008
 #: A part within this many eye distances of the skin follows it (brows, hair cards).
 NEAR_IOD = 0.15
-#: Eyeball diameter range, in eye distances (adults ~24 mm for ~63 mm IOD: 0.38).
-EYEBALL_IOD = (0.2, 0.6)
+#: Eyeball diameter range, in eye distances (adults ~24 mm for ~63 mm IOD: 0.38; MakeHuman's adults 0.50-0.54, its
+#: baby 0.64, a cartoon's larger; two eyeballs wider than the eye distance would overlap).
+EYEBALL_IOD = (0.2, 0.9)
 #: An attached part lying within this many radii of an eyeball's centre, every vertex of it, is a film on the eye
 #: (ICT's occlusion and tear-line meshes: 0.96-1.16; its lashes reach 1.4-1.7).
 FILM_RADII = 1.2
