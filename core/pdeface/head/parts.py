@@ -11,7 +11,8 @@ skin      holds the vertex nearest a landmark (ties go to the largest part;
           copies split along seams join their part)
 eye_L/R   the eyeball: the outermost round part of the right size behind
           each eye's landmarks (a sphere is fitted to it)
-jaw       inside the mouth (behind the lips, between nose and chin), the
+jaw       inside the mouth (behind the lips, between nose and chin, no
+          wider than the jaw there: a beard round the mouth is not), the
           middle of its height below the mouth line, in front of the jaw
           hinge: lower teeth, lower gums, tongue; turned whole. A part
           spanning the mouth's width and reaching the upper and lower gums'
@@ -182,13 +183,16 @@ def classify_parts(Vf, T, Lf, hinge, overrides=None, welded=False, pieces=None) 
     lips_z = Lf[LIP_MIDDLES, 2].max()
     half_width = 0.75 * s
     zcut = hinge[2] + JAW_CUT_IOD * s
+    # What is inside the mouth lies within the face's outline at its height: a part wider than the jaw there lies
+    # over it (a beard shell round the mouth, 2.1 eye distances; teeth and tongue 0.7-1.24, jaws 1.6-2.3).
+    jaw_width = abs(Lf[MOUTH_JAW[0], 0] - Lf[MOUTH_JAW[1], 0])
     attached = []
     for c, m in members.items():
         if c in balls:
             continue
         ctr = centre[c]
         in_mouth = (abs(ctr[0] - Lf[MOUTH_CORNERS, 0].mean()) < half_width and Lf[CHIN, 1] < ctr[1] < Lf[NOSE_BOTTOM, 1]
-                    and lips_z - 2 * s < ctr[2] < lips_z)
+                    and lips_z - 2 * s < ctr[2] < lips_z and box_hi[c][0] - box_lo[c][0] < jaw_width)
         if in_mouth:
             P = Vf[m]
             reach = SPLIT_REACH_IOD * s
@@ -230,6 +234,8 @@ def classify_parts(Vf, T, Lf, hinge, overrides=None, welded=False, pieces=None) 
     return parts
 
 
+#: The jaw's landmarks at the mouth's height, right and left: what lies wider apart than they is no mouth part.
+MOUTH_JAW = (4, 12)
 #: How far in front of the jaw hinge (eye distances) the jaw's inner parts start moving with it
 #: (ICT-FaceKit's jawOpen: gums and tongue further back stay put).
 JAW_CUT_IOD = 0.15
