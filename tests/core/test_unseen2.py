@@ -80,3 +80,24 @@ def test_an_ngon_of_two_quads_is_fanned_without_slivers_quads_as_before():
     assert not mesh.fan_apexes()[: len(quads)].any()
     tri = Mesh.from_faces(V, T)
     assert np.array_equal(tri.triangles()[0], T)  # triangles stay as they are
+
+
+def test_a_keys_file_over_the_archive_limit_is_read_back_other_archives_are_not(tmp_path, monkeypatch):
+    """A 160k-vertex head's 82 keys are 160 MiB: ``pdeface rig`` wrote them and ``load_keys`` (a batch's stimuli, the
+    renders) refused them under the 64 MiB archive limit. Here the limits shrunk to a kilobyte to show it."""
+    from pdeface.errors import ModelFormatError
+    from pdeface.io import files
+    from pdeface.io.files import load_npz, write_npz
+    from pdeface.rig import load_keys, save_keys
+
+    V, T = np.random.default_rng(0).random((40, 3)), np.array([[0, 1, 2]])
+    size = save_keys(tmp_path / "keys.npz", V, T, np.zeros((68, 3)), ["AU1", "AU2"], np.ones((2, 40, 3)), 10.0)
+    write_npz(tmp_path / "other.npz", {"format": np.array("x"), "a": np.ones(200)}, compress=False)
+    monkeypatch.setitem(files.MAX_BYTES, "archive", 1 << 10)
+    assert size > 1 << 10 and (tmp_path / "other.npz").stat().st_size > 1 << 10
+    assert load_keys(tmp_path / "keys.npz")["deltas"].shape == (2, 40, 3)
+    with pytest.raises(ModelFormatError, match="too large"):
+        load_npz(tmp_path / "other.npz", "x", "other")
+    monkeypatch.setitem(files.MAX_BYTES, "keys", 1 << 10)
+    with pytest.raises(ModelFormatError, match="too large"):
+        load_keys(tmp_path / "keys.npz")
