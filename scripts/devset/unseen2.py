@@ -183,7 +183,7 @@ def _turned(name, R, unit_scale=1.0, mm=None):
 
 def lying_zup_m():
     """Blender's axes (-y front, +z up) in metres, then laid on its back: the face up (+z), the top towards +y."""
-    lay = rotation_vector_matrix([np.pi / 2, 0, 0])  # about x: -y (the front) -> +z
+    lay = rotation_vector_matrix([-np.pi / 2, 0, 0])  # about x: -y (the front) -> +z, +z (the top) -> +y
     return _turned("lying-zup-m", lay @ BLENDER_FROM_ICT, 0.01)
 
 
