@@ -101,3 +101,23 @@ def test_a_keys_file_over_the_archive_limit_is_read_back_other_archives_are_not(
     monkeypatch.setitem(files.MAX_BYTES, "keys", 1 << 10)
     with pytest.raises(ModelFormatError, match="too large"):
         load_keys(tmp_path / "keys.npz")
+
+
+def test_without_jaw_landmarks_the_mouth_parts_are_found_as_before():
+    """A model file may keep no jaw points (NaN; the bundled face's binding): the mouth rule's width is not asked then,
+    and ICT's teeth, gums and tongue stay jaw and skull (without this, every one of them was 'follow')."""
+    from pdeface.assets import load_head
+    from pdeface.head.parts import CODE, classify_parts
+    from pdeface.rigid import jaw_hinge
+    from pdeface.surface.frame import face_frame
+
+    mesh, lm = load_head()
+    V, T = mesh.vertices, mesh.triangles()[0]
+    frame = face_frame(V[lm])
+    Vf, Lf = frame.to_face(V), frame.to_face(V[lm])
+    hinge = jaw_hinge(Lf, eye_distance(Lf))
+    whole = classify_parts(Vf, T, Lf, hinge).kind
+    Lf[[4, 12]] = np.nan  # (the bundled face keeps neither)
+    kind = classify_parts(Vf, T, Lf, hinge).kind
+    assert (kind == CODE["jaw"]).sum() > 1000 and np.array_equal(kind == CODE["jaw"], whole == CODE["jaw"])
+    assert np.array_equal(kind == CODE["skull"], whole == CODE["skull"])

@@ -185,7 +185,8 @@ def classify_parts(Vf, T, Lf, hinge, overrides=None, welded=False, pieces=None) 
     zcut = hinge[2] + JAW_CUT_IOD * s
     # What is inside the mouth lies within the face's outline at its height: a part wider than the jaw there lies
     # over it (a beard shell round the mouth, 2.1 eye distances; teeth and tongue 0.7-1.24, jaws 1.6-2.3).
-    jaw_width = abs(Lf[MOUTH_JAW[0], 0] - Lf[MOUTH_JAW[1], 0])
+    # (A model file may keep no jaw points: NaN, then no width is asked.)
+    jaw_width = np.nan_to_num(abs(Lf[MOUTH_JAW[0], 0] - Lf[MOUTH_JAW[1], 0]), nan=np.inf)
     attached = []
     for c, m in members.items():
         if c in balls:
