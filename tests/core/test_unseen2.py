@@ -121,3 +121,23 @@ def test_without_jaw_landmarks_the_mouth_parts_are_found_as_before():
     kind = classify_parts(Vf, T, Lf, hinge).kind
     assert (kind == CODE["jaw"]).sum() > 1000 and np.array_equal(kind == CODE["jaw"], whole == CODE["jaw"])
     assert np.array_equal(kind == CODE["skull"], whole == CODE["skull"])
+
+
+def test_landmarks_off_the_skin_name_the_worst_one_and_what_may_hold_it():
+    """Glasses in the mesh: the eyes' landmarks found on the lenses (``--accept`` past the gate). The refusal names the
+    worst landmark and things in front of the face, not only a face fitted on another head."""
+    from pdeface.assets import load_head
+    from pdeface.errors import MeshError
+    from pdeface.head.bind import _check_on_skin
+    from scipy.spatial import cKDTree
+
+    mesh, lm = load_head()
+    V, T = mesh.vertices, mesh.triangles()[0]
+    labels = connected_components(len(V), T)
+    T = T[labels[T[:, 0]] == labels[lm[30]]]  # the skin alone (not the lashes, which stand out in front)
+    L = V[lm].copy()
+    ed = eye_distance(L)
+    _check_on_skin(L, V, T, cKDTree(V[np.unique(T)]), ed)
+    L[36:48, 2] += 0.35 * ed  # on a lens in front of the eyes
+    with pytest.raises(MeshError, match=r"the worst .* landmark (3[6-9]|4[0-7])\).*glasses"):
+        _check_on_skin(L, V, T, cKDTree(V[np.unique(T)]), ed)
