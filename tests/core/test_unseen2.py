@@ -104,10 +104,10 @@ def test_a_keys_file_over_the_archive_limit_is_read_back_other_archives_are_not(
 
 
 def test_without_jaw_landmarks_the_mouth_parts_are_found_as_before():
-    """A model file may keep no jaw points (NaN; the bundled face's binding): the mouth rule's width is not asked then,
-    and ICT's teeth, gums and tongue stay jaw and skull (without this, every one of them was 'follow')."""
+    """Where the jaw's landmarks at the lower lip are NaN (a model that kept none), the mouth rule's width is not asked:
+    ICT's teeth, gums and tongue stay jaw and skull (NaN's comparisons made every one of them 'follow')."""
     from pdeface.assets import load_head
-    from pdeface.head.parts import CODE, classify_parts
+    from pdeface.head.parts import CODE, MOUTH_JAW, classify_parts
     from pdeface.rigid import jaw_hinge
     from pdeface.surface.frame import face_frame
 
@@ -117,7 +117,7 @@ def test_without_jaw_landmarks_the_mouth_parts_are_found_as_before():
     Vf, Lf = frame.to_face(V), frame.to_face(V[lm])
     hinge = jaw_hinge(Lf, eye_distance(Lf))
     whole = classify_parts(Vf, T, Lf, hinge).kind
-    Lf[[4, 12]] = np.nan  # (the bundled face keeps neither)
+    Lf[list(MOUTH_JAW)] = np.nan
     kind = classify_parts(Vf, T, Lf, hinge).kind
     assert (kind == CODE["jaw"]).sum() > 1000 and np.array_equal(kind == CODE["jaw"], whole == CODE["jaw"])
     assert np.array_equal(kind == CODE["skull"], whole == CODE["skull"])

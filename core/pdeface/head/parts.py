@@ -12,7 +12,7 @@ skin      holds the vertex nearest a landmark (ties go to the largest part;
 eye_L/R   the eyeball: the outermost round part of the right size behind
           each eye's landmarks (a sphere is fitted to it)
 jaw       inside the mouth (behind the lips, between nose and chin, no
-          wider than the jaw there: a beard round the mouth is not), the
+          wider than the jaw at landmarks 5-11, as a beard round it is), the
           middle of its height below the mouth line, in front of the jaw
           hinge: lower teeth, lower gums, tongue; turned whole. A part
           spanning the mouth's width and reaching the upper and lower gums'
@@ -183,9 +183,9 @@ def classify_parts(Vf, T, Lf, hinge, overrides=None, welded=False, pieces=None) 
     lips_z = Lf[LIP_MIDDLES, 2].max()
     half_width = 0.75 * s
     zcut = hinge[2] + JAW_CUT_IOD * s
-    # What is inside the mouth lies within the face's outline at its height: a part wider than the jaw there lies
-    # over it (a beard shell round the mouth, 2.1 eye distances; teeth and tongue 0.7-1.24, jaws 1.6-2.3).
-    # (A model file may keep no jaw points: NaN, then no width is asked.)
+    # What is inside the mouth lies within the face's outline: a part wider than the jaw at the lower lip's height
+    # lies over it (a beard shell round the mouth, 1.58 of that width; teeth, gums and tongues 0.81-0.88).
+    # (A model file keeps landmarks 5 and 11; where they are NaN, no width is asked.)
     jaw_width = np.nan_to_num(abs(Lf[MOUTH_JAW[0], 0] - Lf[MOUTH_JAW[1], 0]), nan=np.inf)
     attached = []
     for c, m in members.items():
@@ -235,8 +235,9 @@ def classify_parts(Vf, T, Lf, hinge, overrides=None, welded=False, pieces=None) 
     return parts
 
 
-#: The jaw's landmarks at the mouth's height, right and left: what lies wider apart than they is no mouth part.
-MOUTH_JAW = (4, 12)
+#: The jaw's landmarks at the lower lip's height, right and left (a fitted model keeps them): what is wider than the
+#: jaw between them is no mouth part.
+MOUTH_JAW = (5, 11)
 #: How far in front of the jaw hinge (eye distances) the jaw's inner parts start moving with it
 #: (ICT-FaceKit's jawOpen: gums and tongue further back stay put).
 JAW_CUT_IOD = 0.15
