@@ -67,6 +67,8 @@ BURIED, BURIED_INNER_LIPS = 0.05, 0.15
 #: the socket or the mouth lies 0.2 and more behind (the lower lids 15 mm into ICT's sockets: 0.23).
 BURIED_CREASES = 0.10
 CREASES = [31, 35, 36, 39, 42, 45, 48, 54]
+#: Why a point is buried where only another part of the mesh lies in front of it (the face's skin does not).
+COVERED = "another part of the mesh over the face, not its skin: a beard, hair, glasses? hide it or export without it"
 #: Median distance of a group's points from their mirror partners' mirror images (share of the eye distance).
 MIRROR_TOL = 0.10
 #: The farthest one jaw pair (0/16 ... 7/9) may lie from its partner's mirror image (eye distances) once the jaw's own
@@ -358,10 +360,6 @@ def check(points, V=None, T=None, unit=None) -> Verdict:
                 verdict.fail(g, "surface", f"landmark {worst} {depth[worst]:.2f} eye distances behind the surface in "
                                            f"front of it ({why})")
     return verdict
-
-
-#: Why a point is buried where only another part of the mesh lies in front of it (the face's skin does not).
-COVERED = "another part of the mesh over the face, not its skin: a beard, hair, glasses? hide it or export without it"
 
 
 def check_eyes_open(verdict: Verdict, V, skin, points, frame, eyes):
