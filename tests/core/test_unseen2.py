@@ -5,7 +5,7 @@ import pytest
 from pdeface.head.parts import classify_mesh
 from pdeface.landmark_scheme import eye_distance
 from pdeface.landmarks.gate import check
-from pdeface.mesh import Mesh, connected_components, vertex_normals
+from pdeface.mesh import FAN_SEARCH_CORNERS, Mesh, connected_components, vertex_normals
 
 from scripts.devset import makehuman
 from scripts.devset.unseen2 import BUILDERS, beard, mesh_of
@@ -80,6 +80,9 @@ def test_an_ngon_of_two_quads_is_fanned_without_slivers_quads_as_before():
     assert not mesh.fan_apexes()[: len(quads)].any()
     tri = Mesh.from_faces(V, T)
     assert np.array_equal(tri.triangles()[0], T)  # triangles stay as they are
+    a = np.linspace(0, 2 * np.pi, FAN_SEARCH_CORNERS + 1, endpoint=False)  # a cap: fanned from its first corner
+    cap = mesh_of(np.stack([np.cos(a), np.sin(a), 0 * a], 1), [list(range(len(a)))])
+    assert cap.fan_apexes()[0] == 0 and len(cap.triangles()[0]) == len(a) - 2
 
 
 def test_a_keys_file_over_the_archive_limit_is_read_back_other_archives_are_not(tmp_path, monkeypatch):
