@@ -101,7 +101,8 @@ class Mesh:
         return len(other.vertices) == len(self.vertices) and np.array_equal(other.face_indices, self.face_indices)
 
     def triangles(self) -> tuple[np.ndarray, np.ndarray]:
-        """Fan-triangulate every polygon.
+        """Fan-triangulate every polygon: triangles and quads from their first corner; an n-gon of five or more from
+        the corner whose fan's worst triangle is the best (:meth:`fan_apexes`).
 
         Returns
         -------
@@ -114,9 +115,34 @@ class Mesh:
         ntri = counts - 2
         polygon = np.repeat(np.arange(len(counts)), ntri)
         k = np.arange(len(polygon)) - np.repeat(np.cumsum(ntri) - ntri, ntri)
-        s = starts[polygon]
-        T = np.stack([idx[s], idx[s + k + 1], idx[s + k + 2]], axis=1)
+        s, n, apex = starts[polygon], counts[polygon], self.fan_apexes()[polygon]
+        T = np.stack([idx[s + apex], idx[s + (apex + k + 1) % n], idx[s + (apex + k + 2) % n]], axis=1)
         return T, polygon
+
+    def fan_apexes(self) -> np.ndarray:
+        """Per polygon, the corner its fan starts from: 0 for triangles and quads; for an n-gon of five or more (to
+        :data:`FAN_SEARCH_CORNERS`), the corner whose fan's worst triangle (area over the sum of its squared edges) is
+        the best. A hexagon left by
+        dissolving the edge between two quads has two corners on straight sides: its fan from the first corner made
+        a sliver of three points in a line and a chord across both quads, through their neighbours' surface."""
+        counts, starts, idx = self.face_counts, self.face_starts, self.face_indices
+        apex = np.zeros(len(counts), np.int64)
+        for n in np.unique(counts[(counts >= 5) & (counts <= FAN_SEARCH_CORNERS)]):
+            rows = np.nonzero(counts == n)[0]
+            P = self.vertices[idx[starts[rows, None] + np.arange(n)]]  # (m, n, 3)
+            worst = np.full((len(rows), n), np.inf)  # per polygon and apex
+            for k in range(1, n - 1):  # every apex's k-th triangle at once
+                A, B, C = P, np.roll(P, -k, axis=1), np.roll(P, -k - 1, axis=1)
+                area = np.linalg.norm(np.cross(B - A, C - A), axis=2)
+                edges = ((B - A) ** 2).sum(2) + ((C - B) ** 2).sum(2) + ((A - C) ** 2).sum(2)
+                worst = np.minimum(worst, area / np.maximum(edges, 1e-300))
+            apex[rows] = np.argmax(worst, axis=1)  # ties: the first corner, as before
+        return apex
+
+
+#: An n-gon of at most this many corners fans from its best corner (:meth:`Mesh.fan_apexes`); a larger one (a cap, a
+#: fuzzer's) from its first, as the search's cost grows with the corners squared.
+FAN_SEARCH_CORNERS = 64
 
 
 def vertex_normals(V: np.ndarray, T: np.ndarray, only=None) -> np.ndarray:

@@ -83,7 +83,7 @@ def save_keys(path, vertices, triangles, landmarks, names, deltas, unit, source=
 
 def load_keys(path) -> dict:
     """A keys file as ``{"vertices", "triangles", "landmarks", "deltas", "names", "unit", "source"}``."""
-    data = load_npz(path, KEYS_FORMAT, "keys")
+    data = load_npz(path, KEYS_FORMAT, "keys", kind="keys")
     meta = parse_json(data["meta"].tobytes().decode(), f"{path}: meta")
     if meta.get("version", 0) > KEYS_VERSION:
         raise ModelFormatError(f"{path}: keys file version {meta['version']} is newer than this pdeface reads")

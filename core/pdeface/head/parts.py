@@ -11,7 +11,8 @@ skin      holds the vertex nearest a landmark (ties go to the largest part;
           copies split along seams join their part)
 eye_L/R   the eyeball: the outermost round part of the right size behind
           each eye's landmarks (a sphere is fitted to it)
-jaw       inside the mouth (behind the lips, between nose and chin), the
+jaw       inside the mouth (behind the lips, between nose and chin, no
+          wider than the jaw at landmarks 5-11, as a beard round it is), the
           middle of its height below the mouth line, in front of the jaw
           hinge: lower teeth, lower gums, tongue; turned whole. A part
           spanning the mouth's width and reaching the upper and lower gums'
@@ -63,8 +64,9 @@ CODE = {k: i for i, k in enumerate(KINDS)}
 TOUCH_IOD = 0.008
 #: A part within this many eye distances of the skin follows it (brows, hair cards).
 NEAR_IOD = 0.15
-#: Eyeball diameter range, in eye distances (adults ~24 mm for ~63 mm IOD: 0.38).
-EYEBALL_IOD = (0.2, 0.6)
+#: Eyeball diameter range, in eye distances (adults ~24 mm for ~63 mm IOD: 0.38; MakeHuman's adults 0.50-0.54, its
+#: baby 0.64, a cartoon's larger; two eyeballs wider than the eye distance would overlap).
+EYEBALL_IOD = (0.2, 0.9)
 #: An attached part lying within this many radii of an eyeball's centre, every vertex of it, is a film on the eye
 #: (ICT's occlusion and tear-line meshes: 0.96-1.16; its lashes reach 1.4-1.7).
 FILM_RADII = 1.2
@@ -181,13 +183,17 @@ def classify_parts(Vf, T, Lf, hinge, overrides=None, welded=False, pieces=None) 
     lips_z = Lf[LIP_MIDDLES, 2].max()
     half_width = 0.75 * s
     zcut = hinge[2] + JAW_CUT_IOD * s
+    # What is inside the mouth lies within the face's outline: a part wider than the jaw at the lower lip's height
+    # lies over it (a beard shell round the mouth, 1.58 of that width; teeth, gums and tongues 0.81-0.88).
+    # (A model file keeps landmarks 5 and 11; where they are NaN, no width is asked.)
+    jaw_width = np.nan_to_num(abs(Lf[MOUTH_JAW[0], 0] - Lf[MOUTH_JAW[1], 0]), nan=np.inf)
     attached = []
     for c, m in members.items():
         if c in balls:
             continue
         ctr = centre[c]
         in_mouth = (abs(ctr[0] - Lf[MOUTH_CORNERS, 0].mean()) < half_width and Lf[CHIN, 1] < ctr[1] < Lf[NOSE_BOTTOM, 1]
-                    and lips_z - 2 * s < ctr[2] < lips_z)
+                    and lips_z - 2 * s < ctr[2] < lips_z and box_hi[c][0] - box_lo[c][0] < jaw_width)
         if in_mouth:
             P = Vf[m]
             reach = SPLIT_REACH_IOD * s
@@ -229,6 +235,9 @@ def classify_parts(Vf, T, Lf, hinge, overrides=None, welded=False, pieces=None) 
     return parts
 
 
+#: The jaw's landmarks at the lower lip's height, right and left (a fitted model keeps them): what is wider than the
+#: jaw between them is no mouth part.
+MOUTH_JAW = (5, 11)
 #: How far in front of the jaw hinge (eye distances) the jaw's inner parts start moving with it
 #: (ICT-FaceKit's jawOpen: gums and tongue further back stay put).
 JAW_CUT_IOD = 0.15

@@ -16,7 +16,10 @@ from ..errors import FileError, ModelFormatError
 #: The largest file of each kind pdeface reads (bytes), checked before reading: a mesh (OBJ, PLY, glTF), a
 #: table (tracker CSVs, FAS and stream text: hours of frames), an archive (models, ``.pdd``, ``.npz``,
 #: ``.gz``; and what one inflates to, see :func:`inflate`) and JSON (presets, timelines, landmarks, maps, rules).
-MAX_BYTES = {"mesh": 1 << 30, "table": 256 << 20, "archive": 64 << 20, "json": 64 << 20}
+MAX_BYTES = {"mesh": 1 << 30, "table": 256 << 20, "archive": 64 << 20, "json": 64 << 20,
+             # a keys file holds every key of a mesh read under the mesh's limit: 82 keys of a 160k-vertex head are
+             # 160 MiB (float32), and ``pdeface rig`` wrote them where its own reader refused them
+             "keys": 1 << 30}
 _KIND_OF_EXT = {".obj": "mesh", ".ply": "mesh", ".glb": "mesh", ".gltf": "mesh", ".csv": "table", ".txt": "table",
                 ".npz": "archive", ".pdd": "archive", ".gz": "archive"}
 #: The most digits an integer in any of pdeface's text formats (JSON, CSV, PLY) may have: no count, index or
@@ -141,9 +144,9 @@ def load_json(path, error=ModelFormatError):
     return parse_json(read_bytes(path, error, "json"), str(path), error)
 
 
-def check_archive(data: bytes, where, what="pdeface", error=ModelFormatError) -> None:
+def check_archive(data: bytes, where, what="pdeface", error=ModelFormatError, kind="archive") -> None:
     """Refuse a zip archive (``.npz``, ``what`` names its kind) whose members claim more than
-    ``MAX_BYTES["archive"]`` inflated (before inflating any), or that is no zip archive."""
+    ``MAX_BYTES[kind]`` inflated (before inflating any), or that is no zip archive."""
     import io
     import zipfile
 
@@ -152,14 +155,14 @@ def check_archive(data: bytes, where, what="pdeface", error=ModelFormatError) ->
             total = sum(info.file_size for info in zf.infolist())
     except (zipfile.BadZipFile, ValueError, OSError, EOFError) as exc:
         raise error(f"{where}: not a {what} file ({str(exc)[:80]})") from None
-    if total > MAX_BYTES["archive"]:
+    if total > MAX_BYTES[kind]:
         raise error(f"{where}: its arrays claim {total / 2**20:.0f} MiB; a {what} file is far smaller "
-                    f"(limit {MAX_BYTES['archive'] >> 20} MiB)")
+                    f"(limit {MAX_BYTES[kind] >> 20} MiB)")
 
 
-def load_npz(path, fmt: str, what: str) -> dict:
+def load_npz(path, fmt: str, what: str, kind="archive") -> dict:
     """The arrays of a pdeface ``.npz`` file whose ``format`` member is ``fmt`` (``what`` names the kind
-    of file in the errors), read without pickles, its size and what it inflates to capped
+    of file in the errors), read without pickles, its size and what it inflates to capped by ``MAX_BYTES[kind]``
     (:func:`check_archive`)."""
     import io
 
@@ -167,8 +170,8 @@ def load_npz(path, fmt: str, what: str) -> dict:
 
     if not os.path.exists(path):
         raise ModelFormatError(f"{path}: {what} file not found")
-    data = read_bytes(path, ModelFormatError, "archive")
-    check_archive(data, path, what)
+    data = read_bytes(path, ModelFormatError, kind)
+    check_archive(data, path, what, kind=kind)
     try:
         with np.load(io.BytesIO(data), allow_pickle=False) as f:
             data = {k: f[k] for k in f.files}

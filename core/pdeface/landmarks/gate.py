@@ -8,7 +8,8 @@ from the face), against the eye distance, so they hold at any scale, orientation
   on, nothing of the mesh's parts the landmarks lie on lies more than :data:`BURIED` in front of it (the
   jawline, a contour, from either side too; the eye and mouth corners and the nose wings, in their creases,
   :data:`BURIED_CREASES`);
-  separate parts (lashes, eyeballs, hair) may cover them;
+  separate parts (lashes, eyeballs, hair) may cover them, unless a landmark's nearest vertex lies on one (a beard
+  shell over the jaw): the refusal then names the part over the skin (:data:`COVERED`);
 - **mirror**: left and right mirror each other across the face's midline (median of the group's pairs); on
   the jawline also each pair (:data:`JAW_PAIR_TOL`);
 - **order**: brows above the eyes above the nose bottom above the mouth above the chin; upper lids above
@@ -73,6 +74,8 @@ BURIED, BURIED_INNER_LIPS = 0.05, 0.15
 #: the socket or the mouth lies 0.2 and more behind (the lower lids 15 mm into ICT's sockets: 0.23).
 BURIED_CREASES = 0.10
 CREASES = [31, 35, 36, 39, 42, 45, 48, 54]
+#: Why a point is buried where only another part of the mesh lies in front of it (the face's skin does not).
+COVERED = "another part of the mesh over the face, not its skin: a beard, hair, glasses? hide it or export without it"
 #: Median distance of a group's points from their mirror partners' mirror images (share of the eye distance).
 MIRROR_TOL = 0.10
 #: The farthest one jaw pair (0/16 ... 7/9) may lie from its partner's mirror image (eye distances) once the jaw's own
@@ -420,12 +423,16 @@ def check(points, V=None, T=None, unit=None) -> Verdict:
         depth = buried(V, parts, P, frame, eyes) / eyes
         tolerance = np.full(68, BURIED)
         tolerance[list(INNER_LIPS)], tolerance[CREASES] = BURIED_INNER_LIPS, BURIED_CREASES
+        on_skin = None  # the depth under the face's own part alone, looked at where a point is buried
         for g, rows in GROUPS.items():
             rows = list(rows)
-            worst = int(np.argmax(depth[rows] - tolerance[rows]))
-            if depth[rows][worst] > tolerance[rows][worst]:
-                verdict.fail(g, "surface", f"landmark {rows[worst]} {depth[rows][worst]:.2f} eye distances behind "
-                                           "the surface in front of it (inside a socket, the mouth or the skull?)")
+            worst = rows[int(np.argmax(depth[rows] - tolerance[rows]))]
+            if depth[worst] > tolerance[worst]:
+                if on_skin is None:
+                    on_skin = buried(V, skin, P, frame, eyes) / eyes
+                why = (COVERED if on_skin[worst] <= tolerance[worst] else "inside a socket, the mouth or the skull?")
+                verdict.fail(g, "surface", f"landmark {worst} {depth[worst]:.2f} eye distances behind the surface in "
+                                           f"front of it ({why})")
     return verdict
 
 
