@@ -313,6 +313,28 @@ def test_a_relaxation_looking_every_other_sweep_ends_within_the_budget_where_the
     np.testing.assert_array_equal(relaxed[:, 2], D[:, 2])
 
 
+def test_a_piece_left_with_the_margins_folds_alone_settles_sooner_than_one_past_the_limit(monkeypatch):
+    """A piece that folds no fewer stops after STALL_STEPS sweeps, or SETTLE_STEPS where its kept sweep folds no more
+    edges over the issue's LIMIT_DEG than its budget (only the margin's, FOLD_DEG to LIMIT_DEG, left: chasing them
+    through a plateau smoothed parted lips shut, and a descriptor's rounding in the model file chose between 4 sweeps
+    and 38). Every vertex pinned: the cliffs cannot relax, every sweep is a plateau."""
+    V, T = sheet(41)
+    relax = FoldRelax(V, T, np.ones(len(V), bool))
+    sweeps = []
+    keep_out = FoldRelax._keep_out
+    monkeypatch.setattr(FoldRelax, "_keep_out", lambda self, *a: (sweeps.append(1), keep_out(self, *a)))
+    pairs = edge_face_pairs(T)
+    for height, stall in ((np.tan(np.radians(37.5)), folds.SETTLE_STEPS), (3.0, folds.STALL_STEPS)):
+        D = np.zeros((len(V), 1, 3))
+        D[:, 0, 2] = height * (V[:, 0] >= 20)  # a cliff across the sheet
+        turn = turn_degrees(V + D[:, 0], T, pairs)
+        folded, past = int((turn > folds.FOLD_DEG).sum()), int((turn > folds.LIMIT_DEG).sum())
+        assert folded > relax.budget and (past <= relax.budget) == (stall == folds.SETTLE_STEPS)
+        sweeps.clear()
+        relax.relax(D, look=folds.SWEEPS_PER_LOOK)
+        assert len(sweeps) == stall < folds.RELAX_STEPS
+
+
 def test_pieces_given_are_the_pieces_found():
     """The binding hands its parts' pieces to the relaxation (one connected-components pass): the same edges' pieces
     and shares as found afresh, on a sheet and a second piece beside it."""
