@@ -131,6 +131,25 @@ def test_a_keys_file_over_the_archive_limit_is_read_back_other_archives_are_not(
         load_keys(tmp_path / "keys.npz")
 
 
+def test_save_keys_refuses_a_keys_file_its_reader_would_refuse(tmp_path, monkeypatch):
+    """82 float32 keys are 984 bytes a vertex: a head of more than about 1.09M vertices made a keys file over the
+    1 GiB limit that ``load_keys`` then refused. Here the limit shrunk to just under and at the file's size."""
+    from pdeface.errors import FileError
+    from pdeface.io import files
+    from pdeface.rig import load_keys, save_keys
+
+    V, T, L = np.random.default_rng(0).random((40, 3)), np.array([[0, 1, 2]]), np.zeros((68, 3))
+    args = (V, T, L, ["AU1", "AU2"], np.ones((2, 40, 3)), 10.0)
+    size = save_keys(tmp_path / "keys.npz", *args)
+    monkeypatch.setitem(files.MAX_BYTES, "keys", size - 1)
+    with pytest.raises(FileError, match=r"2 keys of 40 vertices .* MiB keys file, over the 0 MiB"):
+        save_keys(tmp_path / "big.npz", *args)
+    assert not (tmp_path / "big.npz").exists()
+    monkeypatch.setitem(files.MAX_BYTES, "keys", size + 6 * 1024)  # over the bound checked: a KiB a member, six
+    assert save_keys(tmp_path / "fits.npz", *args) == size
+    assert load_keys(tmp_path / "fits.npz")["deltas"].shape == (2, 40, 3)
+
+
 def test_without_jaw_landmarks_the_mouth_parts_are_found_as_before():
     """Where the jaw's landmarks at the lower lip are NaN (a model that kept none), the mouth rule's width is not asked:
     ICT's teeth, gums and tongue stay jaw and skull (NaN's comparisons made every one of them 'follow')."""
