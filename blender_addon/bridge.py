@@ -68,14 +68,16 @@ def polygon_materials(mesh) -> np.ndarray:
     return index
 
 
-def polygon_triangles(mesh) -> np.ndarray:
-    """Triangles fanned from each polygon's first corner, as pdeface fans an OBJ's faces.
+def polygon_triangles(mesh, V) -> np.ndarray:
+    """Triangles of each polygon as pdeface fans an OBJ's faces (:meth:`pdeface.mesh.Mesh.triangles`): triangles
+    and quads from their first corner, an n-gon from its best corner at coordinates ``V (n, 3)`` (the rest shape).
 
     Blender's own loop triangles may split a quad along its other diagonal;
     binding a head on the same triangles as ``pdeface pose --mesh`` makes the
     keys equal to its poses.
     """
-    return as_pdeface_mesh(mesh, coords=False).triangles()[0]
+    polygons = as_pdeface_mesh(mesh, coords=False)
+    return Mesh(np.asarray(V, np.float64), polygons.face_counts, polygons.face_indices).triangles()[0]
 
 
 def loop_uvs(mesh, layer=None) -> np.ndarray:

@@ -62,8 +62,9 @@ def _joined(users):
     n = 0
     for obj in users:
         M = _to_space(src, obj)
-        V = rest_coords(obj) @ M[:3, :3].T + M[:3, 3]
-        T = bridge.polygon_triangles(obj.data)
+        rest = rest_coords(obj)
+        V = rest @ M[:3, :3].T + M[:3, 3]
+        T = bridge.polygon_triangles(obj.data, rest)
         parts_V.append(V)
         parts_T.append(T + n)
         starts.append(n)

@@ -256,18 +256,28 @@ def last_verdict(obj, points, unit=None):
     return Verdict.from_json(json.loads(obj[GATE_VERDICT_PROP]))
 
 
-def failing_groups(obj, source=None):
+def failing_groups(obj, source=None, unit=None):
     """The groups that failed the gate when last checked (from the .blend), or []; with ``source``, only when that
-    check judged the landmarks of ``source`` (:data:`EMPTIES` or a given source, as :func:`at_rest` was told)."""
-    if obj is None or (source is not None and verdict_source(obj) != source):
+    check judged the landmarks of ``source`` (:data:`EMPTIES` or a given source, as :func:`at_rest` was told;
+    ``unit``: the unit the fit is told, see :func:`verdict_source`)."""
+    if obj is None or (source is not None and verdict_source(obj, unit) != source):
         return []
     return [g for g in obj.get(GATE_GROUPS_PROP, "").split(",") if g]
 
 
-def verdict_source(obj):
-    """The landmarks the gate's last verdict on ``obj`` judged (:data:`GATE_SOURCE_PROP`), or None (none kept, or
-    kept before verdicts named their source)."""
-    return obj.get(GATE_SOURCE_PROP)
+def verdict_source(obj, unit=None):
+    """The landmarks the gate's last verdict on ``obj`` judged (:data:`GATE_SOURCE_PROP`), or None (none kept).
+
+    A verdict kept before verdicts named their source (an older .blend) is the empties' where the gate's last
+    verdict on them (:func:`last_verdict`, at ``unit``) is still theirs as they are now, and is the one shown: else
+    it would read as stale, and hide Accept anyway, until the next Find or Fit."""
+    source = obj.get(GATE_SOURCE_PROP)
+    if source is None and GATE_PROP in obj:
+        points = empty_points(obj)
+        verdict = None if points is None else last_verdict(obj, points, unit)
+        if verdict is not None and verdict.message() == obj[GATE_PROP]:
+            return EMPTIES
+    return source
 
 
 def highlight(obj, groups):

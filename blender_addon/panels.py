@@ -4,7 +4,7 @@ from pdeface.facs import REGIONS
 from pdeface.muscles.placement import MUSCLE_NAMES
 
 from . import landmarks, live
-from .face import active_face, key_owner, landmark_origin
+from .face import active_face, chosen_unit, key_owner, landmark_origin
 from .keys import managed, preset_items
 
 
@@ -76,14 +76,14 @@ class PDEFACE_PT_face(_Panel, bpy.types.Panel):
 def _gate_verdict(layout, settings, mesh):
     """The gate's last failure on ``mesh`` where it judged the landmarks the next Fit reads (:func:`_gate_failure`);
     one on other landmarks (the source switched since) only said to be stale. Returns the failing groups shown."""
-    source = landmark_origin(settings, mesh)
-    failing = landmarks.failing_groups(mesh, source)
+    source, unit = landmark_origin(settings, mesh), chosen_unit(settings)
+    failing = landmarks.failing_groups(mesh, source, unit)
     if failing:
         _gate_failure(layout, mesh, failing)
     elif landmarks.failing_groups(mesh):
         col = layout.column(align=True)
         col.label(text="The landmark gate's last failure is stale", icon="INFO")
-        col.label(text=f"it judged {landmarks.verdict_source(mesh) or 'other landmarks'}; Fit checks {source}")
+        col.label(text=f"it judged {landmarks.verdict_source(mesh, unit) or 'other landmarks'}; Fit checks {source}")
     return failing
 
 

@@ -121,19 +121,23 @@ class Mesh:
 
     def fan_apexes(self) -> np.ndarray:
         """Per polygon, the corner its fan starts from: 0 for triangles and quads; for an n-gon of five or more (to
-        :data:`FAN_SEARCH_CORNERS`), the corner whose fan's worst triangle (area over the sum of its squared edges) is
-        the best. A hexagon left by
+        :data:`FAN_SEARCH_CORNERS`), the corner whose fan's worst triangle (area signed along the polygon's Newell
+        normal, over the sum of its squared edges) is the best. A hexagon left by
         dissolving the edge between two quads has two corners on straight sides: its fan from the first corner made
-        a sliver of three points in a line and a chord across both quads, through their neighbours' surface."""
+        a sliver of three points in a line and a chord across both quads, through their neighbours' surface. The sign
+        makes a corner whose fan flips a triangle lose (a concave polygon's convex corner; a pinched polygon's
+        repeated vertex); where no corner does better than a degenerate triangle, the first corner wins."""
         counts, starts, idx = self.face_counts, self.face_starts, self.face_indices
         apex = np.zeros(len(counts), np.int64)
         for n in np.unique(counts[(counts >= 5) & (counts <= FAN_SEARCH_CORNERS)]):
             rows = np.nonzero(counts == n)[0]
             P = self.vertices[idx[starts[rows, None] + np.arange(n)]]  # (m, n, 3)
+            normal = np.cross(P, np.roll(P, -1, axis=1)).sum(1)  # Newell's: twice the polygon's vector area
+            normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
             worst = np.full((len(rows), n), np.inf)  # per polygon and apex
             for k in range(1, n - 1):  # every apex's k-th triangle at once
                 A, B, C = P, np.roll(P, -k, axis=1), np.roll(P, -k - 1, axis=1)
-                area = np.linalg.norm(np.cross(B - A, C - A), axis=2)
+                area = np.einsum("mnj,mj->mn", np.cross(B - A, C - A), normal)  # negative: flipped
                 edges = ((B - A) ** 2).sum(2) + ((C - B) ** 2).sum(2) + ((A - C) ** 2).sum(2)
                 worst = np.minimum(worst, area / np.maximum(edges, 1e-300))
             apex[rows] = np.argmax(worst, axis=1)  # ties: the first corner, as before

@@ -31,7 +31,7 @@ from .head.bind import HeadBinding
 from .head.parts import read_overrides, skin_mask
 from .head.prior import load_head_prior
 from .headless import run_headless
-from .io.files import load_npz, parse_json, write_bytes, write_npz
+from .io.files import MAX_BYTES, load_npz, parse_json, stored_npz_bytes, write_bytes, write_npz
 from .landmarks.checked import check_given, find_checked
 from .landmarks.detector import available
 from .presets import key_poses, merged_presets
@@ -70,12 +70,20 @@ def warm_up(landmarks=True):
 
 def save_keys(path, vertices, triangles, landmarks, names, deltas, unit, source="") -> int:
     """Write the keys file: the rest mesh ``vertices (n, 3)``, ``triangles (t, 3)``, ``landmarks (68, 3)`` and
-    each key's ``deltas (k, n, 3)`` (float32, the mesh's unit) named ``names``; returns its size in bytes."""
+    each key's ``deltas (k, n, 3)`` (float32, the mesh's unit) named ``names``; returns its size in bytes.
+
+    Raises :class:`FileError`, writing nothing, where the file would be over ``MAX_BYTES["keys"]`` (which
+    :func:`load_keys` refuses)."""
     meta = {"version": KEYS_VERSION, "unit": unit, "names": list(names), "source": source}
     meta_bytes = json.dumps(meta, separators=(",", ":")).encode()
     arrays = {"format": np.array(KEYS_FORMAT), "meta": np.frombuffer(meta_bytes, np.uint8),
               "vertices": np.asarray(vertices, np.float64), "triangles": np.asarray(triangles, np.int32),
               "landmarks": np.asarray(landmarks, np.float64), "deltas": np.asarray(deltas, np.float32)}
+    size, limit = stored_npz_bytes(arrays), MAX_BYTES["keys"]
+    if size > limit:
+        raise FileError(f"{path}: {len(names)} keys of {len(arrays['vertices'])} vertices would be a "
+                        f"{size / 2**20:.0f} MiB keys file, over the {limit >> 20} MiB a keys file may be; "
+                        "rig fewer keys (--no-presets) or a lighter mesh")
     # stored, not deflated: the deltas (float32, 26 MB for the 27k head's 82 keys) deflate only to 55 % and took
     # 0.5-1 s of the rig's 3 s (issue #35); numpy.load reads either
     return write_npz(path, arrays, compress=False)

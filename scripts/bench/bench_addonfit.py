@@ -42,7 +42,7 @@ def pieces(addon, src, face):
         "store the model, read it back": (stored(False), stored(True)),
         "fit's loop triangles": (lambda: br.triangles(me), lambda: br.triangles(me, loops=False)),
         "the binding's fan triangles": (lambda: br.as_pdeface_mesh(me).triangles()[0],
-                                        lambda: br.polygon_triangles(me)),
+                                        lambda: br.polygon_triangles(me, rest)),
         "82 keys into the mesh's space": (lambda: [rest + d @ identity.T for d in D],
                                           lambda: [rest + addon.head._in_object_space(d, identity) for d in D]),
     }

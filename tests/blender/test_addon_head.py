@@ -154,6 +154,26 @@ def test_part_overrides_from_vertex_groups(bpy, ict_head):
     assert np.abs(up).max() == 0  # the user said the eyeballs do not move
 
 
+def test_the_binding_fans_ngons_as_the_core_does(bpy):
+    """The binding's triangles are ``pdeface rig``'s: each n-gon fanned from its best corner at the rest shape
+    (they were fanned from its first corner on zero coordinates, where every corner scored the same)."""
+    from pdeface.mesh import Mesh
+
+    from tests.core.test_unseen2 import _hexagons
+
+    V, quads, hexes = _hexagons()
+    polygons = quads + hexes
+    pde = Mesh(V, np.array([len(p) for p in polygons]), np.concatenate(polygons))
+    obj = bpy.data.objects.new("Hexagons", addon().new_mesh("Hexagons", pde))
+    bpy.context.collection.objects.link(obj)
+    obj.location, obj.rotation_euler = (1.0, 2.0, 3.0), (0.3, 0.0, 1.0)  # the fan is chosen in its own space
+    bpy.context.view_layer.update()
+    core = Mesh(addon().vertices(obj.data), pde.face_counts, pde.face_indices)
+    assert core.fan_apexes()[len(quads):].any()  # some hexagon fans from a corner other than its first
+    T = addon("head")._joined([obj])[1]
+    assert np.array_equal(T, core.triangles()[0])
+
+
 def test_a_mesh_without_a_face_loses_nothing(bpy, tmp_path):
     bpy.ops.mesh.primitive_uv_sphere_add(radius=10)
     ball = bpy.context.active_object

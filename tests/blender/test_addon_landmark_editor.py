@@ -230,6 +230,31 @@ def test_the_empties_verdict_shows_only_while_the_fit_reads_them(bpy, head, tmp_
     assert lms[50].empty_display_type == "SPHERE" and not lms[50].select_get()
 
 
+def test_an_older_blends_verdict_on_the_empties_shows_while_it_is_theirs(bpy, head):
+    """A .blend saved before verdicts named their source: the empties' failure shows, with Accept anyway, while its
+    digest is still the empties'; once they move, it reads as stale."""
+    lms_mod = addon().landmarks
+    obj, _ = head
+    lms = lms_mod.empties(obj)
+    for i in (50, 51, 52):  # three upper-lip points pushed 1 cm into the mouth
+        lms[i].location.y += 0.01
+    with pytest.raises(RuntimeError, match="mouth: surface"):
+        bpy.ops.pdeface.fit_to_selected()
+    del obj[lms_mod.GATE_SOURCE_PROP]  # as an older add-on saved it
+    panels = (bpy.types.PDEFACE_PT_face, bpy.types.PDEFACE_PT_landmarks)
+    for panel in panels:
+        layout = draw_panel(bpy, panel)
+        assert "Landmark gate: mouth failed" in layout.texts("label")
+        assert "Accept anyway and Fit" in layout.texts("operator")
+    lms[50].location.y -= 0.005
+    bpy.context.view_layer.update()
+    assert lms_mod.verdict_source(obj) is None and lms_mod.failing_groups(obj, lms_mod.EMPTIES) == []
+    for panel in panels:
+        labels = draw_panel(bpy, panel).texts("label")
+        assert "The landmark gate's last failure is stale" in labels and not any(
+            t.startswith("Landmark gate:") for t in labels)
+
+
 def test_the_empties_are_saved_with_the_blend_and_the_scheme_shows_beside_the_head(bpy, head, tmp_path):
     lms_mod = addon().landmarks
     obj, _ = head

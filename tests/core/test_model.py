@@ -43,6 +43,18 @@ def test_the_file_keeps_every_landmark_unrounded_and_reads_an_older_files_24(tmp
     assert np.isnan(np.delete(old.landmarks, kept, axis=0)).all()
 
 
+def test_a_model_whose_landmarks_are_all_nan_or_some_round_trips(tmp_path, fitted):
+    """All NaN wrote ``"indices": []``, which the reader refuses: now no entry, read back as no landmarks."""
+    model, _ = fitted
+    none = np.full((68, 3), np.nan)
+    save_model(tmp_path / "none.npz", replace(model, landmarks=none))
+    assert load_model(tmp_path / "none.npz").landmarks is None
+    some = model.landmarks.copy()
+    some[17:] = np.nan
+    save_model(tmp_path / "some.npz", replace(model, landmarks=some))
+    assert np.array_equal(load_model(tmp_path / "some.npz").landmarks, some, equal_nan=True)
+
+
 def rewrite(path, out, drop=(), **replace):
     with np.load(path, allow_pickle=False) as z:
         arrays = {k: z[k] for k in z.files if k not in drop}

@@ -85,6 +85,31 @@ def test_an_ngon_of_two_quads_is_fanned_without_slivers_quads_as_before():
     assert cap.fan_apexes()[0] == 0 and len(cap.triangles()[0]) == len(a) - 2
 
 
+def _signed_areas(mesh):
+    V, (T, _) = mesh.vertices, mesh.triangles()
+    return np.cross(V[T[:, 1]] - V[T[:, 0]], V[T[:, 2]] - V[T[:, 0]])[:, 2], T
+
+
+def test_a_concave_ngon_is_fanned_from_a_corner_that_flips_no_triangle():
+    """An arrow pentagon (its reflex corner, vertex 3, the only one whose fan covers it): by unsigned area the best
+    fan from vertex 1 folded a triangle back over the others, whichever corner the polygon was listed from."""
+    arrow = np.array([(0, 0, 0), (4, 0, 0), (4, 4, 0), (2, 0.5, 0), (0, 4, 0)], float)
+    for turn in range(5):
+        corners = list(np.roll(np.arange(5), -turn))
+        area, T = _signed_areas(mesh_of(arrow, [corners]))
+        assert (area > 0).all() and np.isclose(area.sum(), 18), (turn, T)  # twice its area (shoelace)
+        assert (T[:, 0] == 3).all()
+
+
+def test_a_pinched_ngon_with_a_repeated_vertex_keeps_its_first_corner():
+    """Corners ``[0, 1, 2, 3, 0, 4]``: by unsigned area the fan from corner 1 emitted (1, 0, 4) and (1, 4, 0), the
+    same triangle both ways round; no corner's fan is free of a degenerate triangle, so the first corner's stays."""
+    V = np.array([(0, 0, 0), (1, 0, 0), (2, 0, 0), (2, 1, 0), (0, 1, 0)], float)
+    mesh = mesh_of(V, [[0, 1, 2, 3, 0, 4]])
+    area, T = _signed_areas(mesh)
+    assert mesh.fan_apexes()[0] == 0 and (T[:, 0] == 0).all() and (area >= 0).all()
+
+
 def test_a_keys_file_over_the_archive_limit_is_read_back_other_archives_are_not(tmp_path, monkeypatch):
     """A 160k-vertex head's 82 keys are 160 MiB: ``pdeface rig`` wrote them and ``load_keys`` (a batch's stimuli, the
     renders) refused them under the 64 MiB archive limit. Here the limits shrunk to a kilobyte to show it."""
@@ -104,6 +129,25 @@ def test_a_keys_file_over_the_archive_limit_is_read_back_other_archives_are_not(
     monkeypatch.setitem(files.MAX_BYTES, "keys", 1 << 10)
     with pytest.raises(ModelFormatError, match="too large"):
         load_keys(tmp_path / "keys.npz")
+
+
+def test_save_keys_refuses_a_keys_file_its_reader_would_refuse(tmp_path, monkeypatch):
+    """82 float32 keys are 984 bytes a vertex: a head of more than about 1.09M vertices made a keys file over the
+    1 GiB limit that ``load_keys`` then refused. Here the limit shrunk to just under and at the file's size."""
+    from pdeface.errors import FileError
+    from pdeface.io import files
+    from pdeface.rig import load_keys, save_keys
+
+    V, T, L = np.random.default_rng(0).random((40, 3)), np.array([[0, 1, 2]]), np.zeros((68, 3))
+    args = (V, T, L, ["AU1", "AU2"], np.ones((2, 40, 3)), 10.0)
+    size = save_keys(tmp_path / "keys.npz", *args)
+    monkeypatch.setitem(files.MAX_BYTES, "keys", size - 1)
+    with pytest.raises(FileError, match=r"2 keys of 40 vertices .* MiB keys file, over the 0 MiB"):
+        save_keys(tmp_path / "big.npz", *args)
+    assert not (tmp_path / "big.npz").exists()
+    monkeypatch.setitem(files.MAX_BYTES, "keys", size + 6 * 1024)  # over the bound checked: a KiB a member, six
+    assert save_keys(tmp_path / "fits.npz", *args) == size
+    assert load_keys(tmp_path / "fits.npz")["deltas"].shape == (2, 40, 3)
 
 
 def test_without_jaw_landmarks_the_mouth_parts_are_found_as_before():

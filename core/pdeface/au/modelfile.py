@@ -117,7 +117,8 @@ def model_to_bytes(model: FaceModel, descriptors: bool = True, fast: bool = Fals
         # let a decimated head's upper lip sink with the jaw in AU27 (decimated-cm -0.25 eye distances; all 68 -0.03).
         L = np.asarray(model.landmarks, np.float64)
         kept = np.nonzero(np.isfinite(L).all(axis=1))[0]
-        meta["landmarks"] = {"indices": kept.tolist(), "step_mm": 1.0, "codes": L[kept].tolist()}
+        if len(kept):  # none kept: no entry (the reader refuses an empty one), read back as no landmarks
+            meta["landmarks"] = {"indices": kept.tolist(), "step_mm": 1.0, "codes": L[kept].tolist()}
     arrays = {
         "meta": np.frombuffer(json.dumps(meta, separators=(",", ":")).encode(), dtype=np.uint8),
         "layout": model.layout.as_array().astype(np.float32),

@@ -16,10 +16,12 @@ from ..errors import FileError, ModelFormatError
 #: The largest file of each kind pdeface reads (bytes), checked before reading: a mesh (OBJ, PLY, glTF), a
 #: table (tracker CSVs, FAS and stream text: hours of frames), an archive (models, ``.pdd``, ``.npz``,
 #: ``.gz``; and what one inflates to, see :func:`inflate`) and JSON (presets, timelines, landmarks, maps, rules).
-MAX_BYTES = {"mesh": 1 << 30, "table": 256 << 20, "archive": 64 << 20, "json": 64 << 20,
-             # a keys file holds every key of a mesh read under the mesh's limit: 82 keys of a 160k-vertex head are
-             # 160 MiB (float32), and ``pdeface rig`` wrote them where its own reader refused them
-             "keys": 1 << 30}
+MAX_BYTES = {"mesh": 1 << 30, "table": 256 << 20, "archive": 64 << 20, "json": 64 << 20}
+# A keys file (``pdeface rig``'s) has the mesh's limit, not the archive's: 82 keys of a 160k-vertex head are 160 MiB
+# (float32), which the archive limit refused. Not every mesh under that limit fits: 82 keys are 984 bytes a vertex
+# and the rest mesh about 48 more (float64 vertices, int32 triangles), so a head of more than about 1.04M vertices is
+# over it, and ``save_keys`` refuses it before writing.
+MAX_BYTES["keys"] = MAX_BYTES["mesh"]
 _KIND_OF_EXT = {".obj": "mesh", ".ply": "mesh", ".glb": "mesh", ".gltf": "mesh", ".csv": "table", ".txt": "table",
                 ".npz": "archive", ".pdd": "archive", ".gz": "archive"}
 #: The most digits an integer in any of pdeface's text formats (JSON, CSV, PLY) may have: no count, index or
@@ -245,6 +247,14 @@ def write_npz(path, arrays: dict, compress: bool = True) -> int:
     with atomic_open(path, "wb") as fh:
         _write_npz(fh, arrays, compress)
         return fh.tell()
+
+
+def stored_npz_bytes(arrays: dict) -> int:
+    """At least the length of the file ``write_npz(path, arrays, compress=False)`` writes: the arrays' bytes and a
+    KiB a member for its headers (zip and ``.npy``: about 270 bytes), known before writing it."""
+    import numpy as np
+
+    return sum(np.asanyarray(value).nbytes + 1024 for value in arrays.values())
 
 
 def _write_npz(fh, arrays, compress):

@@ -23,11 +23,13 @@ from the face), against the eye distance, so they hold at any scale, orientation
 - **depth**: the jaw angles behind the mouth corners (:data:`JAW_ANGLES_BACK`): a jaw slid forward along its
   contour, level with the mouth, is no face's; the lids not far behind their eye's corners (:data:`LIDS_BEHIND`):
   in a head without eyeballs, a lid fallen into the socket is seen through the eye's opening, nothing in front;
-- **closed**: each eye open, as a head at rest has it (:data:`EYE_OPENING`): seen straight on between its corners,
-  somewhere the skin lies deep behind them (the eye's opening onto the eyeball or the socket). A head modelled with
-  its eyes closed (or in any expression) is no rest: its keys would close closed eyes, and the detector finds open
-  lids on it all the same. With landmarks given by hand (:func:`check_mesh_at_rest`) an eye whose given lids lie
-  apart (:data:`LIDS_APART`) is open all the same: its eyeball is one surface with the lids (a scan).
+- **closed**: each eye open, as a head at rest has it: seen straight on, in 9 columns of rays between its corners
+  (:data:`EYE_COLUMNS`), its opening (the skin more than :data:`EYE_OPENING` behind the corners: onto the eyeball or
+  the socket) at least :data:`EYE_SLIT` tall in :data:`EYE_SLIT_COLUMNS` of them; a slit between closed lids is as
+  deep as an open eye, but short. A head modelled with its eyes closed (or in any expression) is no rest: its keys
+  would close closed eyes, and the detector finds open lids on it all the same. With landmarks given by hand
+  (:func:`check_mesh_at_rest`) an eye whose given lids lie apart (:data:`LIDS_APART`) is open all the same: its
+  eyeball is one surface with the lids (a scan).
 
 A group failing any check is named with the check; ``pdeface landmarks`` and ``pdeface fit`` then stop
 (exit 2) unless told ``--accept``.
