@@ -246,14 +246,19 @@ def write(name, folder) -> Path:
     return path
 
 
-def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("-o", "--out", default="unseen")
+def write_all(argv, description, builders, write_one, out):
+    """The builders' command line: write each head (``--only`` some) with ``write_one`` into ``-o`` (``out``)."""
+    ap = argparse.ArgumentParser(description=description, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("-o", "--out", default=out)
     ap.add_argument("--only")
     args = ap.parse_args(argv)
     Path(args.out).mkdir(parents=True, exist_ok=True)
-    for name in args.only.split(",") if args.only else BUILDERS:
-        print(write(name, args.out), flush=True)
+    for name in args.only.split(",") if args.only else builders:
+        print(write_one(name, args.out), flush=True)
+
+
+def main(argv=None):
+    write_all(argv, __doc__, BUILDERS, write, "unseen")
 
 
 if __name__ == "__main__":

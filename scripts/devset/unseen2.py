@@ -24,7 +24,6 @@ Built at run time from MakeHuman's base mesh or ICT-FaceKit's head, the true 68 
 """
 from __future__ import annotations
 
-import argparse
 import json
 from pathlib import Path
 
@@ -36,7 +35,7 @@ from pdeface.surface.frame import BLENDER_FROM_ICT
 
 from .characters import Spec, _annotation, _compact, _identity, read_base
 from .makehuman import BASE_MM
-from .unseen import LIKE, YOUNG, _append, _head
+from .unseen import LIKE, YOUNG, _append, _head, write_all
 
 
 def baby():
@@ -298,13 +297,7 @@ def write(name, folder) -> Path:
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("-o", "--out", default="unseen2")
-    ap.add_argument("--only")
-    args = ap.parse_args(argv)
-    Path(args.out).mkdir(parents=True, exist_ok=True)
-    for name in args.only.split(",") if args.only else BUILDERS:
-        print(write(name, args.out), flush=True)
+    write_all(argv, __doc__, BUILDERS, write, "unseen2")
 
 
 if __name__ == "__main__":
