@@ -200,17 +200,23 @@ def test_a_gate_failure_leaves_the_scene_editable_with_the_failing_group(bpy, he
     assert lms[50].empty_display_type == "SPHERE" and lms[50].empty_display_size == lms[36].empty_display_size
 
 
+def _mouth_refused(bpy, lms_mod, obj):
+    """Push three upper-lip empties 1 cm into the mouth and Fit: the gate fails the mouth. Returns the empties."""
+    lms = lms_mod.empties(obj)
+    for i in (50, 51, 52):
+        lms[i].location.y += 0.01
+    with pytest.raises(RuntimeError, match="mouth: surface"):
+        bpy.ops.pdeface.fit_to_selected()
+    return lms
+
+
 def test_the_empties_verdict_shows_only_while_the_fit_reads_them(bpy, head, tmp_path):
     """The gate fails the edited empties; switched to a JSON file, the panels call that verdict stale (no failing
     group, no Accept anyway) and name both sources; switched back, it shows. The file's landmarks fitted, its verdict
     replaces the empties' and their highlight goes (it is not theirs)."""
     lms_mod, settings = addon().landmarks, bpy.context.scene.pdeface
     obj, _ = head
-    lms = lms_mod.empties(obj)
-    for i in (50, 51, 52):  # three upper-lip points pushed 1 cm into the mouth
-        lms[i].location.y += 0.01
-    with pytest.raises(RuntimeError, match="mouth: surface"):
-        bpy.ops.pdeface.fit_to_selected()
+    lms = _mouth_refused(bpy, lms_mod, obj)
     assert lms_mod.verdict_source(obj) == lms_mod.EMPTIES
     panels = (bpy.types.PDEFACE_PT_face, bpy.types.PDEFACE_PT_landmarks)
     assert all("Landmark gate: mouth failed" in draw_panel(bpy, p).texts("label") for p in panels)
@@ -235,11 +241,7 @@ def test_an_older_blends_verdict_on_the_empties_shows_while_it_is_theirs(bpy, he
     digest is still the empties'; once they move, it reads as stale."""
     lms_mod = addon().landmarks
     obj, _ = head
-    lms = lms_mod.empties(obj)
-    for i in (50, 51, 52):  # three upper-lip points pushed 1 cm into the mouth
-        lms[i].location.y += 0.01
-    with pytest.raises(RuntimeError, match="mouth: surface"):
-        bpy.ops.pdeface.fit_to_selected()
+    lms = _mouth_refused(bpy, lms_mod, obj)
     del obj[lms_mod.GATE_SOURCE_PROP]  # as an older add-on saved it
     panels = (bpy.types.PDEFACE_PT_face, bpy.types.PDEFACE_PT_landmarks)
     for panel in panels:
