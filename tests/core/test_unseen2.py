@@ -154,7 +154,8 @@ def test_without_jaw_landmarks_the_mouth_parts_are_found_as_before():
     """Where the jaw's landmarks at the lower lip are NaN (a model that kept none), the mouth rule's width is not asked:
     ICT's teeth, gums and tongue stay jaw and skull (NaN's comparisons made every one of them 'follow')."""
     from pdeface.assets import load_head
-    from pdeface.head.parts import CODE, MOUTH_JAW, classify_parts
+    from pdeface.head.parts import CODE, classify_parts
+    from pdeface.landmark_scheme import JAW_LEFT_ANGLE, JAW_RIGHT_ANGLE
     from pdeface.rigid import jaw_hinge
     from pdeface.surface.frame import face_frame
 
@@ -164,7 +165,7 @@ def test_without_jaw_landmarks_the_mouth_parts_are_found_as_before():
     Vf, Lf = frame.to_face(V), frame.to_face(V[lm])
     hinge = jaw_hinge(Lf, eye_distance(Lf))
     whole = classify_parts(Vf, T, Lf, hinge).kind
-    Lf[list(MOUTH_JAW)] = np.nan
+    Lf[[JAW_RIGHT_ANGLE, JAW_LEFT_ANGLE]] = np.nan
     kind = classify_parts(Vf, T, Lf, hinge).kind
     assert (kind == CODE["jaw"]).sum() > 1000 and np.array_equal(kind == CODE["jaw"], whole == CODE["jaw"])
     assert np.array_equal(kind == CODE["skull"], whole == CODE["skull"])

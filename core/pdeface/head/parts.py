@@ -42,6 +42,8 @@ from ..geometry import row_norms
 from ..io.files import load_json
 from ..landmark_scheme import (
     CHIN,
+    JAW_LEFT_ANGLE,
+    JAW_RIGHT_ANGLE,
     LIP_LOWER_INNER,
     LIP_MIDDLES,
     LIP_UPPER_INNER,
@@ -185,8 +187,8 @@ def classify_parts(Vf, T, Lf, hinge, overrides=None, welded=False, pieces=None) 
     zcut = hinge[2] + JAW_CUT_IOD * s
     # What is inside the mouth lies within the face's outline: a part wider than the jaw at the lower lip's height
     # lies over it (a beard shell round the mouth, 1.58 of that width; teeth, gums and tongues 0.81-0.88).
-    # (A model file keeps landmarks 5 and 11; where they are NaN, no width is asked.)
-    jaw_width = np.nan_to_num(abs(Lf[MOUTH_JAW[0], 0] - Lf[MOUTH_JAW[1], 0]), nan=np.inf)
+    # (The jaw's angles, 5 and 11; where they are NaN, no width is asked.)
+    jaw_width = np.nan_to_num(abs(Lf[JAW_RIGHT_ANGLE, 0] - Lf[JAW_LEFT_ANGLE, 0]), nan=np.inf)
     attached = []
     for c, m in members.items():
         if c in balls:
@@ -235,9 +237,6 @@ def classify_parts(Vf, T, Lf, hinge, overrides=None, welded=False, pieces=None) 
     return parts
 
 
-#: The jaw's landmarks at the lower lip's height, right and left (a fitted model keeps them): what is wider than the
-#: jaw between them is no mouth part.
-MOUTH_JAW = (5, 11)
 #: How far in front of the jaw hinge (eye distances) the jaw's inner parts start moving with it
 #: (ICT-FaceKit's jawOpen: gums and tongue further back stay put).
 JAW_CUT_IOD = 0.15

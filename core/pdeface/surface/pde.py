@@ -243,7 +243,8 @@ def _smooth_coefficients(knots: tuple, k: float, breaks: tuple = (), break_slope
     at both curves, and the runs of intervals on either side get not-a-knot
     ends instead: C1 everywhere, C2 within each run.
     """
-    return _smooth_coefficient_stack(knots, (k,), breaks, break_slope)[0]
+    # Uncached: this function keeps its own, and one-wavenumber stacks would push out the surfaces' whole ones.
+    return _smooth_coefficient_stack.__wrapped__(knots, (k,), breaks, break_slope)[0]
 
 
 @lru_cache(maxsize=64)
