@@ -30,7 +30,7 @@ from ..geometry import ClosestPoint, similarity
 from ..landmark_scheme import NOSE_BRIDGE_TOP, eye_distance
 from ..mesh import connected_components
 from ..surface.frame import face_frame
-from .register import settle_on_skin
+from .register import carried, settle_on_skin
 
 BROWS = range(17, 27)
 #: The found landmarks that lay ICT's generic head onto the face for its brows: the eyes and the nose (27-47), the upper
@@ -95,12 +95,8 @@ def brows_from_upper_face(V, T, points, closest: ClosestPoint | None = None) -> 
         On ``(V, T)``, when already built.
     """
     out = np.array(points, np.float64)
-    V_ict, _, landmarks = generic_head_geometry()
-    L = V_ict[landmarks]
-    upper, rows = list(UPPER_FACE), list(BROWS)
     closest = ClosestPoint(V, T) if closest is None else closest
-    s, R, t = similarity(L[upper], out[upper])
-    out[rows] = closest.query(s * L[rows] @ R.T + t)[3]
+    out[list(BROWS)] = carried(out, BROWS, UPPER_FACE, closest)
     return out
 
 

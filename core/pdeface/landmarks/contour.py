@@ -68,7 +68,7 @@ from ..geometry import ClosestPoint, ray_triangle, similarity, smoothstep
 from ..landmark_scheme import eye_distance
 from ..mesh import connected_components
 from ..surface.frame import face_frame
-from .register import settle_on_skin
+from .register import carried, ict_landmarks, settle_on_skin
 from .render import View, back_project, column_depths
 
 #: The jaw points taken to the template's depth behind the eyes. The chin's (6-10) face the viewer, their ray hits
@@ -93,12 +93,6 @@ def template_depths(template68) -> np.ndarray:
     return F[36:48, 2].mean() - F[:, 2]
 
 
-@lru_cache(maxsize=1)
-def _ict_landmarks() -> np.ndarray:
-    V, _, landmarks = generic_head_geometry()
-    return V[landmarks]
-
-
 def upper_jaw_at_template_depth(V, T, points, template68=None) -> np.ndarray:
     """``points (68, 3)`` with the jaw's sides at the template's depth behind the eyes (:data:`UPPER_JAW`), or for
     the lower ones (:data:`BEHIND_CHIN`) behind the jaw point beside the chin where the two disagree
@@ -119,7 +113,7 @@ def upper_jaw_at_template_depth(V, T, points, template68=None) -> np.ndarray:
     f = face_frame(out)
     eyes = eye_distance(out) * f.scale
     F = f.to_face(out)
-    behind = template_depths(_ict_landmarks() if template68 is None else template68) * eyes
+    behind = template_depths(ict_landmarks() if template68 is None else template68) * eyes
     behind_eyes = F[36:48, 2].mean() - behind
     depth = F[:, 2].copy()
     depth[list(UPPER_JAW)] = behind_eyes[list(UPPER_JAW)]
@@ -250,16 +244,8 @@ def jaw_angles_from_neighbours(V, T, points, closest: ClosestPoint | None = None
     out = np.array(points, np.float64)
     closest = ClosestPoint(V, T) if closest is None else closest
     for j, around in ANGLES.items():
-        out[[j]] = _towards(out, [j], _carried(out, [j], around, closest), ANGLE_DISAGREE, closest)
+        out[[j]] = _towards(out, [j], carried(out, [j], around, closest), ANGLE_DISAGREE, closest)
     return out
-
-
-def _carried(points, rows, around, closest: ClosestPoint) -> np.ndarray:
-    """Where ICT's generic head's landmarks ``rows`` land on the skin once its ``around`` are laid onto ``points``'
-    by a similarity."""
-    L = _ict_landmarks()
-    s, R, t = similarity(L[list(around)], points[list(around)])
-    return closest.query(s * L[list(rows)] @ R.T + t)[3]
 
 
 def _towards(points, rows, placed, disagree, closest: ClosestPoint) -> np.ndarray:
@@ -375,10 +361,10 @@ def chin_on_profile(V, T, points, closest: ClosestPoint | None = None) -> np.nda
         placed = P[k - 1] + w * (P[k] - P[k - 1])
     out[[CHIN]] = _towards(out, [CHIN], placed[None], CHIN_DISAGREE, closest)
     sides = [7, 9]
-    out[sides] = _towards(out, sides, _carried(out, sides, AROUND_CHIN, closest), CHIN_DISAGREE, closest)
+    out[sides] = _towards(out, sides, carried(out, sides, AROUND_CHIN, closest), CHIN_DISAGREE, closest)
     beside = out[list(BESIDE_CHIN)]
     for j, around in BESIDE_CHIN.items():
-        out[[j]] = _towards(out, [j], _carried(out, [j], around, closest), BESIDE_DISAGREE, closest)
+        out[[j]] = _towards(out, [j], carried(out, [j], around, closest), BESIDE_DISAGREE, closest)
     if not np.array_equal(out[list(BESIDE_CHIN)], beside):  # the chin's sides again, by the points beside it moved
-        out[sides] = _towards(out, sides, _carried(out, sides, AROUND_CHIN, closest), CHIN_DISAGREE, closest)
+        out[sides] = _towards(out, sides, carried(out, sides, AROUND_CHIN, closest), CHIN_DISAGREE, closest)
     return out
