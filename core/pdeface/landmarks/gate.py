@@ -54,8 +54,7 @@ from ..landmark_scheme import (
     JAW_RIGHT_ANGLE,
     LOWER_LIDS,
     MIRROR,
-    MOUTH_CORNER_LEFT,
-    MOUTH_CORNER_RIGHT,
+    MOUTH_CORNERS,
     NOSE_BOTTOM,
     NOSE_BRIDGE_TOP,
     UPPER_LIDS,
@@ -409,7 +408,7 @@ def check(points, V=None, T=None, unit=None) -> Verdict:
     if bend.max() > JAW_BEND:
         verdict.fail("jaw", "smooth", f"landmark {int(np.argmax(bend)) + 1} {bend.max():.2f} eye distances off the "
                                       f"middle of its neighbours (jawlines: {JAW_BEND})")
-    back = float(F[[MOUTH_CORNER_RIGHT, MOUTH_CORNER_LEFT], 2].mean() - F[[JAW_RIGHT_ANGLE, JAW_LEFT_ANGLE], 2].mean())
+    back = float(F[MOUTH_CORNERS, 2].mean() - F[[JAW_RIGHT_ANGLE, JAW_LEFT_ANGLE], 2].mean())
     if back < JAW_ANGLES_BACK:
         verdict.fail("jaw", "depth", f"jaw angles {back:.2f} eye distances behind the mouth corners (faces: at "
                                      f"least {JAW_ANGLES_BACK})")
