@@ -43,10 +43,9 @@ def triangles(mesh, loops=True):
     return tv.reshape(-1, 3).astype(np.int64), tl.reshape(-1, 3).astype(np.int64)
 
 
-def as_pdeface_mesh(mesh, coords=True):
-    """A Blender mesh's polygons as a pdeface Mesh (object space), corners in polygon order,
-    with the active UV layer's coordinates where it has one; ``coords=False``: the polygons alone (vertices
-    zero, no UVs), not read."""
+def as_pdeface_mesh(mesh, V=None):
+    """A Blender mesh's polygons as a pdeface Mesh (object space), corners in polygon order, with the active UV
+    layer's coordinates where it has one; ``V (n, 3)``: at these vertices instead of the mesh's own (no UVs)."""
     counts = np.empty(len(mesh.polygons), dtype=np.int32)
     starts = np.empty(len(mesh.polygons), dtype=np.int32)
     mesh.polygons.foreach_get("loop_total", counts)
@@ -55,9 +54,10 @@ def as_pdeface_mesh(mesh, coords=True):
     mesh.loops.foreach_get("vertex_index", corners)
     first = np.repeat(np.cumsum(counts) - counts, counts)
     loops = np.repeat(starts, counts) + np.arange(counts.sum()) - first  # each polygon's loops, in polygon order
-    V = vertices(mesh) if coords else np.zeros((len(mesh.vertices), 3))  # zeros: never garbage or NaN
-    out = Mesh(V, counts.astype(np.int64), corners[loops].astype(np.int64))
-    if coords and mesh.uv_layers.active is not None:
+    own = V is None
+    out = Mesh(vertices(mesh) if own else np.asarray(V, np.float64), counts.astype(np.int64),
+               corners[loops].astype(np.int64))
+    if own and mesh.uv_layers.active is not None:
         out.uvs, out.face_uv_indices = loop_uvs(mesh), loops.astype(np.int64)
     return out
 
@@ -76,8 +76,7 @@ def polygon_triangles(mesh, V) -> np.ndarray:
     binding a head on the same triangles as ``pdeface pose --mesh`` makes the
     keys equal to its poses.
     """
-    polygons = as_pdeface_mesh(mesh, coords=False)
-    return Mesh(np.asarray(V, np.float64), polygons.face_counts, polygons.face_indices).triangles()[0]
+    return as_pdeface_mesh(mesh, V).triangles()[0]
 
 
 def loop_uvs(mesh, layer=None) -> np.ndarray:
