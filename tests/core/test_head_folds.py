@@ -269,12 +269,12 @@ def test_held_vertices_stay_in_the_keys_that_hold_them_alone():
     free = cliff.copy()
     FoldRelax(V, T, pinned).relax(free)
     held = D.copy()
-    FoldRelax(V, T, pinned).relax(held, held=foot, held_keys=[0])
+    FoldRelax(V, T, pinned).relax(held, held=[(foot, [0])])
     np.testing.assert_array_equal(held[foot, 0], D[foot, 0])
     np.testing.assert_allclose(held[:, 1], free[:, 0], atol=1e-12)
     assert not np.allclose(held[foot, 1], D[foot, 1])  # relaxed there: the hold was not the second key's
     everywhere = D.copy()
-    FoldRelax(V, T, pinned).relax(everywhere, held=foot)  # every key holds them by default
+    FoldRelax(V, T, pinned).relax(everywhere, held=[(foot, None)])  # None: every key holds them
     np.testing.assert_array_equal(everywhere[foot], D[foot])
 
 

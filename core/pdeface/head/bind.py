@@ -1113,9 +1113,8 @@ class HeadBinding:
         # Relaxed again where the lids' closing or the eyeballs' surface folded them (a blink, a glance down), past
         # the limit alone (each sweep opens a closed lid a little), the lids kept out of the eyeballs; only
         # what moved since the first relaxation's screen is screened again.
-        closes = [i for i, c in enumerate(closing) if c]
         self._folds.relax(out, keys=[i for i, c in enumerate(closing) if c or pushed[i]], budget=self._folds.limit,
-                          screen=screen, held=self._lids.held, held_keys=closes)
+                          screen=screen, held=self._lids.held_in(closing))
         if len(self.mouth):  # the bag: the jaw's turn below the mouth line, the upper lip's motion above it
             lip = out[self._upper_lip_vertex][None]
             out[self.mouth] = self._mouth_lower * out[self.mouth] + (1 - self._mouth_lower) * lip

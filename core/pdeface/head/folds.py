@@ -277,15 +277,15 @@ class FoldRelax:
         return screen.bent
 
     def relax(self, D, keys=None, budget=None, steps=None, screen=None, unpinned=None, unpinned_keys=None, look=1,
-              held=None, held_keys=None):
+              held=()):
         """Relax displacements ``D`` (n, k, 3) in place where they fold more than ``budget`` edges (default:
         :attr:`budget`), only ``keys`` (indices) if given, in at most ``steps`` sweeps (default: RELAX_STEPS; or
         (k,) ints, each key's, multiples of ``look``); whether any key was changed. ``unpinned`` (indices or a mask):
         pinned vertices that ``unpinned_keys`` (indices; default every key) may move (a pin some keys need, others
         not). The folds are measured (and each key's region grown, its best kept, its end decided) every ``look``
-        sweeps (the measure costs more than a sweep; see SWEEPS_PER_LOOK). ``held``: vertices (indices) that the keys
-        ``held_keys`` (indices; default every key) relaxed here do not move (a coarse eye's closed lid margins in the
-        keys that close it: the sweeps would open it again).
+        sweeps (the measure costs more than a sweep; see SWEEPS_PER_LOOK). ``held``: ``(vertices, keys)`` pairs
+        (indices; ``keys`` None: every key), vertices those keys relaxed here do not move (a coarse eye's closed lid
+        margins in the keys that close it: the sweeps would open it again).
 
         Each key is relaxed piece by piece of the mesh, each piece to its share of ``budget`` (by its flat edges):
         a lash strip folding does not smooth the lid under it. Every (key, piece) is worked on at once.
@@ -318,25 +318,16 @@ class FoldRelax:
             extra = np.zeros(len(self.free), bool)
             if unpinned is not None:
                 extra[unpinned] = True
-            extra_keys = np.ones(D.shape[1], bool)
-            if unpinned_keys is not None:
-                extra_keys[:] = False
-                extra_keys[unpinned_keys] = True
-            hold = None
-            if held is not None and len(held):
-                holding = np.ones(D.shape[1], bool)
-                if held_keys is not None:
-                    holding[:] = False
-                    holding[held_keys] = True
-                hold = (held, holding)
+            extra_keys = _key_mask(unpinned_keys, D.shape[1])
+            hold = [(np.asarray(v, np.int64), _key_mask(k, D.shape[1])) for v, k in held if len(v)]
             self._relax_jobs(D, jobs, steps, screen, (extra, extra_keys), look, hold)
         return changed
 
-    def _relax_jobs(self, D, jobs, steps, screen=None, unpinned=None, look=1, held=None):
+    def _relax_jobs(self, D, jobs, steps, screen=None, unpinned=None, look=1, held=()):
         """Relax ``jobs`` ``(key, folded edges of one piece, budget)`` of ``D`` (n, k, 3) in place, each in at most
         ``steps`` (k,) of its key's sweeps, looking at its folds every ``look`` sweeps; per job the folds left (never
         more than as bound). ``unpinned``: ``(vertices (n,) bool, keys (k,) bool)``, pinned vertices those keys may
-        move; ``held``: ``(vertices (indices), keys (k,) bool)``, vertices no job of those keys moves.
+        move; ``held``: ``[(vertices (indices), keys (k,) bool)]``, vertices no job of those keys moves.
 
         Each job works on the vertices within ZONE_RINGS of its folded edges alone (and two rings around them, read
         only), sweep after sweep until it folds at most its budget or stalls (STALL_STEPS, SETTLE_STEPS). The jobs'
@@ -370,8 +361,8 @@ class FoldRelax:
         free = self.free[vertex]
         if unpinned is not None:
             free |= unpinned[0][vertex] & unpinned[1][key_of[job]]
-        if held is not None:
-            free &= ~(np.isin(vertex, held[0]) & held[1][key_of[job]])
+        for vertices, keys in held:
+            free &= ~(np.isin(vertex, vertices) & keys[key_of[job]])
         movable = free & in_zone[cols]
         # The flat edges with a corner in a zone, their triangles (each once) in local indices.
         pair, row = _rows_gather(self.vertex_pairs, zone % n)
@@ -613,3 +604,11 @@ def _rows_gather(A, rows):
     """``(columns, slots)`` of every entry of CSR ``A``'s ``rows`` (each entry's slot in ``rows``)."""
     pos, slot = _rows_entries(A, rows)
     return A.indices[pos], slot
+
+
+def _key_mask(keys, k) -> np.ndarray:
+    """(k,) bool: the keys ``keys`` (indices), or every key where None."""
+    mask = np.ones(k, bool) if keys is None else np.zeros(k, bool)
+    if keys is not None:
+        mask[keys] = True
+    return mask

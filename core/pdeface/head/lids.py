@@ -81,7 +81,7 @@ class LidClosure:
         self.Vf = Vf
         self.eyes = []
         self.lower = []  # per eye: the lower lid's vertices and how each follows its margin
-        held = []  # coarse eyes' margins, kept where the closing takes them (see :attr:`held`)
+        held = {}  # coarse eyes' margins per side, kept where the closing takes them (see :attr:`held`)
         on_lid = np.nonzero(lid)[0]
         lid_points = Vf[on_lid]  # gathered once for both eyes' middles (ICT: 17k rows; 8 gathers cost 3 ms)
         for side, (upper, lower) in LIDS.items():
@@ -121,11 +121,18 @@ class LidClosure:
             self.eyes.append((up_mid, low_mid, idx, w[idx], np.asarray(centre, np.float64)))
             self.lower.append((low, w_low[low]))
             if margins is not None:  # the upper margin (moved all the way) and the lower middle it closes onto
-                held += [idx[w[idx] >= HELD_SHARE], low_mid]
-        #: Vertices the folds' relaxation after the closing leaves where it took them: on a coarse eye one row of
-        #: triangles spans the opening and a blink creases it past the folds' limit (10 edges against 4 on a
-        #: 1.4k-vertex head), and the sweeps opened the lids again (0.05 of the rest gap to 0.23-0.32).
-        self.held = np.unique(np.concatenate(held)).astype(np.int64) if held else np.zeros(0, np.int64)
+                held[side] = np.unique(np.concatenate([idx[w[idx] >= HELD_SHARE], low_mid])).astype(np.int64)
+        #: Per side ("R", "L": coarse eyes only), the vertices the folds' relaxation after the closing leaves where it
+        #: took them in the keys closing that eye: on a coarse eye one row of triangles spans the opening and a blink
+        #: creases it past the folds' limit (10 edges against 4 on a 1.4k-vertex head), and the sweeps opened the
+        #: lids again (0.05 of the rest gap to 0.23-0.32).
+        self.held = held
+
+    def held_in(self, closing) -> list:
+        """``[(vertices, keys)]``: each coarse eye's :attr:`held` vertices and the keys (indices) of ``closing``
+        (per key, :func:`eyes_closed_by`'s dict or None) that close that eye (a wink without a side: both)."""
+        return [(v, [i for i, c in enumerate(closing) if c and (c.get(side) or c.get("?"))])
+                for side, v in self.held.items()]
 
     def apply(self, out, closing):
         """Close the eyes in the keys that close them, in place.
