@@ -166,6 +166,15 @@ def _listed(data, key, what, where) -> list:
     return value
 
 
+def _check_unit(unit, where):
+    """A unit ``parse_unit`` reads (or None), else a :class:`JobError` naming ``where``."""
+    if unit is not None:
+        try:
+            parse_unit(unit)
+        except PdeFaceError as exc:
+            raise JobError(f"{where}: {exc}") from None
+
+
 def _plan_rig(data, base, where):
     meshes = _listed(data, "meshes", "head meshes (paths or globs)", where)
     entries = []
@@ -181,11 +190,7 @@ def _plan_rig(data, base, where):
         if not found:
             raise JobError(f"{where}: {spec!r} matches no file")
         entries += [{**entry, "mesh": f} for f in found]
-    if data.get("unit") is not None:  # the job's own, checked whether or not an entry sets its own
-        try:
-            parse_unit(data["unit"])
-        except PdeFaceError as exc:
-            raise JobError(f"{where}: unit: {exc}") from None
+    _check_unit(data.get("unit"), f"{where}: unit")  # the job's own, checked whether or not an entry sets its own
     options = {"unit": data.get("unit"), "descriptors": _path(base, data.get("descriptors", DEFAULT)),
                "presets": bool(data.get("presets", True)), "blend": bool(data.get("blend", False)),
                "accept": bool(data.get("accept", False))}  # landmarks or a mesh that fail the gate: go on anyway
@@ -199,11 +204,7 @@ def _plan_rig(data, base, where):
         elif lm:
             lm = str(base / lm)
         unit = entry.get("unit", options["unit"])
-        if unit is not None:
-            try:
-                parse_unit(unit)
-            except PdeFaceError as exc:
-                raise JobError(f"{where}: {entry['mesh']}: {exc}") from None
+        _check_unit(unit, f"{where}: {entry['mesh']}")
         params = {**options, "mesh": entry["mesh"], "landmarks": lm, "unit": unit,
                   "parts": str(base / entry["parts"]) if entry.get("parts") else None, "folder": name}
         outputs = [f"{name}/{f}" for f in ("landmarks.json", "face.npz", "rigged.npz", "keys.npz", "report.json")]
