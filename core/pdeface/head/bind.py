@@ -815,8 +815,9 @@ class HeadBinding:
         if not np.array_equal(middles, Lf[[LIP_UPPER_INNER, LIP_LOWER_INNER]], equal_nan=True):
             Lf = Lf.copy()  # one found point split onto merged rims: the binding reads the lips' own middles
             Lf[[LIP_UPPER_INNER, LIP_LOWER_INNER]] = middles
-        #: The landmarks (face frame) the binding read: the given ones, but for one found point for both inner lips'
-        #: middles split onto rims a decimation merged (the mouth bag reads the same lips as the keys).
+        #: The landmarks (face frame) the keys and the mouth bag read: the given ones, but for one found point for both
+        #: inner lips' middles split onto rims a decimation merged. The parts (:attr:`parts`) were classified before,
+        #: on the given ones: the split moves the middles along the mouth line, not across a part's bounds.
         self.face_landmarks = Lf
         if lips_joined:
             self.notes.append("the lips are joined in the mesh (no opening between them): keys that open the mouth "
