@@ -816,8 +816,8 @@ class HeadBinding:
             Lf = Lf.copy()  # one found point split onto merged rims: the binding reads the lips' own middles
             Lf[[LIP_UPPER_INNER, LIP_LOWER_INNER]] = middles
         #: The landmarks (face frame) the keys and the mouth bag read: the given ones, but for one found point for both
-        #: inner lips' middles split onto rims a decimation merged. The parts (:attr:`parts`) were classified before,
-        #: on the given ones: the split moves the middles along the mouth line, not across a part's bounds.
+        #: inner lips' middles split onto rims a decimation merged. The parts (:attr:`parts`) were classified before
+        #: that, on the given ones.
         self.face_landmarks = Lf
         if lips_joined:
             self.notes.append("the lips are joined in the mesh (no opening between them): keys that open the mouth "
