@@ -189,3 +189,23 @@ def test_landmarks_off_the_skin_name_the_worst_one_and_what_may_hold_it():
     L[36:48, 2] += 0.35 * ed  # on a lens in front of the eyes
     with pytest.raises(MeshError, match=r"the worst .* landmark (3[6-9]|4[0-7])\).*glasses"):
         _check_on_skin(L, V, T, cKDTree(V[np.unique(T)]), ed)
+
+
+@pytest.mark.parametrize("aside", [0.0, -0.025, 0.025])
+def test_a_mouth_open_at_rest_is_not_taken_for_lips_joined(aside):
+    """ICT with its jaw open 0.4 at rest (inner lips 0.23 eye distances apart), the inner lips' middles where a
+    detector found them (0.024 eye distances aside) or centred: the way between them over the skin runs round a mouth
+    corner, 3.2 times the gap, and was read as lips joined in the mesh (the binding said to cut the mouth open, and
+    bound the lips as one). Only a way over the lips' front within the mouth's middle joins them."""
+    from pdeface.au.modelfile import load_face
+    from pdeface.au.retarget import retarget
+    from pdeface.head.bind import HeadBinding
+    from pdeface.landmark_scheme import LIP_LOWER_INNER, LIP_UPPER_INNER
+    from pdeface.surface.fit import fit_face
+
+    V, T, L, _ = BUILDERS["ict-mouth-open-parts"]()
+    L = np.array(L, float)
+    L[[LIP_UPPER_INNER, LIP_LOWER_INNER], 0] += aside * eye_distance(L)
+    model = retarget(load_face("default"), fit_face(V, T, L)[0])
+    b = HeadBinding(model, V, T, landmarks=L)
+    assert not any("lips are joined" in n for n in b.notes)
