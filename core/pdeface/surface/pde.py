@@ -460,7 +460,7 @@ class SurfaceOperator:
         """
         return np.ascontiguousarray(self.planes(coefficients, residual).transpose(1, 2, 0))
 
-    def planes(self, coefficients: np.ndarray, residual: np.ndarray, reuse=None) -> np.ndarray:
+    def planes(self, coefficients: np.ndarray, residual: np.ndarray, reuse=None, dtype=np.float64) -> np.ndarray:
         """(K, N+1, c) coefficients and (K, J, c) residual → the surface as (c, n_u, n_v) planes, one per
         coordinate of each surface: what a computation over the grid's rows and columns reads whole (no strided
         copy of an interleaved grid). The u factors are made per plane and row, so the v factors' products write
@@ -469,17 +469,23 @@ class SurfaceOperator:
         ``reuse``: a list that keeps the products' two buffers between calls (empty at first): the planes returned
         are then written over the last call's. Many solves on one grid (a face's keys, a batch at a time) fault in
         fresh pages for each otherwise (issue #35); the same products, so the same numbers.
+
+        ``dtype``: ``np.float32`` makes every product in float32 (the data and the operator's factors rounded to
+        it, the factors once per operator), at about half the cost: values within float32's rounding of its
+        accumulated products (a few 1e-7 of the terms), for a caller that only screens them (the resolution choice).
         """
-        F, Ru = self._u_factors(coefficients, residual)
-        _, _, v_modes, v_remainder = self._plane_factors
+        factors = self._plane_factors32 if np.dtype(dtype) == np.float32 else self._plane_factors
+        coefficients, residual = (a.astype(factors[0].dtype, copy=False) for a in (coefficients, residual))
+        F, Ru = self._u_factors(coefficients, residual, factors)
+        _, _, v_modes, v_remainder = factors
         c, n_u, _ = F.shape
         rows = c * n_u
         if reuse is None:
             X = Ru.reshape(rows, -1) @ v_remainder
             X += F.reshape(rows, -1) @ v_modes
             return X.reshape(c, n_u, -1)
-        if not reuse or len(reuse[0]) < rows:
-            reuse[:] = [np.empty((rows, v_modes.shape[1])) for _ in range(2)]
+        if not reuse or len(reuse[0]) < rows or reuse[0].dtype != v_modes.dtype:
+            reuse[:] = [np.empty((rows, v_modes.shape[1]), v_modes.dtype) for _ in range(2)]
         X = np.matmul(Ru.reshape(rows, -1), v_remainder, out=reuse[0][:rows])
         X += np.matmul(F.reshape(rows, -1), v_modes, out=reuse[1][:rows])
         return X.reshape(c, n_u, -1)
@@ -505,16 +511,22 @@ class SurfaceOperator:
             np.matmul(Vn[s], U[:, u].T, out=out[s])
         return out
 
-    def _u_factors(self, coefficients, residual):
+    def _u_factors(self, coefficients, residual, factors=None):
         """The u factors of :meth:`planes` per plane and row: the modes' F (c, n_u, (N+1) B) and the remainder's
-        Ru (c, n_u, B J), their columns in the rows' order of the v factors."""
+        Ru (c, n_u, B J), their columns in the rows' order of the v factors. ``factors``: :attr:`_plane_factors`
+        (the default) or :attr:`_plane_factors32`."""
         K, J, c = residual.shape
-        modes_u, remainder_u, _, _ = self._plane_factors
+        modes_u, remainder_u, _, _ = self._plane_factors if factors is None else factors
         n1, _, n_u, b = modes_u.shape
         F = np.matmul(np.transpose(coefficients, (1, 2, 0)), modes_u.reshape(n1, K, n_u * b))  # (n1, c, n_u b)
         F = F.reshape(n1, c, n_u, b).transpose(1, 2, 0, 3).reshape(c, n_u, n1 * b)
         Ru = np.matmul(remainder_u, np.ascontiguousarray(np.transpose(residual, (2, 0, 1))))  # (c, n_u b, J)
         return F, Ru.reshape(c, n_u, b * J)
+
+    @cached_property
+    def _plane_factors32(self):
+        """:attr:`_plane_factors` rounded to float32, once: :meth:`planes`' ``dtype=np.float32``."""
+        return tuple(f.astype(np.float32) for f in self._plane_factors)
 
     @cached_property
     def _node_factors(self):
@@ -588,7 +600,7 @@ def merged_operator(knots: tuple, n_points: int, n_modes: int, a: float, w: floa
 
 def solve_surface(coefficients, residual, knots, a=1.0, w=None, sub_u=4, sub_v=4,
                   assembly="smooth", deriv=(0, 0), breaks=(), break_slope=BREAK_SLOPE, confine=(), planes=False,
-                  nodes=None, reuse=None):
+                  nodes=None, reuse=None, dtype=np.float64):
     """Evaluate the PDE surface (or a derivative) on the output grid.
 
     Parameters
@@ -625,6 +637,8 @@ def solve_surface(coefficients, residual, knots, a=1.0, w=None, sub_u=4, sub_v=4
     reuse : list, optional
         With ``planes``: :meth:`SurfaceOperator.planes`' buffers, kept between calls (the planes returned are
         written over the last call's).
+    dtype : numpy dtype
+        With ``planes``: ``np.float32`` solves in float32 (:meth:`SurfaceOperator.planes`), for a screen.
     nodes : (p,) int array, optional
         Flat grid indices ``u * n_v + v``, increasing: the surface there alone, (p, 3) ((p, 3m)), the values
         of the whole grid's (:meth:`SurfaceOperator.at_nodes`).
@@ -635,8 +649,9 @@ def solve_surface(coefficients, residual, knots, a=1.0, w=None, sub_u=4, sub_v=4
         The surface's grid; with ``planes``, (3, n_u, n_v) (3m, n_u, n_v) its coordinate planes instead; with
         ``nodes``, (p, 3) ((p, 3m)) its nodes.
     """
-    coefficients = np.asarray(coefficients, dtype=np.float64)
-    residual = np.asarray(residual, dtype=np.float64)
+    dtype = dtype if planes else np.float64
+    coefficients = np.asarray(coefficients, dtype=dtype)
+    residual = np.asarray(residual, dtype=dtype)
     if not a > 0:
         raise LayoutError(f"smoothing parameter a must be > 0, got {a}")
     K, N1 = coefficients.shape[:2]
@@ -654,7 +669,7 @@ def solve_surface(coefficients, residual, knots, a=1.0, w=None, sub_u=4, sub_v=4
         op = confined_operator(*args, tuple(deriv), br, float(break_slope), key)
     if nodes is not None:
         return op.at_nodes(coefficients, residual, nodes)
-    return op.planes(coefficients, residual, reuse) if planes else op.apply(coefficients, residual)
+    return op.planes(coefficients, residual, reuse, dtype) if planes else op.apply(coefficients, residual)
 
 
 @lru_cache(maxsize=16)

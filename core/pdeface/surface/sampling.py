@@ -78,9 +78,6 @@ SCREEN_CALL_QUADS = 4000
 #: A quad whose normal (the cross product of its diagonals, mm²) is shorter than this, its float32 turns
 #: unreliable: the screen passes its edges.
 SCREEN_TINY_MM2 = 1e-3
-#: A key's largest displacement in a row or column, rounded to float32, is within this share of MOVED_MM of its
-#: float64 value when near it (float32 keeps 7 digits): those nearer are taken again from float64.
-SCREEN_SLACK = 1e-5
 
 
 def _checked(steps, what):
@@ -464,30 +461,22 @@ def interval_turns(model, rows, cols, W, floor=0.0, stacks=None):
             if len(found) == SETTLE_POSES:
                 settle()
 
-    kept32, batch32 = {}, None
-    # (m, 3, n_u, n_v): each key's planes, each batch written over the last one's (fresh pages cost; issue #35),
-    # as is its float32 copy
-    for first, grids in key_grids(model, rows, cols, planes=True, reuse=True, stacks=stacks):
+    size = None
+    # (m, 3, n_u, n_v) float32: each key's planes, each batch written over the last one's (fresh pages cost; issue
+    # #35). They are the keys the turns are measured on: screened as they are, read in float64 at the candidates
+    for first, grids in key_grids(model, rows, cols, planes=True, reuse=True, stacks=stacks, dtype=np.float32):
         m = len(grids)
-        if batch32 is None:
-            batch32 = np.empty((2,) + grids.shape, np.float32)
-        screen = batch32[0, :m]
-        screen[...] = grids
-        # the largest per row and per column from float32 (half the bytes to read), again in float64 where its
-        # rounding could put it on either side of MOVED_MM
-        size = np.abs(screen, out=batch32[1, :m]).max(axis=1)  # (m, n_u, n_v): the largest of the three planes
+        if size is None:
+            size = np.empty(grids.shape, np.float32)
+        # a row or column moves where its largest displacement (of the three planes) is past MOVED_MM
+        np.abs(grids, out=size[:m])
         for axis, moved_lines in ((0, rows_moved), (1, cols_moved)):
-            largest = size.max(axis=2 - axis)
-            unsure = np.abs(largest - np.float32(MOVED_MM)) <= SCREEN_SLACK * MOVED_MM
-            moved_lines[first:first + m] = largest > MOVED_MM
-            for j, i in zip(*np.nonzero(unsure)):
-                moved_lines[first + j, i] = np.abs(grids[j, :, i] if axis == 0 else grids[j, :, :, i]).max() > MOVED_MM
-        del size
-        at_landmarks_moved = grids.reshape(m, 3, n_u * n_v)[:, :, at_landmarks]
+            moved_lines[first:first + m] = size[:m].max(axis=(1, 3 - axis)).astype(np.float64) > MOVED_MM
+        at_landmarks_moved = grids.reshape(m, 3, n_u * n_v)[:, :, at_landmarks].astype(np.float64)
         poses = []  # (its key's grid, key, pose, block)
         for j, k in enumerate(range(first, first + m)):
             if k in kept:
-                kept[k], kept32[k] = grids[j].copy(), screen[j].copy()
+                kept[k] = grids[j].copy()
             block = _moved_block(rows_moved[k], cols_moved[k])
             poses += [(j, k, p, block) for p in single.get(k, ())] if block is not None else []
         for part in (poses[i:i + SCREEN_POSES] for i in range(0, len(poses), SCREEN_POSES)):
@@ -496,7 +485,7 @@ def interval_turns(model, rows, cols, W, floor=0.0, stacks=None):
 
             def vertex(q, r, c, grids=grids, j=j, w=w):
                 return [w[q] * grids[j[q], i, r, c] + planes0[i, r, c] for i in range(3)]
-            measure_screened(screen[j[0]:j[-1] + 1] if (np.diff(j) == 1).all() else screen[j], w,
+            measure_screened(grids[j[0]:j[-1] + 1] if (np.diff(j) == 1).all() else grids[j], w,
                              [b for _, _, _, b in part], vertex, [wi * at_landmarks_moved[g].T for (g, _, _, _), wi
                                                                   in zip(part, w)])
     for p in several:
@@ -504,7 +493,7 @@ def interval_turns(model, rows, cols, W, floor=0.0, stacks=None):
         block = _moved_block(rows_moved[keys].any(axis=0), cols_moved[keys].any(axis=0))
         if block is None:
             continue
-        G = sum(np.float32(W[p, k]) * kept32[k][:, block[0], block[1]] for k in keys)[None]  # its block alone
+        G = sum(np.float32(W[p, k]) * kept[k][:, block[0], block[1]] for k in keys)[None]  # its block alone
 
         def vertex(q, r, c, keys=keys, p=p):
             return list(planes0[:, r, c] + np.tensordot(W[p, keys], np.stack([kept[k][:, r, c] for k in keys]), axes=1))
@@ -545,7 +534,7 @@ def adaptive_resolution(model, max_turn=MAX_TURN_DEG):
     W = pose_weights(model)
     lo, hi = STEPS_RANGE
     floor = max_turn * lo / PROBE  # turns below this leave an interval at the fewest steps
-    stacks = key_stacks(model)  # the keys' coefficients, for both meshes
+    stacks = key_stacks(model, dtype=np.float32)  # the keys' coefficients, for both meshes (solved in float32)
     probed = interval_turns(model, (PROBE,) * (K - 1), (PROBE,) * (J - 1), W, floor, stacks=stacks)
     steps, capped = capped_steps([np.clip(np.ceil(PROBE * t / max_turn), lo, hi).astype(int) for t in probed])
     if not capped:
