@@ -170,7 +170,7 @@ def test_one_check_raises_a_wide_bend_in_proportion_and_a_narrow_one_to_the_most
     checked[0][7] = 2.0 * aim  # as on the probe at more steps: narrow
     calls = []
 
-    def measured(m, rows, cols, W, floor=0.0, stacks=None):
+    def measured(m, rows, cols, W, floor=0.0, stacks=None, buffers=None):
         calls.append((tuple(rows), tuple(cols), floor))
         return [t.copy() for t in (probed if len(calls) == 1 else checked)]
     monkeypatch.setattr(sampling, "interval_turns", measured)
@@ -253,6 +253,14 @@ def test_key_batches_kept_and_written_over_are_the_fresh_ones(model):
         kept.append(first)
         last = grids
     assert kept == [first for first, _, _ in stacks]
+    # one list of buffers kept across two grids (the probe's and the chosen mesh's), made larger where too small
+    buffers = []
+    for steps in ((4, 4), (rows, cols), (2, 2)):
+        fresh = [g.copy() for _, g in key_grids(model, *steps, batch=7, planes=True, dtype=np.float32)]
+        for (_, grids), want in zip(key_grids(model, *steps, batch=7, planes=True, reuse=buffers, dtype=np.float32),
+                                    fresh, strict=True):
+            np.testing.assert_array_equal(grids, want)
+            assert np.shares_memory(grids, buffers[0])
 
 def test_float32_keys_leave_the_float64_ones_as_they_were(model):
     """key_grids in float32 (the resolution choice's) are the float64 keys to float32's rounding of its products;
@@ -276,10 +284,10 @@ def test_float32_keys_leave_the_float64_ones_as_they_were(model):
     np.testing.assert_array_equal(surface_grid(model, rows, cols, dtype=np.float32), surface_grid(model, rows, cols))
 
 
-def reference_interval_turns(model, rows, cols, W, floor=0.0, stacks=None, dtype=np.float64):
+def reference_interval_turns(model, rows, cols, W, floor=0.0, stacks=None, buffers=None, dtype=np.float64):
     """interval_turns written straightforwardly: every key's grid kept, each pose posed on the whole grid and
     its turns and openings measured alone; an edge counts where both its quads lie in the pose's moved block
-    (``stacks``, the descriptors as the choice stacks them for both meshes, unread). ``dtype``: the keys solved in
+    (``stacks`` and ``buffers``, what the choice keeps for both meshes, unread). ``dtype``: the keys solved in
     float64 (the surface's keys), or in float32 as the choice solves them, then measured in float64."""
     from pdeface.geometry import degrees_from_cos
     from pdeface.surface.folds import carried, opening_mask

@@ -99,12 +99,13 @@ def key_grids(model: FaceModel, sub_u, sub_v, assembly=None, batch=KEY_BATCH, pl
     """Each descriptor's change of the surface (face frame, mm) on the output grid, a few solves at a time:
     yields ``(first, grids)``, ``grids`` (n_u, n_v, m, 3) for descriptors ``first .. first + m - 1``
     (``planes``: (m, 3, n_u, n_v)). ``reuse`` (with ``planes``): each batch's grids are written over the last
-    one's, for a caller done with a batch before it asks for the next (the same numbers, no fresh pages).
+    one's, for a caller done with a batch before it asks for the next (the same numbers, no fresh pages); a list:
+    :meth:`pdeface.surface.pde.SurfaceOperator.planes`' buffers, kept by the caller across grids.
     ``stacks``: :func:`key_stacks` of ``batch``, when made already (of ``dtype``, or cast to it). ``dtype``: with
     ``planes``, ``np.float32`` solves in float32 (half the bytes, about half the CPU; values to float32's rounding
     of its products), for the resolution choice's screen alone: keys and bindings stay float64."""
     weights = break_weights(model, sub_v)
-    buffers = [] if reuse and planes else None
+    buffers = (reuse if isinstance(reuse, list) else [] if reuse else None) if planes else None
     dtype = dtype if planes else np.float64
     for first, C, R in key_stacks(model, batch, dtype) if stacks is None else stacks:
         m = C.shape[2] // 3

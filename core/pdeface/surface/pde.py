@@ -466,9 +466,11 @@ class SurfaceOperator:
         copy of an interleaved grid). The u factors are made per plane and row, so the v factors' products write
         the planes as they are.
 
-        ``reuse``: a list that keeps the products' two buffers between calls (empty at first): the planes returned
-        are then written over the last call's. Many solves on one grid (a face's keys, a batch at a time) fault in
-        fresh pages for each otherwise (issue #35); the same products, so the same numbers.
+        ``reuse``: a list that keeps the products' two buffers between calls (empty at first, or flat buffers the
+        caller made; larger ones are made where these are too small or of another dtype): the planes returned are
+        then written over the last call's (in the first buffer; the second is scratch until the next call). Many
+        solves on one grid or several (a face's keys, a batch at a time) fault in fresh pages for each otherwise
+        (issue #35); the same products, so the same numbers.
 
         ``dtype``: ``np.float32`` makes every product in float32 (the data and the operator's factors rounded to
         it, the factors once per operator), at about half the cost: values within float32's rounding of its
@@ -484,10 +486,12 @@ class SurfaceOperator:
             X = Ru.reshape(rows, -1) @ v_remainder
             X += F.reshape(rows, -1) @ v_modes
             return X.reshape(c, n_u, -1)
-        if not reuse or len(reuse[0]) < rows or reuse[0].dtype != v_modes.dtype:
-            reuse[:] = [np.empty((rows, v_modes.shape[1]), v_modes.dtype) for _ in range(2)]
-        X = np.matmul(Ru.reshape(rows, -1), v_remainder, out=reuse[0][:rows])
-        X += np.matmul(F.reshape(rows, -1), v_modes, out=reuse[1][:rows])
+        size = rows * v_modes.shape[1]
+        if not reuse or reuse[0].size < size or reuse[0].dtype != v_modes.dtype:
+            reuse[:] = [np.empty(size, v_modes.dtype) for _ in range(2)]
+        X, product = (b[:size].reshape(rows, -1) for b in reuse)
+        np.matmul(Ru.reshape(rows, -1), v_remainder, out=X)
+        X += np.matmul(F.reshape(rows, -1), v_modes, out=product)
         return X.reshape(c, n_u, -1)
 
     def at_nodes(self, coefficients, residual, nodes) -> np.ndarray:

@@ -25,7 +25,7 @@ from ..geometry import degrees_from_cos
 from ..presets import every_pose
 from ..threads import bounded
 from .folds import carried, nearest_vertices, opening_mask
-from .grid import key_grids, key_stacks, surface_grid
+from .grid import KEY_BATCH, key_grids, key_stacks, surface_grid
 from .model import model_landmarks
 
 #: Named uniform resolutions: (rows per curve interval, columns per point interval). ``default`` is adaptive.
@@ -325,7 +325,7 @@ def _edge_cosines(vertex, axis):
     return sum(x * y for x, y in zip(before, after))
 
 
-def interval_turns(model, rows, cols, W, floor=0.0, stacks=None):
+def interval_turns(model, rows, cols, W, floor=0.0, stacks=None, buffers=None):
     """Largest turn (degrees) of the edges in each curve interval and each point interval, outside the
     openings, over the poses ``W`` (:func:`pose_weights`), on the mesh of ``rows``, ``cols`` steps.
 
@@ -337,7 +337,8 @@ def interval_turns(model, rows, cols, W, floor=0.0, stacks=None):
     float32, a few poses in one array operation over the part of the grid their moved blocks cover, for those that could
     raise a need (:data:`SCREEN_MARGIN_DEG`); only those are measured in float64, with :func:`quad_turn_cosines`'
     products: the same turns as measuring each block. ``stacks``: :func:`pdeface.surface.grid.key_stacks`, when made
-    already (they do not depend on the steps).
+    already (they do not depend on the steps). ``buffers``: the key solves' buffers
+    (:meth:`pdeface.surface.pde.SurfaceOperator.planes`' ``reuse``), kept across meshes.
     """
     planes0 = surface_grid(model, rows, cols, planes=True)
     X0 = np.ascontiguousarray(np.moveaxis(planes0, 0, 2))
@@ -461,16 +462,14 @@ def interval_turns(model, rows, cols, W, floor=0.0, stacks=None):
             if len(found) == SETTLE_POSES:
                 settle()
 
-    size = None
+    buffers = [] if buffers is None else buffers
     # (m, 3, n_u, n_v) float32: each key's planes, each batch written over the last one's (fresh pages cost; issue
     # #35). They are the keys the turns are measured on: screened as they are, read in float64 at the candidates
-    for first, grids in key_grids(model, rows, cols, planes=True, reuse=True, stacks=stacks, dtype=np.float32):
+    for first, grids in key_grids(model, rows, cols, planes=True, reuse=buffers, stacks=stacks, dtype=np.float32):
         m = len(grids)
-        if size is None:
-            size = np.empty(grids.shape, np.float32)
         # a row or column moves where its largest displacement (of the three planes) is past MOVED_MM: the planes'
-        # largest first (reductions over two axes at once read slower)
-        largest = np.abs(grids, out=size[:m]).max(axis=1)
+        # largest first (reductions over two axes at once read slower), their magnitudes in the solve's scratch
+        largest = np.abs(grids, out=buffers[1][:grids.size].reshape(grids.shape)).max(axis=1)
         for axis, moved_lines in ((0, rows_moved), (1, cols_moved)):
             moved_lines[first:first + m] = largest.max(axis=2 - axis).astype(np.float64) > MOVED_MM
         at_landmarks_moved = grids.reshape(m, 3, n_u * n_v)[:, :, at_landmarks].astype(np.float64)
@@ -536,12 +535,16 @@ def adaptive_resolution(model, max_turn=MAX_TURN_DEG):
     lo, hi = STEPS_RANGE
     floor = max_turn * lo / PROBE  # turns below this leave an interval at the fewest steps
     stacks = key_stacks(model, dtype=np.float32)  # the keys' coefficients, for both meshes (solved in float32)
-    probed = interval_turns(model, (PROBE,) * (K - 1), (PROBE,) * (J - 1), W, floor, stacks=stacks)
+    # the solves' buffers, for both meshes: as large as the largest mesh (its pages are touched as used), so the
+    # check's faults in only the pages the probe did not touch (2.7 us a page here)
+    vertices = max(MAX_VERTICES, ((K - 1) * PROBE + 1) * ((J - 1) * PROBE + 1))
+    buffers = [np.empty(3 * KEY_BATCH * vertices, np.float32) for _ in range(2)]
+    probed = interval_turns(model, (PROBE,) * (K - 1), (PROBE,) * (J - 1), W, floor, stacks=stacks, buffers=buffers)
     steps, capped = capped_steps([np.clip(np.ceil(PROBE * t / max_turn), lo, hi).astype(int) for t in probed])
     if not capped:
         bar = VERIFY_FACTOR * max_turn
         raised = []
-        for s, t, p in zip(steps, interval_turns(model, *steps, W, bar, stacks=stacks), probed):
+        for s, t, p in zip(steps, interval_turns(model, *steps, W, bar, stacks=stacks, buffers=buffers), probed):
             expected = PROBE * np.maximum(p, floor) / s  # its turn if it shrank in proportion to the steps
             wanted = np.where(t > NARROW * expected, hi, np.ceil(s * t / (RAISED_AIM * max_turn)))
             raised.append(np.where((t > bar) & (s < hi), np.clip(wanted, s, hi), s).astype(int))
