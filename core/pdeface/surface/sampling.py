@@ -333,12 +333,15 @@ def interval_turns(model, rows, cols, W, floor=0.0, stacks=None, buffers=None):
     intervals. Turns under ``floor`` are not looked at. The openings are those :func:`pdeface.surface.folds.fold_edges`
     allows: the landmark polygons at rest, where the pose carries them, and the edges that lie in them at rest. A pose
     turns edges as the rest does where it does not move the skin: only its moved block is measured. A pose of one key is
-    measured as its key's batch is solved; only the keys of poses of several are kept. The poses' edges are screened in
-    float32, a few poses in one array operation over the part of the grid their moved blocks cover, for those that could
-    raise a need (:data:`SCREEN_MARGIN_DEG`); only those are measured in float64, with :func:`quad_turn_cosines`'
-    products: the same turns as measuring each block. ``stacks``: :func:`pdeface.surface.grid.key_stacks`, when made
-    already (they do not depend on the steps). ``buffers``: the key solves' buffers
-    (:meth:`pdeface.surface.pde.SurfaceOperator.planes`' ``reuse``), kept across meshes.
+    measured as its key's batch is solved; only the keys of poses of several are kept. The keys are solved in float32
+    (:func:`pdeface.surface.grid.key_grids`' ``dtype``): their moved rows and columns are read from them, and the poses'
+    edges are screened on them as they are, a few poses in one array operation over the part of the grid their moved
+    blocks cover, for those that could raise a need (:data:`SCREEN_MARGIN_DEG`); only those are measured in float64,
+    with :func:`quad_turn_cosines`' products, on the rest (float64) plus the weight times the key (float32, upcast):
+    the turns of the float64 keys to their float32 rounding (the steps the same on 47 faces, the needs within 0.002°
+    under 25°; docs/design/folds.md). ``stacks``: :func:`pdeface.surface.grid.key_stacks`, when made already (they do
+    not depend on the steps). ``buffers``: the key solves' buffers (:meth:`pdeface.surface.pde.SurfaceOperator.planes`'
+    ``reuse``), kept across meshes.
     """
     planes0 = surface_grid(model, rows, cols, planes=True)
     X0 = np.ascontiguousarray(np.moveaxis(planes0, 0, 2))
