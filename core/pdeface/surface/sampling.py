@@ -538,9 +538,11 @@ def adaptive_resolution(model, max_turn=MAX_TURN_DEG):
     lo, hi = STEPS_RANGE
     floor = max_turn * lo / PROBE  # turns below this leave an interval at the fewest steps
     stacks = key_stacks(model, dtype=np.float32)  # the keys' coefficients, for both meshes (solved in float32)
-    # the solves' buffers, for both meshes: as large as the largest mesh (its pages are touched as used), so the
-    # check's faults in only the pages the probe did not touch (2.7 us a page here)
-    vertices = max(MAX_VERTICES, ((K - 1) * PROBE + 1) * ((J - 1) * PROBE + 1))
+    # the solves' buffers, for both meshes: as large as the largest mesh the choice can measure (its pages are
+    # touched as used), so the check faults in only the pages the probe did not touch (2.7 us a page here)
+    def mesh_vertices(steps):
+        return ((K - 1) * steps + 1) * ((J - 1) * steps + 1)
+    vertices = max(mesh_vertices(PROBE), min(MAX_VERTICES, mesh_vertices(hi)))
     buffers = [np.empty(3 * KEY_BATCH * vertices, np.float32) for _ in range(2)]
     probed = interval_turns(model, (PROBE,) * (K - 1), (PROBE,) * (J - 1), W, floor, stacks=stacks, buffers=buffers)
     steps, capped = capped_steps([np.clip(np.ceil(PROBE * t / max_turn), lo, hi).astype(int) for t in probed])
