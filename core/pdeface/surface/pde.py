@@ -679,7 +679,7 @@ def solve_surface(coefficients, residual, knots, a=1.0, w=None, sub_u=4, sub_v=4
         The surface's grid; with ``planes``, (3, n_u, n_v) (3m, n_u, n_v) its coordinate planes instead; with
         ``nodes``, (p, 3) ((p, 3m)) its nodes.
     """
-    dtype = dtype if planes else np.float64
+    dtype = dtype if planes and nodes is None else np.float64
     coefficients = np.asarray(coefficients, dtype=dtype)
     residual = np.asarray(residual, dtype=dtype)
     if not a > 0:
