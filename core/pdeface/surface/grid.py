@@ -50,7 +50,8 @@ def break_weights(model: FaceModel, sub_v) -> tuple:
 
 
 def surface_grid(model: FaceModel, sub_u=4, sub_v=4, assembly=None, coefficients=None, residual=None, deriv=(0, 0),
-                 break_slope=BREAK_SLOPE, confine=True, planes=False, nodes=None, weights=None, reuse=None):
+                 break_slope=BREAK_SLOPE, confine=True, planes=False, nodes=None, weights=None, reuse=None,
+                 dtype=np.float64):
     """PDE surface (or a derivative) on the output grid, in the face frame (mm).
 
     ``confine``: each break only within its opening's span (:func:`break_weights`); the head binding
@@ -59,14 +60,15 @@ def surface_grid(model: FaceModel, sub_u=4, sub_v=4, assembly=None, coefficients
     ``nodes``: at those grid nodes alone (flat indices, increasing), (p, 3)
     (:meth:`pdeface.surface.pde.SurfaceOperator.at_nodes`). ``weights``: :func:`break_weights` of ``sub_v``, when
     known (many solves on one grid). ``reuse``: with ``planes``, buffers kept between solves on one grid
-    (:meth:`pdeface.surface.pde.SurfaceOperator.planes`).
+    (:meth:`pdeface.surface.pde.SurfaceOperator.planes`). ``dtype``: with ``planes``, ``np.float32`` solves in
+    float32 (the resolution choice's screen).
     """
     return solve_surface(model.coefficients if coefficients is None else coefficients,
                          model.residual if residual is None else residual,
                          model.knots, model.a, model.remainder_w, sub_u, sub_v,
                          assembly or model.assembly, deriv, model.layout.breaks(), break_slope,
                          (break_weights(model, sub_v) if weights is None else weights) if confine else (), planes,
-                         nodes, reuse)
+                         nodes, reuse, dtype)
 
 
 #: Descriptors solved together by :func:`key_grids`: all of a face's 72 at once held ~5 copies of their
@@ -74,16 +76,16 @@ def surface_grid(model: FaceModel, sub_u=4, sub_v=4, assembly=None, coefficients
 KEY_BATCH = 16
 
 
-def key_stacks(model: FaceModel, batch=KEY_BATCH) -> list:
+def key_stacks(model: FaceModel, batch=KEY_BATCH, dtype=np.float64) -> list:
     """The descriptors a few at a time, as :func:`key_grids` solves them: ``(first, C, R)``, their dense coefficient
     (K, N+1, 3m) and residual (K, J, 3m) changes side by side (the solve is linear), descriptor ``first + i`` in
     columns ``3i .. 3i + 2`` (:meth:`pdeface.au.descriptor.Descriptor.dense`'s values). The same for every grid: a
-    caller solving on several makes them once."""
+    caller solving on several makes them once. ``dtype``: of the stacks (float32 for :func:`key_grids`' own)."""
     stacks = []
     for first in range(0, len(model.descriptors), batch):
         part = model.descriptors[first:first + batch]
         K, J, N = part[0].layout
-        C, R = np.zeros((K, N + 1, 3 * len(part))), np.zeros((K, J, 3 * len(part)))
+        C, R = np.zeros((K, N + 1, 3 * len(part)), dtype), np.zeros((K, J, 3 * len(part)), dtype)
         for i, d in enumerate(part):
             C[d.curves, :, 3 * i:3 * i + 3] = d.coefficients
             if d.residual is not None:
@@ -92,18 +94,23 @@ def key_stacks(model: FaceModel, batch=KEY_BATCH) -> list:
     return stacks
 
 
-def key_grids(model: FaceModel, sub_u, sub_v, assembly=None, batch=KEY_BATCH, planes=False, reuse=False, stacks=None):
+def key_grids(model: FaceModel, sub_u, sub_v, assembly=None, batch=KEY_BATCH, planes=False, reuse=False, stacks=None,
+              dtype=np.float64):
     """Each descriptor's change of the surface (face frame, mm) on the output grid, a few solves at a time:
     yields ``(first, grids)``, ``grids`` (n_u, n_v, m, 3) for descriptors ``first .. first + m - 1``
     (``planes``: (m, 3, n_u, n_v)). ``reuse`` (with ``planes``): each batch's grids are written over the last
-    one's, for a caller done with a batch before it asks for the next (the same numbers, no fresh pages).
-    ``stacks``: :func:`key_stacks` of ``batch``, when made already."""
+    one's, for a caller done with a batch before it asks for the next (the same numbers, no fresh pages); a list:
+    :meth:`pdeface.surface.pde.SurfaceOperator.planes`' buffers, kept by the caller across grids.
+    ``stacks``: :func:`key_stacks` of ``batch``, when made already (of ``dtype``, or cast to it). ``dtype``: with
+    ``planes``, ``np.float32`` solves in float32 (half the bytes, about half the CPU; values to float32's rounding
+    of its products), for the resolution choice's screen alone: keys and bindings stay float64."""
     weights = break_weights(model, sub_v)
-    buffers = [] if reuse and planes else None
-    for first, C, R in key_stacks(model, batch) if stacks is None else stacks:
+    buffers = (reuse if isinstance(reuse, list) else [] if reuse else None) if planes else None
+    dtype = dtype if planes else np.float64
+    for first, C, R in key_stacks(model, batch, dtype) if stacks is None else stacks:
         m = C.shape[2] // 3
         X = surface_grid(model, sub_u, sub_v, assembly, coefficients=C, residual=R, planes=planes, weights=weights,
-                         reuse=buffers)
+                         reuse=buffers, dtype=dtype)
         yield first, (X.reshape((m, 3) + X.shape[1:]) if planes else X.reshape(X.shape[:2] + (m, 3)))
 
 

@@ -25,7 +25,7 @@ from ..geometry import degrees_from_cos
 from ..presets import every_pose
 from ..threads import bounded
 from .folds import carried, nearest_vertices, opening_mask
-from .grid import key_grids, key_stacks, surface_grid
+from .grid import KEY_BATCH, key_grids, key_stacks, surface_grid
 from .model import model_landmarks
 
 #: Named uniform resolutions: (rows per curve interval, columns per point interval). ``default`` is adaptive.
@@ -78,9 +78,6 @@ SCREEN_CALL_QUADS = 4000
 #: A quad whose normal (the cross product of its diagonals, mm²) is shorter than this, its float32 turns
 #: unreliable: the screen passes its edges.
 SCREEN_TINY_MM2 = 1e-3
-#: A key's largest displacement in a row or column, rounded to float32, is within this share of MOVED_MM of its
-#: float64 value when near it (float32 keeps 7 digits): those nearer are taken again from float64.
-SCREEN_SLACK = 1e-5
 
 
 def _checked(steps, what):
@@ -328,7 +325,7 @@ def _edge_cosines(vertex, axis):
     return sum(x * y for x, y in zip(before, after))
 
 
-def interval_turns(model, rows, cols, W, floor=0.0, stacks=None):
+def interval_turns(model, rows, cols, W, floor=0.0, stacks=None, buffers=None):
     """Largest turn (degrees) of the edges in each curve interval and each point interval, outside the
     openings, over the poses ``W`` (:func:`pose_weights`), on the mesh of ``rows``, ``cols`` steps.
 
@@ -336,11 +333,15 @@ def interval_turns(model, rows, cols, W, floor=0.0, stacks=None):
     intervals. Turns under ``floor`` are not looked at. The openings are those :func:`pdeface.surface.folds.fold_edges`
     allows: the landmark polygons at rest, where the pose carries them, and the edges that lie in them at rest. A pose
     turns edges as the rest does where it does not move the skin: only its moved block is measured. A pose of one key is
-    measured as its key's batch is solved; only the keys of poses of several are kept. The poses' edges are screened in
-    float32, a few poses in one array operation over the part of the grid their moved blocks cover, for those that could
-    raise a need (:data:`SCREEN_MARGIN_DEG`); only those are measured in float64, with :func:`quad_turn_cosines`'
-    products: the same turns as measuring each block. ``stacks``: :func:`pdeface.surface.grid.key_stacks`, when made
-    already (they do not depend on the steps).
+    measured as its key's batch is solved; only the keys of poses of several are kept. The keys are solved in float32
+    (:func:`pdeface.surface.grid.key_grids`' ``dtype``): their moved rows and columns are read from them, and the poses'
+    edges are screened on them as they are, a few poses in one array operation over the part of the grid their moved
+    blocks cover, for those that could raise a need (:data:`SCREEN_MARGIN_DEG`); only those are measured in float64,
+    with :func:`quad_turn_cosines`' products, on the rest (float64) plus the weight times the key (float32, upcast):
+    the turns of the float64 keys to their float32 rounding (the steps the same on 47 faces, the needs within 0.002°
+    under 25°; docs/design/folds.md). ``stacks``: :func:`pdeface.surface.grid.key_stacks`, when made already (they do
+    not depend on the steps). ``buffers``: the key solves' buffers (:meth:`pdeface.surface.pde.SurfaceOperator.planes`'
+    ``reuse``), kept across meshes.
     """
     planes0 = surface_grid(model, rows, cols, planes=True)
     X0 = np.ascontiguousarray(np.moveaxis(planes0, 0, 2))
@@ -464,30 +465,21 @@ def interval_turns(model, rows, cols, W, floor=0.0, stacks=None):
             if len(found) == SETTLE_POSES:
                 settle()
 
-    kept32, batch32 = {}, None
-    # (m, 3, n_u, n_v): each key's planes, each batch written over the last one's (fresh pages cost; issue #35),
-    # as is its float32 copy
-    for first, grids in key_grids(model, rows, cols, planes=True, reuse=True, stacks=stacks):
+    buffers = [] if buffers is None else buffers
+    # (m, 3, n_u, n_v) float32: each key's planes, each batch written over the last one's (fresh pages cost; issue
+    # #35). They are the keys the turns are measured on: screened as they are, read in float64 at the candidates
+    for first, grids in key_grids(model, rows, cols, planes=True, reuse=buffers, stacks=stacks, dtype=np.float32):
         m = len(grids)
-        if batch32 is None:
-            batch32 = np.empty((2,) + grids.shape, np.float32)
-        screen = batch32[0, :m]
-        screen[...] = grids
-        # the largest per row and per column from float32 (half the bytes to read), again in float64 where its
-        # rounding could put it on either side of MOVED_MM
-        size = np.abs(screen, out=batch32[1, :m]).max(axis=1)  # (m, n_u, n_v): the largest of the three planes
+        # a row or column moves where its largest displacement (of the three planes) is past MOVED_MM: the planes'
+        # largest first (reductions over two axes at once read slower), their magnitudes in the solve's scratch
+        largest = np.abs(grids, out=buffers[1][:grids.size].reshape(grids.shape)).max(axis=1)
         for axis, moved_lines in ((0, rows_moved), (1, cols_moved)):
-            largest = size.max(axis=2 - axis)
-            unsure = np.abs(largest - np.float32(MOVED_MM)) <= SCREEN_SLACK * MOVED_MM
-            moved_lines[first:first + m] = largest > MOVED_MM
-            for j, i in zip(*np.nonzero(unsure)):
-                moved_lines[first + j, i] = np.abs(grids[j, :, i] if axis == 0 else grids[j, :, :, i]).max() > MOVED_MM
-        del size
-        at_landmarks_moved = grids.reshape(m, 3, n_u * n_v)[:, :, at_landmarks]
+            moved_lines[first:first + m] = largest.max(axis=2 - axis).astype(np.float64) > MOVED_MM
+        at_landmarks_moved = grids.reshape(m, 3, n_u * n_v)[:, :, at_landmarks].astype(np.float64)
         poses = []  # (its key's grid, key, pose, block)
         for j, k in enumerate(range(first, first + m)):
             if k in kept:
-                kept[k], kept32[k] = grids[j].copy(), screen[j].copy()
+                kept[k] = grids[j].copy()
             block = _moved_block(rows_moved[k], cols_moved[k])
             poses += [(j, k, p, block) for p in single.get(k, ())] if block is not None else []
         for part in (poses[i:i + SCREEN_POSES] for i in range(0, len(poses), SCREEN_POSES)):
@@ -496,7 +488,7 @@ def interval_turns(model, rows, cols, W, floor=0.0, stacks=None):
 
             def vertex(q, r, c, grids=grids, j=j, w=w):
                 return [w[q] * grids[j[q], i, r, c] + planes0[i, r, c] for i in range(3)]
-            measure_screened(screen[j[0]:j[-1] + 1] if (np.diff(j) == 1).all() else screen[j], w,
+            measure_screened(grids[j[0]:j[-1] + 1] if (np.diff(j) == 1).all() else grids[j], w,
                              [b for _, _, _, b in part], vertex, [wi * at_landmarks_moved[g].T for (g, _, _, _), wi
                                                                   in zip(part, w)])
     for p in several:
@@ -504,7 +496,7 @@ def interval_turns(model, rows, cols, W, floor=0.0, stacks=None):
         block = _moved_block(rows_moved[keys].any(axis=0), cols_moved[keys].any(axis=0))
         if block is None:
             continue
-        G = sum(np.float32(W[p, k]) * kept32[k][:, block[0], block[1]] for k in keys)[None]  # its block alone
+        G = sum(np.float32(W[p, k]) * kept[k][:, block[0], block[1]] for k in keys)[None]  # its block alone
 
         def vertex(q, r, c, keys=keys, p=p):
             return list(planes0[:, r, c] + np.tensordot(W[p, keys], np.stack([kept[k][:, r, c] for k in keys]), axes=1))
@@ -545,13 +537,19 @@ def adaptive_resolution(model, max_turn=MAX_TURN_DEG):
     W = pose_weights(model)
     lo, hi = STEPS_RANGE
     floor = max_turn * lo / PROBE  # turns below this leave an interval at the fewest steps
-    stacks = key_stacks(model)  # the keys' coefficients, for both meshes
-    probed = interval_turns(model, (PROBE,) * (K - 1), (PROBE,) * (J - 1), W, floor, stacks=stacks)
+    stacks = key_stacks(model, dtype=np.float32)  # the keys' coefficients, for both meshes (solved in float32)
+    # the solves' buffers, for both meshes: as large as the largest mesh the choice can measure (its pages are
+    # touched as used), so the check faults in only the pages the probe did not touch (2.7 us a page here)
+    def mesh_vertices(steps):
+        return ((K - 1) * steps + 1) * ((J - 1) * steps + 1)
+    vertices = max(mesh_vertices(PROBE), min(MAX_VERTICES, mesh_vertices(hi)))
+    buffers = [np.empty(3 * KEY_BATCH * vertices, np.float32) for _ in range(2)]
+    probed = interval_turns(model, (PROBE,) * (K - 1), (PROBE,) * (J - 1), W, floor, stacks=stacks, buffers=buffers)
     steps, capped = capped_steps([np.clip(np.ceil(PROBE * t / max_turn), lo, hi).astype(int) for t in probed])
     if not capped:
         bar = VERIFY_FACTOR * max_turn
         raised = []
-        for s, t, p in zip(steps, interval_turns(model, *steps, W, bar, stacks=stacks), probed):
+        for s, t, p in zip(steps, interval_turns(model, *steps, W, bar, stacks=stacks, buffers=buffers), probed):
             expected = PROBE * np.maximum(p, floor) / s  # its turn if it shrank in proportion to the steps
             wanted = np.where(t > NARROW * expected, hi, np.ceil(s * t / (RAISED_AIM * max_turn)))
             raised.append(np.where((t > bar) & (s < hi), np.clip(wanted, s, hi), s).astype(int))
