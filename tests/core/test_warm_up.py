@@ -28,6 +28,24 @@ def test_warm_up_loads_the_chains_libraries_and_the_prior_without_mediapipe_when
     assert not out["mediapipe"]  # landmarks given: MediaPipe is not loaded
 
 
+
+def test_the_prior_and_the_landmark_steps_read_icts_head_file_once():
+    # The prior's head is the landmark steps' copy (issue #35: the file was read twice a process, 10-14 ms each).
+    out = _fresh("import json, os\n"
+                 "import numpy as np\n"
+                 "from pdeface.assets import ICT_HEAD, generic_head_geometry\n"
+                 "from pdeface.head.prior import load_head_prior\n"
+                 "reads, load = [], np.load\n"
+                 "def counted(path, *args, **kw):\n"
+                 "    reads.append(os.path.basename(str(path)) == os.path.basename(str(ICT_HEAD)))\n"
+                 "    return load(path, *args, **kw)\n"
+                 "np.load = counted\n"
+                 "load_head_prior()\n"
+                 "generic_head_geometry()\n"
+                 "print(json.dumps({'reads': sum(reads)}))")
+    assert out["reads"] == 1
+
+
 def test_mediapipe_models_imported_from_two_threads_at_once_stay_bare():
     """The add-on warms MediaPipe on a thread while an operator may ask for it: both get the two models, and
     neither sees a half-made bare package (which would import every solution, matplotlib with them)."""
