@@ -301,23 +301,29 @@ def _screened(rest, G, w, looked_cos, scratch=None):
     P, _, n_u, n_v = G.shape
     H = n_u - 1  # quad rows; a row of quads is n_v long, its last the wrap to the next row
     band = max(2, min(H, SCREEN_CHUNK // (P * n_v)))
-    size = P * (3 * (band + 1) * n_v + 3)  # a band's vertex rows, and one more element (read by its last quad)
+    size = P * 3 * (band + 1) * n_v  # a band's vertex rows
     planes, masks = (scratch or ScreenScratch()).arrays(size + 12 * P * band * n_v, P * (2 * H - 1) * n_v)
-    X = planes[:size].reshape(P, 3, -1)
+    copied = planes[:size].reshape(P, 3, -1)
     work = planes[size:].reshape(4, P, 3, -1)  # d1, d2, the normals, products: (poses, planes, quads)
+    # rows read in place where they are whole rows of G's array (in order) and the poses' weights 1
+    whole_rows = G.strides[2:] == (n_v * G.itemsize, G.itemsize) and (w == 1).all()
     masks = masks[:P * (H - 1) * n_v].reshape(P, H - 1, n_v), masks[P * (H - 1) * n_v:].reshape(P, H, n_v)
     tiny_square = np.float32(SCREEN_TINY_MM2 ** 2)
     a = 0
     while True:
         b = min(a + band, H)
         n = (b - a) * n_v  # the band's quads, flat
-        X[:, :, n + n_v] = 0.0  # past its last vertex: read by the extra column's last quad alone
-        np.copyto(X[:, :, :n + n_v].reshape(P, 3, b - a + 1, n_v), G[:, :, a:b + 1])
-        if not (w == 1).all():
-            X[:, :, :n + n_v] *= np.asarray(w, np.float32)[:, None, None]
+        if whole_rows:
+            X = G[:, :, a:b + 1].reshape(P, 3, n + n_v)  # a view: its rows follow each other
+        else:
+            X = copied[:, :, :n + n_v]
+            np.copyto(X.reshape(P, 3, b - a + 1, n_v), G[:, :, a:b + 1])
+            if not (w == 1).all():
+                X *= np.asarray(w, np.float32)[:, None, None]
         d1, d2, N, product = (p[:, :, :n] for p in work)
-        np.subtract(X[:, :, n_v + 1:n_v + 1 + n], X[:, :, :n], out=d1)  # (r + 1, c + 1) - (r, c)
-        np.subtract(X[:, :, 1:1 + n], X[:, :, n_v:n_v + n], out=d2)  # (r, c + 1) - (r + 1, c)
+        np.subtract(X[:, :, n_v + 1:], X[:, :, :n - 1], out=d1[:, :, :-1])  # (r + 1, c + 1) - (r, c)
+        d1[:, :, -1] = 0.0  # the extra column's last quad: past the band's last vertex
+        np.subtract(X[:, :, 1:1 + n], X[:, :, n_v:], out=d2)  # (r, c + 1) - (r + 1, c)
         for d, r in ((d1, rest[0]), (d2, rest[1])):
             d.reshape(P, 3, b - a, n_v)[...] += r[:, a:b]  # rest + w k: float32 keeps the diagonals' own digits
         for i, (x, y) in enumerate(((1, 2), (2, 0), (0, 1))):  # the cross product d2 × d1, a component at a time
@@ -490,11 +496,17 @@ def interval_turns(model, rows, cols, W, floor=0.0, stacks=None):
                               G[g, :, r0 - origin[0]:r1 - origin[0], c0 - origin[1]:c1 - origin[1]],
                               w[g], [cos[r0:r1 - 2 + axis, c0:c1] for axis, cos in enumerate(looked_cos)], scratch)
             for axis, mask in enumerate(masks):
-                if np.count_nonzero(mask):  # most screens of a finer mesh pass none (and the indices read slower)
+                if np.count_nonzero(mask):  # the indices read slower
                     q, r, c = np.unravel_index(np.flatnonzero(mask), mask.shape)  # 10x nonzero's speed in 3-d
                     passed[axis].append((q + g.start, r + r0, c + c0))
+        if not (passed[0] or passed[1]):
+            return  # no edge can raise a need (most screens of a finer mesh)
         for axis in (0, 1):
-            q, r, c = (np.concatenate(a) for a in zip(*passed[axis])) if passed[axis] else np.zeros((3, 0), int)
+            if not passed[axis]:
+                for e in edges:
+                    e.append((np.zeros(0, int), np.zeros(0, int), np.zeros(0), np.zeros((0, 3))))
+                continue
+            q, r, c = (np.concatenate(a) for a in zip(*passed[axis]))
             # the edge and both its quads in the pose's block (as _edges_over's block slices give them)
             inside = (r >= R0[q]) & (r <= R1[q] - 3 + axis) & (c >= C0[q]) & (c <= C1[q] - 2 - axis)
             q, r, c = q[inside], r[inside], c[inside]
