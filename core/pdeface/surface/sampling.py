@@ -78,7 +78,7 @@ SCREEN_CALL_QUADS = 4000
 #: A quad whose normal (the cross product of its diagonals, mm²) is shorter than this, its float32 turns
 #: unreliable: the screen passes its edges.
 SCREEN_TINY_MM2 = 1e-3
-#: Quads (of all its poses) the screen works on at once: what bounds its work arrays (8 MB). Larger were no faster,
+#: Quads (of all its poses) the screen works on at once: what bounds its work arrays (7 MB). Larger were no faster,
 #: 2**16 the same, 2**14 a third slower (more array operations).
 SCREEN_CHUNK = 1 << 17
 #: A key's largest displacement in a row or column, rounded to float32, is within this share of MOVED_MM of its
@@ -293,18 +293,19 @@ def _screened(rest, G, w, looked_cos, scratch=None):
     ((h - 1, w) of each), ``looked_cos`` (h - 2, w) and (h - 1, w), or numbers. Each pose's diagonals are the rest's
     plus its keys': float32 then keeps their own digits, not the coordinates'. An edge beside a quad under
     :data:`SCREEN_TINY_MM2` passes wherever an edge is looked at. Worked on rows a column wider than the quads' (then
-    every array is read in order: a quad's right neighbour is the next element, the one below it the next row's; the
-    extra column's numbers are the next row's), :data:`SCREEN_CHUNK` quads of the poses at once (the arrays stay in
-    the cache; each band's last quad row is the next one's first): each element the same sums and products as one
-    pass over the part.
+    every array is read in order, each operation on the three planes at once: a quad's right neighbour is the next
+    element, the one below it the next row's; the extra column's numbers are the next row's), in bands of
+    :data:`SCREEN_CHUNK` quads of the poses (each band's last quad row the next one's first): each element the same
+    sums and products as one pass over the part.
     """
     P, _, n_u, n_v = G.shape
     H = n_u - 1  # quad rows; a row of quads is n_v long, its last the wrap to the next row
     band = max(2, min(H, SCREEN_CHUNK // (P * n_v)))
     size = P * 3 * (band + 1) * n_v  # a band's vertex rows
-    planes, masks = (scratch or ScreenScratch()).arrays(size + 12 * P * band * n_v, P * (2 * H - 1) * n_v)
+    planes, masks = (scratch or ScreenScratch()).arrays(size + 10 * P * band * n_v, P * (2 * H - 1) * n_v)
     copied = planes[:size].reshape(P, 3, -1)
-    work = planes[size:].reshape(4, P, 3, -1)  # d1, d2, the normals, products: (poses, planes, quads)
+    work = planes[size:size + 9 * P * band * n_v].reshape(3, P, 3, -1)  # d1, d2, the normals: (poses, planes, quads)
+    products = planes[size + 9 * P * band * n_v:].reshape(P, -1)
     # rows read in place where they are whole rows of G's array (in order) and the poses' weights 1
     whole_rows = G.strides[2:] == (n_v * G.itemsize, G.itemsize) and (w == 1).all()
     masks = masks[:P * (H - 1) * n_v].reshape(P, H - 1, n_v), masks[P * (H - 1) * n_v:].reshape(P, H, n_v)
@@ -320,7 +321,7 @@ def _screened(rest, G, w, looked_cos, scratch=None):
             np.copyto(X.reshape(P, 3, b - a + 1, n_v), G[:, :, a:b + 1])
             if not (w == 1).all():
                 X *= np.asarray(w, np.float32)[:, None, None]
-        d1, d2, N, product = (p[:, :, :n] for p in work)
+        d1, d2, N = (p[:, :, :n] for p in work)
         np.subtract(X[:, :, n_v + 1:], X[:, :, :n - 1], out=d1[:, :, :-1])  # (r + 1, c + 1) - (r, c)
         d1[:, :, -1] = 0.0  # the extra column's last quad: past the band's last vertex
         np.subtract(X[:, :, 1:1 + n], X[:, :, n_v:], out=d2)  # (r, c + 1) - (r + 1, c)
@@ -328,10 +329,8 @@ def _screened(rest, G, w, looked_cos, scratch=None):
             d.reshape(P, 3, b - a, n_v)[...] += r[:, a:b]  # rest + w k: float32 keeps the diagonals' own digits
         for i, (x, y) in enumerate(((1, 2), (2, 0), (0, 1))):  # the cross product d2 × d1, a component at a time
             np.multiply(d2[:, x], d1[:, y], out=N[:, i])
-            N[:, i] -= np.multiply(d2[:, y], d1[:, x], out=product[:, 0])
-        square = np.multiply(N, N, out=product)
-        square = np.add(square[:, 0], square[:, 1], out=d1[:, 0])  # d1, d2 are free now
-        square += product[:, 2]
+            N[:, i] -= np.multiply(d2[:, y], d1[:, x], out=products[:, :n])
+        square = np.einsum("pik,pik->pk", N, N, out=d1[:, 0])  # d1, d2 are free now; einsum: one pass, not five
         tiny = np.less(square, tiny_square) if square.min() < tiny_square else None
         if tiny is not None:
             square[tiny] = 1.0
@@ -340,9 +339,7 @@ def _screened(rest, G, w, looked_cos, scratch=None):
         for axis, step in ((0, n_v), (1, 1)):  # the neighbour across rows is a row on, across columns the next
             cos = d2[:, 0]
             cos[:, n - step:] = 1.0  # past the band: never passes
-            np.multiply(N[:, :, :n - step], N[:, :, step:], out=product[:, :, :n - step])
-            np.add(product[:, 0, :n - step], product[:, 1, :n - step], out=cos[:, :n - step])
-            cos[:, :n - step] += product[:, 2, :n - step]
+            np.einsum("pik,pik->pk", N[:, :, :n - step], N[:, :, step:], out=cos[:, :n - step])
             rows = b - a - 1 + axis
             looked = looked_cos[axis] if np.ndim(looked_cos[axis]) == 0 else looked_cos[axis][a:a + rows]
             mask = np.less(cos[:, :rows * n_v].reshape(P, rows, n_v), looked, out=masks[axis][:, a:a + rows])
