@@ -337,7 +337,7 @@ def test_the_float32_screen_passes_every_edge_past_its_floor(model, floor):
     K, J = len(model.knots), model.layout.n_points
     for steps in (((sampling.PROBE,) * (K - 1), (sampling.PROBE,) * (J - 1)), mesh_resolution(model)):
         rest = surface_grid(model, *steps, planes=True)
-        rest_diagonals = sampling.rest_diagonals(rest)
+        rest_diagonals = sampling._rest_diagonals(rest)
         looked = np.float32(np.cos(np.radians(floor - sampling.SCREEN_MARGIN_DEG)))
         passed = over = 0
         for _, grids in key_grids(model, *steps, planes=True):
@@ -383,7 +383,7 @@ def test_the_screen_passes_every_edge_the_float64_measurement_counts_on_hostile_
         looked = [np.full((t.shape[0], n_v), -2.0, np.float32) for t in turn]  # a column wider, as the screen's
         for lc, t, s in zip(looked, turn, shut):
             lc[:, :t.shape[1]] = np.where(s, np.cos(np.radians(np.maximum(t - sampling.SCREEN_MARGIN_DEG, 0))), -2)
-        masks = screened(sampling.rest_diagonals(X), G, w, looked)
+        masks = screened(sampling._rest_diagonals(X), G, w, looked)
         for p in range(len(G)):
             posed = X + w[p] * G[p].astype(np.float64)
             d1, d2 = posed[:, 1:, 1:] - posed[:, :-1, :-1], posed[:, :-1, 1:] - posed[:, 1:, :-1]
@@ -407,7 +407,7 @@ def test_a_tiny_quad_folded_back_passes_past_90_degrees():
     folded = [np.degrees(np.arccos(np.clip(x, -1, 1))) > 120 for x in cos]
     assert folded[0][2:4, 3].all() and folded[1][3, 2:4].all()
     looked = [np.full((n, 9), np.cos(np.radians(120 - sampling.SCREEN_MARGIN_DEG)), np.float32) for n in (6, 7)]
-    masks = screened(sampling.rest_diagonals(X), np.zeros((1, 3, 8, 9), np.float32), np.ones(1), looked)
+    masks = screened(sampling._rest_diagonals(X), np.zeros((1, 3, 8, 9), np.float32), np.ones(1), looked)
     for f, mask in zip(folded, masks):
         assert mask[0][f].all()
 
@@ -424,11 +424,11 @@ def test_a_screen_in_bands_is_one_pass(model, monkeypatch):
     rng = np.random.default_rng(2)
     looked = [np.float32(np.cos(np.radians(rng.uniform(0, 25, size=(n, G.shape[3]))))) for n in (45, 46)]
     monkeypatch.setattr(sampling, "SCREEN_CHUNK", 1 << 30)
-    whole = screened(sampling.rest_diagonals(rest), G, np.ones(3), looked)
+    whole = screened(sampling._rest_diagonals(rest), G, np.ones(3), looked)
     assert all(m.any() and not m.all() for m in whole)
     for rows in (2, 5):
         monkeypatch.setattr(sampling, "SCREEN_CHUNK", rows * 3 * G.shape[3])
-        banded = screened(sampling.rest_diagonals(rest), G, np.ones(3), looked)
+        banded = screened(sampling._rest_diagonals(rest), G, np.ones(3), looked)
         assert all(np.array_equal(a, b) for a, b in zip(banded, whole))
 
 
@@ -440,7 +440,7 @@ def test_a_screen_of_the_blocks_part_is_the_whole_grids_there(model):
 
     K, J = len(model.knots), model.layout.n_points
     steps = ((sampling.PROBE,) * (K - 1), (sampling.PROBE,) * (J - 1))
-    rest = sampling.rest_diagonals(surface_grid(model, *steps, planes=True))
+    rest = sampling._rest_diagonals(surface_grid(model, *steps, planes=True))
     _, grids = next(key_grids(model, *steps, planes=True))
     G = grids[:8].astype(np.float32)
     w = np.linspace(0.5, 1.0, len(G))

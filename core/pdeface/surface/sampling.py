@@ -254,7 +254,7 @@ def _edges_over(X, block, shut_at_rest, interval, need, floor):
     return edges
 
 
-def rest_diagonals(planes):
+def _rest_diagonals(planes):
     """The rest grid's quad diagonals ``(d1, d2)`` in float32, each three coordinate planes (n_u - 1, n_v): the
     screen's rows, a column wider than the quads' (the last a copy of the one before, so its quad is no tinier
     than a real one). :func:`quad_turn_cosines`' own differences."""
@@ -267,7 +267,7 @@ def rest_diagonals(planes):
     return out
 
 
-class ScreenScratch:
+class _ScreenScratch:
     """The screen's work arrays, kept from one screen to the next (fresh pages cost: issue #35), grown as needed."""
 
     def __init__(self):
@@ -287,22 +287,22 @@ def _screened(rest, G, w, looked_cos, scratch=None):
     """Which inner edges of each pose ``rest + w[p] G[p]`` may turn past ``looked_cos`` (the cosine each edge must
     fall under to be looked at; -2 where none is): ``(across rows, across columns)`` masks (poses, ...), a few more
     edges than do, as :func:`quad_turn_cosines` shapes them but a column wider (False there, and in the column before
-    it across columns); views of ``scratch``'s arrays (a :class:`ScreenScratch`), good until its next screen.
+    it across columns); views of ``scratch``'s arrays (a :class:`_ScreenScratch`), good until its next screen.
 
-    ``G`` (poses, 3, h, w) float32 key grids; ``rest``: :func:`rest_diagonals` of the rest grid where ``G`` lies
-    ((h - 1, w) of each), ``looked_cos`` (h - 2, w) and (h - 1, w), or numbers. Each pose's diagonals are the rest's
-    plus its keys': float32 then keeps their own digits, not the coordinates'. An edge beside a quad under
-    :data:`SCREEN_TINY_MM2` passes wherever an edge is looked at. Worked on rows a column wider than the quads' (then
-    every array is read in order, each operation on the three planes at once: a quad's right neighbour is the next
-    element, the one below it the next row's; the extra column's numbers are the next row's), in bands of
-    :data:`SCREEN_CHUNK` quads of the poses (each band's last quad row the next one's first): each element the same
-    sums and products as one pass over the part.
+    ``G`` (poses, 3, rows, columns) float32 key grids; ``rest``: :func:`_rest_diagonals` of the rest grid where
+    ``G`` lies ((rows - 1, columns) of each), ``looked_cos`` (rows - 2, columns) and (rows - 1, columns), or
+    numbers. Each pose's diagonals are the rest's plus its keys': float32 then keeps their own digits, not the
+    coordinates'. An edge beside a quad under :data:`SCREEN_TINY_MM2` passes wherever an edge is looked at. Worked
+    on rows a column wider than the quads' (then every array is read in order, each operation on the three planes at
+    once: a quad's right neighbour is the next element, the one below it the next row's; the extra column's numbers
+    are the next row's), in bands of :data:`SCREEN_CHUNK` quads of the poses (each band's last quad row the next
+    one's first): each element the same sums and products as one pass over the part.
     """
     P, _, n_u, n_v = G.shape
     H = n_u - 1  # quad rows; a row of quads is n_v long, its last the wrap to the next row
     band = max(2, min(H, SCREEN_CHUNK // (P * n_v)))
     size = P * 3 * (band + 1) * n_v  # a band's vertex rows
-    planes, masks = (scratch or ScreenScratch()).arrays(size + 10 * P * band * n_v, P * (2 * H - 1) * n_v)
+    planes, masks = (scratch or _ScreenScratch()).arrays(size + 10 * P * band * n_v, P * (2 * H - 1) * n_v)
     copied = planes[:size].reshape(P, 3, -1)
     work = planes[size:size + 9 * P * band * n_v].reshape(3, P, 3, -1)  # d1, d2, the normals: (poses, planes, quads)
     products = planes[size + 9 * P * band * n_v:].reshape(P, -1)
@@ -331,14 +331,14 @@ def _screened(rest, G, w, looked_cos, scratch=None):
             np.multiply(d2[:, x], d1[:, y], out=N[:, i])
             N[:, i] -= np.multiply(d2[:, y], d1[:, x], out=products[:, :n])
         square = np.einsum("pik,pik->pk", N, N, out=d1[:, 0])  # d1, d2 are free now; einsum: one pass, not five
-        tiny = np.less(square, tiny_square) if square.min() < tiny_square else None
+        tiny = np.less(square, tiny_square) if not square.min() >= tiny_square else None  # NaN: look
         if tiny is not None:
             square[tiny] = 1.0
         inverse = np.divide(1.0, np.sqrt(square, out=square), out=square)
         N *= inverse[:, None]
         for axis, step in ((0, n_v), (1, 1)):  # the neighbour across rows is a row on, across columns the next
             cos = d2[:, 0]
-            cos[:, n - step:] = 1.0  # past the band: never passes
+            cos[:, n - step:] = 1.0  # no neighbour in the band (the extra column's last edge: cleared below)
             np.einsum("pik,pik->pk", N[:, :, :n - step], N[:, :, step:], out=cos[:, :n - step])
             rows = b - a - 1 + axis
             looked = looked_cos[axis] if np.ndim(looked_cos[axis]) == 0 else looked_cos[axis][a:a + rows]
@@ -457,10 +457,10 @@ def interval_turns(model, rows, cols, W, floor=0.0, stacks=None):
     kept = {int(k): None for k in np.nonzero(W[several].any(axis=0))[0]}  # key → its grid, for poses of several
     n = W.shape[1]
     rows_moved, cols_moved = np.zeros((n, n_u), bool), np.zeros((n, n_v), bool)
-    rest_screened = rest_diagonals(planes0)
+    rest_screened = _rest_diagonals(planes0)
     floor_cos = np.cos(np.radians(floor)) + 1e-9
     looked_at = {}  # the cosines each edge must fall under to be looked at, for the needs found so far
-    scratch = ScreenScratch()
+    scratch = _ScreenScratch()
 
     def measure_screened(G, w, blocks, vertex, moved_landmarks, origin=(0, 0)):
         """Poses ``rest + w[p] G[p]`` (``G`` float32 (poses, 3, n_u, n_v), or the grid's part from row and column
