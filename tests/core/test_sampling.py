@@ -363,6 +363,13 @@ def test_the_choice_is_the_straightforward_ones(model, monkeypatch):
     assert sampling.adaptive_resolution(small) == chosen
 
 
+def screened(rest, G, w, looked):
+    """sampling._screened's masks as quad_turn_cosines shapes them (its rows are a column wider), copied."""
+    across_rows, across_columns = sampling._screened(rest, G, w, looked)
+    assert not across_rows[:, :, -1:].any() and not across_columns[:, :, -2:].any()
+    return across_rows[:, :, :-1].copy(), across_columns[:, :, :-2].copy()
+
+
 @pytest.mark.parametrize("floor", [10.0, 25.0])
 def test_the_float32_screen_passes_every_edge_past_its_floor(model, floor):
     """The choice looks at an edge in float64 only where its float32 screen passes it: every edge whose float64
@@ -373,18 +380,99 @@ def test_the_float32_screen_passes_every_edge_past_its_floor(model, floor):
     K, J = len(model.knots), model.layout.n_points
     for steps in (((sampling.PROBE,) * (K - 1), (sampling.PROBE,) * (J - 1)), mesh_resolution(model)):
         rest = surface_grid(model, *steps, planes=True)
-        rest_diagonals = [[p.astype(np.float32) for p in d] for d in sampling._diagonals(rest)]
+        rest_diagonals = sampling._rest_diagonals(rest)
         looked = np.float32(np.cos(np.radians(floor - sampling.SCREEN_MARGIN_DEG)))
         passed = over = 0
         for _, grids in key_grids(model, *steps, planes=True, dtype=np.float32):  # the keys as the choice solves them
             w = np.where(np.arange(len(grids)) % 2, 0.5, 1.0)
-            screens = sampling._screened(rest_diagonals, grids, w, [looked, looked])
+            screens = screened(rest_diagonals, grids, w, [looked, looked])
             for g, wi, *masks in zip(grids.astype(np.float64), w, *screens):
                 for cos, mask in zip(sampling.quad_turn_cosines(list(rest + wi * g)), masks):
                     past = np.degrees(np.arccos(np.clip(cos, -1, 1))) > floor
                     assert mask[past].all()
                     over, passed = over + past.sum(), passed + mask.sum()
         assert over > 0 and passed < 1.5 * over  # measured 1.02-1.18x
+
+
+def hostile_grid(rng, n_u=14, n_v=17):
+    """A wavy rest grid (mm) with a tiny quad (its corners within 0.01 mm), a flipped one (two corners swapped) and
+    a needle (a quad 2 mm long and 1e-4 mm wide, its normal under SCREEN_TINY_MM2)."""
+    r, c = np.meshgrid(np.arange(n_u, dtype=float), np.arange(n_v, dtype=float), indexing="ij")
+    X = np.stack([c + 0.1 * rng.normal(size=c.shape), r, 0.5 * np.sin(0.7 * c) * np.cos(0.4 * r)]) * 1.3 + 40.0
+    X[:, 3:5, 3:5] = X[:, 3:4, 3:4] + 0.005 * rng.normal(size=(3, 2, 2))  # tiny
+    X[:, 8, 9], X[:, 8, 10] = X[:, 8, 10].copy(), X[:, 8, 9].copy()  # flipped
+    X[:, 11, 5] = X[:, 10, 5] + [0, 2.0, 0]
+    X[:, 11, 6] = X[:, 11, 5] + [1e-4, 0, 0]  # a needle, with (10, 6) where it was
+    X[:, 10, 6] = X[:, 10, 5] + [1e-4, 0, 0]
+    return X
+
+
+def test_the_screen_passes_every_edge_the_float64_measurement_counts_on_hostile_quads():
+    """Tiny, flipped and needle quads, weights other than 1 (negative too), thresholds over 90° and edges not looked
+    at (-2): every edge looked at whose float64 turn is past its threshold passes the float32 screen, as does
+    every edge looked at beside a quad whose float32 normal is under SCREEN_TINY_MM2; none not looked at passes."""
+    rng = np.random.default_rng(35)
+    counted = beside_tiny = 0
+    for trial in range(6):
+        X = hostile_grid(rng)
+        n_u, n_v = X.shape[1:]
+        G = (rng.normal(size=(5, 3, n_u, n_v)) * 0.3 + rng.normal(size=(5, 3, 1, 1)) * 5).astype(np.float32)
+        G[1, :, 3:6, 3:6] *= 40  # a key that tears the tiny quad open, and two that move it and the needle whole
+        G[[0, 2], :, 3:5, 3:5] = G[[0, 2], :, 3:4, 3:4]
+        G[[0, 2], :, 10:12, 5:7] = G[[0, 2], :, 10:11, 5:6]
+        w = np.array([1.0, 0.5, -1.0, 2.0, 0.25])
+        turn = [rng.uniform(0, 180, size=(n_u - 2, n_v - 1)), rng.uniform(0, 180, size=(n_u - 1, n_v - 2))]
+        shut = [rng.random(t.shape) > 0.1 for t in turn]
+        looked = [np.full((t.shape[0], n_v), -2.0, np.float32) for t in turn]  # a column wider, as the screen's
+        for lc, t, s in zip(looked, turn, shut):
+            lc[:, :t.shape[1]] = np.where(s, np.cos(np.radians(np.maximum(t - sampling.SCREEN_MARGIN_DEG, 0))), -2)
+        masks = screened(sampling._rest_diagonals(X), G, w, looked)
+        for p in range(len(G)):
+            posed = X + w[p] * G[p].astype(np.float64)
+            d1, d2 = posed[:, 1:, 1:] - posed[:, :-1, :-1], posed[:, :-1, 1:] - posed[:, 1:, :-1]
+            tiny = np.linalg.norm(np.cross(d2, d1, axis=0), axis=0) < 1.01 * sampling.SCREEN_TINY_MM2
+            beside = [tiny[:-1] | tiny[1:], tiny[:, :-1] | tiny[:, 1:]]
+            for cos, t, s, b, mask in zip(sampling.quad_turn_cosines(list(posed)), turn, shut, beside, masks):
+                past = (np.degrees(np.arccos(np.clip(cos, -1, 1))) > t) & s
+                assert mask[p][past].all() and mask[p][b & s].all() and not mask[p][~s].any()
+                counted, beside_tiny = counted + past.sum(), beside_tiny + (b & s).sum()
+    assert counted > 0 and beside_tiny > 0
+
+
+def test_a_tiny_quad_folded_back_passes_past_90_degrees():
+    """A quad under SCREEN_TINY_MM2 folded back on a flat grid turns its edges by about 180° in float64: they pass a
+    screen whose thresholds are 120° (a normal taken as 0 would give them a cosine of 0, a turn of 90°: not past)."""
+    r, c = np.meshgrid(np.arange(8.0), np.arange(9.0), indexing="ij")
+    X = np.stack([c, r, np.zeros_like(c)])
+    X[:, 3:5, 3:5] = X[:, 3:4, 3:4] + 0.006 * np.array([[[0, 1], [0, 1]], [[0, 0], [1, 1]], [[0, 0], [0, 0]]])
+    X[:, 3, 3], X[:, 4, 4] = X[:, 4, 4].copy(), X[:, 3, 3].copy()  # a diagonal's ends swapped: its normal down
+    cos = sampling.quad_turn_cosines(list(X))
+    folded = [np.degrees(np.arccos(np.clip(x, -1, 1))) > 120 for x in cos]
+    assert folded[0][2:4, 3].all() and folded[1][3, 2:4].all()
+    looked = [np.full((n, 9), np.cos(np.radians(120 - sampling.SCREEN_MARGIN_DEG)), np.float32) for n in (6, 7)]
+    masks = screened(sampling._rest_diagonals(X), np.zeros((1, 3, 8, 9), np.float32), np.ones(1), looked)
+    for f, mask in zip(folded, masks):
+        assert mask[0][f].all()
+
+
+def test_a_screen_in_bands_is_one_pass(model, monkeypatch):
+    """The screen works SCREEN_CHUNK quads at a time, in bands of rows: the same masks as one band, with bands of 2
+    rows, of 5 and one band, on a grid whose rows do not divide evenly."""
+    steps = ((sampling.PROBE,) * (len(model.knots) - 1), (sampling.PROBE,) * (model.layout.n_points - 1))
+    rest = surface_grid(model, *steps, planes=True)[:, :47]
+    from pdeface.surface.grid import key_grids
+
+    _, grids = next(key_grids(model, *steps, planes=True))
+    G = grids[:3, :, :47].astype(np.float32)
+    rng = np.random.default_rng(2)
+    looked = [np.float32(np.cos(np.radians(rng.uniform(0, 25, size=(n, G.shape[3]))))) for n in (45, 46)]
+    monkeypatch.setattr(sampling, "SCREEN_CHUNK", 1 << 30)
+    whole = screened(sampling._rest_diagonals(rest), G, np.ones(3), looked)
+    assert all(m.any() and not m.all() for m in whole)
+    for rows in (2, 5):
+        monkeypatch.setattr(sampling, "SCREEN_CHUNK", rows * 3 * G.shape[3])
+        banded = screened(sampling._rest_diagonals(rest), G, np.ones(3), looked)
+        assert all(np.array_equal(a, b) for a, b in zip(banded, whole))
 
 
 def test_a_screen_of_the_blocks_part_is_the_whole_grids_there(model):
@@ -395,19 +483,18 @@ def test_a_screen_of_the_blocks_part_is_the_whole_grids_there(model):
 
     K, J = len(model.knots), model.layout.n_points
     steps = ((sampling.PROBE,) * (K - 1), (sampling.PROBE,) * (J - 1))
-    rest = surface_grid(model, *steps, planes=True)
-    rest_diagonals = [[p.astype(np.float32) for p in d] for d in sampling._diagonals(rest)]
+    rest = sampling._rest_diagonals(surface_grid(model, *steps, planes=True))
     _, grids = next(key_grids(model, *steps, planes=True))
     G = grids[:8].astype(np.float32)
     w = np.linspace(0.5, 1.0, len(G))
     rng = np.random.default_rng(5)
-    looked = [np.float32(np.cos(np.radians(rng.uniform(0, 30, size=s)))) for s in
-              ((G.shape[2] - 2, G.shape[3] - 1), (G.shape[2] - 1, G.shape[3] - 2))]
-    whole = sampling._screened(rest_diagonals, G, w, looked)
+    looked = [np.float32(np.cos(np.radians(rng.uniform(0, 30, size=(G.shape[2] - 2 + axis, G.shape[3])))))
+              for axis in (0, 1)]
+    whole = screened(rest, G, w, looked)
     assert all(m.any() for m in whole)
     r0, r1, c0, c1 = 7, 60, 11, 90
-    part = sampling._screened([[p[r0:r1 - 1, c0:c1 - 1] for p in d] for d in rest_diagonals], G[:, :, r0:r1, c0:c1],
-                              w, [looked[0][r0:r1 - 2, c0:c1 - 1], looked[1][r0:r1 - 1, c0:c1 - 2]])
+    part = screened([d[:, r0:r1 - 1, c0:c1] for d in rest], G[:, :, r0:r1, c0:c1], w,
+                    [looked[0][r0:r1 - 2, c0:c1], looked[1][r0:r1 - 1, c0:c1]])
     assert np.array_equal(part[0], whole[0][:, r0:r1 - 2, c0:c1 - 1])
     assert np.array_equal(part[1], whole[1][:, r0:r1 - 1, c0:c1 - 2])
     # blocks: two alike, one far off, two alike again

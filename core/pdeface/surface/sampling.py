@@ -78,6 +78,9 @@ SCREEN_CALL_QUADS = 4000
 #: A quad whose normal (the cross product of its diagonals, mm²) is shorter than this, its float32 turns
 #: unreliable: the screen passes its edges.
 SCREEN_TINY_MM2 = 1e-3
+#: Quads (of all its poses) the screen works on at once: what bounds its work arrays (7 MB). Larger were no faster,
+#: 2**16 the same, 2**14 a third slower (more array operations).
+SCREEN_CHUNK = 1 << 17
 
 
 def _checked(steps, what):
@@ -248,49 +251,105 @@ def _edges_over(X, block, shut_at_rest, interval, need, floor):
     return edges
 
 
-def _diagonals(planes):
-    """A grid's quad diagonals ``(d1, d2)``, each as three coordinate planes: :func:`quad_turn_cosines`' own."""
-    return ([p[..., 1:, 1:] - p[..., :-1, :-1] for p in planes], [p[..., :-1, 1:] - p[..., 1:, :-1] for p in planes])
+def _rest_diagonals(planes):
+    """The rest grid's quad diagonals ``(d1, d2)`` in float32, each three coordinate planes (n_u - 1, n_v): the
+    screen's rows, a column wider than the quads' (the last a copy of the one before, so its quad is no tinier
+    than a real one). :func:`quad_turn_cosines`' own differences."""
+    out = []
+    for d in ([p[1:, 1:] - p[:-1, :-1] for p in planes], [p[:-1, 1:] - p[1:, :-1] for p in planes]):
+        padded = np.empty((3, len(planes[0]) - 1, len(planes[0][0])), np.float32)
+        padded[:, :, :-1] = d
+        padded[:, :, -1] = padded[:, :, -2]
+        out.append(padded)
+    return out
 
 
-def _screened(rest_diagonals, G, w, looked_cos):
+class _ScreenScratch:
+    """The screen's work arrays, kept from one screen to the next (fresh pages cost: issue #35), grown as needed."""
+
+    def __init__(self):
+        self.planes = np.empty((0,), np.float32)
+        self.masks = np.empty((0,), bool)
+
+    def arrays(self, floats, bools):
+        """A float32 array of ``floats`` elements and a boolean one of ``bools``: views of the kept arrays."""
+        if len(self.planes) < floats:
+            self.planes = np.empty(floats, np.float32)
+        if len(self.masks) < bools:
+            self.masks = np.empty(bools, bool)
+        return self.planes[:floats], self.masks[:bools]
+
+
+def _screened(rest, G, w, looked_cos, scratch=None):
     """Which inner edges of each pose ``rest + w[p] G[p]`` may turn past ``looked_cos`` (the cosine each edge must
-    fall under to be looked at; -2 where none is): ``(across rows, across columns)`` masks (poses, ...) as
-    :func:`quad_turn_cosines` shapes them, a few more than do.
+    fall under to be looked at; -2 where none is): ``(across rows, across columns)`` masks (poses, ...), a few more
+    edges than do, as :func:`quad_turn_cosines` shapes them but a column wider (False there, and in the column before
+    it across columns); views of ``scratch``'s arrays (a :class:`_ScreenScratch`), good until its next screen.
 
-    ``rest_diagonals``: :func:`_diagonals` of the rest grid in float32; ``G`` (poses, 3, n_u, n_v) float32 key
-    grids. Each pose's diagonals are the rest's plus its keys': float32 then keeps their own digits, not the
-    coordinates'. A quad under :data:`SCREEN_TINY_MM2` counts as turning by 90°.
+    ``G`` (poses, 3, rows, columns) float32 key grids; ``rest``: :func:`_rest_diagonals` of the rest grid where
+    ``G`` lies ((rows - 1, columns) of each), ``looked_cos`` (rows - 2, columns) and (rows - 1, columns), or
+    numbers. Each pose's diagonals are the rest's plus its keys': float32 then keeps their own digits, not the
+    coordinates'. An edge beside a quad under :data:`SCREEN_TINY_MM2` passes wherever an edge is looked at. Worked
+    on rows a column wider than the quads' (then every array is read in order, each operation on the three planes at
+    once: a quad's right neighbour is the next element, the one below it the next row's; the extra column's numbers
+    are the next row's), in bands of :data:`SCREEN_CHUNK` quads of the poses (each band's last quad row the next
+    one's first): each element the same sums and products as one pass over the part.
     """
-    scale = None if (w == 1).all() else w.astype(np.float32)[:, None, None]
-    d1, d2 = ([k if scale is None else np.multiply(k, scale, out=k) for k in key]
-              for key in _diagonals(list(np.moveaxis(G, 1, 0))))
-    for rest, key in zip(rest_diagonals, (d1, d2)):
-        for r, k in zip(rest, key):
-            k += r  # rest + w k, in place: the same sums, fewer fresh arrays (page faults)
-    N, product = [], np.empty_like(d1[0])
-    for a, b in ((1, 2), (2, 0), (0, 1)):  # the cross product d2 × d1, a component at a time
-        n = np.multiply(d2[a], d1[b])
-        n -= np.multiply(d2[b], d1[a], out=product)
-        N.append(n)
-    square = np.multiply(N[0], N[0])
-    square += np.multiply(N[1], N[1], out=product)
-    square += np.multiply(N[2], N[2], out=product)
-    tiny = square < np.float32(SCREEN_TINY_MM2 ** 2)
-    square[tiny] = 1.0
-    inverse = np.divide(1.0, np.sqrt(square, out=square), out=square)
-    inverse[tiny] = 0.0  # its normal 0: a cosine of 0 with either neighbour
-    for c in N:
-        c *= inverse
-    masks = []
-    for axis in (0, 1):
-        ahead, behind = (np.s_[:, :-1], np.s_[:, 1:]) if axis == 0 else (np.s_[:, :, :-1], np.s_[:, :, 1:])
-        cos = np.multiply(N[0][ahead], N[0][behind])
-        step = np.empty_like(cos)
-        cos += np.multiply(N[1][ahead], N[1][behind], out=step)
-        cos += np.multiply(N[2][ahead], N[2][behind], out=step)
-        masks.append(cos < looked_cos[axis])
-    return tuple(masks)
+    P, _, n_u, n_v = G.shape
+    H = n_u - 1  # quad rows; a row of quads is n_v long, its last the wrap to the next row
+    band = max(2, min(H, SCREEN_CHUNK // (P * n_v)))
+    size = P * 3 * (band + 1) * n_v  # a band's vertex rows
+    planes, masks = (scratch or _ScreenScratch()).arrays(size + 10 * P * band * n_v, P * (2 * H - 1) * n_v)
+    copied = planes[:size].reshape(P, 3, -1)
+    work = planes[size:size + 9 * P * band * n_v].reshape(3, P, 3, -1)  # d1, d2, the normals: (poses, planes, quads)
+    products = planes[size + 9 * P * band * n_v:].reshape(P, -1)
+    # rows read in place where they are whole rows of G's array (in order) and the poses' weights 1
+    whole_rows = G.strides[2:] == (n_v * G.itemsize, G.itemsize) and (w == 1).all()
+    masks = masks[:P * (H - 1) * n_v].reshape(P, H - 1, n_v), masks[P * (H - 1) * n_v:].reshape(P, H, n_v)
+    tiny_square = np.float32(SCREEN_TINY_MM2 ** 2)
+    a = 0
+    while True:
+        b = min(a + band, H)
+        n = (b - a) * n_v  # the band's quads, flat
+        if whole_rows:
+            X = G[:, :, a:b + 1].reshape(P, 3, n + n_v)  # a view: its rows follow each other
+        else:
+            X = copied[:, :, :n + n_v]
+            np.copyto(X.reshape(P, 3, b - a + 1, n_v), G[:, :, a:b + 1])
+            if not (w == 1).all():
+                X *= np.asarray(w, np.float32)[:, None, None]
+        d1, d2, N = (p[:, :, :n] for p in work)
+        np.subtract(X[:, :, n_v + 1:], X[:, :, :n - 1], out=d1[:, :, :-1])  # (r + 1, c + 1) - (r, c)
+        d1[:, :, -1] = 0.0  # the extra column's last quad: past the band's last vertex
+        np.subtract(X[:, :, 1:1 + n], X[:, :, n_v:], out=d2)  # (r, c + 1) - (r + 1, c)
+        for d, r in ((d1, rest[0]), (d2, rest[1])):
+            d.reshape(P, 3, b - a, n_v)[...] += r[:, a:b]  # rest + w k: float32 keeps the diagonals' own digits
+        for i, (x, y) in enumerate(((1, 2), (2, 0), (0, 1))):  # the cross product d2 × d1, a component at a time
+            np.multiply(d2[:, x], d1[:, y], out=N[:, i])
+            N[:, i] -= np.multiply(d2[:, y], d1[:, x], out=products[:, :n])
+        square = np.einsum("pik,pik->pk", N, N, out=d1[:, 0])  # d1, d2 are free now; einsum: one pass, not five
+        tiny = np.less(square, tiny_square) if not square.min() >= tiny_square else None  # NaN: look
+        if tiny is not None:
+            square[tiny] = 1.0
+        inverse = np.divide(1.0, np.sqrt(square, out=square), out=square)
+        N *= inverse[:, None]
+        for axis, step in ((0, n_v), (1, 1)):  # the neighbour across rows is a row on, across columns the next
+            cos = d2[:, 0]
+            cos[:, n - step:] = 1.0  # no neighbour in the band (the extra column's last edge: cleared below)
+            np.einsum("pik,pik->pk", N[:, :, :n - step], N[:, :, step:], out=cos[:, :n - step])
+            rows = b - a - 1 + axis
+            looked = looked_cos[axis] if np.ndim(looked_cos[axis]) == 0 else looked_cos[axis][a:a + rows]
+            mask = np.less(cos[:, :rows * n_v].reshape(P, rows, n_v), looked, out=masks[axis][:, a:a + rows])
+            if tiny is not None:  # its float32 normal may point anywhere
+                beside = np.zeros((P, n), bool)
+                beside[:, :n - step] = tiny[:, :n - step] | tiny[:, step:]
+                mask |= beside[:, :rows * n_v].reshape(P, rows, n_v) & (np.asarray(looked) > -1.5)
+        if b == H:
+            break
+        a = b - 1
+    masks[0][:, :, -1] = False  # the extra column's edges
+    masks[1][:, :, -2:] = False
+    return masks
 
 
 def _screen_groups(R0, R1, C0, C1):
@@ -298,10 +357,12 @@ def _screen_groups(R0, R1, C0, C1):
     screened over one part of the grid, the smallest holding them all: a pose joins the run before it while the run's
     part costs no more screened quads (and :data:`SCREEN_CALL_QUADS` a screen) than screening the two apart."""
     runs, start = [], 0
+    R0, R1, C0, C1 = (np.asarray(a).tolist() for a in (R0, R1, C0, C1))  # Python's ints: small arrays' min is slow
     for p in range(1, len(R0) + 1):
         if p < len(R0):
-            joined = (R1[start:p + 1].max() - R0[start:p + 1].min()) * (C1[start:p + 1].max() - C0[start:p + 1].min())
-            alone = (R1[start:p].max() - R0[start:p].min()) * (C1[start:p].max() - C0[start:p].min())
+            part = min(R0[start:p]), max(R1[start:p]), min(C0[start:p]), max(C1[start:p])
+            alone = (part[1] - part[0]) * (part[3] - part[2])
+            joined = (max(part[1], R1[p]) - min(part[0], R0[p])) * (max(part[3], C1[p]) - min(part[2], C0[p]))
             if joined * (p + 1 - start) <= alone * (p - start) + (R1[p] - R0[p]) * (C1[p] - C0[p]) + SCREEN_CALL_QUADS:
                 continue
         runs.append(slice(start, p))
@@ -397,9 +458,10 @@ def interval_turns(model, rows, cols, W, floor=0.0, stacks=None, buffers=None):
     kept = {int(k): None for k in np.nonzero(W[several].any(axis=0))[0]}  # key → its grid, for poses of several
     n = W.shape[1]
     rows_moved, cols_moved = np.zeros((n, n_u), bool), np.zeros((n, n_v), bool)
-    rest_diagonals = [[p.astype(np.float32) for p in d] for d in _diagonals(planes0)]
+    rest_screened = _rest_diagonals(planes0)
     floor_cos = np.cos(np.radians(floor)) + 1e-9
     looked_at = {}  # the cosines each edge must fall under to be looked at, for the needs found so far
+    scratch = _ScreenScratch()
 
     def measure_screened(G, w, blocks, vertex, moved_landmarks, origin=(0, 0)):
         """Poses ``rest + w[p] G[p]`` (``G`` float32 (poses, 3, n_u, n_v), or the grid's part from row and column
@@ -419,22 +481,30 @@ def interval_turns(model, rows, cols, W, floor=0.0, stacks=None, buffers=None):
             for axis in (0, 1):
                 lower = np.maximum(floor, np.minimum(need[axis][interval[axis][:-1]], need[axis][interval[axis][1:]]))
                 cos = np.cos(np.radians(np.maximum(lower - SCREEN_MARGIN_DEG, 0.0))).astype(np.float32)
-                looked_at[needs].append(np.where(shut_at_rest[axis], cos[:, None] if axis == 0 else cos[None, :],
-                                              np.float32(-2.0)))
+                looked = np.full((n_u - 2 + axis, n_v), -2.0, np.float32)  # a column wider, as the screen's rows
+                looked[:, :n_v - 1 - axis] = np.where(shut_at_rest[axis], cos[:, None] if axis == 0 else cos[None, :],
+                                                      np.float32(-2.0))
+                looked_at[needs].append(looked)
         looked_cos = looked_at[needs]
         passed = ([], [])  # per axis: (pose, row, column) of the edges the screen passes
         for g in _screen_groups(R0, R1, C0, C1):
             r0, r1, c0, c1 = R0[g].min(), R1[g].max(), C0[g].min(), C1[g].max()  # the grid's part they cover
             # the edges with both quads in the part: across rows r0 .. r1 - 3, across columns c0 .. c1 - 3
-            masks = _screened([[p[r0:r1 - 1, c0:c1 - 1] for p in d] for d in rest_diagonals],
+            masks = _screened([d[:, r0:r1 - 1, c0:c1] for d in rest_screened],
                               G[g, :, r0 - origin[0]:r1 - origin[0], c0 - origin[1]:c1 - origin[1]],
-                              w[g], [cos[r0:r1 - 2 + axis, c0:c1 - 1 - axis] for axis, cos in enumerate(looked_cos)])
+                              w[g], [cos[r0:r1 - 2 + axis, c0:c1] for axis, cos in enumerate(looked_cos)], scratch)
             for axis, mask in enumerate(masks):
-                if mask.any():  # most screens of a finer mesh pass none (and nonzero reads slower)
-                    q, r, c = np.nonzero(mask)
+                if np.count_nonzero(mask):  # the indices read slower
+                    q, r, c = np.unravel_index(np.flatnonzero(mask), mask.shape)  # 10x nonzero's speed in 3-d
                     passed[axis].append((q + g.start, r + r0, c + c0))
+        if not (passed[0] or passed[1]):
+            return  # no edge can raise a need (most screens of a finer mesh)
         for axis in (0, 1):
-            q, r, c = (np.concatenate(a) for a in zip(*passed[axis])) if passed[axis] else np.zeros((3, 0), int)
+            if not passed[axis]:
+                for e in edges:
+                    e.append((np.zeros(0, int), np.zeros(0, int), np.zeros(0), np.zeros((0, 3))))
+                continue
+            q, r, c = (np.concatenate(a) for a in zip(*passed[axis]))
             # the edge and both its quads in the pose's block (as _edges_over's block slices give them)
             inside = (r >= R0[q]) & (r <= R1[q] - 3 + axis) & (c >= C0[q]) & (c <= C1[q] - 2 - axis)
             q, r, c = q[inside], r[inside], c[inside]
