@@ -25,7 +25,7 @@ from ..geometry import degrees_from_cos
 from ..presets import every_pose
 from ..threads import bounded
 from .folds import carried, nearest_vertices, opening_mask
-from .grid import KEY_BATCH, key_grids, key_stacks, surface_grid
+from .grid import KEY_BATCH, break_weights, key_grids, key_stacks, surface_grid
 from .model import model_landmarks
 
 #: Named uniform resolutions: (rows per curve interval, columns per point interval). ``default`` is adaptive.
@@ -343,16 +343,18 @@ def interval_turns(model, rows, cols, W, floor=0.0, stacks=None, buffers=None):
     not depend on the steps). ``buffers``: the key solves' buffers (:meth:`pdeface.surface.pde.SurfaceOperator.planes`'
     ``reuse``), kept across meshes.
     """
-    planes0 = surface_grid(model, rows, cols, planes=True)
+    weights = break_weights(model, cols)  # the rest's and the keys' (the same columns)
+    planes0 = surface_grid(model, rows, cols, planes=True, weights=weights)
     X0 = np.ascontiguousarray(np.moveaxis(planes0, 0, 2))
     n_u, n_v, _ = X0.shape
     K, J = len(model.knots), model.layout.n_points
     interval = [np.repeat(np.arange(K - 1), rows), np.repeat(np.arange(J - 1), cols)]  # of each quad row, column
     L = model_landmarks(model)
     nearest = nearest_vertices(X0.reshape(-1, 3), L, grid=(n_u, n_v))
-    # each inner edge's midpoint at rest: across rows (on row r + 1), across columns (on column c + 1)
-    mids = (0.5 * (X0[1:-1, :-1] + X0[1:-1, 1:]), 0.5 * (X0[:-1, 1:-1] + X0[1:, 1:-1]))
-    shut_at_rest = [~opening_mask(m.reshape(-1, 3), L).reshape(m.shape[:2]) for m in mids]
+    # each inner edge's midpoint at rest in the frontal view (the openings' x and y): across rows (on row r + 1),
+    # across columns (on column c + 1)
+    mids = (0.5 * (X0[1:-1, :-1, :2] + X0[1:-1, 1:, :2]), 0.5 * (X0[:-1, 1:-1, :2] + X0[1:, 1:-1, :2]))
+    shut_at_rest = [~opening_mask(m.reshape(-1, 2), L).reshape(m.shape[:2]) for m in mids]
     flat0 = X0.reshape(-1, 3)
     need = [np.zeros(K - 1), np.zeros(J - 1)]
     known = nearest >= 0
@@ -364,8 +366,8 @@ def interval_turns(model, rows, cols, W, floor=0.0, stacks=None, buffers=None):
     def settle():  # the edges found outside the openings raise their intervals' needs: one test for many poses
         if not found:
             return
-        posed_L = np.stack([carried(rest_at_landmarks, rest_at_landmarks + moved, L, nearest=at_nearest)
-                            for moved, _ in found])
+        posed_L = carried(rest_at_landmarks, rest_at_landmarks + np.stack([moved for moved, _ in found]), L,
+                          nearest=at_nearest)
         parts = [e for _, edges in found for e in edges]
         mid = np.concatenate([e[3] for e in parts])
         which = np.repeat(np.arange(len(found)), [sum(len(e[2]) for e in edges) for _, edges in found])
@@ -468,7 +470,8 @@ def interval_turns(model, rows, cols, W, floor=0.0, stacks=None, buffers=None):
     buffers = [] if buffers is None else buffers
     # (m, 3, n_u, n_v) float32: each key's planes, each batch written over the last one's (fresh pages cost; issue
     # #35). They are the keys the turns are measured on: screened as they are, read in float64 at the candidates
-    for first, grids in key_grids(model, rows, cols, planes=True, reuse=buffers, stacks=stacks, dtype=np.float32):
+    for first, grids in key_grids(model, rows, cols, planes=True, reuse=buffers, stacks=stacks, dtype=np.float32,
+                                  weights=weights):
         m = len(grids)
         # a row or column moves where its largest displacement (of the three planes) is past MOVED_MM: the planes'
         # largest first (reductions over two axes at once read slower), their magnitudes in the solve's scratch
