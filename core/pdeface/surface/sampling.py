@@ -159,11 +159,13 @@ _CHOSEN_MAX = 32
 
 
 def model_fingerprint(model) -> bytes:
-    """A digest of everything the adaptive resolution reads: the curves, layout, landmarks and descriptors."""
-    h = hashlib.blake2b(digest_size=16)
+    """A digest of everything the adaptive resolution reads: the curves, layout, landmarks and descriptors (the
+    arrays' own bytes, read in place: no copies). SHA-256, which CPUs of the last years compute in hardware: 2.4 MB
+    of a face's descriptors in 1.3 ms here, BLAKE2b's 2.7 ms."""
+    h = hashlib.sha256()
     for a in (model.knots, model.coefficients, model.residual, model.layout.as_array(), model.features,
               model.landmarks if model.landmarks is not None else np.zeros(0), [model.a, model.remainder_w]):
-        h.update(np.ascontiguousarray(a, np.float64).tobytes())
+        h.update(np.ascontiguousarray(a, np.float64))
     h.update(model.assembly.encode())
     for d in model.descriptors:  # what its dense changes are made of (hashing those read 5x the bytes)
         h.update(d.key.encode())
@@ -171,7 +173,7 @@ def model_fingerprint(model) -> bytes:
         h.update(np.ascontiguousarray(d.curves, np.int64).tobytes())
         for a in (d.coefficients, np.zeros(0) if d.residual is None else d.residual):
             h.update(np.array(a.shape, np.int64).tobytes())
-            h.update(np.ascontiguousarray(a, np.float64).tobytes())
+            h.update(np.ascontiguousarray(a, np.float64))
     return h.digest()
 
 
@@ -489,8 +491,8 @@ def interval_turns(model, rows, cols, W, floor=0.0, stacks=None, buffers=None):
             j = np.array([g for g, _, _, _ in part])
             w = W[[p for _, _, p, _ in part], [k for _, k, _, _ in part]]
 
-            def vertex(q, r, c, grids=grids, j=j, w=w):
-                return [w[q] * grids[j[q], i, r, c] + planes0[i, r, c] for i in range(3)]
+            def vertex(q, r, c, grids=grids, j=j, w=w):  # the three planes read at once: (corners, 3), transposed
+                return list(w[q] * grids[j[q], :, r, c].T + planes0[:, r, c])
             measure_screened(grids[j[0]:j[-1] + 1] if (np.diff(j) == 1).all() else grids[j], w,
                              [b for _, _, _, b in part], vertex, [wi * at_landmarks_moved[g].T for (g, _, _, _), wi
                                                                   in zip(part, w)])
