@@ -165,7 +165,8 @@ def carried(rest_vertices, posed_vertices, points, nearest=None) -> np.ndarray:
 
 
 def opening_mask(points_face, landmarks_face, grow=GROW, which=None) -> np.ndarray:
-    """Which face-frame points lie inside an opening's grown landmark polygon (frontal view).
+    """Which face-frame points (n, 3), or their frontal view alone (n, 2), lie inside an opening's grown landmark
+    polygon (frontal view).
 
     A polygon is made of the landmarks that are known (a model file keeps some only: the mouth's
     corners and midpoints); an opening with fewer than 3 known is left out. ``which``: each point's

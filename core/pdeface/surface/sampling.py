@@ -377,10 +377,12 @@ def interval_turns(model, rows, cols, W, floor=0.0, stacks=None, buffers=None):
         inside = opening_mask(np.concatenate([mid, mid]), np.concatenate([posed_L, L[None]]),
                               which=np.concatenate([which, np.full(len(mid), len(found))]))
         shut = ~(inside[:len(mid)] | inside[len(mid):])
-        for axis, (before, after, t, _) in zip([0, 1] * len(found), parts):
-            s, shut = shut[:len(t)], shut[len(t):]
-            np.maximum.at(need[axis], before[s], t[s])
-            np.maximum.at(need[axis], after[s], t[s])
+        # each axis' edges of all the poses at once (a maximum is the same in any order)
+        axis_of = np.repeat(np.tile([0, 1], len(found)), [len(e[2]) for e in parts])
+        before, after, t = (np.concatenate([e[i] for e in parts]) for i in range(3))
+        for axis in (0, 1):
+            s = shut & (axis_of == axis)
+            np.maximum.at(need[axis], np.concatenate([before[s], after[s]]), np.concatenate([t[s], t[s]]))
         found.clear()
 
     def measure(X, block, moved_landmarks):
@@ -491,8 +493,8 @@ def interval_turns(model, rows, cols, W, floor=0.0, stacks=None, buffers=None):
             j = np.array([g for g, _, _, _ in part])
             w = W[[p for _, _, p, _ in part], [k for _, k, _, _ in part]]
 
-            def vertex(q, r, c, grids=grids, j=j, w=w):  # the three planes read at once: (corners, 3), transposed
-                return list(w[q] * grids[j[q], :, r, c].T + planes0[:, r, c])
+            def vertex(q, r, c, grids=grids, j=j, w=w):
+                return [w[q] * grids[j[q], i, r, c] + planes0[i, r, c] for i in range(3)]
             measure_screened(grids[j[0]:j[-1] + 1] if (np.diff(j) == 1).all() else grids[j], w,
                              [b for _, _, _, b in part], vertex, [wi * at_landmarks_moved[g].T for (g, _, _, _), wi
                                                                   in zip(part, w)])
