@@ -461,6 +461,11 @@ def test_a_grids_nearest_vertices_are_the_brute_forces(default_face):
     V = X.reshape(-1, 3)
     brute, tiled = nearest_vertices(V, points), nearest_vertices(V, points, grid=X.shape[:2])
     assert (brute >= 0).sum() > 60 and np.array_equal(brute, tiled)  # a model file keeps some landmarks
+    whole = np.r_[[5] * 3, [4] * (K - 4)]  # rows in whole tiles only: the boxes' other path
+    X2 = surface_grid(default_face, whole, cols)
+    assert X2.shape[0] % TILE == 0
+    np.testing.assert_array_equal(nearest_vertices(X2.reshape(-1, 3), points, grid=X2.shape[:2]),
+                                  nearest_vertices(X2.reshape(-1, 3), points))
     tie = 0.5 * (X[10, 10] + X[10, 11])  # half-way between two vertices
     assert _nearest_on_grid(X, tie[None])[0] == -1
     assert nearest_vertices(V, tie[None], grid=X.shape[:2])[0] == nearest_vertices(V, tie[None])[0]

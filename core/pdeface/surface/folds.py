@@ -115,8 +115,14 @@ def _nearest_on_grid(X, P) -> np.ndarray:
     index where it is sure (no other vertex within :data:`TIE_MM2`), else -1."""
     n_u, n_v, _ = X.shape
     starts = np.arange(0, n_u, TILE), np.arange(0, n_v, TILE)
-    lo = np.minimum.reduceat(np.minimum.reduceat(X, starts[0], axis=0), starts[1], axis=1).reshape(-1, 3)
-    hi = np.maximum.reduceat(np.maximum.reduceat(X, starts[0], axis=0), starts[1], axis=1).reshape(-1, 3)
+    whole = n_u // TILE * TILE
+
+    def box(extreme):  # each tile's smallest or largest coordinates: whole tiles of rows as a reshape (5x reduceat)
+        rows = extreme.reduce(X[:whole].reshape(n_u // TILE, TILE, n_v, 3), axis=1)
+        if whole < n_u:
+            rows = np.concatenate([rows, extreme.reduce(X[whole:], axis=0)[None]])
+        return extreme.reduceat(rows, starts[1], axis=1).reshape(-1, 3)
+    lo, hi = box(np.minimum), box(np.maximum)
     # each tile's vertices (flat indices), -1 past the grid's edge
     r, c = np.arange(len(starts[0]) * TILE), np.arange(len(starts[1]) * TILE)
     index = np.where((r[:, None] < n_u) & (c[None, :] < n_v), r[:, None] * n_v + c[None, :], -1)
