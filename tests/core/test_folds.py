@@ -354,6 +354,73 @@ def test_many_landmark_sets_at_once_are_each_set_alone():
     np.testing.assert_array_equal(together, alone)
 
 
+def straightforward_opening_mask(points, sets, which, grow=1 / 3):
+    """opening_mask written out: each point against each opening of its own landmark set, every edge of the grown
+    polygon of the corners known in all sets counted (even-odd) where it crosses the point's row."""
+    out = np.zeros(len(points), bool)
+    for idx in OPENINGS.values():
+        known = [i for i in idx if np.isfinite(sets[:, i, :2]).all()]
+        if len(known) < 3:
+            continue
+        for n, ((x, y), s) in enumerate(zip(points[:, :2], which)):
+            poly = sets[s, known, :2]
+            centre = poly.mean(axis=0, keepdims=True)
+            poly = centre + (1 + grow) * (poly - centre)
+            crossings = 0
+            for (x0, y0), (x1, y1) in zip(poly, np.roll(poly, -1, axis=0)):
+                if (y0 > y) != (y1 > y) and x < x0 + (y - y0) * (x1 - x0) / (y1 - y0):
+                    crossings += 1
+            out[n] |= crossings % 2 == 1
+    return out
+
+
+def test_the_openings_even_odd_test_is_the_straightforward_one_on_hostile_polygons():
+    """opening_mask (a bounding box per polygon, then an edge at a time for many points, or every point and edge at
+    once for many sets) marks the points the even-odd test written out marks, on polygons that cross themselves,
+    repeat corners, have level edges, and points on their corners' rows, on their edges and on their corners."""
+    from pdeface.surface.folds import GROW, opening_mask
+
+    rng = np.random.default_rng(7)
+    L = np.zeros((68, 3))
+    for idx in OPENINGS.values():  # random polygons: most cross themselves
+        L[idx, :2] = rng.uniform(-20, 20, 2) + rng.uniform(-8, 8, (len(idx), 2))
+    mouth = OPENINGS["mouth"]
+    L[mouth[3], :2] = L[mouth[2], :2]  # a repeated corner
+    L[mouth[6], 1] = L[mouth[5], 1]  # a level edge
+    L[mouth[9], 0] = L[mouth[8], 0]  # an upright one
+    L[OPENINGS["nostrils"][:4]] = np.nan  # too few corners: no polygon
+    sets = L + rng.normal(0, 1.5, (5, 68, 3))
+    sets[:, mouth[3]] = sets[:, mouth[2]]
+    points = rng.uniform(-35, 35, (4000, 3))
+    # points on the corners' rows, at the corners, and on the edges (as grown about the first set's centre)
+    corners = np.concatenate([sets[0, idx, :2] for idx in list(OPENINGS.values())[:3]])
+    centres = np.repeat([sets[0, idx, :2].mean(axis=0) for idx in list(OPENINGS.values())[:3]], [6, 6, 12], axis=0)
+    grown = centres + (1 + GROW) * (corners - centres)
+    following = np.concatenate([np.roll(grown[a:b], -1, axis=0) for a, b in ((0, 6), (6, 12), (12, 24))])
+    points[:24, :2] = grown
+    points[24:48, :2] = 0.5 * (grown + following)
+    points[48:48 + 24 * 20, 1] = np.repeat(grown[:, 1], 20)
+    for which in (None, rng.integers(0, len(sets), len(points))):  # one set (the first), or a set per point
+        want = straightforward_opening_mask(points, sets, np.zeros(len(points), int) if which is None else which)
+        assert want.sum() > 100 and (~want).sum() > 100
+        for P in (points, points[:, :2]):  # face-frame points, or their frontal view alone
+            np.testing.assert_array_equal(opening_mask(P, sets[0] if which is None else sets, which=which), want)
+
+
+def test_landmarks_carried_into_many_poses_are_each_poses():
+    """carried with a stack of posed meshes carries the points into each as one pose at a time does."""
+    from pdeface.surface.folds import carried
+
+    rng = np.random.default_rng(8)
+    rest, points = rng.normal(size=(50, 3)), rng.normal(size=(9, 3))
+    points[2] = np.nan
+    posed = rest + rng.normal(0, 0.1, (4, 50, 3))
+    together = carried(rest, posed, points)
+    for pose, got in zip(posed, together):
+        np.testing.assert_array_equal(got, carried(rest, pose, points))
+    assert np.isnan(together[:, 2]).all()
+
+
 def test_relaxation_gathers_are_numpys_indexing():
     """The relaxation's row gathers (numpy.take, for speed) give numpy's indexing's numbers bit for bit: the keys
     stay as they were (issue #35's speed-ups leave every key unchanged)."""
@@ -394,6 +461,11 @@ def test_a_grids_nearest_vertices_are_the_brute_forces(default_face):
     V = X.reshape(-1, 3)
     brute, tiled = nearest_vertices(V, points), nearest_vertices(V, points, grid=X.shape[:2])
     assert (brute >= 0).sum() > 60 and np.array_equal(brute, tiled)  # a model file keeps some landmarks
+    whole = np.r_[[5] * 3, [4] * (K - 4)]  # rows in whole tiles only: the boxes' other path
+    X2 = surface_grid(default_face, whole, cols)
+    assert X2.shape[0] % TILE == 0
+    np.testing.assert_array_equal(nearest_vertices(X2.reshape(-1, 3), points, grid=X2.shape[:2]),
+                                  nearest_vertices(X2.reshape(-1, 3), points))
     tie = 0.5 * (X[10, 10] + X[10, 11])  # half-way between two vertices
     assert _nearest_on_grid(X, tie[None])[0] == -1
     assert nearest_vertices(V, tie[None], grid=X.shape[:2])[0] == nearest_vertices(V, tie[None])[0]

@@ -82,6 +82,23 @@ def test_a_model_file_keeps_its_steps(model, tmp_path, monkeypatch):
     assert len(rows) == len(model.knots) - 1 and min(rows) >= sampling.STEPS_RANGE[0]
 
 
+def test_the_fingerprint_is_every_number_the_choice_reads(model):
+    """model_fingerprint (the arrays' bytes read in place) is the same for a copy of the model and differs when one
+    number it reads moves by its last bit: a descriptor's residual or coefficient, the rest curves, a landmark."""
+    import copy
+
+    base = sampling.model_fingerprint(model)
+    assert sampling.model_fingerprint(copy.deepcopy(model)) == base
+    for change in (lambda m: m.descriptors[-1].residual, lambda m: m.descriptors[0].coefficients,
+                   lambda m: m.coefficients, lambda m: m.landmarks):
+        other = copy.deepcopy(model)
+        a = change(other)
+        finite = np.flatnonzero(np.isfinite(a))  # (a landmark the model keeps)
+        i = finite[len(finite) // 2]
+        a.flat[i] = np.nextafter(a.flat[i], np.inf)
+        assert sampling.model_fingerprint(other) != base
+
+
 def test_the_bundled_steps_are_the_current_choice(model):
     """default_face.npz's steps are what the choice gives now (build_assets.py keeps them current)."""
     sampling._CHOSEN.clear()

@@ -23,17 +23,52 @@ GROW = 1 / 3
 CREASE_MM = 3.0
 
 
-def _inside(points, polygon) -> np.ndarray:
-    """Even-odd test of 2-D ``points`` against a closed ``polygon`` (m, 2), or each point against its own
-    (points, m, 2) (vectorised over points)."""
-    x, y = points[:, :1], points[:, 1:2]
-    x0, y0 = polygon[..., 0], polygon[..., 1]
-    following = np.roll(polygon, -1, axis=-2)  # each edge, as a row over the points
+def _inside(x, y, polygon) -> np.ndarray:
+    """Even-odd test of 2-D points ``x``, ``y`` against a closed ``polygon`` (m, 2): an edge at a time, its
+    crossing's x made only for the points whose row it crosses (many points: the resolution choice's grids).
+    Each crossing is the same arithmetic as :func:`_inside_each`'s, so the same mask."""
+    inside = np.zeros(len(x), bool)
+    following = np.roll(polygon, -1, axis=0)
+    for (x0, y0), (x1, y1) in zip(polygon, following):
+        crosses = np.flatnonzero((y0 > y) != (y1 > y))
+        if len(crosses):
+            xc = x0 + (y[crosses] - y0) * (x1 - x0) / (y1 - y0)
+            inside[crosses[x[crosses] < xc]] ^= True
+    return inside
+
+
+def _inside_each(x, y, polygons) -> np.ndarray:
+    """Even-odd test of each 2-D point ``x``, ``y`` against its own closed polygon (points, m, 2), vectorised over
+    points and edges (few points: a pose's edges)."""
+    x, y = x[:, None], y[:, None]
+    x0, y0 = polygons[..., 0], polygons[..., 1]
+    following = np.roll(polygons, -1, axis=-2)  # each edge, as a row over the points
     x1, y1 = following[..., 0], following[..., 1]
     crosses = (y0 > y) != (y1 > y)
     with np.errstate(divide="ignore", invalid="ignore"):
         xc = x0 + (y - y0) * (x1 - x0) / (y1 - y0)
     return (crosses & (x < xc)).sum(axis=1) % 2 == 1
+
+
+def _grown_openings(sets, grow):
+    """Each opening's polygon of known landmarks grown about its centre, for each landmark set ``sets``
+    (sets, 68, 3): (sets, openings, m, 2), an opening with fewer corners than the most padded by repeating its
+    last (an edge of no length crosses no row, so the even-odd test is the polygon's own); None where no opening
+    has 3 known corners."""
+    grown = []
+    for idx in OPENINGS.values():
+        poly = sets[:, idx, :2]
+        poly = poly[:, np.isfinite(poly).all(axis=(0, 2))]
+        if poly.shape[1] >= 3:
+            centre = poly.mean(axis=1, keepdims=True)
+            grown.append(centre + (1 + grow) * (poly - centre))
+    if not grown:
+        return None
+    out = np.empty((len(sets), len(grown), max(g.shape[1] for g in grown), 2))
+    for o, g in enumerate(grown):
+        out[:, o, :g.shape[1]] = g
+        out[:, o, g.shape[1]:] = g[:, -1:]
+    return out
 
 
 #: At most this many points (landmarks) are searched for by brute force (and on a grid, by its tiles); more, by a tree.
@@ -80,8 +115,14 @@ def _nearest_on_grid(X, P) -> np.ndarray:
     index where it is sure (no other vertex within :data:`TIE_MM2`), else -1."""
     n_u, n_v, _ = X.shape
     starts = np.arange(0, n_u, TILE), np.arange(0, n_v, TILE)
-    lo = np.minimum.reduceat(np.minimum.reduceat(X, starts[0], axis=0), starts[1], axis=1).reshape(-1, 3)
-    hi = np.maximum.reduceat(np.maximum.reduceat(X, starts[0], axis=0), starts[1], axis=1).reshape(-1, 3)
+    whole = n_u // TILE * TILE
+
+    def box(extreme):  # each tile's smallest or largest coordinates: whole tiles of rows as a reshape (5x reduceat)
+        rows = extreme.reduce(X[:whole].reshape(n_u // TILE, TILE, n_v, 3), axis=1)
+        if whole < n_u:
+            rows = np.concatenate([rows, extreme.reduce(X[whole:], axis=0)[None]])
+        return extreme.reduceat(rows, starts[1], axis=1).reshape(-1, 3)
+    lo, hi = box(np.minimum), box(np.maximum)
     # each tile's vertices (flat indices), -1 past the grid's edge
     r, c = np.arange(len(starts[0]) * TILE), np.arange(len(starts[1]) * TILE)
     index = np.where((r[:, None] < n_u) & (c[None, :] < n_v), r[:, None] * n_v + c[None, :], -1)
@@ -114,7 +155,8 @@ def carried(rest_vertices, posed_vertices, points, nearest=None) -> np.ndarray:
     """Points carried into a pose of a mesh: each moves as its nearest rest vertex does.
 
     ``rest_vertices``, ``posed_vertices`` (n, 3) and ``points`` (p, 3) in one frame; rows with a NaN (the
-    landmarks a model does not keep) stay unknown. ``nearest``: :func:`nearest_vertices`, when carrying the
+    landmarks a model does not keep) stay unknown. ``posed_vertices`` may be many poses, (poses, n, 3): the points
+    carried into each, (poses, p, 3). ``nearest``: :func:`nearest_vertices`, when carrying the
     same points into many poses. A posed face's openings are where its posed lids and
     lips are (AU27's lower lip drops past its rest polygon); the scan's creases go where the pose takes
     the skin they lie on (AU38's flared nose wings carry their grooves 2–3 mm outwards).
@@ -123,12 +165,14 @@ def carried(rest_vertices, posed_vertices, points, nearest=None) -> np.ndarray:
     nearest = nearest_vertices(rest_vertices, P) if nearest is None else nearest
     known = nearest >= 0
     moved = np.asarray(posed_vertices, np.float64) - np.asarray(rest_vertices, np.float64)
-    P[known] += moved[nearest[known]]
+    P = np.repeat(P[None], len(moved), axis=0) if moved.ndim == 3 else P
+    P[..., known, :] += moved[..., nearest[known], :]
     return P
 
 
 def opening_mask(points_face, landmarks_face, grow=GROW, which=None) -> np.ndarray:
-    """Which face-frame points lie inside an opening's grown landmark polygon (frontal view).
+    """Which face-frame points (n, 3), or their frontal view alone (n, 2), lie inside an opening's grown landmark
+    polygon (frontal view).
 
     A polygon is made of the landmarks that are known (a model file keeps some only: the mouth's
     corners and midpoints); an opening with fewer than 3 known is left out. ``which``: each point's
@@ -136,27 +180,23 @@ def opening_mask(points_face, landmarks_face, grow=GROW, which=None) -> np.ndarr
     landmarks are those known in every set).
     """
     mask = np.zeros(len(points_face), bool)
-    one = which is None
-    sets = np.asarray(landmarks_face)[None] if one else np.asarray(landmarks_face)
-    which = None if one else np.asarray(which)
-    xy = points_face[:, :2]
-    x, y = xy[:, 0], xy[:, 1]
-    for idx in OPENINGS.values():
-        poly = sets[:, idx, :2]
-        poly = poly[:, np.isfinite(poly).all(axis=(0, 2))]
-        if poly.shape[1] < 3:
-            continue
-        centre = poly.mean(axis=1, keepdims=True)
-        grown = centre + (1 + grow) * (poly - centre)  # (sets, m, 2)
-        # only points in its bounding box can be inside: one box, compared column by column (many points: the
-        # resolution choice's grids), or each point's own set's
-        if one:
-            (x0, y0), (x1, y1) = grown[0].min(axis=0), grown[0].max(axis=0)
-            near = np.flatnonzero((x >= x0) & (x <= x1) & (y >= y0) & (y <= y1))
-        else:
-            lo, hi = grown.min(axis=1)[which], grown.max(axis=1)[which]
-            near = np.flatnonzero(((xy >= lo) & (xy <= hi)).all(axis=1))
-        mask[near] |= _inside(xy[near], grown[0] if len(grown) == 1 else grown[which[near]])
+    sets = np.asarray(landmarks_face)[None] if which is None else np.asarray(landmarks_face)
+    grown = _grown_openings(sets, grow)
+    if grown is None:
+        return mask
+    x, y = points_face[:, 0], points_face[:, 1]
+    lo, hi = grown.min(axis=2), grown.max(axis=2)  # each polygon's bounding box: only points in it can be inside
+    if which is None:  # one set, many points (the resolution choice's grids): a polygon at a time, its rows first
+        for polygon, (x0, y0), (x1, y1) in zip(grown[0], lo[0], hi[0]):
+            near = np.flatnonzero((y >= y0) & (y <= y1))
+            near = near[(x[near] >= x0) & (x[near] <= x1)]
+            mask[near] |= _inside(x[near], y[near], polygon)
+        return mask
+    # a set per point (a face's poses), few points: every (point, opening) pair in its box at once
+    which = np.asarray(which)
+    point, opening = np.nonzero(((points_face[:, None, :2] >= lo[which]) & (points_face[:, None, :2] <= hi[which]))
+                                .all(axis=2))
+    mask[point[_inside_each(x[point], y[point], grown[which[point], opening])]] = True
     return mask
 
 

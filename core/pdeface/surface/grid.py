@@ -95,7 +95,7 @@ def key_stacks(model: FaceModel, batch=KEY_BATCH, dtype=np.float64) -> list:
 
 
 def key_grids(model: FaceModel, sub_u, sub_v, assembly=None, batch=KEY_BATCH, planes=False, reuse=False, stacks=None,
-              dtype=np.float64):
+              dtype=np.float64, weights=None):
     """Each descriptor's change of the surface (face frame, mm) on the output grid, a few solves at a time:
     yields ``(first, grids)``, ``grids`` (n_u, n_v, m, 3) for descriptors ``first .. first + m - 1``
     (``planes``: (m, 3, n_u, n_v)). ``reuse`` (with ``planes``): each batch's grids are written over the last
@@ -103,8 +103,9 @@ def key_grids(model: FaceModel, sub_u, sub_v, assembly=None, batch=KEY_BATCH, pl
     :meth:`pdeface.surface.pde.SurfaceOperator.planes`' buffers, kept by the caller across grids.
     ``stacks``: :func:`key_stacks` of ``batch``, when made already (of ``dtype``, or cast to it). ``dtype``: with
     ``planes``, ``np.float32`` solves in float32 (half the bytes, about half the CPU; values to float32's rounding
-    of its products), for the resolution choice's screen alone: keys and bindings stay float64."""
-    weights = break_weights(model, sub_v)
+    of its products), for the resolution choice's screen alone: keys and bindings stay float64. ``weights``:
+    :func:`break_weights` of ``sub_v``, when known (the caller's rest grid on the same columns)."""
+    weights = break_weights(model, sub_v) if weights is None else weights
     buffers = (reuse if isinstance(reuse, list) else [] if reuse else None) if planes else None
     dtype = dtype if planes else np.float64
     for first, C, R in key_stacks(model, batch, dtype) if stacks is None else stacks:
