@@ -193,10 +193,12 @@ def test_landmarks_off_the_skin_name_the_worst_one_and_what_may_hold_it():
 
 @pytest.mark.parametrize("aside", [0.0, -0.025, 0.025])
 def test_a_mouth_open_at_rest_is_not_taken_for_lips_joined(aside):
-    """ICT with its jaw open 0.4 at rest (inner lips 0.23 eye distances apart), the inner lips' middles where a
-    detector found them (0.024 eye distances aside) or centred: the way between them over the skin runs round a mouth
-    corner, 3.2 times the gap, and was read as lips joined in the mesh (the binding said to cut the mouth open, and
-    bound the lips as one). Only a way over the lips' front within the mouth's middle joins them."""
+    """ICT with its jaw open 0.4 at rest (inner lips 0.25 eye distances apart), the inner lips' middles where a
+    detector found them (0.024 eye distances aside; centred: a control, never misread): the way between them over
+    the skin runs round a mouth corner, about 3 times the gap, and was read as lips joined in the mesh (the binding
+    said to cut the mouth open, and bound the lips as one). Only a way over the lips' front within the mouth's middle
+    joins them (here the corners lie deeper than the lips: the depth limit rules the way out; the flat mouth below
+    tests the middle's band)."""
     from pdeface.au.modelfile import load_face
     from pdeface.au.retarget import retarget
     from pdeface.head.bind import HeadBinding
@@ -209,3 +211,41 @@ def test_a_mouth_open_at_rest_is_not_taken_for_lips_joined(aside):
     model = retarget(load_face("default"), fit_face(V, T, L)[0])
     b = HeadBinding(model, V, T, landmarks=L)
     assert not any("lips are joined" in n for n in b.notes)
+
+
+def _flat_mouth(half_width, half_gap, cut=True):
+    """A flat sheet of skin (mm, facing +z) with a mouth-shaped hole (an ellipse of ``half_width`` by ``half_gap``;
+    ``cut`` False: none), and landmarks: the inner lips' middles on its rim above and below the centre, its corners
+    at the ends, the rest NaN."""
+    from scipy.spatial import Delaunay
+
+    x, y = np.meshgrid(np.arange(-30.0, 30.5, 1.0), np.arange(-20.0, 20.5, 1.0))
+    a = np.linspace(0, 2 * np.pi, 96, endpoint=False)
+    rim = np.stack([half_width * np.cos(a), half_gap * np.sin(a)], 1)
+    pts = np.unique(np.round(np.concatenate([np.stack([x.ravel(), y.ravel()], 1), rim]), 9), axis=0)
+    outside = (pts[:, 0] / half_width) ** 2 + (pts[:, 1] / half_gap) ** 2 >= 1 - 1e-9
+    pts = pts[outside | (not cut)]
+    T = Delaunay(pts).simplices
+    centroid = pts[T].mean(axis=1)
+    if cut:  # triangles spanning the hole go
+        T = T[(centroid[:, 0] / half_width) ** 2 + (centroid[:, 1] / half_gap) ** 2 > 1]
+    T = np.where((np.cross(pts[T[:, 1]] - pts[T[:, 0]], pts[T[:, 2]] - pts[T[:, 0]]) > 0)[:, None], T, T[:, ::-1])
+    P = np.column_stack([pts, np.zeros(len(pts))])
+    L = np.full((68, 3), np.nan)
+    L[[62, 66]] = [[0, half_gap, 0], [0, -half_gap, 0]]
+    L[[48, 54]] = [[-half_width, 0, 0], [half_width, 0, 0]]
+    return P, T, L
+
+
+@pytest.mark.parametrize("cut", [True, False])
+def test_a_way_round_a_flat_mouths_corner_does_not_join_its_lips(cut):
+    """A flat mouth open 8 mm, 20 wide (no depth to rule a way out): the way over the skin round a corner is about
+    3 times the gap, within the short way's reach, and read the lips as joined; only a way within the mouth's
+    middle joins them. The same sheet without the hole is joined (its lips are one skin)."""
+    from pdeface.head.bind import _lips_joined
+    from scipy.spatial import cKDTree
+
+    P, T, L = _flat_mouth(10.0, 4.0, cut)
+    normals = np.tile([0.0, 0.0, 1.0], (len(P), 1))
+    joined, _, _, _ = _lips_joined(P, T, L, 60.0, cKDTree(P), normals)
+    assert joined == (not cut)

@@ -373,10 +373,11 @@ def _lips_joined(P, Ts, Lf, eye_distance, skin_tree, normals) -> tuple:
     ``P``, ``normals`` its vertex normals.
 
     Joined: by a way about as short as the gap between them (FUSED_PATH, FUSED_IOD), or else, beside them, by any
-    way across the middle of the mouth's width (:func:`_mouth_middle`) no deeper than FUSED_IOD behind them (ICT's
-    generic head and its identity008 clustered on a 0.42 cm grid join them 0.07 eye distances aside, ways of 0.16
-    and 0.13 eye distances, FUSED_PATH's 0.12 and 0.10; touching lips with a mouth behind them part across the
-    middle, and the way through the mouth runs deeper). Lips joined beside their middles are never one line."""
+    way; either way across the middle of the mouth's width (:func:`_mouth_middle`) and no deeper than FUSED_IOD
+    behind them (ICT's generic head and its identity008 clustered on a 0.42 cm grid join them 0.07 eye distances
+    aside, ways of 0.16 and 0.13 eye distances, FUSED_PATH's 0.12 and 0.10; touching lips with a mouth behind them
+    part across the middle, and the way through the mouth runs deeper; a mouth open at rest has a way round its
+    corner about as short as the short way's limit). Lips joined beside their middles are never one line."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import dijkstra
 
@@ -416,8 +417,9 @@ def _lips_joined(P, Ts, Lf, eye_distance, skin_tree, normals) -> tuple:
         graph = coo_matrix((length[e], (i[e], j[e])), shape=(len(P), len(P))).tocsr()
         return bool(np.isfinite(dijkstra(graph, directed=False, indices=a, limit=limit)[b]))
 
-    # The lips' front within the mouth's middle: a way round a corner or through the mouth joins no lips (a mouth open
-    # at rest 0.23 eye distances has a way round its corner 3.2 times as long as the gap: ICT's jaw open 0.4)
+    # The lips' front within the mouth's middle: a way round a corner or through the mouth joins no lips (ICT's jaw
+    # open 0.4 at rest, its inner lips 0.25 eye distances apart: the way round a corner is about 3 times the gap, at
+    # the short way's limit, and the detector's middles 0.024 eye distances aside fell within it)
     front = np.zeros(len(P), bool)
     front[near] = ((_mouth_middle(P[near], Lf) if half_middle else True)
                    & (P[near, 2] > min(P[a, 2], P[b, 2]) - FUSED_IOD * eye_distance))
