@@ -403,8 +403,13 @@ def test_the_openings_even_odd_test_is_the_straightforward_one_on_hostile_polygo
     for which in (None, rng.integers(0, len(sets), len(points))):  # one set (the first), or a set per point
         want = straightforward_opening_mask(points, sets, np.zeros(len(points), int) if which is None else which)
         assert want.sum() > 100 and (~want).sum() > 100
-        for P in (points, points[:, :2]):  # face-frame points, or their frontal view alone
+        # face-frame points, or their frontal view alone; and in float32 (tested in float64 all the same)
+        for P in (points, points[:, :2]):
             np.testing.assert_array_equal(opening_mask(P, sets[0] if which is None else sets, which=which), want)
+        P32 = points.astype(np.float32)
+        want32 = straightforward_opening_mask(P32.astype(np.float64), sets,
+                                              np.zeros(len(points), int) if which is None else which)
+        np.testing.assert_array_equal(opening_mask(P32, sets[0] if which is None else sets, which=which), want32)
 
 
 def test_landmarks_carried_into_many_poses_are_each_poses():

@@ -84,13 +84,23 @@ def test_a_model_file_keeps_its_steps(model, tmp_path, monkeypatch):
 
 def test_the_fingerprint_is_every_number_the_choice_reads(model):
     """model_fingerprint (the arrays' bytes read in place) is the same for a copy of the model and differs when one
-    number it reads moves by its last bit: a descriptor's residual or coefficient, the rest curves, a landmark."""
+    number it reads moves by its last bit: a descriptor's residual or coefficient, the rest curves and their
+    remainder, the curves' parameters, the feature points, a landmark, the smoothing parameters; or when bytes move
+    from one array to the next (a feature point made a landmark)."""
     import copy
 
     base = sampling.model_fingerprint(model)
     assert sampling.model_fingerprint(copy.deepcopy(model)) == base
+    for name in ("a", "w"):  # w: the remainder's own (remainder_w), where a model sets one
+        other = copy.deepcopy(model)
+        setattr(other, name, np.nextafter(other.a if name == "a" else other.remainder_w, np.inf))
+        assert sampling.model_fingerprint(other) != base
+    other = copy.deepcopy(model)  # the last feature point made the first landmark: the same bytes in the same order
+    other.features, other.landmarks = other.features[:-1], np.concatenate([other.features[-1:], other.landmarks])
+    assert sampling.model_fingerprint(other) != base
     for change in (lambda m: m.descriptors[-1].residual, lambda m: m.descriptors[0].coefficients,
-                   lambda m: m.coefficients, lambda m: m.landmarks):
+                   lambda m: m.coefficients, lambda m: m.residual, lambda m: m.knots, lambda m: m.features,
+                   lambda m: m.landmarks):
         other = copy.deepcopy(model)
         a = change(other)
         finite = np.flatnonzero(np.isfinite(a))  # (a landmark the model keeps)
@@ -278,6 +288,23 @@ def test_key_batches_kept_and_written_over_are_the_fresh_ones(model):
                                     fresh, strict=True):
             np.testing.assert_array_equal(grids, want)
             assert np.shares_memory(grids, buffers[0])
+    # buffers a caller made, of unequal sizes (or another type), in either type: made again where they will not do
+    for dtype in (np.float64, np.float32):
+        fresh = [g.copy() for _, g in key_grids(model, 4, 4, batch=7, planes=True, dtype=dtype)]
+        for given in ([np.empty(10 ** 7, dtype), np.empty(10, dtype)], [np.empty(10 ** 7, dtype)],
+                      [np.empty(10 ** 7, dtype), np.empty(10 ** 7, np.float16)]):
+            for (_, grids), want in zip(key_grids(model, 4, 4, batch=7, planes=True, reuse=given, dtype=dtype),
+                                        fresh, strict=True):
+                np.testing.assert_array_equal(grids, want)
+                assert grids.dtype == dtype
+    # stacks of another type than the solve's are made again: float32 stacks never round a float64 solve's keys
+    float64 = [g.copy() for _, g in key_grids(model, 4, 4, batch=7, planes=True)]
+    for (_, grids), want in zip(key_grids(model, 4, 4, batch=7, planes=True,
+                                          stacks=key_stacks(model, 7, dtype=np.float32)), float64, strict=True):
+        np.testing.assert_array_equal(grids, want)
+    with pytest.raises(ValueError, match="float32 or float64"):
+        next(key_grids(model, 4, 4, planes=True, dtype=np.float16))
+
 
 def test_float32_keys_leave_the_float64_ones_as_they_were(model):
     """key_grids in float32 (the resolution choice's) are the float64 keys to float32's rounding of its products;

@@ -184,7 +184,8 @@ def opening_mask(points_face, landmarks_face, grow=GROW, which=None) -> np.ndarr
     grown = _grown_openings(sets, grow)
     if grown is None:
         return mask
-    x, y = points_face[:, 0], points_face[:, 1]
+    # in float64 whatever the points' type (a float32 column against a float64 corner stays float32 in numpy 1.x)
+    x, y = (np.asarray(points_face[:, i], np.float64) for i in (0, 1))
     lo, hi = grown.min(axis=2), grown.max(axis=2)  # each polygon's bounding box: only points in it can be inside
     if which is None:  # one set, many points (the resolution choice's grids): a polygon at a time, its rows first
         for polygon, (x0, y0), (x1, y1) in zip(grown[0], lo[0], hi[0]):

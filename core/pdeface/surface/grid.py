@@ -101,13 +101,16 @@ def key_grids(model: FaceModel, sub_u, sub_v, assembly=None, batch=KEY_BATCH, pl
     (``planes``: (m, 3, n_u, n_v)). ``reuse`` (with ``planes``): each batch's grids are written over the last
     one's, for a caller done with a batch before it asks for the next (the same numbers, no fresh pages); a list:
     :meth:`pdeface.surface.pde.SurfaceOperator.planes`' buffers, kept by the caller across grids.
-    ``stacks``: :func:`key_stacks` of ``batch``, when made already (of ``dtype``, or cast to it). ``dtype``: with
+    ``stacks``: :func:`key_stacks` of ``batch``, when made already (made again where not of the solve's dtype: a
+    float32 stack would round a float64 solve's keys). ``dtype``: with
     ``planes``, ``np.float32`` solves in float32 (half the bytes, about half the CPU; values to float32's rounding
     of its products), for the resolution choice's screen alone: keys and bindings stay float64. ``weights``:
     :func:`break_weights` of ``sub_v``, when known (the caller's rest grid on the same columns)."""
     weights = break_weights(model, sub_v) if weights is None else weights
     buffers = (reuse if isinstance(reuse, list) else [] if reuse else None) if planes else None
     dtype = dtype if planes else np.float64
+    if stacks is not None and stacks and stacks[0][1].dtype != np.dtype(dtype):
+        stacks = None
     for first, C, R in key_stacks(model, batch, dtype) if stacks is None else stacks:
         m = C.shape[2] // 3
         X = surface_grid(model, sub_u, sub_v, assembly, coefficients=C, residual=R, planes=planes, weights=weights,

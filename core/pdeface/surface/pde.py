@@ -467,9 +467,9 @@ class SurfaceOperator:
         the planes as they are.
 
         ``reuse``: a list that keeps the products' two buffers between calls (empty at first, or flat buffers the
-        caller made; larger ones are made where these are too small or of another dtype): the planes returned are
-        then written over the last call's (in the first buffer; the second, as large, is scratch until the next
-        call). Many solves on one grid or several (a face's keys, a batch at a time) fault in fresh pages for each
+        caller made; others are made where either is too small or of another dtype): the planes returned are
+        then written over the last call's (in the first buffer; the second, at least as large, is scratch until the
+        next call). Many solves on one grid or several (a face's keys, a batch at a time) fault in fresh pages for each
         otherwise (issue #35); the same products, so the same numbers.
 
         ``dtype``: ``np.float32`` solves in float32 (:meth:`_planes32`), for a caller that only screens the values
@@ -486,7 +486,7 @@ class SurfaceOperator:
             X += F.reshape(rows, -1) @ v_modes
             return X.reshape(c, n_u, -1)
         size = rows * v_modes.shape[1]
-        if not reuse or reuse[0].size < size or reuse[0].dtype != v_modes.dtype:
+        if len(reuse) < 2 or any(b.size < size or b.dtype != v_modes.dtype for b in reuse[:2]):
             reuse[:] = [np.empty(size, v_modes.dtype) for _ in range(2)]
         X, product = (b[:size].reshape(rows, -1) for b in reuse)
         np.matmul(Ru.reshape(rows, -1), v_remainder, out=X)
@@ -504,7 +504,8 @@ class SurfaceOperator:
         n1, _, n_u, b = modes_u.shape
         rows, width = c * n_u, v_factors.shape[0]
         size = rows * v_factors.shape[1]
-        if not reuse or reuse[0].dtype != np.float32 or reuse[0].size < size or reuse[1].size < max(size, rows * width):
+        if (len(reuse) < 2 or any(b.dtype != np.float32 for b in reuse[:2]) or reuse[0].size < size
+                or reuse[1].size < max(size, rows * width)):
             reuse[:] = [np.empty(size, np.float32), np.empty(max(size, rows * width), np.float32)]
         U = reuse[1][:rows * width].reshape(c, n_u, width)
         res = np.ascontiguousarray(np.transpose(residual, (2, 0, 1)), dtype=np.float32)  # (c, K, J)
@@ -679,7 +680,9 @@ def solve_surface(coefficients, residual, knots, a=1.0, w=None, sub_u=4, sub_v=4
         The surface's grid; with ``planes``, (3, n_u, n_v) (3m, n_u, n_v) its coordinate planes instead; with
         ``nodes``, (p, 3) ((p, 3m)) its nodes.
     """
-    dtype = dtype if planes and nodes is None else np.float64
+    dtype = np.dtype(dtype if planes and nodes is None else np.float64)
+    if dtype not in (np.float32, np.float64):
+        raise ValueError(f"the surface is solved in float32 or float64, not {dtype}")
     coefficients = np.asarray(coefficients, dtype=dtype)
     residual = np.asarray(residual, dtype=dtype)
     if not a > 0:

@@ -65,8 +65,8 @@ MOVED_MM = 0.005
 SETTLE_POSES = 16
 #: Largest explicit steps per interval.
 MAX_STEPS = 64
-#: Poses of one key whose turns are screened in one array operation (in float32, over the part of the grid their
-#: moved blocks cover): the screen's arrays hold this many grids.
+#: Poses of one key whose turns are screened together (in float32, over the part of the grid their moved blocks
+#: cover, in bands of at most :data:`SCREEN_CHUNK` of their quads).
 SCREEN_POSES = 8
 #: The float32 screen passes every edge within this many degrees of the turn it must pass; each it passes is
 #: measured again in float64, as :func:`quad_turn_cosines` measures it. Float32 keeps 7 digits of the quads'
@@ -78,6 +78,8 @@ SCREEN_CALL_QUADS = 4000
 #: A quad whose normal (the cross product of its diagonals, mm²) is shorter than this, its float32 turns
 #: unreliable: the screen passes its edges.
 SCREEN_TINY_MM2 = 1e-3
+#: The cosine an edge that is not looked at must fall under (none does): the screen's thresholds there.
+NOT_LOOKED_COS = np.float32(-2.0)
 #: Quads (of all its poses) the screen works on at once: what bounds its work arrays (7 MB). Larger were no faster,
 #: 2**16 the same, 2**14 a third slower (more array operations).
 SCREEN_CHUNK = 1 << 17
@@ -168,7 +170,9 @@ def model_fingerprint(model) -> bytes:
     h = hashlib.sha256()
     for a in (model.knots, model.coefficients, model.residual, model.layout.as_array(), model.features,
               model.landmarks if model.landmarks is not None else np.zeros(0), [model.a, model.remainder_w]):
-        h.update(np.ascontiguousarray(a, np.float64))
+        a = np.ascontiguousarray(a, np.float64)
+        h.update(np.array(a.shape, np.int64).tobytes())  # bytes cannot move between arrays unnoticed
+        h.update(a)
     h.update(model.assembly.encode())
     for d in model.descriptors:  # what its dense changes are made of (hashing those read 5x the bytes)
         h.update(d.key.encode())
@@ -297,6 +301,7 @@ def _screened(rest, G, w, looked_cos, scratch=None):
     are the next row's), in bands of :data:`SCREEN_CHUNK` quads of the poses (each band's last quad row the next
     one's first): each element the same sums and products as one pass over the part.
     """
+    G = np.asarray(G, np.float32)  # (the float32 keys as they are; another type would round otherwise by path)
     P, _, n_u, n_v = G.shape
     H = n_u - 1  # quad rows; a row of quads is n_v long, its last the wrap to the next row
     band = max(2, min(H, SCREEN_CHUNK // (P * n_v)))
@@ -330,7 +335,8 @@ def _screened(rest, G, w, looked_cos, scratch=None):
             np.multiply(d2[:, x], d1[:, y], out=N[:, i])
             N[:, i] -= np.multiply(d2[:, y], d1[:, x], out=products[:, :n])
         square = np.einsum("pik,pik->pk", N, N, out=d1[:, 0])  # d1, d2 are free now; einsum: one pass, not five
-        tiny = np.less(square, tiny_square) if not square.min() >= tiny_square else None  # NaN: look
+        # (a NaN's quad is no tiny one: its cosines are NaN, under no threshold, as in float64)
+        tiny = np.less(square, tiny_square) if not square.min() >= tiny_square else None
         if tiny is not None:
             square[tiny] = 1.0
         inverse = np.divide(1.0, np.sqrt(square, out=square), out=square)
@@ -340,12 +346,12 @@ def _screened(rest, G, w, looked_cos, scratch=None):
             cos[:, n - step:] = 1.0  # no neighbour in the band (the extra column's last edge: cleared below)
             np.einsum("pik,pik->pk", N[:, :, :n - step], N[:, :, step:], out=cos[:, :n - step])
             rows = b - a - 1 + axis
-            looked = looked_cos[axis] if np.ndim(looked_cos[axis]) == 0 else looked_cos[axis][a:a + rows]
+            looked = np.float32(looked_cos[axis]) if np.ndim(looked_cos[axis]) == 0 else looked_cos[axis][a:a + rows]
             mask = np.less(cos[:, :rows * n_v].reshape(P, rows, n_v), looked, out=masks[axis][:, a:a + rows])
             if tiny is not None:  # its float32 normal may point anywhere
                 beside = np.zeros((P, n), bool)
                 beside[:, :n - step] = tiny[:, :n - step] | tiny[:, step:]
-                mask |= beside[:, :rows * n_v].reshape(P, rows, n_v) & (np.asarray(looked) > -1.5)
+                mask |= beside[:, :rows * n_v].reshape(P, rows, n_v) & (np.asarray(looked) > NOT_LOOKED_COS)
         if b == H:
             break
         a = b - 1
@@ -402,9 +408,9 @@ def interval_turns(model, rows, cols, W, floor=0.0, stacks=None, buffers=None):
     blocks cover, for those that could raise a need (:data:`SCREEN_MARGIN_DEG`); only those are measured in float64,
     with :func:`quad_turn_cosines`' products, on the rest (float64) plus the weight times the key (float32, upcast):
     the turns of the float64 keys to their float32 rounding (the steps the same on 47 faces, the needs within 0.002°
-    under 25°; docs/design/folds.md). ``stacks``: :func:`pdeface.surface.grid.key_stacks`, when made already (they do
-    not depend on the steps). ``buffers``: the key solves' buffers (:meth:`pdeface.surface.pde.SurfaceOperator.planes`'
-    ``reuse``), kept across meshes.
+    under 25°; docs/design/folds.md). ``stacks``: :func:`pdeface.surface.grid.key_stacks` in float32, when made already
+    (they do not depend on the steps; float64 ones are made again). ``buffers``: the key solves' buffers, a list
+    (:meth:`pdeface.surface.pde.SurfaceOperator.planes`' ``reuse``), kept across meshes.
     """
     weights = break_weights(model, cols)  # the rest's and the keys' (the same columns)
     planes0 = surface_grid(model, rows, cols, planes=True, weights=weights)
@@ -487,9 +493,9 @@ def interval_turns(model, rows, cols, W, floor=0.0, stacks=None, buffers=None):
             for axis in (0, 1):
                 lower = np.maximum(floor, np.minimum(need[axis][interval[axis][:-1]], need[axis][interval[axis][1:]]))
                 cos = np.cos(np.radians(np.maximum(lower - SCREEN_MARGIN_DEG, 0.0))).astype(np.float32)
-                looked = np.full((n_u - 2 + axis, n_v), -2.0, np.float32)  # a column wider, as the screen's rows
+                looked = np.full((n_u - 2 + axis, n_v), NOT_LOOKED_COS)  # a column wider, as the screen's rows
                 looked[:, :n_v - 1 - axis] = np.where(shut_at_rest[axis], cos[:, None] if axis == 0 else cos[None, :],
-                                                      np.float32(-2.0))
+                                                      NOT_LOOKED_COS)
                 looked_at[needs].append(looked)
         looked_cos = looked_at[needs]
         passed = ([], [])  # per axis: (pose, row, column) of the edges the screen passes
@@ -617,9 +623,8 @@ def adaptive_resolution(model, max_turn=MAX_TURN_DEG):
     stacks = key_stacks(model, dtype=np.float32)  # the keys' coefficients, for both meshes (solved in float32)
     # the solves' buffers, for both meshes: as large as the largest mesh the choice can measure (its pages are
     # touched as used), so the check faults in only the pages the probe did not touch (2.7 us a page here)
-    def mesh_vertices(steps):
-        return ((K - 1) * steps + 1) * ((J - 1) * steps + 1)
-    vertices = max(mesh_vertices(PROBE), min(MAX_VERTICES, mesh_vertices(hi)))
+    probe_vertices, finest = (((K - 1) * s + 1) * ((J - 1) * s + 1) for s in (PROBE, hi))
+    vertices = max(probe_vertices, min(MAX_VERTICES, finest))
     buffers = [np.empty(3 * KEY_BATCH * vertices, np.float32) for _ in range(2)]
     probed = interval_turns(model, (PROBE,) * (K - 1), (PROBE,) * (J - 1), W, floor, stacks=stacks, buffers=buffers)
     steps, capped = capped_steps([np.clip(np.ceil(PROBE * t / max_turn), lo, hi).astype(int) for t in probed])
