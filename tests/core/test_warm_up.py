@@ -28,7 +28,6 @@ def test_warm_up_loads_the_chains_libraries_and_the_prior_without_mediapipe_when
     assert not out["mediapipe"]  # landmarks given: MediaPipe is not loaded
 
 
-
 def test_the_prior_and_the_landmark_steps_read_icts_head_file_once():
     # The prior's head is the landmark steps' copy (issue #35: the file was read twice a process, 10-14 ms each).
     out = _fresh("import json, os\n"
