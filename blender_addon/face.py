@@ -145,9 +145,10 @@ def check_landmarks(settings, obj, points, unit=None, accept=False):
     """The gate's word on the landmarks :func:`read_landmarks` gave, before the fit, as the CLI's: the whole gate on
     the mesh's empties (found or edited), its look at the mesh alone (eyes open) on landmarks the user listed.
     Returns a note on a failure ``accept`` lets by; raises :class:`~pdeface.landmarks.gate.LandmarkGateError`."""
-    if settings.landmark_source == "AUTO" and landmarks.empties(obj) is not None:
+    origin = landmark_origin(settings, obj)  # (after read_landmarks: a find made the empties)
+    if origin == landmarks.EMPTIES:
         return landmarks.gated(obj, points, unit, accept)
-    return landmarks.at_rest(obj, points, landmark_origin(settings, obj), unit, accept)
+    return landmarks.at_rest(obj, points, origin, unit, accept)
 
 
 def landmark_origin(settings, obj):

@@ -260,9 +260,10 @@ def failing_groups(obj, source=None, unit=None):
     """The groups that failed the gate when last checked (from the .blend), or []; with ``source``, only when that
     check judged the landmarks of ``source`` (:data:`EMPTIES` or a given source, as :func:`at_rest` was told;
     ``unit``: the unit the fit is told, see :func:`verdict_source`)."""
-    if obj is None or (source is not None and verdict_source(obj, unit) != source):
-        return []
-    return [g for g in obj.get(GATE_GROUPS_PROP, "").split(",") if g]
+    groups = [] if obj is None else [g for g in obj.get(GATE_GROUPS_PROP, "").split(",") if g]
+    if not groups or (source is not None and verdict_source(obj, unit) != source):
+        return []  # (nothing failed: the source is not asked, which reads the empties on an older .blend)
+    return groups
 
 
 def verdict_source(obj, unit=None):

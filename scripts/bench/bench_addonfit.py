@@ -41,8 +41,8 @@ def pieces(addon, src, face):
     return {
         "store the model, read it back": (stored(False), stored(True)),
         "fit's loop triangles": (lambda: br.triangles(me), lambda: br.triangles(me, loops=False)),
-        "the binding's fan triangles": (lambda: br.as_pdeface_mesh(me).triangles()[0],
-                                        lambda: br.polygon_triangles(me, rest)),
+        "the binding's fan triangles (a whole Mesh first, or the polygons alone)": (
+            lambda: br.as_pdeface_mesh(me).triangles()[0], lambda: br.polygon_triangles(me, rest)),
         "82 keys into the mesh's space": (lambda: [rest + d @ identity.T for d in D],
                                           lambda: [rest + addon.head._in_object_space(d, identity) for d in D]),
     }

@@ -73,15 +73,19 @@ def lr_diff(a, b):
     return abs(a - b) / max(abs(a), abs(b), 1e-12)
 
 
+def bound(V, T, L, source):
+    """The head fitted on landmarks ``L``, ``source``'s descriptors retargeted, and bound as the product binds (pdeface
+    rig, the add-on, pose --mesh): the model as its file holds it, and the landmarks it carries, not given again.
+    Returns ``(model, binding)``."""
+    model, _ = fit_face(V, T, L)
+    model = model_from_bytes(model_to_bytes(retarget(source, model)))
+    return model, HeadBinding(model, V, T)
+
+
 def measure(V, T, L, body, source, quick):
     """Fit, retarget, bind, key; the issue's figures of one head (face frame, mm)."""
     t = time.perf_counter()
-    model, _ = fit_face(V, T, L)
-    model = retarget(source, model)
-    # Bound as the product binds (pdeface rig, the add-on, pose --mesh): the model as its file holds it, and the
-    # landmarks it carries, not given again.
-    model = model_from_bytes(model_to_bytes(model))
-    b = HeadBinding(model, V, T)
+    model, b = bound(V, T, L, source)
     names = [n for n in every_pose(model) if n != "neutral" and (not quick or n in QUICK)]
     D = b.displacements(b.every_pose_motion_args(names))
     seconds = time.perf_counter() - t

@@ -36,13 +36,11 @@ import json
 
 import numpy as np
 from pdeface.au.aureport import captured
-from pdeface.au.modelfile import load_face, model_from_bytes, model_to_bytes
-from pdeface.au.retarget import retarget
+from pdeface.au.modelfile import load_face
 from pdeface.errors import PdeFaceError
-from pdeface.head.bind import HeadBinding
 from pdeface.landmark_scheme import LOWER_LIDS, UPPER_LIDS
-from pdeface.surface.fit import fit_face
 
+from scripts.bench.bench_keys_devset import bound
 from scripts.bench.benchlib import bench_parser, run_bench
 from scripts.devset.characters import SPECS, build, race_of
 
@@ -92,12 +90,7 @@ def compare(ours, theirs, mm_per_unit, lid_vertices=None) -> dict:
 def measure(spec, source) -> dict:
     ch = build(spec)
     V, T, L = ch.vertices, ch.triangles, ch.landmarks
-    model, _ = fit_face(V, T, L)
-    model = retarget(source, model)
-    # Bound as the product binds (pdeface rig, the add-on, pose --mesh): the model as its file holds it, and the
-    # landmarks it carries, not given again.
-    model = model_from_bytes(model_to_bytes(model))
-    b = HeadBinding(model, V, T)
+    model, b = bound(V, T, L, source)
     keys = {d.key for d in model.descriptors}
     names = [n for n, (w, _) in PAIRS.items() if set(w) <= keys]
     D = b.pose_displacements([(PAIRS[n][0], "sum") for n in names])

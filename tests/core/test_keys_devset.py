@@ -36,7 +36,9 @@ needs_makehuman = pytest.mark.skipif(not makehuman.available(), reason="needs ..
 
 @lru_cache(maxsize=2)
 def rig(name):
-    """(character's joined V, T, L, retargeted model, binding), as bench_keys_devset rigs it."""
+    """(character's joined V, T, L, retargeted model, binding): fitted and bound in memory, its landmarks given
+    (bench_keys_devset binds the model read back from its bytes, its landmarks its own: the same to rounding,
+    test_pdeface_rig_binds_with_the_landmarks_the_benchmarks_bind_with)."""
     ch = build(SPECS[name])
     (V, T), L = ch.joined(), ch.landmarks
     model, _ = fit_face(V, T, L)

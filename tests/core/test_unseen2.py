@@ -132,7 +132,8 @@ def test_a_keys_file_over_the_archive_limit_is_read_back_other_archives_are_not(
 
 
 def test_save_keys_refuses_a_keys_file_its_reader_would_refuse(tmp_path, monkeypatch):
-    """82 float32 keys are 984 bytes a vertex: a head of more than about 1.09M vertices made a keys file over the
+    """82 float32 keys are 984 bytes a vertex (its rest mesh ~48 more): a head of more than about 1.04M vertices made
+    a keys file over the
     1 GiB limit that ``load_keys`` then refused. Here the limit shrunk to just under and at the file's size."""
     from pdeface.errors import FileError
     from pdeface.io import files

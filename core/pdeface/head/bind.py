@@ -1115,13 +1115,14 @@ class HeadBinding:
         screen = Screen()
         self._folds.relax(out, steps=steps, screen=screen, unpinned=self._jaw_pins,
                           unpinned_keys=np.flatnonzero(~pins).tolist(), look=fold_relax.SWEEPS_PER_LOOK)
-        screen.moved(*self._lids.apply(out, closing))
+        moved, closed = self._lids.apply(out, closing)
+        screen.moved(*moved)
         pushed = self._keep_out_of_eyeballs(out, screen)
         # Relaxed again where the lids' closing or the eyeballs' surface folded them (a blink, a glance down), past
         # the limit alone (each sweep opens a closed lid a little), the lids kept out of the eyeballs; only
         # what moved since the first relaxation's screen is screened again.
         self._folds.relax(out, keys=[i for i, c in enumerate(closing) if c or pushed[i]], budget=self._folds.limit,
-                          screen=screen, held=self._lids.held_in(closing))
+                          screen=screen, held=self._lids.held_in(closed))
         if len(self.mouth):  # the bag: the jaw's turn below the mouth line, the upper lip's motion above it
             lip = out[self._upper_lip_vertex][None]
             out[self.mouth] = self._mouth_lower * out[self.mouth] + (1 - self._mouth_lower) * lip

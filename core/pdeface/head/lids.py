@@ -128,24 +128,25 @@ class LidClosure:
         #: lids again (0.05 of the rest gap to 0.23-0.32).
         self.held = held
 
-    def held_in(self, closing) -> list:
-        """``[(vertices, keys)]``: each coarse eye's :attr:`held` vertices and the keys (indices) of ``closing``
-        (per key, :func:`eyes_closed_by`'s dict or None) that close that eye (a wink without a side: both)."""
-        return [(v, [i for i, c in enumerate(closing) if c and (c.get(side) or c.get("?"))])
-                for side, v in self.held.items()]
+    def held_in(self, closed) -> list:
+        """``[(vertices, keys)]``: each coarse eye's :attr:`held` vertices and the keys that closed that eye
+        (``closed``: :meth:`apply`'s, a wink without a side counted for the eye it closed)."""
+        return [(v, closed.get(side, [])) for side, v in self.held.items()]
 
     def apply(self, out, closing):
         """Close the eyes in the keys that close them, in place.
 
         ``out`` (n, k, 3): the keys' displacements (face frame); ``closing``: per key, :func:`eyes_closed_by`
-        its AUs (None: left as it is). Returns ``(vertices, keys)``: the (vertex, key) pairs it may have moved.
+        its AUs (None: left as it is). Returns ``((vertices, keys), closed)``: the (vertex, key) pairs it may have
+        moved, and per side ("R", "L") the keys (indices) that closed that eye (for :meth:`held_in`).
         """
         keys = np.array([i for i, c in enumerate(closing) if c], np.int64)
         lids = np.unique(np.concatenate([idx for _, _, idx, _, _ in self.eyes] + [low for low, _ in self.lower]
                                         or [np.zeros(0, np.int64)]))
         moved = np.repeat(lids, len(keys)), np.tile(keys, len(lids))
+        closed = {}
         if not len(keys):
-            return moved
+            return moved, closed
         # The closing keys' rows of the lids and their middles alone (not every vertex's: a fresh copy of the head's
         # rows of those keys cost more page faults than the closing's work), read and written back by local index.
         rows = np.unique(np.concatenate([lids] + [np.ravel(a) for up, lo, _, _, _ in self.eyes for a in (up, lo)]))
@@ -163,6 +164,7 @@ class LidClosure:
             w = np.array([closing[i].get(side, 0.0) for i in keys])
             wink = np.array([closing[i].get("?", 0.0) for i in keys]) * (gaps[j] <= gaps.min(0))
             w = np.minimum(w + wink, 1.0)  # a wink without a side: the eye its motion closes more
+            closed[side] = keys[w > 0].tolist()
             # In a blink the lower lid keeps its height (its slide along kept): the closing is the upper lid's (ICT's
             # scanned blink raises the lower middle 0.02 of the gap, MakeHuman's eye closure not at all; the
             # retargeted motion raised it up to 0.16 on the development set, that much less travel for the upper lid).
@@ -190,7 +192,7 @@ class LidClosure:
             turned *= (1 + share * (rb / np.maximum(ra, 1e-300) - 1)[None])[..., None]
             sub[local(idx)] += turned - v
         out[rows[:, None], keys] = sub
-        return moved
+        return moved, closed
 
 
 def coarse_margins(Vf, T, Lf, skin, side, eye_distance):
