@@ -74,19 +74,33 @@ def save_keys(path, vertices, triangles, landmarks, names, deltas, unit, source=
 
     Raises :class:`FileError`, writing nothing, where the file would be over ``MAX_BYTES["keys"]`` (which
     :func:`load_keys` refuses)."""
-    meta = {"version": KEYS_VERSION, "unit": unit, "names": list(names), "source": source}
-    meta_bytes = json.dumps(meta, separators=(",", ":")).encode()
-    arrays = {"format": np.array(KEYS_FORMAT), "meta": np.frombuffer(meta_bytes, np.uint8),
-              "vertices": np.asarray(vertices, np.float64), "triangles": np.asarray(triangles, np.int32),
-              "landmarks": np.asarray(landmarks, np.float64), "deltas": np.asarray(deltas, np.float32)}
-    size, limit = stored_npz_bytes(arrays), MAX_BYTES["keys"]
-    if size > limit:
-        raise FileError(f"{path}: {len(names)} keys of {len(arrays['vertices'])} vertices would be a "
-                        f"{size / 2**20:.0f} MiB keys file, over the {limit >> 20} MiB a keys file may be; "
-                        "rig fewer keys (--no-presets) or a lighter mesh")
+    arrays = _keys_arrays(vertices, triangles, landmarks, names, deltas, unit, source)
+    check_keys_size(path, arrays)
     # stored, not deflated: the deltas (float32, 26 MB for the 27k head's 82 keys) deflate only to 55 % and took
     # 0.5-1 s of the rig's 3 s (issue #35); numpy.load reads either
     return write_npz(path, arrays, compress=False)
+
+
+def _keys_arrays(vertices, triangles, landmarks, names, deltas, unit, source=""):
+    meta = {"version": KEYS_VERSION, "unit": unit, "names": list(names), "source": source}
+    meta_bytes = json.dumps(meta, separators=(",", ":")).encode()
+    return {"format": np.array(KEYS_FORMAT), "meta": np.frombuffer(meta_bytes, np.uint8),
+            "vertices": np.asarray(vertices, np.float64), "triangles": np.asarray(triangles, np.int32),
+            "landmarks": np.asarray(landmarks, np.float64), "deltas": np.asarray(deltas, np.float32)}
+
+
+def check_keys_size(path, arrays=None, vertices=None, triangles=None, names=()):
+    """Raise :class:`FileError` where the keys file of ``arrays`` (:func:`save_keys`'), or of keys ``names`` on
+    ``vertices`` and ``triangles`` (before their deltas are made: a rig refused before it binds), would be over
+    ``MAX_BYTES["keys"]``."""
+    if arrays is None:  # the deltas' size alone (a view of one number: nothing allocated)
+        deltas = np.broadcast_to(np.float32(0), (len(names), len(vertices), 3))
+        arrays = _keys_arrays(vertices, triangles, np.zeros((68, 3)), names, deltas, "mm")
+    size, limit = stored_npz_bytes(arrays), MAX_BYTES["keys"]
+    if size > limit:
+        raise FileError(f"{path}: {len(arrays['deltas'])} keys of {len(arrays['vertices'])} vertices would be a "
+                        f"{size / 2**20:.0f} MiB keys file, over the {limit >> 20} MiB a keys file may be; "
+                        "rig fewer keys (--no-presets) or a lighter mesh")
 
 
 def load_keys(path) -> dict:
@@ -184,6 +198,7 @@ def rig_head(mesh_arg, out, landmarks=None, unit=None, parts=None, descriptors=D
     binding = HeadBinding(rigged, V, T, overrides=overrides)
     keyed = binding.bindable(rigged.descriptors)  # no gaze keys on a head without eyeballs (its notes say so)
     poses = key_poses(rigged, merged_presets([]) if presets else {}, descriptors=keyed)
+    check_keys_size(out / "keys.npz", vertices=V, triangles=T, names=list(poses))  # before the keys are made
     deltas = binding.pose_displacements(list(poses.values()))
     lap("bind")
     # the unit as its millimetres where the fit estimated it: a keys file names a unit its readers' frame takes

@@ -133,8 +133,8 @@ def test_a_keys_file_over_the_archive_limit_is_read_back_other_archives_are_not(
 
 def test_save_keys_refuses_a_keys_file_its_reader_would_refuse(tmp_path, monkeypatch):
     """82 float32 keys are 984 bytes a vertex (its rest mesh ~48 more): a head of more than about 1.04M vertices made
-    a keys file over the
-    1 GiB limit that ``load_keys`` then refused. Here the limit shrunk to just under and at the file's size."""
+    a keys file over the 1 GiB limit that ``load_keys`` then refused. Here the limit shrunk to just under and at the
+    file's size."""
     from pdeface.errors import FileError
     from pdeface.io import files
     from pdeface.rig import load_keys, save_keys
@@ -149,6 +149,24 @@ def test_save_keys_refuses_a_keys_file_its_reader_would_refuse(tmp_path, monkeyp
     monkeypatch.setitem(files.MAX_BYTES, "keys", size + 6 * 1024)  # over the bound checked: a KiB a member, six
     assert save_keys(tmp_path / "fits.npz", *args) == size
     assert load_keys(tmp_path / "fits.npz")["deltas"].shape == (2, 40, 3)
+
+
+def test_a_rig_whose_keys_file_would_be_refused_stops_before_it_makes_the_keys(tmp_path, monkeypatch):
+    """The keys file's size is known from the mesh and the keys' count: ``pdeface rig`` refuses before the binding
+    makes the keys (a 1M-vertex head's are over 1 GiB of memory), with save_keys' message, and writes no keys file."""
+    from pdeface.errors import FileError
+    from pdeface.head.bind import HeadBinding
+    from pdeface.io import files
+    from pdeface.rig import rig_head
+
+    def never(*args, **kwargs):
+        raise AssertionError("the keys were made")
+
+    monkeypatch.setitem(files.MAX_BYTES, "keys", 2 ** 20)
+    monkeypatch.setattr(HeadBinding, "pose_displacements", never)
+    with pytest.raises(FileError, match=r"82 keys of 26719 vertices would be a \d+ MiB keys file, over the 1 MiB"):
+        rig_head("head", tmp_path / "rig")
+    assert not (tmp_path / "rig" / "keys.npz").exists()
 
 
 def test_without_jaw_landmarks_the_mouth_parts_are_found_as_before():
