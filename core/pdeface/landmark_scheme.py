@@ -35,6 +35,8 @@ NOSE_WING_LEFT = 35
 EYE_RIGHT = range(36, 42)
 EYE_LEFT = range(42, 48)
 EYE_OUTER_RIGHT, EYE_INNER_RIGHT, EYE_INNER_LEFT, EYE_OUTER_LEFT = 36, 39, 42, 45
+#: Each eye's corners (inner, outer): the right eye's, then the left's.
+EYE_CORNERS = ((EYE_INNER_RIGHT, EYE_OUTER_RIGHT), (EYE_INNER_LEFT, EYE_OUTER_LEFT))
 #: The right eye's lower-lid points (inner, outer); the left's mirror them (:data:`MIRROR`).
 LID_LOWER_INNER_RIGHT, LID_LOWER_OUTER_RIGHT = 40, 41
 #: The upper- and lower-lid points of both eyes, the right eye's first; each lower point lies under the upper point at

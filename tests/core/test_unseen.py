@@ -291,7 +291,7 @@ def test_open_eyes_fused_with_their_lids_pass_with_given_landmarks_closed_ones_d
         found_gate = check(L, Vc, Tc, "cm")
         assert _closed(found_gate) and "given by hand with the lids apart" in found_gate.message()
         assert _closed(check_mesh_at_rest(L, Vc, Tc, "cm")) != opened, blink
-        gaps = lid_gaps(L, face_frame(L, "cm"), eye_distance(L))
+        gaps = lid_gaps(L, face_frame(L, "cm"))
         assert (gaps > LIDS_APART).all() == opened, gaps
     V = mesh.vertices + S["identity004"] + S["eyeBlink_L"]  # one eye blinking: that one alone is named
     Vc, Tc, L = _fused_eyes(V, T, V[lm], 0.42)

@@ -44,10 +44,7 @@ import numpy as np
 from ..errors import LandmarkError, PdeFaceError
 from ..landmark_scheme import (
     CHIN,
-    EYE_INNER_LEFT,
-    EYE_INNER_RIGHT,
-    EYE_OUTER_LEFT,
-    EYE_OUTER_RIGHT,
+    EYE_CORNERS,
     INNER_LIPS,
     JAW,
     JAW_LEFT_ANGLE,
@@ -266,7 +263,7 @@ def eye_openings(V, T, points, frame, eyes) -> tuple[np.ndarray, np.ndarray]:
     shares, half, step = EYE_COLUMNS
     rows = np.arange(-round(half / step), round(half / step) + 1)
     depth, heights = np.zeros(2), np.zeros((2, len(shares)))
-    for e, (a, b) in enumerate(((EYE_INNER_RIGHT, EYE_OUTER_RIGHT), (EYE_INNER_LEFT, EYE_OUTER_LEFT))):
+    for e, (a, b) in enumerate(EYE_CORNERS):
         on_line = points[a] + np.asarray(shares)[:, None] * (points[b] - points[a])
         reach = max(np.abs(np.asarray(shares) - np.mean(shares)).max() * np.linalg.norm(points[b] - points[a]) / eyes,
                     half)  # the columns' farthest pixel from the image's centre (eye distances)
@@ -437,13 +434,12 @@ def check(points, V=None, T=None, unit=None) -> Verdict:
     return verdict
 
 
-def lid_gaps(points, frame, eyes) -> np.ndarray:
+def lid_gaps(points, frame) -> np.ndarray:
     """How far apart the landmarks put each eye's lids: the upper lid points' (:data:`UPPER_LIDS`) mean height above
     the lower ones' in the face frame, over the distance between the eye's corners. Right eye, then left."""
-    F = frame.to_face(np.asarray(points, np.float64)) / (eyes * frame.scale)
-    corners = ((EYE_INNER_RIGHT, EYE_OUTER_RIGHT), (EYE_INNER_LEFT, EYE_OUTER_LEFT))
+    F = frame.to_face(np.asarray(points, np.float64))
     return np.array([(F[UPPER_LIDS[e:e + 2], 1].mean() - F[LOWER_LIDS[e:e + 2], 1].mean()) / np.linalg.norm(F[a] - F[b])
-                     for e, (a, b) in zip((0, 2), corners)])
+                     for e, (a, b) in zip((0, 2), EYE_CORNERS)])
 
 
 def check_eyes_open(verdict: Verdict, V, skin, points, frame, eyes, given=False):
@@ -452,7 +448,7 @@ def check_eyes_open(verdict: Verdict, V, skin, points, frame, eyes, given=False)
     apart (:data:`LIDS_APART`) is open whatever the mesh shows (its eyeball one surface with the lids)."""
     depth, heights = eye_openings(V, skin, points, frame, eyes)
     height = np.sort(heights, axis=1)[:, -EYE_SLIT_COLUMNS]
-    apart = lid_gaps(points, frame, eyes) >= LIDS_APART if given else np.zeros(2, bool)
+    apart = lid_gaps(points, frame) >= LIDS_APART if given else np.zeros(2, bool)
     closed = (height < EYE_SLIT) & ~apart  # no skin deeper than EYE_OPENING: no height either
     if closed.any():
         which = "both eyes'" if closed.all() else f"the {'right' if closed[0] else 'left'} eye's"

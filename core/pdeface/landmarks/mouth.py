@@ -26,10 +26,10 @@ from functools import lru_cache
 
 import numpy as np
 
-from ..assets import generic_head_geometry
 from ..geometry import ClosestPoint
 from ..landmark_scheme import LIP_LOWER_BOTTOM, MOUTH_CORNER_LEFT, MOUTH_CORNER_RIGHT, eye_distance
 from ..surface.frame import face_frame
+from .register import ict_landmarks
 from .render import View, back_project, column_depths, depth_map, pixel_boxes, rasterise
 
 #: Each inner corner and its outer corner.
@@ -463,8 +463,7 @@ def lower_lip_drops(points, view: View | None = None) -> np.ndarray:
 def ict_lower_lip_drop() -> float:
     """How far (eye distances) the lower lip's sides lie below the chord from the mouth corner to the lower lip's
     middle on ICT's generic head (:func:`lower_lip_drops`, both sides' mean: 0.043)."""
-    V, _, landmarks = generic_head_geometry()
-    return float(lower_lip_drops(V[landmarks]).mean())
+    return float(lower_lip_drops(ict_landmarks()).mean())
 
 
 def lower_lip_sides_at_ict_drop(V, T, points) -> np.ndarray:

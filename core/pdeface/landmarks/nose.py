@@ -20,10 +20,10 @@ from functools import lru_cache
 
 import numpy as np
 
-from ..assets import generic_head_geometry
 from ..geometry import ClosestPoint
 from ..landmark_scheme import NOSE_BOTTOM, NOSE_BRIDGE_TOP, NOSE_TIP, eye_distance
 from ..surface.frame import face_frame
+from .register import ict_landmarks
 from .render import View, back_project, column_depths
 
 #: The upper lip's top, where the profile's chord from the nose tip ends.
@@ -83,8 +83,7 @@ def nose_bottom_at_subnasale(V, T, points, closest: ClosestPoint | None = None) 
 def ict_bridge_shares() -> np.ndarray:
     """How far down the chord from the nasion (27) to the nose tip (30) :data:`BRIDGE_MIDDLE` lie on ICT's generic
     head, projected onto it (0.333, 0.650; its 20 identities' within 0.006)."""
-    V, _, landmarks = generic_head_geometry()
-    L = V[landmarks]
+    L = ict_landmarks()
     chord = L[NOSE_TIP] - L[NOSE_BRIDGE_TOP]
     return (L[list(BRIDGE_MIDDLE)] - L[NOSE_BRIDGE_TOP]) @ chord / (chord @ chord)
 
